@@ -1,0 +1,82 @@
+"""Where the real benchmark data lives, and named access to it.
+
+The data (Middlebury, the HCI 4D light field, spectral tables) is never copied into the
+repository or the package. It is found through the environment variable ``HYPERLF_DATA``
+(CI sets it to ``../shared/data``), or through an explicit ``root`` argument.
+
+Registry (relative paths under the data root)
+---------------------------------------------
+``hci4d/antinous``                       HCI 4D light field scene (CC BY-NC-SA 4.0, Honauer 2016)
+``middlebury/{tsukuba,teddy,venus}``     Middlebury v2 pairs (Scharstein & Szeliski)
+``middlebury/art``                       Middlebury 2005 Art, half size
+``spectral/camspec/camspec_database.txt`` 28 camera sensitivities (Jiang et al. 2013)
+``spectral/munsell_uef_matt/munsell380_800_final.mat`` 1269 Munsell reflectances (Parkkinen 1989)
+``spectral/thorlabs_10nm_bandpass/...csv`` measured band-pass filter transmissions
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from .errors import DataNotFoundError
+
+__all__ = ["ENV_VAR", "DATASETS", "data_root", "dataset_path", "has_data"]
+
+ENV_VAR = "HYPERLF_DATA"
+
+#: Named datasets -> path relative to the data root.
+DATASETS: dict[str, str] = {
+    "antinous": "hci4d/antinous",
+    "tsukuba": "middlebury/tsukuba",
+    "teddy": "middlebury/teddy",
+    "venus": "middlebury/venus",
+    "art": "middlebury/art",
+    "camspec": "spectral/camspec/camspec_database.txt",
+    "munsell": "spectral/munsell_uef_matt/munsell380_800_final.mat",
+    "thorlabs": "spectral/thorlabs_10nm_bandpass/FBH_10nm_transmission_percent_380-800nm_1nm.csv",
+}
+
+
+def data_root(root: str | os.PathLike | None = None) -> Path:
+    """The data root: ``root`` if given, else ``$HYPERLF_DATA``.
+
+    Raises
+    ------
+    DataNotFoundError
+        When neither is set or the folder does not exist.
+    """
+    value = root if root is not None else os.environ.get(ENV_VAR)
+    if not value:
+        raise DataNotFoundError(
+            f"the benchmark data location is unknown: set {ENV_VAR} to the folder holding "
+            "hci4d/, middlebury/ and spectral/ (e.g. export HYPERLF_DATA=../shared/data)"
+        )
+    path = Path(value).expanduser()
+    if not path.is_dir():
+        raise DataNotFoundError(f"{ENV_VAR} points to {path}, which is not a folder")
+    return path
+
+
+def dataset_path(name: str, root: str | os.PathLike | None = None) -> Path:
+    """Path of a named dataset (see :data:`DATASETS`) or of a relative path under the root."""
+    rel = DATASETS.get(name, name)
+    path = data_root(root) / rel
+    if not path.exists():
+        known = ", ".join(sorted(DATASETS))
+        raise DataNotFoundError(
+            f"dataset {name!r} not found at {path}; known names: {known}"
+        )
+    return path
+
+
+def has_data(name: str | None = None) -> bool:
+    """True when the data root (and the named dataset, if given) is available."""
+    try:
+        if name is None:
+            data_root()
+        else:
+            dataset_path(name)
+    except DataNotFoundError:
+        return False
+    return True

@@ -1,0 +1,37 @@
+"""Exceptions raised by hyperlf.
+
+Every error a user can provoke with bad input is a :class:`HyperLFError` whose message is one
+line saying what is wrong and how to fix it. The command-line tool prints that line and exits with
+a meaningful code instead of showing a traceback.
+"""
+
+from __future__ import annotations
+
+__all__ = ["HyperLFError", "InvalidInputError", "FormatError", "DataNotFoundError"]
+
+
+class HyperLFError(Exception):
+    """Base class of every error hyperlf raises on purpose.
+
+    ``exit_code`` is the process exit status the CLI uses for this kind of error.
+    """
+
+    exit_code = 1
+
+
+class InvalidInputError(HyperLFError, ValueError):
+    """Input arrays or parameters are impossible (wrong shape, NaN, bad range, ...)."""
+
+    exit_code = 2
+
+
+class FormatError(HyperLFError):
+    """A file could not be read or has malformed content."""
+
+    exit_code = 3
+
+
+class DataNotFoundError(HyperLFError, FileNotFoundError):
+    """A file, folder or dataset the operation needs does not exist."""
+
+    exit_code = 4

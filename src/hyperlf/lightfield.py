@@ -1,0 +1,355 @@
+"""The hyperspectral light field (H-LF) data model (SPEC §1).
+
+A :class:`LightField` is a grid of ``R x C`` views, each ``H x W``. In a hyperspectral light
+field every view is monochrome and sees one narrow band centred at ``wavelengths[r, c]`` (nm).
+An ordinary RGB light field (an HCI scene, say) has a trailing channel axis and no wavelengths.
+
+Conventions (SPEC §1)
+---------------------
+* ``views[r, c, y, x]`` (or ``views[r, c, y, x, k]`` for multi-channel views), float32, linear
+  intensity in [0, 1]. Row ``r`` grows downwards, column ``c`` to the right.
+* ``positions[r, c] = (px, py)`` in units of one baseline; default ``(c, r)``.
+* Reference view default ``((R - 1) // 2, (C - 1) // 2)``.
+* A reference pixel ``(x, y)`` with disparity ``d`` appears in view ``(r, c)`` at
+  ``(x - d * (px[r, c] - px0), y - d * (py[r, c] - py0))``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import numpy as np
+
+from .errors import InvalidInputError
+
+__all__ = ["LightField", "raster_wavelengths", "filter_layout", "view_offsets"]
+
+
+def _finite(name: str, arr: np.ndarray) -> None:
+    if not np.all(np.isfinite(arr)):
+        bad = int(np.size(arr) - np.count_nonzero(np.isfinite(arr)))
+        raise InvalidInputError(
+            f"{name} contains {bad} NaN or infinite value(s); replace them (e.g. np.nan_to_num) "
+            "or mask those pixels before building the light field"
+        )
+
+
+def filter_layout(rows: int, cols: int, order: str | Sequence[int] = "raster",
+                  seed: int = 0) -> np.ndarray:
+    """Band index of every view of an ``rows x cols`` array.
+
+    Parameters
+    ----------
+    rows, cols : int
+        Grid shape.
+    order : {"raster", "serpentine", "random"} or sequence of int
+        ``raster`` (paper): view ``(r, c)`` gets band ``r * cols + c``. ``serpentine``: odd rows
+        run right to left, so every step along the path changes the band by one. ``random``: a
+        permutation drawn from ``seed``. A sequence of ``rows * cols`` distinct band indices in
+        raster order of the views gives a custom map.
+    seed : int
+        Seed of the ``random`` layout.
+
+    Returns
+    -------
+    ndarray of int, shape (rows, cols)
+    """
+    n = rows * cols
+    if isinstance(order, str):
+        if order == "raster":
+            return np.arange(n).reshape(rows, cols)
+        if order == "serpentine":
+            k = np.arange(n).reshape(rows, cols)
+            k[1::2] = k[1::2, ::-1]
+            return k
+        if order == "random":
+            return np.random.default_rng(seed).permutation(n).reshape(rows, cols)
+        raise InvalidInputError(
+            f"unknown filter layout {order!r}; use 'raster', 'serpentine', 'random' "
+            "or a list of band indices"
+        )
+    k = np.asarray(order)
+    if k.size != n or sorted(k.ravel().tolist()) != list(range(n)):
+        raise InvalidInputError(
+            f"a custom filter layout must list each band index 0..{n - 1} exactly once "
+            f"(got {k.size} values)"
+        )
+    return k.reshape(rows, cols).astype(int)
+
+
+def raster_wavelengths(rows: int = 5, cols: int = 6, lambda_min: float = 410.0,
+                       lambda_max: float = 700.0,
+                       order: str | Sequence[int] = "raster", seed: int = 0) -> np.ndarray:
+    """Centre wavelengths (nm) of an ``rows x cols`` filter array in equal steps (SPEC §1).
+
+    For 5 x 6 and 410..700 nm with the raster layout, view ``(2, 2)`` sees 550 nm.
+
+    Returns
+    -------
+    ndarray of float64, shape (rows, cols)
+    """
+    if rows < 1 or cols < 1:
+        raise InvalidInputError(f"grid must have at least one view, got {rows} x {cols}")
+    if not (0 < lambda_min <= lambda_max):
+        raise InvalidInputError(
+            f"band range must satisfy 0 < min <= max, got {lambda_min}..{lambda_max} nm"
+        )
+    n = rows * cols
+    bands = np.linspace(lambda_min, lambda_max, n) if n > 1 else np.array([lambda_min])
+    return bands[filter_layout(rows, cols, order, seed)]
+
+
+def view_offsets(positions: np.ndarray, reference: tuple[int, int]) -> np.ndarray:
+    """Offsets ``pos[r, c] - pos[ref]`` of every view, shape ``(R, C, 2)`` as ``(dx, dy)``."""
+    return positions - positions[reference][None, None, :]
+
+
+@dataclass
+class LightField:
+    """A (hyperspectral) light field: ``R x C`` views with their filters and geometry.
+
+    Parameters
+    ----------
+    views : array_like, shape (R, C, H, W) or (R, C, H, W, K)
+        Linear intensities, stored as float32. Monochrome views (4-D) form a hyperspectral light
+        field; a trailing channel axis (e.g. ``K = 3``) an ordinary colour light field.
+    wavelengths : array_like, shape (R, C), optional
+        Centre wavelength (nm) of each view's band-pass filter. Required to be positive; may be
+        ``None`` for colour light fields.
+    positions : array_like, shape (R, C, 2), optional
+        Camera positions ``(px, py)`` in baselines. Default ``(c, r)``.
+    reference : (int, int), optional
+        Reference view ``(r0, c0)``. Default ``((R - 1) // 2, (C - 1) // 2)``.
+    disparity_range : (float, float), optional
+        ``(dmin, dmax)`` in pixels per baseline, when known (from a capture's manifest).
+    gt_disparity : array_like, shape (H, W) or (R, C, H, W), optional
+        Ground-truth disparity of the reference view, or of every view.
+    gt_cube : array_like, shape (R, C, B, H, W), optional
+        Ground-truth plenoptic cube: every band seen from every view.
+    cube_wavelengths : array_like, shape (B,), optional
+        Wavelengths of the cube's bands; required with ``gt_cube``.
+    metadata : dict
+        Free-form provenance (source, licence, synthesis parameters, calibration, ...).
+
+    Raises
+    ------
+    InvalidInputError
+        When shapes disagree, values are NaN/inf, wavelengths are non-positive, the reference is
+        outside the grid, or the views are empty.
+    """
+
+    views: np.ndarray
+    wavelengths: np.ndarray | None = None
+    positions: np.ndarray | None = None
+    reference: tuple[int, int] | None = None
+    disparity_range: tuple[float, float] | None = None
+    gt_disparity: np.ndarray | None = None
+    gt_cube: np.ndarray | None = None
+    cube_wavelengths: np.ndarray | None = None
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        try:
+            views = np.asarray(self.views)
+        except (TypeError, ValueError) as exc:  # ragged lists
+            raise InvalidInputError(f"views are not a regular array: {exc}") from None
+        if views.ndim not in (4, 5):
+            raise InvalidInputError(
+                f"views must have shape (R, C, H, W) or (R, C, H, W, K), got {views.shape}"
+            )
+        if views.size == 0 or min(views.shape) == 0:
+            raise InvalidInputError(f"views are empty (shape {views.shape})")
+        if not np.issubdtype(views.dtype, np.number) or np.iscomplexobj(views):
+            raise InvalidInputError(f"views must be real numbers, got dtype {views.dtype}")
+        views = views.astype(np.float32, copy=False)
+        _finite("views", views)
+        self.views = views
+        R, C, H, W = views.shape[:4]
+
+        if self.wavelengths is not None:
+            wl = np.asarray(self.wavelengths, dtype=np.float64)
+            if wl.shape != (R, C):
+                raise InvalidInputError(
+                    f"wavelengths must have one value per view, shape ({R}, {C}); got {wl.shape}"
+                )
+            _finite("wavelengths", wl)
+            if np.any(wl <= 0):
+                raise InvalidInputError("wavelengths must be positive (nm)")
+            self.wavelengths = wl
+        elif views.ndim == 4 and R * C > 1:
+            # A monochrome light field without wavelengths is allowed (plain grey LF), but it is
+            # not spectral. Nothing to check.
+            pass
+
+        if self.positions is None:
+            cc, rr = np.meshgrid(np.arange(C, dtype=np.float64), np.arange(R, dtype=np.float64))
+            self.positions = np.stack([cc, rr], axis=-1)
+        else:
+            pos = np.asarray(self.positions, dtype=np.float64)
+            if pos.shape != (R, C, 2):
+                raise InvalidInputError(
+                    f"positions must have shape ({R}, {C}, 2) as (px, py); got {pos.shape}"
+                )
+            _finite("positions", pos)
+            self.positions = pos
+
+        if self.reference is None:
+            self.reference = ((R - 1) // 2, (C - 1) // 2)
+        else:
+            try:
+                r0, c0 = (int(v) for v in self.reference)
+            except (TypeError, ValueError):
+                raise InvalidInputError(
+                    f"reference must be a pair (row, col), got {self.reference!r}"
+                ) from None
+            if not (0 <= r0 < R and 0 <= c0 < C):
+                raise InvalidInputError(
+                    f"reference view ({r0}, {c0}) is outside the {R} x {C} grid; "
+                    f"rows run 0..{R - 1}, columns 0..{C - 1}"
+                )
+            self.reference = (r0, c0)
+
+        if self.disparity_range is not None:
+            try:
+                dmin, dmax = (float(v) for v in self.disparity_range)
+            except (TypeError, ValueError):
+                raise InvalidInputError(
+                    f"disparity_range must be (min, max), got {self.disparity_range!r}"
+                ) from None
+            if not (np.isfinite(dmin) and np.isfinite(dmax) and dmin < dmax):
+                raise InvalidInputError(
+                    f"disparity_range must be finite with min < max, got ({dmin}, {dmax})"
+                )
+            self.disparity_range = (dmin, dmax)
+
+        if self.gt_disparity is not None:
+            gt = np.asarray(self.gt_disparity, dtype=np.float32)
+            if gt.shape not in ((H, W), (R, C, H, W)):
+                raise InvalidInputError(
+                    f"gt_disparity must have shape ({H}, {W}) or ({R}, {C}, {H}, {W}); "
+                    f"got {gt.shape}"
+                )
+            self.gt_disparity = gt  # may hold NaN/inf for unknown pixels by convention
+
+        if self.gt_cube is not None:
+            cube = np.asarray(self.gt_cube, dtype=np.float32)
+            if cube.ndim != 5 or cube.shape[:2] != (R, C) or cube.shape[3:] != (H, W):
+                raise InvalidInputError(
+                    f"gt_cube must have shape ({R}, {C}, B, {H}, {W}); got {cube.shape}"
+                )
+            _finite("gt_cube", cube)
+            if self.cube_wavelengths is None:
+                raise InvalidInputError("gt_cube needs cube_wavelengths (one per band)")
+            self.gt_cube = cube
+        if self.cube_wavelengths is not None:
+            cw = np.asarray(self.cube_wavelengths, dtype=np.float64).ravel()
+            _finite("cube_wavelengths", cw)
+            if np.any(cw <= 0) or len(np.unique(cw)) != cw.size:
+                raise InvalidInputError("cube_wavelengths must be positive and distinct (nm)")
+            if self.gt_cube is not None and cw.size != self.gt_cube.shape[2]:
+                raise InvalidInputError(
+                    f"cube_wavelengths has {cw.size} values but gt_cube has "
+                    f"{self.gt_cube.shape[2]} bands"
+                )
+            self.cube_wavelengths = cw
+        if not isinstance(self.metadata, dict):
+            raise InvalidInputError("metadata must be a dict")
+
+    # ------------------------------------------------------------------ shape helpers
+    @property
+    def grid_shape(self) -> tuple[int, int]:
+        """``(R, C)``: rows and columns of views."""
+        return self.views.shape[0], self.views.shape[1]
+
+    @property
+    def image_shape(self) -> tuple[int, int]:
+        """``(H, W)`` of every view."""
+        return self.views.shape[2], self.views.shape[3]
+
+    @property
+    def n_views(self) -> int:
+        return self.views.shape[0] * self.views.shape[1]
+
+    @property
+    def channels(self) -> int:
+        """Number of channels per view (1 for a hyperspectral light field)."""
+        return 1 if self.views.ndim == 4 else self.views.shape[4]
+
+    @property
+    def is_spectral(self) -> bool:
+        """True for monochrome views with one filter wavelength each."""
+        return self.views.ndim == 4 and self.wavelengths is not None
+
+    @property
+    def reference_view(self) -> np.ndarray:
+        """The reference view's image."""
+        return self.views[self.reference]
+
+    @property
+    def offsets(self) -> np.ndarray:
+        """``positions - positions[reference]``, shape ``(R, C, 2)`` as ``(dx, dy)``."""
+        return view_offsets(self.positions, self.reference)
+
+    @property
+    def reference_gt_disparity(self) -> np.ndarray | None:
+        """Ground-truth disparity of the reference view, or ``None``."""
+        if self.gt_disparity is None:
+            return None
+        if self.gt_disparity.ndim == 4:
+            return self.gt_disparity[self.reference]
+        return self.gt_disparity
+
+    def replace(self, **changes: Any) -> "LightField":
+        """A copy with some fields replaced (validated again)."""
+        return dataclasses.replace(self, **changes)
+
+    def describe(self) -> str:
+        """Human-readable multi-line summary (used by ``hyperlf info``)."""
+        R, C = self.grid_shape
+        H, W = self.image_shape
+        lines = [
+            f"grid        : {R} x {C} views ({self.n_views})",
+            f"image size  : {W} x {H} px (W x H)"
+            + ("" if self.channels == 1 else f", {self.channels} channels"),
+            f"reference   : view {self.reference}",
+        ]
+        if self.wavelengths is not None:
+            wl = self.wavelengths
+            step = np.diff(np.sort(wl.ravel()))
+            step_txt = f", step {step.min():g} nm" if step.size and np.allclose(step, step[0]) else ""
+            lines.append(f"bands       : {wl.size} filters, {wl.min():g}..{wl.max():g} nm{step_txt}")
+            lines.append(f"reference   : sees {wl[self.reference]:g} nm")
+            rows = ["  " + " ".join(f"{v:6.1f}" for v in row) for row in wl]
+            lines.append("wavelengths :\n" + "\n".join(rows))
+        else:
+            lines.append("bands       : none (colour / grey light field)")
+        off = self.offsets
+        lines.append(
+            f"baselines   : x {off[..., 0].min():g}..{off[..., 0].max():g}, "
+            f"y {off[..., 1].min():g}..{off[..., 1].max():g} (relative to reference)"
+        )
+        if self.disparity_range is not None:
+            lines.append(
+                f"disparity   : {self.disparity_range[0]:g}..{self.disparity_range[1]:g} px/baseline"
+            )
+        gt = self.reference_gt_disparity
+        if gt is not None:
+            ok = np.isfinite(gt)
+            if ok.any():
+                lines.append(
+                    f"ground truth: disparity {float(gt[ok].min()):.3f}..{float(gt[ok].max()):.3f} px"
+                    + (" (every view)" if self.gt_disparity.ndim == 4 else " (reference view)")
+                )
+        if self.gt_cube is not None:
+            lines.append(
+                f"ground truth: cube with {self.gt_cube.shape[2]} bands per view "
+                f"({self.cube_wavelengths.min():g}..{self.cube_wavelengths.max():g} nm)"
+            )
+        vmin, vmax = float(self.views.min()), float(self.views.max())
+        lines.append(f"intensity   : {vmin:.4g}..{vmax:.4g}")
+        for k, v in self.metadata.items():
+            if isinstance(v, (str, int, float, bool)):
+                lines.append(f"{k:<12}: {v}")
+        return "\n".join(lines)
