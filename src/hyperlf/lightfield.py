@@ -84,7 +84,8 @@ def raster_wavelengths(rows: int = 5, cols: int = 6, lambda_min: float = 410.0,
                        order: str | Sequence[int] = "raster", seed: int = 0) -> np.ndarray:
     """Centre wavelengths (nm) of an ``rows x cols`` filter array in equal steps (SPEC §1).
 
-    For 5 x 6 and 410..700 nm with the raster layout, view ``(2, 2)`` sees 550 nm.
+    For 5 x 6 and 410..700 nm with the raster layout, view ``(2, 2)`` sees 550 nm. A single
+    view gets ``lambda_min``.
 
     Returns
     -------

@@ -1,0 +1,219 @@
+"""HCI 4D light field benchmark scenes (Honauer et al. 2016).
+
+A scene folder holds ``input_Cam000.png`` ... ``input_Cam080.png`` (9 x 9 views, view index
+``9 * r + c``, row-major, so ``Cam040`` is the centre), ``gt_disp_lowres.pfm`` (disparity of the
+centre view) and usually ``parameters.cfg`` (INI). The benchmark's disparity sign is the
+convention of SPEC §1 with positions ``(c, r)``, so the ground truth is used unchanged.
+"""
+
+from __future__ import annotations
+
+import configparser
+import math
+import os
+import re
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+
+from ..errors import DataNotFoundError, FormatError, InvalidInputError
+from ..lightfield import LightField
+from .images import read_image
+from .pfm import read_pfm
+
+__all__ = ["read_hci_scene", "is_hci_scene", "HCI_LICENCE"]
+
+HCI_LICENCE = "CC BY-NC-SA 4.0 (cite Honauer et al., ACCV 2016)"
+_CAM = re.compile(r"^input_Cam(\d{3})\.png$")
+
+
+def is_hci_scene(folder: str | os.PathLike) -> bool:
+    """True when ``folder`` is a folder holding ``input_Cam000.png`` (an HCI 4D LF scene)."""
+    p = Path(folder)
+    return p.is_dir() and (p / "input_Cam000.png").is_file()
+
+
+def _number(text: str):
+    try:
+        v = int(text)
+    except ValueError:
+        try:
+            v = float(text)
+        except ValueError:
+            return text.strip()
+    return v
+
+
+def _read_cfg(path: Path) -> dict[str, dict[str, object]]:
+    cp = configparser.ConfigParser()
+    try:
+        with open(path, encoding="utf-8") as fh:
+            cp.read_file(fh)
+    except (configparser.Error, UnicodeDecodeError) as exc:
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise FormatError(f"{path} is not a valid INI file ({first}); fix or remove it") from None
+    return {s: {k: _number(v) for k, v in cp.items(s)} for s in cp.sections()}
+
+
+def _grid_from(folder: Path, cfg: dict, grid) -> tuple[int, int]:
+    if grid is not None:
+        try:
+            R, C = (int(v) for v in grid)
+        except (TypeError, ValueError):
+            raise InvalidInputError(f"grid must be (rows, cols), got {grid!r}") from None
+        if R < 1 or C < 1:
+            raise InvalidInputError(f"grid must be positive, got {grid!r}")
+        return R, C
+    ext = cfg.get("extrinsics", {})
+    nx, ny = ext.get("num_cams_x"), ext.get("num_cams_y")
+    if isinstance(nx, int) and isinstance(ny, int) and nx > 0 and ny > 0:
+        return ny, nx
+    idx = [int(m.group(1)) for f in os.listdir(folder) if (m := _CAM.match(f))]
+    n = max(idx) + 1 if idx else 0
+    s = math.isqrt(n)
+    if s * s == n and s > 0:
+        return s, s
+    return 9, 9
+
+
+def _select(sel: Iterable[int] | None, n: int, what: str) -> list[int]:
+    if sel is None:
+        return list(range(n))
+    try:
+        out = [int(v) for v in sel]
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{what} must be a sequence of indices, got {sel!r}") from None
+    if not out or any(v < 0 or v >= n for v in out) or len(set(out)) != len(out):
+        raise InvalidInputError(
+            f"{what} must be distinct indices in 0..{n - 1}, got {out}"
+        )
+    return out
+
+
+def read_hci_scene(folder: str | os.PathLike, grid=None, rows=None, cols=None,
+                   disparity_margin: float = 0.5) -> LightField:
+    """Load an HCI 4D light field benchmark scene as an RGB :class:`LightField`.
+
+    Parameters
+    ----------
+    folder : path-like
+        Scene folder with ``input_Cam###.png`` views.
+    grid : (int, int), optional
+        ``(rows, cols)`` of the full camera grid. Default: ``[extrinsics] num_cams_y/x`` from
+        ``parameters.cfg``, else the square number of ``input_Cam`` files, else 9 x 9.
+    rows, cols : sequence of int, optional
+        Sub-grid to load (indices into the full grid), e.g. ``rows=range(2, 7),
+        cols=range(2, 8)`` for a 5 x 6 array. Default: all.
+    disparity_margin : float
+        Margin (px) added on both sides when the disparity range is derived from the ground
+        truth (scenes without ``parameters.cfg``).
+
+    Returns
+    -------
+    LightField
+        ``views`` float32 ``(R, C, H, W, 3)``: the sRGB-encoded values as stored, scaled to
+        [0, 1] (``metadata["encoding"] = "srgb"``; not linearised). ``positions[r, c]`` is
+        ``(c, r)`` of the **original** grid. The reference is the centre camera (``Cam040`` for
+        9 x 9) when it is in the sub-grid, else the sub-grid's default centre.
+        ``gt_disparity`` (H, W) is ``gt_disp_lowres.pfm``, attached only when the reference is
+        the centre camera. ``wavelengths`` is None.
+        ``disparity_range``: ``[meta] disp_min/disp_max`` from ``parameters.cfg`` when present;
+        otherwise ``(floor(min gt) - margin, ceil(max gt) + margin)`` when ground truth exists;
+        otherwise None. The other ``parameters.cfg`` entries are in
+        ``metadata["hci_parameters"]`` (section -> key -> value).
+
+    Raises
+    ------
+    DataNotFoundError
+        When the folder or any selected view is missing (all missing files are named).
+    FormatError
+        When a file cannot be decoded or views differ in size.
+    """
+    root = Path(folder)
+    if not root.is_dir():
+        raise DataNotFoundError(f"HCI scene folder {root} does not exist")
+    cfg_path = root / "parameters.cfg"
+    cfg = _read_cfg(cfg_path) if cfg_path.is_file() else {}
+    R, C = _grid_from(root, cfg, grid)
+    rsel = _select(rows, R, "rows")
+    csel = _select(cols, C, "cols")
+
+    files = [[root / f"input_Cam{C * r + c:03d}.png" for c in csel] for r in rsel]
+    missing = [f.name for row in files for f in row if not f.is_file()]
+    if missing:
+        shown = ", ".join(missing[:8]) + (f" and {len(missing) - 8} more" if len(missing) > 8 else "")
+        raise DataNotFoundError(
+            f"HCI scene {root} is missing {len(missing)} view(s): {shown}; "
+            "download the complete scene or select a sub-grid with rows=/cols="
+        )
+    flat = [f for row in files for f in row]
+    first = read_image(flat[0], as_float=True, channels="rgb")
+    views = np.empty((len(flat),) + first.shape, dtype=np.float32)
+    views[0] = first
+
+    def load(i: int) -> None:
+        im = read_image(flat[i], as_float=True, channels="rgb")
+        if im.shape != first.shape:
+            raise FormatError(
+                f"HCI scene {root}: {flat[i].name} is {im.shape[1]} x {im.shape[0]} px but "
+                f"{flat[0].name} is {first.shape[1]} x {first.shape[0]}; all views must have "
+                "the same size"
+            )
+        views[i] = im
+
+    if len(flat) > 1:
+        with ThreadPoolExecutor(max_workers=min(8, len(flat) - 1)) as pool:
+            list(pool.map(load, range(1, len(flat))))
+    views = views.reshape(len(rsel), len(csel), *first.shape)
+
+    cc, rr = np.meshgrid(np.asarray(csel, float), np.asarray(rsel, float))
+    positions = np.stack([cc, rr], axis=-1)
+    centre = ((R - 1) // 2, (C - 1) // 2)
+    centre_in = centre[0] in rsel and centre[1] in csel
+    reference = (rsel.index(centre[0]), csel.index(centre[1])) if centre_in else None
+
+    gt = None
+    gt_path = root / "gt_disp_lowres.pfm"
+    if gt_path.is_file():
+        gt_full = read_pfm(gt_path)
+        if gt_full.ndim != 2 or gt_full.shape != views.shape[2:4]:
+            raise FormatError(
+                f"{gt_path} has shape {gt_full.shape} but the views are {views.shape[2:4]}; "
+                "use the lowres ground truth that matches the input views"
+            )
+        gt = gt_full
+
+    disparity_range = None
+    meta = cfg.get("meta", {})
+    dmin, dmax = meta.get("disp_min"), meta.get("disp_max")
+    if isinstance(dmin, (int, float)) and isinstance(dmax, (int, float)) and dmin < dmax:
+        disparity_range = (float(dmin), float(dmax))
+    elif gt is not None and np.isfinite(gt).any():
+        ok = gt[np.isfinite(gt)]
+        disparity_range = (math.floor(float(ok.min())) - disparity_margin,
+                           math.ceil(float(ok.max())) + disparity_margin)
+
+    metadata = {
+        "source": "HCI 4D light field benchmark",
+        "scene": root.name,
+        "licence": HCI_LICENCE,
+        "encoding": "srgb",
+        "full_grid": [R, C],
+        "rows": rsel,
+        "cols": csel,
+        "centre_view": f"input_Cam{C * centre[0] + centre[1]:03d}.png",
+    }
+    if gt is not None and not centre_in:
+        metadata["gt_note"] = "gt_disp_lowres.pfm not attached: the centre view is not loaded"
+    if cfg:
+        metadata["hci_parameters"] = cfg
+    return LightField(
+        views=views,
+        positions=positions,
+        reference=reference,
+        disparity_range=disparity_range,
+        gt_disparity=gt if centre_in else None,
+        metadata=metadata,
+    )

@@ -1,0 +1,215 @@
+"""Evaluation metrics (SPEC §9).
+
+Disparity: bad-tau (%), RMSE, MSE x 100, BadPix(0.07) as in the HCI 4D light field benchmark
+(15-pixel border excluded). Cube: PSNR (per band and overall), spectral angle (SAM, degrees) and
+the fraction of entries completed.
+
+Every disparity metric is evaluated on a mask, and the mask is part of the result so tables can
+name it. Pixels whose ground truth is not finite (NaN/inf: unknown) are never evaluated.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InvalidInputError
+
+__all__ = [
+    "evaluation_mask",
+    "bad_pixels",
+    "rmse",
+    "mse_x100",
+    "badpix",
+    "DisparityScores",
+    "disparity_scores",
+    "psnr",
+    "psnr_per_band",
+    "sam",
+    "completion_ratio",
+    "HCI_BORDER",
+]
+
+#: Border excluded by the HCI benchmark's metrics (``boundary_offset``), pixels.
+HCI_BORDER = 15
+
+
+def _pair(estimate, truth) -> tuple[np.ndarray, np.ndarray]:
+    est = np.asarray(estimate, dtype=np.float64)
+    gt = np.asarray(truth, dtype=np.float64)
+    if est.shape != gt.shape:
+        raise InvalidInputError(
+            f"estimate has shape {est.shape} but ground truth has {gt.shape}; they must match"
+        )
+    return est, gt
+
+
+def evaluation_mask(truth: np.ndarray, mask: np.ndarray | None = None,
+                    border: int = 0) -> np.ndarray:
+    """Pixels to evaluate: finite ground truth, inside ``mask``, outside a ``border``.
+
+    Parameters
+    ----------
+    truth : ndarray, shape (H, W)
+        Ground truth; non-finite values mean "unknown".
+    mask : ndarray of bool, shape (H, W), optional
+        Extra mask (e.g. Middlebury's ``all`` or ``nonocc``).
+    border : int
+        Width in pixels of a frame excluded on every side (HCI: 15).
+    """
+    gt = np.asarray(truth)
+    m = np.isfinite(gt)
+    if mask is not None:
+        mk = np.asarray(mask, dtype=bool)
+        if mk.shape != gt.shape:
+            raise InvalidInputError(f"mask has shape {mk.shape}, ground truth {gt.shape}")
+        m &= mk
+    if border < 0:
+        raise InvalidInputError(f"border must be >= 0, got {border}")
+    if border > 0:
+        frame = np.zeros_like(m)
+        frame[border:-border, border:-border] = True
+        m &= frame
+    return m
+
+
+def _masked_error(estimate, truth, mask, border) -> np.ndarray:
+    est, gt = _pair(estimate, truth)
+    m = evaluation_mask(gt, mask, border)
+    if not m.any():
+        raise InvalidInputError("no pixel to evaluate: the mask (and border) exclude everything")
+    err = est[m] - gt[m]
+    # A missing estimate (NaN) counts as an infinitely bad pixel, never as a skipped one.
+    return np.where(np.isfinite(err), err, np.inf)
+
+
+def bad_pixels(estimate, truth, tau: float, mask=None, border: int = 0) -> float:
+    """Percentage of evaluated pixels with ``|estimate - truth| > tau`` (bad-tau, %)."""
+    err = _masked_error(estimate, truth, mask, border)
+    return float(100.0 * np.mean(np.abs(err) > tau))
+
+
+def rmse(estimate, truth, mask=None, border: int = 0) -> float:
+    """Root-mean-square disparity error (px) over evaluated pixels."""
+    err = _masked_error(estimate, truth, mask, border)
+    return float(np.sqrt(np.mean(err ** 2)))
+
+
+def mse_x100(estimate, truth, mask=None, border: int = 0) -> float:
+    """Mean squared error times 100, as the HCI benchmark reports it."""
+    err = _masked_error(estimate, truth, mask, border)
+    return float(100.0 * np.mean(err ** 2))
+
+
+def badpix(estimate, truth, threshold: float = 0.07, mask=None,
+           border: int = HCI_BORDER) -> float:
+    """HCI BadPix(threshold): % of pixels with error above ``threshold`` (default 0.07 px),
+    excluding the benchmark's 15-pixel border."""
+    return bad_pixels(estimate, truth, threshold, mask=mask, border=border)
+
+
+@dataclass(frozen=True)
+class DisparityScores:
+    """Disparity metrics on one mask (percentages in %, errors in px)."""
+
+    rmse: float
+    mse_x100: float
+    badpix_007: float
+    bad_0_5: float
+    bad_1: float
+    bad_2: float
+    bad_5: float
+    n_pixels: int
+    mask: str
+    border: int
+
+    def as_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+def disparity_scores(estimate, truth, mask=None, mask_name: str = "all",
+                     border: int = 0) -> DisparityScores:
+    """All disparity metrics at once on one mask.
+
+    BadPix(0.07) uses the same ``border`` as the rest here, so all numbers of a row refer to
+    the same pixels; pass ``border=HCI_BORDER`` for the HCI protocol.
+    """
+    err = np.abs(_masked_error(estimate, truth, mask, border))
+    return DisparityScores(
+        rmse=float(np.sqrt(np.mean(err ** 2))),
+        mse_x100=float(100.0 * np.mean(err ** 2)),
+        badpix_007=float(100.0 * np.mean(err > 0.07)),
+        bad_0_5=float(100.0 * np.mean(err > 0.5)),
+        bad_1=float(100.0 * np.mean(err > 1.0)),
+        bad_2=float(100.0 * np.mean(err > 2.0)),
+        bad_5=float(100.0 * np.mean(err > 5.0)),
+        n_pixels=int(err.size),
+        mask=mask_name,
+        border=border,
+    )
+
+
+def psnr(estimate, truth, data_range: float = 1.0, mask=None) -> float:
+    """Peak signal-to-noise ratio (dB) over all (masked) entries.
+
+    ``data_range`` is the peak value (1.0 for intensities in [0, 1]). Identical inputs give
+    ``inf``.
+    """
+    est, gt = _pair(estimate, truth)
+    if data_range <= 0:
+        raise InvalidInputError(f"data_range must be positive, got {data_range}")
+    if mask is not None:
+        m = np.broadcast_to(np.asarray(mask, dtype=bool), gt.shape)
+        if not m.any():
+            raise InvalidInputError("psnr: the mask excludes every entry")
+        est, gt = est[m], gt[m]
+    mse = float(np.mean((est - gt) ** 2))
+    if mse == 0:
+        return float("inf")
+    return float(10.0 * np.log10(data_range ** 2 / mse))
+
+
+def psnr_per_band(estimate, truth, band_axis: int = -3, data_range: float = 1.0,
+                  mask=None) -> np.ndarray:
+    """PSNR (dB) of every band of a cube; ``band_axis`` indexes the bands
+    (default -3 for ``[..., B, H, W]``)."""
+    est, gt = _pair(estimate, truth)
+    est = np.moveaxis(est, band_axis, 0)
+    gt = np.moveaxis(gt, band_axis, 0)
+    m = None if mask is None else np.moveaxis(
+        np.broadcast_to(np.asarray(mask, dtype=bool), np.asarray(truth).shape), band_axis, 0)
+    return np.array([psnr(est[b], gt[b], data_range, None if m is None else m[b])
+                     for b in range(est.shape[0])])
+
+
+def sam(estimate, truth, band_axis: int = -3, mask=None, eps: float = 1e-12) -> float:
+    """Mean spectral angle (degrees) between estimated and true spectra.
+
+    Spectra run along ``band_axis``; every other position is one spectrum. ``mask`` (shape of
+    one band, i.e. the array without ``band_axis``) selects spectra. Spectra whose norm is
+    zero in either input are skipped.
+    """
+    est, gt = _pair(estimate, truth)
+    est = np.moveaxis(est, band_axis, -1)
+    gt = np.moveaxis(gt, band_axis, -1)
+    num = np.sum(est * gt, axis=-1)
+    den = np.linalg.norm(est, axis=-1) * np.linalg.norm(gt, axis=-1)
+    ok = den > eps
+    if mask is not None:
+        mk = np.asarray(mask, dtype=bool)
+        if mk.shape != ok.shape:
+            raise InvalidInputError(f"sam: mask has shape {mk.shape}, expected {ok.shape}")
+        ok &= mk
+    if not ok.any():
+        raise InvalidInputError("sam: no spectrum to evaluate (all masked or all zero)")
+    cos = np.clip(num[ok] / den[ok], -1.0, 1.0)
+    return float(np.degrees(np.mean(np.arccos(cos))))
+
+
+def completion_ratio(valid) -> float:
+    """Percentage of (view, band, pixel) entries marked valid in a completion mask."""
+    v = np.asarray(valid, dtype=bool)
+    if v.size == 0:
+        raise InvalidInputError("completion_ratio: empty mask")
+    return float(100.0 * v.mean())

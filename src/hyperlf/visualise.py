@@ -1,0 +1,182 @@
+"""Pictures people can look at: colour-mapped disparity with a colour bar, view mosaics,
+false-colour renderings of spectral light fields, error maps and spectral plots.
+
+Matplotlib is imported lazily with the non-interactive ``Agg`` backend; every file is written
+atomically.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from ._atomic import atomic_path
+from .errors import InvalidInputError
+
+__all__ = [
+    "save_disparity_png",
+    "save_error_png",
+    "save_mosaic_png",
+    "save_spectrum_plot",
+    "false_colour",
+    "wavelength_to_rgb",
+]
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _savefig(fig, path) -> Path:
+    plt = _plt()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110, bbox_inches="tight", format=Path(path).suffix.lstrip(".") or "png")
+    plt.close(fig)
+    return Path(path)
+
+
+def _robust_range(values: np.ndarray, vmin=None, vmax=None) -> tuple[float, float]:
+    finite = values[np.isfinite(values)]
+    if finite.size == 0:
+        return 0.0, 1.0
+    lo = float(np.percentile(finite, 0.5)) if vmin is None else float(vmin)
+    hi = float(np.percentile(finite, 99.5)) if vmax is None else float(vmax)
+    if hi <= lo:
+        hi = lo + 1e-6
+    return lo, hi
+
+
+def save_disparity_png(path: str | os.PathLike, disparity: np.ndarray, title: str = "disparity",
+                       vmin: float | None = None, vmax: float | None = None,
+                       cmap: str = "turbo", label: str = "disparity (px / baseline)") -> Path:
+    """Colour-mapped disparity map with a colour bar (PNG). Unknown (NaN) pixels are black."""
+    d = np.asarray(disparity, dtype=np.float64)
+    if d.ndim != 2:
+        raise InvalidInputError(f"disparity must be 2-D, got shape {d.shape}")
+    plt = _plt()
+    lo, hi = _robust_range(d, vmin, vmax)
+    H, W = d.shape
+    fig, ax = plt.subplots(figsize=(min(10, 2 + 6 * W / max(H, W)), 6 * H / max(H, W) + 0.6))
+    cm = plt.get_cmap(cmap).copy()
+    cm.set_bad("black")
+    im = ax.imshow(np.ma.masked_invalid(d), cmap=cm, vmin=lo, vmax=hi, interpolation="nearest")
+    ax.set_title(title)
+    ax.set_axis_off()
+    fig.colorbar(im, ax=ax, fraction=0.046, pad=0.03, label=label)
+    return _savefig(fig, path)
+
+
+def save_error_png(path: str | os.PathLike, estimate: np.ndarray, truth: np.ndarray,
+                   title: str = "absolute error", vmax: float = 1.0) -> Path:
+    """Absolute disparity error map with a colour bar; unknown ground truth is black."""
+    err = np.abs(np.asarray(estimate, dtype=np.float64) - np.asarray(truth, dtype=np.float64))
+    return save_disparity_png(path, err, title=title, vmin=0.0, vmax=vmax, cmap="magma",
+                              label="|error| (px)")
+
+
+def wavelength_to_rgb(wavelengths: np.ndarray) -> np.ndarray:
+    """Display sRGB colour (in [0, 1]) of monochromatic light, for plots and false colour.
+
+    Uses the CIE 1931 colour matching functions, maps to sRGB, desaturates out-of-gamut colours
+    by adding white and normalises each colour's maximum to 1. Shape ``(..., 3)``.
+    """
+    from . import spectral
+
+    wl = np.atleast_1d(np.asarray(wavelengths, dtype=np.float64))
+    xyz = spectral.cmfs(wl.ravel())
+    rgb = spectral.xyz_to_srgb_linear(xyz)
+    rgb = rgb - np.minimum(rgb.min(axis=-1, keepdims=True), 0.0)
+    peak = rgb.max(axis=-1, keepdims=True)
+    rgb = np.where(peak > 0, rgb / np.where(peak > 0, peak, 1.0), 0.0)
+    return spectral.linear_to_srgb(rgb).reshape(wl.shape + (3,))
+
+
+def false_colour(views: np.ndarray, wavelengths: np.ndarray) -> np.ndarray:
+    """Tint each monochrome view with the display colour of its wavelength.
+
+    Parameters
+    ----------
+    views : ndarray, shape (..., H, W)
+    wavelengths : ndarray, shape (...) matching the leading axes of ``views``
+
+    Returns
+    -------
+    ndarray, shape (..., H, W, 3), sRGB-encoded in [0, 1]
+    """
+    v = np.asarray(views, dtype=np.float32)
+    tint = wavelength_to_rgb(np.asarray(wavelengths))
+    return np.clip(v[..., None] * tint[..., None, None, :], 0.0, 1.0)
+
+
+def save_mosaic_png(path: str | os.PathLike, views: np.ndarray,
+                    wavelengths: np.ndarray | None = None, title: str | None = None,
+                    max_side: int = 1600) -> Path:
+    """Grid of all views as one picture; spectral views are tinted by their wavelength.
+
+    ``views`` has shape (R, C, H, W) or (R, C, H, W, 3). Views are labelled with their
+    wavelength when known.
+    """
+    v = np.asarray(views, dtype=np.float32)
+    if v.ndim not in (4, 5):
+        raise InvalidInputError(f"views must be (R, C, H, W[, 3]), got {v.shape}")
+    R, C, H, W = v.shape[:4]
+    step = max(1, int(np.ceil(max(R * H, C * W) / max_side)))
+    v = v[:, :, ::step, ::step]
+    if v.ndim == 4:
+        peak = float(np.percentile(v, 99.5)) or 1.0
+        v = v / peak
+        rgb = false_colour(v, wavelengths) if wavelengths is not None else np.repeat(
+            np.clip(v, 0, 1)[..., None], 3, axis=-1)
+    else:
+        rgb = np.clip(v, 0, 1)
+    plt = _plt()
+    fig, axes = plt.subplots(R, C, figsize=(1.8 * C, 1.8 * R * H / W + 0.3 * bool(title)),
+                             squeeze=False)
+    for r in range(R):
+        for c in range(C):
+            ax = axes[r, c]
+            ax.imshow(rgb[r, c], interpolation="nearest")
+            ax.set_axis_off()
+            if wavelengths is not None:
+                ax.set_title(f"{float(np.asarray(wavelengths)[r, c]):.0f} nm", fontsize=7, pad=2)
+    if title:
+        fig.suptitle(title)
+    fig.subplots_adjust(wspace=0.05, hspace=0.25)
+    return _savefig(fig, path)
+
+
+def save_spectrum_plot(path: str | os.PathLike, wavelengths: np.ndarray,
+                       spectra: Sequence[np.ndarray] | np.ndarray,
+                       labels: Sequence[str] | None = None, title: str = "spectral profile",
+                       ylabel: str = "relative intensity") -> Path:
+    """Line plot of one or more spectra against wavelength (nm), with a spectrum-coloured band."""
+    wl = np.asarray(wavelengths, dtype=np.float64)
+    sp = np.atleast_2d(np.asarray(spectra, dtype=np.float64))
+    if sp.shape[-1] != wl.size:
+        raise InvalidInputError(
+            f"spectra have {sp.shape[-1]} samples but there are {wl.size} wavelengths"
+        )
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    order = np.argsort(wl)
+    for i, s in enumerate(sp):
+        ax.plot(wl[order], s[order], marker="o", ms=3,
+                label=None if labels is None else labels[i])
+    colours = wavelength_to_rgb(wl[order])
+    lo = ax.get_ylim()[0]
+    ax.scatter(wl[order], np.full(wl.size, lo), c=colours, marker="s", s=40, zorder=3)
+    ax.set_xlabel("wavelength (nm)")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    if labels is not None:
+        ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    return _savefig(fig, path)

@@ -1,0 +1,82 @@
+"""The LightField data model: validation and geometry helpers."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from hyperlf import InvalidInputError, LightField, filter_layout, raster_wavelengths
+
+
+def _lf(**kw):
+    views = kw.pop("views", np.random.default_rng(0).random((5, 6, 8, 10), dtype=np.float32))
+    kw.setdefault("wavelengths", raster_wavelengths(5, 6))
+    return LightField(views, **kw)
+
+
+def test_defaults_follow_spec_conventions():
+    lf = _lf()
+    assert lf.grid_shape == (5, 6) and lf.image_shape == (8, 10)
+    assert lf.reference == (2, 2)
+    assert lf.wavelengths[2, 2] == 550.0  # SPEC §1 raster order
+    assert tuple(lf.positions[3, 4]) == (4.0, 3.0)  # (px, py) = (c, r)
+    assert tuple(lf.offsets[2, 2]) == (0.0, 0.0)
+    assert lf.is_spectral and lf.channels == 1
+    assert lf.views.dtype == np.float32
+
+
+def test_layouts():
+    k = filter_layout(2, 3, "serpentine")
+    assert k.tolist() == [[0, 1, 2], [5, 4, 3]]
+    r = filter_layout(5, 6, "random", seed=1)
+    assert sorted(r.ravel()) == list(range(30))
+    assert filter_layout(1, 3, [2, 0, 1]).tolist() == [[2, 0, 1]]
+    with pytest.raises(InvalidInputError, match="exactly once"):
+        filter_layout(1, 3, [0, 0, 1])
+    with pytest.raises(InvalidInputError, match="unknown filter layout"):
+        filter_layout(2, 2, "spiral")
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        (dict(views=np.zeros((5, 6, 8))), "shape"),
+        (dict(views=np.zeros((5, 6, 0, 10))), "empty"),
+        (dict(views=np.full((5, 6, 2, 2), np.nan)), "NaN"),
+        (dict(wavelengths=np.ones((5, 5))), "one value per view"),
+        (dict(wavelengths=-raster_wavelengths(5, 6)), "positive"),
+        (dict(reference=(5, 0)), "outside the 5 x 6 grid"),
+        (dict(positions=np.zeros((5, 6))), "positions"),
+        (dict(disparity_range=(2, 1)), "min < max"),
+        (dict(gt_disparity=np.zeros((3, 3))), "gt_disparity"),
+        (dict(gt_cube=np.zeros((5, 6, 30, 8, 10))), "cube_wavelengths"),
+        (dict(views=np.array([["a"]])), "shape|real"),
+    ],
+)
+def test_bad_input_is_rejected_with_a_clear_message(kwargs, message):
+    with pytest.raises(InvalidInputError, match=message):
+        _lf(**kwargs)
+
+
+def test_duplicate_cube_wavelengths_rejected():
+    with pytest.raises(InvalidInputError, match="distinct"):
+        _lf(gt_cube=np.zeros((5, 6, 2, 8, 10)), cube_wavelengths=[500, 500])
+
+
+def test_colour_lightfield_and_replace():
+    lf = LightField(np.zeros((3, 3, 4, 4, 3)))
+    assert not lf.is_spectral and lf.channels == 3 and lf.reference == (1, 1)
+    lf2 = lf.replace(reference=(0, 0))
+    assert lf2.reference == (0, 0) and lf.reference == (1, 1)
+    text = _lf(disparity_range=(-1, 2), gt_disparity=np.zeros((8, 10))).describe()
+    assert "5 x 6" in text and "550" in text and "-1..2" in text
+
+
+@settings(max_examples=50, deadline=None)
+@given(rows=st.integers(1, 7), cols=st.integers(1, 7),
+       lo=st.floats(300, 600), span=st.floats(0, 400))
+def test_raster_wavelengths_properties(rows, cols, lo, span):
+    wl = raster_wavelengths(rows, cols, lo, lo + span)
+    assert wl.shape == (rows, cols)
+    top = lo if rows * cols == 1 else lo + span  # a single view gets lambda_min
+    assert np.isclose(wl.min(), lo) and np.isclose(wl.max(), top)
+    assert np.all(np.diff(wl.ravel()) >= 0)  # raster order increases

@@ -1,0 +1,61 @@
+"""Evaluation metrics against hand-computed values."""
+
+import numpy as np
+import pytest
+
+from hyperlf import InvalidInputError
+from hyperlf import metrics as m
+
+
+def test_disparity_metrics_known_values():
+    gt = np.zeros((4, 4))
+    est = np.zeros((4, 4))
+    est[0, 0] = 3.0  # one pixel off by 3
+    est[1, 1] = 0.05  # below BadPix threshold
+    assert m.bad_pixels(est, gt, 2.0) == pytest.approx(100 / 16)
+    assert m.rmse(est, gt) == pytest.approx(np.sqrt((9 + 0.0025) / 16))
+    assert m.mse_x100(est, gt) == pytest.approx(100 * (9 + 0.0025) / 16)
+    s = m.disparity_scores(est, gt)
+    assert s.badpix_007 == pytest.approx(100 / 16) and s.n_pixels == 16 and s.mask == "all"
+
+
+def test_unknown_truth_and_masks_and_border():
+    gt = np.zeros((40, 40))
+    gt[0, :] = np.nan
+    est = np.ones((40, 40))
+    est[20, 20] = 0.0
+    assert m.evaluation_mask(gt).sum() == 40 * 39
+    # HCI border excludes 15 px on every side: 10 x 10 interior, one pixel correct
+    assert m.badpix(est, gt) == pytest.approx(99.0)
+    mask = np.zeros((40, 40), bool)
+    mask[20, 20] = True
+    assert m.rmse(est, gt, mask=mask) == 0.0
+    with pytest.raises(InvalidInputError, match="no pixel"):
+        m.rmse(est, gt, mask=np.zeros((40, 40), bool))
+
+
+def test_missing_estimate_counts_as_bad():
+    gt = np.zeros((2, 2))
+    est = np.array([[np.nan, 0.0], [0.0, 0.0]])
+    assert m.bad_pixels(est, gt, 1.0) == 25.0
+    assert m.rmse(est, gt) == np.inf
+
+
+def test_shape_mismatch():
+    with pytest.raises(InvalidInputError, match="shape"):
+        m.rmse(np.zeros((2, 2)), np.zeros((3, 3)))
+
+
+def test_psnr_and_sam():
+    rng = np.random.default_rng(0)
+    gt = rng.random((3, 5, 6))
+    assert m.psnr(gt, gt) == np.inf
+    assert m.psnr(gt + 0.1, gt) == pytest.approx(20.0)
+    per_band = m.psnr_per_band(gt + 0.1, gt)
+    assert per_band.shape == (3,) and np.allclose(per_band, 20.0)
+    # scaling a spectrum does not change its angle; orthogonal spectra are 90 degrees apart
+    assert m.sam(2.5 * gt, gt) == pytest.approx(0.0, abs=1e-5)
+    a = np.zeros((2, 1, 1)); a[0] = 1
+    b = np.zeros((2, 1, 1)); b[1] = 1
+    assert m.sam(a, b) == pytest.approx(90.0)
+    assert m.completion_ratio(np.array([True, False, True, True])) == 75.0
