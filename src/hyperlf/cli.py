@@ -154,7 +154,9 @@ def _cmd_synth(args) -> int:
     t0 = time.perf_counter()
     R, C = args.grid
     common = dict(rows=R, cols=C, lambda_min=args.bands[0], lambda_max=args.bands[1],
-                  layout=args.layout, noise_sigma=args.noise, seed=args.seed)
+                  layout=args.layout, noise_sigma=args.noise)
+    if args.seed is not None:  # a named scene keeps its own seed unless one is given
+        common["seed"] = args.seed
     if args.source == "hci":
         lf = synthesis.from_hci_scene(args.scene, **common)
     else:
@@ -222,9 +224,9 @@ def _cmd_demo(args) -> int:
     out = Path(args.output)
     _say(args, f"hyperlf demo: building a {args.grid[0]} x {args.grid[1]} synthetic H-LF "
                f"(seed {args.seed}) ...")
-    lf = synthesis.procedural_scene(seed=args.seed, rows=args.grid[0], cols=args.grid[1],
-                                    height=args.size[0], width=args.size[1],
-                                    **synthesis.SCENES["solids"])
+    scene = {**synthesis.SCENES["solids"], "seed": args.seed, "rows": args.grid[0],
+             "cols": args.grid[1], "height": args.size[0], "width": args.size[1]}
+    lf = synthesis.procedural_scene(**scene)
     save_lightfield(lf, out / "capture", overwrite=True)
     write_pfm(out / "gt_disparity.pfm", lf.reference_gt_disparity)
     pics = _write_lightfield_pictures(lf, out)
@@ -297,7 +299,8 @@ def build_parser() -> argparse.ArgumentParser:
     for q in (ph, pp):
         q.add_argument("-o", "--output", required=True,
                        help="output capture folder, or a .h5 file")
-        q.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+        q.add_argument("--seed", type=int, default=None,
+                       help="random seed (default: 0, or the named scene's own)")
         q.add_argument("--no-pictures", action="store_true", help="write data only")
         _add_spectral_options(q)
         q.set_defaults(func=_cmd_synth)

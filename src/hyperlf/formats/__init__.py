@@ -1,0 +1,132 @@
+"""File formats: reading and writing light fields, cubes, images and benchmark data.
+
+Supported
+---------
+* hyperlf capture folders (``capture.toml`` + one image per view): :mod:`.capture`;
+* hyperlf HDF5 light fields and plenoptic cubes (``.h5``/``.hdf5``): :mod:`.hdf5`;
+* HCI 4D light field benchmark scenes (``input_Cam###.png``): :mod:`.hci`;
+* Middlebury stereo pairs (v2 and 2005 layouts): :mod:`.middlebury`;
+* PFM float maps, PNG/TIFF images, ENVI cubes: :mod:`.pfm`, :mod:`.images`, :mod:`.envi`.
+
+Every reader turns malformed input into :class:`~hyperlf.errors.FormatError` (missing files into
+:class:`~hyperlf.errors.DataNotFoundError`) with a one-line message; every writer writes
+atomically (temporary file beside the target, then rename).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from ..errors import DataNotFoundError, FormatError, InvalidInputError
+from ..lightfield import LightField
+from .capture import MANIFEST, is_capture, read_capture, write_capture
+from .envi import read_envi, write_envi
+from .hci import is_hci_scene, read_hci_scene
+from .hdf5 import (
+    CubeFile,
+    CubeWriter,
+    open_cube_h5,
+    read_cube_h5,
+    read_lightfield_h5,
+    write_cube_h5,
+    write_lightfield_h5,
+)
+from .images import read_image, to_grey, write_image
+from .middlebury import StereoPair, read_middlebury, write_middlebury
+from .pfm import read_pfm, write_pfm
+
+__all__ = [
+    "load_lightfield",
+    "save_lightfield",
+    "read_pfm",
+    "write_pfm",
+    "read_image",
+    "write_image",
+    "to_grey",
+    "read_hci_scene",
+    "is_hci_scene",
+    "StereoPair",
+    "read_middlebury",
+    "write_middlebury",
+    "read_capture",
+    "write_capture",
+    "is_capture",
+    "write_lightfield_h5",
+    "read_lightfield_h5",
+    "write_cube_h5",
+    "read_cube_h5",
+    "CubeWriter",
+    "CubeFile",
+    "open_cube_h5",
+    "write_envi",
+    "read_envi",
+]
+
+_H5 = (".h5", ".hdf5")
+_SUPPORTED = ("a capture folder with capture.toml, an HCI scene folder with input_Cam000.png, "
+              "or an HDF5 file (.h5/.hdf5) written by hyperlf")
+
+
+def load_lightfield(path: str | os.PathLike, **kwargs) -> LightField:
+    """Load a light field, picking the reader from what ``path`` is.
+
+    * folder with ``capture.toml`` -> :func:`read_capture`;
+    * folder with ``input_Cam000.png`` -> :func:`read_hci_scene` (``kwargs``: grid, rows, cols);
+    * ``.h5`` / ``.hdf5`` file -> :func:`read_lightfield_h5`.
+
+    Raises
+    ------
+    DataNotFoundError
+        When ``path`` does not exist (or is a folder without a manifest that holds images,
+        i.e. an unfinished capture).
+    FormatError
+        When ``path`` exists but is none of the supported formats.
+    """
+    p = Path(path)
+    if not p.exists():
+        raise DataNotFoundError(f"{p} does not exist; expected {_SUPPORTED}")
+    if p.is_dir():
+        if is_capture(p):
+            return read_capture(p, **kwargs)
+        if is_hci_scene(p):
+            return read_hci_scene(p, **kwargs)
+        if any(f.suffix.lower() in (".png", ".tif", ".tiff") for f in p.iterdir()):
+            raise DataNotFoundError(
+                f"{p} holds images but no {MANIFEST}; an unfinished capture or a folder of "
+                f"loose images. hyperlf loads {_SUPPORTED}"
+            )
+        raise FormatError(f"{p} is not a light field: hyperlf loads {_SUPPORTED}")
+    if p.suffix.lower() in _H5:
+        return read_lightfield_h5(p, **kwargs)
+    raise FormatError(f"cannot load {p} (suffix {p.suffix or 'none'!r}): hyperlf loads {_SUPPORTED}")
+
+
+def save_lightfield(lf: LightField, path: str | os.PathLike, bit_depth: int = 16,
+                    overwrite: bool = False, **kwargs) -> Path:
+    """Save a light field: ``.h5``/``.hdf5`` -> HDF5 file, anything else -> capture folder.
+
+    Parameters
+    ----------
+    lf : LightField
+    path : path-like
+    bit_depth : {8, 16, 32}
+        Depth of a capture's view files; ignored for HDF5 (always float32).
+    overwrite : bool
+        Replace an existing HDF5 file / non-empty capture folder; otherwise refuse with
+        :class:`~hyperlf.errors.InvalidInputError`.
+    **kwargs
+        Passed on to :func:`write_lightfield_h5` (``compression``) or :func:`write_capture`
+        (``image_format``).
+
+    Returns
+    -------
+    Path
+        The written file (the manifest for a capture).
+    """
+    p = Path(path)
+    if p.suffix.lower() in _H5:
+        if p.exists() and not overwrite:
+            raise InvalidInputError(f"{p} exists; choose another name or pass overwrite=True")
+        return write_lightfield_h5(p, lf, **kwargs)
+    return write_capture(lf, p, bit_depth=bit_depth, overwrite=overwrite, **kwargs)

@@ -1,0 +1,482 @@
+"""hyperlf's capture format: a folder of per-view images plus a ``capture.toml`` manifest.
+
+Example manifest::
+
+    format = "hyperlf-capture"
+    version = 1
+    grid = [5, 6]                  # rows, cols
+    reference = [2, 2]             # optional, default ((R-1)//2, (C-1)//2)
+    disparity_range = [-1.0, 3.0]  # optional, px per baseline
+    bit_depth = 16                 # of the view files: 8, 16 (PNG/TIFF) or 32 (float32 TIFF)
+    channels = 1                   # optional: 1 (monochrome, default) or 3 (RGB views)
+    gt_disparity = "gt_disparity.pfm"          # optional: reference view, or a per-view pattern
+                                               # with {row} and {col}, e.g. "gt_r{row}_c{col}.pfm"
+    gt_cube = "gt_cube.h5"                     # optional: hyperlf cube file (write_cube_h5)
+
+    [[view]]                       # one table per view
+    row = 0
+    col = 0
+    file = "view_r0_c0.png"
+    wavelength = 410.0             # nm; give it for all views or for none
+    position = [0.0, 0.0]          # optional (px, py) in baselines, default (col, row)
+
+    [calibration]                  # optional free table -> metadata["calibration"]
+    [metadata]                     # optional free table -> metadata
+
+Decisions
+---------
+* Intensities: integer files are scaled to [0, 1] by their own dtype maximum (the file's real
+  depth wins over ``bit_depth``, which documents how the capture was written).
+* A monochrome capture (``channels = 1``) whose file is RGB with three identical channels is
+  accepted as grey; RGB with different channels is an error (a spectral view must not be
+  silently mixed from colour channels): convert it with :func:`hyperlf.formats.to_grey` first
+  or declare ``channels = 3``.
+* The manifest is written last, so a folder without ``capture.toml`` is an unfinished capture.
+* File names in the manifest are relative to the folder and may not leave it.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path, PurePosixPath
+from typing import Any
+
+import numpy as np
+
+from .._atomic import atomic_write_bytes
+from ..errors import DataNotFoundError, FormatError, InvalidInputError
+from ..lightfield import LightField
+from .hdf5 import read_cube_h5, write_cube_h5
+from .images import read_image, write_image
+from .pfm import read_pfm, write_pfm
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+__all__ = ["read_capture", "write_capture", "is_capture", "MANIFEST", "CAPTURE_FORMAT"]
+
+MANIFEST = "capture.toml"
+CAPTURE_FORMAT = "hyperlf-capture"
+VERSION = 1
+_KNOWN_KEYS = {"format", "version", "grid", "reference", "disparity_range", "bit_depth",
+               "channels", "gt_disparity", "gt_cube", "view", "calibration", "metadata"}
+
+
+def is_capture(folder: str | os.PathLike) -> bool:
+    """True when ``folder`` is a folder with a ``capture.toml`` manifest."""
+    p = Path(folder)
+    return p.is_dir() and (p / MANIFEST).is_file()
+
+
+def _err(manifest: Path, what: str) -> FormatError:
+    return FormatError(f"{manifest}: {what}")
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _is_num(v) -> bool:
+    return (isinstance(v, (int, float)) and not isinstance(v, bool)) and math.isfinite(v)
+
+
+def _pair(man: Path, doc: dict, key: str, kind: str, required: bool):
+    v = doc.get(key)
+    if v is None:
+        if required:
+            raise _err(man, f"missing '{key}'; add e.g. {key} = [5, 6]")
+        return None
+    ok = _is_int if kind == "int" else _is_num
+    if not isinstance(v, list) or len(v) != 2 or not all(ok(x) for x in v):
+        raise _err(man, f"'{key}' must be a list of two {'integers' if kind == 'int' else 'numbers'}, got {v!r}")
+    return tuple(int(x) if kind == "int" else float(x) for x in v)
+
+
+def _safe_file(man: Path, root: Path, name, what: str) -> Path:
+    if not isinstance(name, str) or not name.strip():
+        raise _err(man, f"{what} must be a non-empty file name string, got {name!r}")
+    pp = PurePosixPath(name.replace("\\", "/"))
+    if pp.is_absolute() or ".." in pp.parts or Path(name).is_absolute():
+        raise _err(man, f"{what} {name!r} must be a path inside the capture folder")
+    return root / Path(*pp.parts)
+
+
+def read_capture(folder: str | os.PathLike) -> LightField:
+    """Read a capture folder.
+
+    Parameters
+    ----------
+    folder : path-like
+        Folder holding ``capture.toml`` and the view images.
+
+    Returns
+    -------
+    LightField
+        ``views`` float32 ``(R, C, H, W)`` (or ``(R, C, H, W, 3)`` with ``channels = 3``) in
+        [0, 1]; wavelengths (nm), positions, reference, disparity range and ground truth from
+        the manifest; ``metadata`` holds the ``[metadata]`` table, ``calibration`` and
+        ``capture_folder``.
+
+    Raises
+    ------
+    DataNotFoundError
+        When the folder, the manifest or a file it names is missing.
+    FormatError
+        When the manifest is malformed or inconsistent (one line saying what and where).
+    """
+    root = Path(folder)
+    if not root.is_dir():
+        raise DataNotFoundError(f"capture folder {root} does not exist")
+    man = root / MANIFEST
+    if not man.is_file():
+        has_images = any(f.suffix.lower() in (".png", ".tif", ".tiff") for f in root.iterdir())
+        hint = (" (it holds images: the capture was not finished writing, since the manifest is "
+                "written last; write it again)" if has_images else "")
+        raise DataNotFoundError(f"no {MANIFEST} manifest in {root}{hint}")
+    try:
+        doc = tomllib.loads(man.read_text(encoding="utf-8"))
+    except UnicodeDecodeError:
+        raise _err(man, "is not UTF-8 text; save the manifest as UTF-8 TOML") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise _err(man, f"is not valid TOML ({str(exc).splitlines()[0]}); fix the syntax") from None
+    except OSError as exc:
+        raise _err(man, f"cannot be read ({exc.strerror or exc})") from None
+
+    fmt = doc.get("format")
+    if fmt != CAPTURE_FORMAT:
+        raise _err(man, f"format is {fmt!r}, expected format = \"{CAPTURE_FORMAT}\"")
+    ver = doc.get("version")
+    if not _is_int(ver) or ver < 1:
+        raise _err(man, f"version must be a positive integer, got {ver!r}")
+    if ver > VERSION:
+        raise _err(man, f"version {ver} is newer than this hyperlf reads ({VERSION}); upgrade hyperlf")
+    R, C = _pair(man, doc, "grid", "int", True)
+    if R < 1 or C < 1:
+        raise _err(man, f"grid must be at least [1, 1], got [{R}, {C}]")
+    reference = _pair(man, doc, "reference", "int", False)
+    if reference is not None and not (0 <= reference[0] < R and 0 <= reference[1] < C):
+        raise _err(man, f"reference {list(reference)} is outside the {R} x {C} grid "
+                        f"(rows 0..{R - 1}, cols 0..{C - 1})")
+    drange = _pair(man, doc, "disparity_range", "num", False)
+    if drange is not None and not drange[0] < drange[1]:
+        raise _err(man, f"disparity_range must be [min, max] with min < max, got {list(drange)}")
+    bit_depth = doc.get("bit_depth", 16)
+    if bit_depth not in (8, 16, 32) or isinstance(bit_depth, bool):
+        raise _err(man, f"bit_depth must be 8, 16 or 32, got {bit_depth!r}")
+    channels = doc.get("channels", 1)
+    if channels not in (1, 3) or isinstance(channels, bool):
+        raise _err(man, f"channels must be 1 (monochrome) or 3 (RGB), got {channels!r}")
+    for key in ("calibration", "metadata"):
+        if key in doc and not isinstance(doc[key], dict):
+            raise _err(man, f"'{key}' must be a table ([{key}]), got {type(doc[key]).__name__}")
+
+    entries = doc.get("view")
+    if not isinstance(entries, list) or not entries or not all(isinstance(e, dict) for e in entries):
+        raise _err(man, "needs one [[view]] table per view (row, col, file, wavelength)")
+    files: dict[tuple[int, int], Path] = {}
+    wl = np.full((R, C), np.nan)
+    pos = np.full((R, C, 2), np.nan)
+    n_wl = 0
+    for i, e in enumerate(entries):
+        r, c = e.get("row"), e.get("col")
+        if not (_is_int(r) and _is_int(c)):
+            raise _err(man, f"view #{i + 1} needs integer 'row' and 'col', got row={r!r}, col={c!r}")
+        if not (0 <= r < R and 0 <= c < C):
+            raise _err(man, f"view #{i + 1} at ({r}, {c}) is outside grid = [{R}, {C}]; "
+                            "fix the view or the grid")
+        if (r, c) in files:
+            raise _err(man, f"view ({r}, {c}) is listed twice; keep one [[view]] per (row, col)")
+        files[(r, c)] = _safe_file(man, root, e.get("file"), f"view ({r}, {c}) 'file'")
+        if "wavelength" in e:
+            w = e["wavelength"]
+            if not _is_num(w) or w <= 0:
+                raise _err(man, f"view ({r}, {c}) wavelength must be a positive number (nm), got {w!r}")
+            wl[r, c] = float(w)
+            n_wl += 1
+        if "position" in e:
+            pv = e["position"]
+            if not isinstance(pv, list) or len(pv) != 2 or not all(_is_num(x) for x in pv):
+                raise _err(man, f"view ({r}, {c}) position must be [px, py] numbers, got {pv!r}")
+            pos[r, c] = pv
+        else:
+            pos[r, c] = (c, r)
+    missing = [(r, c) for r in range(R) for c in range(C) if (r, c) not in files]
+    if missing:
+        shown = ", ".join(f"({r}, {c})" for r, c in missing[:10])
+        raise _err(man, f"grid = [{R}, {C}] but {len(missing)} view(s) are not listed: {shown}"
+                        f"{' ...' if len(missing) > 10 else ''}")
+    if 0 < n_wl < R * C:
+        raise _err(man, f"only {n_wl} of {R * C} views give a wavelength; give it for all or none")
+    absent = [f"({r}, {c}) {p.name}" for (r, c), p in sorted(files.items()) if not p.is_file()]
+    if absent:
+        raise DataNotFoundError(
+            f"capture {root}: {len(absent)} view file(s) not found: {', '.join(absent[:6])}"
+            f"{' ...' if len(absent) > 6 else ''}"
+        )
+
+    order = [(r, c) for r in range(R) for c in range(C)]
+    first = _load_view(files[order[0]], channels, order[0])
+    views = np.empty((R, C) + first.shape, dtype=np.float32)
+    views[order[0]] = first
+
+    def load(rc):
+        im = _load_view(files[rc], channels, rc)
+        if im.shape != first.shape:
+            raise FormatError(
+                f"capture {root}: view {rc} ({files[rc].name}) is {im.shape[1]} x {im.shape[0]} px "
+                f"but view {order[0]} ({files[order[0]].name}) is {first.shape[1]} x {first.shape[0]}; "
+                "all views must have the same size"
+            )
+        views[rc] = im
+
+    if len(order) > 1:
+        with ThreadPoolExecutor(max_workers=min(8, len(order) - 1)) as pool:
+            list(pool.map(load, order[1:]))
+
+    H, W = first.shape[:2]
+    gt = None
+    gspec = doc.get("gt_disparity")
+    if gspec is not None:
+        if not isinstance(gspec, str):
+            raise _err(man, f"gt_disparity must be a file name or pattern, got {gspec!r}")
+        if "{row}" in gspec or "{col}" in gspec:
+            gt = np.empty((R, C, H, W), dtype=np.float32)
+            for r, c in order:
+                try:
+                    name = gspec.format(row=r, col=c)
+                except (KeyError, IndexError, ValueError):
+                    raise _err(man, f"gt_disparity pattern {gspec!r} may only use {{row}} and {{col}}") from None
+                g = read_pfm(_safe_file(man, root, name, "gt_disparity"))
+                if g.shape != (H, W):
+                    raise _err(man, f"ground truth {name} is {g.shape}, views are {(H, W)}")
+                gt[r, c] = g
+        else:
+            gpath = _safe_file(man, root, gspec, "gt_disparity")
+            gt = read_pfm(gpath)
+            if gt.shape != (H, W):
+                raise _err(man, f"ground truth {gspec} is {gt.shape}, views are {(H, W)}")
+    cube = cube_wl = None
+    cspec = doc.get("gt_cube")
+    if cspec is not None:
+        cube, cube_wl, _mask = read_cube_h5(_safe_file(man, root, cspec, "gt_cube"))
+        if cube.shape[:2] != (R, C) or cube.shape[3:] != (H, W):
+            raise _err(man, f"gt_cube {cspec} has shape {cube.shape}, expected ({R}, {C}, B, {H}, {W})")
+
+    metadata: dict[str, Any] = dict(doc.get("metadata", {}))
+    if "calibration" in doc:
+        metadata["calibration"] = doc["calibration"]
+    extra = {k: v for k, v in doc.items() if k not in _KNOWN_KEYS}
+    if extra:
+        metadata["manifest_extra"] = extra
+    metadata["capture_folder"] = str(root)
+    metadata["bit_depth"] = bit_depth
+    try:
+        return LightField(
+            views=views, wavelengths=wl if n_wl else None, positions=pos, reference=reference,
+            disparity_range=drange, gt_disparity=gt, gt_cube=cube, cube_wavelengths=cube_wl,
+            metadata=metadata,
+        )
+    except InvalidInputError as exc:
+        raise _err(man, f"describes an invalid light field: {exc}") from None
+
+
+def _load_view(path: Path, channels: int, rc) -> np.ndarray:
+    im = read_image(path, as_float=True)
+    if channels == 1:
+        if im.ndim == 3:
+            if np.array_equal(im[..., 0], im[..., 1]) and np.array_equal(im[..., 0], im[..., 2]):
+                return im[..., 0]
+            raise FormatError(
+                f"view {rc} file {path} is a colour image but the capture is monochrome; convert "
+                "it to grey (hyperlf.formats.to_grey) or set channels = 3 in the manifest"
+            )
+        return im
+    if im.ndim == 2:
+        return np.repeat(im[..., None], 3, axis=2)
+    return im
+
+
+# ----------------------------------------------------------------------------- writing
+def _toml_value(v: Any):
+    """Convert to something TOML can hold; None -> dropped (returns a sentinel)."""
+    if v is None:
+        return _DROP
+    if isinstance(v, np.generic):
+        v = v.item()
+    if isinstance(v, np.ndarray):
+        v = v.tolist()
+    if isinstance(v, bool) or isinstance(v, (int, str)):
+        return v
+    if isinstance(v, float):
+        return v  # tomli-w writes nan/inf as TOML's nan/inf
+    if isinstance(v, dict):
+        out = {}
+        for k, x in v.items():
+            y = _toml_value(x)
+            if y is not _DROP:
+                out[str(k)] = y
+        return out
+    if isinstance(v, (list, tuple, set)):
+        return [y for y in (_toml_value(x) for x in v) if y is not _DROP]
+    if isinstance(v, os.PathLike):
+        return os.fspath(v)
+    return str(v)
+
+
+_DROP = object()
+
+
+def write_capture(lightfield: LightField, folder: str | os.PathLike, bit_depth: int = 16,
+                  overwrite: bool = False, image_format: str = "png") -> Path:
+    """Write a light field as a capture folder (views, ground truth, then ``capture.toml``).
+
+    Parameters
+    ----------
+    lightfield : LightField
+        Monochrome ``(R, C, H, W)`` or RGB ``(R, C, H, W, 3)`` views.
+    folder : path-like
+        Target folder (created).
+    bit_depth : {8, 16, 32}
+        8/16: integer PNG/TIFF, views must lie in [0, 1]. 32: float32 TIFF, values kept as
+        they are.
+    overwrite : bool
+        Refuse (InvalidInputError) to write into a folder that is not empty unless True. When
+        True, the old manifest is removed first and files it named but the new capture does not
+        use are deleted afterwards.
+    image_format : {"png", "tiff"}
+        Container of the view files (``bit_depth=32`` always uses TIFF).
+
+    Returns
+    -------
+    Path
+        The manifest.
+
+    Notes
+    -----
+    ``metadata`` entries that are None are dropped (TOML has no null); numpy values become
+    lists/numbers, other objects their ``str``. ``metadata["calibration"]`` becomes the
+    ``[calibration]`` table; keys the reader adds (``capture_folder``, ``bit_depth``) are not
+    written back.
+    """
+    import tomli_w
+
+    if not isinstance(lightfield, LightField):
+        raise InvalidInputError(f"expected a LightField, got {type(lightfield).__name__}")
+    lf = lightfield
+    if bit_depth not in (8, 16, 32):
+        raise InvalidInputError(f"bit_depth must be 8, 16 or 32, got {bit_depth!r}")
+    if lf.channels not in (1, 3):
+        raise InvalidInputError(
+            f"a capture holds monochrome or RGB views, got {lf.channels} channels per view"
+        )
+    if image_format not in ("png", "tiff", "tif"):
+        raise InvalidInputError(f"image_format must be 'png' or 'tiff', got {image_format!r}")
+    ext = ".tif" if (bit_depth == 32 or image_format != "png") else ".png"
+    if bit_depth != 32:
+        lo, hi = float(lf.views.min()), float(lf.views.max())
+        if lo < 0 or hi > 1:
+            raise InvalidInputError(
+                f"views range {lo:.4g}..{hi:.4g} does not fit {bit_depth}-bit files (0..1); "
+                "rescale them or use bit_depth=32 (float TIFF)"
+            )
+    root = Path(folder)
+    man = root / MANIFEST
+    old_files: set[str] = set()
+    if root.exists():
+        if not root.is_dir():
+            raise InvalidInputError(f"{root} exists and is not a folder")
+        if any(root.iterdir()):
+            if not overwrite:
+                raise InvalidInputError(
+                    f"{root} is not empty; choose a new folder or pass overwrite=True"
+                )
+            if man.is_file():
+                try:
+                    old = tomllib.loads(man.read_text(encoding="utf-8"))
+                    old_files = {e["file"] for e in old.get("view", []) if isinstance(e, dict)
+                                 and isinstance(e.get("file"), str)}
+                    for k in ("gt_disparity", "gt_cube"):
+                        if isinstance(old.get(k), str) and "{" not in old[k]:
+                            old_files.add(old[k])
+                except Exception:  # an unreadable old manifest is simply replaced
+                    old_files = set()
+                man.unlink()  # the folder is visibly incomplete until the new manifest lands
+    root.mkdir(parents=True, exist_ok=True)
+
+    R, C = lf.grid_shape
+    doc: dict[str, Any] = {
+        "format": CAPTURE_FORMAT,
+        "version": VERSION,
+        "grid": [R, C],
+        "reference": list(lf.reference),
+    }
+    if lf.disparity_range is not None:
+        doc["disparity_range"] = [float(v) for v in lf.disparity_range]
+    doc["bit_depth"] = bit_depth
+    doc["channels"] = lf.channels
+    new_files: set[str] = set()
+
+    # views first (in parallel: encoding 16-bit PNGs is the slow part)
+    entries = []
+    jobs = []
+    for r in range(R):
+        for c in range(C):
+            name = f"view_r{r}_c{c}{ext}"
+            e: dict[str, Any] = {"row": r, "col": c, "file": name}
+            if lf.wavelengths is not None:
+                e["wavelength"] = float(lf.wavelengths[r, c])
+            e["position"] = [float(v) for v in lf.positions[r, c]]
+            entries.append(e)
+            jobs.append((root / name, lf.views[r, c]))
+            new_files.add(name)
+    with ThreadPoolExecutor(max_workers=min(8, len(jobs))) as pool:
+        list(pool.map(lambda j: write_image(j[0], j[1], bit_depth=bit_depth), jobs))
+
+    if lf.gt_disparity is not None:
+        if lf.gt_disparity.ndim == 2:
+            doc["gt_disparity"] = "gt_disparity.pfm"
+            write_pfm(root / "gt_disparity.pfm", lf.gt_disparity)
+            new_files.add("gt_disparity.pfm")
+        else:
+            doc["gt_disparity"] = "gt_disparity_r{row}_c{col}.pfm"
+            for r in range(R):
+                for c in range(C):
+                    name = f"gt_disparity_r{r}_c{c}.pfm"
+                    write_pfm(root / name, lf.gt_disparity[r, c])
+                    new_files.add(name)
+    if lf.gt_cube is not None:
+        doc["gt_cube"] = "gt_cube.h5"
+        write_cube_h5(root / "gt_cube.h5", lf.gt_cube, lf.cube_wavelengths)
+        new_files.add("gt_cube.h5")
+
+    doc["view"] = entries
+    meta = {k: v for k, v in lf.metadata.items()
+            if k not in ("calibration", "capture_folder", "bit_depth", "manifest_extra")}
+    if "calibration" in lf.metadata:
+        cal = _toml_value(lf.metadata["calibration"])
+        if isinstance(cal, dict):
+            doc["calibration"] = cal
+        elif cal is not _DROP:
+            meta["calibration"] = cal
+    meta_t = _toml_value(meta)
+    if meta_t:
+        doc["metadata"] = meta_t
+    try:
+        text = tomli_w.dumps(doc)
+    except (TypeError, ValueError) as exc:
+        raise InvalidInputError(f"metadata cannot be stored in TOML: {exc}") from None
+    atomic_write_bytes(man, text.encode("utf-8"))  # last: marks the capture complete
+
+    for name in old_files - new_files:
+        try:
+            target = _safe_file(man, root, name, "old file")
+        except FormatError:
+            continue
+        if target.is_file():
+            target.unlink()
+    return man

@@ -1,0 +1,258 @@
+"""ENVI hyperspectral images: a text header ``<base>.hdr`` plus raw samples ``<base>.img``.
+
+The header starts with the line ``ENVI`` followed by ``key = value`` lines; list values are in
+braces and may span lines (``wavelength = {410, 420, ...}``). :func:`write_envi` writes float32
+data; :func:`read_envi` reads interleaves ``bsq``, ``bil`` and ``bip``, data types 1 (uint8),
+2 (int16), 3 (int32), 4 (float32), 5 (float64), 12 (uint16), 13 (uint32), either byte order, and
+a non-zero ``header offset``.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+
+from .._atomic import atomic_path, atomic_write_text
+from ..errors import DataNotFoundError, FormatError, InvalidInputError
+
+__all__ = ["write_envi", "read_envi", "ENVI_DTYPES"]
+
+#: ENVI ``data type`` code -> numpy dtype (native byte order; ``byte order`` picks the order).
+ENVI_DTYPES = {1: np.uint8, 2: np.int16, 3: np.int32, 4: np.float32, 5: np.float64,
+               12: np.uint16, 13: np.uint32, 14: np.int64, 15: np.uint64}
+_INTERLEAVES = ("bsq", "bil", "bip")
+_DATA_SUFFIXES = (".img", ".dat", ".raw", ".bsq", ".bil", ".bip", "")
+
+
+def _base(path: str | os.PathLike) -> Path:
+    p = Path(path)
+    return p.with_suffix("") if p.suffix.lower() in (".hdr", ".img") else p
+
+
+def write_envi(path_hdr_or_base: str | os.PathLike, cube, wavelengths=None,
+               interleave: str = "bsq", axes: str = "auto",
+               description: str = "written by hyperlf") -> Path:
+    """Write a cube as ENVI (float32): ``<base>.img`` first, then ``<base>.hdr``, both atomic.
+
+    Parameters
+    ----------
+    path_hdr_or_base : path-like
+        ``x.hdr``, ``x.img`` or ``x``: the files are ``x.hdr`` and ``x.img``.
+    cube : array_like, shape (B, H, W) or (H, W, B)
+        Band images. ``axes`` says which; ``"auto"`` takes (B, H, W) when the first axis matches
+        the number of wavelengths, else (H, W, B) when the last does (ambiguous shapes resolve to
+        (B, H, W)). Without wavelengths ``"auto"`` means (B, H, W).
+    wavelengths : array_like, shape (B,), optional
+        Band centres in nm (written with ``wavelength units = Nanometers``).
+    interleave : {"bsq", "bil", "bip"}
+    axes : {"auto", "bhw", "hwb"}
+    description : str
+
+    Returns
+    -------
+    Path
+        The header file.
+    """
+    a = np.asarray(cube)
+    if a.ndim != 3 or a.size == 0:
+        raise InvalidInputError(f"an ENVI cube must be 3-D (B, H, W) or (H, W, B), got {a.shape}")
+    if not np.issubdtype(a.dtype, np.number) or np.iscomplexobj(a):
+        raise InvalidInputError(f"an ENVI cube must hold real numbers, got {a.dtype}")
+    wl = None if wavelengths is None else np.asarray(wavelengths, dtype=np.float64).ravel()
+    if axes == "auto":
+        if wl is None or a.shape[0] == wl.size:
+            axes = "bhw"
+        elif a.shape[2] == wl.size:
+            axes = "hwb"
+        else:
+            raise InvalidInputError(
+                f"{wl.size} wavelengths match neither the first nor the last axis of {a.shape}"
+            )
+    if axes == "hwb":
+        a = np.moveaxis(a, 2, 0)
+    elif axes != "bhw":
+        raise InvalidInputError(f"axes must be 'auto', 'bhw' or 'hwb', got {axes!r}")
+    B, H, W = a.shape
+    if wl is not None and wl.size != B:
+        raise InvalidInputError(f"{wl.size} wavelengths for a cube with {B} bands")
+    il = str(interleave).lower()
+    if il == "bsq":
+        data = a
+    elif il == "bil":
+        data = np.transpose(a, (1, 0, 2))
+    elif il == "bip":
+        data = np.transpose(a, (1, 2, 0))
+    else:
+        raise InvalidInputError(f"interleave must be 'bsq', 'bil' or 'bip', got {interleave!r}")
+    base = _base(path_hdr_or_base)
+    hdr, img = base.with_name(base.name + ".hdr"), base.with_name(base.name + ".img")
+    lines = [
+        "ENVI",
+        f"description = {{{description}}}",
+        f"samples = {W}",
+        f"lines = {H}",
+        f"bands = {B}",
+        "header offset = 0",
+        "file type = ENVI Standard",
+        "data type = 4",
+        f"interleave = {il}",
+        "byte order = 0",
+    ]
+    if wl is not None:
+        lines.append("wavelength units = Nanometers")
+        lines.append("wavelength = {" + ", ".join(f"{v:.6g}" for v in wl) + "}")
+    with atomic_path(img) as tmp:
+        np.ascontiguousarray(data, dtype="<f4").tofile(tmp)
+    atomic_write_text(hdr, "\n".join(lines) + "\n")
+    return hdr
+
+
+def _parse_header(hdr: Path) -> dict[str, str]:
+    try:
+        text = hdr.read_text(encoding="utf-8", errors="strict")
+    except UnicodeDecodeError:
+        raise FormatError(f"{hdr} is not a text ENVI header") from None
+    except OSError as exc:
+        raise FormatError(f"cannot read {hdr}: {exc.strerror or exc}") from None
+    if not text.lstrip("\ufeff").startswith("ENVI"):
+        raise FormatError(f"{hdr} is not an ENVI header: the first line must be 'ENVI'")
+    body = text.lstrip("\ufeff")[4:]
+    out: dict[str, str] = {}
+    pos = 0
+    pat = re.compile(r"\s*([^=\n]+?)\s*=\s*")
+    while pos < len(body):
+        if body[pos].isspace():
+            pos += 1
+            continue
+        m = pat.match(body, pos)
+        if m is None:
+            nl = body.find("\n", pos)
+            line = body[pos: nl if nl >= 0 else None].strip()
+            if line.startswith(";"):
+                pos = len(body) if nl < 0 else nl + 1
+                continue
+            raise FormatError(f"{hdr}: header line {line[:40]!r} is not 'key = value'")
+        key = m.group(1).strip().lower()
+        pos = m.end()
+        if pos < len(body) and body[pos] == "{":
+            end = body.find("}", pos)
+            if end < 0:
+                raise FormatError(f"{hdr}: the value of '{key}' opens '{{' but never closes it")
+            out[key] = body[pos + 1: end].strip()
+            pos = end + 1
+        else:
+            nl = body.find("\n", pos)
+            out[key] = body[pos: nl if nl >= 0 else None].strip()
+            pos = len(body) if nl < 0 else nl + 1
+    return out
+
+
+def _int(hdr: Path, h: dict, key: str, default=None) -> int:
+    if key not in h:
+        if default is None:
+            raise FormatError(f"{hdr} lacks the required '{key}' entry")
+        return default
+    try:
+        return int(h[key])
+    except ValueError:
+        raise FormatError(f"{hdr}: '{key} = {h[key][:30]}' is not an integer") from None
+
+
+def read_envi(path: str | os.PathLike):
+    """Read an ENVI image.
+
+    Parameters
+    ----------
+    path : path-like
+        The ``.hdr`` file, the data file, or the common base name.
+
+    Returns
+    -------
+    cube : ndarray, shape (B, H, W)
+        Samples in the file's data type (float32 for files from :func:`write_envi`), native
+        byte order, no scaling.
+    wavelengths : ndarray of float64, shape (B,), or None
+        Band centres in nm (values given in micrometres are converted).
+    header : dict of str -> str
+        Every header entry (keys lower-case, brace lists as raw text).
+
+    Raises
+    ------
+    DataNotFoundError
+        When the header or the data file is missing.
+    FormatError
+        When the header is malformed or the data file has the wrong size.
+    """
+    p = Path(path)
+    base = _base(p)
+    hdr = base.with_name(base.name + ".hdr")
+    if not hdr.is_file() and p.suffix.lower() not in (".hdr", ".img"):
+        alt = p.with_suffix(".hdr")
+        hdr = alt if alt.is_file() else hdr
+    if not hdr.is_file():
+        raise DataNotFoundError(f"ENVI header {hdr} does not exist")
+    h = _parse_header(hdr)
+    W, H, B = _int(hdr, h, "samples"), _int(hdr, h, "lines"), _int(hdr, h, "bands")
+    if min(W, H, B) < 1:
+        raise FormatError(f"{hdr}: samples, lines and bands must be positive, got {W}, {H}, {B}")
+    code = _int(hdr, h, "data type")
+    if code not in ENVI_DTYPES:
+        raise FormatError(
+            f"{hdr}: data type {code} is not supported; use one of {sorted(ENVI_DTYPES)}"
+        )
+    order = _int(hdr, h, "byte order", 0)
+    if order not in (0, 1):
+        raise FormatError(f"{hdr}: byte order must be 0 (little) or 1 (big), got {order}")
+    offset = _int(hdr, h, "header offset", 0)
+    if offset < 0:
+        raise FormatError(f"{hdr}: header offset must be >= 0, got {offset}")
+    il = h.get("interleave", "bsq").lower()
+    if il not in _INTERLEAVES:
+        raise FormatError(f"{hdr}: interleave must be bsq, bil or bip, got {il!r}")
+    dt = np.dtype(ENVI_DTYPES[code]).newbyteorder("<" if order == 0 else ">")
+    data_file = None
+    if "data file" in h:
+        cand = hdr.parent / h["data file"]
+        data_file = cand if cand.is_file() else None
+    if data_file is None:
+        for suf in _DATA_SUFFIXES:
+            cand = base.with_name(base.name + suf)
+            if cand.is_file() and cand != hdr:
+                data_file = cand
+                break
+    if data_file is None:
+        raise DataNotFoundError(
+            f"ENVI data file for {hdr} not found (tried {base.name}.img/.dat/.raw/...)"
+        )
+    n = W * H * B
+    size = data_file.stat().st_size
+    if size < offset + n * dt.itemsize:
+        raise FormatError(
+            f"{data_file} is too small: {size} bytes for {B} bands of {W} x {H} {dt.name} samples "
+            f"after a {offset}-byte offset ({offset + n * dt.itemsize} bytes); the file is truncated"
+        )
+    raw = np.fromfile(data_file, dtype=dt, count=n, offset=offset)
+    if il == "bsq":
+        cube = raw.reshape(B, H, W)
+    elif il == "bil":
+        cube = raw.reshape(H, B, W).transpose(1, 0, 2)
+    else:
+        cube = raw.reshape(H, W, B).transpose(2, 0, 1)
+    cube = np.ascontiguousarray(cube).astype(dt.newbyteorder("="), copy=False)
+    wl = None
+    if "wavelength" in h:
+        try:
+            wl = np.array([float(v) for v in h["wavelength"].replace("\n", " ").split(",") if v.strip()])
+        except ValueError:
+            raise FormatError(f"{hdr}: the wavelength list holds a non-number") from None
+        if wl.size != B:
+            raise FormatError(f"{hdr}: {wl.size} wavelengths listed for {B} bands")
+        units = h.get("wavelength units", "nanometers").lower()
+        if units in ("micrometers", "micrometres", "microns", "um"):
+            wl = wl * 1000.0
+        elif units in ("millimeters", "mm"):
+            wl = wl * 1e6
+    return cube, wl, h

@@ -1,0 +1,442 @@
+"""HDF5 storage of light fields and plenoptic cubes.
+
+Light field file (``format = "hyperlf-lightfield"``)
+----------------------------------------------------
+``/views`` (R, C, H, W[, K]) float32, one view per chunk; ``/positions`` (R, C, 2);
+``/wavelengths`` (R, C) nm (optional); ``/gt_disparity`` (H, W) or (R, C, H, W) (optional);
+``/gt_cube`` (R, C, B, H, W), one band of one view per chunk, with ``/cube_wavelengths`` (B,)
+(optional). Root attributes: ``format``, ``version``, ``reference`` (2,), ``disparity_range``
+(2,) when known, ``metadata`` (a JSON string).
+
+Cube file (``format = "hyperlf-cube"``)
+---------------------------------------
+``/cube`` (R, C, B, H, W) float32, one (view, band) per chunk; ``/wavelengths`` (B,);
+``/mask`` (R, C, H, W) bool (True = valid pixel), optional. :class:`CubeWriter` fills it view by
+view so that a full cube never has to sit in memory; :func:`open_cube_h5` reads it lazily.
+
+All writers write to a temporary file beside the target and rename it when complete.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._atomic import atomic_path
+from ..errors import DataNotFoundError, FormatError, InvalidInputError
+from ..lightfield import LightField
+
+__all__ = [
+    "write_lightfield_h5",
+    "read_lightfield_h5",
+    "write_cube_h5",
+    "read_cube_h5",
+    "CubeWriter",
+    "CubeFile",
+    "open_cube_h5",
+]
+
+LF_FORMAT = "hyperlf-lightfield"
+CUBE_FORMAT = "hyperlf-cube"
+VERSION = 1
+
+
+def _h5py():
+    import h5py
+
+    return h5py
+
+
+def _compression(compression):
+    if compression in (None, "none", False):
+        return {}
+    if compression == "gzip":
+        return {"compression": "gzip", "compression_opts": 4, "shuffle": True}
+    if compression == "lzf":
+        return {"compression": "lzf", "shuffle": True}
+    raise InvalidInputError(f"compression must be 'gzip', 'lzf' or None, got {compression!r}")
+
+
+def _json_default(o: Any):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, (set, tuple)):
+        return list(o)
+    if isinstance(o, os.PathLike):
+        return os.fspath(o)
+    return str(o)
+
+
+def _dump_metadata(meta: dict) -> str:
+    return json.dumps(meta, default=_json_default, allow_nan=True)
+
+
+@contextlib.contextmanager
+def _open_read(path: str | os.PathLike, expected: str):
+    h5py = _h5py()
+    p = Path(path)
+    if not p.is_file():
+        raise DataNotFoundError(f"HDF5 file {p} does not exist")
+    try:
+        f = h5py.File(p, "r")
+    except OSError:
+        raise FormatError(
+            f"{p} is not a readable HDF5 file (corrupt or another format); "
+            "re-create it with hyperlf.save"
+        ) from None
+    try:
+        fmt = f.attrs.get("format")
+        if isinstance(fmt, bytes):
+            fmt = fmt.decode()
+        if fmt != expected:
+            raise FormatError(
+                f"{p} is an HDF5 file but not a {expected} file (format attribute {fmt!r}); "
+                f"write it with hyperlf's {'write_lightfield_h5' if expected == LF_FORMAT else 'write_cube_h5'}"
+            )
+        yield p, f
+    finally:
+        f.close()
+
+
+def _get(p: Path, f, name: str, required: bool = True):
+    if name not in f:
+        if required:
+            raise FormatError(f"{p} has no dataset '/{name}'; the file is incomplete or corrupt")
+        return None
+    try:
+        return f[name][()]
+    except Exception as exc:  # h5py raises OSError/KeyError/TypeError on corrupt data
+        raise FormatError(f"{p}: cannot read dataset '/{name}' ({type(exc).__name__}); the file is corrupt") from None
+
+
+def write_lightfield_h5(path: str | os.PathLike, lf: LightField,
+                        compression: str | None = "gzip") -> Path:
+    """Write a :class:`LightField` (every field) to an HDF5 file atomically.
+
+    Parameters
+    ----------
+    path : path-like
+        Target ``.h5`` file.
+    lf : LightField
+    compression : {"gzip", "lzf", None}
+
+    Returns
+    -------
+    Path
+    """
+    h5py = _h5py()
+    if not isinstance(lf, LightField):
+        raise InvalidInputError(f"expected a LightField, got {type(lf).__name__}")
+    comp = _compression(compression)
+    R, C = lf.grid_shape
+    with atomic_path(path) as tmp:
+        with h5py.File(tmp, "w") as f:
+            f.attrs["format"] = LF_FORMAT
+            f.attrs["version"] = VERSION
+            f.attrs["reference"] = np.asarray(lf.reference, dtype=np.int64)
+            if lf.disparity_range is not None:
+                f.attrs["disparity_range"] = np.asarray(lf.disparity_range, dtype=np.float64)
+            f.attrs["metadata"] = _dump_metadata(lf.metadata)
+            f.create_dataset("views", data=lf.views, chunks=(1, 1) + lf.views.shape[2:], **comp)
+            f.create_dataset("positions", data=lf.positions)
+            if lf.wavelengths is not None:
+                f.create_dataset("wavelengths", data=lf.wavelengths)
+            if lf.gt_disparity is not None:
+                g = lf.gt_disparity
+                chunks = g.shape if g.ndim == 2 else (1, 1) + g.shape[2:]
+                f.create_dataset("gt_disparity", data=g, chunks=chunks, **comp)
+            if lf.gt_cube is not None:
+                cube = lf.gt_cube
+                f.create_dataset("gt_cube", data=cube, chunks=(1, 1, 1) + cube.shape[3:], **comp)
+            if lf.cube_wavelengths is not None:
+                f.create_dataset("cube_wavelengths", data=lf.cube_wavelengths)
+    return Path(path)
+
+
+def read_lightfield_h5(path: str | os.PathLike) -> LightField:
+    """Read a light field written by :func:`write_lightfield_h5`.
+
+    Raises
+    ------
+    DataNotFoundError
+        When the file does not exist.
+    FormatError
+        When it is not a hyperlf light-field HDF5 file or is incomplete/corrupt.
+    """
+    with _open_read(path, LF_FORMAT) as (p, f):
+        views = _get(p, f, "views")
+        positions = _get(p, f, "positions")
+        wl = _get(p, f, "wavelengths", required=False)
+        gt = _get(p, f, "gt_disparity", required=False)
+        cube = _get(p, f, "gt_cube", required=False)
+        cw = _get(p, f, "cube_wavelengths", required=False)
+        ref = f.attrs.get("reference")
+        dr = f.attrs.get("disparity_range")
+        meta_txt = f.attrs.get("metadata", "{}")
+    try:
+        meta = json.loads(meta_txt.decode() if isinstance(meta_txt, bytes) else str(meta_txt))
+        if not isinstance(meta, dict):
+            raise ValueError
+    except ValueError:
+        raise FormatError(f"{p}: the 'metadata' attribute is not a JSON object; the file is corrupt") from None
+    try:
+        return LightField(
+            views=views, wavelengths=wl, positions=positions,
+            reference=None if ref is None else tuple(int(v) for v in np.ravel(ref)),
+            disparity_range=None if dr is None else tuple(float(v) for v in np.ravel(dr)),
+            gt_disparity=gt, gt_cube=cube, cube_wavelengths=cw, metadata=meta,
+        )
+    except InvalidInputError as exc:
+        raise FormatError(f"{p} holds an invalid light field: {exc}") from None
+
+
+def _check_cube_args(shape, wavelengths):
+    try:
+        shape = tuple(int(v) for v in shape)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"cube shape must be (R, C, B, H, W), got {shape!r}") from None
+    if len(shape) != 5 or min(shape) < 1:
+        raise InvalidInputError(f"cube shape must be 5 positive sizes (R, C, B, H, W), got {shape}")
+    wl = np.asarray(wavelengths, dtype=np.float64).ravel()
+    if wl.size != shape[2]:
+        raise InvalidInputError(
+            f"{wl.size} wavelengths given for a cube with {shape[2]} bands"
+        )
+    if not np.all(np.isfinite(wl)) or np.any(wl <= 0):
+        raise InvalidInputError("cube wavelengths must be positive finite numbers (nm)")
+    return shape, wl
+
+
+class CubeWriter:
+    """Stream a plenoptic cube ``(R, C, B, H, W)`` to HDF5 one view at a time.
+
+    Use as a context manager::
+
+        with CubeWriter("cube.h5", (5, 6, 30, 900, 1200), wavelengths) as w:
+            for r, c in views:
+                w.write_view(r, c, cube_rc, mask_rc)
+
+    The data goes to a temporary file beside ``path``, renamed onto ``path`` only when the block
+    ends without error **and** every view was written; otherwise the temporary file is removed
+    and nothing appears at ``path``.
+
+    Parameters
+    ----------
+    path : path-like
+        Target ``.h5`` file.
+    shape : (R, C, B, H, W)
+    wavelengths : array_like, shape (B,)
+        Band centres in nm.
+    compression : {"gzip", "lzf", None}
+    metadata : dict, optional
+        Stored as a JSON attribute.
+    """
+
+    def __init__(self, path, shape, wavelengths, compression: str | None = "gzip",
+                 metadata: dict | None = None):
+        self.path = Path(path)
+        self.shape, self.wavelengths = _check_cube_args(shape, wavelengths)
+        self._comp = _compression(compression)
+        self._metadata = dict(metadata or {})
+        self._file = None
+        self._tmp: Path | None = None
+        self._written = np.zeros(self.shape[:2], dtype=bool)
+
+    def __enter__(self) -> "CubeWriter":
+        h5py = _h5py()
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.partial-", suffix=self.path.suffix,
+                                   dir=self.path.parent)
+        os.close(fd)
+        self._tmp = Path(tmp)
+        try:
+            f = h5py.File(self._tmp, "w")
+            f.attrs["format"] = CUBE_FORMAT
+            f.attrs["version"] = VERSION
+            f.attrs["metadata"] = _dump_metadata(self._metadata)
+            R, C, B, H, W = self.shape
+            f.create_dataset("cube", shape=self.shape, dtype=np.float32,
+                             chunks=(1, 1, 1, H, W), **self._comp)
+            f.create_dataset("wavelengths", data=self.wavelengths)
+        except BaseException:
+            self._discard()
+            raise
+        self._file = f
+        return self
+
+    def write_view(self, r: int, c: int, cube_rc, mask_rc=None) -> None:
+        """Store the ``(B, H, W)`` cube of view ``(r, c)`` and optionally its ``(H, W)`` mask.
+
+        Views without a mask count as fully valid when any view has one.
+        """
+        if self._file is None:
+            raise InvalidInputError("CubeWriter.write_view called outside its 'with' block")
+        R, C, B, H, W = self.shape
+        if not (0 <= r < R and 0 <= c < C):
+            raise InvalidInputError(f"view ({r}, {c}) is outside the {R} x {C} grid")
+        a = np.asarray(cube_rc, dtype=np.float32)
+        if a.shape != (B, H, W):
+            raise InvalidInputError(f"view ({r}, {c}) cube must have shape {(B, H, W)}, got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise InvalidInputError(f"view ({r}, {c}) cube contains NaN or inf")
+        self._file["cube"][r, c] = a
+        if mask_rc is not None:
+            m = np.asarray(mask_rc, dtype=bool)
+            if m.shape != (H, W):
+                raise InvalidInputError(f"view ({r}, {c}) mask must have shape {(H, W)}, got {m.shape}")
+            if "mask" not in self._file:
+                self._file.create_dataset("mask", shape=(R, C, H, W), dtype=bool,
+                                          chunks=(1, 1, H, W), fillvalue=True, **self._comp)
+            self._file["mask"][r, c] = m
+        self._written[r, c] = True
+
+    def _discard(self) -> None:
+        if self._file is not None:
+            with contextlib.suppress(Exception):
+                self._file.close()
+            self._file = None
+        if self._tmp is not None:
+            with contextlib.suppress(FileNotFoundError):
+                self._tmp.unlink()
+            self._tmp = None
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is not None:
+            self._discard()
+            return None
+        missing = np.argwhere(~self._written)
+        if missing.size:
+            self._discard()
+            shown = ", ".join(f"({r}, {c})" for r, c in missing[:8])
+            raise InvalidInputError(
+                f"CubeWriter for {self.path}: {len(missing)} view(s) never written: {shown}"
+                f"{' ...' if len(missing) > 8 else ''}; nothing was saved"
+            )
+        try:
+            self._file.close()
+            self._file = None
+            os.replace(self._tmp, self.path)
+            self._tmp = None
+        except BaseException:
+            self._discard()
+            raise
+        return None
+
+
+def write_cube_h5(path: str | os.PathLike, cube, wavelengths, mask=None,
+                  compression: str | None = "gzip", metadata: dict | None = None) -> Path:
+    """Write a plenoptic cube ``(R, C, B, H, W)`` (and optional mask ``(R, C, H, W)``) atomically.
+
+    Parameters
+    ----------
+    path : path-like
+    cube : array_like, shape (R, C, B, H, W)
+        Intensities (float32 on disk).
+    wavelengths : array_like, shape (B,)
+        Band centres in nm.
+    mask : array_like of bool, shape (R, C, H, W), optional
+        True where the cube is valid (e.g. not occluded).
+    compression : {"gzip", "lzf", None}
+    metadata : dict, optional
+
+    Returns
+    -------
+    Path
+    """
+    a = np.asarray(cube)
+    shape, wl = _check_cube_args(a.shape, wavelengths)
+    if mask is not None:
+        m = np.asarray(mask, dtype=bool)
+        if m.shape != shape[:2] + shape[3:]:
+            raise InvalidInputError(f"mask must have shape {shape[:2] + shape[3:]}, got {m.shape}")
+    with CubeWriter(path, shape, wl, compression=compression, metadata=metadata) as w:
+        for r in range(shape[0]):
+            for c in range(shape[1]):
+                w.write_view(r, c, a[r, c], None if mask is None else m[r, c])
+    return Path(path)
+
+
+class CubeFile:
+    """A cube HDF5 file opened for lazy reading (see :func:`open_cube_h5`).
+
+    Attributes
+    ----------
+    cube : h5py.Dataset, shape (R, C, B, H, W)
+        Slice it to read only what you need (``f.cube[r, c, b]``).
+    wavelengths : ndarray, shape (B,)
+    mask : h5py.Dataset or None, shape (R, C, H, W)
+    metadata : dict
+    """
+
+    def __init__(self, path: str | os.PathLike):
+        self._cm = _open_read(path, CUBE_FORMAT)
+        p, f = self._cm.__enter__()
+        try:
+            if "cube" not in f or "wavelengths" not in f:
+                raise FormatError(f"{p} lacks '/cube' or '/wavelengths'; the file is incomplete")
+            self.path = p
+            self.cube = f["cube"]
+            if self.cube.ndim != 5:
+                raise FormatError(f"{p}: '/cube' must be 5-D (R, C, B, H, W), got {self.cube.shape}")
+            self.wavelengths = _get(p, f, "wavelengths").astype(np.float64)
+            self.mask = f["mask"] if "mask" in f else None
+            try:
+                self.metadata = json.loads(f.attrs.get("metadata", "{}"))
+            except ValueError:
+                self.metadata = {}
+            self._file = f
+        except BaseException:
+            self._cm.__exit__(None, None, None)
+            raise
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return tuple(self.cube.shape)
+
+    def view(self, r: int, c: int) -> np.ndarray:
+        """The ``(B, H, W)`` float32 cube of view ``(r, c)``."""
+        return np.asarray(self.cube[r, c], dtype=np.float32)
+
+    def close(self) -> None:
+        if self._file is not None:
+            self._file = None
+            self._cm.__exit__(None, None, None)
+
+    def __enter__(self) -> "CubeFile":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def open_cube_h5(path: str | os.PathLike) -> CubeFile:
+    """Open a cube file for lazy reading; use as a context manager or call ``close()``."""
+    return CubeFile(path)
+
+
+def read_cube_h5(path: str | os.PathLike):
+    """Read a whole cube file.
+
+    Returns
+    -------
+    cube : ndarray of float32, shape (R, C, B, H, W)
+    wavelengths : ndarray of float64, shape (B,)
+    mask : ndarray of bool, shape (R, C, H, W), or None
+    """
+    with open_cube_h5(path) as cf:
+        try:
+            cube = np.asarray(cf.cube[()], dtype=np.float32)
+            mask = None if cf.mask is None else np.asarray(cf.mask[()], dtype=bool)
+        except Exception as exc:
+            raise FormatError(f"{cf.path}: cannot read the cube ({type(exc).__name__}); the file is corrupt") from None
+        if cube.shape[2] != cf.wavelengths.size:
+            raise FormatError(f"{cf.path}: {cf.wavelengths.size} wavelengths for {cube.shape[2]} bands")
+        return cube, cf.wavelengths, mask

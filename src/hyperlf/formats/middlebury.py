@@ -1,0 +1,221 @@
+"""Middlebury stereo pairs: the v2 layout (Tsukuba, Teddy, Venus) and the 2005 layout (Art).
+
+v2 layout: ``imL.png``, ``imR.png``, ``groundtruth.png`` (disparity times ``scale``, 0 =
+unknown), ``info.txt`` (two lines: scale, max disparity) and optional evaluation masks
+``all.png``, ``nonocc.png``, ``disc.png`` (255 = evaluated; 128 in ``disc`` = occluded).
+
+2005 layout (``<name>1.png`` left, ``<name>5.png`` right, ``<name>1_true.png`` ground truth,
+channel 0): the scale is not in the folder. For the half-size sets shipped here it is 2 (the
+ground truth holds full-resolution disparities); pass ``scale=`` for other sizes.
+
+Disparity sign: the right view is at ``px = +1``, a left pixel ``x`` matches right pixel
+``x - d`` (SPEC §1, §4).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .._atomic import atomic_write_text
+from ..errors import DataNotFoundError, FormatError, InvalidInputError
+from .images import read_image, write_image
+
+__all__ = ["StereoPair", "read_middlebury", "write_middlebury", "MASK_NAMES"]
+
+MASK_NAMES = ("all", "nonocc", "disc")
+_DEFAULT_2005_SCALE = 2.0
+
+
+@dataclass
+class StereoPair:
+    """A rectified stereo pair with ground truth.
+
+    Attributes
+    ----------
+    left, right : ndarray of float32, shape (H, W, 3)
+        RGB images in [0, 1] (values as stored, sRGB-encoded).
+    gt_disparity : ndarray of float32, shape (H, W)
+        Disparity of the left view in pixels (file value / ``scale``); NaN where unknown.
+    masks : dict of str -> ndarray of bool, shape (H, W)
+        Evaluation masks present in the folder (``all``, ``nonocc``, ``disc``): True where the
+        pixel is evaluated (value 255). Empty when the scene has none.
+    scale : float
+        Factor the ground-truth file's integers were divided by.
+    max_disparity : int
+        Search bound of the disparities: v2 takes it from ``info.txt`` (documented as "disparities
+        range in [0, max - 1]", but Venus' ground truth reaches 19.75 with max 19, so treat it as
+        approximate); 2005 uses ``ceil(max gt) + 1``.
+    name : str
+        Scene name (the folder's name).
+    metadata : dict
+        Provenance.
+    """
+
+    left: np.ndarray
+    right: np.ndarray
+    gt_disparity: np.ndarray
+    masks: dict = field(default_factory=dict)
+    scale: float = 1.0
+    max_disparity: int = 0
+    name: str = ""
+    metadata: dict = field(default_factory=dict)
+
+    @property
+    def valid(self) -> np.ndarray:
+        """Pixels with known ground truth, shape (H, W)."""
+        return np.isfinite(self.gt_disparity)
+
+    def eval_mask(self, name: str = "all") -> np.ndarray:
+        """The named mask and known ground truth, or just known ground truth if absent."""
+        m = self.masks.get(name)
+        return self.valid if m is None else (m & self.valid)
+
+
+def _grey(path: Path) -> np.ndarray:
+    a = read_image(path, as_float=False)
+    return a[..., 0] if a.ndim == 3 else a
+
+
+def _read_info(path: Path) -> tuple[float, int]:
+    try:
+        tokens = path.read_text(encoding="utf-8").split()
+        scale, maxd = float(tokens[0]), int(float(tokens[1]))
+    except (OSError, UnicodeDecodeError, IndexError, ValueError):
+        raise FormatError(
+            f"{path} must hold two numbers, the ground-truth scale and the max disparity, "
+            "one per line (e.g. '16' then '15')"
+        ) from None
+    if not (math.isfinite(scale) and scale > 0 and maxd > 0):
+        raise FormatError(f"{path}: scale and max disparity must be positive, got {scale}, {maxd}")
+    return scale, maxd
+
+
+def _check_same(name: str, ref: np.ndarray, other: np.ndarray, what: str) -> None:
+    if other.shape[:2] != ref.shape[:2]:
+        raise FormatError(
+            f"Middlebury scene {name}: {what} is {other.shape[1]} x {other.shape[0]} px but the "
+            f"left image is {ref.shape[1]} x {ref.shape[0]}"
+        )
+
+
+def read_middlebury(folder: str | os.PathLike, scale: float | None = None) -> StereoPair:
+    """Load a Middlebury scene folder (v2 or 2005 layout).
+
+    Parameters
+    ----------
+    folder : path-like
+        The scene folder.
+    scale : float, optional
+        Override the ground-truth scale (v2: from ``info.txt``; 2005: default 2, the half-size
+        factor).
+
+    Returns
+    -------
+    StereoPair
+
+    Raises
+    ------
+    DataNotFoundError
+        When the folder or a required file is missing.
+    FormatError
+        When a file is malformed or sizes disagree.
+    """
+    root = Path(folder)
+    if not root.is_dir():
+        raise DataNotFoundError(f"Middlebury scene folder {root} does not exist")
+    name = root.name
+    if (root / "imL.png").is_file() or (root / "groundtruth.png").is_file():
+        need = ["imL.png", "imR.png", "groundtruth.png", "info.txt"]
+        missing = [f for f in need if not (root / f).is_file()]
+        if missing:
+            raise DataNotFoundError(
+                f"Middlebury v2 scene {root} is missing {', '.join(missing)}"
+            )
+        file_scale, maxd = _read_info(root / "info.txt")
+        s = float(scale) if scale is not None else file_scale
+        left = read_image(root / "imL.png", channels="rgb")
+        right = read_image(root / "imR.png", channels="rgb")
+        raw = _grey(root / "groundtruth.png")
+        masks = {}
+        for m in MASK_NAMES:
+            if (root / f"{m}.png").is_file():
+                mk = _grey(root / f"{m}.png")
+                _check_same(name, left, mk, f"{m}.png")
+                masks[m] = mk == 255
+        layout = "v2"
+        files = ("imL.png", "imR.png", "groundtruth.png")
+    else:
+        cands = sorted(f for f in os.listdir(root) if re.fullmatch(r".+1_true\.png", f))
+        if not cands:
+            raise DataNotFoundError(
+                f"{root} is not a Middlebury scene: expected imL.png/imR.png/groundtruth.png/"
+                "info.txt (v2) or <name>1.png/<name>5.png/<name>1_true.png (2005)"
+            )
+        stem = cands[0][: -len("1_true.png")]
+        need = [f"{stem}1.png", f"{stem}5.png", f"{stem}1_true.png"]
+        missing = [f for f in need if not (root / f).is_file()]
+        if missing:
+            raise DataNotFoundError(f"Middlebury 2005 scene {root} is missing {', '.join(missing)}")
+        s = float(scale) if scale is not None else _DEFAULT_2005_SCALE
+        left = read_image(root / need[0], channels="rgb")
+        right = read_image(root / need[1], channels="rgb")
+        raw = _grey(root / need[2])
+        masks = {}
+        maxd = None
+        layout = "2005"
+        files = tuple(need)
+        name = stem or name
+    if not (math.isfinite(s) and s > 0):
+        raise InvalidInputError(f"scale must be positive, got {scale}")
+    _check_same(name, left, right, files[1])
+    _check_same(name, left, raw, files[2])
+    gt = raw.astype(np.float32) / np.float32(s)
+    gt[raw == 0] = np.nan
+    if maxd is None:
+        maxd = int(math.ceil(float(np.nanmax(gt)))) + 1 if np.isfinite(gt).any() else 1
+    return StereoPair(
+        left=left, right=right, gt_disparity=gt, masks=masks, scale=s, max_disparity=int(maxd),
+        name=name,
+        metadata={"source": "Middlebury stereo", "layout": layout, "folder": str(root),
+                  "files": list(files), "encoding": "srgb"},
+    )
+
+
+def write_middlebury(folder: str | os.PathLike, pair: StereoPair) -> Path:
+    """Write a :class:`StereoPair` in the v2 layout (each file atomically; ``info.txt`` last).
+
+    Images are written as 8-bit RGB PNG, the ground truth as ``round(d * scale)`` in an 8-bit
+    grey PNG (NaN -> 0), masks as 0/255 grey PNGs.
+
+    Raises
+    ------
+    InvalidInputError
+        When the scaled ground truth does not fit into 1..255.
+    """
+    root = Path(folder)
+    root.mkdir(parents=True, exist_ok=True)
+    s = float(pair.scale)
+    if not (math.isfinite(s) and s > 0):
+        raise InvalidInputError(f"pair.scale must be positive, got {pair.scale}")
+    gt = np.asarray(pair.gt_disparity, dtype=np.float64)
+    known = np.isfinite(gt)
+    q = np.zeros(gt.shape, dtype=np.float64)
+    q[known] = np.rint(gt[known] * s)
+    if np.any(q[known] < 1) or np.any(q > 255):
+        raise InvalidInputError(
+            f"ground truth times scale {s:g} must lie in 1..255 to fit an 8-bit PNG "
+            "(0 means unknown); choose a smaller scale"
+        )
+    write_image(root / "imL.png", np.asarray(pair.left), bit_depth=8)
+    write_image(root / "imR.png", np.asarray(pair.right), bit_depth=8)
+    write_image(root / "groundtruth.png", q.astype(np.uint8))
+    for m, mask in pair.masks.items():
+        write_image(root / f"{m}.png", np.where(np.asarray(mask, bool), 255, 0).astype(np.uint8))
+    atomic_write_text(root / "info.txt", f"{s:g}\n{int(pair.max_disparity)}\n")
+    return root

@@ -1,0 +1,78 @@
+"""The command-line tool: help, exit codes, and the demo/synth/info/convert chain."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from hyperlf.cli import main
+
+
+def test_help_teaches(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["--help"])
+    assert exc.value.code == 0
+    out = capsys.readouterr().out
+    for word in ("demo", "synth", "info", "convert", "examples"):
+        assert word in out
+
+
+def test_no_command_prints_help_and_fails(capsys):
+    assert main([]) == 2
+    assert "usage" in capsys.readouterr().out
+
+
+def test_bad_argument_is_a_usage_error(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["synth", "procedural", "-o", "x", "--grid", "5,zero"])
+    assert exc.value.code == 2
+    assert "expected two integers" in capsys.readouterr().err
+
+
+def test_missing_input_exit_code_and_one_line(tmp_path, capsys):
+    code = main(["info", str(tmp_path / "nothing-here")])
+    err = capsys.readouterr().err.strip()
+    assert code in (3, 4)
+    assert err.startswith("hyperlf info: error:") and "\n" not in err
+
+
+def test_synth_info_convert_chain(tmp_path, capsys):
+    cap = tmp_path / "scene"
+    assert main(["-q", "synth", "procedural", "--seed", "1", "--size", "40,48", "--grid", "3,4",
+                 "-o", str(cap)]) == 0
+    assert (cap / "capture.toml").is_file()
+    assert list(cap.glob("**/*views.png")), "synth must write a picture of the views"
+    assert main(["info", str(cap)]) == 0
+    out = capsys.readouterr().out
+    assert "3 x 4 views" in out and "48 x 40 px" in out
+    h5 = tmp_path / "scene.h5"
+    assert main(["-q", "convert", str(cap), "-o", str(h5)]) == 0
+    import hyperlf
+
+    a, b = hyperlf.load(cap), hyperlf.load(h5)
+    assert np.array_equal(a.views, b.views) and np.array_equal(a.wavelengths, b.wavelengths)
+    # refuses to overwrite without --overwrite, with a clear error
+    assert main(["-q", "synth", "procedural", "--size", "40,48", "--grid", "3,4",
+                 "-o", str(cap)]) != 0
+
+
+def test_pfm_to_png_conversion(tmp_path):
+    from hyperlf.formats import read_image, write_pfm
+
+    d = np.linspace(-1, 2, 30 * 20, dtype=np.float32).reshape(20, 30)
+    write_pfm(tmp_path / "d.pfm", d)
+    assert main(["-q", "convert", str(tmp_path / "d.pfm"), "-o", str(tmp_path / "d.png")]) == 0
+    img = read_image(tmp_path / "d.png", as_float=True)
+    assert img.shape == (20, 30) and img.min() == 0 and img.max() == 1
+    assert (tmp_path / "d_colour.png").is_file()
+
+
+def test_demo_runs_and_writes_pictures(tmp_path):
+    out = tmp_path / "demo"
+    proc = subprocess.run([sys.executable, "-m", "hyperlf.cli", "demo", "-o", str(out),
+                           "--size", "48,64"], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    for name in ("views.png", "gt_disparity.png", "reference_srgb.png", "gt_disparity.pfm"):
+        assert (out / name).is_file(), name
+    assert (out / "capture" / "capture.toml").is_file()

@@ -1,0 +1,188 @@
+"""HCI and Middlebury readers (synthetic folders always; real data when HYPERLF_DATA is set),
+and the load/save dispatch."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+
+import hyperlf
+from hyperlf.errors import DataNotFoundError, FormatError, InvalidInputError
+from hyperlf.formats import (StereoPair, is_hci_scene, load_lightfield, read_hci_scene,
+                             read_middlebury, read_pfm, save_lightfield, write_image,
+                             write_middlebury, write_pfm)
+
+from conftest import require_dataset
+
+
+# ----------------------------------------------------------------------------- HCI, synthetic
+def fake_hci(folder, rng, n=3, H=6, W=7, cfg=True):
+    folder.mkdir()
+    for i in range(n * n):
+        img = np.full((H, W, 3), i, np.uint8)
+        img[0, 0] = (1, 2, 3)
+        write_image(folder / f"input_Cam{i:03d}.png", img)
+    gt = rng.normal(size=(H, W)).astype(np.float32)
+    write_pfm(folder / "gt_disp_lowres.pfm", gt)
+    if cfg:
+        (folder / "parameters.cfg").write_text(
+            "[intrinsics]\nfocal_length_mm = 100\n\n[extrinsics]\n"
+            f"num_cams_x = {n}\nnum_cams_y = {n}\nbaseline_mm = 90.0\n\n"
+            "[meta]\ndisp_min = -1.5\ndisp_max = 1.5\nname = fake\n"
+        )
+    return gt
+
+
+def test_hci_synthetic(tmp_path, rng):
+    gt = fake_hci(tmp_path / "s", rng)
+    assert is_hci_scene(tmp_path / "s") and not is_hci_scene(tmp_path)
+    lf = read_hci_scene(tmp_path / "s")
+    assert lf.views.shape == (3, 3, 6, 7, 3) and lf.reference == (1, 1)
+    assert lf.views[1, 2, 3, 3, 0] == pytest.approx(5 / 255)  # Cam005 -> (1, 2)
+    np.testing.assert_allclose(lf.views[0, 0, 0, 0], np.array([1, 2, 3]) / 255, rtol=1e-6)  # RGB order
+    np.testing.assert_array_equal(lf.gt_disparity, gt)
+    assert lf.disparity_range == (-1.5, 1.5)
+    assert lf.metadata["encoding"] == "srgb"
+    assert lf.metadata["hci_parameters"]["extrinsics"]["baseline_mm"] == 90.0
+    sub = read_hci_scene(tmp_path / "s", rows=[0, 1], cols=[1, 2])
+    assert sub.reference == (1, 0) and sub.positions[1, 0].tolist() == [1.0, 1.0]
+    assert sub.gt_disparity is not None
+    off = read_hci_scene(tmp_path / "s", rows=[0], cols=[0, 1])
+    assert off.gt_disparity is None and off.grid_shape == (1, 2)
+    with pytest.raises(InvalidInputError):
+        read_hci_scene(tmp_path / "s", rows=[5])
+    assert load_lightfield(tmp_path / "s").views.shape == (3, 3, 6, 7, 3)
+
+
+def test_hci_without_cfg_and_missing_views(tmp_path, rng):
+    gt = fake_hci(tmp_path / "s", rng, cfg=False)
+    lf = read_hci_scene(tmp_path / "s")
+    assert lf.grid_shape == (3, 3)  # square number of files
+    lo, hi = lf.disparity_range
+    assert lo == np.floor(gt.min()) - 0.5 and hi == np.ceil(gt.max()) + 0.5
+    os.remove(tmp_path / "s" / "input_Cam004.png")
+    os.remove(tmp_path / "s" / "input_Cam007.png")
+    with pytest.raises(DataNotFoundError, match="input_Cam004.png, input_Cam007.png"):
+        read_hci_scene(tmp_path / "s", grid=(3, 3))
+    assert read_hci_scene(tmp_path / "s", grid=(3, 3), rows=[0], cols=[0, 1, 2]).grid_shape == (1, 3)
+    (tmp_path / "s" / "input_Cam001.png").write_bytes(b"junk")
+    with pytest.raises(FormatError, match="input_Cam001"):
+        read_hci_scene(tmp_path / "s", grid=(3, 3), rows=[0])
+    (tmp_path / "s" / "parameters.cfg").write_text("no section header\n")
+    with pytest.raises(FormatError, match="INI"):
+        read_hci_scene(tmp_path / "s")
+
+
+# ----------------------------------------------------------------------------- HCI, real
+@pytest.fixture(scope="module")
+def antinous():
+    return require_dataset("antinous")
+
+
+def test_antinous_full(antinous):
+    lf = read_hci_scene(antinous)
+    assert lf.views.shape == (9, 9, 512, 512, 3) and lf.views.dtype == np.float32
+    assert lf.gt_disparity.shape == (512, 512) and lf.reference == (4, 4)
+    assert 0 <= lf.views.min() and lf.views.max() <= 1
+    assert lf.disparity_range[0] < np.nanmin(lf.gt_disparity) < np.nanmax(lf.gt_disparity) < lf.disparity_range[1]
+    assert lf.metadata["encoding"] == "srgb"
+
+
+def test_antinous_subgrid_and_sign(antinous):
+    sub = read_hci_scene(antinous, rows=range(2, 7), cols=range(2, 8))
+    assert sub.views.shape[:2] == (5, 6) and sub.reference == (2, 2)
+    assert sub.positions[2, 2].tolist() == [4.0, 4.0]  # Cam040
+    from hyperlf.formats import read_image
+
+    np.testing.assert_array_equal(sub.reference_view, read_image(antinous / "input_Cam040.png"))
+    np.testing.assert_array_equal(sub.gt_disparity, read_pfm(antinous / "gt_disp_lowres.pfm"))
+    # SPEC §1 sign: warping the right neighbour with +gt reproduces the reference better than -gt
+    from hyperlf.warp import warp_to_reference
+
+    ref, view = sub.reference_view[..., 1], sub.views[2, 3, ..., 1]
+    errs = []
+    for s in (1, -1):
+        w, v = warp_to_reference(view, s * sub.gt_disparity, tuple(sub.offsets[2, 3]))
+        errs.append(np.mean(np.abs(w - ref)[v]))
+    assert errs[0] < 0.5 * errs[1]
+
+
+# ----------------------------------------------------------------------------- Middlebury
+SCALES = {"tsukuba": (16, 15, (288, 384)), "teddy": (4, 59, (375, 450)),
+          "venus": (8, 19, (383, 434)), "art": (2, None, (555, 695))}
+
+
+@pytest.mark.parametrize("name", sorted(SCALES))
+def test_middlebury_real(name):
+    root = require_dataset(name)
+    p = read_middlebury(root)
+    scale, maxd, shape = SCALES[name]
+    assert p.scale == scale and p.name == name
+    assert p.left.shape == p.right.shape == shape + (3,) and p.gt_disparity.shape == shape
+    gt = p.gt_disparity[np.isfinite(p.gt_disparity)]
+    assert gt.size > 0.5 * p.gt_disparity.size and gt.min() > 0
+    if maxd is not None:
+        assert p.max_disparity == maxd
+        assert set(p.masks) == {"all", "nonocc", "disc"}
+        assert p.masks["nonocc"].sum() <= p.masks["all"].sum()
+    assert gt.max() < p.max_disparity + 1  # Venus: gt reaches 19.75 with info.txt's 19
+    if name == "tsukuba":
+        assert 4 <= gt.min() and gt.max() <= 15
+    if name == "teddy":
+        assert gt.max() < 59
+    if name == "art":
+        assert p.masks == {} and 100 < gt.max() < 130
+
+
+def test_middlebury_round_trip_and_errors(tmp_path, rng):
+    H, W = 6, 8
+    gt = rng.integers(1, 60, size=(H, W)) / 4.0
+    gt[0, 0] = np.nan
+    left = rng.integers(0, 256, (H, W, 3)) / 255.0
+    pair = StereoPair(left=left, right=left[:, ::-1], gt_disparity=gt,
+                      masks={"all": rng.random((H, W)) > 0.5}, scale=4, max_disparity=16,
+                      name="toy")
+    write_middlebury(tmp_path / "toy", pair)
+    back = read_middlebury(tmp_path / "toy")
+    np.testing.assert_allclose(back.left, left, atol=1e-7)
+    np.testing.assert_array_equal(back.gt_disparity, gt.astype(np.float32))
+    np.testing.assert_array_equal(back.masks["all"], pair.masks["all"])
+    assert back.scale == 4 and back.max_disparity == 16 and back.name == "toy"
+    assert back.eval_mask("all").sum() == (pair.masks["all"] & np.isfinite(gt)).sum()
+    (tmp_path / "toy" / "info.txt").write_text("four\n")
+    with pytest.raises(FormatError, match="info.txt"):
+        read_middlebury(tmp_path / "toy")
+    os.remove(tmp_path / "toy" / "imR.png")
+    with pytest.raises(DataNotFoundError, match="imR.png"):
+        read_middlebury(tmp_path / "toy")
+    with pytest.raises(DataNotFoundError):
+        read_middlebury(tmp_path)
+    with pytest.raises(InvalidInputError):
+        write_middlebury(tmp_path / "x", StereoPair(left, left, gt * 100, scale=4))
+
+
+# ----------------------------------------------------------------------------- dispatch
+def test_dispatch_errors(tmp_path):
+    with pytest.raises(DataNotFoundError):
+        load_lightfield(tmp_path / "nothing")
+    with pytest.raises(FormatError, match="capture.toml"):
+        load_lightfield(tmp_path)
+    (tmp_path / "x.txt").write_text("hi")
+    with pytest.raises(FormatError, match="HDF5"):
+        hyperlf.load(tmp_path / "x.txt")
+    (tmp_path / "x.h5").write_text("hi")
+    with pytest.raises(FormatError):
+        hyperlf.load(tmp_path / "x.h5")
+
+
+def test_save_dispatch(tmp_path, rng):
+    lf = hyperlf.LightField(views=rng.random((2, 2, 3, 3)), wavelengths=[[400, 500], [600, 700]])
+    assert save_lightfield(lf, tmp_path / "a.h5").name == "a.h5"
+    assert save_lightfield(lf, tmp_path / "cap").name == "capture.toml"
+    for p in (tmp_path / "a.h5", tmp_path / "cap"):
+        np.testing.assert_allclose(hyperlf.load(p).views, lf.views, atol=1e-5)
+        with pytest.raises(InvalidInputError, match="overwrite=True"):
+            save_lightfield(lf, p, bit_depth=8)
+        save_lightfield(lf, p, bit_depth=8, overwrite=True)  # the CLI's call signature

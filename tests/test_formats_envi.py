@@ -1,0 +1,89 @@
+"""ENVI cubes: round trips over interleaves and axes, other data types, errors."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+
+from hyperlf.errors import DataNotFoundError, FormatError, InvalidInputError
+from hyperlf.formats import read_envi, write_envi
+
+
+@pytest.mark.parametrize("interleave", ["bsq", "bil", "bip"])
+def test_round_trip(tmp_path, rng, interleave):
+    cube = rng.random((4, 5, 6)).astype(np.float32)
+    wl = np.array([410.0, 420.5, 430.0, 440.0])
+    hdr = write_envi(tmp_path / "cube", cube, wl, interleave=interleave)
+    assert hdr == tmp_path / "cube.hdr" and (tmp_path / "cube.img").stat().st_size == 4 * cube.size
+    text = hdr.read_text()
+    for line in ("samples = 6", "lines = 5", "bands = 4", "header offset = 0", "data type = 4",
+                 "file type = ENVI Standard", f"interleave = {interleave}", "byte order = 0",
+                 "wavelength units = Nanometers", "wavelength = {410, 420.5, 430, 440}"):
+        assert line in text
+    for p in (hdr, tmp_path / "cube.img", tmp_path / "cube"):
+        c2, wl2, h = read_envi(p)
+        np.testing.assert_array_equal(cube, c2)
+        np.testing.assert_array_equal(wl, wl2)
+    assert sorted(os.listdir(tmp_path)) == ["cube.hdr", "cube.img"]
+
+
+def test_hwb_input(tmp_path, rng):
+    cube = rng.random((5, 6, 3)).astype(np.float32)
+    write_envi(tmp_path / "x.hdr", cube, [500, 600, 700])
+    np.testing.assert_array_equal(read_envi(tmp_path / "x.hdr")[0], np.moveaxis(cube, 2, 0))
+    write_envi(tmp_path / "y.hdr", cube, axes="hwb")
+    assert read_envi(tmp_path / "y.hdr")[1] is None
+    with pytest.raises(InvalidInputError):
+        write_envi(tmp_path / "z", cube, [1, 2, 3, 4])
+
+
+@pytest.mark.parametrize("code,dtype", [(1, "u1"), (2, "i2"), (4, "f4"), (5, "f8"), (12, "u2")])
+@pytest.mark.parametrize("order", [0, 1])
+@pytest.mark.parametrize("interleave", ["bsq", "bil", "bip"])
+def test_foreign_types(tmp_path, rng, code, dtype, order, interleave):
+    B, H, W = 3, 4, 5
+    cube = (rng.random((B, H, W)) * 200).astype(dtype)
+    data = {"bsq": cube, "bil": cube.transpose(1, 0, 2), "bip": cube.transpose(1, 2, 0)}[interleave]
+    bo = "<" if order == 0 else ">"
+    (tmp_path / "f.dat").write_bytes(b"\0" * 16 + np.ascontiguousarray(data).astype(bo + dtype).tobytes())
+    (tmp_path / "f.hdr").write_text(
+        "ENVI\ndescription = {a\n multi-line}\nsamples = 5\nlines   = 4\nbands = 3\n"
+        f"header offset = 16\ndata type = {code}\ninterleave = {interleave}\nbyte order = {order}\n"
+        "wavelength units = Micrometers\nwavelength = {0.5,\n 0.6, 0.7}\n"
+    )
+    c2, wl, h = read_envi(tmp_path / "f.hdr")
+    assert c2.dtype == np.dtype(dtype)
+    np.testing.assert_array_equal(c2, cube)
+    np.testing.assert_allclose(wl, [500, 600, 700])
+
+
+def test_errors(tmp_path, rng):
+    with pytest.raises(DataNotFoundError):
+        read_envi(tmp_path / "none.hdr")
+    write_envi(tmp_path / "a", rng.random((2, 3, 4)).astype(np.float32))
+    (tmp_path / "a.img").write_bytes(b"\0" * 10)
+    with pytest.raises(FormatError, match="truncated"):
+        read_envi(tmp_path / "a.hdr")
+    os.remove(tmp_path / "a.img")
+    with pytest.raises(DataNotFoundError):
+        read_envi(tmp_path / "a.hdr")
+    bad = {
+        "no magic": "samples = 1\n",
+        "missing": "ENVI\nsamples = 1\nlines = 1\n",
+        "type": "ENVI\nsamples = 1\nlines = 1\nbands = 1\ndata type = 7\n",
+        "int": "ENVI\nsamples = x\nlines = 1\nbands = 1\ndata type = 4\n",
+        "brace": "ENVI\nwavelength = {1, 2\n",
+        "line": "ENVI\nwhat is this\n",
+        "interleave": "ENVI\nsamples = 1\nlines = 1\nbands = 1\ndata type = 4\ninterleave = abc\n",
+    }
+    (tmp_path / "b.img").write_bytes(b"\0" * 64)
+    for text in bad.values():
+        (tmp_path / "b.hdr").write_text(text)
+        with pytest.raises(FormatError):
+            read_envi(tmp_path / "b.hdr")
+    with pytest.raises(InvalidInputError):
+        write_envi(tmp_path / "c", rng.random((2, 3)))
+    with pytest.raises(InvalidInputError):
+        write_envi(tmp_path / "c", rng.random((2, 3, 4)), interleave="xyz")
