@@ -65,8 +65,7 @@ def save_disparity_png(path: str | os.PathLike, disparity: np.ndarray, title: st
     lo, hi = _robust_range(d, vmin, vmax)
     H, W = d.shape
     fig, ax = plt.subplots(figsize=(min(10, 2 + 6 * W / max(H, W)), 6 * H / max(H, W) + 0.6))
-    cm = plt.get_cmap(cmap).copy()
-    cm.set_bad("black")
+    cm = plt.get_cmap(cmap).with_extremes(bad="black")
     im = ax.imshow(np.ma.masked_invalid(d), cmap=cm, vmin=lo, vmax=hi, interpolation="nearest")
     ax.set_title(title)
     ax.set_axis_off()

@@ -1,0 +1,1099 @@
+"""Synthetic hyperspectral light fields with ground truth (SPEC §6).
+
+Two generators, both returning a :class:`hyperlf.LightField` with
+
+* ``views`` ``(R, C, H, W)`` float32 in [0, 1]: view ``(r, c)`` sees band ``layout[r, c]``;
+* ``wavelengths`` ``(R, C)``: the centre wavelength of every view's filter;
+* ``gt_cube`` ``(R, C, B, H, W)`` and ``cube_wavelengths`` ``(B,)``: every band seen from every
+  view, noise-free (``B = R * C``, the sorted filter wavelengths, equal steps from
+  ``lambda_min`` to ``lambda_max``); ``views[r, c] == gt_cube[r, c, layout[r, c]]`` + noise;
+* ``gt_disparity``: ``(R, C, H, W)`` (every view; NaN where unknown);
+* ``disparity_range`` and ``metadata`` recording every synthesis parameter.
+
+:func:`from_rgb_lightfield` / :func:`from_hci_scene` turn an RGB light field (the HCI 4D
+benchmark) into an H-LF; :func:`procedural_scene` ray-casts analytic scenes (planes, boxes,
+spheres) textured with real reflectance spectra; :data:`SCENES` names a few fixed ones.
+
+Camera model of the procedural renderer (SPEC §1 sign convention)
+-----------------------------------------------------------------
+Pinhole cameras with focal length ``f`` (pixels), principal point at the image centre
+``(cx, cy) = ((W-1)/2, (H-1)/2)``, centres at ``(dx, dy, 0)`` baselines for the view offset
+``(dx, dy) = pos[r, c] - pos[ref]`` and a sensor shift of ``d0 * (dx, dy)`` pixels, so that a point
+at depth ``Z`` (baselines) has disparity ``d = f / Z - d0`` (``d0 > -dmin`` lets disparities be
+negative, as in HCI's converged set-up). A point seen by the reference at ``(x, y)`` then appears
+in view ``(r, c)`` at ``(x - d dx, y - d dy)``. Surfaces given in disparity space as
+``d(x, y) = a (x - cx) + b (y - cy) + c`` are the 3-D planes ``a X + b Y + (c + d0)/f Z = 1``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from .errors import InvalidInputError
+from .lightfield import LightField, filter_layout
+from .warp import forward_warp_disparity
+
+__all__ = [
+    "from_rgb_lightfield",
+    "from_hci_scene",
+    "procedural_scene",
+    "add_noise",
+    "band_grid",
+    "view_disparity_from_reference",
+    "SCENES",
+]
+
+
+# ----------------------------------------------------------------------------- helpers
+def add_noise(views: np.ndarray, sigma: float, seed: Any = 0) -> np.ndarray:
+    """Add zero-mean Gaussian noise of standard deviation ``sigma`` and clip to [0, 1].
+
+    Parameters
+    ----------
+    views : ndarray
+        Intensities in [0, 1] (any shape).
+    sigma : float
+        Noise standard deviation on the [0, 1] scale; ``0`` returns a float32 copy.
+    seed : int or sequence of int
+        Anything :func:`numpy.random.default_rng` accepts; the same seed gives the same noise.
+
+    Returns
+    -------
+    ndarray of float32, same shape, in [0, 1].
+    """
+    v = np.asarray(views, dtype=np.float32)
+    sigma = float(sigma)
+    if not np.isfinite(sigma) or sigma < 0:
+        raise InvalidInputError(f"noise sigma must be a finite number >= 0, got {sigma}")
+    if sigma == 0:
+        return v.copy()
+    rng = np.random.default_rng(seed)
+    noisy = v + rng.normal(0.0, sigma, size=v.shape).astype(np.float32)
+    return np.clip(noisy, 0.0, 1.0, out=noisy)
+
+
+def band_grid(rows: int, cols: int, lambda_min: float = 410.0,
+              lambda_max: float = 700.0) -> np.ndarray:
+    """The ``rows * cols`` band centres (nm), equal steps from ``lambda_min`` to ``lambda_max``."""
+    if rows < 1 or cols < 1:
+        raise InvalidInputError(f"grid must have at least one view, got {rows} x {cols}")
+    if not (0 < lambda_min <= lambda_max) or not np.isfinite(lambda_max):
+        raise InvalidInputError(
+            f"band range must satisfy 0 < lambda_min <= lambda_max, got {lambda_min}..{lambda_max}"
+        )
+    n = rows * cols
+    if n > 1 and lambda_min == lambda_max:
+        raise InvalidInputError("lambda_min == lambda_max gives identical bands; widen the range")
+    return np.linspace(float(lambda_min), float(lambda_max), n) if n > 1 else np.array(
+        [float(lambda_min)])
+
+
+def view_disparity_from_reference(gt_ref: np.ndarray, offset: tuple[float, float],
+                                  tol: float = 0.05, iterations: int = 2) -> np.ndarray:
+    """Ground-truth disparity of another view from the reference's ground truth.
+
+    A pixel ``p`` of the view with disparity ``d`` shows the reference pixel
+    ``q = p + d * (dx, dy)`` (SPEC §1), and must satisfy ``gt_ref(q) = d``. Candidates for ``d``
+    come from :func:`hyperlf.warp.forward_warp_disparity` (z-buffer, nearest pixel) and the
+    largest / smallest forward-warped value in the 3 x 3 neighbourhood (filling the one-pixel
+    cracks that rounding leaves on slanted surfaces); each candidate is refined by
+    ``iterations`` fixed-point steps ``d <- gt_ref(p + d * offset)`` (bilinear) and kept if
+    ``|gt_ref(p + d * offset) - d| < tol``. The largest consistent candidate (nearest surface)
+    wins; pixels with none (disoccluded: not seen by the reference) are NaN.
+
+    Parameters
+    ----------
+    gt_ref : ndarray (H, W)
+        Reference ground truth (NaN allowed).
+    offset : (dx, dy)
+        View position minus reference position (baselines).
+
+    Returns
+    -------
+    ndarray of float32 (H, W)
+    """
+    import cv2
+    from scipy import ndimage
+
+    g = np.ascontiguousarray(gt_ref, dtype=np.float32)
+    H, W = g.shape
+    dx, dy = (float(v) for v in offset)
+    fw = forward_warp_disparity(g, (dx, dy))
+    if dx == 0 and dy == 0:
+        return g.copy()
+    yy, xx = np.mgrid[0:H, 0:W].astype(np.float32)
+
+    def sample(d: np.ndarray) -> np.ndarray:
+        mx = xx + d * np.float32(dx)
+        my = yy + d * np.float32(dy)
+        out = cv2.remap(g, np.nan_to_num(mx, nan=-10.0), np.nan_to_num(my, nan=-10.0),
+                        cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan)
+        out[~np.isfinite(d) | (mx < 0) | (mx > W - 1) | (my < 0) | (my > H - 1)] = np.nan
+        return out
+
+    hi = ndimage.maximum_filter(np.where(np.isnan(fw), -np.inf, fw), size=3)
+    lo = ndimage.minimum_filter(np.where(np.isnan(fw), np.inf, fw), size=3)
+    best = np.full((H, W), np.nan, dtype=np.float32)
+    for cand in (fw, hi, lo):
+        d = np.where(np.isfinite(cand), cand, np.nan).astype(np.float32)
+        for _ in range(int(iterations)):
+            d = sample(d)
+        chk = sample(d)
+        with np.errstate(invalid="ignore"):
+            ok = np.isfinite(d) & (np.abs(chk - d) < tol) & ~(best >= d)
+        best[ok] = d[ok]
+    return best
+
+
+def _layout_meta(layout: Any) -> Any:
+    return layout if isinstance(layout, str) else [int(v) for v in np.asarray(layout).ravel()]
+
+
+def _qe_on(quantum_efficiency: Any, wl: np.ndarray, cube_wl: np.ndarray) -> np.ndarray:
+    """Quantum efficiency evaluated on ``wl`` (ones when None)."""
+    if quantum_efficiency is None:
+        return np.ones_like(wl)
+    if callable(quantum_efficiency):
+        q = np.asarray(quantum_efficiency(wl), dtype=np.float64)
+    elif (isinstance(quantum_efficiency, (tuple, list)) and len(quantum_efficiency) == 2
+          and np.ndim(quantum_efficiency[0]) == 1 and np.ndim(quantum_efficiency[1]) == 1):
+        qw = np.asarray(quantum_efficiency[0], dtype=np.float64)
+        qv = np.asarray(quantum_efficiency[1], dtype=np.float64)
+        if qw.shape != qv.shape or qw.size < 2:
+            raise InvalidInputError(
+                "quantum_efficiency as (wavelengths, values) needs two 1-D arrays of equal length"
+            )
+        order = np.argsort(qw)
+        q = np.interp(wl, qw[order], qv[order])
+    else:
+        qv = np.asarray(quantum_efficiency, dtype=np.float64).ravel()
+        if qv.size != cube_wl.size:
+            raise InvalidInputError(
+                f"quantum_efficiency must be a callable, a (wavelengths, values) pair or one "
+                f"value per band ({cube_wl.size}); got {qv.size} values"
+            )
+        q = np.interp(wl, cube_wl, qv)
+    if q.shape != wl.shape or not np.all(np.isfinite(q)) or np.any(q < 0):
+        raise InvalidInputError("quantum efficiency must be finite and >= 0 at every wavelength")
+    if q.max() > 1.0 + 1e-9:
+        raise InvalidInputError(
+            f"quantum efficiency must be a fraction in [0, 1] (max here {q.max():g}); "
+            "divide percentages by 100"
+        )
+    return q
+
+
+def _qe_meta(quantum_efficiency: Any) -> Any:
+    if quantum_efficiency is None:
+        return None
+    if callable(quantum_efficiency):
+        return getattr(quantum_efficiency, "__name__", "callable")
+    if isinstance(quantum_efficiency, (tuple, list)) and len(quantum_efficiency) == 2 and \
+            np.ndim(quantum_efficiency[0]) == 1:
+        return {"wavelengths": [float(v) for v in quantum_efficiency[0]],
+                "values": [float(v) for v in quantum_efficiency[1]]}
+    return [float(v) for v in np.asarray(quantum_efficiency).ravel()]
+
+
+def _band_weights(cube_wl: np.ndarray, filter_shape: str, fwhm: float,
+                  quantum_efficiency: Any, illuminant: str | None,
+                  spectral_range: tuple[float, float] = (380.0, 780.0)
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Spectral sampling grid ``wl`` and weights ``Wt (len(wl), B)`` of every band.
+
+    ``band_b = sum_k radiance(wl_k) * Wt[k, b]`` where the weights hold the filter transmission
+    (normalised to unit sum, so a flat unit spectrum gives 1 before illuminant and QE), the
+    illuminant SPD (normalised to max 1 on ``wl``) and the quantum efficiency. Dirac filters
+    sample the spectrum at the band centres; other shapes integrate on a 1 nm grid.
+    """
+    from . import spectral
+
+    if filter_shape == "dirac":
+        wl = cube_wl.astype(np.float64)
+        Wt = np.eye(wl.size)
+    elif filter_shape in ("gaussian", "thorlabs"):
+        if not (np.isfinite(fwhm) and fwhm > 0):
+            raise InvalidInputError(f"filter fwhm must be > 0 nm, got {fwhm}")
+        lo = max(spectral_range[0], math.floor(cube_wl.min() - 3 * fwhm))
+        hi = min(spectral_range[1], math.ceil(cube_wl.max() + 3 * fwhm))
+        wl = np.arange(lo, hi + 0.5, 1.0)
+        Wt = np.empty((wl.size, cube_wl.size))
+        for b, c in enumerate(cube_wl):
+            t = np.asarray(spectral.filter_response(float(c), wl, shape=filter_shape, fwhm=fwhm),
+                           dtype=np.float64)
+            t = np.clip(t, 0.0, None)
+            s = t.sum()
+            if not np.isfinite(s) or s <= 0:
+                raise InvalidInputError(
+                    f"the {filter_shape} filter at {c:g} nm has no transmission on "
+                    f"{lo:g}..{hi:g} nm; use a narrower band range"
+                )
+            Wt[:, b] = t / s
+    else:
+        raise InvalidInputError(
+            f"unknown filter_shape {filter_shape!r}; use 'dirac', 'gaussian' or 'thorlabs'"
+        )
+    if illuminant is not None:
+        e = np.asarray(spectral.illuminant_spd(illuminant, wl), dtype=np.float64)
+        if e.shape != wl.shape or not np.all(np.isfinite(e)) or e.max() <= 0:
+            raise InvalidInputError(f"illuminant {illuminant!r} has no usable SPD on the bands")
+        Wt = Wt * (np.clip(e, 0, None) / e.max())[:, None]
+    Wt = Wt * _qe_on(quantum_efficiency, wl, cube_wl)[:, None]
+    return wl, Wt
+
+
+def _subgrid_start(src_shape: tuple[int, int], src_ref: tuple[int, int], rows: int,
+                   cols: int) -> tuple[int, int]:
+    R0, C0 = src_shape
+    if rows > R0 or cols > C0:
+        raise InvalidInputError(
+            f"cannot take a {rows} x {cols} sub-grid from a {R0} x {C0} light field; "
+            f"ask for at most {R0} x {C0} views"
+        )
+    r0, c0 = (rows - 1) // 2, (cols - 1) // 2
+    sr, sc = src_ref[0] - r0, src_ref[1] - c0
+    if sr < 0 or sc < 0 or sr + rows > R0 or sc + cols > C0:
+        raise InvalidInputError(
+            f"a {rows} x {cols} sub-grid with the source reference {src_ref} at ({r0}, {c0}) "
+            f"does not fit in the {R0} x {C0} grid; choose a smaller grid"
+        )
+    return sr, sc
+
+
+def _simple(v: Any) -> bool:
+    return isinstance(v, (str, int, float, bool)) or v is None
+
+
+# ----------------------------------------------------------------------------- from RGB
+def from_rgb_lightfield(lf_rgb: LightField, rows: int = 5, cols: int = 6,
+                        lambda_min: float = 410.0, lambda_max: float = 700.0,
+                        layout: str | Sequence[int] = "raster", filter_shape: str = "dirac",
+                        quantum_efficiency: Any = None, noise_sigma: float = 0.0,
+                        seed: int = 0, illuminant: str | None = None, fwhm: float = 10.0,
+                        view_disparity: str = "warp", normalization: str = "white"
+                        ) -> LightField:
+    """Synthesise an H-LF (with its ground-truth cube) from an RGB light field (SPEC §6).
+
+    Steps
+    -----
+    1. Take the ``rows x cols`` sub-grid whose reference ``((rows-1)//2, (cols-1)//2)`` is the
+       source's reference view (HCI 9 x 9 -> 5 x 6: rows 2..6, columns 2..7, reference = Cam040).
+       Positions are the source positions of the sub-grid minus that of its first view.
+    2. sRGB -> linear RGB (``hyperlf.spectral.srgb_to_linear``); negative values are set to 0.
+    3. Every pixel becomes a spectrum through ``hyperlf.spectral.rgb_to_spectrum`` (Mallett 2019
+       basis). Because that map is linear, it is evaluated once on the RGB unit vectors and
+       folded with the filters, illuminant and QE into a 3 x B matrix (checked numerically; a
+       non-linear or negative-valued map falls back to per-pixel spectra, clipped at 0), so the
+       cube is built view by view without holding per-pixel fine spectra.
+    4. Band ``b`` of view ``(r, c)``: the spectrum sampled at ``cube_wavelengths[b]`` (Dirac
+       filter) or integrated against the unit-sum filter transmission on a 1 nm grid
+       (``filter_shape`` "gaussian" / "thorlabs" with ``fwhm``), times the illuminant SPD
+       (``illuminant`` name, normalised to max 1; ``None``: the recovered spectrum is the
+       radiance itself, i.e. equal-energy light) and the quantum efficiency (fraction in [0,1]:
+       callable of wavelength, ``(wavelengths, values)`` pair or one value per band).
+    5. Normalisation (``normalization``): ``"white"`` (default) scales so that a perfect white
+       (linear RGB 1, 1, 1) reads 1 in its brightest band -- a fixed, scene-independent exposure
+       (scale 1 for the Mallett basis, Dirac filters and no illuminant); if anything still
+       exceeds 1 the whole cube is divided by its maximum. ``"max"`` divides the whole cube by
+       its global maximum. A single global factor preserves relative spectra; it is recorded in
+       ``metadata["intensity_scale"]``.
+    6. ``views[r, c] = gt_cube[r, c, layout[r, c]]`` plus Gaussian noise (``noise_sigma``,
+       seeded by ``seed``), clipped to [0, 1].
+
+    Ground-truth disparity: a source with per-view ground truth keeps it; one with only the
+    reference's (HCI) gets, with ``view_disparity="warp"`` (default), every other view's by
+    forward-warping the reference ground truth (z-buffer, nearest pixel; holes NaN), or with
+    ``view_disparity="reference"`` only the reference map ``(H, W)``.
+
+    Parameters
+    ----------
+    lf_rgb : LightField
+        Colour light field, views ``(R0, C0, H, W, 3)`` sRGB-encoded in [0, 1].
+    rows, cols : int
+        Grid of the H-LF (paper: 5 x 6).
+    lambda_min, lambda_max : float
+        Band range in nm; ``rows * cols`` bands in equal steps.
+    layout : {"raster", "serpentine", "random"} or sequence of int
+        Filter layout (:func:`hyperlf.filter_layout`; "random" drawn from ``seed``).
+    seed : int
+        Seed of the noise (and of a random layout).
+
+    Returns
+    -------
+    LightField
+
+    Raises
+    ------
+    InvalidInputError
+        For a non-RGB input, a sub-grid that does not fit, or bad parameters.
+    """
+    from . import spectral
+
+    if not isinstance(lf_rgb, LightField):
+        raise InvalidInputError(
+            f"from_rgb_lightfield needs a LightField, got {type(lf_rgb).__name__}; "
+            "read one with hyperlf.formats.read_hci_scene"
+        )
+    if lf_rgb.views.ndim != 5 or lf_rgb.views.shape[4] != 3:
+        raise InvalidInputError(
+            f"from_rgb_lightfield needs RGB views (R, C, H, W, 3); got {lf_rgb.views.shape}"
+        )
+    if view_disparity not in ("warp", "reference"):
+        raise InvalidInputError(
+            f"view_disparity must be 'warp' or 'reference', got {view_disparity!r}"
+        )
+    if normalization not in ("white", "max"):
+        raise InvalidInputError(f"normalization must be 'white' or 'max', got {normalization!r}")
+    rows, cols = int(rows), int(cols)
+    t_start = time.perf_counter()
+    cube_wl = band_grid(rows, cols, lambda_min, lambda_max)
+    kmap = filter_layout(rows, cols, layout, seed)
+    wavelengths = cube_wl[kmap]
+    sr, sc = _subgrid_start(lf_rgb.grid_shape, lf_rgb.reference, rows, cols)
+    H, W = lf_rgb.image_shape
+    B = cube_wl.size
+
+    wl, Wt = _band_weights(cube_wl, filter_shape, float(fwhm), quantum_efficiency, illuminant)
+
+    # Linear-map fast path: basis (3, N) on the sampling grid.
+    basis = np.asarray(spectral.rgb_to_spectrum(np.eye(3), wl), dtype=np.float64)
+    probe = np.random.default_rng(1).random((8, 3))
+    linear = (basis.shape == (3, wl.size) and np.all(np.isfinite(basis))
+              and np.allclose(np.asarray(spectral.rgb_to_spectrum(probe, wl), dtype=np.float64),
+                              probe @ basis, atol=1e-6)
+              and basis.min() >= 0)
+    M = basis @ Wt if linear else None  # (3, B)
+
+    M32 = np.ascontiguousarray(M.T, dtype=np.float32) if linear else None  # (B, 3)
+
+    def bands_of(rgb_lin: np.ndarray) -> np.ndarray:
+        """(H, W, 3) linear RGB -> (B, H, W) float32."""
+        h, w = rgb_lin.shape[:2]
+        if linear:
+            planes = np.ascontiguousarray(np.moveaxis(rgb_lin, -1, 0).reshape(3, -1),
+                                          dtype=np.float32)
+            return (M32 @ planes).reshape(B, h, w)
+        flat = rgb_lin.reshape(-1, 3)
+        out = np.empty((flat.shape[0], B))
+        step = max(1, 2_000_000 // max(wl.size, 1))
+        for i in range(0, flat.shape[0], step):
+            sp = np.asarray(spectral.rgb_to_spectrum(flat[i:i + step], wl), dtype=np.float64)
+            out[i:i + step] = np.clip(sp, 0.0, None) @ Wt
+        return out.T.reshape(B, h, w).astype(np.float32)
+
+    cube = np.empty((rows, cols, B, H, W), dtype=np.float32)
+    t_views = time.perf_counter()
+    for r in range(rows):
+        for c in range(cols):
+            srgb = np.asarray(lf_rgb.views[sr + r, sc + c], dtype=np.float32)
+            lin = np.asarray(spectral.srgb_to_linear(srgb), dtype=np.float32)
+            np.maximum(lin, 0.0, out=lin)
+            cube[r, c] = bands_of(lin)
+    t_views = time.perf_counter() - t_views
+
+    if linear:
+        white = np.ones(3) @ M
+    else:
+        white = np.clip(np.asarray(spectral.rgb_to_spectrum(np.ones((1, 3)), wl), dtype=np.float64),
+                        0.0, None) @ Wt
+    cmax = float(cube.max())
+    if normalization == "white" and float(np.max(white)) > 0:
+        scale = 1.0 / float(np.max(white))
+        if cmax * scale > 1.0:
+            scale = 1.0 / cmax
+    else:
+        scale = 1.0 / cmax if cmax > 0 else 1.0
+    if scale != 1.0:
+        cube *= np.float32(scale)
+    np.clip(cube, 0.0, 1.0, out=cube)  # rounding only; the scale already keeps it <= 1
+
+    clean = cube[np.arange(rows)[:, None], np.arange(cols)[None, :], kmap]  # (R, C, H, W)
+    views = add_noise(clean, noise_sigma, seed=[int(seed), 1]) if noise_sigma > 0 else clean
+
+    # Ground-truth disparity.
+    gt = lf_rgb.gt_disparity
+    gt_out = None
+    disp_method = None
+    offsets = lf_rgb.offsets[sr:sr + rows, sc:sc + cols]
+    ref = ((rows - 1) // 2, (cols - 1) // 2)
+    if gt is not None:
+        if gt.ndim == 4:
+            gt_out = gt[sr:sr + rows, sc:sc + cols].copy()
+            disp_method = "source, every view"
+        elif view_disparity == "reference":
+            gt_out = gt.copy()
+            disp_method = "source reference view only"
+        else:
+            gt_out = np.empty((rows, cols, H, W), dtype=np.float32)
+            for r in range(rows):
+                for c in range(cols):
+                    if (r, c) == ref:
+                        gt_out[r, c] = gt
+                    else:
+                        gt_out[r, c] = view_disparity_from_reference(gt, tuple(offsets[r, c]))
+            disp_method = ("reference: source; other views: forward-warped reference "
+                           "(z-buffer), refined and crack-filled by a consistency check "
+                           "against the reference ground truth; unknown pixels NaN")
+    if lf_rgb.disparity_range is not None:
+        drange = lf_rgb.disparity_range
+    elif gt is not None and np.isfinite(gt).any():
+        lo, hi = float(np.nanmin(gt)), float(np.nanmax(gt))
+        drange = (lo, hi) if hi > lo else (lo - 0.5, hi + 0.5)
+    else:
+        drange = None
+
+    positions = lf_rgb.positions[sr:sr + rows, sc:sc + cols]
+    origin = positions[0, 0].copy()
+    positions = positions - origin[None, None, :]
+    src_meta = {k: v for k, v in lf_rgb.metadata.items() if _simple(v)}
+    metadata = {
+        "synthesis": "from_rgb_lightfield",
+        "source": src_meta.get("source", src_meta.get("path", "rgb light field")),
+        "source_metadata": src_meta,
+        "source_grid": list(lf_rgb.grid_shape),
+        "source_reference": list(lf_rgb.reference),
+        "subgrid_rows": [sr, sr + rows - 1],
+        "subgrid_cols": [sc, sc + cols - 1],
+        "source_position_origin": [float(v) for v in origin],
+        "licence": src_meta.get("licence"),
+        "rows": rows, "cols": cols,
+        "lambda_min": float(lambda_min), "lambda_max": float(lambda_max),
+        "layout": _layout_meta(layout),
+        "band_index": kmap.tolist(),
+        "filter_shape": filter_shape,
+        "fwhm": float(fwhm) if filter_shape != "dirac" else None,
+        "quantum_efficiency": _qe_meta(quantum_efficiency),
+        "illuminant": illuminant,
+        "spectral_basis": "hyperlf.spectral.rgb_to_spectrum (Mallett & Yuksel 2019)",
+        "spectral_path": "linear 3xB matrix" if linear else "per-pixel spectra clipped at 0",
+        "normalization": normalization,
+        "intensity_scale": float(scale),
+        "noise_sigma": float(noise_sigma),
+        "seed": int(seed),
+        "gt_disparity": disp_method,
+        "runtime_s": round(time.perf_counter() - t_start, 3),
+    }
+    return LightField(views=views, wavelengths=wavelengths, positions=positions,
+                      reference=ref, disparity_range=drange, gt_disparity=gt_out,
+                      gt_cube=cube, cube_wavelengths=cube_wl, metadata=metadata)
+
+
+def from_hci_scene(folder: Any, **kw: Any) -> LightField:
+    """Read an HCI 4D light field scene folder and synthesise an H-LF from it.
+
+    ``hyperlf.formats.read_hci_scene(folder)`` followed by :func:`from_rgb_lightfield` with the
+    keyword arguments ``kw`` (rows, cols, lambda_min, ..., see there). For ``antinous`` and the
+    default 5 x 6 grid the reference view is the centre camera ``input_Cam040``. The scene is
+    CC BY-NC-SA 4.0 (Honauer et al. 2016), recorded in the metadata.
+    """
+    from .formats import read_hci_scene
+
+    rows, cols = int(kw.get("rows", 5)), int(kw.get("cols", 6))
+    # Read only the needed sub-grid around the centre camera (the full grid size comes from a
+    # one-view read); fall back to reading everything.
+    sub = None
+    try:
+        probe = read_hci_scene(folder, rows=[0], cols=[0])
+        R0, C0 = (int(v) for v in probe.metadata["full_grid"])
+        sr, sc = _subgrid_start((R0, C0), ((R0 - 1) // 2, (C0 - 1) // 2), rows, cols)
+        sub = (sr, sc)
+    except (KeyError, TypeError, ValueError):
+        sub = None
+    if sub is not None:
+        lf = read_hci_scene(folder, rows=range(sub[0], sub[0] + rows),
+                            cols=range(sub[1], sub[1] + cols))
+        if lf.reference != ((rows - 1) // 2, (cols - 1) // 2) or lf.gt_disparity is None:
+            lf = read_hci_scene(folder)
+            sub = None
+    else:
+        lf = read_hci_scene(folder)
+    out = from_rgb_lightfield(lf, **kw)
+    md = out.metadata
+    md["synthesis"] = "from_hci_scene"
+    md["source_folder"] = str(folder)
+    if sub is not None:
+        md["source_grid"] = [R0, C0]
+        md["source_reference"] = [(R0 - 1) // 2, (C0 - 1) // 2]
+        md["subgrid_rows"] = [sub[0], sub[0] + rows - 1]
+        md["subgrid_cols"] = [sub[1], sub[1] + cols - 1]
+    if not md.get("licence"):
+        md["licence"] = lf.metadata.get("licence") or (
+            "HCI 4D light field benchmark, CC BY-NC-SA 4.0, cite Honauer et al. 2016")
+    return out
+
+
+# ----------------------------------------------------------------------------- procedural
+_EPS = 1e-9
+
+
+def _hash2(ix: np.ndarray, iy: np.ndarray, salt: int) -> np.ndarray:
+    """Deterministic integer hash of two integer arrays (uint64)."""
+    with np.errstate(over="ignore"):
+        h = (ix.astype(np.int64).astype(np.uint64) * np.uint64(0x9E3779B1)
+             ^ iy.astype(np.int64).astype(np.uint64) * np.uint64(0x85EBCA77)
+             ^ np.uint64(salt & 0xFFFFFFFF) * np.uint64(0xC2B2AE3D))
+        h ^= h >> np.uint64(15)
+        h *= np.uint64(0x2C1B3C6D)
+        h ^= h >> np.uint64(12)
+        h *= np.uint64(0x297A2D39)
+        h ^= h >> np.uint64(15)
+    return h
+
+
+def _texture(tex: Mapping[str, Any], u: np.ndarray, v: np.ndarray, period_px: float
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Texture lookup in an object's own 2-D coordinates ``(u, v)`` (pixels at the object).
+
+    Returns local palette indices ``(i1, i2)`` and the weight ``w`` of ``i1`` (the rest goes to
+    ``i2``).
+    """
+    pattern = tex["pattern"]
+    n = len(tex["chips"])
+    p = max(period_px, 1e-3)
+    ones = np.ones(u.shape)
+    if pattern == "checker":
+        k = (np.floor(u / p) + np.floor(v / p)).astype(np.int64) % 2
+        return k % n, k % n, ones
+    if pattern == "stripes":
+        a = math.radians(tex.get("angle", 0.0))
+        k = np.floor((u * math.cos(a) + v * math.sin(a)) / p).astype(np.int64) % n
+        return k, k, ones
+    if pattern == "patches":
+        jit = tex.get("jitter", [0.0, 0.0])
+        uu = u + 0.35 * p * np.sin(2 * np.pi * v / (1.7 * p) + jit[0])
+        vv = v + 0.35 * p * np.sin(2 * np.pi * u / (1.9 * p) + jit[1])
+        h = _hash2(np.floor(uu / p), np.floor(vv / p), int(tex.get("salt", 0)))
+        k = (h % np.uint64(n)).astype(np.int64)
+        return k, k, ones
+    if pattern == "noise":
+        field = np.zeros(u.shape)
+        waves = tex["waves"]
+        for fx, fy, ph in waves:
+            field += np.sin(2 * np.pi * (fx * u + fy * v) / p + ph)
+        field /= math.sqrt(len(waves) / 2.0)
+        w = np.clip(0.5 + 0.5 * field, 0.0, 1.0)
+        i1 = np.zeros(u.shape, np.int64)
+        i2 = np.full(u.shape, 1 % n, np.int64)
+        return i1, i2, w
+    raise InvalidInputError(
+        f"unknown texture pattern {pattern!r}; use 'checker', 'stripes', 'noise' or 'patches'"
+    )
+
+
+class _Surface:
+    """An analytic surface: intersect rays, then give texture coordinates and normals."""
+
+    def __init__(self, spec: dict, geom: dict):
+        self.spec = spec
+        self.g = geom
+
+    # each returns t (N,) with inf for misses, and aux (face index) or None
+    def intersect(self, C: np.ndarray, D: np.ndarray) -> tuple[np.ndarray, Any]:
+        raise NotImplementedError
+
+    def surface(self, P: np.ndarray, aux: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+
+class _Plane(_Surface):
+    # plane n . P = 1, optional rect bound in reference-image pixel coordinates
+    def intersect(self, C, D):
+        n = self.g["n"]
+        denom = D @ n
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (1.0 - n @ C) / denom
+        t = np.where(np.isfinite(t) & (t > _EPS), t, np.inf)
+        rect = self.g["rect_px"]
+        if rect is not None:
+            f, cx, cy = self.g["f"], self.g["cx"], self.g["cy"]
+            tt = np.where(np.isfinite(t), t, 1.0)
+            P = C[None, :] + tt[:, None] * D
+            xr = cx + f * P[:, 0] / P[:, 2]
+            yr = cy + f * P[:, 1] / P[:, 2]
+            inside = (xr >= rect[0]) & (xr < rect[2]) & (yr >= rect[1]) & (yr < rect[3])
+            t = np.where(inside, t, np.inf)
+        return t, None
+
+    def surface(self, P, aux):
+        f, cx, cy = self.g["f"], self.g["cx"], self.g["cy"]
+        u = cx + f * P[:, 0] / P[:, 2]
+        v = cy + f * P[:, 1] / P[:, 2]
+        nrm = -self.g["n"] / np.linalg.norm(self.g["n"])
+        return u, v, np.broadcast_to(nrm, P.shape)
+
+
+class _Sphere(_Surface):
+    def intersect(self, C, D):
+        P0, rho = self.g["center"], self.g["radius"]
+        oc = C - P0
+        a = np.einsum("ij,ij->i", D, D)
+        b = D @ oc
+        cq = oc @ oc - rho * rho
+        disc = b * b - a * cq
+        ok = disc >= 0
+        sq = np.sqrt(np.where(ok, disc, 0.0))
+        t = (-b - sq) / a
+        t = np.where(ok & (t > _EPS), t, np.inf)
+        return t, None
+
+    def surface(self, P, aux):
+        nrm = (P - self.g["center"]) / self.g["radius"]
+        rpx = self.g["radius_px"]
+        u = rpx * np.arctan2(nrm[:, 0], -nrm[:, 2])
+        v = rpx * np.arcsin(np.clip(nrm[:, 1], -1.0, 1.0))
+        return u, v, nrm
+
+
+class _Box(_Surface):
+    def intersect(self, C, D):
+        lo, hi = self.g["lo"], self.g["hi"]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = 1.0 / D
+            t1 = (lo - C)[None, :] * inv
+            t2 = (hi - C)[None, :] * inv
+        tmin = np.where(np.isnan(t1) | np.isnan(t2), -np.inf, np.minimum(t1, t2))
+        tmax = np.where(np.isnan(t1) | np.isnan(t2), np.inf, np.maximum(t1, t2))
+        face = np.argmax(tmin, axis=1)
+        tnear = tmin[np.arange(tmin.shape[0]), face]
+        tfar = tmax.min(axis=1)
+        hit = (tnear <= tfar) & (tnear > _EPS) & np.isfinite(tnear)
+        sign = np.sign(D[np.arange(D.shape[0]), face])  # >0: entered through the lo face
+        return np.where(hit, tnear, np.inf), (face, sign)
+
+    def surface(self, P, aux):
+        face, sign = aux
+        f, cx, cy, z0 = self.g["f"], self.g["cx"], self.g["cy"], self.g["lo"][2]
+        s = f / z0
+        u = np.where(face == 1, cx + s * P[:, 0], np.where(face == 0, s * P[:, 2], cx + s * P[:, 0]))
+        v = np.where(face == 0, cy + s * P[:, 1], np.where(face == 1, s * P[:, 2], cy + s * P[:, 1]))
+        nrm = np.zeros(P.shape)
+        nrm[np.arange(P.shape[0]), face] = -sign
+        return u, v, nrm
+
+
+_PATTERNS = ("checker", "stripes", "noise", "patches")
+_KINDS = ("fronto", "slanted", "box", "sphere")
+
+
+def _pick_chips(rng: np.random.Generator, refl_mean: np.ndarray, k: int) -> list[int]:
+    """k library indices with clearly different mean reflectance (contrast for matching)."""
+    n = refl_mean.size
+    chips = [int(rng.integers(n))]
+    for _ in range(k - 1):
+        far = np.flatnonzero(np.min(np.abs(refl_mean[:, None] - refl_mean[chips][None, :]),
+                                    axis=1) > 0.12)
+        chips.append(int(rng.choice(far)) if far.size else int(rng.integers(n)))
+    return chips
+
+
+def _complete_texture(tex: Mapping[str, Any] | None, rng: np.random.Generator,
+                      refl_mean: np.ndarray) -> dict:
+    """Fill every missing texture parameter from ``rng`` (deterministic)."""
+    t = dict(tex or {})
+    if "pattern" not in t:
+        t["pattern"] = str(rng.choice(_PATTERNS))
+    pat = t["pattern"]
+    if pat not in _PATTERNS:
+        raise InvalidInputError(
+            f"unknown texture pattern {pat!r}; use one of {', '.join(_PATTERNS)}"
+        )
+    t.setdefault("period", float(rng.uniform(0.05, 0.10)))
+    ncol = {"checker": 2, "noise": 2, "stripes": int(rng.integers(2, 4)),
+            "patches": int(rng.integers(4, 8))}[pat]
+    if "chips" not in t:
+        t["chips"] = _pick_chips(rng, refl_mean, int(t.get("colors", ncol)))
+    t["chips"] = [int(c) % refl_mean.size for c in t["chips"]]
+    if pat == "stripes":
+        t.setdefault("angle", float(rng.uniform(0, 180)))
+    if pat == "patches":
+        t.setdefault("salt", int(rng.integers(2**31)))
+        t.setdefault("jitter", [float(v) for v in rng.uniform(0, 2 * np.pi, 2)])
+    if pat == "noise":
+        if "waves" not in t:
+            waves = []
+            for _ in range(6):
+                ang = rng.uniform(0, np.pi)
+                fr = rng.uniform(0.5, 1.5)
+                waves.append([float(fr * math.cos(ang)), float(fr * math.sin(ang)),
+                              float(rng.uniform(0, 2 * np.pi))])
+            t["waves"] = waves
+    return t
+
+
+def _random_objects(rng: np.random.Generator, n_objects: int, kinds: Sequence[str],
+                    drange: tuple[float, float]) -> list[dict]:
+    dmin, dmax = drange
+    span = dmax - dmin
+    objs: list[dict] = [{"kind": "plane", "disparity": dmin + 0.05 * span, "name": "background"}]
+    if n_objects <= 0:
+        return objs
+    order = list(rng.permutation(len(kinds)))
+    ds = np.sort(rng.uniform(dmin + 0.35 * span, dmax - 0.05 * span, n_objects))
+    for i in range(n_objects):
+        kind = kinds[order[i % len(kinds)]]
+        d = float(ds[i])
+        cu, cv = (float(x) for x in rng.uniform(0.2, 0.8, 2))
+        if kind in ("fronto", "slanted"):
+            w, h = (float(x) for x in rng.uniform(0.18, 0.4, 2))
+            o = {"kind": "plane", "rect": [cu - w / 2, cv - h / 2, cu + w / 2, cv + h / 2],
+                 "disparity": d}
+            if kind == "slanted":
+                g = rng.normal(size=2)
+                room = min(d - (dmin + 0.2 * span), dmax - d)
+                dev = abs(g[0]) * w / 2 + abs(g[1]) * h / 2
+                g = g * (0.9 * room / dev if dev > 0 else 0.0)
+                o["gradient"] = [float(g[0]), float(g[1])]
+            objs.append(o)
+        elif kind == "box":
+            w, h = (float(x) for x in rng.uniform(0.15, 0.3, 2))
+            depth = float(rng.uniform(0.3, 0.6) * min(0.4 * span, d - dmin - 0.15 * span))
+            objs.append({"kind": "box", "rect": [cu - w / 2, cv - h / 2, cu + w / 2, cv + h / 2],
+                         "disparity": d, "depth": max(depth, 0.05 * span)})
+        elif kind == "sphere":
+            objs.append({"kind": "sphere", "center": [cu, cv],
+                         "radius": float(rng.uniform(0.1, 0.18)), "disparity": d})
+        else:
+            raise InvalidInputError(
+                f"unknown object kind {kind!r}; use one of {', '.join(_KINDS)}"
+            )
+    return objs
+
+
+def _build_surface(o: dict, H: int, W: int, f: float, d0: float) -> _Surface:
+    cx, cy = (W - 1) / 2.0, (H - 1) / 2.0
+    kind = o["kind"]
+    base = {"f": f, "cx": cx, "cy": cy}
+    if kind in ("plane", "fronto", "slanted"):
+        rect = o.get("rect")
+        gx, gy = o.get("gradient", (0.0, 0.0))
+        d = float(o["disparity"])
+        if rect is not None:
+            xr, yr = (rect[0] + rect[2]) / 2 * W - 0.5, (rect[1] + rect[3]) / 2 * H - 0.5
+            rect_px = [rect[0] * W - 0.5, rect[1] * H - 0.5, rect[2] * W - 0.5, rect[3] * H - 0.5]
+        else:
+            xr, yr, rect_px = cx, cy, None
+        a, b = gx / W, gy / H
+        c = d - a * (xr - cx) - b * (yr - cy)
+        if c + d0 <= 0:
+            raise InvalidInputError(
+                f"plane disparity {d} is below the scene's disparity range; widen disparity_range"
+            )
+        return _Plane(o, dict(base, n=np.array([a, b, (c + d0) / f]), rect_px=rect_px))
+    if kind == "sphere":
+        u, v = o["center"]
+        rpx = float(o["radius"]) * min(H, W)
+        zf = f / (float(o["disparity"]) + d0)           # depth of the front point
+        rho = rpx * zf / f
+        zc = zf + rho
+        X = (u * W - 0.5 - cx) * zc / f
+        Y = (v * H - 0.5 - cy) * zc / f
+        return _Sphere(o, dict(base, center=np.array([X, Y, zc]), radius=rho,
+                               radius_px=rpx))
+    if kind == "box":
+        rect = o["rect"]
+        d = float(o["disparity"])
+        back = d - float(o.get("depth", 0.5))
+        if back + d0 <= 0:
+            raise InvalidInputError("box depth reaches behind infinity; reduce 'depth'")
+        z0, z1 = f / (d + d0), f / (back + d0)
+        x0, x1 = (rect[0] * W - 0.5 - cx) * z0 / f, (rect[2] * W - 0.5 - cx) * z0 / f
+        y0, y1 = (rect[1] * H - 0.5 - cy) * z0 / f, (rect[3] * H - 0.5 - cy) * z0 / f
+        return _Box(o, dict(base, lo=np.array([x0, y0, z0]), hi=np.array([x1, y1, z1])))
+    raise InvalidInputError(f"unknown object kind {kind!r}; use plane, fronto, slanted, box, sphere")
+
+
+def procedural_scene(seed: int = 0, rows: int = 5, cols: int = 6, height: int = 128,
+                     width: int = 160, lambda_min: float = 410.0, lambda_max: float = 700.0,
+                     layout: str | Sequence[int] = "raster", n_objects: int = 4,
+                     kinds: Sequence[str] = _KINDS,
+                     disparity_range: tuple[float, float] = (-2.0, 2.0),
+                     reflectance_source: str = "auto", illuminant: str | None = "D65",
+                     noise_sigma: float = 0.0, texture_scale: float = 1.0, supersample: int = 1,
+                     objects: Sequence[Mapping[str, Any]] | None = None,
+                     filter_shape: str = "dirac", fwhm: float = 10.0,
+                     quantum_efficiency: Any = None, focal_length: float | None = None,
+                     shading: bool = True, name: str | None = None) -> LightField:
+    """Render a procedural H-LF with exact ground truth by ray casting (SPEC §6).
+
+    The scene is a background plane plus objects -- fronto-parallel and slanted rectangles,
+    axis-aligned boxes, spheres -- at several depths, each textured (checker, stripes, smooth
+    noise blend, random patches) with real reflectance spectra from
+    ``hyperlf.spectral.reflectance_library(reflectance_source)`` (Munsell, else ColorChecker)
+    under ``illuminant`` (SPD normalised to max 1 on the band range; ``None`` = equal energy).
+    Every pixel of every view casts a ray (camera model in the module docstring) against the
+    analytic surfaces; the nearest hit (largest disparity) wins. Texture is looked up in each
+    surface's own 2-D parametrisation (planes: reference-image coordinates of the hit point;
+    sphere: longitude/latitude; box: per-face coordinates), so a surface point looks the same
+    from every view; optional Lambertian shading (``shading``, fixed light, ambient 0.35)
+    depends only on the normal, so it is view-independent too.
+
+    Ground truth: ``gt_disparity (R, C, H, W)`` is the exact disparity of the surface hit at
+    every pixel centre of every view; ``gt_cube (R, C, B, H, W)`` every band of every view
+    (radiance = shading x reflectance x illuminant, filtered, x QE: in [0, 1] by construction,
+    no further normalisation). With ``supersample = s > 1`` each pixel averages s x s rays
+    (anti-aliased cube and views; disparity stays the pixel-centre value).
+
+    Parameters
+    ----------
+    seed : int
+        Everything random (object placement, textures, chips, noise) derives from it.
+    rows, cols, height, width : int
+        Grid and image size; the layout is given in fractions of the image, so any
+        resolution shows the same scene.
+    n_objects, kinds :
+        Number of random objects in front of the background, drawn cycling through ``kinds``
+        (``"fronto"``, ``"slanted"``, ``"box"``, ``"sphere"``). Ignored with ``objects``.
+    disparity_range : (float, float)
+        Disparities (px per baseline) of the scene; random objects stay inside. The returned
+        ``disparity_range`` is this, widened if explicit objects go beyond it.
+    texture_scale : float
+        Multiplies every texture period (periods are fractions of ``min(H, W)``).
+    objects : list of dict, optional
+        Explicit scene (overrides ``n_objects``/``kinds``; include a background). Entries:
+        ``{"kind": "plane", "disparity": d, "gradient": (gx, gy), "rect": (x0, y0, x1, y1),
+        "texture": {...}}`` (``gradient``: disparity change across the full image width/height,
+        relative to the rect centre; no ``rect``: infinite plane), ``{"kind": "box", "rect":
+        ..., "disparity": front-face d, "depth": disparity drop to the back face}``,
+        ``{"kind": "sphere", "center": (u, v), "radius": fraction of min(H, W), "disparity":
+        d of the nearest point}``; rect/centre in fractions of the image. ``texture``:
+        ``{"pattern": "checker"|"stripes"|"noise"|"patches", "period": fraction,
+        "chips": [library indices], "angle": deg, ...}``; missing values come from ``seed``.
+        The completed description is stored in ``metadata["objects"]``.
+    filter_shape, fwhm, quantum_efficiency :
+        As in :func:`from_rgb_lightfield`.
+    focal_length : float, optional
+        Pixels; default ``max(H, W)``.
+    name : str, optional
+        Scene name recorded in the metadata (set by :data:`SCENES`).
+
+    Returns
+    -------
+    LightField
+    """
+    from . import spectral
+
+    t_start = time.perf_counter()
+    rows, cols, H, W = int(rows), int(cols), int(height), int(width)
+    if H < 2 or W < 2:
+        raise InvalidInputError(f"image must be at least 2 x 2 pixels, got {H} x {W}")
+    supersample = int(supersample)
+    if supersample < 1:
+        raise InvalidInputError(f"supersample must be >= 1, got {supersample}")
+    if not (np.isfinite(texture_scale) and texture_scale > 0):
+        raise InvalidInputError(f"texture_scale must be > 0, got {texture_scale}")
+    try:
+        dmin, dmax = (float(v) for v in disparity_range)
+    except (TypeError, ValueError):
+        raise InvalidInputError(
+            f"disparity_range must be (min, max), got {disparity_range!r}") from None
+    if not (np.isfinite(dmin) and np.isfinite(dmax) and dmin < dmax):
+        raise InvalidInputError(f"disparity_range must be finite with min < max, got {disparity_range}")
+    for k in kinds:
+        if k not in _KINDS:
+            raise InvalidInputError(f"unknown object kind {k!r}; use one of {', '.join(_KINDS)}")
+
+    cube_wl = band_grid(rows, cols, lambda_min, lambda_max)
+    kmap = filter_layout(rows, cols, layout, seed)
+    wavelengths = cube_wl[kmap]
+    B = cube_wl.size
+    f = float(focal_length) if focal_length is not None else float(max(H, W))
+    if not (np.isfinite(f) and f > 0):
+        raise InvalidInputError(f"focal_length must be > 0 pixels, got {focal_length}")
+    span = dmax - dmin
+    d0 = -dmin + 0.5 * span  # inverse-depth offset: f / Z = d + d0 > 0 on the whole range
+
+    ss = np.random.SeedSequence(int(seed))
+    scene_rng, tex_rng = (np.random.default_rng(s) for s in ss.spawn(2))
+
+    lib_wl, lib_refl = spectral.reflectance_library(reflectance_source)
+    lib_wl = np.asarray(lib_wl, dtype=np.float64)
+    lib_refl = np.clip(np.asarray(lib_refl, dtype=np.float64), 0.0, 1.0)
+    refl_mean = lib_refl.mean(axis=1)
+
+    if objects is None:
+        objs = _random_objects(scene_rng, int(n_objects), list(kinds), (dmin, dmax))
+    else:
+        objs = [dict(o) for o in objects]
+        if not objs:
+            raise InvalidInputError("objects is empty; give at least a background plane")
+    for o in objs:
+        o["texture"] = _complete_texture(o.get("texture"), tex_rng, refl_mean)
+
+    # Palette: every chip used, as band values (filters, illuminant, QE folded in).
+    wl, Wt = _band_weights(cube_wl, filter_shape, float(fwhm), quantum_efficiency, illuminant,
+                           spectral_range=(max(380.0, lib_wl.min()), min(780.0, lib_wl.max())))
+    chips = sorted({c for o in objs for c in o["texture"]["chips"]})
+    chip_index = {c: i for i, c in enumerate(chips)}
+    refl_wl = np.stack([np.interp(wl, lib_wl, lib_refl[c]) for c in chips])
+    palette = (refl_wl @ Wt).astype(np.float64)  # (n_chips, B)
+    pal_max = float(palette.max()) if palette.size else 0.0
+    pscale = 1.0 / pal_max if pal_max > 1.0 else 1.0
+    palette *= pscale
+
+    surfaces = [_build_surface(o, H, W, f, d0) for o in objs]
+    base_period = min(H, W) * float(texture_scale)
+    light = np.array([-0.35, -0.55, -1.0])
+    light /= np.linalg.norm(light)
+    ambient = 0.35
+
+    positions = np.stack(np.meshgrid(np.arange(cols, dtype=float), np.arange(rows, dtype=float)),
+                         axis=-1)
+    ref = ((rows - 1) // 2, (cols - 1) // 2)
+    offsets = positions - positions[ref][None, None, :]
+    cx, cy = (W - 1) / 2.0, (H - 1) / 2.0
+    yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
+    xx, yy = xx.ravel(), yy.ravel()
+    sub = (np.arange(supersample) + 0.5) / supersample - 0.5
+
+    def cast(dx: float, dy: float, sx: float, sy: float):
+        C = np.array([dx, dy, 0.0])
+        D = np.stack([(xx + sx - cx - d0 * dx) / f, (yy + sy - cy - d0 * dy) / f,
+                      np.ones_like(xx)], axis=1)
+        best_t = np.full(xx.size, np.inf)
+        best_i = np.full(xx.size, -1, np.int64)
+        auxs = []
+        for i, s in enumerate(surfaces):
+            t, aux = s.intersect(C, D)
+            auxs.append(aux)
+            closer = t < best_t
+            best_t = np.where(closer, t, best_t)
+            best_i = np.where(closer, i, best_i)
+        return C, D, best_t, best_i, auxs
+
+    cube = np.zeros((rows, cols, B, H, W), dtype=np.float32)
+    gt = np.full((rows, cols, H, W), np.nan, dtype=np.float32)
+    missed = 0
+    for r in range(rows):
+        for c in range(cols):
+            dx, dy = offsets[r, c]
+            # exact disparity at pixel centres (the centre sample when supersample is odd)
+            centre = cast(dx, dy, 0.0, 0.0)
+            t0 = centre[2]
+            hit0 = np.isfinite(t0)
+            missed += int((~hit0).sum())
+            disp = np.full(xx.size, np.nan)
+            disp[hit0] = f / t0[hit0] - d0  # t is the depth Z since D_z = 1, C_z = 0
+            gt[r, c] = disp.reshape(H, W)
+            acc = np.zeros((xx.size, B))
+            for sy in sub:
+                for sx in sub:
+                    C, D, t, idx, auxs = (centre if sx == 0.0 and sy == 0.0
+                                          else cast(dx, dy, sx, sy))
+                    for i, s in enumerate(surfaces):
+                        sel = np.flatnonzero(idx == i)
+                        if sel.size == 0:
+                            continue
+                        P = C[None, :] + t[sel, None] * D[sel]
+                        aux = auxs[i]
+                        if aux is not None:
+                            aux = tuple(a[sel] for a in aux)
+                        u, v, nrm = s.surface(P, aux)
+                        tex = s.spec["texture"]
+                        i1, i2, w = _texture(tex, u, v, tex["period"] * base_period)
+                        gidx = np.array([chip_index[ch] for ch in tex["chips"]])
+                        rad = (w[:, None] * palette[gidx[i1]]
+                               + (1.0 - w)[:, None] * palette[gidx[i2]])
+                        if shading:
+                            lam = np.clip(nrm @ light, 0.0, None)
+                            rad *= (ambient + (1.0 - ambient) * lam)[:, None]
+                        acc[sel] += rad
+            acc /= supersample * supersample
+            cube[r, c] = acc.T.reshape(B, H, W).astype(np.float32)
+    np.clip(cube, 0.0, 1.0, out=cube)
+
+    clean = cube[np.arange(rows)[:, None], np.arange(cols)[None, :], kmap]
+    views = add_noise(clean, noise_sigma, seed=[int(seed), 1]) if noise_sigma > 0 else clean
+
+    finite = np.isfinite(gt)
+    gmin = float(gt[finite].min()) if finite.any() else dmin
+    gmax = float(gt[finite].max()) if finite.any() else dmax
+    drange = (min(dmin, gmin), max(dmax, gmax))
+
+    metadata = {
+        "synthesis": "procedural_scene",
+        "source": f"procedural:{name}" if name else "procedural",
+        "scene": name,
+        "seed": int(seed),
+        "rows": rows, "cols": cols, "height": H, "width": W,
+        "lambda_min": float(lambda_min), "lambda_max": float(lambda_max),
+        "layout": _layout_meta(layout),
+        "band_index": kmap.tolist(),
+        "n_objects": len(objs) - (1 if objects is None else 0),
+        "kinds": list(kinds),
+        "objects": objs,
+        "disparity_range_requested": [dmin, dmax],
+        "gt_disparity_min": gmin, "gt_disparity_max": gmax,
+        "reflectance_source": reflectance_source,
+        "reflectance_library_size": int(lib_refl.shape[0]),
+        "illuminant": illuminant,
+        "filter_shape": filter_shape,
+        "fwhm": float(fwhm) if filter_shape != "dirac" else None,
+        "quantum_efficiency": _qe_meta(quantum_efficiency),
+        "noise_sigma": float(noise_sigma),
+        "texture_scale": float(texture_scale),
+        "supersample": supersample,
+        "shading": bool(shading),
+        "focal_length_px": f,
+        "disparity_offset_d0": d0,
+        "palette_scale": pscale,
+        "camera_model": "pinhole array, d = f/Z - d0, baseline 1, sensor shift d0*(dx, dy)",
+        "gt_disparity": "exact ray casting at pixel centres, every view",
+        "missed_pixels": missed,
+        "runtime_s": 0.0,
+    }
+    metadata["runtime_s"] = round(time.perf_counter() - t_start, 3)
+    return LightField(views=views, wavelengths=wavelengths, positions=positions,
+                      reference=ref, disparity_range=drange, gt_disparity=gt,
+                      gt_cube=cube, cube_wavelengths=cube_wl, metadata=metadata)
+
+
+# ----------------------------------------------------------------------------- named scenes
+#: Named deterministic scenes: ``procedural_scene(**SCENES[name])`` (any size via height/width).
+SCENES: dict[str, dict[str, Any]] = {
+    "planes": dict(
+        name="planes", seed=101, disparity_range=(-2.0, 2.0),
+        objects=[
+            {"kind": "plane", "disparity": -1.5, "name": "background",
+             "texture": {"pattern": "patches", "period": 0.08}},
+            {"kind": "plane", "disparity": 0.0, "rect": [0.08, 0.12, 0.5, 0.88],
+             "texture": {"pattern": "stripes", "period": 0.06, "angle": 30.0}},
+            {"kind": "plane", "disparity": 1.5, "rect": [0.48, 0.3, 0.88, 0.72],
+             "texture": {"pattern": "checker", "period": 0.07}},
+        ]),
+    "slanted": dict(
+        name="slanted", seed=202, disparity_range=(-2.0, 2.0),
+        objects=[
+            {"kind": "plane", "disparity": -0.8, "gradient": [1.6, 0.4], "name": "slanted",
+             "texture": {"pattern": "patches", "period": 0.07}},
+            {"kind": "plane", "disparity": 1.2, "rect": [0.55, 0.25, 0.85, 0.65],
+             "texture": {"pattern": "noise", "period": 0.1}},
+        ]),
+    "occlusion": dict(
+        name="occlusion", seed=303, disparity_range=(-2.0, 2.0),
+        objects=[
+            {"kind": "plane", "disparity": -1.2, "name": "background",
+             "texture": {"pattern": "patches", "period": 0.06}},
+            {"kind": "plane", "disparity": 1.6, "rect": [0.15, 0.05, 0.19, 0.95],
+             "texture": {"pattern": "stripes", "period": 0.05, "angle": 90.0}},
+            {"kind": "plane", "disparity": 1.3, "rect": [0.42, 0.05, 0.47, 0.95],
+             "texture": {"pattern": "checker", "period": 0.04}},
+            {"kind": "plane", "disparity": 1.0, "rect": [0.70, 0.05, 0.73, 0.95],
+             "texture": {"pattern": "noise", "period": 0.05}},
+            {"kind": "plane", "disparity": 0.6, "rect": [0.05, 0.58, 0.95, 0.62],
+             "texture": {"pattern": "stripes", "period": 0.05, "angle": 0.0}},
+        ]),
+    "solids": dict(
+        name="solids", seed=404, disparity_range=(-2.0, 2.0),
+        objects=[
+            {"kind": "plane", "disparity": -1.5, "name": "background",
+             "texture": {"pattern": "checker", "period": 0.09}},
+            {"kind": "box", "rect": [0.12, 0.2, 0.42, 0.6], "disparity": 0.8, "depth": 1.0,
+             "texture": {"pattern": "patches", "period": 0.06}},
+            {"kind": "sphere", "center": [0.68, 0.55], "radius": 0.2, "disparity": 1.4,
+             "texture": {"pattern": "stripes", "period": 0.06, "angle": 60.0}},
+        ]),
+}
