@@ -1,0 +1,458 @@
+"""Tests of hyperlf.regularisers: WTA, SGM, alpha-expansion, occlusion handling, sub-pixel."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from hyperlf import regularisers as R
+from hyperlf.errors import InvalidInputError
+
+
+# ----------------------------------------------------------------------------------------------
+# helpers
+# ----------------------------------------------------------------------------------------------
+
+def noisy_volume(gt, L, noise, rng, cap=4.0):
+    """Truncated-linear data cost around the true label map plus Gaussian noise."""
+    lab = np.arange(L)[:, None, None]
+    c = np.minimum(np.abs(lab - gt[None]), cap) / cap + rng.normal(0.0, noise, (L,) + gt.shape)
+    return c.astype(np.float32)
+
+
+def step_scene(H=24, W=32, L=12):
+    yy, xx = np.mgrid[0:H, 0:W]
+    gt = np.full((H, W), 3)
+    gt[(xx > W // 2) & (yy > 4)] = 8
+    gt[(xx < 6) & (yy > H // 2)] = 5
+    return gt
+
+
+def batch_energy(F, cost, Vm, wx, wy):
+    """Energies of many label maps F[N, H, W] (reference implementation for the tests)."""
+    L, H, W = cost.shape
+    yy, xx = np.mgrid[0:H, 0:W]
+    e = cost[F, yy, xx].astype(np.float64).sum(axis=(1, 2))
+    e += (wx * Vm[F[:, :, :-1], F[:, :, 1:]]).sum(axis=(1, 2))
+    e += (wy * Vm[F[:, :-1, :], F[:, 1:, :]]).sum(axis=(1, 2))
+    return e
+
+
+def exact_minimum(cost, Vm, wx, wy):
+    """Exact MRF minimum on a tiny grid by dynamic programming over rows (transfer matrix)."""
+    L, H, W = cost.shape
+    states = np.array(list(itertools.product(range(L), repeat=W)))  # (S, W)
+    S = len(states)
+
+    def row_cost(y):
+        u = cost[:, y, :][states, np.arange(W)].astype(np.float64).sum(axis=1)
+        if W > 1:
+            u += (wx[y] * Vm[states[:, :-1], states[:, 1:]]).sum(axis=1)
+        return u
+
+    best = row_cost(0)
+    for y in range(1, H):
+        trans = (wy[y - 1][None, None, :] * Vm[states[:, None, :], states[None, :, :]]).sum(axis=2)
+        best = (best[:, None] + trans).min(axis=0) + row_cost(y)
+    assert S == L ** W
+    return float(best.min())
+
+
+def params_matrix(smoothness, L, labels, T):
+    if smoothness == "potts":
+        return 1.0 - np.eye(L)
+    V = np.abs(labels[:, None] - labels[None, :])
+    return V if T is None else np.minimum(V, T)
+
+
+# ----------------------------------------------------------------------------------------------
+# basics and validation
+# ----------------------------------------------------------------------------------------------
+
+def test_wta_and_data_term(rng):
+    L, H, W = 7, 5, 6
+    gt = rng.integers(0, L, (H, W))
+    c = rng.random((L, H, W)).astype(np.float32) + 0.5
+    c[gt, np.arange(H)[:, None], np.arange(W)[None, :]] = 0.1
+    f = R.wta(c)
+    assert f.dtype == np.int32 and f.shape == (H, W)
+    np.testing.assert_array_equal(f, gt)
+    d = R.data_term(c)
+    assert d.shape == c.shape and d.min() == 0.0
+    np.testing.assert_allclose(d.min(axis=0), 0.0)
+    np.testing.assert_array_equal(R.wta(d), gt)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_non_finite_cost_is_rejected(bad):
+    c = np.zeros((3, 4, 5), np.float32)
+    c[1, 2, 3] = bad
+    for fn in (R.wta, R.data_term, lambda x: R.sgm(x, 0.1, 1.0), R.graphcut,
+               lambda x: R.subpixel_refine(x, np.zeros((4, 5), int))):
+        with pytest.raises(InvalidInputError, match="NaN"):
+            fn(c)
+    with pytest.raises(InvalidInputError):
+        R.wta(np.zeros((4, 5)))
+
+
+def test_fill_invalid_uses_pixel_worst_valid_cost():
+    c = np.array([[[1.0, np.nan]], [[3.0, np.inf]], [[np.nan, np.nan]]], np.float32)  # (3,1,2)
+    out = R.fill_invalid(c)
+    np.testing.assert_array_equal(out[:, 0, 0], [1.0, 3.0, 3.0])
+    np.testing.assert_array_equal(out[:, 0, 1], [3.0, 3.0, 3.0])  # no valid entry: global worst
+    assert np.isfinite(out).all()
+
+
+# ----------------------------------------------------------------------------------------------
+# SGM
+# ----------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("smoothness", ["p1p2", "truncated_linear"])
+@pytest.mark.parametrize("paths", [8, 4])
+@pytest.mark.parametrize("use_guide", [False, True])
+def test_sgm_numpy_reference_matches_numba(rng, smoothness, paths, use_guide):
+    L, H, W = 9, 13, 17
+    c = rng.random((L, H, W)).astype(np.float32)
+    guide = rng.random((H, W, 3)) if use_guide else None
+    a = R.sgm(c, 0.15, 0.6, paths=paths, guide=guide, impl="numpy", smoothness=smoothness)
+    b = R.sgm(c, 0.15, 0.6, paths=paths, guide=guide, impl="numba", smoothness=smoothness)
+    assert a.shape == b.shape == (L, H, W) and b.dtype == np.float32
+    np.testing.assert_allclose(b, a, rtol=1e-4, atol=1e-5)
+
+
+@settings(max_examples=25, deadline=None)
+@given(L=st.integers(1, 5), H=st.integers(1, 6), W=st.integers(1, 6), paths=st.sampled_from([2, 4, 8]),
+       smoothness=st.sampled_from(["p1p2", "truncated_linear"]), seed=st.integers(0, 2**16),
+       p1=st.floats(0.0, 2.0), p2=st.floats(0.0, 5.0))
+def test_sgm_impls_agree_on_any_shape(L, H, W, paths, smoothness, seed, p1, p2):
+    c = np.random.default_rng(seed).random((L, H, W)).astype(np.float32)
+    a = R.sgm(c, p1, p2, paths=paths, impl="numpy", smoothness=smoothness)
+    b = R.sgm(c, p1, p2, paths=paths, impl="numba", smoothness=smoothness)
+    np.testing.assert_allclose(b, a, rtol=1e-4, atol=1e-5)
+    assert np.all(a >= paths * c - 1e-4)   # each path term is >= the data cost
+
+
+@settings(max_examples=15, deadline=None)
+@given(L=st.integers(1, 4), H=st.integers(1, 5), W=st.integers(1, 5), seed=st.integers(0, 2**16),
+       weight=st.floats(0.0, 3.0), potts=st.booleans())
+def test_graphcut_never_raises_energy_from_init(L, H, W, seed, weight, potts):
+    rng = np.random.default_rng(seed)
+    c = rng.random((L, H, W)).astype(np.float32)
+    init = rng.integers(0, L, (H, W))
+    kw = dict(smoothness="potts" if potts else "truncated_linear", weight=weight, truncation=2.0)
+    f, e = R.graphcut(c, init=init, return_energy=True, **kw)
+    assert e <= R.mrf_energy(init, c, **kw) + 1e-9
+    assert e == pytest.approx(R.mrf_energy(f, c, **kw), rel=1e-9, abs=1e-9)
+
+
+def test_sgm_zero_penalties_is_sum_of_paths(rng):
+    c = rng.random((5, 6, 7)).astype(np.float32)
+    np.testing.assert_allclose(R.sgm(c, 0.0, 0.0, paths=8), 8 * c, rtol=1e-6)
+    np.testing.assert_allclose(R.sgm(c, 0.0, 0.0, paths=4, impl="numpy"), 4 * c, rtol=1e-6)
+
+
+def test_sgm_single_path_matches_hand_recursion():
+    # one row, left-to-right path only (paths=2 = both horizontal directions; compare one way)
+    c = np.array([[0.0, 1.0, 0.2], [1.0, 0.0, 0.9], [0.5, 0.5, 0.0]], np.float32).T[:, None, :]
+    # c[l, 0, x]: x=0 -> [0,1,0.5], x=1 -> [1,0,0.5], x=2 -> [0.2,0.9,0]
+    p1, p2 = 0.3, 0.7
+    Lr = [c[:, 0, 0].astype(float)]
+    for x in (1, 2):
+        prev = Lr[-1]
+        m = prev.min()
+        cur = []
+        for l in range(3):
+            v = min([prev[l], m + p2] + [prev[k] + p1 for k in (l - 1, l + 1) if 0 <= k < 3])
+            cur.append(c[l, 0, x] + v - m)
+        Lr.append(np.array(cur))
+    Rr = [c[:, 0, 2].astype(float)]
+    for x in (1, 0):
+        prev = Rr[-1]
+        m = prev.min()
+        cur = []
+        for l in range(3):
+            v = min([prev[l], m + p2] + [prev[k] + p1 for k in (l - 1, l + 1) if 0 <= k < 3])
+            cur.append(c[l, 0, x] + v - m)
+        Rr.append(np.array(cur))
+    expected = np.stack([Lr[x] + Rr[2 - x] for x in range(3)], axis=1)[:, None, :]
+    for impl in ("numba", "numpy"):
+        np.testing.assert_allclose(R.sgm(c, p1, p2, paths=2, impl=impl), expected, rtol=1e-6)
+
+
+def test_sgm_beats_wta_on_noisy_piecewise_constant(rng):
+    gt = step_scene()
+    c = noisy_volume(gt, 12, 0.3, rng)
+    err_wta = np.mean(R.wta(c) != gt)
+    err_sgm = np.mean(R.sgm_labels(c, 1.0, 4.0) != gt)
+    gross_wta = np.mean(np.abs(R.wta(c) - gt) > 1)
+    gross_sgm = np.mean(np.abs(R.sgm_labels(c, 1.0, 4.0) - gt) > 1)
+    assert err_wta > 0.3 and gross_wta > 0.1
+    assert err_sgm < err_wta / 3 and gross_sgm < gross_wta / 5
+    # the guided variant (guide = the true layout) is at least as good
+    err_guided = np.mean(R.sgm_labels(c, 1.0, 4.0, guide=gt.astype(float)) != gt)
+    assert err_guided <= err_sgm
+
+
+def test_sgm_guide_lowers_p2_only_at_edges(rng):
+    c = rng.random((4, 3, 8)).astype(np.float32)
+    guide = np.zeros((3, 8))
+    # a flat guide must give exactly the unguided result
+    np.testing.assert_allclose(R.sgm(c, 0.1, 0.8, guide=guide), R.sgm(c, 0.1, 0.8), rtol=1e-6)
+    with pytest.raises(InvalidInputError):
+        R.sgm(c, 0.1, 0.8, paths=3)
+    with pytest.raises(InvalidInputError):
+        R.sgm(c, -0.1, 0.8)
+    with pytest.raises(InvalidInputError):
+        R.sgm(c, 0.1, 0.8, guide=np.zeros((2, 2)))
+
+
+# ----------------------------------------------------------------------------------------------
+# graph cuts
+# ----------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("smoothness", ["truncated_linear", "potts"])
+def test_graphcut_energy_not_above_wta_or_sgm(seed, smoothness):
+    rng = np.random.default_rng(seed)
+    L, H, W = 8, 16, 20
+    if seed == 0:
+        c = rng.random((L, H, W)).astype(np.float32)                      # pure noise
+    else:
+        c = noisy_volume(step_scene(H, W, L) % L, L, 0.3 * seed, rng)     # structured
+    c = R.data_term(c)
+    guide = rng.random((H, W)) if seed == 2 else None
+    kw = dict(smoothness=smoothness, weight=0.4, truncation=3.0, guide=guide)
+    f, e = R.graphcut(c, return_energy=True, **kw)
+    assert f.dtype == np.int32 and f.shape == (H, W)
+    assert e == pytest.approx(R.mrf_energy(f, c, **kw), rel=1e-12)
+    for other in (R.wta(c), R.sgm_labels(c, 0.4, 1.2, guide=guide, smoothness="truncated_linear")):
+        assert e <= R.mrf_energy(other, c, **kw) + 1e-9
+    # started from the SGM labelling it can only improve that labelling
+    s = R.sgm_labels(c, 0.4, 1.2)
+    _, e2 = R.graphcut(c, init=s, return_energy=True, **kw)
+    assert e2 <= R.mrf_energy(s, c, **kw) + 1e-9
+
+
+def test_graphcut_potts_two_regions_exact_split(rng):
+    H, W, L = 20, 30, 4
+    gt = np.zeros((H, W), int)
+    gt[:, 12:] = 2
+    c = noisy_volume(gt, L, 0.45, rng, cap=1.0)
+    assert np.mean(R.wta(c) != gt) > 0.1
+    f = R.graphcut(c, smoothness="potts", weight=2.0)
+    np.testing.assert_array_equal(f, gt)
+
+
+def test_graphcut_edge_weights_place_the_boundary(rng):
+    # ambiguous data everywhere except two anchoring columns; a cheap cut column decides the split
+    H, W, L = 6, 10, 2
+    c = np.full((L, H, W), 0.5, np.float32)
+    c[0, :, 0] = 0.0
+    c[1, :, 0] = 5.0
+    c[1, :, -1] = 0.0
+    c[0, :, -1] = 5.0
+    wx = np.ones((H, W - 1))
+    wx[:, 6] = 0.05               # cheap between x=6 and x=7
+    wy = np.ones((H - 1, W))
+    f = R.graphcut(c, smoothness="potts", weight=1.0, edge_weights=(wx, wy))
+    expected = np.zeros((H, W), int)
+    expected[:, 7:] = 1
+    np.testing.assert_array_equal(f, expected)
+    # the same split from a guide image with an edge there
+    guide = np.zeros((H, W))
+    guide[:, 7:] = 1.0
+    f2 = R.graphcut(c, smoothness="potts", weight=1.0, guide=guide, edge_sigma=0.2)
+    np.testing.assert_array_equal(f2, expected)
+
+
+def test_mrf_energy_matches_hand_computation():
+    c = np.zeros((3, 2, 2), np.float32)
+    c[1] = [[1.0, 2.0], [3.0, 4.0]]
+    c[2] = 0.5
+    f = np.array([[0, 1], [2, 2]])
+    lv = np.array([0.0, 0.5, 3.0])
+    wx = np.array([[1.0], [2.0]])
+    wy = np.array([[1.0, 0.5]])
+    unary = 0 + 2.0 + 0.5 + 0.5
+    # horizontal: (0,1) -> |0-0.5|=0.5 * 1 ; (2,2) -> 0; vertical: (0,2)-> min(3,T=2)=2 * 1 ; (1,2)->2*0.5
+    pair = 0.5 * 1 + 0 + 2 * 1 + 2 * 0.5
+    e = R.mrf_energy(f, c, weight=3.0, truncation=2.0, edge_weights=(wx, wy), labels_values=lv)
+    assert e == pytest.approx(unary + 3.0 * pair)
+    e_potts = R.mrf_energy(f, c, smoothness="potts", weight=3.0, edge_weights=(wx, wy))
+    assert e_potts == pytest.approx(unary + 3.0 * (1 * 1 + 0 + 1 * 1 + 0.5 * 1))
+
+
+@pytest.mark.parametrize("case", range(4))
+def test_alpha_expansion_local_optimum_and_bound_on_tiny_grid(case):
+    rng = np.random.default_rng(100 + case)
+    L, H, W = 3, 4, 4
+    smoothness = "potts" if case % 2 == 0 else "truncated_linear"
+    lv = np.array([0.0, 1.0, 2.5])
+    T = 2.0
+    c = rng.random((L, H, W)).astype(np.float32)
+    weight = 0.35 + 0.2 * case
+    wx = weight * np.ones((H, W - 1))
+    wy = weight * np.ones((H - 1, W))
+    Vm = params_matrix(smoothness, L, lv, T)
+    f, e = R.graphcut(c, smoothness=smoothness, weight=weight, truncation=T, labels=lv,
+                      max_cycles=10, return_energy=True)
+    e_opt = exact_minimum(c, Vm, wx, wy)
+    assert e >= e_opt - 1e-9
+    if smoothness == "potts":
+        assert e <= 2.0 * e_opt + 1e-9       # BVZ bound for Potts (c = 1)
+    # local optimum: no expansion move (all 2^16 of them, for every alpha) lowers the energy
+    subsets = ((np.arange(2 ** (H * W))[:, None] >> np.arange(H * W)) & 1).astype(bool)
+    subsets = subsets.reshape(-1, H, W)
+    for alpha in range(L):
+        F = np.where(subsets, alpha, f[None])
+        assert batch_energy(F, c, Vm, wx, wy).min() >= e - 1e-9
+
+
+def test_alpha_expansion_equals_optimum_in_easy_case(rng):
+    L, H, W = 3, 4, 4
+    gt = np.array([[0, 0, 2, 2], [0, 0, 2, 2], [1, 1, 2, 2], [1, 1, 2, 2]])
+    c = noisy_volume(gt, L, 0.1, rng, cap=1.0)
+    Vm = params_matrix("potts", L, None, None)
+    w = 0.3
+    f, e = R.graphcut(c, smoothness="potts", weight=w, return_energy=True)
+    e_opt = exact_minimum(c, Vm, w * np.ones((H, W - 1)), w * np.ones((H - 1, W)))
+    assert e == pytest.approx(e_opt, abs=1e-9)
+    np.testing.assert_array_equal(f, gt)
+
+
+def test_graphcut_progress_and_options(rng):
+    c = rng.random((5, 6, 7)).astype(np.float32)
+    calls = []
+    f = R.graphcut(c, progress=lambda *a: calls.append(a), order="random", seed=3, max_cycles=3)
+    assert calls[0][0] == 0 and len(calls) >= 2
+    energies = [a[2] for a in calls]
+    assert all(b <= a + 1e-12 for a, b in zip(energies, energies[1:]))
+    np.testing.assert_array_equal(R.graphcut(c, max_cycles=0), R.wta(c))
+    init = np.zeros((6, 7), int)
+    np.testing.assert_array_equal(R.graphcut(c, max_cycles=0, init=init), init)
+    assert f.shape == (6, 7)
+    with pytest.raises(InvalidInputError):
+        R.graphcut(c, smoothness="quadratic")
+    with pytest.raises(InvalidInputError):
+        R.graphcut(c, init=np.full((6, 7), 5))
+    with pytest.raises(InvalidInputError):
+        R.graphcut(c, edge_weights=(np.ones((6, 7)), np.ones((5, 7))))
+
+
+# ----------------------------------------------------------------------------------------------
+# occlusion handling
+# ----------------------------------------------------------------------------------------------
+
+def two_layer_scene(H=5, W=40):
+    """Background d=2, foreground [15, 25) at d=6 in the left view; maps for both views."""
+    dl = np.full((H, W), 2.0)
+    dl[:, 15:25] = 6.0
+    dr = np.full((H, W), 2.0)
+    dr[:, 9:19] = 6.0                  # the foreground seen from the right: x - 6
+    occluded = np.zeros((H, W), bool)
+    occluded[:, 11:15] = True          # background pixels hidden behind the foreground
+    occluded[:, :2] = True             # x - d < 0: outside the right image
+    return dl, dr, occluded
+
+
+def test_left_right_check_and_background_fill():
+    dl, dr, occluded = two_layer_scene()
+    valid = R.left_right_check(dl, dr, tol=1.0)
+    np.testing.assert_array_equal(valid, ~occluded)
+    corrupted = np.where(occluded, 9.0, dl)     # garbage where occluded
+    filled = R.fill_occlusions(corrupted, valid)
+    np.testing.assert_array_equal(filled, dl)   # background side (d = 2) wins
+    # tolerance: a 0.4 px error (same right pixel after rounding) passes at tol 1, not at 0.3
+    noisy = dl + 0.4 * (~occluded)
+    assert np.array_equal(R.left_right_check(noisy, dr, tol=1.0), ~occluded)
+    assert not R.left_right_check(noisy, dr, tol=0.3).any()
+    # NaN disparities are never valid
+    dl_nan = dl.copy()
+    dl_nan[0, 20] = np.nan
+    assert not R.left_right_check(dl_nan, dr)[0, 20]
+
+
+def test_fill_occlusions_edge_cases():
+    d = np.array([[5.0, 1.0, 7.0, 3.0], [4.0, 4.0, 4.0, 4.0]])
+    valid = np.array([[False, True, False, True], [False, False, False, False]])
+    out = R.fill_occlusions(d, valid)
+    np.testing.assert_array_equal(out, [[1.0, 1.0, 1.0, 3.0], [1.0, 1.0, 1.0, 1.0]])
+    with pytest.raises(InvalidInputError):
+        R.fill_occlusions(d, np.zeros_like(valid))
+
+
+def test_right_cost_from_left_shifts_and_fills(rng):
+    L, H, W = 5, 3, 9
+    lv = np.arange(-1, 4).astype(float)            # d = -1..3
+    c = rng.random((L, H, W)).astype(np.float32)
+    cr = R.right_cost_from_left(c, labels=lv)
+    valid = np.zeros((L, H, W), bool)
+    for l, d in enumerate(lv.astype(int)):
+        for x in range(W):
+            if 0 <= x + d < W:
+                assert cr[l, :, x].tolist() == c[l, :, x + d].tolist()
+                valid[l, :, x] = True
+    worst = np.where(valid, cr, -np.inf).max(axis=0)
+    np.testing.assert_array_equal(cr[~valid], np.broadcast_to(worst, cr.shape)[~valid])
+    # sub-pixel labels interpolate linearly
+    cr_half = R.right_cost_from_left(c[:2], labels=np.array([0.0, 0.5]))
+    np.testing.assert_allclose(cr_half[1, :, :-1], 0.5 * (c[1, :, :-1] + c[1, :, 1:]), rtol=1e-6)
+
+
+def test_right_map_from_same_volume_passes_lr_check():
+    # an absolute-difference cost from a synthetic pair whose true disparity is d everywhere
+    rng = np.random.default_rng(7)
+    H, W, d = 6, 30, 3
+    full = rng.random((H, W + d))
+    left, right = full[:, :W], full[:, d:W + d]   # Middlebury: left(x) == right(x - d)
+    L = 6
+    c = np.empty((L, H, W), np.float32)
+    for k in range(L):
+        shifted = np.full((H, W), np.nan)
+        shifted[:, k:] = right[:, :W - k]
+        c[k] = np.abs(left - shifted)
+    c = R.fill_invalid(c)
+    dl = R.wta(c).astype(float)
+    dr = R.wta(R.right_cost_from_left(c)).astype(float)
+    valid = R.left_right_check(dl, dr)
+    assert np.all(dl[:, d:] == d) and np.all(dr[:, : W - d] == d)
+    assert valid[:, d:].all()
+
+
+# ----------------------------------------------------------------------------------------------
+# sub-pixel and confidence
+# ----------------------------------------------------------------------------------------------
+
+def test_subpixel_refine_recovers_parabola_vertex():
+    lv = np.arange(-3.0, 3.01, 0.5)               # 13 labels, step 0.5
+    H, W = 4, 5
+    true = np.linspace(-2.2, 2.3, H * W).reshape(H, W)
+    c = (2.0 * (lv[:, None, None] - true[None]) ** 2 + 1.0).astype(np.float64)
+    f = R.wta(c)
+    out = R.subpixel_refine(c.astype(np.float32), f, lv)
+    np.testing.assert_allclose(out, true, atol=2e-4)
+    # at the ends of the label range: no refinement
+    c_end = (lv[:, None, None] + 3.4) ** 2 * np.ones((1, 1, 1))
+    f_end = R.wta(c_end)
+    assert f_end[0, 0] == 0
+    assert R.subpixel_refine(c_end.astype(np.float32), f_end, lv)[0, 0] == -3.0
+    with pytest.raises(InvalidInputError, match="evenly"):
+        R.subpixel_refine(c.astype(np.float32), f, lv ** 3)
+
+
+def test_confidence_range_and_ordering():
+    L = 10
+    lab = np.arange(L)[:, None, None]
+    sharp = np.minimum(np.abs(lab - 4), 1.0) * np.ones((1, 1, 1))
+    flat = np.zeros((L, 1, 1))
+    ambiguous = sharp.copy()
+    ambiguous[8] = 0.0
+    c = np.concatenate([sharp, flat, ambiguous], axis=2).astype(np.float32)
+    conf = R.confidence(c)
+    assert conf.shape == (1, 3) and conf.min() >= 0 and conf.max() <= 1
+    assert conf[0, 0] == pytest.approx(1.0)
+    assert conf[0, 1] == 0.0 and conf[0, 2] == 0.0
