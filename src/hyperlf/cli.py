@@ -157,6 +157,7 @@ def _cmd_synth(args) -> int:
                   layout=args.layout, noise_sigma=args.noise)
     if args.seed is not None:  # a named scene keeps its own seed unless one is given
         common["seed"] = args.seed
+    common["progress"] = not args.quiet
     if args.source == "hci":
         lf = synthesis.from_hci_scene(args.scene, **common)
     else:
@@ -166,7 +167,9 @@ def _cmd_synth(args) -> int:
             kw = {**synthesis.SCENES[args.scene_name], **kw}
         lf = synthesis.procedural_scene(**kw)
     out = Path(args.output)
-    save_lightfield(lf, out, bit_depth=args.bit_depth, overwrite=args.overwrite)
+    _say(args, f"writing {out} ...")
+    save_lightfield(lf, out, bit_depth=args.bit_depth, overwrite=args.overwrite,
+                    progress=not args.quiet)
     if not args.no_pictures:
         pics_dir = out if out.suffix.lower() not in (".h5", ".hdf5") else out.with_suffix("")
         _write_lightfield_pictures(lf, pics_dir if pics_dir != out else out / "preview")
@@ -225,7 +228,8 @@ def _cmd_demo(args) -> int:
     _say(args, f"hyperlf demo: building a {args.grid[0]} x {args.grid[1]} synthetic H-LF "
                f"(seed {args.seed}) ...")
     scene = {**synthesis.SCENES["solids"], "seed": args.seed, "rows": args.grid[0],
-             "cols": args.grid[1], "height": args.size[0], "width": args.size[1]}
+             "cols": args.grid[1], "height": args.size[0], "width": args.size[1],
+             "progress": not args.quiet}
     lf = synthesis.procedural_scene(**scene)
     save_lightfield(lf, out / "capture", overwrite=True)
     write_pfm(out / "gt_disparity.pfm", lf.reference_gt_disparity)

@@ -33,6 +33,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
+from ._progress import grid_views
 from .errors import InvalidInputError
 from .lightfield import LightField, filter_layout
 from .warp import forward_warp_disparity
@@ -274,8 +275,8 @@ def from_rgb_lightfield(lf_rgb: LightField, rows: int = 5, cols: int = 6,
                         layout: str | Sequence[int] = "raster", filter_shape: str = "dirac",
                         quantum_efficiency: Any = None, noise_sigma: float = 0.0,
                         seed: int = 0, illuminant: str | None = None, fwhm: float = 10.0,
-                        view_disparity: str = "warp", normalization: str = "white"
-                        ) -> LightField:
+                        view_disparity: str = "warp", normalization: str = "white",
+                        progress: bool = False) -> LightField:
     """Synthesise an H-LF (with its ground-truth cube) from an RGB light field (SPEC §6).
 
     Steps
@@ -321,6 +322,8 @@ def from_rgb_lightfield(lf_rgb: LightField, rows: int = 5, cols: int = 6,
         Filter layout (:func:`hyperlf.filter_layout`; "random" drawn from ``seed``).
     seed : int
         Seed of the noise (and of a random layout).
+    progress : bool
+        Show a progress bar over the views.
 
     Returns
     -------
@@ -387,12 +390,11 @@ def from_rgb_lightfield(lf_rgb: LightField, rows: int = 5, cols: int = 6,
 
     cube = np.empty((rows, cols, B, H, W), dtype=np.float32)
     t_views = time.perf_counter()
-    for r in range(rows):
-        for c in range(cols):
-            srgb = np.asarray(lf_rgb.views[sr + r, sc + c], dtype=np.float32)
-            lin = np.asarray(spectral.srgb_to_linear(srgb), dtype=np.float32)
-            np.maximum(lin, 0.0, out=lin)
-            cube[r, c] = bands_of(lin)
+    for r, c in grid_views(rows, cols, "spectra per view", progress):
+        srgb = np.asarray(lf_rgb.views[sr + r, sc + c], dtype=np.float32)
+        lin = np.asarray(spectral.srgb_to_linear(srgb), dtype=np.float32)
+        np.maximum(lin, 0.0, out=lin)
+        cube[r, c] = bands_of(lin)
     t_views = time.perf_counter() - t_views
 
     if linear:
@@ -816,7 +818,8 @@ def procedural_scene(seed: int = 0, rows: int = 5, cols: int = 6, height: int = 
                      objects: Sequence[Mapping[str, Any]] | None = None,
                      filter_shape: str = "dirac", fwhm: float = 10.0,
                      quantum_efficiency: Any = None, focal_length: float | None = None,
-                     shading: bool = True, name: str | None = None) -> LightField:
+                     shading: bool = True, name: str | None = None,
+                     progress: bool = False) -> LightField:
     """Render a procedural H-LF with exact ground truth by ray casting (SPEC §6).
 
     The scene is a background plane plus objects -- fronto-parallel and slanted rectangles,
@@ -869,6 +872,8 @@ def procedural_scene(seed: int = 0, rows: int = 5, cols: int = 6, height: int = 
         Pixels; default ``max(H, W)``.
     name : str, optional
         Scene name recorded in the metadata (set by :data:`SCENES`).
+    progress : bool
+        Show a progress bar over the views.
 
     Returns
     -------
@@ -967,42 +972,41 @@ def procedural_scene(seed: int = 0, rows: int = 5, cols: int = 6, height: int = 
     cube = np.zeros((rows, cols, B, H, W), dtype=np.float32)
     gt = np.full((rows, cols, H, W), np.nan, dtype=np.float32)
     missed = 0
-    for r in range(rows):
-        for c in range(cols):
-            dx, dy = offsets[r, c]
-            # exact disparity at pixel centres (the centre sample when supersample is odd)
-            centre = cast(dx, dy, 0.0, 0.0)
-            t0 = centre[2]
-            hit0 = np.isfinite(t0)
-            missed += int((~hit0).sum())
-            disp = np.full(xx.size, np.nan)
-            disp[hit0] = f / t0[hit0] - d0  # t is the depth Z since D_z = 1, C_z = 0
-            gt[r, c] = disp.reshape(H, W)
-            acc = np.zeros((xx.size, B))
-            for sy in sub:
-                for sx in sub:
-                    C, D, t, idx, auxs = (centre if sx == 0.0 and sy == 0.0
-                                          else cast(dx, dy, sx, sy))
-                    for i, s in enumerate(surfaces):
-                        sel = np.flatnonzero(idx == i)
-                        if sel.size == 0:
-                            continue
-                        P = C[None, :] + t[sel, None] * D[sel]
-                        aux = auxs[i]
-                        if aux is not None:
-                            aux = tuple(a[sel] for a in aux)
-                        u, v, nrm = s.surface(P, aux)
-                        tex = s.spec["texture"]
-                        i1, i2, w = _texture(tex, u, v, tex["period"] * base_period)
-                        gidx = np.array([chip_index[ch] for ch in tex["chips"]])
-                        rad = (w[:, None] * palette[gidx[i1]]
-                               + (1.0 - w)[:, None] * palette[gidx[i2]])
-                        if shading:
-                            lam = np.clip(nrm @ light, 0.0, None)
-                            rad *= (ambient + (1.0 - ambient) * lam)[:, None]
-                        acc[sel] += rad
-            acc /= supersample * supersample
-            cube[r, c] = acc.T.reshape(B, H, W).astype(np.float32)
+    for r, c in grid_views(rows, cols, "rendering views", progress):
+        dx, dy = offsets[r, c]
+        # exact disparity at pixel centres (the centre sample when supersample is odd)
+        centre = cast(dx, dy, 0.0, 0.0)
+        t0 = centre[2]
+        hit0 = np.isfinite(t0)
+        missed += int((~hit0).sum())
+        disp = np.full(xx.size, np.nan)
+        disp[hit0] = f / t0[hit0] - d0  # t is the depth Z since D_z = 1, C_z = 0
+        gt[r, c] = disp.reshape(H, W)
+        acc = np.zeros((xx.size, B))
+        for sy in sub:
+            for sx in sub:
+                C, D, t, idx, auxs = (centre if sx == 0.0 and sy == 0.0
+                                      else cast(dx, dy, sx, sy))
+                for i, s in enumerate(surfaces):
+                    sel = np.flatnonzero(idx == i)
+                    if sel.size == 0:
+                        continue
+                    P = C[None, :] + t[sel, None] * D[sel]
+                    aux = auxs[i]
+                    if aux is not None:
+                        aux = tuple(a[sel] for a in aux)
+                    u, v, nrm = s.surface(P, aux)
+                    tex = s.spec["texture"]
+                    i1, i2, w = _texture(tex, u, v, tex["period"] * base_period)
+                    gidx = np.array([chip_index[ch] for ch in tex["chips"]])
+                    rad = (w[:, None] * palette[gidx[i1]]
+                           + (1.0 - w)[:, None] * palette[gidx[i2]])
+                    if shading:
+                        lam = np.clip(nrm @ light, 0.0, None)
+                        rad *= (ambient + (1.0 - ambient) * lam)[:, None]
+                    acc[sel] += rad
+        acc /= supersample * supersample
+        cube[r, c] = acc.T.reshape(B, H, W).astype(np.float32)
     np.clip(cube, 0.0, 1.0, out=cube)
 
     clean = cube[np.arange(rows)[:, None], np.arange(cols)[None, :], kmap]

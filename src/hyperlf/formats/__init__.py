@@ -103,7 +103,7 @@ def load_lightfield(path: str | os.PathLike, **kwargs) -> LightField:
 
 
 def save_lightfield(lf: LightField, path: str | os.PathLike, bit_depth: int = 16,
-                    overwrite: bool = False, **kwargs) -> Path:
+                    overwrite: bool = False, progress: bool = False, **kwargs) -> Path:
     """Save a light field: ``.h5``/``.hdf5`` -> HDF5 file, anything else -> capture folder.
 
     Parameters
@@ -115,6 +115,8 @@ def save_lightfield(lf: LightField, path: str | os.PathLike, bit_depth: int = 16
     overwrite : bool
         Replace an existing HDF5 file / non-empty capture folder; otherwise refuse with
         :class:`~hyperlf.errors.InvalidInputError`.
+    progress : bool
+        Show a progress bar while a capture's views are written.
     **kwargs
         Passed on to :func:`write_lightfield_h5` (``compression``) or :func:`write_capture`
         (``image_format``).
@@ -129,4 +131,5 @@ def save_lightfield(lf: LightField, path: str | os.PathLike, bit_depth: int = 16
         if p.exists() and not overwrite:
             raise InvalidInputError(f"{p} exists; choose another name or pass overwrite=True")
         return write_lightfield_h5(p, lf, **kwargs)
-    return write_capture(lf, p, bit_depth=bit_depth, overwrite=overwrite, **kwargs)
+    return write_capture(lf, p, bit_depth=bit_depth, overwrite=overwrite, progress=progress,
+                         **kwargs)

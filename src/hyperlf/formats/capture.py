@@ -47,6 +47,7 @@ from typing import Any
 import numpy as np
 
 from .._atomic import atomic_write_bytes
+from .._progress import progress_bar
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
 from ..lightfield import LightField
 from .hdf5 import read_cube_h5, write_cube_h5
@@ -332,7 +333,8 @@ _DROP = object()
 
 
 def write_capture(lightfield: LightField, folder: str | os.PathLike, bit_depth: int = 16,
-                  overwrite: bool = False, image_format: str = "png") -> Path:
+                  overwrite: bool = False, image_format: str = "png",
+                  progress: bool = False) -> Path:
     """Write a light field as a capture folder (views, ground truth, then ``capture.toml``).
 
     Parameters
@@ -350,6 +352,8 @@ def write_capture(lightfield: LightField, folder: str | os.PathLike, bit_depth: 
         use are deleted afterwards.
     image_format : {"png", "tiff"}
         Container of the view files (``bit_depth=32`` always uses TIFF).
+    progress : bool
+        Show a progress bar while the views are written.
 
     Returns
     -------
@@ -435,7 +439,9 @@ def write_capture(lightfield: LightField, folder: str | os.PathLike, bit_depth: 
             jobs.append((root / name, lf.views[r, c]))
             new_files.add(name)
     with ThreadPoolExecutor(max_workers=min(8, len(jobs))) as pool:
-        list(pool.map(lambda j: write_image(j[0], j[1], bit_depth=bit_depth), jobs))
+        results = pool.map(lambda j: write_image(j[0], j[1], bit_depth=bit_depth), jobs)
+        list(progress_bar(results, "writing views", total=len(jobs), enabled=progress,
+                          unit="view"))
 
     if lf.gt_disparity is not None:
         if lf.gt_disparity.ndim == 2:

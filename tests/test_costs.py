@@ -1,0 +1,343 @@
+"""Tests of the two-view matching costs (SPEC §3, §4)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from numpy.lib.stride_tricks import sliding_window_view
+from scipy import ndimage
+
+from hyperlf import costs
+from hyperlf.errors import InvalidInputError
+
+H, W = 36, 56
+DTRUE = 4
+DMIN, DMAX = 0, 8
+MARGIN = 6  # interior margin (rows/cols); plus DMAX columns on the left
+
+
+def _texture(rng, h, w, sigma=1.0):
+    t = ndimage.gaussian_filter(rng.random((h, w)), sigma)
+    t = (t - t.min()) / (t.max() - t.min())
+    return 0.15 + 0.7 * t
+
+
+def _pair(rng, d=DTRUE, remap=None):
+    """Left = scene window, right = the same scene seen d pixels further (x_R = x_L - d).
+
+    ``remap(scene, xcoord)`` gives the right view's intensities (applied in scene coordinates,
+    so a region's remap moves with the texture)."""
+    pad = 12
+    scene = _texture(rng, H, W + 2 * pad)
+    xs = np.broadcast_to(np.arange(W + 2 * pad), scene.shape)
+    left = scene[:, pad:pad + W]
+    rs = scene if remap is None else remap(scene, xs)
+    right = rs[:, pad + d:pad + d + W]
+    return left, right
+
+
+def _interior_exact(cost, d=DTRUE, dmin=DMIN, extra_cols=None):
+    wta = cost.argmin(axis=0) + dmin
+    sl = wta[MARGIN:-MARGIN, DMAX + MARGIN:-MARGIN]
+    ok = sl == d
+    if extra_cols is not None:
+        ok = ok[:, extra_cols]
+    return ok.mean()
+
+
+def _cross_spectral_monotone(scene, xs):
+    """Nonlinear monotone remap + gain (what census is invariant to, SSD is not)."""
+    return 2.5 * scene ** 2.2
+
+
+def _cross_spectral_reversed(scene, xs):
+    """Non-monotonic: gamma + gain in one region, contrast-reversed gamma in the other."""
+    a = 0.8 * scene ** 0.7
+    b = 1.7 * (1.05 - scene) ** 1.4
+    return np.where(xs < xs.shape[1] // 2, a, b)
+
+
+CLASSICAL = ["ssd", "ncc", "rsncc", "census"]
+
+
+# ---------------------------------------------------------------------------------------------
+# Basics: registry, validation, shape
+# ---------------------------------------------------------------------------------------------
+
+
+def test_registry_and_resolve():
+    assert set(costs.METRICS) == {"ssd", "ncc", "rsncc", "census", "bwncc", "bwncc-paper", "fused"}
+    assert costs.resolve_metric("auto") == costs.AUTO_METRIC in costs.METRICS
+    assert costs.resolve_metric("NCC") == "ncc"
+    with pytest.raises(InvalidInputError):
+        costs.resolve_metric("sad")
+
+
+@pytest.mark.parametrize("bad", [
+    dict(left=np.ones((4, 5)), right=np.ones((4, 6)), dmin=0, dmax=2),
+    dict(left=np.ones((4, 5, 3)), right=np.ones((4, 5, 3)), dmin=0, dmax=2),
+    dict(left=np.ones((4, 5)), right=np.ones((4, 5)), dmin=3, dmax=2),
+    dict(left=np.full((4, 5), np.nan), right=np.ones((4, 5)), dmin=0, dmax=2),
+    dict(left=np.ones((4, 5)), right=np.ones((4, 5)), dmin=0, dmax=2, window=4),
+    dict(left=np.ones((4, 5)), right=np.ones((4, 5)), dmin=0, dmax=2, impl="cuda"),
+    dict(left=np.ones((4, 5)), right=np.ones((4, 5)), dmin=0, dmax=2, bogus=1),
+])
+def test_bad_input_raises(bad):
+    bad.setdefault("metric", "ncc")
+    with pytest.raises(InvalidInputError):
+        costs.cost_volume(**bad)
+
+
+def test_candidate_validity():
+    v = costs.candidate_validity((3, 6), -1, 2)
+    assert v.shape == (4, 3, 6)
+    d = np.arange(-1, 3)[:, None]
+    x = np.arange(6)[None]
+    np.testing.assert_array_equal(v[:, 1], (x - d >= 0) & (x - d < 6))
+
+
+# ---------------------------------------------------------------------------------------------
+# Shift recovery
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("metric", CLASSICAL)
+def test_classical_costs_recover_shift(rng, metric):
+    left, right = _pair(rng)
+    c = costs.cost_volume(left, right, DMIN, DMAX, metric=metric)
+    assert c.shape == (DMAX - DMIN + 1, H, W) and c.dtype == np.float32
+    assert _interior_exact(c) > 0.95
+
+
+@pytest.mark.parametrize("metric", ["bwncc", "bwncc-paper", "fused"])
+def test_descriptor_costs_recover_shift(rng, metric):
+    left, right = _pair(rng)
+    c = costs.cost_volume(left, right, DMIN, DMAX, metric=metric)
+    assert c.shape == (DMAX - DMIN + 1, H, W) and c.dtype == np.float32
+    assert _interior_exact(c) > 0.95
+
+
+def test_negative_disparities(rng):
+    left, right = _pair(rng, d=-2)
+    c = costs.cost_volume(left, right, -4, 3, metric="ncc")
+    wta = c.argmin(0) - 4
+    assert (wta[MARGIN:-MARGIN, MARGIN:-MARGIN - 4] == -2).mean() > 0.95
+
+
+def test_cross_spectral_monotone_census_and_bwncc_not_ssd(rng):
+    left, right = _pair(rng, remap=_cross_spectral_monotone)
+    acc = {m: _interior_exact(costs.cost_volume(left, right, DMIN, DMAX, metric=m))
+           for m in ["census", "bwncc", "ssd"]}
+    assert acc["census"] > 0.95, acc
+    assert acc["bwncc"] > 0.95, acc
+    assert acc["ssd"] < acc["census"] - 0.1, acc
+
+
+def test_cross_spectral_contrast_reversed_regions(rng):
+    """Right = gamma+gain in one region and contrast-reversed gamma in the other.
+
+    BWNCC recovers the shift in both regions (gradient directions are taken mod pi); census is
+    only invariant to monotone remaps, so it fails where the contrast is reversed; SSD fails.
+    """
+    left, right = _pair(rng, remap=_cross_spectral_reversed)
+    # the reversal boundary is at scene column (W + 24) // 2 -> left column 28 - 12 = 28 - pad
+    boundary = (W + 24) // 2 - 12
+    cols = np.arange(DMAX + MARGIN, W - MARGIN)
+    away = np.abs(cols - boundary) > 6
+    acc = {m: _interior_exact(costs.cost_volume(left, right, DMIN, DMAX, metric=m), extra_cols=away)
+           for m in ["bwncc", "bwncc-paper", "census", "ssd"]}
+    assert acc["bwncc"] > 0.95, acc
+    assert acc["bwncc-paper"] > 0.9, acc
+    assert acc["ssd"] < 0.7, acc
+    assert acc["census"] < acc["bwncc"] - 0.2, acc
+
+
+# ---------------------------------------------------------------------------------------------
+# BWNCC properties
+# ---------------------------------------------------------------------------------------------
+
+
+def test_bwncc_symmetry(rng):
+    """score(p, q) from left->right equals right->left at the corresponding pixel."""
+    left, right = _pair(rng, remap=_cross_spectral_reversed)
+    c_lr, sf, sb, b_lr = costs.bwncc_volume(left, right, DMIN, DMAX, return_scores=True)
+    # right as reference: right pixel x matches left pixel x + d, i.e. disparity -d
+    c_rl, sf2, sb2, b_rl = costs.bwncc_volume(right, left, -DMAX, -DMIN, return_scores=True)
+    valid = costs.candidate_validity((H, W), DMIN, DMAX)
+    for k, d in enumerate(range(DMIN, DMAX + 1)):
+        k2 = DMAX - d  # index of -d in -DMAX..-DMIN
+        x = np.arange(d, W)  # valid left pixels with x - d >= 0
+        np.testing.assert_allclose(b_lr[k][:, x], b_rl[k2][:, x - d], atol=1e-12)
+        np.testing.assert_allclose(sf[k][:, x], sb2[k2][:, x - d], atol=1e-12)
+        np.testing.assert_allclose(c_lr[k][:, x], c_rl[k2][:, x - d], atol=1e-6)
+        assert valid[k][:, x].all()
+
+
+def test_bwncc_symmetry_on_descriptor_stacks(rng):
+    A = rng.random((5, 20, 24)).astype(np.float32)
+    B = rng.random((5, 20, 24)).astype(np.float32)
+    _, sf, sb, b = costs.bwncc_from_descriptors(A, B, 0, 3, n=[3, 5, 5, 3, 1], return_scores=True)
+    _, sf2, sb2, b2 = costs.bwncc_from_descriptors(B, A, -3, 0, n=[3, 5, 5, 3, 1], return_scores=True)
+    for d in range(4):
+        np.testing.assert_allclose(sf[d][:, d:], sb2[3 - d][:, :24 - d], atol=1e-12)
+        np.testing.assert_allclose(b[d][:, d:], b2[3 - d][:, :24 - d], atol=1e-12)
+
+
+def test_bwncc_gain_invariance(rng):
+    left, right = _pair(rng, remap=_cross_spectral_reversed)
+    c0 = costs.bwncc_volume(left, right, DMIN, DMAX)
+    c1 = costs.bwncc_volume(0.37 * left, 4.0 * right, DMIN, DMAX)
+    np.testing.assert_allclose(c1, c0, atol=1e-5)
+
+
+def test_bwncc_contrast_reversal(rng):
+    """What holds (see hyperlf.descriptor): a mean-preserving reversal I -> 2 mean(I) - I gives
+    In' = 2 - In, gradients exactly negated, hence the *same* descriptor and the same cost (both
+    variants).  A general reversal c - I also scales the gradients by mean(I)/(c - mean(I)): h2,
+    the normalised h3 and (with sigma_w="auto") the weights are unchanged but h1 is not, so the
+    cost changes; the true shift is still found."""
+    left, right = _pair(rng)
+    for variant in ("default", "paper"):
+        c0 = costs.bwncc_volume(left, right, DMIN, DMAX, variant=variant)
+        c1 = costs.bwncc_volume(left, 2 * right.mean() - right, DMIN, DMAX, variant=variant)
+        diff = np.abs(c1 - c0)
+        # bin boundaries may flip a handful of float-rounded values; allow a tiny fraction
+        assert np.mean(diff < 1e-5) > 0.999, (variant, diff.max())
+    c2 = costs.bwncc_volume(left, 1.3 - right, DMIN, DMAX)
+    assert np.abs(c2 - costs.bwncc_volume(left, right, DMIN, DMAX)).max() > 1e-3
+    assert _interior_exact(c2) > 0.95
+
+
+# ---------------------------------------------------------------------------------------------
+# Implementations agree
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("metric,window", [("ncc", 5), ("ncc", 3), ("rsncc", 5), ("census", 7), ("census", 5)])
+def test_numpy_and_numba_agree(rng, metric, window):
+    left, right = _pair(rng, remap=_cross_spectral_reversed)
+    a = costs.cost_volume(left, right, -2, 7, metric=metric, window=window, impl="numpy")
+    b = costs.cost_volume(left, right, -2, 7, metric=metric, window=window, impl="numba")
+    np.testing.assert_allclose(a, b, atol=1e-5)
+
+
+def test_bwncc_numpy_and_numba_agree(rng):
+    A = rng.random((6, 18, 22)).astype(np.float32) ** 3
+    B = rng.random((6, 18, 22)).astype(np.float32) ** 3
+    A[2] = 0.25  # a flat channel: xi = 0 there
+    n = [3, 5, 9, 3, 5, 1]
+    a = costs.bwncc_from_descriptors(A, B, -3, 4, n=n, impl="numpy", return_scores=True)
+    b = costs.bwncc_from_descriptors(A, B, -3, 4, n=n, impl="numba", return_scores=True)
+    for x, y in zip(a, b):
+        np.testing.assert_allclose(x, y, atol=1e-5)  # float32 1/sigma in the kernel
+
+
+def test_bwncc_matches_direct_formula(rng):
+    """Brute-force SPEC §3 at a few (p, d): per-channel NCC of replicate-padded patches."""
+    nc, h, w = 4, 14, 16
+    A = rng.random((nc, h, w)) ** 2
+    B = rng.random((nc, h, w)) ** 2
+    n = [3, 5, 3, 5]
+    _, sf, sb, bw = costs.bwncc_from_descriptors(A, B, 0, 3, n=n, tau_rel=0.0, return_scores=True)
+    for (y, x, d) in [(0, 5, 2), (7, 8, 1), (13, 15, 3), (5, 3, 0)]:
+        num_f = num_b = den_f = den_b = 0.0
+        for c in range(nc):
+            r = n[c] // 2
+            pa = np.pad(A[c], r, mode="edge")[y:y + 2 * r + 1, x:x + 2 * r + 1]
+            pb = np.pad(B[c], r, mode="edge")[y:y + 2 * r + 1, x - d:x - d + 2 * r + 1]
+            xi = np.mean((pa - pa.mean()) * (pb - pb.mean())) / (pa.std() * pb.std())
+            num_f += xi * pa.mean()
+            num_b += xi * pb.mean()
+            den_f += pa.mean()
+            den_b += pb.mean()
+        assert sf[d, y, x] == pytest.approx(num_f / den_f, abs=1e-10)
+        assert sb[d, y, x] == pytest.approx(num_b / den_b, abs=1e-10)
+        assert bw[d, y, x] == pytest.approx(np.sqrt(max(num_f / den_f, 0) * max(num_b / den_b, 0)), abs=1e-10)
+
+
+def test_streaming_blocks_do_not_change_result(rng):
+    """With tau over the whole view, the block size is only a memory knob; the default
+    per-block tau (one histogram per block) differs only at a few near-flat patches."""
+    left, right = _pair(rng)
+    a = costs.bwncc_volume(left, right, 0, 5, block=34, tau_scope="view")
+    b = costs.bwncc_volume(left, right, 0, 5, block=612, tau_scope="view")
+    np.testing.assert_allclose(a, b, atol=1e-5)
+    c = costs.bwncc_volume(left, right, 0, 5)  # block = 68, tau_scope = "block"
+    assert np.mean(np.abs(a - c) < 1e-3) > 0.98
+
+
+# ---------------------------------------------------------------------------------------------
+# Numerics
+# ---------------------------------------------------------------------------------------------
+
+
+def test_window_stats_float64_vs_naive_float32(rng):
+    """Descriptor-like values ~0.5 with patch std ~1e-3: naive float32 E[c^2]-E[c]^2 is off by
+    a large fraction of the variance, ours matches a float64 brute-force reference."""
+    img = 0.5 + 1e-3 * rng.standard_normal((40, 50))
+    n = 5
+    r = n // 2
+    win = sliding_window_view(np.pad(img, r, mode="edge"), (n, n))
+    ref_mu = win.mean(axis=(-1, -2))
+    ref_var = win.var(axis=(-1, -2))
+    mu, var = costs.window_stats(img.astype(np.float32), n)
+    img32 = img.astype(np.float32)
+    ref32 = sliding_window_view(np.pad(img32.astype(np.float64), r, mode="edge"), (n, n)).var(axis=(-1, -2))
+    np.testing.assert_allclose(var, ref32, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(mu, ref_mu, atol=1e-6)
+    np.testing.assert_allclose(var, ref_var, rtol=1e-3)
+    import cv2
+    m32 = cv2.boxFilter(img32, -1, (n, n), borderType=cv2.BORDER_REPLICATE)
+    s32 = cv2.boxFilter(img32 * img32, -1, (n, n), borderType=cv2.BORDER_REPLICATE)
+    naive = s32 - m32 * m32
+    rel_naive = np.abs(naive - ref32) / ref32
+    assert rel_naive.max() > 0.05  # float32 loses the signal
+    assert (np.abs(var - ref32) / ref32).max() < 1e-8
+
+
+# ---------------------------------------------------------------------------------------------
+# Out-of-image rule and fusion
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("metric", CLASSICAL + ["bwncc", "fused"])
+def test_out_of_image_rule(rng, metric):
+    left, right = _pair(rng)
+    dmin, dmax = -3, 6
+    c = costs.cost_volume(left, right, dmin, dmax, metric=metric)
+    valid = costs.candidate_validity((H, W), dmin, dmax)
+    worst = np.where(valid, c, -np.inf).max(axis=0)
+    filled = np.broadcast_to(worst, c.shape)[~valid]
+    np.testing.assert_array_equal(c[~valid], filled)
+    assert (c[~valid] > 0).all()  # never zero on textured data
+
+
+def test_no_valid_candidate_gives_zero(rng):
+    left, right = _pair(rng)
+    c = costs.cost_volume(left[:, :8], right[:, :8], 8, 10, metric="ncc")
+    assert np.all(c == 0)
+    cost = np.arange(2 * 1 * 3, dtype=np.float32).reshape(2, 1, 3) + 1
+    out = costs.fill_invalid(cost.copy(), 2)  # d = 2, 3 with W = 3: only (d=2, x=2) valid
+    np.testing.assert_array_equal(out[:, 0, 2], [3, 3])
+    np.testing.assert_array_equal(out[:, 0, :2], 0)
+
+
+def test_fuse_general(rng):
+    a = rng.random((5, 6, 7)).astype(np.float32)
+    b = 10 * rng.random((5, 6, 7)).astype(np.float32)
+    na = costs.normalise_volume(a, 0)
+    assert np.allclose(na.min(axis=0), 0)
+    np.testing.assert_allclose(costs.fuse([a], dmin=0), na, rtol=1e-6)
+    f = costs.fuse([a, b], [3, 1], dmin=0)
+    np.testing.assert_allclose(f, costs.fill_invalid((3 * na + costs.normalise_volume(b, 0)) / 4, 0),
+                               rtol=1e-5, atol=1e-6)
+    with pytest.raises(InvalidInputError):
+        costs.fuse([a, b], [1, -1])
+
+
+def test_ncc_gain_and_ssd_mean_normalisation(rng):
+    left, right = _pair(rng)
+    np.testing.assert_allclose(costs.cost_volume(left, 3 * right, 0, 4, "ncc"),
+                               costs.cost_volume(left, right, 0, 4, "ncc"), atol=1e-5)
+    np.testing.assert_allclose(costs.cost_volume(left, 3 * right, 0, 4, "ssd"),
+                               costs.cost_volume(left, right, 0, 4, "ssd"), atol=1e-5)
