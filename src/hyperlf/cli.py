@@ -1,7 +1,8 @@
 """The ``hyperlf`` command-line tool.
 
 Exit codes: 0 success; 1 a hyperlf error without a more specific class; 2 bad usage or
-impossible input; 3 an unreadable or malformed file; 4 a missing file or dataset; 130 interrupted.
+impossible input; 3 an unreadable or malformed file; 4 a missing file or dataset; 130 interrupted;
+141 output pipe closed early (as git and other peers do).
 """
 
 from __future__ import annotations
@@ -347,6 +348,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("hyperlf: interrupted; no partial output was left behind", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # output piped into e.g. `head`, which closed early
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
 
 
 if __name__ == "__main__":  # pragma: no cover
