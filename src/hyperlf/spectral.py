@@ -230,10 +230,17 @@ def cmfs(wavelengths, observer: str = CIE1931) -> np.ndarray:
 # cameras
 # ---------------------------------------------------------------------------------------------
 
-def _camspec_default_path() -> Path:
-    from .datasets import dataset_path
+def _data_file(path, dataset: str, what: str, hint: str) -> Path:
+    """``path`` if given, else the registered dataset; a missing file raises one clear error."""
+    if path is None:
+        from .datasets import dataset_path
 
-    return dataset_path("camspec")
+        p = dataset_path(dataset)
+    else:
+        p = Path(path).expanduser()
+    if not p.is_file():
+        raise DataNotFoundError(f"{what} {p} does not exist; pass {hint} or set HYPERLF_DATA")
+    return p
 
 
 @lru_cache(maxsize=8)
@@ -330,10 +337,7 @@ def load_camspec(path: str | os.PathLike | None = None) -> dict[str, tuple[np.nd
     FormatError
         The file does not follow the format above.
     """
-    p = _camspec_default_path() if path is None else Path(path).expanduser()
-    if not p.is_file():
-        raise DataNotFoundError(f"camspec database {p} does not exist; pass the path of "
-                                "camspec_database.txt or set HYPERLF_DATA")
+    p = _data_file(path, "camspec", "camspec database", "the path of camspec_database.txt")
     return dict(_parse_camspec(str(p.resolve()), p.stat().st_mtime_ns))
 
 
@@ -1158,14 +1162,7 @@ def load_munsell(path: str | os.PathLike | None = None) -> tuple[np.ndarray, np.
     reflectances : ndarray, shape (1269, 421)
         In [0, 1]; read-only (cached), copy before modifying.
     """
-    if path is None:
-        from .datasets import dataset_path
-
-        p = dataset_path("munsell")
-    else:
-        p = Path(path).expanduser()
-    if not p.is_file():
-        raise DataNotFoundError(f"Munsell file {p} does not exist; pass the .mat path or set HYPERLF_DATA")
+    p = _data_file(path, "munsell", "Munsell file", "the .mat path")
     return _parse_munsell(str(p.resolve()), p.stat().st_mtime_ns)
 
 
@@ -1282,14 +1279,7 @@ def load_filter_transmissions(path: str | os.PathLike | None = None):
         Nominal centre wavelengths from the column names, nm (the shipped file has filters at
         430-460 and 660-780 nm only).
     """
-    if path is None:
-        from .datasets import dataset_path
-
-        p = dataset_path("thorlabs")
-    else:
-        p = Path(path).expanduser()
-    if not p.is_file():
-        raise DataNotFoundError(f"filter file {p} does not exist; pass the CSV path or set HYPERLF_DATA")
+    p = _data_file(path, "thorlabs", "filter file", "the CSV path")
     return _parse_filters(str(p.resolve()), p.stat().st_mtime_ns)
 
 

@@ -51,7 +51,7 @@ from .._progress import progress_bar
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
 from ..lightfield import LightField
 from .hdf5 import read_cube_h5, write_cube_h5
-from .images import read_image, write_image
+from .images import read_image, read_images_same_size, write_image
 from .pfm import read_pfm, write_pfm
 
 if sys.version_info >= (3, 11):
@@ -221,25 +221,12 @@ def read_capture(folder: str | os.PathLike) -> LightField:
         )
 
     order = [(r, c) for r in range(R) for c in range(C)]
-    first = _load_view(files[order[0]], channels, order[0])
-    views = np.empty((R, C) + first.shape, dtype=np.float32)
-    views[order[0]] = first
-
-    def load(rc):
-        im = _load_view(files[rc], channels, rc)
-        if im.shape != first.shape:
-            raise FormatError(
-                f"capture {root}: view {rc} ({files[rc].name}) is {im.shape[1]} x {im.shape[0]} px "
-                f"but view {order[0]} ({files[order[0]].name}) is {first.shape[1]} x {first.shape[0]}; "
-                "all views must have the same size"
-            )
-        views[rc] = im
-
-    if len(order) > 1:
-        with ThreadPoolExecutor(max_workers=min(8, len(order) - 1)) as pool:
-            list(pool.map(load, order[1:]))
-
-    H, W = first.shape[:2]
+    rc_of = {files[rc]: rc for rc in order}
+    stack = read_images_same_size(
+        [files[rc] for rc in order], lambda f: _load_view(f, channels, rc_of[f]),
+        f"capture {root}", labels=[f"view {rc} ({files[rc].name})" for rc in order])
+    views = stack.reshape((R, C) + stack.shape[1:])
+    H, W = stack.shape[1:3]
     gt = None
     gspec = doc.get("gt_disparity")
     if gspec is not None:

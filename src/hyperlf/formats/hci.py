@@ -12,7 +12,6 @@ import configparser
 import math
 import os
 import re
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Iterable
 
@@ -20,7 +19,7 @@ import numpy as np
 
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
 from ..lightfield import LightField
-from .images import read_image
+from .images import read_image, read_images_same_size
 from .pfm import read_pfm
 
 __all__ = ["read_hci_scene", "is_hci_scene", "HCI_LICENCE"]
@@ -149,24 +148,9 @@ def read_hci_scene(folder: str | os.PathLike, grid=None, rows=None, cols=None,
             "download the complete scene or select a sub-grid with rows=/cols="
         )
     flat = [f for row in files for f in row]
-    first = read_image(flat[0], as_float=True, channels="rgb")
-    views = np.empty((len(flat),) + first.shape, dtype=np.float32)
-    views[0] = first
-
-    def load(i: int) -> None:
-        im = read_image(flat[i], as_float=True, channels="rgb")
-        if im.shape != first.shape:
-            raise FormatError(
-                f"HCI scene {root}: {flat[i].name} is {im.shape[1]} x {im.shape[0]} px but "
-                f"{flat[0].name} is {first.shape[1]} x {first.shape[0]}; all views must have "
-                "the same size"
-            )
-        views[i] = im
-
-    if len(flat) > 1:
-        with ThreadPoolExecutor(max_workers=min(8, len(flat) - 1)) as pool:
-            list(pool.map(load, range(1, len(flat))))
-    views = views.reshape(len(rsel), len(csel), *first.shape)
+    views = read_images_same_size(flat, lambda f: read_image(f, as_float=True, channels="rgb"),
+                                  f"HCI scene {root}")
+    views = views.reshape(len(rsel), len(csel), *views.shape[1:])
 
     cc, rr = np.meshgrid(np.asarray(csel, float), np.asarray(rsel, float))
     positions = np.stack([cc, rr], axis=-1)

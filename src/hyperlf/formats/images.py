@@ -22,7 +22,7 @@ import numpy as np
 from .._atomic import atomic_path
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
 
-__all__ = ["read_image", "write_image", "to_grey", "REC709_WEIGHTS"]
+__all__ = ["read_image", "read_images_same_size", "write_image", "to_grey", "REC709_WEIGHTS"]
 
 #: Rec. 709 luma weights (R, G, B) used by :func:`to_grey`.
 REC709_WEIGHTS = (0.2126, 0.7152, 0.0722)
@@ -233,3 +233,33 @@ def write_image(path: str | os.PathLike, array, bit_depth: int = 16) -> Path:
             if not cv2.imwrite(str(tmp), bgr):
                 raise FormatError(f"OpenCV failed to write {p}")
     return p
+
+
+def read_images_same_size(paths, read, where: str, labels=None) -> np.ndarray:
+    """Read several images in parallel threads into one float32 stack ``(N, ...)``.
+
+    ``read(path)`` reads one image; every image must have the first one's shape, otherwise a
+    :class:`FormatError` names both files (``labels`` give each one a name for the message,
+    default the file names; ``where`` says which light field is being read).
+    """
+    from concurrent.futures import ThreadPoolExecutor
+
+    paths = list(paths)
+    labels = [Path(p).name for p in paths] if labels is None else list(labels)
+    first = read(paths[0])
+    stack = np.empty((len(paths),) + first.shape, dtype=np.float32)
+    stack[0] = first
+
+    def load(i: int) -> None:
+        im = read(paths[i])
+        if im.shape != first.shape:
+            raise FormatError(
+                f"{where}: {labels[i]} is {im.shape[1]} x {im.shape[0]} px but {labels[0]} is "
+                f"{first.shape[1]} x {first.shape[0]}; all views must have the same size"
+            )
+        stack[i] = im
+
+    if len(paths) > 1:
+        with ThreadPoolExecutor(max_workers=min(8, len(paths) - 1)) as pool:
+            list(pool.map(load, range(1, len(paths))))
+    return stack
