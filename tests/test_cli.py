@@ -76,3 +76,20 @@ def test_demo_runs_and_writes_pictures(tmp_path):
     for name in ("views.png", "gt_disparity.png", "reference_srgb.png", "gt_disparity.pfm"):
         assert (out / name).is_file(), name
     assert (out / "capture" / "capture.toml").is_file()
+
+
+def test_render_refocus_spectrum_on_a_capture_cube(tmp_path):
+    cap = tmp_path / "planes"
+    assert main(["-q", "synth", "procedural", "--scene", "planes", "--size", "40,48",
+                 "--grid", "3,4", "-o", str(cap), "--no-pictures"]) == 0
+    assert main(["-q", "render", str(cap), "--white", "D65", "-o", str(tmp_path / "r")]) == 0
+    assert (tmp_path / "r" / "rgb_reference.png").is_file()
+    assert main(["-q", "refocus", str(cap), "--sweep=-1,1,3", "-o", str(tmp_path / "f")]) == 0
+    assert len(list((tmp_path / "f").glob("refocus_*.png"))) == 3
+    assert (tmp_path / "f" / "refocus.gif").is_file()
+    assert main(["-q", "refocus", str(cap), "--profile", "band:9999", "-o",
+                 str(tmp_path / "g")]) == 2  # no such band: a clear usage error
+    assert main(["-q", "spectrum", str(cap), "--at", "10,12", "-o",
+                 str(tmp_path / "s.png")]) == 0
+    rows = (tmp_path / "s.csv").read_text().splitlines()
+    assert rows[0] == "wavelength_nm,value" and len(rows) == 1 + 12

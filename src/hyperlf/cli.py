@@ -57,6 +57,18 @@ def _pair_of_ints(text: str) -> tuple[int, int]:
     return a, b
 
 
+def _sweep_arg(text: str) -> tuple[float, float, int]:
+    try:
+        lo, hi, n = text.split(",")
+        lo, hi, n = float(lo), float(hi), int(n)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected MIN,MAX,N like -2,2,17 (N an integer); got {text!r}") from None
+    if n < 2 or not (np.isfinite(lo) and np.isfinite(hi)) or lo >= hi:
+        raise argparse.ArgumentTypeError(f"need MIN < MAX and N >= 2; got {text!r}")
+    return lo, hi, n
+
+
 def _view_index(text: str) -> tuple[int, int]:
     try:
         a, b = (int(v) for v in text.split(","))
@@ -259,6 +271,138 @@ def _cmd_demo(args) -> int:
     return 0
 
 
+# --------------------------------------------------------------------------- cube commands
+def _open_cube(path):
+    """Open a cube file (``.h5``) or a capture's ground-truth cube, with its geometry.
+
+    Positions and reference come from the cube's metadata (``positions``, ``reference``) or,
+    for a capture folder, from its manifest; otherwise the regular grid ``(c, r)``.
+    """
+    from .formats import is_capture, open_cube_h5, read_capture
+
+    p = Path(path)
+    positions = reference = None
+    if p.is_dir():
+        if not is_capture(p):
+            raise InvalidInputError(f"{p} is a folder but not a capture (no capture.toml)")
+        lf = read_capture(p)
+        if lf.gt_cube is None:
+            raise InvalidInputError(f"capture {p} has no cube; run 'hyperlf complete {p}' first")
+        positions, reference = lf.positions, lf.reference
+        p = p / "gt_cube.h5"
+    cf = open_cube_h5(p)
+    R, C = cf.cube.shape[:2]
+    if positions is None and "positions" in cf.metadata:
+        positions = np.asarray(cf.metadata["positions"], dtype=np.float64)
+    if reference is None and "reference" in cf.metadata:
+        reference = tuple(int(v) for v in cf.metadata["reference"])
+    if reference is None:
+        reference = ((R - 1) // 2, (C - 1) // 2)
+    if positions is None:
+        cc, rr = np.meshgrid(np.arange(C, dtype=float), np.arange(R, dtype=float))
+        positions = np.stack([cc, rr], axis=-1)
+    if positions.shape != (R, C, 2):
+        raise InvalidInputError(f"{p}: positions in the metadata do not match the {R} x {C} grid")
+    offsets = positions - positions[reference]
+    return cf, offsets, reference
+
+
+def _profile_arg(text: str):
+    """camera name / CSV path, 'band:550' (nm) or 'weights:FILE' (one weight per band)."""
+    if text.startswith("band:"):
+        try:
+            return float(text[5:])
+        except ValueError:
+            raise InvalidInputError(f"--profile band:NM needs a wavelength in nm, got {text!r}") from None
+    if text.startswith("weights:"):
+        path = Path(text[8:])
+        try:
+            return np.loadtxt(path, delimiter=",", ndmin=1).astype(np.float64).ravel()
+        except (OSError, ValueError) as exc:
+            raise InvalidInputError(f"cannot read weights from {path}: {exc}") from None
+    return text
+
+
+def _cmd_render(args) -> int:
+    from . import render, visualise
+    from .formats import write_image
+
+    cf, offsets, reference = _open_cube(args.cube)
+    out = Path(args.output)
+    with cf:
+        views = "all" if args.all_views else "reference"
+        kw = dict(camera=args.camera, output="srgb", white=args.white, views=views,
+                  exposure="percentile" if args.white is None else "white",
+                  progress=not args.quiet)
+        if views == "reference":
+            kw["views"] = reference
+        rgb = render.emulate_camera(cf, **kw)
+    written = []
+    if rgb.ndim == 3:
+        written.append(write_image(out / "rgb_reference.png", rgb, bit_depth=8))
+        written.append(write_image(out / "rgb_reference_16bit.png", rgb, bit_depth=16))
+    else:
+        for (r, c) in np.ndindex(*rgb.shape[:2]):
+            written.append(write_image(out / f"rgb_r{r}_c{c}.png", rgb[r, c], bit_depth=8))
+        written.append(visualise.save_mosaic_png(out / "rgb_views.png", rgb,
+                                                 title=f"emulated {args.camera}"))
+    for w in written:
+        _say(args, f"wrote {w}")
+    print(out)
+    return 0
+
+
+def _cmd_refocus(args) -> int:
+    from . import render
+    from .formats import write_image
+
+    cf, offsets, reference = _open_cube(args.cube)
+    out = Path(args.output)
+    profile = _profile_arg(args.profile)
+    with cf:
+        if args.sweep is not None:
+            lo, hi, n = args.sweep
+            res = render.focal_sweep(cf, offsets, np.linspace(lo, hi, int(n)), profile,
+                                     out_dir=out, fps=args.fps, progress=not args.quiet,
+                                     reference=reference, white=args.white)
+            for key in ("gif", "mp4"):
+                if res.get(key):
+                    _say(args, f"wrote {res[key]}")
+            _say(args, f"wrote {len(res['frames'])} frames in {out}")
+        else:
+            img = render.refocus(cf, offsets, args.disparity, profile, output="srgb"
+                                 if not isinstance(profile, (float, np.ndarray)) else "camera",
+                                 exposure="percentile", reference=reference, white=args.white,
+                                 progress=not args.quiet)
+            img = np.clip(img / max(float(np.percentile(img, 99.5)), 1e-6), 0, 1) \
+                if img.ndim == 2 else img
+            path = write_image(out / f"refocus_d{args.disparity:+.2f}.png", img, bit_depth=8)
+            _say(args, f"wrote {path}")
+    print(out)
+    return 0
+
+
+def _cmd_spectrum(args) -> int:
+    from . import render
+    from ._atomic import atomic_write_text
+
+    cf, offsets, reference = _open_cube(args.cube)
+    view = args.view if args.view is not None else reference
+    x, y = args.at
+    out = Path(args.output)
+    with cf:
+        spec = render.spectrum_at(cf, None, x, y, view=view)
+        wl = np.asarray(cf.wavelengths)
+        png = render.save_spectrum_figure(out, cf, None, points=[(x, y)], view=view,
+                                          labels=[f"view {view}, x={x:g}, y={y:g}"])
+    csv = out.with_suffix(".csv")
+    atomic_write_text(csv, "wavelength_nm,value\n" + "".join(
+        f"{w:g},{v:.6g}\n" for w, v in zip(wl, np.ravel(spec))))
+    _say(args, f"wrote {png} and {csv}")
+    print(png)
+    return 0
+
+
 # --------------------------------------------------------------------------- parser
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
@@ -331,6 +475,57 @@ def build_parser() -> argparse.ArgumentParser:
                         "(default: the centre view)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
     p.set_defaults(func=_cmd_convert)
+
+    cube_help = "cube file (.h5 from 'hyperlf complete') or a capture folder with gt_cube.h5"
+    p = sub.add_parser("render", help="emulate a colour camera from a cube",
+                       description="Render what a colour camera would have recorded (SPEC §8): "
+                                   "RGB = sum over bands of cube x camera sensitivity, white-"
+                                   "balanced so a flat spectrum is grey, mapped to sRGB.",
+                       epilog="examples:\n  hyperlf render cube.h5 --camera 'Nikon 5100' -o out\n"
+                              "  hyperlf render scene3 --all-views -o out   # CIE 1931 -> sRGB",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("cube", help=cube_help)
+    p.add_argument("--camera", default="CIE 1931",
+                   help="camera name (colour-science or camspec), CSV of sensitivities "
+                        "(wavelength,r,g,b), or 'CIE 1931' (default)")
+    p.add_argument("--white", default=None,
+                   help="illuminant whose spectrum should come out neutral (e.g. D65); "
+                        "default: a flat spectrum is neutral, exposure by percentile")
+    p.add_argument("--all-views", action="store_true", help="render every view, not only the "
+                   "reference")
+    p.add_argument("-o", "--output", required=True, help="output folder")
+    p.set_defaults(func=_cmd_render)
+
+    p = sub.add_parser("refocus", help="spectral refocusing at a disparity, or a focal sweep",
+                       description="Shift-and-add over the views at a disparity for a spectral "
+                                   "profile: a camera (RGB), one band, or a weight vector.",
+                       epilog="examples:\n  hyperlf refocus cube.h5 --disparity 1.2 -o out\n"
+                              "  hyperlf refocus cube.h5 --profile band:550 --disparity 0 -o out\n"
+                              "  hyperlf refocus cube.h5 --sweep=-2,2,17 -o sweep  # GIF + MP4",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("cube", help=cube_help)
+    p.add_argument("--disparity", type=float, default=0.0, help="focus disparity (px/baseline)")
+    p.add_argument("--sweep", type=_sweep_arg, default=None, metavar="MIN,MAX,N",
+                   help="write a focal sweep of N frames instead (write --sweep=-2,2,17 when "
+                        "MIN is negative)")
+    p.add_argument("--profile", default="CIE 1931",
+                   help="camera name or CSV, band:NM for one band, weights:FILE (one weight "
+                        "per band, comma-separated); default CIE 1931 -> sRGB")
+    p.add_argument("--white", default=None, help="illuminant to render neutral (e.g. D65)")
+    p.add_argument("--fps", type=float, default=8.0, help="frames per second of the sweep")
+    p.add_argument("-o", "--output", required=True, help="output folder")
+    p.set_defaults(func=_cmd_refocus)
+
+    p = sub.add_parser("spectrum", help="plot the spectral profile of a pixel",
+                       description="Plot (PNG) and tabulate (CSV) the spectrum of a cube at a "
+                                   "pixel of a view.")
+    p.add_argument("cube", help=cube_help)
+    p.add_argument("--at", type=_pair_of_floats, required=True, metavar="X,Y",
+                   help="pixel position (x = column, y = row)")
+    p.add_argument("--view", type=_view_index, default=None, metavar="R,C",
+                   help="view (0-based; default the reference)")
+    p.add_argument("-o", "--output", default="spectrum.png", help="output PNG (CSV beside it)")
+    p.set_defaults(func=_cmd_spectrum)
     return parser
 
 
