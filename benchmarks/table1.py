@@ -1,0 +1,356 @@
+#!/usr/bin/env python
+"""Table 1 of the paper: two-view cross-spectral stereo on Middlebury (SPEC §4).
+
+Protocol (SPEC §4)
+------------------
+* Left input = **red** channel of the left image, right input = **blue** channel of the right
+  image (values as stored, in [0, 1]).  Disparities ``0..dmax`` with
+  ``dmax = max(info max disparity, ceil(max ground truth))``.
+* Ground truth = :func:`hyperlf.formats.middlebury.read_middlebury` (file value / scale).
+* Scores bad5.0, bad2.0, bad1.0 (%) on the ``all`` mask where the scene has one (Tsukuba,
+  Teddy), else on every pixel with ground truth (Art): ``pair.eval_mask('all')``.  Scored on the
+  *filled* map (every pixel has a disparity).
+* Every cost with the **same optimiser**: graph cuts (alpha-expansion, truncated linear,
+  contrast-sensitive) + left-right check + background fill; and the same with SGM.
+  Parameters come from :data:`hyperlf.stereo.DEFAULT_PARAMS` / ``DEFAULT_WINDOWS``, which are
+  meant to be tuned on **Venus only** (``--tune``) and then fixed for every other scene.
+* Baselines: OpenCV StereoSGBM on the same red/blue inputs converted to 8 bit (invalid pixels
+  background-filled like ours), and a same-spectrum control (red vs red, NCC).
+* The paper's bad5.0 figures are printed beside ours.
+
+Usage::
+
+    HYPERLF_DATA=../shared/data python benchmarks/table1.py \
+        --scenes tsukuba,teddy --metrics ncc,census --optimizers sgm --out benchmarks/results/table1
+    python benchmarks/table1.py --tune            # grid on Venus first, then the table
+
+Writes ``table1.md`` (also printed), ``table1.json`` (every figure, timing and parameter) and
+error / disparity pictures for the default metric into ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import math
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from hyperlf import costs
+from hyperlf import regularisers as reg
+from hyperlf._atomic import atomic_write_text
+from hyperlf.formats.middlebury import read_middlebury
+from hyperlf.metrics import disparity_scores
+from hyperlf.stereo import (DEFAULT_PARAMS, DEFAULT_WINDOWS, compute_volumes, default_params,
+                            stereo_from_volumes)
+
+SCENES = ("tsukuba", "art", "teddy")
+TUNING_SCENE = "venus"
+ALL_METRICS = ("ssd", "ncc", "rsncc", "census", "bwncc-paper", "bwncc", "fused")
+OPTIMIZERS = ("graphcut", "sgm")
+RED, BLUE = 0, 2
+
+# Paper, Table 1, bad5.0 (%) (SPEC §4): Tsukuba / Art / Teddy.  "Ours" is the paper's BWNCC.
+PAPER_BAD5 = {
+    "bwncc-paper": {"tsukuba": 3.14, "art": 10.27, "teddy": 7.01},
+    "bwncc": {"tsukuba": 3.14, "art": 10.27, "teddy": 7.01},
+    "rsncc": {"tsukuba": 5.27, "art": 16.64, "teddy": 11.02},
+    "ncc": {"tsukuba": 6.09, "art": 18.31, "teddy": 15.68},
+    "ssd": {"tsukuba": 11.18, "art": 28.19, "teddy": 43.53},
+}
+
+# Venus tuning grid (kept small: 2 shared cores).
+TUNE_WINDOWS = {"ssd": (5, 9), "ncc": (5, 9), "rsncc": (5, 9), "census": (5, 7),
+                "bwncc": (None,), "bwncc-paper": (None,), "fused": (None,)}
+TUNE_GRID = {
+    "graphcut": [{"weight": w, "truncation": t} for w, t in itertools.product((2.0, 4.0, 8.0),
+                                                                              (2.0, 4.0, 8.0))],
+    "sgm": [{"p1": p1, "p2": p2} for p1, p2 in itertools.product((0.5, 1.0, 2.0), (4.0, 8.0, 16.0))],
+}
+
+
+def log(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+def data_root() -> Path:
+    root = os.environ.get("HYPERLF_DATA")
+    if not root:
+        sys.exit("table1.py: the environment variable HYPERLF_DATA is not set; point it at the "
+                 "shared data folder (the one holding middlebury/), e.g. "
+                 "HYPERLF_DATA=../shared/data python benchmarks/table1.py")
+    path = Path(root) / "middlebury"
+    if not path.is_dir():
+        sys.exit(f"table1.py: {path} does not exist (HYPERLF_DATA={root!r} must hold middlebury/)")
+    return path
+
+
+def load_scene(name: str):
+    pair = read_middlebury(data_root() / name)
+    gt = pair.gt_disparity
+    dmax = max(int(pair.max_disparity), int(math.ceil(float(np.nanmax(gt)))))
+    mask_name = "all" if "all" in pair.masks else "gt"
+    return pair, (0, dmax), pair.eval_mask("all"), mask_name
+
+
+def score(est, pair, mask, mask_name) -> dict:
+    s = disparity_scores(est, pair.gt_disparity, mask=mask, mask_name=mask_name)
+    return {"bad5": s.bad_5, "bad2": s.bad_2, "bad1": s.bad_1, "rmse": s.rmse,
+            "n_pixels": s.n_pixels, "mask": mask_name}
+
+
+def to8(img) -> np.ndarray:
+    return np.clip(np.round(np.asarray(img, np.float64) * 255.0), 0, 255).astype(np.uint8)
+
+
+def opencv_sgbm(left, right, drange, block: int = 5):
+    """OpenCV StereoSGBM (practitioner's defaults) on 8-bit inputs; invalid pixels (no match,
+    uniqueness or LR failure) are background-filled like ours."""
+    import cv2
+
+    dmin, dmax = drange
+    ndisp = 16 * int(math.ceil((dmax - dmin + 1) / 16))
+    t0 = time.perf_counter()
+    sg = cv2.StereoSGBM_create(minDisparity=dmin, numDisparities=ndisp, blockSize=block,
+                               P1=8 * block * block, P2=32 * block * block, disp12MaxDiff=1,
+                               uniquenessRatio=10, speckleWindowSize=100, speckleRange=2,
+                               mode=cv2.STEREO_SGBM_MODE_SGBM)
+    raw = sg.compute(to8(left), to8(right)).astype(np.float32) / 16.0
+    valid = raw >= dmin
+    disp = reg.fill_occlusions(raw, valid) if valid.any() else np.full(raw.shape, dmin, np.float32)
+    disp = np.clip(disp, dmin, dmax)
+    return disp, valid, time.perf_counter() - t0
+
+
+_WARM: set = set()
+
+
+def warm_up(metric: str) -> None:
+    """Compile the numba kernels of ``metric`` on a tiny pair so the runtime column does not
+    include JIT compilation."""
+    if metric in _WARM:
+        return
+    rng = np.random.default_rng(0)
+    a = 0.2 + rng.random((24, 32)).astype(np.float32)
+    compute_volumes(a, a[:, ::-1].copy(), 0, 3, metric=metric)
+    reg.sgm(rng.random((4, 24, 32)).astype(np.float32), 0.5, 2.0)
+    _WARM.add(metric)
+
+
+def run_cell(volumes, drange, optimizer, params, guides):
+    cl, cr, t_cost = volumes
+    res = stereo_from_volumes(cl, cr, drange[0], optimizer=optimizer, occlusion="lr-fill",
+                              params=params, guide_left=guides[0], guide_right=guides[1])
+    return res, t_cost + res.timings["optimiser"]
+
+
+def tune(metrics, optimizers, tuned: dict) -> dict:
+    """Grid search on Venus (bad5.0, ties by bad2.0); fills ``tuned[(metric, opt)]``."""
+    pair, drange, mask, mask_name = load_scene(TUNING_SCENE)
+    L, R = pair.left[:, :, RED], pair.right[:, :, BLUE]
+    report = {}
+    for m in metrics:
+        warm_up(m)
+        for win in TUNE_WINDOWS.get(m, (None,)):
+            t0 = time.perf_counter()
+            cl, cr = compute_volumes(L, R, *drange, metric=m, window=win)
+            vols = (cl, cr, time.perf_counter() - t0)
+            for opt in optimizers:
+                for grid_p in TUNE_GRID[opt]:
+                    p = {**default_params(m, opt), **grid_p}
+                    res, secs = run_cell(vols, drange, opt, p, (L, R))
+                    s = score(res.disparity, pair, mask, mask_name)
+                    key = (s["bad5"], s["bad2"])
+                    log(f"tune venus {m:12s} win={win} {opt:8s} {grid_p} -> bad5 {s['bad5']:.2f} "
+                        f"bad2 {s['bad2']:.2f} ({secs:.1f} s)")
+                    best = report.get((m, opt))
+                    if best is None or key < best["key"]:
+                        report[(m, opt)] = {"key": key, "window": win, "params": p, "scores": s}
+            del cl, cr
+    for (m, opt), b in report.items():
+        tuned[(m, opt)] = {"window": b["window"], "params": b["params"], "venus": b["scores"]}
+    return tuned
+
+
+def snippet(tuned: dict) -> str:
+    lines = ["# Paste into hyperlf/stereo.py (tuned on Venus by benchmarks/table1.py --tune):",
+             "DEFAULT_PARAMS = {"]
+    for (m, opt), t in sorted(tuned.items()):
+        lines.append(f"    ({m!r}, {opt!r}): {t['params']!r},")
+    lines.append("}")
+    wins = {}
+    for (m, _), t in tuned.items():
+        wins.setdefault(m, t["window"])
+    lines.append(f"DEFAULT_WINDOWS = {wins!r}  # (one window per metric: the first optimiser's pick)")
+    for (m, opt), t in sorted(tuned.items()):
+        if t["window"] != wins[m]:
+            lines.append(f"# note: {m}/{opt} picked window {t['window']}, not {wins[m]}")
+    return "\n".join(lines)
+
+
+def fmt(x, nd=2):
+    return "–" if x is None else f"{x:.{nd}f}"
+
+
+def markdown(results: dict, scenes, meta: dict) -> str:
+    out = ["# Table 1 — two-view cross-spectral stereo (red of left vs blue of right)", "",
+           f"Scores: bad5.0 / bad2.0 / bad1.0 (%) on the `all` mask where present, else all "
+           f"pixels with ground truth; filled maps.  Runtime = cost + optimiser, seconds "
+           f"({meta['cores']} cores).  Parameters: {meta['param_source']}.  "
+           f"Paper: the paper's bad5.0 (SPEC §4; 'Ours' = BWNCC).", ""]
+    head = "| optimiser | cost | " + " | ".join(
+        f"{s} bad5 | {s} bad2 | {s} bad1 | {s} paper bad5 | {s} s" for s in scenes) + " |"
+    out.append(head)
+    out.append("|" + "---|" * (2 + 5 * len(scenes)))
+    for row in results["rows"]:
+        cells = [row["optimizer"], row["label"]]
+        for s in scenes:
+            c = row["scenes"].get(s)
+            if c is None:
+                cells += ["–"] * 5
+                continue
+            cells += [fmt(c["bad5"]), fmt(c["bad2"]), fmt(c["bad1"]),
+                      fmt(PAPER_BAD5.get(row["metric"], {}).get(s)) if row["kind"] == "cost" else "–",
+                      fmt(c["seconds"], 1)]
+        out.append("| " + " | ".join(cells) + " |")
+    out.append("")
+    out.append("Rows: `cost` = red-vs-blue with our pipeline (LR check + background fill); "
+               "`opencv-sgbm` = cv2.StereoSGBM on 8-bit red/blue, invalid pixels background-filled; "
+               "`ncc red-red` = same-spectrum control.")
+    return "\n".join(out) + "\n"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--scenes", default=",".join(SCENES))
+    ap.add_argument("--metrics", default=",".join(ALL_METRICS),
+                    help="comma-separated; 'auto' means the library default (%s)" % costs.AUTO_METRIC)
+    ap.add_argument("--optimizers", default=",".join(OPTIMIZERS))
+    ap.add_argument("--out", default="benchmarks/results/table1")
+    ap.add_argument("--tune", action="store_true", help="grid-search on Venus first (slow)")
+    ap.add_argument("--params-json", help="tuned parameters written by an earlier --tune run")
+    ap.add_argument("--no-baselines", action="store_true",
+                    help="skip the OpenCV SGBM and red-vs-red rows")
+    args = ap.parse_args(argv)
+
+    data_root()
+    scenes = [s.strip().lower() for s in args.scenes.split(",") if s.strip()]
+    metrics = [costs.resolve_metric(m) for m in args.metrics.split(",") if m.strip()]
+    optimizers = [o.strip().lower() for o in args.optimizers.split(",") if o.strip()]
+    for o in optimizers:
+        if o not in OPTIMIZERS:
+            sys.exit(f"table1.py: unknown optimiser {o!r} (choose from {', '.join(OPTIMIZERS)})")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+
+    tuned: dict = {}
+    param_source = ("hyperlf.stereo.DEFAULT_PARAMS / DEFAULT_WINDOWS (Venus-tuned for ncc and census; "
+                    "untuned fallbacks for the others, see stereo.py)")
+    if args.params_json:
+        raw = json.loads(Path(args.params_json).read_text())
+        for k, v in raw.items():
+            m, o = k.split("|")
+            tuned[(m, o)] = v
+        param_source = f"tuned on Venus, from {args.params_json}"
+    if args.tune:
+        t0 = time.perf_counter()
+        tune(metrics, optimizers, tuned)
+        log(f"tuning took {time.perf_counter() - t0:.0f} s")
+        atomic_write_text(out / "tuned_venus.json", json.dumps(
+            {f"{m}|{o}": v for (m, o), v in tuned.items()}, indent=2))
+        print(snippet(tuned))
+        param_source = "tuned on Venus in this run (grid in benchmarks/table1.py)"
+
+    def params_for(m, o):
+        t = tuned.get((m, o))
+        return (dict(t["params"]), t["window"]) if t else (default_params(m, o), DEFAULT_WINDOWS.get(m))
+
+    default_metric = costs.AUTO_METRIC
+    pic_metric = default_metric if default_metric in metrics else (metrics[0] if metrics else None)
+    rows: dict = {}
+
+    def cell(key, kind, label, metric, opt):
+        return rows.setdefault(key, {"kind": kind, "label": label, "metric": metric,
+                                     "optimizer": opt, "scenes": {}})
+
+    for sname in scenes:
+        pair, drange, mask, mask_name = load_scene(sname)
+        L, R = pair.left[:, :, RED], pair.right[:, :, BLUE]
+        log(f"{sname}: {L.shape[1]}x{L.shape[0]}, d {drange[0]}..{drange[1]}, mask {mask_name} "
+            f"({int(mask.sum())} px)")
+        for m in metrics:
+            warm_up(m)
+            windows = {params_for(m, o)[1] for o in optimizers}
+            for win in windows:
+                t0 = time.perf_counter()
+                cl, cr = compute_volumes(L, R, *drange, metric=m, window=win)
+                vols = (cl, cr, time.perf_counter() - t0)
+                for opt in optimizers:
+                    p, w = params_for(m, opt)
+                    if w != win:
+                        continue
+                    res, secs = run_cell(vols, drange, opt, p, (L, R))
+                    s = score(res.disparity, pair, mask, mask_name)
+                    s.update(seconds=secs, cost_s=vols[2], optimiser_s=res.timings["optimiser"],
+                             lr_invalid_pct=100.0 * float(1 - res.valid.mean()), params=p,
+                             window=win, disparity_range=list(drange))
+                    cell((opt, m), "cost", m, m, opt)["scenes"][sname] = s
+                    log(f"  {opt:8s} {m:12s} bad5 {s['bad5']:6.2f} bad2 {s['bad2']:6.2f} "
+                        f"bad1 {s['bad1']:6.2f}  {secs:6.1f} s (cost {vols[2]:.1f})")
+                    if m == pic_metric:
+                        from hyperlf.visualise import save_disparity_png, save_error_png
+                        gt = pair.gt_disparity
+                        save_error_png(out / f"{sname}_{m}_{opt}_error.png", res.disparity, gt,
+                                       title=f"{sname} {m} {opt}: |error| (red vs blue)", vmax=5.0)
+                        save_disparity_png(out / f"{sname}_{m}_{opt}_disparity.png", res.disparity,
+                                           title=f"{sname} {m} {opt}", vmin=drange[0], vmax=drange[1])
+                del cl, cr
+        if not args.no_baselines:
+            disp, valid, secs = opencv_sgbm(L, R, drange)
+            s = score(disp, pair, mask, mask_name)
+            s.update(seconds=secs, lr_invalid_pct=100.0 * float(1 - valid.mean()))
+            cell(("opencv", "sgbm"), "baseline", "opencv-sgbm (8-bit)", "sgbm", "opencv")["scenes"][sname] = s
+            log(f"  opencv   sgbm         bad5 {s['bad5']:6.2f} bad2 {s['bad2']:6.2f} "
+                f"bad1 {s['bad1']:6.2f}  {secs:6.1f} s")
+            Rr = pair.right[:, :, RED]
+            warm_up("ncc")
+            for opt in optimizers:
+                p, win = params_for("ncc", opt)
+                t0 = time.perf_counter()
+                cl, cr = compute_volumes(L, Rr, *drange, metric="ncc", window=win)
+                res, secs = run_cell((cl, cr, time.perf_counter() - t0), drange, opt, p, (L, Rr))
+                s = score(res.disparity, pair, mask, mask_name)
+                s.update(seconds=secs, params=p, window=win)
+                cell((opt, "ncc-rr"), "control", "ncc red-red (control)", "ncc", opt)["scenes"][sname] = s
+                log(f"  {opt:8s} ncc red-red  bad5 {s['bad5']:6.2f} bad2 {s['bad2']:6.2f} "
+                    f"bad1 {s['bad1']:6.2f}  {secs:6.1f} s")
+
+    order = {o: i for i, o in enumerate(optimizers + ["opencv"])}
+    kinds = {"cost": 0, "control": 1, "baseline": 2}
+    mindex = {m: i for i, m in enumerate(metrics)}
+    ordered = sorted(rows.values(), key=lambda r: (kinds[r["kind"]], order.get(r["optimizer"], 9),
+                                                   mindex.get(r["metric"], 99)))
+    meta = {"cores": os.cpu_count(), "param_source": param_source, "scenes": scenes,
+            "metrics": metrics, "optimizers": optimizers, "tuning_scene": TUNING_SCENE,
+            "protocol": "left red vs right blue; bad-tau on 'all' mask or all GT pixels; filled maps",
+            "python": platform.python_version(), "default_metric": default_metric,
+            "date": time.strftime("%Y-%m-%d %H:%M:%S")}
+    results = {"meta": meta, "rows": ordered, "paper_bad5": PAPER_BAD5,
+               "tuned": {f"{m}|{o}": v for (m, o), v in tuned.items()},
+               "default_params": {f"{m}|{o}": v for (m, o), v in DEFAULT_PARAMS.items()}}
+    md = markdown(results, scenes, meta)
+    print(md)
+    atomic_write_text(out / "table1.md", md)
+    atomic_write_text(out / "table1.json", json.dumps(results, indent=2, default=str))
+    log(f"wrote {out / 'table1.md'} and {out / 'table1.json'}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

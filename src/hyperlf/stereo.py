@@ -1,0 +1,452 @@
+"""Two-view (cross-spectral) stereo: cost volume + optimiser + occlusion handling (SPEC §4).
+
+:func:`stereo` is the one-call pipeline used by Table 1 (``benchmarks/table1.py``)::
+
+    res = stereo(left, right, disparity_range=(0, 15), metric="rsncc", optimizer="graphcut",
+                 channel=(0, 2))          # red channel of the left image vs blue of the right
+    res.disparity   # float32 (H, W), every pixel filled (occlusions from the background side)
+
+Pipeline
+--------
+1. **Inputs.** 2-D arrays, or ``(H, W, K)`` images with ``channel`` selecting one channel index
+   per side (``channel=c`` for both, ``channel=(cl, cr)`` for left ``cl`` and right ``cr``: the
+   Table 1 protocol is ``(0, 2)``, red vs blue).  A colour image with ``channel=None`` is
+   reduced to the mean of its channels.
+2. **Cost volumes** (:func:`hyperlf.costs.cost_volume`): left-referenced ``C_L[d, y, x]`` (left
+   ``x`` vs right ``x - d``), out-of-image candidates already carrying the pixel's worst valid
+   cost.
+3. **Right-referenced volume** (only for ``occlusion="lr-fill"``):
+   ``C_R[d, y, x_r] = C_L[d, y, x_r + d]`` (:func:`hyperlf.regularisers.right_cost_from_left`).
+   This is **exact** for every windowed cost of :mod:`hyperlf.costs` (ssd, ncc, rsncc, census,
+   bwncc, bwncc-paper): each compares the left patch around ``x`` with the right patch around
+   ``x - d``, both built with each view's own replicated border, so the cost of the pair
+   ``(x_l, x_r = x_l - d)`` does not depend on which view is the reference.  Entries whose left
+   partner ``x_r + d`` is outside the image get the right pixel's worst valid cost (same rule).
+   It costs no second volume computation.  Computing the volume again with swapped and mirrored
+   inputs would *not* be exact for ``bwncc`` (mirroring maps gradient directions
+   ``theta -> 1 - theta``, and the overlapping, asymmetric bins are not mirror-symmetric) and
+   would double the cost time.  The one exception is ``fused`` (and ``auto``): its
+   normalisation subtracts a *per-pixel* minimum, which is referenced to the left pixel; so for
+   ``fused`` the raw ``bwncc`` and ``census`` parts are shifted separately and fused again with
+   the right view's validity (:func:`compute_volumes`), which is exact as well.
+4. **Data term** ``D = (C - min_d C) / s`` per pixel (paper ``|C(f(p)) - C(f*(p))|``), with
+   one global scale ``s`` per pair = the standard deviation of the valid raw entries of
+   ``C_L`` (the same value for both references).  Dividing by ``s`` makes the smoothness
+   parameters comparable between costs of very different ranges (census: 0..48, ncc: 0..2);
+   they are still tuned per cost (:data:`DEFAULT_PARAMS`).
+5. **Optimiser**, the same for both references: ``wta``; ``sgm`` (8 paths, P1/P2 on label
+   steps, :func:`hyperlf.regularisers.sgm`); ``graphcut`` (alpha-expansion, truncated-linear
+   smoothness ``weight * w_pq * min(|d_p - d_q|, truncation)`` with contrast-sensitive
+   ``w_pq = exp(-dI^2 / (2 edge_sigma^2))`` from the reference view's input image,
+   :func:`hyperlf.regularisers.graphcut`).
+6. **Occlusions** (``"lr-fill"``): :func:`~hyperlf.regularisers.left_right_check` (tolerance
+   1 px) on the integer maps, then :func:`~hyperlf.regularisers.fill_occlusions` (each
+   inconsistent pixel takes the lower of the nearest consistent disparities on its row, i.e.
+   the background).  ``"none"``: every pixel counts as valid.
+7. **Sub-pixel** (optional): parabola through the optimised volume (SGM: the aggregated
+   volume; WTA/graphcut: the data term) at the chosen label, before the fill.
+
+Confidence is :func:`hyperlf.regularisers.confidence` of the volume that chose the labels,
+set to 0 where the left-right check failed.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from . import costs as _costs
+from . import regularisers as _reg
+from .errors import InvalidInputError
+
+__all__ = [
+    "OPTIMIZERS",
+    "OCCLUSION_MODES",
+    "DEFAULT_PARAMS",
+    "DEFAULT_WINDOWS",
+    "StereoResult",
+    "stereo",
+    "select_channels",
+    "compute_volumes",
+    "stereo_from_volumes",
+    "default_params",
+]
+
+OPTIMIZERS = ("graphcut", "sgm", "wta")
+OCCLUSION_MODES = ("lr-fill", "none")
+
+# Parameter names accepted per optimiser (``params`` of :func:`stereo`).
+_PARAM_KEYS = {
+    "wta": set(),
+    "sgm": {"p1", "p2", "paths", "smoothness"},
+    "graphcut": {"smoothness", "weight", "truncation", "edge_sigma", "max_cycles"},
+}
+
+# Fallback parameters per optimiser, in units of the normalised data term (module doc, step 4).
+_BASE_PARAMS: dict[str, dict[str, Any]] = {
+    "wta": {},
+    "sgm": {"p1": 0.5, "p2": 2.0, "paths": 8, "smoothness": "p1p2"},
+    "graphcut": {"smoothness": "truncated_linear", "weight": 1.0, "truncation": 2.0,
+                 "edge_sigma": None, "max_cycles": 3},
+}
+
+#: Default optimiser parameters per ``(metric, optimizer)``; a pair that is not listed uses the
+#: optimiser's fallback (``_BASE_PARAMS``).  Tuned on **Venus only** (SPEC §4) with
+#: ``HYPERLF_DATA=... python benchmarks/table1.py --tune --scenes tsukuba --metrics ncc,census
+#: --optimizers graphcut,sgm`` (grid: graphcut weight {2,4,8} x truncation {2,4,8}, sgm
+#: p1 {0.5,1,2} x p2 {4,8,16}, window {5,9} for ncc, {5,7} for census; criterion Venus bad5.0,
+#: ties bad2.0; red vs blue, LR + fill).  Venus bad5.0 at the pick: ncc/graphcut 0.18,
+#: census/graphcut 0.37, ncc/sgm 4.41, census/sgm 4.42.  Several picks sit on the grid's upper
+#: edge (Venus is piecewise planar and rewards strong smoothing).
+#: NOT yet tuned (fallback values): ssd, rsncc, bwncc, bwncc-paper, fused.
+DEFAULT_PARAMS: dict[tuple[str, str], dict[str, Any]] = {
+    **{(m, o): dict(_BASE_PARAMS[o])
+       for m in ("ssd", "rsncc", "bwncc", "bwncc-paper", "fused")
+       for o in ("sgm", "graphcut")},
+    ("ncc", "graphcut"): {"smoothness": "truncated_linear", "weight": 8.0, "truncation": 8.0,
+                          "edge_sigma": None, "max_cycles": 3},
+    ("ncc", "sgm"): {"p1": 2.0, "p2": 16.0, "paths": 8, "smoothness": "p1p2"},
+    ("census", "graphcut"): {"smoothness": "truncated_linear", "weight": 2.0, "truncation": 8.0,
+                             "edge_sigma": None, "max_cycles": 3},
+    ("census", "sgm"): {"p1": 2.0, "p2": 16.0, "paths": 8, "smoothness": "p1p2"},
+}
+
+#: Cost window per metric used when ``window=None`` (None = the metric's own default in
+#: :mod:`hyperlf.costs`: 5 for ssd/ncc/rsncc, 7 for census, per level for bwncc).  Tuned on
+#: Venus together with :data:`DEFAULT_PARAMS` (ncc: 5; census: 5 for both optimisers).
+DEFAULT_WINDOWS: dict[str, int | None] = {
+    "ssd": None, "ncc": 5, "rsncc": None, "census": 5,
+    "bwncc": None, "bwncc-paper": None, "fused": None,
+}
+
+
+def default_params(metric: str, optimizer: str) -> dict:
+    """The default optimiser parameters for ``(metric, optimizer)`` (a fresh copy)."""
+    m = _costs.resolve_metric(metric)
+    opt = _check_optimizer(optimizer)
+    return dict(DEFAULT_PARAMS.get((m, opt), _BASE_PARAMS[opt]))
+
+
+@dataclass
+class StereoResult:
+    """Output of :func:`stereo`.
+
+    Attributes
+    ----------
+    disparity : float32 (H, W)
+        Final left-view disparity (after the occlusion fill: every pixel has a value).
+    raw : float32 (H, W)
+        Disparity before the fill (sub-pixel if requested).
+    valid : bool (H, W)
+        Left-right consistent pixels (all True with ``occlusion="none"``).
+    confidence : float32 (H, W)
+        Cost-margin confidence in [0, 1] (0 where not LR-consistent).
+    timings : dict
+        Seconds: ``cost`` (both volumes), ``optimiser`` (both references), ``total``.
+    metric, optimizer, occlusion : str
+        What was run (``metric`` resolved, e.g. ``"auto"`` -> ``"fused"``).
+    params : dict
+        The optimiser parameters actually used (defaults merged with the caller's).
+    window : int or None
+        Cost window (None: the metric's default).
+    disparity_range : (int, int)
+    right_disparity : float32 (H, W) or None
+        Right-view disparity map (integer labels) when ``occlusion="lr-fill"``.
+    """
+
+    disparity: np.ndarray
+    raw: np.ndarray
+    valid: np.ndarray
+    confidence: np.ndarray
+    timings: dict
+    metric: str
+    optimizer: str
+    params: dict
+    occlusion: str = "lr-fill"
+    window: int | None = None
+    disparity_range: tuple = (0, 0)
+    right_disparity: np.ndarray | None = None
+    extra: dict = field(default_factory=dict)
+
+
+# ----------------------------------------------------------------------------------------------
+# validation
+# ----------------------------------------------------------------------------------------------
+
+def _check_optimizer(optimizer) -> str:
+    if not isinstance(optimizer, str) or optimizer.strip().lower() not in OPTIMIZERS:
+        raise InvalidInputError(f"optimizer must be one of {', '.join(OPTIMIZERS)}, got {optimizer!r}")
+    return optimizer.strip().lower()
+
+
+def _check_occlusion(occlusion) -> str:
+    if not isinstance(occlusion, str) or occlusion.strip().lower() not in OCCLUSION_MODES:
+        raise InvalidInputError(
+            f"occlusion must be one of {', '.join(OCCLUSION_MODES)}, got {occlusion!r}")
+    return occlusion.strip().lower()
+
+
+def _check_range(disparity_range, W: int) -> tuple[int, int]:
+    try:
+        dmin, dmax = disparity_range
+    except (TypeError, ValueError):
+        raise InvalidInputError(
+            f"disparity_range must be a pair (dmin, dmax), got {disparity_range!r}") from None
+    for v in (dmin, dmax):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer, float, np.floating)) \
+                or not float(v).is_integer():
+            raise InvalidInputError(
+                f"disparity_range must hold integers, got {disparity_range!r}")
+    dmin, dmax = int(dmin), int(dmax)
+    if dmin >= dmax:
+        raise InvalidInputError(f"disparity_range needs dmin < dmax, got dmin={dmin}, dmax={dmax}")
+    if dmax - dmin >= W or max(abs(dmin), abs(dmax)) >= W:
+        raise InvalidInputError(
+            f"disparity_range ({dmin}, {dmax}) is wider than the image (width {W}): "
+            f"|d| and dmax - dmin must be < {W}")
+    return dmin, dmax
+
+
+def _pick(img, ch, side: str) -> np.ndarray:
+    a = np.asarray(img)
+    if not np.issubdtype(a.dtype, np.number) or np.issubdtype(a.dtype, np.complexfloating):
+        raise InvalidInputError(f"{side} image must be a real numeric array, got dtype {a.dtype}")
+    if a.ndim == 2:
+        if ch not in (None, 0):
+            raise InvalidInputError(
+                f"channel {ch!r} given for the {side} image, but it is 2-D {a.shape}")
+        out = a
+    elif a.ndim == 3:
+        K = a.shape[2]
+        if ch is None:
+            out = a.mean(axis=2)
+        else:
+            if isinstance(ch, bool) or not isinstance(ch, (int, np.integer)) or not 0 <= ch < K:
+                raise InvalidInputError(
+                    f"channel for the {side} image must be an integer in [0, {K}), got {ch!r}")
+            out = a[:, :, int(ch)]
+    else:
+        raise InvalidInputError(
+            f"{side} image must be (H, W) or (H, W, K), got shape {a.shape}")
+    out = np.asarray(out, dtype=np.float32)
+    if out.shape[0] < 2 or out.shape[1] < 2:
+        raise InvalidInputError(f"{side} image is too small: {out.shape}")
+    if not np.isfinite(out).all():
+        raise InvalidInputError(f"{side} image contains NaN or infinite values; fill them first")
+    return out
+
+
+def select_channels(left, right, channel=None) -> tuple[np.ndarray, np.ndarray]:
+    """Return the two 2-D float32 images :func:`stereo` matches.
+
+    ``channel``: None (2-D inputs as they are; colour inputs -> mean of channels), an int (the
+    same channel of both), or a pair ``(left_channel, right_channel)``.
+    """
+    if channel is None or isinstance(channel, (int, np.integer)):
+        cl = cr = channel
+    else:
+        try:
+            cl, cr = channel
+        except (TypeError, ValueError):
+            raise InvalidInputError(
+                f"channel must be None, an int or a pair (left, right), got {channel!r}") from None
+    L = _pick(left, cl, "left")
+    R = _pick(right, cr, "right")
+    if L.shape != R.shape:
+        raise InvalidInputError(
+            f"left and right images must have the same size, got {L.shape} and {R.shape}")
+    return L, R
+
+
+def _merge_params(metric: str, optimizer: str, params) -> dict:
+    p = default_params(metric, optimizer)
+    if params is None:
+        return p
+    if not isinstance(params, dict):
+        raise InvalidInputError(f"params must be a dict, got {type(params).__name__}")
+    unknown = set(params) - _PARAM_KEYS[optimizer]
+    if unknown:
+        allowed = ", ".join(sorted(_PARAM_KEYS[optimizer])) or "none"
+        raise InvalidInputError(
+            f"unknown parameter(s) {sorted(unknown)} for optimizer {optimizer!r} (allowed: {allowed})")
+    p.update(params)
+    return p
+
+
+# ----------------------------------------------------------------------------------------------
+# volumes
+# ----------------------------------------------------------------------------------------------
+
+def _right_validity(shape, dmin: int, dmax: int) -> np.ndarray:
+    """``valid_R[L, H, W]``: True where the right pixel's partner ``x_r + d`` is in the image."""
+    H, W = shape
+    d = np.arange(dmin, dmax + 1)[:, None, None]
+    x = np.arange(W)[None, None, :]
+    return np.broadcast_to((x + d >= 0) & (x + d < W), (d.shape[0], H, W))
+
+
+def compute_volumes(left, right, dmin: int, dmax: int, metric: str = "auto", window=None,
+                    need_right: bool = True, cost_params: dict | None = None):
+    """Left- and right-referenced cost volumes ``(C_L, C_R)`` of two 2-D images.
+
+    ``C_R`` is None unless ``need_right``.  See the module docstring (step 3) for why the
+    re-referencing is exact.  ``cost_params`` go to :func:`hyperlf.costs.cost_volume`.
+    """
+    name = _costs.resolve_metric(metric)
+    kw = dict(cost_params or {})
+    labels = np.arange(dmin, dmax + 1, dtype=np.float64)
+    if name == "fused" and need_right:
+        # Shift the raw parts, then fuse each reference with its own validity (exact).
+        bw = kw.pop("bwncc_window", None)
+        cw = kw.pop("census_window", 7)
+        weights = kw.pop("weights", (1.0, 1.0))
+        impl = kw.pop("impl", "auto")
+        b = _costs.bwncc_volume(left, right, dmin, dmax, "default", window=bw, impl=impl, **kw)
+        c = _costs.census_volume(left, right, dmin, dmax, window=cw, impl=impl)
+        cl = _costs.fuse([b, c], weights, dmin)
+        vr = _right_validity(cl.shape[1:], dmin, dmax)
+        br = _reg.right_cost_from_left(b, labels)
+        crr = _reg.right_cost_from_left(c, labels)
+        cr = _costs.fuse([br, crr], weights, dmin, valid=vr)
+        return cl, cr
+    cl = _costs.cost_volume(left, right, dmin, dmax, metric=name, window=window, **kw)
+    cl = np.asarray(cl, dtype=np.float32)
+    cr = _reg.right_cost_from_left(cl, labels) if need_right else None
+    return cl, cr
+
+
+def _data_scale(cost_left: np.ndarray, dmin: int) -> float:
+    Lc, H, W = cost_left.shape
+    valid = _costs.candidate_validity((H, W), dmin, dmin + Lc - 1)
+    vals = cost_left[valid]
+    s = float(vals.std(dtype=np.float64)) if vals.size else 0.0
+    return s if s > 0 and np.isfinite(s) else 1.0
+
+
+def _optimise(D: np.ndarray, optimizer: str, p: dict, guide, labels, subpixel: bool,
+              progress: bool):
+    """Return (integer label map, float disparity, volume used for confidence)."""
+    if optimizer == "wta":
+        f = _reg.wta(D)
+        vol = D
+    elif optimizer == "sgm":
+        vol = _reg.sgm(D, p["p1"], p["p2"], paths=p.get("paths", 8),
+                       smoothness=p.get("smoothness", "p1p2"))
+        f = _reg.wta(vol)
+    else:
+        f = _reg.graphcut(D, smoothness=p.get("smoothness", "truncated_linear"),
+                          weight=p["weight"], truncation=p.get("truncation"), guide=guide,
+                          edge_sigma=p.get("edge_sigma"), max_cycles=int(p.get("max_cycles", 3)),
+                          labels=labels, progress=bool(progress) or None)
+        vol = D
+    if subpixel:
+        disp = _reg.subpixel_refine(vol, f, labels)
+    else:
+        disp = labels[f].astype(np.float32)
+    return f, disp, vol
+
+
+def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "graphcut",
+                        occlusion: str = "lr-fill", params: dict | None = None,
+                        guide_left=None, guide_right=None, subpixel: bool = False,
+                        metric: str = "auto", progress: bool = False) -> StereoResult:
+    """Steps 4-7 of the pipeline on precomputed volumes (see :func:`compute_volumes`).
+
+    ``params`` here must be complete (use :func:`default_params`); ``metric`` is only recorded
+    (and used to look up defaults when ``params`` is None).  ``guide_*`` are the input images
+    used for graph-cut edge weights.  ``timings`` holds only ``optimiser``.
+    """
+    optimizer = _check_optimizer(optimizer)
+    occlusion = _check_occlusion(occlusion)
+    name = _costs.resolve_metric(metric)
+    p = _merge_params(name, optimizer, params)
+    cl = np.asarray(cost_left, dtype=np.float32)
+    if cl.ndim != 3:
+        raise InvalidInputError(f"cost_left must be (L, H, W), got {cl.shape}")
+    Lc = cl.shape[0]
+    labels = np.arange(dmin, dmin + Lc, dtype=np.float64)
+    s = _data_scale(cl, dmin)
+    t0 = time.perf_counter()
+    DL = _reg.data_term(cl) / np.float32(s)
+    fl, disp_l, vol_l = _optimise(DL, optimizer, p, guide_left, labels, subpixel, progress)
+    conf = _reg.confidence(vol_l, fl)
+    disp_r = None
+    if occlusion == "lr-fill":
+        if cost_right is None:
+            raise InvalidInputError("occlusion='lr-fill' needs the right-referenced volume")
+        cr = np.asarray(cost_right, dtype=np.float32)
+        if cr.shape != cl.shape:
+            raise InvalidInputError(f"cost_right shape {cr.shape} != cost_left shape {cl.shape}")
+        DR = _reg.data_term(cr) / np.float32(s)
+        fr, _, _ = _optimise(DR, optimizer, p, guide_right, labels, False, progress)
+        disp_r = labels[fr].astype(np.float32)
+        valid = _reg.left_right_check(labels[fl], disp_r, tol=1.0)
+        if valid.any():
+            final = _reg.fill_occlusions(disp_l, valid)
+        else:  # nothing consistent: keep the left map rather than fail
+            final = disp_l.copy()
+        conf = np.where(valid, conf, 0.0).astype(np.float32)
+    else:
+        valid = np.ones(disp_l.shape, dtype=bool)
+        final = disp_l.copy()
+    t_opt = time.perf_counter() - t0
+    return StereoResult(disparity=np.asarray(final, np.float32), raw=np.asarray(disp_l, np.float32),
+                        valid=valid, confidence=conf, timings={"optimiser": t_opt}, metric=name,
+                        optimizer=optimizer, params=p, occlusion=occlusion,
+                        disparity_range=(int(dmin), int(dmin + Lc - 1)), right_disparity=disp_r,
+                        extra={"data_scale": s})
+
+
+def stereo(left, right, disparity_range, metric: str = "auto", optimizer: str = "graphcut",
+           occlusion: str = "lr-fill", subpixel: bool = False, params: dict | None = None,
+           window: int | None = None, channel=None, progress: bool = False,
+           cost_params: dict | None = None) -> StereoResult:
+    """Disparity of the left view of a rectified pair (SPEC §4; module docstring).
+
+    Parameters
+    ----------
+    left, right : (H, W) or (H, W, K) arrays (linear intensities; any positive scale).
+    disparity_range : (dmin, dmax) integers, ``dmin < dmax``; left ``x`` matches right ``x - d``.
+    metric : a name of :data:`hyperlf.costs.METRIC_NAMES` (``"auto"`` = the library default).
+    optimizer : ``"graphcut"`` (default), ``"sgm"`` or ``"wta"``.
+    occlusion : ``"lr-fill"`` (left-right check + background fill) or ``"none"``.
+    subpixel : parabola refinement of the chosen labels.
+    params : optimiser parameters overriding :data:`DEFAULT_PARAMS` — sgm: ``p1``, ``p2``
+        (``paths``, ``smoothness``); graphcut: ``smoothness``, ``weight``, ``truncation``,
+        ``edge_sigma``, ``max_cycles``; in units of the normalised data term.
+    window : cost window (odd); None uses :data:`DEFAULT_WINDOWS` / the metric's default.
+    channel : None, int, or ``(left_channel, right_channel)`` for colour inputs.
+    progress : show a progress bar during graph cuts.
+    cost_params : extra keyword arguments of :func:`hyperlf.costs.cost_volume`.
+
+    Raises
+    ------
+    InvalidInputError
+        Bad shapes, NaN, ``dmin >= dmax``, a range wider than the image, unknown names/params.
+    """
+    t_all = time.perf_counter()
+    name = _costs.resolve_metric(metric)
+    optimizer = _check_optimizer(optimizer)
+    occlusion = _check_occlusion(occlusion)
+    L, R = select_channels(left, right, channel)
+    dmin, dmax = _check_range(disparity_range, L.shape[1])
+    p = _merge_params(name, optimizer, params)
+    if window is None:
+        window = DEFAULT_WINDOWS.get(name)
+    if not isinstance(subpixel, (bool, np.bool_)):
+        raise InvalidInputError(f"subpixel must be True or False, got {subpixel!r}")
+    if L.mean() <= 0 or R.mean() <= 0:
+        raise InvalidInputError("images must have a positive mean (linear intensities expected)")
+    t0 = time.perf_counter()
+    cl, cr = compute_volumes(L, R, dmin, dmax, name, window, need_right=(occlusion == "lr-fill"),
+                             cost_params=cost_params)
+    t_cost = time.perf_counter() - t0
+    res = stereo_from_volumes(cl, cr, dmin, optimizer, occlusion, p, guide_left=L, guide_right=R,
+                              subpixel=bool(subpixel), metric=name, progress=progress)
+    res.window = window
+    res.timings = {"cost": t_cost, "optimiser": res.timings["optimiser"],
+                   "total": time.perf_counter() - t_all}
+    return res

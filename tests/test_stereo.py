@@ -1,0 +1,220 @@
+"""Tests of the two-view stereo pipeline (hyperlf.stereo, SPEC §4)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from hyperlf import costs
+from hyperlf import regularisers as reg
+from hyperlf.errors import InvalidInputError
+from hyperlf.stereo import (DEFAULT_PARAMS, StereoResult, compute_volumes, default_params,
+                            select_channels, stereo)
+
+DB, DF = 2, 8                      # background / foreground disparity
+SQ = (16, 48, 36, 68)              # foreground square (y0, y1, x0, x1) in the left view
+H, W = 64, 96
+
+
+def _texture(rng, h, w, sigma=1.2):
+    t = ndimage.gaussian_filter(rng.random((h, w)), sigma)
+    return (t - t.min()) / (t.max() - t.min())
+
+
+def two_layer(seed=0):
+    """Left/right scene textures (in [0, 1]) and the left ground truth.
+
+    Left pixel ``x`` shows the background point ``x`` (disparity DB) or, inside SQ, the
+    foreground point ``x`` (disparity DF); right pixel ``x_r`` shows the point ``x_r + d`` of the
+    front-most layer.  The left pixels ``x0 - (DF - DB) <= x < x0`` of the square's rows are
+    occluded in the right view.
+    """
+    rng = np.random.default_rng(seed)
+    pad = 20
+    B = _texture(rng, H, W + 2 * pad)
+    F = _texture(rng, H, W + 2 * pad)
+    y0, y1, x0, x1 = SQ
+    xs = np.arange(W)
+    L = B[:, xs + pad].copy()
+    R = B[:, xs + DB + pad].copy()
+    gt = np.full((H, W), float(DB))
+    L[y0:y1, x0:x1] = F[y0:y1, x0 + pad:x1 + pad]
+    gt[y0:y1, x0:x1] = DF
+    inF = (xs + DF >= x0) & (xs + DF < x1)
+    R[y0:y1, inF] = F[y0:y1][:, xs[inF] + DF + pad]
+    return L, R, gt
+
+
+def cross_spectral(seed=0):
+    """Right = a non-monotonic remap of the scene texture (contrast flips where t < 0.5)."""
+    L, R, gt = two_layer(seed)
+    return 0.1 + L, 0.1 + 4.0 * (R - 0.5) ** 2, gt
+
+
+INTERIOR = (slice(4, H - 4), slice(12, W - 4))
+
+
+@pytest.fixture(scope="module")
+def cross_result():
+    L, R, gt = cross_spectral()
+    return stereo(L, R, (0, 12), metric="bwncc", optimizer="graphcut", occlusion="lr-fill"), gt
+
+
+def test_cross_spectral_graphcut_recovers_two_layers(cross_result):
+    res, gt = cross_result
+    assert isinstance(res, StereoResult)
+    assert res.disparity.dtype == np.float32 and res.disparity.shape == (H, W)
+    err = np.abs(res.disparity - gt)[INTERIOR]
+    assert 100.0 * np.mean(err > 1.0) < 5.0
+    assert np.isfinite(res.disparity).all()
+    assert set(res.timings) == {"cost", "optimiser", "total"}
+    assert res.metric == "bwncc" and res.optimizer == "graphcut"
+    assert res.confidence.shape == (H, W) and 0 <= res.confidence.min() <= res.confidence.max() <= 1
+    assert not res.confidence[~res.valid].any()
+
+
+def test_intensity_costs_fail_on_non_monotonic_remap():
+    """A sanity check of the test pair itself: NCC is not invariant to the remap."""
+    L, R, gt = cross_spectral()
+    res = stereo(L, R, (0, 12), metric="ncc", optimizer="sgm")
+    err = np.abs(res.disparity - gt)[INTERIOR]
+    assert 100.0 * np.mean(err > 1.0) > 20.0
+
+
+def test_occlusion_fill_uses_background(cross_result):
+    res, gt = cross_result
+    y0, y1, x0, x1 = SQ
+    strip = (slice(y0 + 3, y1 - 3), slice(x0 - (DF - DB), x0))
+    # The occluded strip is mostly rejected by the LR check ...
+    assert res.valid[strip].mean() < 0.5
+    assert res.valid.mean() > 0.85
+    # ... and filled with the background (lower) disparity, not the foreground.
+    assert np.mean(np.abs(res.disparity[strip] - DB) <= 1.0) > 0.9
+    # without occlusion handling nothing is marked invalid
+    L, R, _ = cross_spectral()
+    res2 = stereo(L, R, (0, 12), metric="bwncc", optimizer="wta", occlusion="none")
+    assert res2.valid.all() and res2.right_disparity is None
+    np.testing.assert_array_equal(res2.disparity, res2.raw)
+
+
+@pytest.mark.parametrize("optimizer", ["wta", "sgm", "graphcut"])
+def test_every_optimizer_runs_same_spectrum(optimizer):
+    L, R, gt = two_layer(seed=1)
+    res = stereo(0.1 + L, 0.1 + R, (0, 12), metric="census", optimizer=optimizer,
+                 params={"max_cycles": 2} if optimizer == "graphcut" else None)
+    assert res.disparity.shape == (H, W)
+    assert res.right_disparity is not None and res.valid.dtype == bool
+    err = np.abs(res.disparity - gt)[INTERIOR]
+    limit = 25.0 if optimizer == "wta" else 5.0
+    assert 100.0 * np.mean(err > 1.0) < limit
+    assert res.params == {**default_params("census", optimizer),
+                          **({"max_cycles": 2} if optimizer == "graphcut" else {})}
+
+
+def test_subpixel_and_params():
+    L, R, gt = two_layer(seed=2)
+    res = stereo(0.1 + L, 0.1 + R, (0, 12), metric="ncc", optimizer="sgm", subpixel=True,
+                 params={"p1": 0.3, "p2": 3.0})
+    assert res.params["p1"] == 0.3 and res.params["p2"] == 3.0
+    assert not np.allclose(res.raw, np.round(res.raw))          # some fractional values
+    assert np.all(np.abs(res.raw - np.round(res.raw)) <= 0.5 + 1e-6)
+
+
+def test_channel_selection_red_vs_blue():
+    L, R, _ = cross_spectral()
+    rng = np.random.default_rng(5)
+    left = rng.random((H, W, 3)).astype(np.float32)
+    right = rng.random((H, W, 3)).astype(np.float32)
+    left[:, :, 0] = L
+    right[:, :, 2] = R
+    a, b = select_channels(left, right, (0, 2))
+    np.testing.assert_array_equal(a, L.astype(np.float32))
+    np.testing.assert_array_equal(b, R.astype(np.float32))
+    r1 = stereo(left, right, (0, 12), metric="census", optimizer="sgm", channel=(0, 2))
+    r2 = stereo(L.astype(np.float32), R.astype(np.float32), (0, 12), metric="census",
+                optimizer="sgm")
+    np.testing.assert_array_equal(r1.disparity, r2.disparity)
+    # single int selects the same channel of both
+    a, b = select_channels(left, right, 1)
+    np.testing.assert_array_equal(a, left[:, :, 1])
+    np.testing.assert_array_equal(b, right[:, :, 1])
+
+
+@pytest.mark.parametrize("metric", ["ncc", "census", "ssd"])
+def test_right_volume_is_exact(metric):
+    """C_R from right_cost_from_left equals the volume computed with the right view as
+    reference (mirrored inputs), on every entry whose partner is inside the image."""
+    L, R, _ = two_layer(seed=3)
+    L, R = 0.1 + L, 0.1 + R
+    dmin, dmax = 0, 10
+    _, cr = compute_volumes(L, R, dmin, dmax, metric)
+    mirrored = costs.cost_volume(R[:, ::-1].copy(), L[:, ::-1].copy(), dmin, dmax, metric=metric)
+    direct = mirrored[:, :, ::-1]
+    d = np.arange(dmin, dmax + 1)[:, None, None]
+    x = np.arange(W)[None, None, :]
+    ok = np.broadcast_to(x + d < W, cr.shape)
+    np.testing.assert_allclose(cr[ok], direct[ok], rtol=1e-4, atol=1e-4)
+
+
+def test_fused_right_volume_is_refused_per_right_pixel():
+    """``fused`` normalises per pixel, so its right volume is fused again from the shifted raw
+    parts (not a shift of the fused left volume); out-of-image entries carry the worst cost."""
+    L, R, _ = cross_spectral()
+    dmin, dmax = 0, 6
+    cl, cr = compute_volumes(L[:32, :48], R[:32, :48], dmin, dmax, "fused")
+    assert cl.shape == cr.shape == (7, 32, 48)
+    assert np.isfinite(cr).all()
+    naive = reg.right_cost_from_left(cl, np.arange(dmin, dmax + 1))
+    assert not np.allclose(naive, cr)
+    d = np.arange(dmin, dmax + 1)[:, None, None]
+    x = np.arange(48)[None, None, :]
+    ok = np.broadcast_to(x + d < 48, cr.shape)
+    worst = np.where(ok, cr, -np.inf).max(axis=0)
+    np.testing.assert_allclose(np.where(ok, worst[None], cr), np.broadcast_to(worst, cr.shape),
+                               rtol=1e-6)
+
+
+def test_input_validation():
+    L, R, _ = two_layer()
+    with pytest.raises(InvalidInputError, match="same size"):
+        stereo(L, R[:, :-1], (0, 8))
+    bad = L.copy()
+    bad[3, 3] = np.nan
+    with pytest.raises(InvalidInputError, match="NaN"):
+        stereo(bad, R, (0, 8))
+    with pytest.raises(InvalidInputError, match="dmin < dmax"):
+        stereo(L, R, (8, 8))
+    with pytest.raises(InvalidInputError, match="dmin < dmax"):
+        stereo(L, R, (9, 3))
+    with pytest.raises(InvalidInputError, match="wider than the image"):
+        stereo(L, R, (0, W))
+    with pytest.raises(InvalidInputError, match="integers"):
+        stereo(L, R, (0, 2.5))
+    with pytest.raises(InvalidInputError, match="pair"):
+        stereo(L, R, 5)
+    with pytest.raises(InvalidInputError, match="optimizer"):
+        stereo(L, R, (0, 8), optimizer="bp")
+    with pytest.raises(InvalidInputError, match="occlusion"):
+        stereo(L, R, (0, 8), occlusion="median")
+    with pytest.raises(InvalidInputError, match="metric"):
+        stereo(L, R, (0, 8), metric="sad")
+    with pytest.raises(InvalidInputError, match="unknown parameter"):
+        stereo(L, R, (0, 8), optimizer="sgm", params={"weight": 2.0})
+    with pytest.raises(InvalidInputError, match="channel"):
+        stereo(np.dstack([L] * 3), np.dstack([R] * 3), (0, 8), channel=(0, 3))
+    with pytest.raises(InvalidInputError, match="2-D"):
+        stereo(L, R, (0, 8), channel=1)
+    with pytest.raises(InvalidInputError, match="shape"):
+        stereo(L[None, None], R[None, None], (0, 8))
+
+
+def test_default_params_table():
+    for (metric, opt), p in DEFAULT_PARAMS.items():
+        assert metric in costs.METRICS and opt in ("sgm", "graphcut")
+        if opt == "sgm":
+            assert p["p2"] >= p["p1"] > 0
+        else:
+            assert p["weight"] > 0 and p["max_cycles"] >= 1
+    assert default_params("auto", "graphcut") == DEFAULT_PARAMS[(costs.AUTO_METRIC, "graphcut")]
+    assert default_params("ncc", "wta") == {}
