@@ -93,3 +93,24 @@ def test_render_refocus_spectrum_on_a_capture_cube(tmp_path):
                  str(tmp_path / "s.png")]) == 0
     rows = (tmp_path / "s.csv").read_text().splitlines()
     assert rows[0] == "wavelength_nm,value" and len(rows) == 1 + 12
+
+
+def test_stereo_command_writes_disparity_products(tmp_path):
+    from hyperlf.formats import read_pfm, write_image
+
+    rng = np.random.default_rng(3)
+    tex = rng.random((40, 74)).astype(np.float32)
+    left = tex[:, 10:70]
+    right = tex[:, 14:74]  # left x shows texture column x + 10 = right column (x - 4) + 14
+    write_image(tmp_path / "l.png", left, bit_depth=16)
+    write_image(tmp_path / "r.png", 1.0 - 0.8 * right, bit_depth=16)  # contrast-reversed band
+    out = tmp_path / "out"
+    assert main(["-q", "stereo", str(tmp_path / "l.png"), str(tmp_path / "r.png"),
+                 "--disparity-range", "0,8", "--metric", "bwncc", "--optimizer", "sgm",
+                 "-o", str(out)]) == 0
+    d = read_pfm(out / "disparity.pfm")
+    assert np.mean(np.abs(d[5:-5, 12:-5] - 4) < 0.5) > 0.95
+    for name in ("disparity_16bit.png", "disparity_16bit.txt", "disparity.png", "confidence.png"):
+        assert (out / name).is_file(), name
+    assert main(["-q", "stereo", str(tmp_path / "l.png"), str(tmp_path / "r.png"),
+                 "-o", str(out)]) == 2  # no range given: usage error with a hint

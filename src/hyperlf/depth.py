@@ -1,0 +1,1278 @@
+"""H-LF stereo matching (SPEC §5, paper §5): correspondence + view selection + occlusion split
++ spectral-aware defocus + MRF, every cue switchable and measured.
+
+One call::
+
+    from hyperlf.depth import depth
+    res = depth(lf, n_labels=64)            # lf: a spectral LightField (views, wavelengths)
+    res.disparity, res.confidence, res.f_c, res.f_d, res.timings, res.config
+
+Pipeline (all shifts use view *positions*, SPEC §1)
+---------------------------------------------------
+Labels: ``n_labels`` disparities evenly spaced over ``[dmin, dmax]`` (argument, else
+``lf.disparity_range``).  For label ``d`` and view ``v`` with offset ``o_v = pos_v - pos_ref``
+the reference pixel ``p`` is compared with ``q_v = p - d o_v`` in view ``v``; the view's maps
+are sampled there **bilinearly** (sub-pixel); candidates with ``q_v`` outside the image are
+*masked* (excluded from every mean), never zero-filled.
+
+1. **Correspondence cost** ``C_v(p, d)`` per view ``v != ref`` (:func:`view_costs`):
+
+   * ``bwncc`` / ``bwncc-paper`` (SPEC §3) on the 612-channel descriptor of
+     :mod:`hyperlf.descriptor` (``DescriptorParams.default()`` with NCC patch ``n = w`` per
+     level, resp. ``DescriptorParams.paper()`` with ``n = 5``).  The reference's descriptor
+     statistics are computed once per channel block; the other view's channel maps are streamed
+     in blocks of 68 channels (one histogram of one level), shifted by ``(-d dx, -d dy)``
+     bilinearly, and the cross terms accumulated in float64 (numba kernel
+     :func:`_xi_shift_kernel`, one pass per (view, label, block)).
+     **Statistics of shifted maps: exact, no approximation.**  The kernel recomputes the
+     patch mean and variance of the *interpolated* map together with the cross term (three
+     separable running box sums instead of one), so for sub-pixel shifts the NCC is the exact
+     NCC of the reference patch with the bilinearly resampled patch.  (Shifting the
+     precomputed statistics instead would be exact only for integer shifts and costs about the
+     same, so it is not offered.)  Window pixels beyond the other view's border take its
+     replicated border values (SPEC §4 border rule: each view keeps its own replicated
+     border); validity is decided by the centre ``q_v`` alone.  ``tau_var = tau_rel`` x the
+     mean patch variance of the block's channels, per view (as :func:`hyperlf.costs.bwncc_volume`
+     with ``tau_scope="block"``).
+   * ``fused`` (= ``auto``, :data:`hyperlf.costs.AUTO_METRIC`): per view,
+     ``(norm(bwncc) + norm(census 7x7)) / 2`` with :func:`hyperlf.costs.fuse` on that view's
+     volumes and validity (so the fusion is exactly the two-view one, view by view).
+   * ``ncc``: ``1 - NCC`` of the intensities, 5 x 5, same kernel (one channel).
+   * ``census``: Hamming distance between the reference's 7 x 7 census code and the census
+     code of the bilinearly shifted view.
+
+   Cheap stand-ins (``ncc``, ``census``) are meant for tests and quick looks.
+
+2. **View selection** (SPEC §5.1, ``view_selection=True``; :func:`aggregate_view`): with
+   ``M_v`` = gradient magnitude of ``In_v = I_v / mean(I_v)`` (central differences),
+   **normalised per view by its median** (``params.selection_normalise``; fix of the prototype
+   notes: gradient contrast depends on the band), ``Mbar(p, d)`` = mean of ``M_v(q_v)`` over
+   the valid views, **including the reference** at ``p`` (``params.selection_include_ref``).
+   If ``M_ref(p) > Mbar`` the views with ``M_v(q_v) > Mbar`` are selected, else those with
+   ``M_v(q_v) <= Mbar``.  Fewer than ``params.min_selected`` selected views (default 3; never
+   0) -> all valid views.  ``C(p, d)`` = mean of ``C_v`` over the chosen views.  Two passes:
+   ``Mbar`` first (cheap), then the per-view costs stream into accumulators, so the memory is
+   a few ``(L, H, W)`` float32 arrays whatever the number of views (no ``(n_views, L, H, W)``
+   array is ever held: at 512 x 512 x 64 labels x 29 views that would be 1.9 GB).
+
+3. **Occlusion-aware split** (SPEC §5.2, ``occlusion_split=True``): Canny edges of the
+   reference (``In_ref`` scaled to 8 bits, Gaussian pre-blur ``params.canny_sigma``,
+   thresholds ``params.canny_high`` / ``canny_low`` percentiles of the Sobel magnitude unless
+   given), dilated by ``params.edge_dilate`` px.  The edge orientation is perpendicular to the
+   Sobel gradient ``g`` of the blurred reference; the line through ``pos_ref`` along the edge
+   splits the views by ``sign(g . o_v)`` (views on the line go to both halves).  ``C1, C2`` =
+   means over the chosen (selected, or all on fallback) views of each half; at edge pixels
+   ``C = min(C1, C2)`` over halves with at least ``params.min_half_views`` views.
+   ``f*_c = argmin_d C``.
+
+4. **Spectral-aware defocus** (SPEC §5.3, ``defocus=...``; :func:`defocus_cost`):
+   profile ``P(lambda_v) = In_v(q_v)`` over all (valid) views including the reference; colour
+   ``V_k = sum_v P S_k / sum_v S_k`` with the reference camera ``params.camera`` (default
+   ``"CIE 1931"`` = XYZ; a named RGB camera's values are taken as linear sRGB and converted to
+   XYZ before the chromaticity); ``lambda_r`` = dominant wavelength on the CIE 1931 locus,
+   white E (:func:`hyperlf.spectral.dominant_wavelength_for_filters`: purples -> nearer end of
+   the filter range, achromatic (``params.achromatic_radius``) -> middle, always clipped to
+   the filter range); ``Pg`` Gaussian, ``sigma_d = 96.5`` nm, at the views' wavelengths,
+   normalised to 1; ``P* = max(P / sum P, eps)``; ``D = sum Pg log(Pg / P*)``.
+
+   * ``"paper"``: the Gaussian prior with ``lambda_r`` recomputed at every ``(p, d)`` (literal).
+   * ``"gaussian"``: the Gaussian prior with ``lambda_r`` once per pixel, from the profile at
+     ``f*_c`` (fix; ``params.lambda_r`` = ``"per_label"`` / ``"per_pixel"`` / a number in nm
+     overrides either).
+   * ``"flat"``: KL from a flat prior (``Pg = 1/n``).
+   * ``"tv"``: total variation of ``P*`` along sorted wavelength (spectral smoothness).
+   * ``"off"``: no defocus term (``f_d`` is None).
+
+   Always (the literal formula is undefined otherwise): ``Pg`` and ``P*`` are renormalised over
+   the valid (in-image) views of each ``(p, d)``, and ``P*`` is floored at ``params.p_eps``.
+   ``f*_d = argmin_d D``.
+
+5. **MRF** (SPEC §5.4): ``U = gamma_c (C - C(f*_c)) / s_C + (D - D(f*_d)) / s_D`` with
+   ``s_X`` the median over pixels of the per-pixel range ``max_d X - min_d X``
+   (``params.normalise_costs``; ``False`` = literal, ``s = 1``).  ``gamma_c`` default 0.45
+   (synthetic; 0.6 for real captures).  Pairwise ``lambda w_pq min(|d_p - d_q|, T)``,
+   ``w_pq`` contrast-sensitive on the reference ``In`` (:func:`hyperlf.regularisers.graphcut`
+   guide) times ``params.occlusion_weight`` across detected occlusion boundaries (an edge
+   pixel of step 3 next to a jump of ``f*_c`` larger than ``T / 2``).  ``optimizer`` =
+   ``"graphcut"`` (alpha-expansion), ``"sgm"`` (8 paths, truncated linear, P1 = lambda x
+   label step, P2 = lambda T) or ``"wta"``.  Sub-pixel: parabola through the optimised volume
+   (``U``; the SGM-aggregated volume for SGM) around the winning label.  Confidence:
+   :func:`hyperlf.regularisers.confidence` of that volume.
+
+Defaults: measured, not assumed
+-------------------------------
+Every cue of 2-4 ships with an on/off switch, and a cue that did not help on the tuning scenes
+is **off by default** (SPEC §5).  Measured on the procedural scenes ``planes`` and ``slanted``
+(:data:`hyperlf.synthesis.SCENES`) at 96 x 128, 5 x 6 views, 410-700 nm raster, 32 labels over
+(-2, 2), graph cut with ``smoothness = 1``, ``truncation = 1``; mean RMSE (px) / bad-0.07 (%)
+of the two scenes; ``f*_c`` = correspondence-only WTA:
+
+    ================================  =====================  =====================
+    configuration                     metric auto (fused)    metric ncc
+    ================================  =====================  =====================
+    all cues off (default)            0.179 / 29.1           0.201 / 18.2
+    + view selection (5.1)            0.204 / 31.6           0.180 / 18.3
+    + occlusion split (5.2)           0.179 / 35.6           0.176 / 18.2
+    + defocus "tv"                    0.208 / 34.1           0.209 / 27.3
+    + defocus "gaussian" (fixed)      0.220 / 42.6           0.223 / 30.3
+    + defocus "paper" (literal)       0.218 / 50.4           0.218 / 35.4
+    optimizer "wta" (= f*_c)          0.331 / 55.6           0.565 / 35.4
+    optimizer "sgm"                   0.224 / 19.7           0.271 / 12.7
+    ================================  =====================  =====================
+
+Third scene, ``occlusion`` (thin occluders; fused / ncc): off 0.535 / 20.4 and 0.596 / 20.3;
+selection 0.560 / 23.6 and 0.555 / 22.5; split 0.529 / 24.5 and 0.587 / 22.6; defocus tv
+0.438 / 41.7 and 0.461 / 32.0.  Over the three scenes (fused) the mean RMSE is off 0.298,
+selection 0.323, split 0.296, tv 0.285, but the mean bad-0.07 is off 26.2, split 31.9,
+tv 36.6: ``tv`` trims gross errors at occluders and blurs the fine ones (as in the prototype
+notes), the split is neutral in RMSE and worse in bad-0.07.  Not a clear win for any cue, so
+all stay off; ``defocus="tv"`` is the one to try on scenes with thin occluders.  (``solids``
+was not measured: the fused per-view volumes took ~6 min per scene on the shared 2 cores.)
+
+Defocus-only WTA ``f*_d`` RMSE: tv 0.56, gaussian 0.78, paper 0.75, flat 0.86 (``f*_c``:
+0.33 fused, 0.57 ncc), the same ordering as the prototype notes.  With the default metric every
+cue hurts or is neutral, so **all three are off by default**; with the cheap ``ncc`` stand-in,
+selection and split help a little (-0.02 px).  ``defocus="flat"`` with the per-volume
+normalisation is much worse (0.55 px with ncc): its per-pixel range is tiny in untextured
+areas, so the median-range normalisation blows it up at textured ones.  Lowering the pairwise
+weight across detected occlusion boundaries (``occlusion_weight = 0.25``) *raised* the RMSE
+(ncc: 0.201 -> 0.261), so ``occlusion_weight = 1`` (off) by default.  ``smoothness``: 0.3 /
+1 / 3 gave 0.295 / 0.261 / 0.286 (ncc, occlusion_weight 0.25), so 1.
+
+Memory
+------
+Held at once: the ``C`` and ``D`` volumes and up to ~10 accumulator / scratch volumes of
+``(L, H, W)`` float32 (view selection needs sums and counts for the selected and for all
+views), the per-view volume and for ``bwncc`` two float64 ``(L, H, W)`` accumulators, plus
+one descriptor block (68 channels) of two views with their float64 statistics.  At 512 x 512,
+64 labels: about 1.5 GB.  ``(n_views, L, H, W)`` is never formed.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import cv2
+import numpy as np
+from numba import njit, prange
+
+from ._progress import progress_bar
+from .errors import InvalidInputError
+
+__all__ = [
+    "DepthParams",
+    "DepthResult",
+    "depth",
+    "make_labels",
+    "view_costs",
+    "shift_map",
+    "selection_masks",
+    "aggregate_view",
+    "aggregate_view_reference",
+    "half_plane_sides",
+    "reference_edges",
+    "defocus_cost",
+    "defocus_cost_reference",
+    "defocus_volume",
+    "normalise_unary",
+    "DEFOCUS_MODES",
+    "OPTIMIZERS",
+    "CORR_METRICS",
+]
+
+DEFOCUS_MODES = ("off", "paper", "gaussian", "flat", "tv")
+OPTIMIZERS = ("graphcut", "sgm", "wta")
+CORR_METRICS = ("fused", "bwncc", "bwncc-paper", "ncc", "census")
+_PRIOR_CODE = {"gaussian": 0, "flat": 1, "tv": 2}
+#: The reference descriptor blocks with their float64 statistics (~20 bytes per channel and
+#: pixel) are cached across views when they fit in this many bytes, else recomputed per view.
+_REF_CACHE_BYTES = 512 * 1024 ** 2
+
+
+# ============================================================================================
+# Parameters and result
+# ============================================================================================
+
+
+@dataclass(frozen=True)
+class DepthParams:
+    """Every constant of :func:`depth` (module docstring explains each stage).
+
+    Correspondence: ``window`` (None = metric default: ncc 5, census 7, bwncc per level / 5),
+    ``tau_rel`` (1e-5), ``eps`` (1e-3, BWNCC ``-log`` floor), ``block`` (68 descriptor
+    channels per block).
+    Selection: ``selection_normalise`` (M / median M per view), ``selection_include_ref``,
+    ``min_selected``.
+    Occlusion split: ``canny_sigma``, ``canny_low`` / ``canny_high`` (absolute 8-bit Canny
+    thresholds; None = automatic, 0.4 x / 1 x the 90th percentile of the Sobel magnitude),
+    ``edge_dilate``, ``min_half_views``.
+    Defocus: ``camera``, ``sigma_d`` (96.5 nm), ``achromatic_radius`` (0.01), ``lambda_r``
+    (None = by mode; ``"per_label"``, ``"per_pixel"`` or nm), ``p_eps`` (1e-6).
+    MRF: ``gamma_c``, ``normalise_costs``, ``smoothness`` (lambda, per disparity unit on the
+    normalised unary), ``truncation`` (T, disparity units), ``occlusion_weight``,
+    ``edge_sigma``, ``max_cycles``, ``sgm_paths``, ``refine``.
+    ``impl``: ``"auto"``/``"numba"``/``"numpy"`` for the selection and defocus kernels.
+    """
+
+    window: int | None = None
+    tau_rel: float = 1e-5
+    eps: float = 1e-3
+    block: int = 68
+    selection_normalise: bool = True
+    selection_include_ref: bool = True
+    min_selected: int = 3
+    canny_sigma: float = 1.0
+    canny_low: float | None = None
+    canny_high: float | None = None
+    edge_dilate: int = 1
+    min_half_views: int = 2
+    camera: str = "CIE 1931"
+    sigma_d: float = 96.5
+    achromatic_radius: float = 0.01
+    lambda_r: Any = None
+    p_eps: float = 1e-6
+    gamma_c: float = 0.45
+    normalise_costs: bool = True
+    smoothness: float = 1.0
+    truncation: float = 1.0
+    occlusion_weight: float = 1.0
+    edge_sigma: float | None = None
+    max_cycles: int = 3
+    sgm_paths: int = 8
+    refine: bool = True
+    impl: str = "auto"
+
+    def __post_init__(self):
+        def pos(name, v, zero=False):
+            try:
+                ok = math.isfinite(float(v)) and (float(v) >= 0 if zero else float(v) > 0)
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise InvalidInputError(f"params.{name} must be {'>= 0' if zero else '> 0'}, got {v!r}")
+
+        if self.window is not None and (int(self.window) != self.window or self.window < 1
+                                        or self.window % 2 == 0):
+            raise InvalidInputError(f"params.window must be None or an odd int >= 1, got {self.window!r}")
+        pos("tau_rel", self.tau_rel, True)
+        pos("eps", self.eps)
+        pos("block", self.block)
+        pos("canny_sigma", self.canny_sigma, True)
+        pos("sigma_d", self.sigma_d)
+        pos("achromatic_radius", self.achromatic_radius, True)
+        pos("p_eps", self.p_eps)
+        pos("gamma_c", self.gamma_c, True)
+        pos("smoothness", self.smoothness, True)
+        pos("truncation", self.truncation)
+        pos("occlusion_weight", self.occlusion_weight, True)
+        if int(self.min_selected) < 1:
+            raise InvalidInputError(f"params.min_selected must be >= 1, got {self.min_selected!r}")
+        if int(self.min_half_views) < 1:
+            raise InvalidInputError(f"params.min_half_views must be >= 1, got {self.min_half_views!r}")
+        if int(self.edge_dilate) < 0:
+            raise InvalidInputError(f"params.edge_dilate must be >= 0, got {self.edge_dilate!r}")
+        if self.impl not in ("auto", "numba", "numpy"):
+            raise InvalidInputError(f"params.impl must be 'auto', 'numba' or 'numpy', got {self.impl!r}")
+        lr = self.lambda_r
+        if lr is not None and lr not in ("per_label", "per_pixel"):
+            pos("lambda_r", lr)
+        if int(self.max_cycles) < 0:
+            raise InvalidInputError(f"params.max_cycles must be >= 0, got {self.max_cycles!r}")
+
+
+@dataclass
+class DepthResult:
+    """Output of :func:`depth`.
+
+    disparity : float32 (H, W), sub-pixel (parabola) unless ``params.refine`` is False.
+    confidence : float32 (H, W) in [0, 1] (cost-margin of the optimised volume).
+    f_c : float32 (H, W), correspondence-only WTA disparity (``argmin_d C``).
+    f_d : float32 (H, W) defocus-only WTA disparity, or None when ``defocus="off"``.
+    labels : float64 (L,) the disparity of every label.
+    timings : seconds per stage.
+    config : every setting used (JSON-friendly).
+    intermediate : with ``save_intermediate``: ``C``, ``D`` (or None), ``unary``, ``edges``,
+        ``lambda_r`` (or None), ``n_selected`` (views used per (d, p) before the split).
+    """
+
+    disparity: np.ndarray
+    confidence: np.ndarray
+    f_c: np.ndarray
+    f_d: np.ndarray | None
+    labels: np.ndarray
+    timings: dict = field(default_factory=dict)
+    config: dict = field(default_factory=dict)
+    intermediate: dict | None = None
+
+
+def make_labels(dmin: float, dmax: float, n_labels: int) -> np.ndarray:
+    """``n_labels`` disparities evenly spaced over ``[dmin, dmax]`` (float64)."""
+    try:
+        n = int(n_labels)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"n_labels must be an integer >= 2, got {n_labels!r}") from None
+    if n != n_labels or n < 2:
+        raise InvalidInputError(f"n_labels must be an integer >= 2, got {n_labels!r}")
+    if not (np.isfinite(dmin) and np.isfinite(dmax) and dmin < dmax):
+        raise InvalidInputError(f"disparity range must be finite with min < max, got ({dmin}, {dmax})")
+    return np.linspace(float(dmin), float(dmax), n)
+
+
+# ============================================================================================
+# Sub-pixel shifting
+# ============================================================================================
+
+
+def _axis_interp(n: int, shift: float, r: int):
+    """Index/weight arrays for sampling an axis of length ``n`` at ``i + shift`` for
+    ``i = -r .. n - 1 + r`` with clamped (replicated-border) coordinates."""
+    coord = np.clip(np.arange(-r, n + r, dtype=np.float64) + shift, 0.0, n - 1)
+    i0 = np.minimum(np.floor(coord).astype(np.int64), max(n - 2, 0))
+    i1 = np.minimum(i0 + 1, n - 1)
+    f = coord - i0
+    return i0, i1, f
+
+
+def _axis_valid(n: int, shift: float) -> np.ndarray:
+    c = np.arange(n, dtype=np.float64) + shift
+    eps = 1e-6
+    return (c >= -eps) & (c <= n - 1 + eps)
+
+
+def shift_map(img: np.ndarray, sx: float, sy: float, r: int = 0):
+    """Sample ``img[..., y + sy, x + sx]`` bilinearly for ``y = -r..H-1+r``, ``x = -r..W-1+r``
+    (coordinates clamped: replicated border), float64; and the validity ``(H, W)`` of the
+    centre samples (inside the image)."""
+    a = np.asarray(img, dtype=np.float64)
+    H, W = a.shape[-2:]
+    y0, y1, fy = _axis_interp(H, sy, r)
+    x0, x1, fx = _axis_interp(W, sx, r)
+    top = a[..., y0, :]
+    bot = a[..., y1, :]
+    rows = top * (1 - fy)[:, None] + bot * fy[:, None]
+    out = rows[..., x0] * (1 - fx) + rows[..., x1] * fx
+    valid = _axis_valid(H, sy)[:, None] & _axis_valid(W, sx)[None, :]
+    return out, valid
+
+
+# ============================================================================================
+# Correspondence kernels
+# ============================================================================================
+
+
+@njit(parallel=True, cache=True)
+def _xi_shift_kernel(Apad, muA, isA, ca, B, cb, y0, y1, fy, x0, x1, fx, r, tauB, weighted,
+                     outF, outB, outM):  # pragma: no cover - numba
+    """Per-channel NCC of the reference patches with the bilinearly shifted other view.
+
+    Apad (nc, H+2r, W+2r) reference channels padded (replicate); muA, isA (nc, H, W) their
+    patch means and 1/sigma (0 below tau); B (nc, H, W) other view's channels (unshifted);
+    ca, cb (nc,) per-channel centring constants; y0, y1, fy (H+2r,) and x0, x1, fx (W+2r,)
+    the shift's sampling arrays; tauB the other view's variance threshold.
+    outF, outB, outM (G, H, W) float64: group ``g`` of channels ``c = g, g + G, ...`` adds
+    ``sum_c xi_c muA_c``, ``sum_c xi_c muB_c`` and ``sum_c muB_c`` (muB = exact patch mean of
+    the shifted map) to its own slice (no write races; the caller sums over ``g``).
+    With ``weighted=False`` outF gets ``sum_c xi_c``.
+    """
+    nc, H, W = muA.shape
+    G = outF.shape[0]
+    Hp = H + 2 * r
+    Wp = W + 2 * r
+    n = 2 * r + 1
+    inv = 1.0 / (n * n)
+    for g in prange(G):
+        bs = np.empty((Hp, Wp))
+        v1 = np.empty((H, Wp))
+        v2 = np.empty((H, Wp))
+        v3 = np.empty((H, Wp))
+        for c in range(g, nc, G):
+            cbc = cb[c]
+            cac = ca[c]
+            for Y in range(Hp):
+                ya = y0[Y]
+                yb = y1[Y]
+                wy = fy[Y]
+                for X in range(Wp):
+                    xa = x0[X]
+                    xb = x1[X]
+                    wx = fx[X]
+                    bs[Y, X] = ((B[c, ya, xa] * (1.0 - wx) + B[c, ya, xb] * wx) * (1.0 - wy)
+                                + (B[c, yb, xa] * (1.0 - wx) + B[c, yb, xb] * wx) * wy) - cbc
+            for X in range(Wp):
+                s1 = 0.0
+                s2 = 0.0
+                s3 = 0.0
+                for Y in range(n):
+                    b = bs[Y, X]
+                    s1 += b
+                    s2 += b * b
+                    s3 += (Apad[c, Y, X] - cac) * b
+                v1[0, X] = s1
+                v2[0, X] = s2
+                v3[0, X] = s3
+                for y in range(1, H):
+                    bo = bs[y - 1, X]
+                    bn = bs[y + n - 1, X]
+                    s1 += bn - bo
+                    s2 += bn * bn - bo * bo
+                    s3 += (Apad[c, y + n - 1, X] - cac) * bn - (Apad[c, y - 1, X] - cac) * bo
+                    v1[y, X] = s1
+                    v2[y, X] = s2
+                    v3[y, X] = s3
+            for y in range(H):
+                s1 = 0.0
+                s2 = 0.0
+                s3 = 0.0
+                for X in range(n):
+                    s1 += v1[y, X]
+                    s2 += v2[y, X]
+                    s3 += v3[y, X]
+                for x in range(W):
+                    if x > 0:
+                        s1 += v1[y, x + n - 1] - v1[y, x - 1]
+                        s2 += v2[y, x + n - 1] - v2[y, x - 1]
+                        s3 += v3[y, x + n - 1] - v3[y, x - 1]
+                    mb = s1 * inv
+                    var = s2 * inv - mb * mb
+                    ma = muA[c, y, x]
+                    cov = s3 * inv - (ma - cac) * mb
+                    isb = 0.0
+                    if var >= tauB and var > 0.0:
+                        isb = 1.0 / math.sqrt(var)
+                    xi = cov * isA[c, y, x] * isb
+                    if xi > 1.0:
+                        xi = 1.0
+                    elif xi < -1.0:
+                        xi = -1.0
+                    mbt = mb + cbc
+                    if weighted:
+                        outF[g, y, x] += xi * ma
+                    else:
+                        outF[g, y, x] += xi
+                    outB[g, y, x] += xi * mbt
+                    outM[g, y, x] += mbt
+
+
+def _inv_sigma(var, tau):
+    ok = (var >= tau) & (var > 0)
+    out = np.zeros_like(var)
+    np.divide(1.0, np.sqrt(np.where(ok, var, 1.0)), out=out, where=ok)
+    return out
+
+
+class _RefBlock:
+    """Reference channel block with padded maps and statistics (one NCC patch size)."""
+
+    def __init__(self, A: np.ndarray, n: int, tau_rel: float):
+        from .costs import channel_stats, pad_replicate
+        self.n = int(n)
+        self.r = self.n // 2
+        st = channel_stats(A, self.n)
+        self.centre = st["centre"]
+        tau = tau_rel * float(st["mean_var"].mean())
+        self.mu = np.ascontiguousarray(st["mu"])
+        self.isig = np.ascontiguousarray(_inv_sigma(st["var"], tau))
+        self.pad = np.ascontiguousarray(pad_replicate(np.asarray(A, np.float32), self.r))
+        self.den = self.mu.sum(axis=0)
+
+
+def _view_tau(B: np.ndarray, n: int, tau_rel: float) -> float:
+    from .costs import window_stats
+    mv = [float(window_stats(B[c], n)[1].mean()) for c in range(B.shape[0])]
+    return tau_rel * float(np.mean(mv)) if mv else 0.0
+
+
+def _xi_terms(ref: _RefBlock, B: np.ndarray, centre_b, tauB, sx, sy, weighted=True):
+    """Sums over channels of ``xi muA``, ``xi muB`` and ``muB`` for one shift: 3 x (H, W)."""
+    nc, H, W = ref.mu.shape
+    r = ref.r
+    y0, y1, fy = _axis_interp(H, sy, r)
+    x0, x1, fx = _axis_interp(W, sx, r)
+    import numba
+    G = max(1, min(nc, numba.get_num_threads()))
+    oF = np.zeros((G, H, W))
+    oB = np.zeros((G, H, W))
+    oM = np.zeros((G, H, W))
+    _xi_shift_kernel(ref.pad, ref.mu, ref.isig, ref.centre, np.ascontiguousarray(B, np.float32),
+                     np.asarray(centre_b, np.float64), y0, y1, fy, x0, x1, fx, r, float(tauB),
+                     bool(weighted), oF, oB, oM)
+    return oF.sum(axis=0), oB.sum(axis=0), oM.sum(axis=0)
+
+
+def _normalised(img):
+    a = np.asarray(img, dtype=np.float64)
+    m = float(a.mean())
+    if not m > 0:
+        raise InvalidInputError("every view must have a positive mean intensity (In = I / mean(I))")
+    return a / m
+
+
+def _ncc_view_costs(ref_img, img, shifts, n, tau_rel):
+    L = len(shifts)
+    H, W = ref_img.shape
+    A = _normalised(ref_img)[None].astype(np.float32)
+    B = _normalised(img)[None].astype(np.float32)
+    ref = _RefBlock(A, n, tau_rel)
+    tauB = _view_tau(B, n, tau_rel)
+    cb = np.array([float(B.mean())])
+    out = np.empty((L, H, W), np.float32)
+    for k, (sx, sy) in enumerate(shifts):
+        F, _, _ = _xi_terms(ref, B, cb, tauB, sx, sy, weighted=False)
+        out[k] = 1.0 - F
+    return out
+
+
+def _census_view_costs(ref_img, img, shifts, window):
+    from .costs import census_transform
+    L = len(shifts)
+    H, W = ref_img.shape
+    cref = census_transform(ref_img, window)
+    out = np.empty((L, H, W), np.float32)
+    for k, (sx, sy) in enumerate(shifts):
+        s, _ = shift_map(img, sx, sy, 0)
+        out[k] = np.bitwise_count(cref ^ census_transform(s, window)).astype(np.float32)
+    return out
+
+
+def _bwncc_view_costs(ref_img, img, shifts, variant, window, tau_rel, eps, block, ref_cache):
+    from .costs import bwncc_finish
+    from .descriptor import DescriptorParams, descriptor, iter_descriptor_blocks, prepare
+    params = DescriptorParams.paper() if variant == "bwncc-paper" else DescriptorParams.default()
+    if window is not None:
+        n_all = np.full(params.n_channels, int(window), np.int64)
+    elif variant == "bwncc-paper":
+        n_all = np.full(params.n_channels, 5, np.int64)
+    else:
+        n_all = params.channel_levels
+    L = len(shifts)
+    H, W = ref_img.shape
+    accF = np.zeros((L, H, W))
+    accB = np.zeros((L, H, W))
+    denB = np.zeros((L, H, W))
+    denF = np.zeros((H, W))
+    key = ("prep", variant)
+    if key not in ref_cache:
+        ref_cache[key] = prepare(ref_img, params)
+    pA = ref_cache[key]
+    pB = prepare(img, params)
+    keep = 20.0 * params.n_channels * H * W <= _REF_CACHE_BYTES
+    for (slB, Bblk) in iter_descriptor_blocks(pB, block=block):
+        bkey = ("block", variant, slB.start, slB.stop)
+        refs = ref_cache.get(bkey)
+        if refs is None:
+            Ablk = descriptor(pA, channels=slB)
+            ns = n_all[slB]
+            refs = []
+            for nn in np.unique(ns):
+                sel = np.nonzero(ns == nn)[0]
+                refs.append((sel, int(nn), _RefBlock(Ablk[sel], int(nn), tau_rel)))
+            del Ablk
+            if keep:
+                ref_cache[bkey] = refs
+        for sel, nn, rb in refs:
+            Bs = np.ascontiguousarray(Bblk[sel])
+            tauB = _view_tau(Bs, nn, tau_rel)
+            cb = Bs.reshape(Bs.shape[0], -1).astype(np.float64).mean(axis=1)
+            denF += rb.den
+            for k, (sx, sy) in enumerate(shifts):
+                F, Bw, M = _xi_terms(rb, Bs, cb, tauB, sx, sy)
+                accF[k] += F
+                accB[k] += Bw
+                denB[k] += M
+    cost = bwncc_finish(accF, accB, denF[None], denB, eps)
+    return cost.astype(np.float32)
+
+
+def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | None = None,
+               tau_rel: float = 1e-5, eps: float = 1e-3, block: int = 68, _cache=None):
+    """Correspondence cost ``C_v[L, H, W]`` (float32, lower is better) of one view against the
+    reference, and its validity ``(L, H, W)`` (``q_v`` inside the image).
+
+    ``offset = (dx, dy) = pos_v - pos_ref``; label ``d`` compares ``p`` with ``p - d (dx, dy)``.
+    ``metric``: ``"fused"`` (``"auto"``), ``"bwncc"``, ``"bwncc-paper"``, ``"ncc"``,
+    ``"census"``.  Invalid entries carry the pixel's worst valid cost (for display; the
+    aggregation masks them anyway).
+    """
+    from .costs import fuse, resolve_metric
+    name = resolve_metric(metric)
+    if name not in CORR_METRICS:
+        raise InvalidInputError(
+            f"metric {metric!r} is not available for H-LF matching; choose one of "
+            f"{', '.join(CORR_METRICS)} or 'auto'")
+    A = np.asarray(ref_img, dtype=np.float64)
+    B = np.asarray(img, dtype=np.float64)
+    dx, dy = float(offset[0]), float(offset[1])
+    lab = np.asarray(labels, dtype=np.float64)
+    shifts = [(-d * dx, -d * dy) for d in lab]
+    H, W = A.shape
+    valid = np.stack([_axis_valid(H, sy)[:, None] & _axis_valid(W, sx)[None, :]
+                      for sx, sy in shifts])
+    cache = {} if _cache is None else _cache
+    if name == "ncc":
+        C = _ncc_view_costs(A, B, shifts, 5 if window is None else window, tau_rel)
+    elif name == "census":
+        C = _census_view_costs(A, B, shifts, 7 if window is None else window)
+    elif name in ("bwncc", "bwncc-paper"):
+        C = _bwncc_view_costs(A, B, shifts, name, window, tau_rel, eps, block, cache)
+    else:  # fused
+        bw = _bwncc_view_costs(A, B, shifts, "bwncc", None, tau_rel, eps, block, cache)
+        cs = _census_view_costs(A, B, shifts, 7)
+        C = fuse([bw, cs], dmin=0, valid=valid)
+    from .costs import fill_invalid
+    C = fill_invalid(np.ascontiguousarray(C, dtype=np.float32), 0, valid)
+    return C, valid
+
+
+# ============================================================================================
+# View selection + occlusion split aggregation
+# ============================================================================================
+
+
+def selection_masks(M_ref, Mq, valid, Mbar):
+    """SPEC §5.1 rule for one view: ``sel = valid & ((M_ref > Mbar) == (Mq > Mbar))``.
+
+    All arrays broadcast to ``(L, H, W)`` (``M_ref`` (H, W)).  (Equality: ``M_ref > Mbar``
+    selects ``Mq > Mbar``, otherwise ``Mq <= Mbar``.)
+    """
+    return np.asarray(valid) & ((np.asarray(M_ref)[None] > Mbar) == (np.asarray(Mq) > Mbar))
+
+
+def aggregate_view_reference(acc: dict, Cv, valid, Mq, Mbar, M_ref, use_selection: bool,
+                             edge_idx, edge_side) -> None:
+    """Numpy reference of :func:`aggregate_view` (same arguments and effect)."""
+    L, H, W = Cv.shape
+    valid = np.asarray(valid, bool)
+    sel = selection_masks(M_ref, Mq, valid, Mbar) if use_selection else valid
+    acc["S_sel"] += np.where(sel, Cv, 0.0).astype(np.float32)
+    acc["N_sel"] += sel.astype(np.float32)
+    acc["S_all"] += np.where(valid, Cv, 0.0).astype(np.float32)
+    acc["N_all"] += valid.astype(np.float32)
+    if edge_idx is not None and len(edge_idx):
+        Cf = Cv.reshape(L, -1)[:, edge_idx]
+        sf = sel.reshape(L, -1)[:, edge_idx]
+        vf = valid.reshape(L, -1)[:, edge_idx]
+        side = np.asarray(edge_side)
+        for h, s in ((0, 1), (1, -1)):
+            inh = (side == s) | (side == 0)
+            m_sel = sf & inh[None]
+            m_all = vf & inh[None]
+            acc["E_S_sel"][h] += np.where(m_sel, Cf, 0.0).astype(np.float32)
+            acc["E_N_sel"][h] += m_sel.astype(np.float32)
+            acc["E_S_all"][h] += np.where(m_all, Cf, 0.0).astype(np.float32)
+            acc["E_N_all"][h] += m_all.astype(np.float32)
+
+
+@njit(parallel=True, cache=True)
+def _aggregate_kernel(Cv, valid, Mq, Mbar, M_ref, use_sel, S_sel, N_sel, S_all, N_all,
+                      edge_idx, edge_side, ES_sel, EN_sel, ES_all, EN_all):  # pragma: no cover
+    L, H, W = Cv.shape
+    for l in prange(L):
+        for y in range(H):
+            for x in range(W):
+                if not valid[l, y, x]:
+                    continue
+                c = Cv[l, y, x]
+                S_all[l, y, x] += c
+                N_all[l, y, x] += 1.0
+                s = True
+                if use_sel:
+                    s = (M_ref[y, x] > Mbar[l, y, x]) == (Mq[l, y, x] > Mbar[l, y, x])
+                if s:
+                    S_sel[l, y, x] += c
+                    N_sel[l, y, x] += 1.0
+        for e in range(edge_idx.shape[0]):
+            i = edge_idx[e]
+            y = i // W
+            x = i - y * W
+            if not valid[l, y, x]:
+                continue
+            c = Cv[l, y, x]
+            s = True
+            if use_sel:
+                s = (M_ref[y, x] > Mbar[l, y, x]) == (Mq[l, y, x] > Mbar[l, y, x])
+            sd = edge_side[e]
+            for h in range(2):
+                if sd == 0 or (h == 0 and sd == 1) or (h == 1 and sd == -1):
+                    ES_all[h, l, e] += c
+                    EN_all[h, l, e] += 1.0
+                    if s:
+                        ES_sel[h, l, e] += c
+                        EN_sel[h, l, e] += 1.0
+
+
+def _new_accumulators(L, H, W, E):
+    z = lambda *s: np.zeros(s, np.float32)  # noqa: E731
+    return {"S_sel": z(L, H, W), "N_sel": z(L, H, W), "S_all": z(L, H, W), "N_all": z(L, H, W),
+            "E_S_sel": z(2, L, E), "E_N_sel": z(2, L, E), "E_S_all": z(2, L, E),
+            "E_N_all": z(2, L, E)}
+
+
+def aggregate_view(acc: dict, Cv, valid, Mq, Mbar, M_ref, use_selection: bool,
+                   edge_idx=None, edge_side=None, impl: str = "auto") -> None:
+    """Add one view's costs to the selection / split accumulators (numba fast path).
+
+    ``acc``: dict from :func:`_new_accumulators` (``S_sel, N_sel, S_all, N_all`` (L, H, W);
+    ``E_*`` (2, L, E) for the two half-planes at the ``E`` edge pixels).  ``Cv``, ``valid``,
+    ``Mq`` (M of the view at ``q_v``), ``Mbar`` (L, H, W); ``M_ref`` (H, W); ``edge_idx``
+    (E,) flat pixel indices; ``edge_side`` (E,) in {-1, 0, 1} (0 = on the line: both halves).
+    ``impl="numpy"`` runs :func:`aggregate_view_reference`.
+    """
+    if edge_idx is None or edge_side is None or len(edge_idx) == 0:
+        edge_idx = np.zeros(0, np.int64)
+        edge_side = np.zeros(0, np.int8)
+    if not use_selection:  # the kernel never reads them
+        Mq = Mbar = np.zeros((1, 1, 1), np.float32)
+    if impl == "numpy":
+        return aggregate_view_reference(acc, Cv, valid, Mq, Mbar, M_ref, use_selection, edge_idx,
+                                        edge_side)
+    _aggregate_kernel(np.ascontiguousarray(Cv, np.float32), np.ascontiguousarray(valid, np.bool_),
+                      np.ascontiguousarray(Mq, np.float32), np.ascontiguousarray(Mbar, np.float32),
+                      np.ascontiguousarray(M_ref, np.float32), bool(use_selection),
+                      acc["S_sel"], acc["N_sel"], acc["S_all"], acc["N_all"],
+                      np.ascontiguousarray(edge_idx, np.int64),
+                      np.ascontiguousarray(edge_side, np.int8),
+                      acc["E_S_sel"], acc["E_N_sel"], acc["E_S_all"], acc["E_N_all"])
+
+
+def _finish_aggregation(acc, min_selected, min_half_views, edge_idx, split: bool):
+    """``C`` (L, H, W) float32 and the number of views used, from the accumulators."""
+    use_sel = acc["N_sel"] >= min_selected
+    S = np.where(use_sel, acc["S_sel"], acc["S_all"])
+    N = np.where(use_sel, acc["N_sel"], acc["N_all"])
+    C = np.where(N > 0, S / np.maximum(N, 1), np.nan).astype(np.float32)
+    if split and edge_idx is not None and len(edge_idx):
+        L = C.shape[0]
+        Cf = C.reshape(L, -1)
+        us = use_sel.reshape(L, -1)[:, edge_idx]
+        best = np.full((L, len(edge_idx)), np.inf, np.float32)
+        for h in range(2):
+            Sh = np.where(us, acc["E_S_sel"][h], acc["E_S_all"][h])
+            Nh = np.where(us, acc["E_N_sel"][h], acc["E_N_all"][h])
+            ok = Nh >= min_half_views
+            Ch = np.where(ok, Sh / np.maximum(Nh, 1), np.inf)
+            best = np.minimum(best, Ch)
+        cur = Cf[:, edge_idx]
+        Cf[:, edge_idx] = np.where(np.isfinite(best), best, cur)
+    return C, N
+
+
+def _fill_nan_worst(C):
+    """Entries with no valid view (NaN) -> the pixel's worst valid cost (SPEC §4 rule)."""
+    bad = ~np.isfinite(C)
+    if not bad.any():
+        return C
+    worst = np.where(bad, -np.inf, C).max(axis=0)
+    gw = worst[np.isfinite(worst)]
+    g = float(gw.max()) if gw.size else 0.0
+    worst = np.where(np.isfinite(worst), worst, g).astype(np.float32)
+    return np.where(bad, worst[None], C).astype(np.float32)
+
+
+# ============================================================================================
+# Occlusion edges
+# ============================================================================================
+
+
+def reference_edges(ref_img, sigma: float = 1.0, low=None, high=None, dilate: int = 1):
+    """Canny edges of the reference and the gradient there.
+
+    Returns ``edges`` (H, W) bool (dilated by ``dilate`` px) and ``(gx, gy)`` float64, the
+    Sobel gradient of the blurred ``In_ref`` (edge orientation is perpendicular to it).
+    ``low``/``high``: 8-bit Canny thresholds; None = 0.4 x / 1 x the 90th percentile of the
+    Sobel magnitude of the 8-bit image.
+    """
+    In = _normalised(ref_img)
+    hi_v = float(np.percentile(In, 99.5))
+    img8 = np.clip(In / (hi_v if hi_v > 0 else 1.0) * 255.0, 0, 255).astype(np.uint8)
+    if sigma > 0:
+        img8 = cv2.GaussianBlur(img8, (0, 0), sigma, borderType=cv2.BORDER_REPLICATE)
+    sx = cv2.Sobel(img8, cv2.CV_64F, 1, 0, ksize=3, borderType=cv2.BORDER_REPLICATE)
+    sy = cv2.Sobel(img8, cv2.CV_64F, 0, 1, ksize=3, borderType=cv2.BORDER_REPLICATE)
+    mag = np.hypot(sx, sy)
+    if high is None:
+        high = max(float(np.percentile(mag, 90)), 1.0)
+    if low is None:
+        low = 0.4 * high
+    edges = cv2.Canny(img8, float(low), float(high), L2gradient=True) > 0
+    if dilate > 0 and edges.any():
+        k = np.ones((2 * dilate + 1, 2 * dilate + 1), np.uint8)
+        edges = cv2.dilate(edges.astype(np.uint8), k) > 0
+    return edges, (sx, sy)
+
+
+def half_plane_sides(gx, gy, offsets) -> np.ndarray:
+    """Side of every view for every pixel's edge line: ``sign(g . o_v)`` in {-1, 0, 1}.
+
+    ``gx, gy`` (E,) gradients at the edge pixels, ``offsets`` (V, 2) view offsets ``(dx, dy)``.
+    The line through ``pos_ref`` along the edge (perpendicular to ``g``) separates the
+    half-planes; a view on the line (``|g . o| <= 1e-9 |g| |o|``) gets 0 (both halves).
+    Returns int8 (V, E).
+    """
+    g = np.stack([np.asarray(gx, np.float64), np.asarray(gy, np.float64)], axis=-1)  # (E, 2)
+    o = np.asarray(offsets, np.float64).reshape(-1, 2)
+    dot = o @ g.T  # (V, E)
+    tol = 1e-9 * np.linalg.norm(o, axis=1)[:, None] * np.linalg.norm(g, axis=1)[None, :]
+    s = np.sign(dot)
+    s[np.abs(dot) <= tol] = 0
+    return s.astype(np.int8)
+
+
+# ============================================================================================
+# Defocus cost
+# ============================================================================================
+
+
+def defocus_cost_reference(P, valid, wl, lam_r, prior: str = "gaussian", sigma_d: float = 96.5,
+                           p_eps: float = 1e-6):
+    """Numpy reference of :func:`defocus_cost`."""
+    P = np.asarray(P, np.float64)
+    V = np.asarray(valid, bool)
+    wl = np.asarray(wl, np.float64)
+    N = P.shape[0]
+    Pv = np.where(V, P, 0.0)
+    nval = V.sum(axis=0)
+    tot = Pv.sum(axis=0)
+    Ps = np.maximum(np.where(tot > 0, Pv / np.where(tot > 0, tot, 1.0), 0.0), p_eps)
+    if prior == "tv":
+        order = np.argsort(wl, kind="stable")
+        Pso = Ps[order]
+        Vo = V[order]
+        D = np.zeros(P.shape[1:])
+        last = np.full(P.shape[1:], np.nan)
+        for k in range(N):
+            ok = Vo[k]
+            D = np.where(ok & np.isfinite(last), D + np.abs(Pso[k] - last), D)
+            last = np.where(ok, Pso[k], last)
+        return np.where(nval > 0, D, 0.0)
+    if prior == "flat":
+        G = np.where(V, 1.0, 0.0)
+    else:
+        lr = np.broadcast_to(np.asarray(lam_r, np.float64), P.shape[1:])
+        G = np.where(V, np.exp(-(wl.reshape((N,) + (1,) * (P.ndim - 1)) - lr[None]) ** 2
+                                / (2 * sigma_d ** 2)), 0.0)
+    gs = G.sum(axis=0)
+    G = G / np.where(gs > 0, gs, 1.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        terms = np.where(G > 0, G * np.log(np.where(G > 0, G, 1.0) / Ps), 0.0)
+    return np.where(nval > 0, terms.sum(axis=0), 0.0)
+
+
+@njit(parallel=True, cache=True)
+def _defocus_kernel(P, valid, wl_sorted_idx, wl, lam_r, prior, sigma_d, p_eps, out):  # pragma: no cover
+    N, H, W = P.shape
+    inv2s2 = 1.0 / (2.0 * sigma_d * sigma_d)
+    for y in prange(H):
+        for x in range(W):
+            tot = 0.0
+            nv = 0
+            for v in range(N):
+                if valid[v, y, x]:
+                    tot += P[v, y, x]
+                    nv += 1
+            if nv == 0:
+                out[y, x] = 0.0
+                continue
+            if prior == 2:
+                d = 0.0
+                have = False
+                last = 0.0
+                for k in range(N):
+                    v = wl_sorted_idx[k]
+                    if valid[v, y, x]:
+                        ps = P[v, y, x] / tot if tot > 0 else 0.0
+                        if ps < p_eps:
+                            ps = p_eps
+                        if have:
+                            d += abs(ps - last)
+                        last = ps
+                        have = True
+                out[y, x] = d
+                continue
+            gs = 0.0
+            lr = lam_r[y, x]
+            for v in range(N):
+                if valid[v, y, x]:
+                    if prior == 1:
+                        gs += 1.0
+                    else:
+                        gs += math.exp(-(wl[v] - lr) * (wl[v] - lr) * inv2s2)
+            d = 0.0
+            if gs > 0:
+                for v in range(N):
+                    if valid[v, y, x]:
+                        if prior == 1:
+                            g = 1.0 / gs
+                        else:
+                            g = math.exp(-(wl[v] - lr) * (wl[v] - lr) * inv2s2) / gs
+                        if g > 0:
+                            ps = P[v, y, x] / tot if tot > 0 else 0.0
+                            if ps < p_eps:
+                                ps = p_eps
+                            d += g * math.log(g / ps)
+            out[y, x] = d
+
+
+def defocus_cost(P, valid, wl, lam_r, prior: str = "gaussian", sigma_d: float = 96.5,
+                 p_eps: float = 1e-6, impl: str = "auto") -> np.ndarray:
+    """Defocus cost ``D`` (H, W) float64 of one profile stack (SPEC §5.3).
+
+    ``P`` (N, H, W) the profile ``In_v(q_v)``; ``valid`` (N, H, W); ``wl`` (N,) nm; ``lam_r``
+    (H, W) nm (unused for ``flat``/``tv``).  ``prior``: ``gaussian`` (KL(Pg || P*)), ``flat``
+    (KL(1/n || P*)), ``tv`` (sum of |P*_k+1 - P*_k| along sorted wavelength).  Over the valid
+    views only (Pg and P* renormalised), ``P*`` floored at ``p_eps``; 0 where no view is valid.
+    """
+    if prior not in _PRIOR_CODE:
+        raise InvalidInputError(f"prior must be one of {tuple(_PRIOR_CODE)}, got {prior!r}")
+    if impl == "numpy":
+        return defocus_cost_reference(P, valid, wl, lam_r, prior, sigma_d, p_eps)
+    P = np.ascontiguousarray(P, np.float64)
+    N, H, W = P.shape
+    wl = np.asarray(wl, np.float64)
+    lr = np.ascontiguousarray(np.broadcast_to(np.asarray(lam_r, np.float64), (H, W)))
+    out = np.empty((H, W))
+    _defocus_kernel(P, np.ascontiguousarray(np.broadcast_to(valid, P.shape), np.bool_),
+                    np.argsort(wl, kind="stable").astype(np.int64), wl, lr, _PRIOR_CODE[prior],
+                    float(sigma_d), float(p_eps), out)
+    return out
+
+
+def _camera_matrix(camera, wl):
+    """(N, 3) sensitivities and whether they are an RGB camera (needs RGB -> XYZ)."""
+    from .spectral import camera_sensitivities
+    name = str(camera).strip().lower()
+    is_xyz = name in ("cie 1931", "xyz")
+    S = camera_sensitivities(camera, wl)
+    if np.any(S.sum(axis=0) <= 0):
+        raise InvalidInputError(f"camera {camera!r} has a channel with no response at the views' wavelengths")
+    return S, not is_xyz
+
+
+def _lambda_r(P, valid, S, is_rgb, lo, hi, achromatic_radius):
+    """Dominant wavelength (H, W) of the profile P (N, H, W) over valid views."""
+    from .spectral import dominant_wavelength_for_filters, srgb_linear_to_xyz, xyz_to_xy
+    Vm = np.asarray(valid, np.float64)
+    num = np.einsum("vhw,vk->hwk", np.where(valid, P, 0.0), S)
+    den = np.einsum("vhw,vk->hwk", Vm, S)
+    col = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
+    xyz = srgb_linear_to_xyz(col) if is_rgb else col
+    xy = xyz_to_xy(xyz)
+    return dominant_wavelength_for_filters(xy, lo, hi, achromatic_radius=achromatic_radius)
+
+
+def defocus_volume(In_views, offsets, wl, labels, prior="gaussian", lambda_r="per_label",
+                   f_c=None, camera="CIE 1931", sigma_d=96.5, achromatic_radius=0.01,
+                   p_eps=1e-6, impl="auto"):
+    """Defocus volume ``D[L, H, W]`` float32 and the ``lambda_r`` used ((H, W) or None).
+
+    ``In_views`` (N, H, W) normalised views (including the reference), ``offsets`` (N, 2),
+    ``wl`` (N,).  ``lambda_r``: ``"per_label"`` (literal: from the profile at every label),
+    ``"per_pixel"`` (from the profile at ``f_c``, a (H, W) disparity map) or a number (nm).
+    Entries with no valid view get the pixel's worst valid value.
+    """
+    In_views = np.asarray(In_views, np.float64)
+    N, H, W = In_views.shape
+    wl = np.asarray(wl, np.float64)
+    lo, hi = float(wl.min()), float(wl.max())
+    S = is_rgb = None
+    if prior == "gaussian":
+        S, is_rgb = _camera_matrix(camera, wl)
+    lam_fixed = None
+    if prior == "gaussian" and lambda_r == "per_pixel":
+        if f_c is None:
+            raise InvalidInputError("lambda_r='per_pixel' needs the correspondence map f_c")
+        from .warp import warp_to_reference
+        P = np.empty((N, H, W))
+        V = np.empty((N, H, W), bool)
+        for v in range(N):
+            P[v], V[v] = warp_to_reference(In_views[v], f_c, tuple(offsets[v]), fill=0.0)
+        lam_fixed = _lambda_r(P, V, S, is_rgb, lo, hi, achromatic_radius)
+    elif prior == "gaussian" and lambda_r != "per_label":
+        lam_fixed = np.full((H, W), float(lambda_r))
+    L = len(labels)
+    D = np.empty((L, H, W), np.float32)
+    anyvalid = np.zeros((L, H, W), bool)
+    for k, d in enumerate(labels):
+        P = np.empty((N, H, W))
+        V = np.empty((N, H, W), bool)
+        for v in range(N):
+            P[v], V[v] = shift_map(In_views[v], -d * offsets[v][0], -d * offsets[v][1], 0)
+        if prior == "gaussian":
+            lr = lam_fixed if lam_fixed is not None else _lambda_r(P, V, S, is_rgb, lo, hi,
+                                                                   achromatic_radius)
+        else:
+            lr = 0.0
+        D[k] = defocus_cost(P, V, wl, lr, prior, sigma_d, p_eps, impl)
+        anyvalid[k] = V.any(axis=0)
+    D = _fill_nan_worst(np.where(anyvalid, D, np.nan).astype(np.float32))
+    return D, lam_fixed
+
+
+# ============================================================================================
+# MRF helpers
+# ============================================================================================
+
+
+def normalise_unary(X, enabled: bool = True):
+    """``(X - min_d X) / s`` with ``s`` = median over pixels of ``max_d X - min_d X``
+    (``s = 1`` when disabled or when that median is 0).  Returns (float32 volume, s)."""
+    X = np.asarray(X, np.float32)
+    Y = X - X.min(axis=0, keepdims=True)
+    s = 1.0
+    if enabled:
+        med = float(np.median(Y.max(axis=0)))
+        if med > 0:
+            s = med
+    return (Y / s).astype(np.float32), s
+
+
+def _occlusion_edge_weights(edges, f_c, threshold, factor):
+    """(wx (H, W-1), wy (H-1, W)): ``factor`` where a pair touches an edge pixel and f_c jumps
+    by more than ``threshold``, else 1."""
+    e = edges
+    jx = np.abs(np.diff(f_c, axis=1)) > threshold
+    jy = np.abs(np.diff(f_c, axis=0)) > threshold
+    bx = (e[:, 1:] | e[:, :-1]) & jx
+    by = (e[1:, :] | e[:-1, :]) & jy
+    return np.where(bx, factor, 1.0), np.where(by, factor, 1.0)
+
+
+# ============================================================================================
+# Public entry point
+# ============================================================================================
+
+
+def _gradient_magnitude(In):
+    p = np.pad(In, 1, mode="edge")
+    gx = (p[1:-1, 2:] - p[1:-1, :-2]) / 2.0
+    gy = (p[2:, 1:-1] - p[:-2, 1:-1]) / 2.0
+    return np.sqrt(gx * gx + gy * gy)
+
+
+def _check_bool(name, v):
+    if not isinstance(v, (bool, np.bool_)):
+        raise InvalidInputError(f"{name} must be True or False, got {v!r}")
+    return bool(v)
+
+
+def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
+          view_selection: bool = False, occlusion_split: bool = False, defocus: str = "off",
+          optimizer: str = "graphcut", params: DepthParams | None = None,
+          save_intermediate: bool = False, progress: bool = False) -> DepthResult:
+    """Disparity of the reference view of an H-LF (SPEC §5; module docstring for every stage).
+
+    Parameters
+    ----------
+    lf : LightField
+        Monochrome views ``(R, C, H, W)``; ``wavelengths`` are needed for the defocus cue.
+    disparity_range : (dmin, dmax), optional
+        Default ``lf.disparity_range``; one of the two is required.
+    n_labels : int
+        Labels evenly spaced over the range (>= 2).
+    metric : "auto" (= ``hyperlf.costs.AUTO_METRIC``), "bwncc", "bwncc-paper", "ncc", "census".
+    view_selection, occlusion_split : bool
+        SPEC §5.1 and §5.2 cues (defaults: measured, see the module docstring).
+    defocus : "off", "paper", "gaussian", "flat" or "tv" (SPEC §5.3).
+    optimizer : "graphcut", "sgm" or "wta".
+    params : DepthParams, optional
+    save_intermediate : keep the volumes in ``result.intermediate``.
+    progress : progress bars on stderr.
+
+    Raises
+    ------
+    InvalidInputError
+        Not a LightField / not monochrome, no disparity range, defocus without wavelengths,
+        unknown metric / optimiser / defocus mode, fewer than 2 views.
+    """
+    from .lightfield import LightField
+    from .regularisers import confidence, graphcut, sgm, subpixel_refine
+
+    if not isinstance(lf, LightField):
+        raise InvalidInputError(f"lf must be a hyperlf.LightField, got {type(lf).__name__}")
+    if lf.views.ndim != 4:
+        raise InvalidInputError(
+            "H-LF matching needs monochrome views (R, C, H, W); this light field has "
+            f"{lf.channels} channels per view")
+    if lf.n_views < 2:
+        raise InvalidInputError("H-LF matching needs at least 2 views")
+    params = DepthParams() if params is None else params
+    if not isinstance(params, DepthParams):
+        raise InvalidInputError(f"params must be a DepthParams, got {type(params).__name__}")
+    view_selection = _check_bool("view_selection", view_selection)
+    occlusion_split = _check_bool("occlusion_split", occlusion_split)
+    if defocus not in DEFOCUS_MODES:
+        raise InvalidInputError(f"defocus must be one of {DEFOCUS_MODES}, got {defocus!r}")
+    if optimizer not in OPTIMIZERS:
+        raise InvalidInputError(f"optimizer must be one of {OPTIMIZERS}, got {optimizer!r}")
+    from .costs import resolve_metric
+    mname = resolve_metric(metric)
+    if mname not in CORR_METRICS:
+        raise InvalidInputError(
+            f"metric {metric!r} is not available for H-LF matching; choose one of "
+            f"{', '.join(CORR_METRICS)} or 'auto'")
+    if defocus != "off" and not lf.is_spectral:
+        raise InvalidInputError(
+            "the defocus cue needs a spectral light field with one wavelength per view "
+            "(lf.wavelengths); pass defocus='off' or set the wavelengths")
+    rng = disparity_range if disparity_range is not None else lf.disparity_range
+    if rng is None:
+        raise InvalidInputError(
+            "no disparity range: pass disparity_range=(dmin, dmax) or set lf.disparity_range")
+    try:
+        dmin, dmax = (float(v) for v in rng)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"disparity_range must be (dmin, dmax), got {rng!r}") from None
+    labels = make_labels(dmin, dmax, n_labels)
+    L = labels.size
+    impl = "numpy" if params.impl == "numpy" else "numba"
+
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    R, Cc = lf.grid_shape
+    H, W = lf.image_shape
+    ref = lf.reference
+    offs = lf.offsets
+    views = [(r, c) for r in range(R) for c in range(Cc)]
+    others = [v for v in views if v != ref]
+    ref_img = lf.views[ref].astype(np.float64)
+    In = {v: _normalised(lf.views[v]) for v in views}
+
+    # --- gradient magnitudes (selection) and Mbar (pass 1)
+    Mn = {}
+    for v in views:
+        M = _gradient_magnitude(In[v])
+        if params.selection_normalise:
+            med = float(np.median(M))
+            s = med if med > 0 else float(M.mean())
+            M = M / s if s > 0 else M
+        Mn[v] = M
+    M_ref = Mn[ref].astype(np.float32)
+    Mbar = None
+    if view_selection:
+        Msum = np.zeros((L, H, W), np.float64)
+        Mcnt = np.zeros((L, H, W), np.float64)
+        if params.selection_include_ref:
+            Msum += Mn[ref][None]
+            Mcnt += 1.0
+        for v in others:
+            o = offs[v]
+            for k, d in enumerate(labels):
+                m, ok = shift_map(Mn[v], -d * o[0], -d * o[1], 0)
+                Msum[k] += np.where(ok, m, 0.0)
+                Mcnt[k] += ok
+        Mbar = (Msum / np.maximum(Mcnt, 1)).astype(np.float32)
+        del Msum, Mcnt
+    # --- occlusion edges
+    edges = np.zeros((H, W), bool)
+    edge_idx = np.zeros(0, np.int64)
+    sides = None
+    if occlusion_split or (optimizer == "graphcut" and params.occlusion_weight != 1.0):
+        edges, (gx, gy) = reference_edges(ref_img, params.canny_sigma, params.canny_low,
+                                          params.canny_high, int(params.edge_dilate))
+    if occlusion_split:
+        edge_idx = np.flatnonzero(edges).astype(np.int64)
+        gxe = gx.ravel()[edge_idx]
+        gye = gy.ravel()[edge_idx]
+        sides = half_plane_sides(gxe, gye, np.array([offs[v] for v in others]))
+    timings["prepare_s"] = time.perf_counter() - t0
+
+    # --- correspondence (pass 2), streamed view by view into the accumulators
+    acc = _new_accumulators(L, H, W, len(edge_idx))
+    cache: dict = {}
+    t_cost = t_agg = 0.0
+    for i, v in enumerate(progress_bar(others, "views", total=len(others), enabled=progress,
+                                       unit="view")):
+        t1 = time.perf_counter()
+        Cv, valid = view_costs(ref_img, lf.views[v], offs[v], labels, mname, params.window,
+                               params.tau_rel, params.eps, int(params.block), cache)
+        t2 = time.perf_counter()
+        t_cost += t2 - t1
+        if view_selection:
+            o = offs[v]
+            Mq = np.stack([shift_map(Mn[v], -d * o[0], -d * o[1], 0)[0] for d in labels])
+        else:
+            Mq = None
+        aggregate_view(acc, Cv, valid, Mq, Mbar, M_ref, view_selection, edge_idx,
+                       sides[i] if sides is not None else None, impl)
+        t_agg += time.perf_counter() - t2
+        del Cv, valid
+    del cache
+    t1 = time.perf_counter()
+    C, n_used = _finish_aggregation(acc, int(params.min_selected), int(params.min_half_views),
+                                    edge_idx, occlusion_split)
+    del acc
+    C = _fill_nan_worst(C)
+    f_c_idx = np.argmin(C, axis=0)
+    f_c = labels[f_c_idx].astype(np.float32)
+    t_agg += time.perf_counter() - t1
+    timings["correspondence_s"] = t_cost
+    timings["selection_split_s"] = t_agg
+
+    # --- defocus
+    D = None
+    f_d = None
+    lam_r = None
+    t1 = time.perf_counter()
+    if defocus != "off":
+        prior = "gaussian" if defocus in ("paper", "gaussian") else defocus
+        lr_mode = params.lambda_r
+        if lr_mode is None:
+            lr_mode = "per_label" if defocus == "paper" else "per_pixel"
+        In_all = np.stack([In[v] for v in views])
+        wl_all = np.array([lf.wavelengths[v] for v in views])
+        off_all = np.array([offs[v] for v in views])
+        D, lam_r = defocus_volume(In_all, off_all, wl_all, labels, prior, lr_mode, f_c,
+                                  params.camera, params.sigma_d, params.achromatic_radius,
+                                  params.p_eps, impl)
+        f_d = labels[np.argmin(D, axis=0)].astype(np.float32)
+    timings["defocus_s"] = time.perf_counter() - t1
+
+    # --- MRF
+    t1 = time.perf_counter()
+    Cn, sC = normalise_unary(C, params.normalise_costs)
+    U = params.gamma_c * Cn
+    sD = None
+    if D is not None:
+        Dn, sD = normalise_unary(D, params.normalise_costs)
+        U = U + Dn
+    U = np.ascontiguousarray(U, np.float32)
+    step = float(labels[1] - labels[0])
+    guide = In[ref].astype(np.float32)
+    vol = U
+    if optimizer == "wta" or params.smoothness == 0:
+        lab = np.argmin(U, axis=0)
+    elif optimizer == "sgm":
+        vol = sgm(U, params.smoothness * step, params.smoothness * params.truncation,
+                  paths=int(params.sgm_paths), guide=guide, smoothness="truncated_linear")
+        lab = np.argmin(vol, axis=0)
+    else:
+        ew = None
+        if params.occlusion_weight != 1.0 and edges.any():
+            ew = _occlusion_edge_weights(edges, f_c, params.truncation / 2.0,
+                                         params.occlusion_weight)
+        lab = graphcut(U, "truncated_linear", params.smoothness, params.truncation, guide=guide,
+                       edge_sigma=params.edge_sigma, max_cycles=int(params.max_cycles),
+                       labels=labels, edge_weights=ew)
+    timings["mrf_s"] = time.perf_counter() - t1
+    t1 = time.perf_counter()
+    if params.refine:
+        disp = subpixel_refine(vol, lab, labels)
+    else:
+        disp = labels[lab].astype(np.float32)
+    conf = confidence(vol, lab)
+    timings["refine_s"] = time.perf_counter() - t1
+    timings["total_s"] = time.perf_counter() - t0
+
+    config = dict(metric=mname, n_labels=L, disparity_range=(dmin, dmax),
+                  view_selection=view_selection, occlusion_split=occlusion_split,
+                  defocus=defocus, optimizer=optimizer, params=asdict(params),
+                  scale_C=sC, scale_D=sD, n_edge_pixels=int(edges.sum()),
+                  reference=tuple(ref))
+    inter = None
+    if save_intermediate:
+        inter = dict(C=C, D=D, unary=U, edges=edges, lambda_r=lam_r, n_selected=n_used)
+    return DepthResult(disparity=np.asarray(disp, np.float32), confidence=conf, f_c=f_c,
+                       f_d=f_d, labels=labels, timings=timings, config=config,
+                       intermediate=inter)
