@@ -114,3 +114,22 @@ def test_stereo_command_writes_disparity_products(tmp_path):
         assert (out / name).is_file(), name
     assert main(["-q", "stereo", str(tmp_path / "l.png"), str(tmp_path / "r.png"),
                  "-o", str(out)]) == 2  # no range given: usage error with a hint
+
+
+def test_depth_command_on_a_synthetic_capture(tmp_path, capsys):
+    from hyperlf.formats import read_pfm
+
+    cap = tmp_path / "planes"
+    assert main(["-q", "synth", "procedural", "--scene", "planes", "--size", "40,48",
+                 "--grid", "3,3", "-o", str(cap), "--no-pictures"]) == 0
+    out = tmp_path / "d"
+    assert main(["depth", str(cap), "--metric", "ncc", "--labels", "16",
+                 "--save-intermediate", "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "RMSE" in err  # scored against the capture's ground truth
+    d = read_pfm(out / "disparity.pfm")
+    assert d.shape == (40, 48) and np.isfinite(d).all()
+    for name in ("disparity.png", "disparity_error.png", "correspondence_only.pfm"):
+        assert (out / name).is_file(), name
+    assert main(["-q", "depth", str(cap), "--method", "lin2015", "--labels", "16",
+                 "-o", str(tmp_path / "lin")]) == 0
