@@ -19,9 +19,13 @@ from hyperlf.metrics import rmse
 
 @pytest.fixture(scope="module")
 def small_lf():
-    """'planes' at 48 x 64 with a 3 x 3 grid (exact ground truth, ~2 s to render)."""
+    """'planes' at 48 x 64 with a 3 x 3 grid (exact ground truth, ~2 s to render).
+
+    ColorChecker reflectances, so the scene (and the measured bounds below) do not depend on
+    whether HYPERLF_DATA (Munsell) is available."""
     from hyperlf.synthesis import SCENES, procedural_scene
-    return procedural_scene(**dict(SCENES["planes"], rows=3, cols=3, height=48, width=64))
+    return procedural_scene(**dict(SCENES["planes"], rows=3, cols=3, height=48, width=64,
+                                   reflectance_source="colorchecker"))
 
 
 def _grey_world_lf(d0=1.0, R=3, C=3, H=20, W=40, seed=0):
