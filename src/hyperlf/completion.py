@@ -571,25 +571,38 @@ def _propagate(lf, store, disparities, occlusion_tol, max_iter, progress=False) 
                 dv = np.asarray(disparities[v], dtype=np.float64)
                 nbrs = [(r + dr, c + dc) for dr, dc in ((0, 1), (0, -1), (1, 0), (-1, 0))
                         if 0 <= r + dr < R and 0 <= c + dc < C]
+                # The footprint of each neighbour and its occlusion check depend on the view
+                # pair only, not on the band: compute them once per view and pass.
+                todo = np.flatnonzero(missing.any(axis=0).ravel() & np.isfinite(dv).ravel())
+                if todo.size == 0:
+                    continue
+                ty, tx = np.divmod(todo, W)
+                dt = dv.ravel()[todo]
+                geom = []
+                for w in nbrs:
+                    ox, oy = _offset(lf, w, v)
+                    inside, idx, wts = _taps(tx - dt * ox, ty - dt * oy, H, W)
+                    if occlusion_tol is not None:
+                        inside = inside & _footprint_ok(
+                            np.asarray(disparities[w], np.float64).ravel(), idx, wts, d=dt,
+                            scale=max(np.hypot(ox, oy), 1.0), tol=float(occlusion_tol))
+                    geom.append((w, inside, idx, wts))
+                pos = np.full(H * W, -1, dtype=np.intp)
+                pos[todo] = np.arange(todo.size)
                 for b in np.nonzero(missing.reshape(missing.shape[0], -1).any(axis=1))[0]:
-                    pix = np.flatnonzero(missing[b] & np.isfinite(dv))
+                    pix = np.flatnonzero(missing[b].ravel() & (pos >= 0))
                     if pix.size == 0:
                         continue
+                    sel = pos[pix]
                     acc = np.zeros(pix.size)
                     n = np.zeros(pix.size)
-                    py, px = np.divmod(pix, W)
-                    d = dv.ravel()[pix]
-                    for w in nbrs:
+                    for w, inside, idx_all, wts_all in geom:
                         img_w, m_w = store.get_band(w, b)
                         if not m_w.any():
                             continue
-                        ox, oy = _offset(lf, w, v)
-                        inside, idx, wts = _taps(px - d * ox, py - d * oy, H, W)
-                        ok = inside & _footprint_ok(m_w.ravel(), idx, wts)
-                        if occlusion_tol is not None:
-                            ok &= _footprint_ok(np.asarray(disparities[w], np.float64).ravel(),
-                                                idx, wts, d=d, scale=max(np.hypot(ox, oy), 1.0),
-                                                tol=float(occlusion_tol))
+                        idx = tuple(i[sel] for i in idx_all)
+                        wts = tuple(x[sel] for x in wts_all)
+                        ok = inside[sel] & _footprint_ok(m_w.ravel(), idx, wts)
                         if not ok.any():
                             continue
                         val = _sample(img_w.ravel(), idx, wts)
@@ -842,7 +855,10 @@ def _register_all(lf, disp, wl, bidx, out_path, occlusion_tol, max_iter, fill, c
             cube, mask = store.cube, store.mask
         else:
             md = {"completion": {k: (v if isinstance(v, (int, float, str, bool, type(None)))
-                                     else repr(v)) for k, v in cfg.items()}, "method": name}
+                                     else repr(v)) for k, v in cfg.items()}, "method": name,
+                  # geometry, so renderers can refocus non-uniform arrays from the file alone
+                  "positions": np.asarray(lf.positions).tolist(),
+                  "reference": list(lf.reference)}
             with CubeWriter(out_path, shape, wl, compression=compression, metadata=md) as wr:
                 for v in views:
                     cv, mv = store.get(v)

@@ -1,0 +1,72 @@
+"""A single self-contained HTML report (pictures embedded as base64 PNG) for ``hyperlf demo``.
+
+Kept deliberately small: a title, then sections, each with text, a table of figures and
+pictures. The file is written atomically.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Sequence
+
+from ._atomic import atomic_write_text
+
+__all__ = ["Section", "write_html_report"]
+
+
+@dataclass
+class Section:
+    """One section of the report."""
+
+    title: str
+    text: str = ""
+    table: Sequence[Sequence[str]] = ()  # first row = header
+    pictures: Sequence[tuple[str | os.PathLike, str]] = field(default_factory=list)  # (path, caption)
+
+
+_STYLE = """
+body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 1100px; color: #222; }
+h1 { font-size: 1.6em; } h2 { font-size: 1.2em; margin-top: 2em; border-bottom: 1px solid #ccc; }
+figure { display: inline-block; margin: 0.5em; vertical-align: top; text-align: center; }
+figure img { max-width: 520px; max-height: 420px; image-rendering: pixelated; }
+figcaption { font-size: 0.85em; color: #555; max-width: 520px; }
+table { border-collapse: collapse; margin: 0.5em 0; } td, th { border: 1px solid #ccc;
+padding: 0.25em 0.6em; text-align: right; } th { background: #f3f3f3; }
+p.small { font-size: 0.85em; color: #666; }
+"""
+
+
+def _img_tag(path: Path) -> str:
+    data = base64.b64encode(Path(path).read_bytes()).decode("ascii")
+    mime = "image/gif" if Path(path).suffix.lower() == ".gif" else "image/png"
+    return f'<img src="data:{mime};base64,{data}" alt="{html.escape(Path(path).name)}">'
+
+
+def write_html_report(path: str | os.PathLike, title: str, sections: Sequence[Section],
+                      footer: str = "") -> Path:
+    """Write an HTML report with every picture embedded, so the one file can be shared."""
+    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}"
+             f"</title><style>{_STYLE}</style></head><body><h1>{html.escape(title)}</h1>"]
+    for sec in sections:
+        parts.append(f"<h2>{html.escape(sec.title)}</h2>")
+        if sec.text:
+            parts.append(f"<p>{html.escape(sec.text)}</p>")
+        if sec.table:
+            head, *rows = sec.table
+            parts.append("<table><tr>" + "".join(f"<th>{html.escape(str(h))}</th>" for h in head)
+                         + "</tr>")
+            for row in rows:
+                parts.append("<tr>" + "".join(f"<td>{html.escape(str(v))}</td>" for v in row)
+                             + "</tr>")
+            parts.append("</table>")
+        for pic, caption in sec.pictures:
+            parts.append(f"<figure>{_img_tag(Path(pic))}<figcaption>{html.escape(caption)}"
+                         "</figcaption></figure>")
+    if footer:
+        parts.append(f"<p class='small'>{html.escape(footer)}</p>")
+    parts.append("</body></html>")
+    return atomic_write_text(path, "\n".join(parts))
