@@ -133,3 +133,23 @@ def test_depth_command_on_a_synthetic_capture(tmp_path, capsys):
         assert (out / name).is_file(), name
     assert main(["-q", "depth", str(cap), "--method", "lin2015", "--labels", "16",
                  "-o", str(tmp_path / "lin")]) == 0
+
+
+def test_complete_command_writes_a_cube_that_render_reads(tmp_path, capsys):
+    from hyperlf.formats import open_cube_h5
+
+    cap = tmp_path / "planes"
+    assert main(["-q", "synth", "procedural", "--scene", "planes", "--size", "40,48",
+                 "--grid", "3,3", "-o", str(cap), "--no-pictures"]) == 0
+    out = tmp_path / "c"
+    assert main(["complete", str(cap), "--use-ground-truth", "--stereo", "none",
+                 "-o", str(out)]) == 0
+    assert "PSNR" in capsys.readouterr().err
+    with open_cube_h5(out / "cube.h5") as cf:
+        assert cf.cube.shape == (3, 3, 9, 40, 48)
+        assert cf.metadata["reference"] == [1, 1]
+    for name in ("missing_bands.png", "reference_srgb.png"):
+        assert (out / name).is_file(), name
+    assert main(["-q", "render", str(out / "cube.h5"), "-o", str(tmp_path / "r")]) == 0
+    assert main(["-q", "complete", str(cap), "--disparity", str(tmp_path / "nope.pfm"),
+                 "-o", str(out)]) == 4

@@ -145,7 +145,7 @@ from scipy import ndimage
 from . import regularisers as _reg
 from ._progress import progress_bar
 from .errors import InvalidInputError
-from .lightfield import LightField
+from .lightfield import LightField, resolve_disparity_range
 
 __all__ = ["BaselineResult", "tao2013", "wang2015", "lin2015", "METHODS", "DEFAULTS",
            "prepare_views", "label_disparities"]
@@ -230,16 +230,7 @@ def label_disparities(lf: LightField, n_labels, disparity_range=None) -> np.ndar
     """``n_labels`` disparities evenly spaced over ``disparity_range`` (default the LF's)."""
     if isinstance(n_labels, bool) or not isinstance(n_labels, (int, np.integer)) or n_labels < 3:
         raise InvalidInputError(f"n_labels must be an integer >= 3, got {n_labels!r}")
-    rng = disparity_range if disparity_range is not None else lf.disparity_range
-    if rng is None:
-        raise InvalidInputError(
-            "no disparity range: pass disparity_range=(dmin, dmax) or set lf.disparity_range")
-    try:
-        dmin, dmax = (float(v) for v in rng)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"disparity_range must be (min, max), got {rng!r}") from None
-    if not (np.isfinite(dmin) and np.isfinite(dmax) and dmin < dmax):
-        raise InvalidInputError(f"disparity_range must be finite with min < max, got {rng!r}")
+    dmin, dmax = resolve_disparity_range(lf, disparity_range)
     return np.linspace(dmin, dmax, int(n_labels))
 
 

@@ -1086,7 +1086,7 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
         Not a LightField / not monochrome, no disparity range, defocus without wavelengths,
         unknown metric / optimiser / defocus mode, fewer than 2 views.
     """
-    from .lightfield import LightField
+    from .lightfield import LightField, resolve_disparity_range
     from .regularisers import confidence, graphcut, sgm, subpixel_refine
 
     if not isinstance(lf, LightField):
@@ -1116,14 +1116,7 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
         raise InvalidInputError(
             "the defocus cue needs a spectral light field with one wavelength per view "
             "(lf.wavelengths); pass defocus='off' or set the wavelengths")
-    rng = disparity_range if disparity_range is not None else lf.disparity_range
-    if rng is None:
-        raise InvalidInputError(
-            "no disparity range: pass disparity_range=(dmin, dmax) or set lf.disparity_range")
-    try:
-        dmin, dmax = (float(v) for v in rng)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"disparity_range must be (dmin, dmax), got {rng!r}") from None
+    dmin, dmax = resolve_disparity_range(lf, disparity_range)
     labels = make_labels(dmin, dmax, n_labels)
     L = labels.size
     impl = "numpy" if params.impl == "numpy" else "numba"

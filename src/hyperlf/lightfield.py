@@ -24,7 +24,8 @@ import numpy as np
 
 from .errors import InvalidInputError
 
-__all__ = ["LightField", "raster_wavelengths", "filter_layout", "view_offsets"]
+__all__ = ["LightField", "raster_wavelengths", "filter_layout", "view_offsets",
+           "resolve_disparity_range"]
 
 
 def _finite(name: str, arr: np.ndarray) -> None:
@@ -105,6 +106,27 @@ def raster_wavelengths(rows: int = 5, cols: int = 6, lambda_min: float = 410.0,
 def view_offsets(positions: np.ndarray, reference: tuple[int, int]) -> np.ndarray:
     """Offsets ``pos[r, c] - pos[ref]`` of every view, shape ``(R, C, 2)`` as ``(dx, dy)``."""
     return positions - positions[reference][None, None, :]
+
+
+def resolve_disparity_range(lf: "LightField", disparity_range=None) -> tuple[float, float]:
+    """``disparity_range`` if given, else the light field's own; checked ``(dmin, dmax)``.
+
+    Raises
+    ------
+    InvalidInputError
+        Neither is set, or the range is not two finite numbers with ``dmin < dmax``.
+    """
+    rng = disparity_range if disparity_range is not None else lf.disparity_range
+    if rng is None:
+        raise InvalidInputError(
+            "no disparity range: pass disparity_range=(dmin, dmax) or set lf.disparity_range")
+    try:
+        dmin, dmax = (float(v) for v in rng)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"disparity_range must be (dmin, dmax), got {rng!r}") from None
+    if not (np.isfinite(dmin) and np.isfinite(dmax) and dmin < dmax):
+        raise InvalidInputError(f"disparity_range must be finite with min < max, got {rng!r}")
+    return dmin, dmax
 
 
 @dataclass
