@@ -12,7 +12,7 @@ Protocol (SPEC §4)
   *filled* map (every pixel has a disparity).
 * Every cost with the **same optimiser**: graph cuts (alpha-expansion, truncated linear,
   contrast-sensitive) + left-right check + background fill; and the same with SGM.
-  Parameters come from :data:`hyperlf.stereo.DEFAULT_PARAMS` / ``DEFAULT_WINDOWS``, which are
+  Parameters come from :data:`hyperlf.twoview.DEFAULT_PARAMS` / ``DEFAULT_WINDOWS``, which are
   meant to be tuned on **Venus only** (``--tune``) and then fixed for every other scene.
 * Baselines: OpenCV StereoSGBM on the same red/blue inputs converted to 8 bit (invalid pixels
   background-filled like ours), and a same-spectrum control (red vs red, NCC).
@@ -47,7 +47,7 @@ from hyperlf import regularisers as reg
 from hyperlf._atomic import atomic_write_text
 from hyperlf.formats.middlebury import read_middlebury
 from hyperlf.metrics import disparity_scores
-from hyperlf.stereo import (DEFAULT_PARAMS, DEFAULT_WINDOWS, compute_volumes, default_params,
+from hyperlf.twoview import (DEFAULT_PARAMS, DEFAULT_WINDOWS, compute_volumes, default_params,
                             stereo_from_volumes)
 
 SCENES = ("tsukuba", "art", "teddy")
@@ -250,7 +250,7 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
 
     tuned: dict = {}
-    param_source = ("hyperlf.stereo.DEFAULT_PARAMS / DEFAULT_WINDOWS (Venus-tuned for ncc and census; "
+    param_source = ("hyperlf.twoview.DEFAULT_PARAMS / DEFAULT_WINDOWS (Venus-tuned for ncc and census; "
                     "untuned fallbacks for the others, see stereo.py)")
     if args.params_json:
         raw = json.loads(Path(args.params_json).read_text())

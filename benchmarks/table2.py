@@ -18,7 +18,7 @@ Protocol
 * Scores (:func:`hyperlf.metrics.disparity_scores`): RMSE, MSE x 100, BadPix(0.07) (%) on every
   pixel with ground truth minus the HCI **15-pixel border, counted at the working resolution**
   (mask ``all``), on the sub-pixel disparity of each method's reference view.
-* Methods: ours (``hlf``: :func:`hyperlf.depth.depth` with ``--metric``, everything else at its
+* Methods: ours (``hlf``: :func:`hyperlf.hlf.depth` with ``--metric``, everything else at its
   default) and the three baselines of :data:`hyperlf.baselines.METHODS` (Tao 2013, Wang 2015,
   Lin 2015) which see the H-LF views as plain intensities, all with ``--labels`` labels over the
   scene's disparity range.  Runtimes are wall-clock seconds after a JIT warm-up on a tiny scene.
@@ -65,7 +65,7 @@ from pathlib import Path
 import numpy as np
 
 from hyperlf.baselines import METHODS as BASELINES
-from hyperlf.depth import DepthParams, depth
+from hyperlf.hlf import DepthParams, depth
 from hyperlf.lightfield import LightField
 from hyperlf.metrics import disparity_scores
 from hyperlf.spectral import linear_to_srgb, srgb_to_linear

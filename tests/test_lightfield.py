@@ -80,3 +80,14 @@ def test_raster_wavelengths_properties(rows, cols, lo, span):
     top = lo if rows * cols == 1 else lo + span  # a single view gets lambda_min
     assert np.isclose(wl.min(), lo) and np.isclose(wl.max(), top)
     assert np.all(np.diff(wl.ravel()) >= 0)  # raster order increases
+
+
+def test_top_level_api_functions_survive_submodule_imports():
+    """hyperlf.depth / stereo / complete stay functions even after their modules are imported."""
+    import hyperlf
+    import hyperlf.completion  # noqa: F401
+    import hyperlf.hlf  # noqa: F401
+    import hyperlf.twoview  # noqa: F401
+
+    for name in ("depth", "stereo", "complete", "load", "save"):
+        assert callable(getattr(hyperlf, name)), name

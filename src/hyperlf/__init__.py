@@ -4,7 +4,12 @@ The public API is small and stable:
 
 * :class:`hyperlf.LightField` — the data model (SPEC §1);
 * :func:`hyperlf.load` / :func:`hyperlf.save` — read and write any supported format;
-* :mod:`hyperlf.spectral`, :mod:`hyperlf.synthesis`, :mod:`hyperlf.metrics` — tools.
+* :func:`hyperlf.stereo` — cross-spectral two-view stereo (:mod:`hyperlf.twoview`, SPEC §4);
+* :func:`hyperlf.depth` — H-LF depth of the reference view (:mod:`hyperlf.hlf`, SPEC §5);
+* :func:`hyperlf.complete` — plenoptic cube completion (:mod:`hyperlf.completion`, SPEC §7);
+* :mod:`hyperlf.render` — colour emulation, refocusing, all-focus (SPEC §8);
+* :mod:`hyperlf.spectral`, :mod:`hyperlf.synthesis`, :mod:`hyperlf.metrics`,
+  :mod:`hyperlf.baselines` — tools.
 
 Heavy modules (colour-science, numba kernels) are imported lazily.
 """
@@ -20,6 +25,9 @@ __all__ = [
     "LightField",
     "load",
     "save",
+    "stereo",
+    "depth",
+    "complete",
     "raster_wavelengths",
     "filter_layout",
     "HyperLFError",
@@ -48,3 +56,24 @@ def save(lightfield, path, **kwargs):
     from .formats import save_lightfield
 
     return save_lightfield(lightfield, path, **kwargs)
+
+
+def stereo(left, right, disparity_range, **kwargs):
+    """Cross-spectral two-view stereo; see :func:`hyperlf.twoview.stereo`."""
+    from .twoview import stereo as _stereo
+
+    return _stereo(left, right, disparity_range, **kwargs)
+
+
+def depth(lightfield, **kwargs):
+    """Disparity of an H-LF's reference view; see :func:`hyperlf.hlf.depth`."""
+    from .hlf import depth as _depth
+
+    return _depth(lightfield, **kwargs)
+
+
+def complete(lightfield, disparity=None, out_path=None, **kwargs):
+    """Plenoptic cube completion; see :func:`hyperlf.completion.complete`."""
+    from .completion import complete as _complete
+
+    return _complete(lightfield, disparity, out_path, **kwargs)

@@ -246,7 +246,7 @@ def _cmd_demo(args) -> int:
     """The whole chain on a synthetic scene: capture -> depth -> cube -> colour -> refocus."""
     from . import metrics, render, synthesis, visualise
     from .completion import complete
-    from .depth import depth
+    from .hlf import depth
     from .formats import save_lightfield, write_image, write_pfm
     from .report import Section, write_html_report
 
@@ -385,7 +385,7 @@ def _read_stereo_image(path: str) -> np.ndarray:
 
 
 def _cmd_stereo(args) -> int:
-    from .stereo import stereo
+    from .twoview import stereo
 
     left, right = _read_stereo_image(args.left), _read_stereo_image(args.right)
     if args.disparity_range is None:
@@ -421,7 +421,7 @@ def _cmd_depth(args) -> int:
                                 "--disparity-range MIN,MAX (px per baseline)")
     t0 = time.perf_counter()
     if args.method == "hlf":
-        from .depth import depth
+        from .hlf import depth
 
         if lf.views.ndim != 4:
             raise InvalidInputError("the hlf method needs monochrome spectral views; use "

@@ -343,7 +343,7 @@ def pairwise_disparities(lf, initial: np.ndarray, metric: str = "rsncc", optimiz
     confidence (R, C, H, W) float32)``.
     """
     from . import regularisers as _reg
-    from . import stereo as _stereo
+    from . import twoview as _stereo
 
     lf = _check_lf(lf)
     R, C = lf.grid_shape
@@ -675,13 +675,13 @@ def _view_disparities(lf, disparity, *, metric, optimizer, band, guidance, windo
     H, W = lf.image_shape
     if disparity is None:
         try:
-            from .depth import depth as _depth
+            from .hlf import depth as _depth
         except ImportError as exc:  # pragma: no cover - depth is part of the library
-            raise InvalidInputError("no disparity given and hyperlf.depth is unavailable") from exc
+            raise InvalidInputError("no disparity given and hyperlf.hlf is unavailable") from exc
         t0 = time.perf_counter()
         disparity = _depth(lf, progress=progress).disparity
         timings["depth"] = time.perf_counter() - t0
-        cfg["disparity_source"] = "hyperlf.depth (estimated reference disparity)"
+        cfg["disparity_source"] = "hyperlf.hlf.depth (estimated reference disparity)"
     d = np.asarray(disparity, dtype=np.float32)
     if d.shape == (R, C, H, W):
         cfg["disparity_source"] = cfg.get("disparity_source", "per-view maps given")
@@ -755,7 +755,7 @@ def complete(lf, disparity=None, out_path=None, *, metric: str = "rsncc",
     disparity : None, (H, W) or (R, C, H, W)
         The reference view's disparity (forward-warped, then stereo + refinement), per-view
         maps (NaN holes are estimated and refined; complete maps are used as they are), or
-        None: estimate the reference disparity with :func:`hyperlf.depth.depth` first.
+        None: estimate the reference disparity with :func:`hyperlf.hlf.depth` first.
     out_path : path-like, optional
         Stream the cube to this HDF5 file instead of returning it (memory model in the module
         docstring).

@@ -3,7 +3,7 @@
 
 One call::
 
-    from hyperlf.depth import depth
+    from hyperlf.hlf import depth
     res = depth(lf, n_labels=64)            # lf: a spectral LightField (views, wavelengths)
     res.disparity, res.confidence, res.f_c, res.f_d, res.timings, res.config
 

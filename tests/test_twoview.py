@@ -1,4 +1,4 @@
-"""Tests of the two-view stereo pipeline (hyperlf.stereo, SPEC §4)."""
+"""Tests of the two-view stereo pipeline (hyperlf.twoview, SPEC §4)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from scipy import ndimage
 from hyperlf import costs
 from hyperlf import regularisers as reg
 from hyperlf.errors import InvalidInputError
-from hyperlf.stereo import (DEFAULT_PARAMS, StereoResult, compute_volumes, default_params,
+from hyperlf.twoview import (DEFAULT_PARAMS, StereoResult, compute_volumes, default_params,
                             select_channels, stereo)
 
 DB, DF = 2, 8                      # background / foreground disparity

@@ -1,4 +1,4 @@
-"""Tests of hyperlf.depth (SPEC §5): H-LF stereo matching, every cue and its kernels."""
+"""Tests of hyperlf.hlf (SPEC §5): H-LF stereo matching, every cue and its kernels."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import pytest
 from scipy.ndimage import gaussian_filter
 
 from hyperlf import InvalidInputError, LightField
-from hyperlf import depth as dp
-from hyperlf.depth import (DepthParams, aggregate_view, aggregate_view_reference, defocus_cost,
+from hyperlf import hlf as dp
+from hyperlf.hlf import (DepthParams, aggregate_view, aggregate_view_reference, defocus_cost,
                            defocus_cost_reference, defocus_volume, depth, half_plane_sides,
                            make_labels, selection_masks, view_costs)
 from hyperlf.metrics import rmse
@@ -114,7 +114,7 @@ def test_view_costs_subpixel_and_vertical(rng):
     """Sub-pixel labels and vertical offsets: the cost is lowest near the true shift."""
     a = gaussian_filter(rng.uniform(0.1, 1.0, (40, 40)), 1.5)
     # view at offset (0, 2): reference pixel p appears at p - d * (0, 2); true d = 0.75
-    from hyperlf.depth import shift_map
+    from hyperlf.hlf import shift_map
     b, _ = shift_map(a, 0.0, 1.5, 0)  # b(y) = a(y + 1.5)  <=>  a(y) = b(y - 1.5) = b(y - 0.75*2)
     labels = np.linspace(0, 1.5, 7)  # step 0.25, contains 0.75
     for metric in ("ncc", "census"):
