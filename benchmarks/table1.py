@@ -179,7 +179,7 @@ def tune(metrics, optimizers, tuned: dict) -> dict:
 
 
 def snippet(tuned: dict) -> str:
-    lines = ["# Paste into hyperlf/stereo.py (tuned on Venus by benchmarks/table1.py --tune):",
+    lines = ["# Paste into hyperlf/twoview.py (tuned on Venus by benchmarks/table1.py --tune):",
              "DEFAULT_PARAMS = {"]
     for (m, opt), t in sorted(tuned.items()):
         lines.append(f"    ({m!r}, {opt!r}): {t['params']!r},")
@@ -251,7 +251,7 @@ def main(argv=None) -> int:
 
     tuned: dict = {}
     param_source = ("hyperlf.twoview.DEFAULT_PARAMS / DEFAULT_WINDOWS (Venus-tuned for ncc and census; "
-                    "untuned fallbacks for the others, see stereo.py)")
+                    "untuned fallbacks for the others, see twoview.py)")
     if args.params_json:
         raw = json.loads(Path(args.params_json).read_text())
         for k, v in raw.items():
