@@ -153,14 +153,12 @@ def _write_lightfield_pictures(lf, out: Path, stem: str = "") -> list[Path]:
         written.append(visualise.save_disparity_png(out / f"{stem}gt_disparity.png", gt,
                                                     title="ground-truth disparity (reference)"))
     if lf.gt_cube is not None:
-        from . import spectral
+        from . import render
         from .formats import write_image
 
         cube = lf.gt_cube[lf.reference]  # (B, H, W)
-        rgb = spectral.spectrum_to_rgb(np.moveaxis(cube, 0, -1), lf.cube_wavelengths,
-                                       camera="CIE 1931")
-        srgb = spectral.xyz_to_srgb(rgb)
-        srgb = np.clip(srgb / max(float(np.percentile(srgb, 99.5)), 1e-6), 0, 1)
+        srgb = render.emulate_camera(cube, lf.cube_wavelengths, "CIE 1931", output="srgb",
+                                     exposure="percentile")
         written.append(write_image(out / f"{stem}reference_srgb.png", srgb, bit_depth=8))
         H, W = lf.image_shape
         y, x = H // 2, W // 2
