@@ -296,7 +296,7 @@ def _cmd_demo(args) -> int:
     big = lambda im: np.repeat(np.repeat(im, 3, axis=0), 3, axis=1)  # noqa: E731
     p_rgb = write_image(out / "render" / "reference_srgb_completed.png", big(srgb), bit_depth=8)
     p_rgb_gt = write_image(out / "render" / "reference_srgb_truth.png", big(srgb_gt), bit_depth=8)
-    sweep = render.focal_sweep(cube, lf.offsets, np.linspace(*gt_range(gt), 7), "CIE 1931",
+    sweep = render.focal_sweep(cube, lf.offsets, np.linspace(*_finite_range(gt), 7), "CIE 1931",
                                out_dir=out / "refocus", formats=("gif",), white="D65",
                                wavelengths=wl)
     H, W = lf.image_shape
@@ -343,7 +343,7 @@ def _cmd_demo(args) -> int:
     return 0
 
 
-def gt_range(gt: np.ndarray) -> tuple[float, float]:
+def _finite_range(gt: np.ndarray) -> tuple[float, float]:
     """Finite min and max of a disparity map (for sweeps)."""
     f = gt[np.isfinite(gt)]
     return float(f.min()), float(f.max())
