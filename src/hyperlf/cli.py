@@ -104,6 +104,14 @@ def _say(args, msg: str) -> None:
         print(msg, file=sys.stderr)
 
 
+def _done(args, out, written) -> int:
+    """List the files a command wrote (stderr), print its output location (stdout), exit 0."""
+    for w in written:
+        _say(args, f"wrote {w}")
+    print(out)
+    return 0
+
+
 def _layout_arg(text: str):
     if text in ("raster", "serpentine", "random"):
         return text
@@ -401,10 +409,7 @@ def _cmd_stereo(args) -> int:
                                       f"{res.metric} + {res.optimizer}", confidence=res.confidence)
     t = res.timings
     _say(args, f"cost {t['cost']:.1f} s, optimiser {t['optimiser']:.1f} s, total {t['total']:.1f} s")
-    for w in written:
-        _say(args, f"wrote {w}")
-    print(out)
-    return 0
+    return _done(args, out, written)
 
 
 def _cmd_depth(args) -> int:
@@ -456,10 +461,7 @@ def _cmd_depth(args) -> int:
                                       mask_name="all-15px-border")
         _say(args, f"against the ground truth: RMSE {sc.rmse:.4f} px, MSE x 100 "
                    f"{sc.mse_x100:.3f}, BadPix(0.07) {sc.badpix_007:.2f} %")
-    for w in written:
-        _say(args, f"wrote {w}")
-    print(out)
-    return 0
+    return _done(args, out, written)
 
 
 def _cmd_complete(args) -> int:
@@ -504,10 +506,7 @@ def _cmd_complete(args) -> int:
     written.append(write_image(out / "reference_srgb.png", srgb, bit_depth=8))
     _say(args, f"{res.stats['completed_pct']:.1f} % of (view, band, pixel) entries completed in "
                f"{res.stats['timings']['total']:.1f} s")
-    for w in written:
-        _say(args, f"wrote {w}")
-    print(out)
-    return 0
+    return _done(args, out, written)
 
 
 # --------------------------------------------------------------------------- cube commands
@@ -585,10 +584,7 @@ def _cmd_render(args) -> int:
             written.append(write_image(out / f"rgb_r{r}_c{c}.png", rgb[r, c], bit_depth=8))
         written.append(visualise.save_mosaic_png(out / "rgb_views.png", rgb,
                                                  title=f"emulated {args.camera}"))
-    for w in written:
-        _say(args, f"wrote {w}")
-    print(out)
-    return 0
+    return _done(args, out, written)
 
 
 def _cmd_refocus(args) -> int:
