@@ -44,6 +44,8 @@ import numpy as np
 
 from hyperlf import costs
 from hyperlf import regularisers as reg
+from hyperlf.datasets import dataset_path
+from hyperlf.errors import DataNotFoundError
 from hyperlf._atomic import atomic_write_text
 from hyperlf.formats.middlebury import read_middlebury
 from hyperlf.metrics import disparity_scores
@@ -79,20 +81,17 @@ def log(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
 
-def data_root() -> Path:
-    root = os.environ.get("HYPERLF_DATA")
-    if not root:
-        sys.exit("table1.py: the environment variable HYPERLF_DATA is not set; point it at the "
-                 "shared data folder (the one holding middlebury/), e.g. "
-                 "HYPERLF_DATA=../shared/data python benchmarks/table1.py")
-    path = Path(root) / "middlebury"
-    if not path.is_dir():
-        sys.exit(f"table1.py: {path} does not exist (HYPERLF_DATA={root!r} must hold middlebury/)")
-    return path
+def data_path(name: str) -> Path:
+    """A dataset under HYPERLF_DATA (:func:`hyperlf.datasets.dataset_path`); exit with its
+    one-line message when the data is missing."""
+    try:
+        return dataset_path(name)
+    except DataNotFoundError as exc:
+        sys.exit(f"table1.py: {exc}")
 
 
 def load_scene(name: str):
-    pair = read_middlebury(data_root() / name)
+    pair = read_middlebury(data_path(name))
     gt = pair.gt_disparity
     dmax = max(int(pair.max_disparity), int(math.ceil(float(np.nanmax(gt)))))
     mask_name = "all" if "all" in pair.masks else "gt"
@@ -239,7 +238,7 @@ def main(argv=None) -> int:
                     help="skip the OpenCV SGBM and red-vs-red rows")
     args = ap.parse_args(argv)
 
-    data_root()
+    data_path("venus")  # fail early, with a clear message, when the data is missing
     scenes = [s.strip().lower() for s in args.scenes.split(",") if s.strip()]
     metrics = [costs.resolve_metric(m) for m in args.metrics.split(",") if m.strip()]
     optimizers = [o.strip().lower() for o in args.optimizers.split(",") if o.strip()]
@@ -250,8 +249,8 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
 
     tuned: dict = {}
-    param_source = ("hyperlf.twoview.DEFAULT_PARAMS / DEFAULT_WINDOWS (Venus-tuned for ncc and census; "
-                    "untuned fallbacks for the others, see twoview.py)")
+    param_source = ("hyperlf.twoview.DEFAULT_PARAMS / DEFAULT_WINDOWS (every cost tuned on Venus "
+                    "with --tune, see twoview.py)")
     if args.params_json:
         raw = json.loads(Path(args.params_json).read_text())
         for k, v in raw.items():

@@ -64,6 +64,8 @@ from pathlib import Path
 
 import numpy as np
 
+from hyperlf.datasets import dataset_path
+from hyperlf.errors import DataNotFoundError
 from hyperlf.baselines import METHODS as BASELINES
 from hyperlf.hlf import DepthParams, depth
 from hyperlf.lightfield import LightField
@@ -113,13 +115,13 @@ def log(msg: str) -> None:
 
 # ----------------------------------------------------------------------------- scenes
 
-def data_root() -> Path:
-    root = os.environ.get("HYPERLF_DATA")
-    if not root:
-        sys.exit("table2.py: the environment variable HYPERLF_DATA is not set; point it at the "
-                 "shared data folder (the one holding hci4d/), e.g. "
-                 "HYPERLF_DATA=../shared/data python benchmarks/table2.py")
-    return Path(root)
+def data_path(name: str) -> Path:
+    """A dataset under HYPERLF_DATA (:func:`hyperlf.datasets.dataset_path`); exit with its
+    one-line message when the data is missing."""
+    try:
+        return dataset_path(name)
+    except DataNotFoundError as exc:
+        sys.exit(f"table2.py: {exc}")
 
 
 def _block_mean(a: np.ndarray, k: int, axes=(-2, -1)) -> np.ndarray:
@@ -141,7 +143,7 @@ def load_hci_rgb(name: str, k: int) -> LightField:
     linear RGB; ground truth block-averaged and divided by ``k``."""
     from hyperlf.formats import read_hci_scene
 
-    lf = read_hci_scene(data_root() / "hci4d" / name, rows=range(2, 7), cols=range(2, 8))
+    lf = read_hci_scene(data_path(name), rows=range(2, 7), cols=range(2, 8))
     if k == 1:
         return lf
     lin = srgb_to_linear(np.clip(lf.views, 0.0, 1.0))
