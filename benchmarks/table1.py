@@ -71,7 +71,7 @@ PAPER_BAD5 = {
 TUNE_WINDOWS = {"ssd": (5, 9), "ncc": (5, 9), "rsncc": (5, 9), "census": (5, 7),
                 "bwncc": (None,), "bwncc-paper": (None,), "fused": (None,)}
 TUNE_GRID = {
-    "graphcut": [{"weight": w, "truncation": t} for w, t in itertools.product((2.0, 4.0, 8.0),
+    "graphcut": [{"weight": w, "truncation": t} for w, t in itertools.product((1.0, 2.0, 4.0, 8.0),
                                                                               (2.0, 4.0, 8.0))],
     "sgm": [{"p1": p1, "p2": p2} for p1, p2 in itertools.product((0.5, 1.0, 2.0), (4.0, 8.0, 16.0))],
 }

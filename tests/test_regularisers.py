@@ -343,6 +343,85 @@ def test_graphcut_progress_and_options(rng):
         R.graphcut(c, edge_weights=(np.ones((6, 7)), np.ones((5, 7))))
 
 
+@settings(max_examples=20, deadline=None)
+@given(L=st.integers(2, 5), H=st.integers(1, 6), W=st.integers(1, 6), seed=st.integers(0, 2**16),
+       weight=st.floats(0.0, 2.0), potts=st.booleans())
+def test_restricted_moves_with_every_label_allowed_are_plain_alpha_expansion(L, H, W, seed,
+                                                                              weight, potts):
+    rng = np.random.default_rng(seed)
+    c = rng.random((L, H, W)).astype(np.float32)
+    kw = dict(smoothness="potts" if potts else "truncated_linear", weight=weight, truncation=2.0)
+    f0, e0 = R.graphcut(c, return_energy=True, **kw)
+    f1, e1 = R.graphcut(c, candidates=np.ones(c.shape, bool), return_energy=True, **kw)
+    np.testing.assert_array_equal(f0, f1)
+    assert e1 == pytest.approx(e0, rel=1e-12, abs=1e-12)
+
+
+@pytest.mark.parametrize("case", range(3))
+def test_restricted_move_is_exact_over_its_variables(case):
+    """One cycle with a random candidate mask: for every alpha the result is at least as good as
+    every expansion that switches only allowed pixels (brute force on a 3 x 4 grid)."""
+    rng = np.random.default_rng(7 + case)
+    L, H, W = 3, 3, 4
+    c = rng.random((L, H, W)).astype(np.float32)
+    cand = rng.random((L, H, W)) < 0.6
+    w = 0.3 + 0.2 * case
+    Vm = params_matrix("truncated_linear", L, np.arange(L, dtype=float), 1.5)
+    wx, wy = w * np.ones((H, W - 1)), w * np.ones((H - 1, W))
+    f, e = R.graphcut(c, weight=w, truncation=1.5, candidates=cand, max_cycles=20,
+                      return_energy=True)
+    assert e <= R.mrf_energy(R.wta(c), c, weight=w, truncation=1.5) + 1e-9
+    subsets = ((np.arange(2 ** (H * W))[:, None] >> np.arange(H * W)) & 1).astype(bool)
+    subsets = subsets.reshape(-1, H, W)
+    for alpha in range(L):
+        allowed = subsets & cand[alpha][None]
+        F = np.where(allowed, alpha, f[None])
+        assert batch_energy(F, c, Vm, wx, wy).min() >= e - 1e-9
+    # a pixel only ever takes its initial (WTA) label or an allowed one
+    moved = f != R.wta(c)
+    assert np.all(np.take_along_axis(cand, f[None].astype(np.intp), 0)[0][moved])
+
+
+def test_candidate_labels_top_k_and_spread():
+    c = np.zeros((6, 1, 2), np.float32)
+    c[:, 0, 0] = [5, 0, 1, 5, 5, 5]          # best labels 1, 2
+    c[:, 0, 1] = [5, 5, 5, 5, 1, 0]          # best labels 5, 4
+    m = R.candidate_labels(c, 2, spread=0)
+    np.testing.assert_array_equal(np.flatnonzero(m[:, 0, 0]), [1, 2])
+    np.testing.assert_array_equal(np.flatnonzero(m[:, 0, 1]), [4, 5])
+    m = R.candidate_labels(c, 2, spread=1)
+    np.testing.assert_array_equal(np.flatnonzero(m[:, 0, 0]), [0, 1, 2, 3])
+    np.testing.assert_array_equal(np.flatnonzero(m[:, 0, 1]), [3, 4, 5])
+    assert R.candidate_labels(c, 9).all()
+    for bad in (0, 1.5, True):
+        with pytest.raises(InvalidInputError):
+            R.candidate_labels(c, bad)
+    with pytest.raises(InvalidInputError):
+        R.graphcut(c, candidates=np.ones((6, 1, 3), bool))
+
+
+def test_multiscale_graphcut_close_to_plain_on_a_piecewise_scene(rng):
+    H, W, L = 64, 80, 24
+    yy, xx = np.mgrid[0:H, 0:W]
+    gt = np.full((H, W), 4)
+    gt[(xx > 30) & (yy > 10)] = 15
+    gt[(xx < 20) & (yy > 40)] = 9
+    gt[(xx > 50) & (yy < 30)] = 21
+    c = noisy_volume(gt, L, 0.5, rng)
+    kw = dict(weight=0.5, truncation=4.0, max_cycles=3)
+    f0, e0 = R.graphcut(c, return_energy=True, **kw)
+    f2, e2 = R.graphcut_multiscale(c, levels=2, min_size=8, return_energy=True, **kw)
+    assert e2 == pytest.approx(R.mrf_energy(f2, c, weight=0.5, truncation=4.0), rel=1e-12)
+    assert e2 <= 1.02 * e0
+    assert np.mean(f2 != gt) <= np.mean(f0 != gt) + 0.01
+    assert np.mean(f2 != gt) < 0.05
+    # levels=0, or a problem too small to halve, is plain alpha-expansion
+    np.testing.assert_array_equal(R.graphcut_multiscale(c, levels=0, **kw), f0)
+    np.testing.assert_array_equal(R.graphcut_multiscale(c, levels=3, min_size=64, **kw), f0)
+    with pytest.raises(InvalidInputError):
+        R.graphcut_multiscale(c, levels=-1)
+
+
 # ----------------------------------------------------------------------------------------------
 # occlusion handling
 # ----------------------------------------------------------------------------------------------

@@ -221,5 +221,7 @@ def test_default_params_table():
             assert p["p2"] >= p["p1"] > 0
         else:
             assert p["weight"] > 0 and p["max_cycles"] >= 1
-    assert default_params("auto", "graphcut") == DEFAULT_PARAMS[(costs.AUTO_METRIC, "graphcut")]
+    auto = default_params("auto", "graphcut")
+    assert auto == {**auto, **DEFAULT_PARAMS[(costs.AUTO_METRIC, "graphcut")]}
+    assert auto["levels"] >= 0          # every graph-cut default says how coarse-to-fine it runs
     assert default_params("ncc", "wta") == {}

@@ -38,7 +38,9 @@ Pipeline
    steps, :func:`hyperlf.regularisers.sgm`); ``graphcut`` (alpha-expansion, truncated-linear
    smoothness ``weight * w_pq * min(|d_p - d_q|, truncation)`` with contrast-sensitive
    ``w_pq = exp(-dI^2 / (2 edge_sigma^2))`` from the reference view's input image,
-   :func:`hyperlf.regularisers.graphcut`).
+   solved coarse-to-fine by :func:`hyperlf.regularisers.graphcut_multiscale`: parameter
+   ``levels``, default 2 halvings; ``levels=0`` is plain alpha-expansion, about 8-12x slower
+   on Teddy for an energy 0.5-1 % lower).
 6. **Occlusions** (``"lr-fill"``): :func:`~hyperlf.regularisers.left_right_check` (tolerance
    1 px) on the integer maps, then :func:`~hyperlf.regularisers.fill_occlusions` (each
    inconsistent pixel takes the lower of the nearest consistent disparities on its row, i.e.
@@ -82,7 +84,7 @@ OCCLUSION_MODES = ("lr-fill", "none")
 _PARAM_KEYS = {
     "wta": set(),
     "sgm": {"p1", "p2", "paths", "smoothness"},
-    "graphcut": {"smoothness", "weight", "truncation", "edge_sigma", "max_cycles"},
+    "graphcut": {"smoothness", "weight", "truncation", "edge_sigma", "max_cycles", "levels"},
 }
 
 # Fallback parameters per optimiser, in units of the normalised data term (module doc, step 4).
@@ -90,7 +92,7 @@ _BASE_PARAMS: dict[str, dict[str, Any]] = {
     "wta": {},
     "sgm": {"p1": 0.5, "p2": 2.0, "paths": 8, "smoothness": "p1p2"},
     "graphcut": {"smoothness": "truncated_linear", "weight": 1.0, "truncation": 2.0,
-                 "edge_sigma": None, "max_cycles": 3},
+                 "edge_sigma": None, "max_cycles": 3, "levels": 2},
 }
 
 #: Default optimiser parameters per ``(metric, optimizer)``; a pair that is not listed uses the
@@ -135,7 +137,7 @@ def default_params(metric: str, optimizer: str) -> dict:
     """The default optimiser parameters for ``(metric, optimizer)`` (a fresh copy)."""
     m = _costs.resolve_metric(metric)
     opt = _check_optimizer(optimizer)
-    return dict(DEFAULT_PARAMS.get((m, opt), _BASE_PARAMS[opt]))
+    return {**_BASE_PARAMS[opt], **DEFAULT_PARAMS.get((m, opt), {})}
 
 
 @dataclass
@@ -345,10 +347,11 @@ def _optimise(D: np.ndarray, optimizer: str, p: dict, guide, labels, subpixel: b
                        smoothness=p.get("smoothness", "p1p2"))
         f = _reg.wta(vol)
     else:
-        f = _reg.graphcut(D, smoothness=p.get("smoothness", "truncated_linear"),
-                          weight=p["weight"], truncation=p.get("truncation"), guide=guide,
-                          edge_sigma=p.get("edge_sigma"), max_cycles=int(p.get("max_cycles", 3)),
-                          labels=labels, progress=bool(progress) or None)
+        f = _reg.graphcut_multiscale(
+            D, smoothness=p.get("smoothness", "truncated_linear"), weight=p["weight"],
+            truncation=p.get("truncation"), guide=guide, edge_sigma=p.get("edge_sigma"),
+            max_cycles=int(p.get("max_cycles", 3)), labels=labels,
+            levels=int(p.get("levels", 2)), progress=bool(progress) or None)
         vol = D
     if subpixel:
         disp = _reg.subpixel_refine(vol, f, labels)
@@ -424,7 +427,8 @@ def stereo(left, right, disparity_range, metric: str = "auto", optimizer: str = 
     subpixel : parabola refinement of the chosen labels.
     params : optimiser parameters overriding :data:`DEFAULT_PARAMS` — sgm: ``p1``, ``p2``
         (``paths``, ``smoothness``); graphcut: ``smoothness``, ``weight``, ``truncation``,
-        ``edge_sigma``, ``max_cycles``; in units of the normalised data term.
+        ``edge_sigma``, ``max_cycles``, ``levels`` (coarse-to-fine halvings, 0 = plain
+        alpha-expansion); in units of the normalised data term.
     window : cost window (odd); None uses :data:`DEFAULT_WINDOWS` / the metric's default.
     channel : None, int, or ``(left_channel, right_channel)`` for colour inputs.
     progress : show a progress bar during graph cuts.
