@@ -487,8 +487,10 @@ def _cmd_complete(args) -> int:
                    "('hyperlf depth' with the default settings)")
     res = complete(lf, disparity, out_path=out / "cube.h5", metric=args.metric,
                    optimizer=None if args.stereo == "none" else args.stereo,
-                   progress=not args.quiet)
+                   infer=not args.no_infer, progress=not args.quiet)
     mask = read_band_mask(res.path)
+    if not args.no_infer:
+        mask |= read_band_mask(res.path, name="inferred_mask")
     missing = 1.0 - mask.mean(axis=2)  # (R, C, H, W) fraction of bands missing per pixel
     written = [res.path,
                visualise.save_mosaic_png(out / "missing_bands.png", 1.0 - missing,
@@ -504,7 +506,9 @@ def _cmd_complete(args) -> int:
                        f"{metrics.psnr(cube, lf.gt_cube):.2f} dB, SAM "
                        f"{metrics.sam(cube, lf.gt_cube, band_axis=2):.2f} deg")
     written.append(write_image(out / "reference_srgb.png", srgb, bit_depth=8))
-    _say(args, f"{res.stats['completed_pct']:.1f} % of (view, band, pixel) entries completed in "
+    _say(args, f"{res.stats['completed_pct']:.1f} % of (view, band, pixel) entries completed "
+               f"({res.stats['registered_pct']:.1f} % registered, "
+               f"{res.stats['inferred_pct']:.1f} % inferred) in "
                f"{res.stats['timings']['total']:.1f} s")
     return _done(args, out, written)
 
@@ -783,7 +787,8 @@ def build_parser() -> argparse.ArgumentParser:
                                    "disparity is warped to every view, refined (pairwise "
                                    "cross-spectral stereo + edge-aware WLS), then each band is "
                                    "warped in with occlusion checks and propagated. Writes "
-                                   "cube.h5 ([R, C, B, H, W] + validity mask), a map of missing "
+                                   "cube.h5 ([R, C, B, H, W] + registration and inference "
+                                   "masks), a map of missing "
                                    "bands and an sRGB rendering of the reference.",
                        epilog="examples:\n  hyperlf complete scene3 -o cube3\n"
                               "  hyperlf complete scene3 --disparity depth3/disparity.pfm -o cube3\n"
@@ -797,6 +802,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--metric", default="rsncc", help="pairwise stereo cost (default rsncc)")
     p.add_argument("--stereo", default="sgm", choices=["sgm", "graphcut", "wta", "none"],
                    help="pairwise stereo optimiser, or none (WLS refinement only)")
+    p.add_argument("--no-infer", action="store_true",
+                   help="do not infer entries no view observed (points hidden in the view that "
+                        "records the band) from the same band nearby; leave them to the "
+                        "spectral fill and mark them missing")
     p.add_argument("-o", "--output", required=True, help="output folder")
     p.set_defaults(func=_cmd_complete)
 

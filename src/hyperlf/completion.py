@@ -65,11 +65,17 @@ Stages
    exact geometry every band is seen by exactly one view, so propagation can only add what the
    direct check rejected for numerical reasons (e.g. a bilinear footprint at the image border,
    disparity interpolation across a slanted surface); its count is reported in ``stats``.
-5. **Output**: entries that are still missing are marked invalid in the mask and their values
-   filled (``fill``): ``"spectral"`` (default) linear interpolation over wavelength between the
-   nearest valid bands of the same pixel (constant beyond the ends; the view's own band is
-   always valid), or ``"zero"``.  Metrics "on valid entries" use the mask; metrics "on all
-   entries" use this fill.
+5. **Inference and output**: an entry still missing is a point hidden in (or outside) the one
+   view that records its band: no view observed it.  :func:`infer_missing` (``infer=True``,
+   default) gives it the joint-bilateral mean of the same band at nearby pixels of the same
+   view with a similar disparity (same surface: the hidden point is background, so the
+   foreground that hid it is excluded) and a similar recorded intensity; such entries are
+   flagged in a separate ``inferred`` mask, not in the registration mask.  Entries that are
+   still missing keep mask False and are filled (``fill``): ``"spectral"`` (default) linear
+   interpolation over wavelength between the nearest valid bands of the same pixel (constant
+   beyond the ends; the view's own band is always valid), or ``"zero"``.  "% completed" counts
+   registered and inferred entries; metrics "on valid entries" use the registration mask;
+   metrics "on all entries" use every value.
 
 Memory model (``out_path``)
 ---------------------------
@@ -80,10 +86,10 @@ cube and mask being written to an uncompressed **scratch HDF5 file** beside ``ou
 (chunks of one band image).  Propagation reads single neighbour bands back from the scratch
 file and updates views in place.  Finally every view is filled and written through
 :class:`hyperlf.formats.hdf5.CubeWriter` (atomic: nothing appears at ``out_path`` unless every
-view was written), the scratch file is deleted, and the per-entry validity mask is appended to
-the final file as dataset ``/band_mask`` (bool, ``(R, C, B, H, W)``, gzip;
-:func:`read_band_mask`).  The writer's own ``/mask`` (``(R, C, H, W)``) is True where *all*
-bands of a pixel are valid.  A 5 x 6 x 30 cube at 1200 x 900 thus never sits in memory: the peak
+view was written), the scratch file is deleted.  The per-entry registration mask
+``/band_mask`` and the inference mask ``/inferred_mask`` (bool, ``(R, C, B, H, W)``,
+:func:`read_band_mask`) are written view by view into the same atomic file.  The writer's own
+``/mask`` (``(R, C, H, W)``) is True where *all* bands of a pixel are registered.  A 5 x 6 x 30 cube at 1200 x 900 thus never sits in memory: the peak
 is about ``2 * R*C*H*W * 4`` bytes plus a few ``(B, H, W)`` views (~0.5 GB).  The in-memory
 path (``out_path=None``) runs the very same code on numpy arrays, so both give identical
 results.
@@ -119,6 +125,7 @@ __all__ = [
     "band_order",
     "background_fill",
     "fill_missing",
+    "infer_missing",
     "read_band_mask",
 ]
 
@@ -146,8 +153,12 @@ class CompletionResult:
     disparities : float32 (R, C, H, W)
         Per-view disparities used for registration (NaN = none, naive baseline only).
     stats : dict
-        ``completed_pct`` (% of entries valid), ``direct`` / ``propagated`` / ``own`` entry
-        counts, ``iterations``, ``timings`` (s per stage), ``config``.
+        ``completed_pct`` (% of entries registered or inferred), ``registered_pct``,
+        ``inferred_pct``, ``direct`` / ``propagated`` / ``own`` entry counts,
+        ``propagation_passes``, ``timings`` (s per stage), ``config``.
+    inferred : bool (R, C, B, H, W) or None
+        True where stage 5 inferred an entry (:func:`infer_missing`); None when streamed
+        (dataset ``/inferred_mask``) or when inference was off.
     """
 
     cube: np.ndarray | None
@@ -157,6 +168,7 @@ class CompletionResult:
     band_index: np.ndarray
     disparities: np.ndarray
     stats: dict = field(default_factory=dict)
+    inferred: np.ndarray | None = None
 
     @property
     def completed_pct(self) -> float:
@@ -656,18 +668,196 @@ def fill_missing(cube: np.ndarray, mask: np.ndarray, wavelengths, mode: str = "s
     return np.where(m, out, interp).astype(np.float32)
 
 
-def read_band_mask(path, view=None) -> np.ndarray:
-    """The per-entry validity ``/band_mask`` of a streamed completion file (all, or one view)."""
+def _infer_params(radius, sigma_d, sigma_g, min_weight, rounds):
+    if isinstance(radius, bool) or not isinstance(radius, (int, np.integer)) or radius < 1:
+        raise InvalidInputError(f"infer radius must be an integer >= 1, got {radius!r}")
+    if isinstance(rounds, bool) or not isinstance(rounds, (int, np.integer)) or rounds < 0:
+        raise InvalidInputError(f"infer rounds must be an integer >= 0, got {rounds!r}")
+    for v, name in ((sigma_d, "sigma_d"), (sigma_g, "sigma_g"), (min_weight, "min_weight")):
+        if not np.isfinite(v) or v <= 0:
+            raise InvalidInputError(f"infer {name} must be a positive number, got {v!r}")
+    return int(radius), float(sigma_d), float(sigma_g), float(min_weight), int(rounds)
+
+
+def _infer_round_numpy(cube, src, disp, guide, radius, sigma_d, sigma_g, min_weight):
+    """One round of :func:`infer_missing`, written over whole arrays (the reference)."""
+    B, H, W = cube.shape
+    r = radius
+    sig_s = max(radius / 2.0, 0.5)
+    pad = ((r, r), (r, r))
+    dpad = np.pad(disp, pad, constant_values=np.nan)
+    gpad = np.pad(guide, pad, constant_values=np.nan)
+    cpad = np.pad(cube, ((0, 0),) + pad)
+    spad = np.pad(src, ((0, 0),) + pad)
+    acc = np.zeros((B, H, W))
+    wsum = np.zeros((B, H, W))
+    for dy in range(-r, r + 1):
+        for dx in range(-r, r + 1):
+            dq = dpad[r + dy:r + dy + H, r + dx:r + dx + W]
+            gq = gpad[r + dy:r + dy + H, r + dx:r + dx + W]
+            with np.errstate(invalid="ignore"):
+                w = np.exp(-(dy * dy + dx * dx) / (2 * sig_s ** 2)
+                           - (disp - dq) ** 2 / (2 * sigma_d ** 2)
+                           - (guide - gq) ** 2 / (2 * sigma_g ** 2))
+            w = np.nan_to_num(w)
+            sq = spad[:, r + dy:r + dy + H, r + dx:r + dx + W]
+            cq = cpad[:, r + dy:r + dy + H, r + dx:r + dx + W]
+            acc += np.where(sq, w * cq, 0.0)
+            wsum += np.where(sq, w, 0.0)
+    got = (~src) & (wsum >= min_weight)
+    out = np.where(got, acc / np.maximum(wsum, 1e-300), cube).astype(np.float32)
+    return out, got
+
+
+_INFER_KERNEL: list = []
+
+
+def _infer_kernel():
+    if _INFER_KERNEL:
+        return _INFER_KERNEL[0]
+    from numba import njit, prange
+
+    @njit(parallel=True, cache=True)
+    def infer_round(cube, src, disp, guide, radius, sigma_d, sigma_g, min_weight, out, got):
+        B, H, W = cube.shape
+        sig_s = max(radius / 2.0, 0.5)
+        cs = 1.0 / (2.0 * sig_s * sig_s)
+        cd = 1.0 / (2.0 * sigma_d * sigma_d)
+        cg = 1.0 / (2.0 * sigma_g * sigma_g)
+        for b in prange(B):
+            for y in range(H):
+                for x in range(W):
+                    out[b, y, x] = cube[b, y, x]
+                    got[b, y, x] = False
+                    if src[b, y, x]:
+                        continue
+                    dp = disp[y, x]
+                    gp = guide[y, x]
+                    if not (np.isfinite(dp) and np.isfinite(gp)):
+                        continue
+                    acc = 0.0
+                    ws = 0.0
+                    for qy in range(max(y - radius, 0), min(y + radius + 1, H)):
+                        for qx in range(max(x - radius, 0), min(x + radius + 1, W)):
+                            if not src[b, qy, qx]:
+                                continue
+                            dq = disp[qy, qx]
+                            gq = guide[qy, qx]
+                            if not (np.isfinite(dq) and np.isfinite(gq)):
+                                continue
+                            e = (((qy - y) ** 2 + (qx - x) ** 2) * cs + (dp - dq) ** 2 * cd
+                                 + (gp - gq) ** 2 * cg)
+                            w = np.exp(-e)
+                            acc += w * cube[b, qy, qx]
+                            ws += w
+                    if ws >= min_weight:
+                        out[b, y, x] = acc / ws
+                        got[b, y, x] = True
+
+    _INFER_KERNEL.append(infer_round)
+    return infer_round
+
+
+def infer_missing(cube, mask, disparity, guide, *, radius: int = 6, sigma_d: float = 0.5,
+                  sigma_g: float = 0.1, min_weight: float = 0.05, rounds: int = 3,
+                  impl: str = "auto") -> tuple[np.ndarray, np.ndarray]:
+    """Infer the entries no view observed from the same band at nearby pixels of the same
+    surface (module docstring, stage 5).
+
+    An entry ``(b, p)`` of a view is missing after registration when the point ``p`` is hidden
+    in the view that records band ``b`` (or falls outside it).  It gets the joint-bilateral
+    mean of the band's valid entries ``q`` within ``radius`` pixels::
+
+        w_pq = exp(-|p - q|^2 / (2 (radius/2)^2) - (d_p - d_q)^2 / (2 sigma_d^2)
+                   - (g_p - g_q)^2 / (2 sigma_g^2))
+
+    where ``d`` is the view's disparity (px; a hidden point is background, so the disparity
+    term keeps the foreground that hid it out of the mean) and ``g`` the view's own recorded
+    image divided by its mean (valid everywhere; separates materials on the same surface).
+    An entry is inferred only when ``sum_q w_pq >= min_weight``; otherwise it stays missing.
+    ``rounds`` passes let inferred entries feed the next pass (holes wider than ``radius``).
+
+    Parameters
+    ----------
+    cube : (B, H, W) float; mask : (B, H, W) bool (True = registered);
+    disparity : (H, W) float, px (NaN: no inference at / from that pixel);
+    guide : (H, W) float, the view's own image (any positive scale).
+    impl : ``"numpy"`` (reference), ``"numba"`` or ``"auto"`` (numba).
+
+    Returns
+    -------
+    (cube, inferred) : float32 ``(B, H, W)`` with inferred entries filled (others unchanged),
+    and the bool map of inferred entries.
+    """
+    radius, sigma_d, sigma_g, min_weight, rounds = _infer_params(radius, sigma_d, sigma_g,
+                                                                 min_weight, rounds)
+    c = np.asarray(cube, dtype=np.float32)
+    m = np.asarray(mask, dtype=bool)
+    d = np.asarray(disparity, dtype=np.float64)
+    g = np.asarray(guide, dtype=np.float64)
+    if c.ndim != 3 or m.shape != c.shape or d.shape != c.shape[1:] or g.shape != c.shape[1:]:
+        raise InvalidInputError(
+            f"infer_missing needs cube/mask (B, H, W) and disparity/guide (H, W); got "
+            f"{c.shape}, {m.shape}, {d.shape}, {g.shape}")
+    if impl not in ("auto", "numpy", "numba"):
+        raise InvalidInputError(f"impl must be 'auto', 'numpy' or 'numba', got {impl!r}")
+    gm = float(np.nanmean(np.abs(g))) if np.isfinite(g).any() else 0.0
+    g = g / gm if gm > 0 else g
+    inferred = np.zeros(c.shape, dtype=bool)
+    out = c.copy()
+    src = m.copy()
+    for _ in range(rounds):
+        if src.all():
+            break
+        if impl == "numpy":
+            out, got = _infer_round_numpy(out, src, d, g, radius, sigma_d, sigma_g, min_weight)
+        else:
+            nxt = np.empty_like(out)
+            got = np.empty(out.shape, dtype=bool)
+            _infer_kernel()(out, src, d, g, radius, sigma_d, sigma_g, min_weight, nxt, got)
+            out = nxt
+        if not got.any():
+            break
+        inferred |= got
+        src |= got
+    return out, inferred
+
+
+def read_band_mask(path, view=None, name: str = "band_mask") -> np.ndarray:
+    """A per-entry mask of a streamed completion file (all views, or one ``(r, c)``):
+    ``name="band_mask"`` (registered entries) or ``"inferred_mask"`` (inferred entries)."""
     import h5py
 
+    if name not in ("band_mask", "inferred_mask"):
+        raise InvalidInputError(f"name must be 'band_mask' or 'inferred_mask', got {name!r}")
     with h5py.File(path, "r") as f:
-        if "band_mask" not in f:
-            raise InvalidInputError(f"{path} has no /band_mask (not written by hyperlf.completion)")
-        ds = f["band_mask"]
+        if name not in f:
+            raise InvalidInputError(f"{path} has no /{name} (not written by hyperlf.completion"
+                                    f"{', or inference was off' if name == 'inferred_mask' else ''})")
+        ds = f[name]
         return np.asarray(ds[view[0], view[1]] if view is not None else ds[()], dtype=bool)
 
 
 # ----------------------------------------------------------------------------- pipeline
+def _check_infer(infer) -> dict | None:
+    """``complete``'s ``infer`` argument as keyword arguments of :func:`infer_missing`."""
+    if infer is False or infer is None:
+        return None
+    if infer is True:
+        return {}
+    if not isinstance(infer, dict):
+        raise InvalidInputError(f"infer must be True, False or a dict of options, got {infer!r}")
+    allowed = {"radius", "sigma_d", "sigma_g", "min_weight", "rounds", "impl"}
+    unknown = set(infer) - allowed
+    if unknown:
+        raise InvalidInputError(f"unknown infer option(s) {sorted(unknown)} "
+                                f"(allowed: {', '.join(sorted(allowed))})")
+    kw = dict(infer)
+    _infer_params(kw.get("radius", 6), kw.get("sigma_d", 0.5), kw.get("sigma_g", 0.1),
+                  kw.get("min_weight", 0.05), kw.get("rounds", 3))
+    return kw
+
+
 def _view_disparities(lf, disparity, *, metric, optimizer, band, guidance, window, params,
                       wls_lambda, edge_sigma, init_confidence, stereo_confidence, keep_initial,
                       progress, timings, cfg, fill_confidence=0.5):
@@ -744,7 +934,8 @@ def complete(lf, disparity=None, out_path=None, *, metric: str = "rsncc",
              window: int | None = None, params: dict | None = None, wls_lambda: float = 1.0,
              edge_sigma: float = 0.1, init_confidence: float = 1.0,
              stereo_confidence: float = 0.25, fill_confidence: float = 0.5,
-             keep_initial: bool = True, occlusion_tol: float = 0.5, max_iter: int = 10, fill: str = "spectral",
+             keep_initial: bool = True, occlusion_tol: float = 0.5, max_iter: int = 10,
+             infer: bool | dict = True, fill: str = "spectral",
              compression: str | None = "gzip", progress: bool = False) -> CompletionResult:
     """Complete the plenoptic cube of an H-LF (SPEC §7; module docstring for every stage).
 
@@ -769,20 +960,26 @@ def complete(lf, disparity=None, out_path=None, *, metric: str = "rsncc",
         Re-projection tolerance in px of the occlusion check (stage 4).
     max_iter : int
         Maximum propagation passes (0 = none).
+    infer : bool or dict
+        Stage 5 inference of entries no view observed (:func:`infer_missing`); a dict gives
+        its keyword arguments (``radius``, ``sigma_d``, ``sigma_g``, ``min_weight``,
+        ``rounds``, ``impl``).  False: leave them to ``fill``.
     fill : {"spectral", "zero"}
-        Value of entries that stay invalid.
+        Value of entries that stay missing (neither registered nor inferred).
     compression : HDF5 compression of the output file.
     """
     lf = _check_lf(lf)
     if fill not in ("spectral", "zero"):
         raise InvalidInputError(f"fill must be 'spectral' or 'zero', got {fill!r}")
+    infer_kw = _check_infer(infer)
     t_all = time.perf_counter()
     timings: dict[str, float] = {}
     cfg: dict[str, Any] = dict(metric=metric, optimizer=optimizer, band=band, guidance=guidance,
                                window=window, params=params, wls_lambda=wls_lambda,
                                edge_sigma=edge_sigma, init_confidence=init_confidence,
                                stereo_confidence=stereo_confidence, fill_confidence=fill_confidence,
-                               keep_initial=keep_initial, occlusion_tol=occlusion_tol, max_iter=max_iter, fill=fill)
+                               keep_initial=keep_initial, occlusion_tol=occlusion_tol,
+                               max_iter=max_iter, infer=infer_kw, fill=fill)
     wl, bidx = band_order(lf)
     _, disp = _view_disparities(lf, disparity, metric=metric, optimizer=optimizer, band=band,
                                 guidance=guidance, window=window, params=params,
@@ -792,7 +989,8 @@ def complete(lf, disparity=None, out_path=None, *, metric: str = "rsncc",
                                 progress=progress, timings=timings, cfg=cfg,
                                 fill_confidence=fill_confidence)
     return _register_all(lf, disp, wl, bidx, out_path, occlusion_tol, max_iter, fill,
-                         compression, progress, timings, cfg, t_all, name="completion")
+                         compression, progress, timings, cfg, t_all, name="completion",
+                         infer=infer_kw)
 
 
 def naive_completion(lf, ref_disparity, out_path=None, fill: str = "spectral",
@@ -814,7 +1012,7 @@ def naive_completion(lf, ref_disparity, out_path=None, fill: str = "spectral",
 
 
 def _register_all(lf, disp, wl, bidx, out_path, occlusion_tol, max_iter, fill, compression,
-                  progress, timings, cfg, t_all, name):
+                  progress, timings, cfg, t_all, name, infer=None):
     from .formats.hdf5 import CubeWriter
 
     R, C = lf.grid_shape
@@ -848,10 +1046,27 @@ def _register_all(lf, disp, wl, bidx, out_path, occlusion_tol, max_iter, fill, c
         timings["propagation"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         n_valid = 0
+        n_inferred = 0
+        t_infer = 0.0
+
+        def finish(v, cv, mv):
+            """Stage 5 for one view: inference, then the fill of what is still missing."""
+            nonlocal n_valid, n_inferred, t_infer
+            n_valid += int(mv.sum())
+            iv = np.zeros(mv.shape, dtype=bool)
+            if infer is not None and not mv.all():
+                t1 = time.perf_counter()
+                cv, iv = infer_missing(cv, mv, disp[v], lf.views[v], **infer)
+                t_infer += time.perf_counter() - t1
+                n_inferred += int(iv.sum())
+            return fill_missing(cv, mv | iv, wl, fill), iv
+
         if out_path is None:
+            inferred = np.zeros(shape, dtype=bool) if infer is not None else None
             for v in views:
-                n_valid += int(store.mask[v].sum())
-                store.cube[v] = fill_missing(store.cube[v], store.mask[v], wl, fill)
+                store.cube[v], iv = finish(v, store.cube[v], store.mask[v])
+                if inferred is not None:
+                    inferred[v] = iv
             cube, mask = store.cube, store.mask
         else:
             md = {"completion": {k: (v if isinstance(v, (int, float, str, bool, type(None)))
@@ -862,24 +1077,22 @@ def _register_all(lf, disp, wl, bidx, out_path, occlusion_tol, max_iter, fill, c
             with CubeWriter(out_path, shape, wl, compression=compression, metadata=md) as wr:
                 for v in views:
                     cv, mv = store.get(v)
-                    n_valid += int(mv.sum())
-                    wr.write_view(v[0], v[1], fill_missing(cv, mv, wl, fill), mv.all(axis=0))
-            import h5py
-
-            comp = {} if compression is None else {"compression": compression}
-            with h5py.File(out_path, "r+") as f:
-                ds = f.create_dataset("band_mask", shape=shape, dtype=bool,
-                                      chunks=(1, 1, 1, H, W), **comp)
-                for v in views:
-                    ds[v[0], v[1]] = store.get(v)[1]
-            cube, mask = None, None
-        timings["output"] = time.perf_counter() - t0
+                    filled, iv = finish(v, cv, mv)
+                    wr.write_view(v[0], v[1], filled, mv.all(axis=0))
+                    wr.write_view_extra("band_mask", v[0], v[1], mv)
+                    if infer is not None:
+                        wr.write_view_extra("inferred_mask", v[0], v[1], iv)
+            cube, mask, inferred = None, None, None
+        timings["inference"] = t_infer
+        timings["output"] = time.perf_counter() - t0 - t_infer
     finally:
         store.close()
     timings["total"] = time.perf_counter() - t_all
     total = R * C * B * H * W
     stats = {
-        "completed_pct": 100.0 * n_valid / total,
+        "completed_pct": 100.0 * (n_valid + n_inferred) / total,
+        "registered_pct": 100.0 * n_valid / total,
+        "inferred_pct": 100.0 * n_inferred / total,
         "own": R * C * H * W,
         "direct": direct - R * C * H * W,
         "propagated": propagated,
@@ -888,4 +1101,4 @@ def _register_all(lf, disp, wl, bidx, out_path, occlusion_tol, max_iter, fill, c
         "config": cfg,
     }
     return CompletionResult(cube=cube, path=out_path, mask=mask, wavelengths=wl, band_index=bidx,
-                            disparities=disp, stats=stats)
+                            disparities=disp, stats=stats, inferred=inferred)

@@ -298,6 +298,31 @@ class CubeWriter:
             self._file["mask"][r, c] = m
         self._written[r, c] = True
 
+    def write_view_extra(self, name: str, r: int, c: int, data) -> None:
+        """Store a per-view array (e.g. a ``(B, H, W)`` per-entry mask) as ``/name[r, c]``.
+
+        The dataset ``(R, C) + data.shape`` (data's dtype, chunks of one ``(H, W)`` image) is
+        created on the first call; it is part of the same atomic file as the cube.
+        """
+        if self._file is None:
+            raise InvalidInputError("CubeWriter.write_view_extra called outside its 'with' block")
+        if not isinstance(name, str) or not name.isidentifier() or name in ("cube", "mask",
+                                                                            "wavelengths"):
+            raise InvalidInputError(f"extra dataset name must be a new identifier, got {name!r}")
+        R, C = self.shape[:2]
+        if not (0 <= r < R and 0 <= c < C):
+            raise InvalidInputError(f"view ({r}, {c}) is outside the {R} x {C} grid")
+        a = np.asarray(data)
+        if name not in self._file:
+            chunks = (1, 1) + (1,) * max(a.ndim - 2, 0) + a.shape[-2:] if a.ndim >= 2 else None
+            self._file.create_dataset(name, shape=(R, C) + a.shape, dtype=a.dtype,
+                                      chunks=chunks, **self._comp)
+        ds = self._file[name]
+        if ds.shape[2:] != a.shape:
+            raise InvalidInputError(f"/{name} of view ({r}, {c}) must have shape {ds.shape[2:]}, "
+                                    f"got {a.shape}")
+        ds[r, c] = a
+
     def _discard(self) -> None:
         if self._file is not None:
             with contextlib.suppress(Exception):
