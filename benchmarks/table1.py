@@ -49,7 +49,7 @@ from hyperlf.errors import DataNotFoundError
 from hyperlf._atomic import atomic_write_text
 from hyperlf.formats.middlebury import read_middlebury
 from hyperlf.metrics import disparity_scores
-from hyperlf.twoview import (DEFAULT_PARAMS, DEFAULT_WINDOWS, compute_volumes, default_params,
+from hyperlf.twoview import (DEFAULT_PARAMS, compute_volumes, default_params, default_window,
                             stereo_from_volumes)
 
 SCENES = ("tsukuba", "art", "teddy")
@@ -167,7 +167,7 @@ def tune(metrics, optimizers, tuned: dict) -> dict:
                     s = score(res.disparity, pair, mask, mask_name)
                     key = (s["bad5"], s["bad2"])
                     log(f"tune venus {m:12s} win={win} {opt:8s} {grid_p} -> bad5 {s['bad5']:.2f} "
-                        f"bad2 {s['bad2']:.2f} ({secs:.1f} s)")
+                        f"bad2 {s['bad2']:.2f} bad1 {s['bad1']:.2f} ({secs:.1f} s)")
                     best = report.get((m, opt))
                     if best is None or key < best["key"]:
                         report[(m, opt)] = {"key": key, "window": win, "params": p, "scores": s}
@@ -177,19 +177,47 @@ def tune(metrics, optimizers, tuned: dict) -> dict:
     return tuned
 
 
+def speed_report(scene: str = "teddy", metrics=("bwncc", "fused"), repeat: int = 3) -> str:
+    """End-to-end time of :func:`hyperlf.stereo` (graph cuts + LR + fill, default parameters)
+    on ``scene`` (R vs B), best of ``repeat`` after a warm-up, and one run split into descriptor,
+    cross terms (cost volume) and optimiser (both views)."""
+    from hyperlf import stereo
+
+    pair, drange, mask, mask_name = load_scene(scene)
+    L, R = pair.left[:, :, RED], pair.right[:, :, BLUE]
+    lines = [f"Speed, {scene} {L.shape[1]} x {L.shape[0]}, d {drange[0]}..{drange[1]} "
+             f"({drange[1] - drange[0] + 1} labels), graph cuts + LR + fill, "
+             f"{os.cpu_count()} cores:", "",
+             "| cost | end to end (s, best of %d) | descriptor (s) | cost volume (s) | "
+             "optimiser, both views (s) | bad5.0 |" % repeat, "|---|---|---|---|---|---|"]
+    for m in metrics:
+        warm_up(m)
+        best = float("inf")
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            res = stereo(L, R, drange, metric=m, optimizer="graphcut")
+            best = min(best, time.perf_counter() - t0)
+        bad5 = score(res.disparity, pair, mask, mask_name)["bad5"]
+        tm: dict = {}
+        if m in ("bwncc", "bwncc-paper", "fused"):   # fused = bwncc + census
+            costs.bwncc_volume(L, R, *drange, "paper" if m == "bwncc-paper" else "default",
+                               timings=tm)
+        t_cost = res.timings["cost"]
+        lines.append(f"| {m} | {best:.1f} | {tm.get('descriptor_s', float('nan')):.1f} | "
+                     f"{t_cost:.1f} | {res.timings['optimiser']:.1f} | {bad5:.2f} |")
+        log(lines[-1])
+    return "\n".join(lines) + "\n"
+
+
 def snippet(tuned: dict) -> str:
     lines = ["# Paste into hyperlf/twoview.py (tuned on Venus by benchmarks/table1.py --tune):",
              "DEFAULT_PARAMS = {"]
     for (m, opt), t in sorted(tuned.items()):
         lines.append(f"    ({m!r}, {opt!r}): {t['params']!r},")
     lines.append("}")
-    wins = {}
-    for (m, _), t in tuned.items():
-        wins.setdefault(m, t["window"])
-    lines.append(f"DEFAULT_WINDOWS = {wins!r}  # (one window per metric: the first optimiser's pick)")
+    lines.append("# DEFAULT_WINDOWS entries, per (metric, optimizer):")
     for (m, opt), t in sorted(tuned.items()):
-        if t["window"] != wins[m]:
-            lines.append(f"# note: {m}/{opt} picked window {t['window']}, not {wins[m]}")
+        lines.append(f"    ({m!r}, {opt!r}): {t['window']!r},")
     return "\n".join(lines)
 
 
@@ -236,7 +264,16 @@ def main(argv=None) -> int:
     ap.add_argument("--params-json", help="tuned parameters written by an earlier --tune run")
     ap.add_argument("--no-baselines", action="store_true",
                     help="skip the OpenCV SGBM and red-vs-red rows")
+    ap.add_argument("--speed", action="store_true",
+                    help="only time hyperlf.stereo end to end on Teddy (bwncc, fused) and exit")
     args = ap.parse_args(argv)
+    if args.speed:
+        md = speed_report()
+        print(md)
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(out / "speed.md", md)
+        return 0
 
     data_path("venus")  # fail early, with a clear message, when the data is missing
     scenes = [s.strip().lower() for s in args.scenes.split(",") if s.strip()]
@@ -268,7 +305,7 @@ def main(argv=None) -> int:
 
     def params_for(m, o):
         t = tuned.get((m, o))
-        return (dict(t["params"]), t["window"]) if t else (default_params(m, o), DEFAULT_WINDOWS.get(m))
+        return (dict(t["params"]), t["window"]) if t else (default_params(m, o), default_window(m, o))
 
     default_metric = costs.AUTO_METRIC
     pic_metric = default_metric if default_metric in metrics else (metrics[0] if metrics else None)

@@ -75,6 +75,7 @@ __all__ = [
     "compute_volumes",
     "stereo_from_volumes",
     "default_params",
+    "default_window",
 ]
 
 OPTIMIZERS = ("graphcut", "sgm", "wta")
@@ -96,41 +97,50 @@ _BASE_PARAMS: dict[str, dict[str, Any]] = {
 }
 
 #: Default optimiser parameters per ``(metric, optimizer)``; a pair that is not listed uses the
-#: optimiser's fallback (``_BASE_PARAMS``).  Tuned on **Venus only** (SPEC §4) with
-#: ``HYPERLF_DATA=... python benchmarks/table1.py --tune --scenes tsukuba --metrics ncc,census
-#: --optimizers graphcut,sgm`` (grid: graphcut weight {2,4,8} x truncation {2,4,8}, sgm
-#: p1 {0.5,1,2} x p2 {4,8,16}, window {5,9} for ncc, {5,7} for census; criterion Venus bad5.0,
-#: ties bad2.0; red vs blue, LR + fill).  Venus bad5.0 at the pick: ncc/graphcut 0.18,
-#: census/graphcut 0.37, ncc/sgm 4.41, census/sgm 4.42.  Several picks sit on the grid's upper
-#: edge (Venus is piecewise planar and rewards strong smoothing).
-#: NOT yet tuned (fallback values): ssd, rsncc, bwncc, bwncc-paper, fused.
+#: optimiser's fallback (``_BASE_PARAMS``).  Tuned on **Venus only** (SPEC §4), red vs blue,
+#: LR check + background fill, by ``benchmarks/table1.py --tune`` (grid: graph cuts weight
+#: {1,2,4,8} x truncation {2,4,8} with the coarse-to-fine solver, SGM p1 {0.5,1,2} x p2
+#: {4,8,16}; windows {5,9} for ssd/ncc/rsncc, {5,7} for census; criterion Venus bad5.0, ties by
+#: bad2.0), then fixed for every other scene.  Graph-cut rows: 2026-11-23, after the solver
+#: became coarse-to-fine; SGM rows: the earlier tuning run.  Venus is piecewise planar and
+#: rewards strong smoothing: several picks sit on the grid's upper edge, and on Tsukuba a
+#: weight of 4 or more can make the MRF give the weakly textured lamp the background's
+#: disparity (BENCHMARKS.md, Table 1).
 DEFAULT_PARAMS: dict[tuple[str, str], dict[str, Any]] = {
     # Tuned on Venus only (R vs B) by `benchmarks/table1.py --tune`; fixed for every other scene.
-    ("ssd", "graphcut"): {"smoothness": "truncated_linear", "weight": 8.0, "truncation": 8.0, "edge_sigma": None, "max_cycles": 3},  # Venus bad5 9.33, window 5
+    ("ssd", "graphcut"): {"smoothness": "truncated_linear", "weight": 8.0, "truncation": 8.0, "edge_sigma": None, "max_cycles": 3, "levels": 2},  # Venus bad5 9.53, window 9
     ("ssd", "sgm"): {"p1": 1.0, "p2": 16.0, "paths": 8, "smoothness": "p1p2"},  # Venus bad5 11.80, window 5
-    ("rsncc", "graphcut"): {"smoothness": "truncated_linear", "weight": 8.0, "truncation": 8.0, "edge_sigma": None, "max_cycles": 3},  # Venus bad5 0.47, window 5
+    ("rsncc", "graphcut"): {"smoothness": "truncated_linear", "weight": 8.0, "truncation": 4.0, "edge_sigma": None, "max_cycles": 3, "levels": 2},  # Venus bad5 0.49, window 5
     ("rsncc", "sgm"): {"p1": 2.0, "p2": 16.0, "paths": 8, "smoothness": "p1p2"},  # Venus bad5 1.03, window 5
-    ("bwncc", "graphcut"): {"smoothness": "truncated_linear", "weight": 8.0, "truncation": 8.0, "edge_sigma": None, "max_cycles": 3},  # Venus bad5 0.13, window None
+    ("bwncc", "graphcut"): {"smoothness": "truncated_linear", "weight": 4.0, "truncation": 8.0, "edge_sigma": None, "max_cycles": 3, "levels": 2},  # Venus bad5 0.04, window None
     ("bwncc", "sgm"): {"p1": 2.0, "p2": 16.0, "paths": 8, "smoothness": "p1p2"},  # Venus bad5 4.14, window None
-    ("bwncc-paper", "graphcut"): {"smoothness": "truncated_linear", "weight": 8.0, "truncation": 8.0, "edge_sigma": None, "max_cycles": 3},  # Venus bad5 0.41, window None
+    ("bwncc-paper", "graphcut"): {"smoothness": "truncated_linear", "weight": 2.0, "truncation": 8.0, "edge_sigma": None, "max_cycles": 3, "levels": 2},  # Venus bad5 1.07, window None
     ("bwncc-paper", "sgm"): {"p1": 2.0, "p2": 16.0, "paths": 8, "smoothness": "p1p2"},  # Venus bad5 8.12, window None
-    ("fused", "graphcut"): {"smoothness": "truncated_linear", "weight": 4.0, "truncation": 8.0, "edge_sigma": None, "max_cycles": 3},  # Venus bad5 0.11, window None
+    ("fused", "graphcut"): {"smoothness": "truncated_linear", "weight": 4.0, "truncation": 8.0, "edge_sigma": None, "max_cycles": 3, "levels": 2},  # Venus bad5 0.09, window None
     ("fused", "sgm"): {"p1": 2.0, "p2": 16.0, "paths": 8, "smoothness": "p1p2"},  # Venus bad5 2.15, window None
-    ("ncc", "graphcut"): {"smoothness": "truncated_linear", "weight": 8.0, "truncation": 8.0,
-                          "edge_sigma": None, "max_cycles": 3},
+    ("ncc", "graphcut"): {"smoothness": "truncated_linear", "weight": 8.0, "truncation": 4.0, "edge_sigma": None, "max_cycles": 3, "levels": 2},  # Venus bad5 0.91, window 5
     ("ncc", "sgm"): {"p1": 2.0, "p2": 16.0, "paths": 8, "smoothness": "p1p2"},
-    ("census", "graphcut"): {"smoothness": "truncated_linear", "weight": 2.0, "truncation": 8.0,
-                             "edge_sigma": None, "max_cycles": 3},
+    ("census", "graphcut"): {"smoothness": "truncated_linear", "weight": 4.0, "truncation": 8.0, "edge_sigma": None, "max_cycles": 3, "levels": 2},  # Venus bad5 1.23, window 7
     ("census", "sgm"): {"p1": 2.0, "p2": 16.0, "paths": 8, "smoothness": "p1p2"},
 }
 
-#: Cost window per metric used when ``window=None`` (None = the metric's own default in
-#: :mod:`hyperlf.costs`: 5 for ssd/ncc/rsncc, 7 for census, per level for bwncc).  Tuned on
-#: Venus together with :data:`DEFAULT_PARAMS` (ncc: 5; census: 5 for both optimisers).
-DEFAULT_WINDOWS: dict[str, int | None] = {
+#: Cost window used when ``window=None``, per ``(metric, optimizer)`` or, failing that, per
+#: metric (None = the metric's own default in :mod:`hyperlf.costs`: 5 for ssd/ncc/rsncc, 7 for
+#: census, per level for bwncc).  Tuned on Venus together with :data:`DEFAULT_PARAMS`
+#: (:func:`default_window`).
+DEFAULT_WINDOWS: dict = {
     "ssd": None, "ncc": 5, "rsncc": None, "census": 5,
     "bwncc": None, "bwncc-paper": None, "fused": None,
+    ("ssd", "graphcut"): 9, ("ncc", "graphcut"): 5, ("rsncc", "graphcut"): 5,
+    ("census", "graphcut"): 7,
 }
+
+
+def default_window(metric: str, optimizer: str) -> int | None:
+    """The default cost window of ``(metric, optimizer)`` (:data:`DEFAULT_WINDOWS`)."""
+    m = _costs.resolve_metric(metric)
+    opt = _check_optimizer(optimizer)
+    return DEFAULT_WINDOWS.get((m, opt), DEFAULT_WINDOWS.get(m))
 
 
 def default_params(metric: str, optimizer: str) -> dict:
@@ -447,7 +457,7 @@ def stereo(left, right, disparity_range, metric: str = "auto", optimizer: str = 
     dmin, dmax = _check_range(disparity_range, L.shape[1])
     p = _merge_params(name, optimizer, params)
     if window is None:
-        window = DEFAULT_WINDOWS.get(name)
+        window = default_window(name, optimizer)
     if not isinstance(subpixel, (bool, np.bool_)):
         raise InvalidInputError(f"subpixel must be True or False, got {subpixel!r}")
     if L.mean() <= 0 or R.mean() <= 0:
