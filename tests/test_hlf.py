@@ -60,7 +60,7 @@ def test_validation_errors(small_lf):
     with pytest.raises(InvalidInputError, match="wavelength"):
         depth(grey, n_labels=4, metric="ncc", defocus="tv")
     with pytest.raises(InvalidInputError, match="metric"):
-        depth(small_lf, n_labels=4, metric="rsncc")
+        depth(small_lf, n_labels=4, metric="ssd")
     with pytest.raises(InvalidInputError, match="unknown metric"):
         depth(small_lf, n_labels=4, metric="nope")
     with pytest.raises(InvalidInputError, match="optimizer"):
@@ -96,13 +96,16 @@ def test_make_labels():
 def test_view_costs_match_two_view_costs_at_integer_disparities(rng):
     """A horizontal neighbour (offset (1, 0)) at integer labels is the two-view case:
     q = p - d, as in hyperlf.costs (left x vs right x - d)."""
-    from hyperlf.costs import bwncc_volume, ncc_volume
+    from hyperlf.costs import bwncc_volume, ncc_volume, rsncc_volume
     a = gaussian_filter(rng.uniform(0.1, 1.0, (24, 40)), 1.0)
     b = np.roll(a, -2, axis=1) * 0.7 + 0.01  # a(x) = b(x - 2): true d = 2 (and a gain)
     labels = np.arange(-1, 4, dtype=float)
     C, valid = view_costs(a, b, (1.0, 0.0), labels, "ncc")
     ref = ncc_volume(a, b, -1, 3, window=5)
     np.testing.assert_allclose(C[valid], ref[valid], atol=2e-5)
+    C, valid = view_costs(a, b, (1.0, 0.0), labels, "rsncc")
+    ref = rsncc_volume(a, b, -1, 3, window=5)
+    np.testing.assert_allclose(C[valid], ref[valid], atol=5e-4)
     C, valid = view_costs(a, b, (1.0, 0.0), labels, "bwncc")
     ref = bwncc_volume(a, b, -1, 3, variant="default")
     np.testing.assert_allclose(C[valid], ref[valid], atol=2e-4)
@@ -117,7 +120,7 @@ def test_view_costs_subpixel_and_vertical(rng):
     from hyperlf.hlf import shift_map
     b, _ = shift_map(a, 0.0, 1.5, 0)  # b(y) = a(y + 1.5)  <=>  a(y) = b(y - 1.5) = b(y - 0.75*2)
     labels = np.linspace(0, 1.5, 7)  # step 0.25, contains 0.75
-    for metric in ("ncc", "census"):
+    for metric in ("ncc", "rsncc", "census"):
         C, valid = view_costs(a, b, (0.0, 2.0), labels, metric)
         inner = C[:, 6:-6, 6:-6]
         assert np.mean(np.argmin(inner, axis=0) == 3) > 0.8, metric

@@ -185,7 +185,7 @@ __all__ = [
 
 DEFOCUS_MODES = ("off", "paper", "gaussian", "flat", "tv")
 OPTIMIZERS = ("graphcut", "sgm", "wta")
-CORR_METRICS = ("fused", "bwncc", "bwncc-paper", "ncc", "census")
+CORR_METRICS = ("fused", "bwncc", "bwncc-paper", "ncc", "rsncc", "census")
 _PRIOR_CODE = {"gaussian": 0, "flat": 1, "tv": 2}
 #: The reference descriptor blocks with their float64 statistics (~20 bytes per channel and
 #: pixel) are cached across views when they fit in this many bytes, else recomputed per view.
@@ -525,6 +525,18 @@ def _ncc_view_costs(ref_img, img, shifts, n, tau_rel):
     return out
 
 
+def _rsncc_view_costs(ref_img, img, shifts, n, tau_rel, rs_tau: float = 1.0):
+    """RSNCC (Shen et al. 2014, :func:`hyperlf.costs.rsncc_volume`) with sub-pixel shifts:
+    ``rho(1 - NCC(In)) + rs_tau * rho(1 - NCC(|grad In|))``; the gradient term is unchanged
+    by a contrast reversal between bands."""
+    from .costs import _grad_mag, rho
+    ci = _ncc_view_costs(ref_img, img, shifts, n, tau_rel)
+    gA = _grad_mag(_normalised(ref_img))
+    gB = _grad_mag(_normalised(img))
+    cg = _ncc_view_costs(gA + 1e-6, gB + 1e-6, shifts, n, tau_rel)
+    return (rho(ci) + float(rs_tau) * rho(cg)).astype(np.float32)
+
+
 def _census_view_costs(ref_img, img, shifts, window):
     from .costs import census_transform
     L = len(shifts)
@@ -592,7 +604,7 @@ def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | 
     reference, and its validity ``(L, H, W)`` (``q_v`` inside the image).
 
     ``offset = (dx, dy) = pos_v - pos_ref``; label ``d`` compares ``p`` with ``p - d (dx, dy)``.
-    ``metric``: ``"fused"`` (``"auto"``), ``"bwncc"``, ``"bwncc-paper"``, ``"ncc"``,
+    ``metric``: ``"fused"`` (``"auto"``), ``"bwncc"``, ``"bwncc-paper"``, ``"ncc"``, ``"rsncc"``,
     ``"census"``.  Invalid entries carry the pixel's worst valid cost (for display; the
     aggregation masks them anyway).
     """
@@ -613,6 +625,8 @@ def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | 
     cache = {} if _cache is None else _cache
     if name == "ncc":
         C = _ncc_view_costs(A, B, shifts, 5 if window is None else window, tau_rel)
+    elif name == "rsncc":
+        C = _rsncc_view_costs(A, B, shifts, 5 if window is None else window, tau_rel)
     elif name == "census":
         C = _census_view_costs(A, B, shifts, 7 if window is None else window)
     elif name in ("bwncc", "bwncc-paper"):
@@ -1071,7 +1085,8 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
         Default ``lf.disparity_range``; one of the two is required.
     n_labels : int
         Labels evenly spaced over the range (>= 2).
-    metric : "auto" (= ``hyperlf.costs.AUTO_METRIC``), "bwncc", "bwncc-paper", "ncc", "census".
+    metric : "auto" (= ``hyperlf.costs.AUTO_METRIC``), "bwncc", "bwncc-paper", "ncc", "rsncc",
+        "census".
     view_selection, occlusion_split : bool
         SPEC §5.1 and §5.2 cues (defaults: measured, see the module docstring).
     defocus : "off", "paper", "gaussian", "flat" or "tv" (SPEC §5.3).
