@@ -54,7 +54,7 @@ from hyperlf.twoview import (DEFAULT_PARAMS, compute_volumes, default_params, de
 
 SCENES = ("tsukuba", "art", "teddy")
 TUNING_SCENE = "venus"
-ALL_METRICS = ("ssd", "ncc", "rsncc", "census", "bwncc-paper", "bwncc", "fused")
+ALL_METRICS = ("ssd", "ncc", "rsncc", "census", "bwncc-paper", "bwncc", "fused", "census-rsncc")
 OPTIMIZERS = ("graphcut", "sgm")
 RED, BLUE = 0, 2
 
@@ -69,7 +69,7 @@ PAPER_BAD5 = {
 
 # Venus tuning grid (kept small: 2 shared cores).
 TUNE_WINDOWS = {"ssd": (5, 9), "ncc": (5, 9), "rsncc": (5, 9), "census": (5, 7),
-                "bwncc": (None,), "bwncc-paper": (None,), "fused": (None,)}
+                "bwncc": (None,), "bwncc-paper": (None,), "fused": (None,), "census-rsncc": (None,)}
 TUNE_GRID = {
     "graphcut": [{"weight": w, "truncation": t} for w, t in itertools.product((1.0, 2.0, 4.0, 8.0),
                                                                               (2.0, 4.0, 8.0))],

@@ -66,7 +66,8 @@ CLASSICAL = ["ssd", "ncc", "rsncc", "census"]
 
 
 def test_registry_and_resolve():
-    assert set(costs.METRICS) == {"ssd", "ncc", "rsncc", "census", "bwncc", "bwncc-paper", "fused"}
+    assert set(costs.METRICS) == {"ssd", "ncc", "rsncc", "census", "bwncc", "bwncc-paper", "fused",
+                                  "census-rsncc"}
     assert costs.resolve_metric("auto") == costs.AUTO_METRIC in costs.METRICS
     assert costs.resolve_metric("NCC") == "ncc"
     with pytest.raises(InvalidInputError):
@@ -328,7 +329,7 @@ def test_window_stats_float64_vs_naive_float32(rng):
 # ---------------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("metric", CLASSICAL + ["bwncc", "fused"])
+@pytest.mark.parametrize("metric", CLASSICAL + ["bwncc", "fused", "census-rsncc"])
 def test_out_of_image_rule(rng, metric):
     left, right = _pair(rng)
     dmin, dmax = -3, 6

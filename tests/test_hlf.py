@@ -120,7 +120,7 @@ def test_view_costs_subpixel_and_vertical(rng):
     from hyperlf.hlf import shift_map
     b, _ = shift_map(a, 0.0, 1.5, 0)  # b(y) = a(y + 1.5)  <=>  a(y) = b(y - 1.5) = b(y - 0.75*2)
     labels = np.linspace(0, 1.5, 7)  # step 0.25, contains 0.75
-    for metric in ("ncc", "rsncc", "census"):
+    for metric in ("ncc", "rsncc", "census", "census-rsncc"):
         C, valid = view_costs(a, b, (0.0, 2.0), labels, metric)
         inner = C[:, 6:-6, 6:-6]
         assert np.mean(np.argmin(inner, axis=0) == 3) > 0.8, metric

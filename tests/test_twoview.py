@@ -162,12 +162,15 @@ def test_right_volume_is_exact(metric):
     np.testing.assert_allclose(cr[ok], direct[ok], rtol=1e-4, atol=1e-4)
 
 
-def test_fused_right_volume_is_refused_per_right_pixel():
-    """``fused`` normalises per pixel, so its right volume is fused again from the shifted raw
+@pytest.mark.parametrize("metric", ["fused", "census-rsncc"])
+def test_fused_right_volume_is_refused_per_right_pixel(metric):
+    """Fusions normalise per pixel, so their right volume is fused again from the shifted raw
     parts (not a shift of the fused left volume); out-of-image entries carry the worst cost."""
     L, R, _ = cross_spectral()
     dmin, dmax = 0, 6
-    cl, cr = compute_volumes(L[:32, :48], R[:32, :48], dmin, dmax, "fused")
+    cl, cr = compute_volumes(L[:32, :48], R[:32, :48], dmin, dmax, metric)
+    np.testing.assert_allclose(cl, costs.cost_volume(L[:32, :48], R[:32, :48], dmin, dmax,
+                                                     metric), rtol=1e-6, atol=1e-6)
     assert cl.shape == cr.shape == (7, 32, 48)
     assert np.isfinite(cr).all()
     naive = reg.right_cost_from_left(cl, np.arange(dmin, dmax + 1))

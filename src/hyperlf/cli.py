@@ -736,7 +736,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="integer disparity search range in px (required)")
     p.add_argument("--metric", default="auto",
                    choices=["auto", "bwncc", "bwncc-paper", "ssd", "ncc", "rsncc", "census",
-                            "fused"],
+                            "fused", "census-rsncc"],
                    help="matching cost (default auto: the library's cross-spectral default)")
     p.add_argument("--optimizer", default="graphcut", choices=["graphcut", "sgm", "wta"],
                    help="regulariser (default graphcut: alpha-expansion)")
@@ -768,7 +768,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "--disparity-range=-2,2 when MIN is negative")
     p.add_argument("--labels", type=int, default=64, help="number of disparity labels (64)")
     p.add_argument("--metric", default="auto", help="correspondence cost of hlf: auto (default), "
-                   "bwncc, bwncc-paper, ncc, census")
+                   "bwncc, bwncc-paper, ncc, rsncc, census, census-rsncc (about 30x faster "
+                   "than auto)")
     p.add_argument("--optimizer", default="graphcut", choices=["graphcut", "sgm", "wta"])
     p.add_argument("--view-selection", action="store_true",
                    help="enable the paper's local view selection (off by default: it did not "

@@ -37,6 +37,9 @@ Metrics (names used by ``--metric``; registry :data:`METRICS`)
   ``DescriptorParams.default()`` with NCC patch ``n = w`` for each level's channels;
   ``bwncc-paper`` the literal ``DescriptorParams.paper()`` with ``n = 5`` for all channels.
 * ``fused``: ``(norm(bwncc) + norm(census 7x7)) / 2`` (:func:`fuse`, :func:`normalise_volume`).
+* ``census-rsncc``: ``(norm(rsncc 5x5) + norm(census 7x7)) / 2``, the same fusion without the
+  descriptor: census for intensity order where bands agree, RSNCC's gradient term where they
+  reverse; 20-40x cheaper than ``fused`` (H-LF: Table 2 notes in BENCHMARKS.md).
 * ``auto``: an alias, resolved by :func:`resolve_metric` to :data:`AUTO_METRIC` (currently
   ``"fused"``, the only variant that beat NCC and RSNCC on both prototype scenes under WTA and
   SGM; the Table 1 benchmark decides).
@@ -1291,6 +1294,19 @@ def _m_fused(l, r, dmin, dmax, window=None, impl="auto", **kw):
     return fused_volume(l, r, dmin, dmax, window=window, impl=impl, **kw)
 
 
+def census_rsncc_volume(left, right, dmin, dmax, window=None, impl: str = "auto",
+                        rsncc_window: int = 5, census_window: int = 7, weights=(1.0, 1.0)):
+    """``(norm(rsncc) + norm(census)) / 2`` (module docstring; ``weights`` generalise the mean).
+    ``window`` is ignored (use ``rsncc_window`` / ``census_window``)."""
+    a = rsncc_volume(left, right, dmin, dmax, window=rsncc_window, impl=impl)
+    c = census_volume(left, right, dmin, dmax, window=census_window, impl=impl)
+    return fuse([a, c], weights, dmin)
+
+
+def _m_census_rsncc(l, r, dmin, dmax, window=None, impl="auto", **kw):
+    return census_rsncc_volume(l, r, dmin, dmax, window=window, impl=impl, **kw)
+
+
 METRICS: dict[str, Callable] = {
     "ssd": _m_ssd,
     "ncc": _m_ncc,
@@ -1299,6 +1315,7 @@ METRICS: dict[str, Callable] = {
     "bwncc": _m_bwncc,
     "bwncc-paper": _m_bwncc_paper,
     "fused": _m_fused,
+    "census-rsncc": _m_census_rsncc,
 }
 METRIC_NAMES = tuple(METRICS) + ("auto",)
 

@@ -25,7 +25,8 @@ Pipeline
    It costs no second volume computation.  Computing the volume again with swapped and mirrored
    inputs would *not* be exact for ``bwncc`` (mirroring maps gradient directions
    ``theta -> 1 - theta``, and the overlapping, asymmetric bins are not mirror-symmetric) and
-   would double the cost time.  The one exception is ``fused`` (and ``auto``): its
+   would double the cost time.  The exceptions are the fusions ``fused`` (``auto``) and
+   ``census-rsncc``: their
    normalisation subtracts a *per-pixel* minimum, which is referenced to the left pixel; so for
    ``fused`` the raw ``bwncc`` and ``census`` parts are shifted separately and fused again with
    the right view's validity (:func:`compute_volumes`), which is exact as well.
@@ -122,6 +123,8 @@ DEFAULT_PARAMS: dict[tuple[str, str], dict[str, Any]] = {
     ("ncc", "sgm"): {"p1": 2.0, "p2": 16.0, "paths": 8, "smoothness": "p1p2"},
     ("census", "graphcut"): {"smoothness": "truncated_linear", "weight": 4.0, "truncation": 8.0, "edge_sigma": None, "max_cycles": 3, "levels": 2},  # Venus bad5 1.23, window 7
     ("census", "sgm"): {"p1": 2.0, "p2": 16.0, "paths": 8, "smoothness": "p1p2"},
+    ("census-rsncc", "graphcut"): {"smoothness": "truncated_linear", "weight": 2.0, "truncation": 4.0, "edge_sigma": None, "max_cycles": 3, "levels": 2},  # Venus bad5 0.38, window None
+    ("census-rsncc", "sgm"): {"p1": 2.0, "p2": 16.0, "paths": 8, "smoothness": "p1p2"},  # Venus bad5 0.92, window None
 }
 
 #: Cost window used when ``window=None``, per ``(metric, optimizer)`` or, failing that, per
@@ -130,7 +133,7 @@ DEFAULT_PARAMS: dict[tuple[str, str], dict[str, Any]] = {
 #: (:func:`default_window`).
 DEFAULT_WINDOWS: dict = {
     "ssd": None, "ncc": 5, "rsncc": None, "census": 5,
-    "bwncc": None, "bwncc-paper": None, "fused": None,
+    "bwncc": None, "bwncc-paper": None, "fused": None, "census-rsncc": None,
     ("ssd", "graphcut"): 9, ("ncc", "graphcut"): 5, ("rsncc", "graphcut"): 5,
     ("census", "graphcut"): 7,
 }
@@ -318,13 +321,18 @@ def compute_volumes(left, right, dmin: int, dmax: int, metric: str = "auto", win
     name = _costs.resolve_metric(metric)
     kw = dict(cost_params or {})
     labels = np.arange(dmin, dmax + 1, dtype=np.float64)
-    if name == "fused" and need_right:
+    if name in ("fused", "census-rsncc") and need_right:
         # Shift the raw parts, then fuse each reference with its own validity (exact).
-        bw = kw.pop("bwncc_window", None)
         cw = kw.pop("census_window", 7)
         weights = kw.pop("weights", (1.0, 1.0))
         impl = kw.pop("impl", "auto")
-        b = _costs.bwncc_volume(left, right, dmin, dmax, "default", window=bw, impl=impl, **kw)
+        if name == "fused":
+            bw = kw.pop("bwncc_window", None)
+            b = _costs.bwncc_volume(left, right, dmin, dmax, "default", window=bw, impl=impl,
+                                    **kw)
+        else:
+            b = _costs.rsncc_volume(left, right, dmin, dmax,
+                                    window=kw.pop("rsncc_window", 5), impl=impl, **kw)
         c = _costs.census_volume(left, right, dmin, dmax, window=cw, impl=impl)
         cl = _costs.fuse([b, c], weights, dmin)
         vr = _right_validity(cl.shape[1:], dmin, dmax)
