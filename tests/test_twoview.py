@@ -58,8 +58,8 @@ INTERIOR = (slice(4, H - 4), slice(12, W - 4))
 @pytest.fixture(scope="module")
 def cross_result():
     # Moderate smoothing, pinned: this checks the graph-cut + occlusion pipeline, not the
-    # Venus-tuned defaults (weight 8, truncation 8), which over-smooth small scenes like this
-    # one (22.7 % bad1.0 here) just as they over-smooth Tsukuba (see BENCHMARKS.md).
+    # Venus-tuned defaults (weight 4-8, truncation 4-8), which over-smooth small scenes like
+    # this one just as they can over-smooth Tsukuba's lamp (see BENCHMARKS.md).
     L, R, gt = cross_spectral()
     params = {"weight": 1.0, "truncation": 2.0}
     return stereo(L, R, (0, 12), metric="bwncc", optimizer="graphcut", occlusion="lr-fill",

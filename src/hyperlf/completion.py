@@ -30,8 +30,9 @@ Stages
    merged per view as a **confidence-weighted mean** (confidence = cost margin,
    :func:`hyperlf.regularisers.confidence`); only two running sums per view are held.
    Default metric: ``"rsncc"`` (cross-spectral robust NCC of Shen et al.); it is fast, and with
-   the guidance and the narrow band the choice of metric matters little.  ``metric="bwncc"`` or
-   ``"auto"`` gives the paper's BWNCC, about 50x slower at the time of writing.
+   the guidance and the narrow band the choice of metric matters little.  ``metric="bwncc"``
+   gives the paper's BWNCC, about 50x slower at the time of writing; ``"auto"`` the two-view
+   default (:data:`hyperlf.costs.AUTO_METRIC`).
 3. **Refinement** (:func:`refine_disparity`): a confidence-weighted, edge-aware weighted least
    squares problem (after Park et al. 2014, adapted to a single spectral image as guide)::
 

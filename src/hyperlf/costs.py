@@ -40,9 +40,13 @@ Metrics (names used by ``--metric``; registry :data:`METRICS`)
 * ``census-rsncc``: ``(norm(rsncc 5x5) + norm(census 7x7)) / 2``, the same fusion without the
   descriptor: census for intensity order where bands agree, RSNCC's gradient term where they
   reverse; 20-40x cheaper than ``fused`` (H-LF: Table 2 notes in BENCHMARKS.md).
-* ``auto``: an alias, resolved by :func:`resolve_metric` to :data:`AUTO_METRIC` (currently
-  ``"fused"``, the only variant that beat NCC and RSNCC on both prototype scenes under WTA and
-  SGM; the Table 1 benchmark decides).
+* ``auto``: an alias, resolved by :func:`resolve_metric` to :data:`AUTO_METRIC`, the two-view
+  default: ``"census-rsncc"``.  Chosen by Table 1 (BENCHMARKS.md): parameters tuned on Venus
+  only, it has the lowest bad5.0 of every cost under graph cuts on Tsukuba (1.63), Teddy (6.00)
+  and Art (19.49), and on a synthetic pair with contrast-reversed regions it finds 82 % of the
+  shifts by WTA where ``fused`` and ``census`` find 35 %.  (It was ``"fused"`` before: the
+  fusion that beat NCC and RSNCC on the prototype scenes.)  H-LF matching has its own
+  default (:data:`hyperlf.hlf.AUTO_METRIC`).
 
 ``window=None`` in :func:`cost_volume` means each metric's own default (5 for ssd/ncc/rsncc,
 7 for census, per-level/5 for bwncc/bwncc-paper); an explicit ``window`` applies to every
@@ -100,7 +104,7 @@ __all__ = [
 ]
 
 _IMPLS = ("auto", "numpy", "numba")
-AUTO_METRIC = "fused"
+AUTO_METRIC = "census-rsncc"
 # impl="auto" choice per metric (measured on 450x375, 60 disparities, 2 cores; see module doc).
 _AUTO_IMPL = {"ncc": "numba", "rsncc": "numba", "census": "numba", "bwncc": "numba"}
 
@@ -1320,13 +1324,13 @@ METRICS: dict[str, Callable] = {
 METRIC_NAMES = tuple(METRICS) + ("auto",)
 
 
-def resolve_metric(name: str) -> str:
-    """Return the concrete metric name (``"auto"`` -> :data:`AUTO_METRIC`)."""
+def resolve_metric(name: str, auto: str | None = None) -> str:
+    """Return the concrete metric name (``"auto"`` -> ``auto``, default :data:`AUTO_METRIC`)."""
     if not isinstance(name, str):
         raise InvalidInputError(f"metric must be a string, one of {METRIC_NAMES}, got {name!r}")
     key = name.strip().lower()
     if key == "auto":
-        return AUTO_METRIC
+        return AUTO_METRIC if auto is None else auto
     if key not in METRICS:
         raise InvalidInputError(f"unknown metric {name!r}; choose one of {', '.join(METRIC_NAMES)}")
     return key

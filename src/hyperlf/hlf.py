@@ -34,7 +34,7 @@ are sampled there **bilinearly** (sub-pixel); candidates with ``q_v`` outside th
      border); validity is decided by the centre ``q_v`` alone.  ``tau_var = tau_rel`` x the
      mean patch variance of the block's channels, per view (as :func:`hyperlf.costs.bwncc_volume`
      with ``tau_scope="block"``).
-   * ``fused`` (= ``auto``, :data:`hyperlf.costs.AUTO_METRIC`): per view,
+   * ``fused`` (= ``auto`` here, :data:`AUTO_METRIC`): per view,
      ``(norm(bwncc) + norm(census 7x7)) / 2`` with :func:`hyperlf.costs.fuse` on that view's
      volumes and validity (so the fusion is exactly the two-view one, view by view).
    * ``ncc``: ``1 - NCC`` of the intensities, 5 x 5, same kernel (one channel).
@@ -181,11 +181,17 @@ __all__ = [
     "DEFOCUS_MODES",
     "OPTIMIZERS",
     "CORR_METRICS",
+    "AUTO_METRIC",
 ]
 
 DEFOCUS_MODES = ("off", "paper", "gaussian", "flat", "tv")
 OPTIMIZERS = ("graphcut", "sgm", "wta")
 CORR_METRICS = ("fused", "bwncc", "bwncc-paper", "ncc", "rsncc", "census", "census-rsncc")
+#: What ``metric="auto"`` means for H-LF matching (the two-view default is
+#: :data:`hyperlf.costs.AUTO_METRIC`).  ``"fused"`` (bwncc + census): the lowest RMSE on
+#: antinous in Table 2; ``"census-rsncc"`` is lower on the procedural scenes and ~30x faster
+#: (BENCHMARKS.md, Table 2).
+AUTO_METRIC = "fused"
 _PRIOR_CODE = {"gaussian": 0, "flat": 1, "tv": 2}
 #: The reference descriptor blocks with their float64 statistics (~20 bytes per channel and
 #: pixel) are cached across views when they fit in this many bytes, else recomputed per view.
@@ -609,7 +615,7 @@ def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | 
     aggregation masks them anyway).
     """
     from .costs import fuse, resolve_metric
-    name = resolve_metric(metric)
+    name = resolve_metric(metric, auto=AUTO_METRIC)
     if name not in CORR_METRICS:
         raise InvalidInputError(
             f"metric {metric!r} is not available for H-LF matching; choose one of "
@@ -1089,7 +1095,7 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
         Default ``lf.disparity_range``; one of the two is required.
     n_labels : int
         Labels evenly spaced over the range (>= 2).
-    metric : "auto" (= ``hyperlf.costs.AUTO_METRIC``), "bwncc", "bwncc-paper", "ncc", "rsncc",
+    metric : "auto" (= :data:`AUTO_METRIC`), "fused", "bwncc", "bwncc-paper", "ncc", "rsncc",
         "census", "census-rsncc" (fast: about 30x cheaper than "auto"; Table 2 notes).
     view_selection, occlusion_split : bool
         SPEC §5.1 and §5.2 cues (defaults: measured, see the module docstring).
@@ -1126,7 +1132,7 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
     if optimizer not in OPTIMIZERS:
         raise InvalidInputError(f"optimizer must be one of {OPTIMIZERS}, got {optimizer!r}")
     from .costs import resolve_metric
-    mname = resolve_metric(metric)
+    mname = resolve_metric(metric, auto=AUTO_METRIC)
     if mname not in CORR_METRICS:
         raise InvalidInputError(
             f"metric {metric!r} is not available for H-LF matching; choose one of "
