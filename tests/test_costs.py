@@ -146,11 +146,16 @@ def test_cross_spectral_contrast_reversed_regions(rng):
     cols = np.arange(DMAX + MARGIN, W - MARGIN)
     away = np.abs(cols - boundary) > 6
     acc = {m: _interior_exact(costs.cost_volume(left, right, DMIN, DMAX, metric=m), extra_cols=away)
-           for m in ["bwncc", "bwncc-paper", "census", "ssd"]}
+           for m in ["bwncc", "bwncc-paper", "census", "ssd", "rsncc", "fused", "census-rsncc"]}
     assert acc["bwncc"] > 0.95, acc
     assert acc["bwncc-paper"] > 0.9, acc
     assert acc["ssd"] < 0.7, acc
     assert acc["census"] < acc["bwncc"] - 0.2, acc
+    # RSNCC's gradient term ignores the reversal; the default fusion keeps most of that (measured
+    # 1.00 / 0.82) where the bwncc + census fusion falls to census's level (0.35)
+    assert acc["rsncc"] > 0.95, acc
+    assert acc["census-rsncc"] > acc["fused"] + 0.3, acc
+    assert costs.resolve_metric("auto") == "census-rsncc"
 
 
 # ---------------------------------------------------------------------------------------------
