@@ -126,6 +126,16 @@ def test_view_costs_subpixel_and_vertical(rng):
         assert np.mean(np.argmin(inner, axis=0) == 3) > 0.8, metric
 
 
+def test_census_view_costs_numba_matches_numpy(rng):
+    from hyperlf.hlf import _census_view_costs
+    a = rng.random((30, 41))
+    b = rng.random((30, 41))
+    shifts = [(-0.35 * k, 0.6 * k) for k in range(5)] + [(2.0, -1.0), (-60.0, 0.0), (0.0, 0.5)]
+    for window in (3, 7):
+        ref = _census_view_costs(a, b, shifts, window, impl="numpy")
+        np.testing.assert_array_equal(_census_view_costs(a, b, shifts, window, impl="numba"), ref)
+
+
 # ----------------------------------------------------------------------------- view selection
 
 

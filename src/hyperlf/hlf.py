@@ -34,14 +34,21 @@ are sampled there **bilinearly** (sub-pixel); candidates with ``q_v`` outside th
      border); validity is decided by the centre ``q_v`` alone.  ``tau_var = tau_rel`` x the
      mean patch variance of the block's channels, per view (as :func:`hyperlf.costs.bwncc_volume`
      with ``tau_scope="block"``).
-   * ``fused`` (= ``auto`` here, :data:`AUTO_METRIC`): per view,
+   * ``census-rsncc`` (= ``auto``, :data:`hyperlf.costs.AUTO_METRIC`): per view,
+     ``(norm(rsncc 5x5) + norm(census 7x7)) / 2`` with :func:`hyperlf.costs.fuse`; the
+     census part by a fused shift + census + Hamming numba kernel.  Chosen as the H-LF
+     default on Table 2: lower RMSE than ``fused`` on the four procedural scenes, higher on
+     antinous (whose spectra, derived from RGB, rarely reverse contrast between bands, which
+     favours census), and ~50x faster.
+   * ``fused``: per view,
      ``(norm(bwncc) + norm(census 7x7)) / 2`` with :func:`hyperlf.costs.fuse` on that view's
      volumes and validity (so the fusion is exactly the two-view one, view by view).
    * ``ncc``: ``1 - NCC`` of the intensities, 5 x 5, same kernel (one channel).
    * ``census``: Hamming distance between the reference's 7 x 7 census code and the census
      code of the bilinearly shifted view.
 
-   Cheap stand-ins (``ncc``, ``census``) are meant for tests and quick looks.
+   Single cheap costs (``ncc``, ``census``, ``rsncc``) are meant for tests, quick looks and
+   ablations.
 
 2. **View selection** (SPEC §5.1, ``view_selection=True``; :func:`aggregate_view`): with
    ``M_v`` = gradient magnitude of ``In_v = I_v / mean(I_v)`` (central differences),
@@ -181,17 +188,11 @@ __all__ = [
     "DEFOCUS_MODES",
     "OPTIMIZERS",
     "CORR_METRICS",
-    "AUTO_METRIC",
 ]
 
 DEFOCUS_MODES = ("off", "paper", "gaussian", "flat", "tv")
 OPTIMIZERS = ("graphcut", "sgm", "wta")
 CORR_METRICS = ("fused", "bwncc", "bwncc-paper", "ncc", "rsncc", "census", "census-rsncc")
-#: What ``metric="auto"`` means for H-LF matching (the two-view default is
-#: :data:`hyperlf.costs.AUTO_METRIC`).  ``"fused"`` (bwncc + census): the lowest RMSE on
-#: antinous in Table 2; ``"census-rsncc"`` is lower on the procedural scenes and ~30x faster
-#: (BENCHMARKS.md, Table 2).
-AUTO_METRIC = "fused"
 _PRIOR_CODE = {"gaussian": 0, "flat": 1, "tv": 2}
 #: The reference descriptor blocks with their float64 statistics (~20 bytes per channel and
 #: pixel) are cached across views when they fit in this many bytes, else recomputed per view.
@@ -543,15 +544,68 @@ def _rsncc_view_costs(ref_img, img, shifts, n, tau_rel, rs_tau: float = 1.0):
     return (rho(ci) + float(rs_tau) * rho(cg)).astype(np.float32)
 
 
-def _census_view_costs(ref_img, img, shifts, window):
+@njit(parallel=True, cache=True)
+def _census_shift_kernel(img, cref, y0, y1, fy, x0, x1, fx, r, buf, out):  # pragma: no cover
+    """Hamming distance between the reference census codes ``cref`` and the census codes of
+    ``img`` bilinearly shifted (sampling arrays as :func:`shift_map` with ``r = 0``), without
+    building the shifted codes: bit ``k`` of a code is ``neighbour_k < centre`` (row-major
+    window, centre skipped, replicated border), as :func:`hyperlf.costs.census_transform`.
+    ``buf`` (H, W) float64 receives the shifted image; ``out`` (H, W) float32 the distances."""
+    H, W = img.shape
+    for y in prange(H):
+        wy = fy[y]
+        for x in range(W):
+            wx = fx[x]
+            top0 = img[y0[y], x0[x]]
+            top1 = img[y0[y], x1[x]]
+            bot0 = img[y1[y], x0[x]]
+            bot1 = img[y1[y], x1[x]]
+            a0 = top0 * (1 - wy) + bot0 * wy
+            a1 = top1 * (1 - wy) + bot1 * wy
+            buf[y, x] = a0 * (1 - wx) + a1 * wx
+    for y in prange(H):
+        for x in range(W):
+            c = buf[y, x]
+            code = cref[y, x]
+            k = np.uint64(0)
+            d = 0
+            for dy in range(-r, r + 1):
+                yy = min(max(y + dy, 0), H - 1)
+                for dx in range(-r, r + 1):
+                    if dy == 0 and dx == 0:
+                        continue
+                    xx = min(max(x + dx, 0), W - 1)
+                    bit_s = buf[yy, xx] < c
+                    bit_r = ((code >> k) & np.uint64(1)) == np.uint64(1)
+                    if bit_s != bit_r:
+                        d += 1
+                    k += np.uint64(1)
+            out[y, x] = d
+
+
+def _census_view_costs(ref_img, img, shifts, window, impl: str = "numba"):
+    """Census Hamming costs of the reference against ``img`` shifted by each ``(sx, sy)``.
+
+    ``impl="numpy"``: the reference (shift with :func:`shift_map`, then
+    :func:`hyperlf.costs.census_transform` and a popcount); ``"numba"``: one fused kernel
+    (:func:`_census_shift_kernel`), identical results, ~10x faster.
+    """
     from .costs import census_transform
     L = len(shifts)
     H, W = ref_img.shape
     cref = census_transform(ref_img, window)
     out = np.empty((L, H, W), np.float32)
+    if impl == "numpy":
+        for k, (sx, sy) in enumerate(shifts):
+            s, _ = shift_map(img, sx, sy, 0)
+            out[k] = np.bitwise_count(cref ^ census_transform(s, window)).astype(np.float32)
+        return out
+    a = np.ascontiguousarray(img, dtype=np.float64)
+    buf = np.empty((H, W), np.float64)
     for k, (sx, sy) in enumerate(shifts):
-        s, _ = shift_map(img, sx, sy, 0)
-        out[k] = np.bitwise_count(cref ^ census_transform(s, window)).astype(np.float32)
+        y0, y1, fy = _axis_interp(H, sy, 0)
+        x0, x1, fx = _axis_interp(W, sx, 0)
+        _census_shift_kernel(a, cref, y0, y1, fy, x0, x1, fx, int(window) // 2, buf, out[k])
     return out
 
 
@@ -615,7 +669,7 @@ def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | 
     aggregation masks them anyway).
     """
     from .costs import fuse, resolve_metric
-    name = resolve_metric(metric, auto=AUTO_METRIC)
+    name = resolve_metric(metric)
     if name not in CORR_METRICS:
         raise InvalidInputError(
             f"metric {metric!r} is not available for H-LF matching; choose one of "
@@ -1095,8 +1149,9 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
         Default ``lf.disparity_range``; one of the two is required.
     n_labels : int
         Labels evenly spaced over the range (>= 2).
-    metric : "auto" (= :data:`AUTO_METRIC`), "fused", "bwncc", "bwncc-paper", "ncc", "rsncc",
-        "census", "census-rsncc" (fast: about 30x cheaper than "auto"; Table 2 notes).
+    metric : "auto" (= ``hyperlf.costs.AUTO_METRIC``, "census-rsncc"), "fused", "bwncc",
+        "bwncc-paper", "ncc", "rsncc", "census", "census-rsncc" ("fused" and the bwncc costs
+        are ~50x slower; Table 2 in BENCHMARKS.md).
     view_selection, occlusion_split : bool
         SPEC §5.1 and §5.2 cues (defaults: measured, see the module docstring).
     defocus : "off", "paper", "gaussian", "flat" or "tv" (SPEC §5.3).
@@ -1132,7 +1187,7 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
     if optimizer not in OPTIMIZERS:
         raise InvalidInputError(f"optimizer must be one of {OPTIMIZERS}, got {optimizer!r}")
     from .costs import resolve_metric
-    mname = resolve_metric(metric, auto=AUTO_METRIC)
+    mname = resolve_metric(metric)
     if mname not in CORR_METRICS:
         raise InvalidInputError(
             f"metric {metric!r} is not available for H-LF matching; choose one of "
