@@ -378,7 +378,7 @@ def _xi_shift_kernel(Apad, muA, isA, ca, B, cb, y0, y1, fy, x0, x1, fx, r, tauB,
     Apad (nc, H+2r, W+2r) reference channels padded (replicate); muA, isA (nc, H, W) their
     patch means and 1/sigma (0 below tau); B (nc, H, W) other view's channels (unshifted);
     ca, cb (nc,) per-channel centring constants; y0, y1, fy (H+2r,) and x0, x1, fx (W+2r,)
-    the shift's sampling arrays; tauB the other view's variance threshold.
+    the shift's sampling arrays; tauB (nc,) the other view's variance threshold per channel.
     outF, outB, outM (G, H, W) float64: group ``g`` of channels ``c = g, g + G, ...`` adds
     ``sum_c xi_c muA_c``, ``sum_c xi_c muB_c`` and ``sum_c muB_c`` (muB = exact patch mean of
     the shifted map) to its own slice (no write races; the caller sums over ``g``).
@@ -447,7 +447,7 @@ def _xi_shift_kernel(Apad, muA, isA, ca, B, cb, y0, y1, fy, x0, x1, fx, r, tauB,
                     ma = muA[c, y, x]
                     cov = s3 * inv - (ma - cac) * mb
                     isb = 0.0
-                    if var >= tauB and var > 0.0:
+                    if var >= tauB[c] and var > 0.0:
                         isb = 1.0 / math.sqrt(var)
                     xi = cov * isA[c, y, x] * isb
                     if xi > 1.0:
@@ -471,41 +471,56 @@ def _inv_sigma(var, tau):
 
 
 class _RefBlock:
-    """Reference channel block with padded maps and statistics (one NCC patch size)."""
+    """Reference channel block with padded maps and statistics (one NCC patch size).
 
-    def __init__(self, A: np.ndarray, n: int, tau_rel: float):
+    ``per_channel``: each channel gets its own variance threshold (``tau_rel`` x its own mean
+    patch variance) instead of one for the block; for stacking unrelated maps (RSNCC's
+    intensity and gradient magnitude) so that they are computed in parallel."""
+
+    def __init__(self, A: np.ndarray, n: int, tau_rel: float, per_channel: bool = False):
         from .costs import channel_stats, pad_replicate
         self.n = int(n)
         self.r = self.n // 2
         st = channel_stats(A, self.n)
         self.centre = st["centre"]
-        tau = tau_rel * float(st["mean_var"].mean())
+        tau = (tau_rel * st["mean_var"][:, None, None] if per_channel
+               else tau_rel * float(st["mean_var"].mean()))
         self.mu = np.ascontiguousarray(st["mu"])
         self.isig = np.ascontiguousarray(_inv_sigma(st["var"], tau))
         self.pad = np.ascontiguousarray(pad_replicate(np.asarray(A, np.float32), self.r))
         self.den = self.mu.sum(axis=0)
 
 
-def _view_tau(B: np.ndarray, n: int, tau_rel: float) -> float:
+def _view_tau(B: np.ndarray, n: int, tau_rel: float, per_channel: bool = False):
+    """The other view's variance threshold: one for the block (float), or per channel."""
     from .costs import window_stats
-    mv = [float(window_stats(B[c], n)[1].mean()) for c in range(B.shape[0])]
-    return tau_rel * float(np.mean(mv)) if mv else 0.0
+    mv = np.array([float(window_stats(B[c], n)[1].mean()) for c in range(B.shape[0])])
+    if per_channel:
+        return tau_rel * mv
+    return tau_rel * float(np.mean(mv)) if mv.size else 0.0
 
 
-def _xi_terms(ref: _RefBlock, B: np.ndarray, centre_b, tauB, sx, sy, weighted=True):
-    """Sums over channels of ``xi muA``, ``xi muB`` and ``muB`` for one shift: 3 x (H, W)."""
+def _xi_terms(ref: _RefBlock, B: np.ndarray, centre_b, tauB, sx, sy, weighted=True,
+              per_channel: bool = False):
+    """Sums over channels of ``xi muA``, ``xi muB`` and ``muB`` for one shift: 3 x (H, W).
+
+    ``per_channel=True`` returns ``xi`` (or ``xi muA``) of every channel instead, as
+    ``(nc, H, W)`` (one channel per parallel group), and the other two as None."""
     nc, H, W = ref.mu.shape
     r = ref.r
     y0, y1, fy = _axis_interp(H, sy, r)
     x0, x1, fx = _axis_interp(W, sx, r)
     import numba
-    G = max(1, min(nc, numba.get_num_threads()))
+    G = nc if per_channel else max(1, min(nc, numba.get_num_threads()))
     oF = np.zeros((G, H, W))
     oB = np.zeros((G, H, W))
     oM = np.zeros((G, H, W))
+    tau = np.broadcast_to(np.asarray(tauB, np.float64), (nc,)).copy()
     _xi_shift_kernel(ref.pad, ref.mu, ref.isig, ref.centre, np.ascontiguousarray(B, np.float32),
-                     np.asarray(centre_b, np.float64), y0, y1, fy, x0, x1, fx, r, float(tauB),
+                     np.asarray(centre_b, np.float64), y0, y1, fy, x0, x1, fx, r, tau,
                      bool(weighted), oF, oB, oM)
+    if per_channel:
+        return oF, None, None
     return oF.sum(axis=0), oB.sum(axis=0), oM.sum(axis=0)
 
 
@@ -535,13 +550,23 @@ def _ncc_view_costs(ref_img, img, shifts, n, tau_rel):
 def _rsncc_view_costs(ref_img, img, shifts, n, tau_rel, rs_tau: float = 1.0):
     """RSNCC (Shen et al. 2014, :func:`hyperlf.costs.rsncc_volume`) with sub-pixel shifts:
     ``rho(1 - NCC(In)) + rs_tau * rho(1 - NCC(|grad In|))``; the gradient term is unchanged
-    by a contrast reversal between bands."""
+    by a contrast reversal between bands.  The two NCCs run as two channels of one kernel
+    call (one per core), each with its own variance thresholds, so the result is that of two
+    separate single-channel NCCs."""
     from .costs import _grad_mag, rho
-    ci = _ncc_view_costs(ref_img, img, shifts, n, tau_rel)
-    gA = _grad_mag(_normalised(ref_img))
-    gB = _grad_mag(_normalised(img))
-    cg = _ncc_view_costs(gA + 1e-6, gB + 1e-6, shifts, n, tau_rel)
-    return (rho(ci) + float(rs_tau) * rho(cg)).astype(np.float32)
+    L = len(shifts)
+    H, W = ref_img.shape
+    a, b = _normalised(ref_img), _normalised(img)
+    A = np.stack([a, _grad_mag(a)]).astype(np.float32)
+    B = np.stack([b, _grad_mag(b)]).astype(np.float32)
+    ref = _RefBlock(A, n, tau_rel, per_channel=True)
+    tauB = _view_tau(B, n, tau_rel, per_channel=True)
+    cb = B.reshape(2, -1).astype(np.float64).mean(axis=1)
+    out = np.empty((L, H, W), np.float32)
+    for k, (sx, sy) in enumerate(shifts):
+        xi, _, _ = _xi_terms(ref, B, cb, tauB, sx, sy, weighted=False, per_channel=True)
+        out[k] = rho(1.0 - xi[0]) + float(rs_tau) * rho(1.0 - xi[1])
+    return out
 
 
 @njit(parallel=True, cache=True)
