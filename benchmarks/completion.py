@@ -130,9 +130,9 @@ def main(argv=None):
     ap.add_argument("--disparity", default="gt", choices=["gt", "estimated"],
                     help="reference disparity given to both methods: the ground truth, or "
                          "estimated by hyperlf.depth (see --depth-metric)")
-    ap.add_argument("--depth-metric", default="census",
-                    help="cost of hyperlf.depth for --disparity estimated (default census: "
-                         "the fast one; 'auto' is ~40x slower)")
+    ap.add_argument("--depth-metric", default="auto",
+                    help="cost of hyperlf.depth for --disparity estimated (default auto, the "
+                         "library default)")
     ap.add_argument("--depth-labels", type=int, default=64)
     args = ap.parse_args(argv)
     H, W = (int(v) for v in args.size.lower().split("x"))

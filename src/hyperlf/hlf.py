@@ -109,7 +109,12 @@ are sampled there **bilinearly** (sub-pixel); candidates with ``q_v`` outside th
 Defaults: measured, not assumed
 -------------------------------
 Every cue of 2-4 ships with an on/off switch, and a cue that did not help on the tuning scenes
-is **off by default** (SPEC §5).  Measured on the procedural scenes ``planes`` and ``slanted``
+is **off by default** (SPEC §5).  With today's default cost (``census-rsncc``) the Table 2
+ablations (BENCHMARKS.md) are mixed for every cue -- view selection -20 % RMSE on antinous and
+-8 % on planes but +4-11 % on the other three scenes; the occlusion split -13 % on antinous,
+neutral elsewhere; defocus "tv" -8 % on planes and occlusion, +23 % on antinous and solids;
+literal defocus worse everywhere -- so all stay off.  The study below was made when the
+default was ``fused`` (bwncc + census).  Measured on the procedural scenes ``planes`` and ``slanted``
 (:data:`hyperlf.synthesis.SCENES`) at 96 x 128, 5 x 6 views, 410-700 nm raster, 32 labels over
 (-2, 2), graph cut with ``smoothness = 1``, ``truncation = 1``; mean RMSE (px) / bad-0.07 (%)
 of the two scenes; ``f*_c`` = correspondence-only WTA:
@@ -689,9 +694,9 @@ def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | 
     reference, and its validity ``(L, H, W)`` (``q_v`` inside the image).
 
     ``offset = (dx, dy) = pos_v - pos_ref``; label ``d`` compares ``p`` with ``p - d (dx, dy)``.
-    ``metric``: ``"fused"`` (``"auto"``), ``"bwncc"``, ``"bwncc-paper"``, ``"ncc"``, ``"rsncc"``,
-    ``"census"``, ``"census-rsncc"``.  Invalid entries carry the pixel's worst valid cost (for display; the
-    aggregation masks them anyway).
+    ``metric``: ``"census-rsncc"`` (``"auto"``), ``"fused"``, ``"bwncc"``, ``"bwncc-paper"``,
+    ``"ncc"``, ``"rsncc"``, ``"census"``.  Invalid entries carry the pixel's worst valid cost
+    (for display; the aggregation masks them anyway).
     """
     from .costs import fuse, resolve_metric
     name = resolve_metric(metric)
