@@ -103,6 +103,7 @@ ABLATIONS = {
     "wta": ({"optimizer": "wta"}, "WTA instead of MRF"),
     "sgm": ({"optimizer": "sgm"}, "SGM instead of graph cuts"),
     "bwncc_paper": ({"metric": "bwncc-paper"}, "cost bwncc-paper"),
+    "no_median": ({"params": DepthParams(median_radius=0)}, "without the weighted-median post-filter"),
     # not a single toggle: the two cues that helped most with the stand-in costs, together
     "selection_tv": ({"view_selection": True, "defocus": "tv"},
                      "+ view selection + defocus TV"),

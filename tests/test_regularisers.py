@@ -535,3 +535,40 @@ def test_confidence_range_and_ordering():
     assert conf.shape == (1, 3) and conf.min() >= 0 and conf.max() <= 1
     assert conf[0, 0] == pytest.approx(1.0)
     assert conf[0, 1] == 0.0 and conf[0, 2] == 0.0
+
+
+# ----------------------------------------------------------------------------------------------
+# guided weighted median
+# ----------------------------------------------------------------------------------------------
+
+def test_weighted_median_numba_matches_numpy(rng):
+    d = rng.random((23, 31)) * 4.0
+    g = 0.5 + rng.random((23, 31))
+    for r, s in ((1, 0.2), (3, 0.05), (4, 1.0)):
+        np.testing.assert_array_equal(R.weighted_median(d, g, r, s, impl="numba"),
+                                      R.weighted_median(d, g, r, s, impl="numpy"))
+    np.testing.assert_array_equal(R.weighted_median(d, g, 0), d.astype(np.float32))
+    with pytest.raises(InvalidInputError):
+        R.weighted_median(d, g[:, :5], 2)
+    with pytest.raises(InvalidInputError):
+        R.weighted_median(d, g, 2, sigma=0.0)
+    with pytest.raises(InvalidInputError):
+        R.weighted_median(np.where(d > 3, np.nan, d), g, 2)
+
+
+def test_weighted_median_snaps_fattened_edges_and_keeps_ramps():
+    H, W = 20, 40
+    xx = np.broadcast_to(np.arange(W, dtype=float), (H, W))
+    guide = np.where(xx >= 20, 1.0, 0.3)             # image edge between x = 19 and 20
+    disp = np.where(xx >= 18, 5.0, 1.0)              # foreground fattened by 2 px
+    out = R.weighted_median(disp, guide, 4, 0.05)
+    np.testing.assert_array_equal(out[:, :20], 1.0)
+    np.testing.assert_array_equal(out[:, 20:], 5.0)
+    # beyond about radius / 2 the wrong side holds the majority and the median cannot help
+    out = R.weighted_median(np.where(xx >= 17, 5.0, 1.0), guide, 4, 0.05)
+    assert (out[:, 19] == 5.0).all()
+    ramp = 0.1 * xx + 0.05 * np.arange(H)[:, None]   # a slanted plane, textured guide
+    tex = 1.0 + 0.3 * np.sin(xx) * np.cos(np.arange(H)[:, None])
+    out = R.weighted_median(ramp, np.ones((H, W)), 3, 0.05)
+    np.testing.assert_allclose(out[3:-3, 3:-3], ramp[3:-3, 3:-3], atol=1e-6)
+    assert np.isfinite(R.weighted_median(ramp, tex, 3, 0.05)).all()

