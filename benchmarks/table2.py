@@ -110,6 +110,17 @@ ABLATIONS = {
 }
 
 
+def _json_default(o):
+    """JSON for numpy scalars (as floats) and parameter dataclasses (as dicts)."""
+    import dataclasses
+    if dataclasses.is_dataclass(o):
+        return dataclasses.asdict(o)
+    try:
+        return float(o)
+    except (TypeError, ValueError):
+        return str(o)
+
+
 def log(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
@@ -387,7 +398,7 @@ def main(argv=None):
     json_path = out / f"table2{suffix}.json"
 
     def save():
-        atomic_write_text(json_path, json.dumps(doc, indent=1, default=float))
+        atomic_write_text(json_path, json.dumps(doc, indent=1, default=_json_default))
 
     for scene in scenes:
         k = args.downscale if scene in HCI_SCENES else 1
