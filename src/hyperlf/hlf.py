@@ -109,15 +109,17 @@ are sampled there **bilinearly** (sub-pixel); candidates with ``q_v`` outside th
 Defaults: measured, not assumed
 -------------------------------
 Every cue of 2-4 ships with an on/off switch, and a cue that did not help on the tuning scenes
-is **off by default** (SPEC §5).  With today's default cost (``census-rsncc``) the Table 2
-ablations (BENCHMARKS.md) are mixed for every cue -- view selection -20 % RMSE on antinous and
--8 % on planes but +4-11 % on the other three scenes; the occlusion split -13 % on antinous,
-neutral elsewhere; defocus "tv" -8 % on planes and occlusion, +23 % on antinous and solids;
-literal defocus worse everywhere -- so all stay off.  The study below was made when the
-default was ``fused`` (bwncc + census).  Measured on the procedural scenes ``planes`` and ``slanted``
-(:data:`hyperlf.synthesis.SCENES`) at 96 x 128, 5 x 6 views, 410-700 nm raster, 32 labels over
-(-2, 2), graph cut with ``smoothness = 1``, ``truncation = 1``; mean RMSE (px) / bad-0.07 (%)
-of the two scenes; ``f*_c`` = correspondence-only WTA:
+is **off by default** (SPEC §5).  With today's defaults (``census-rsncc``, weighted-median
+post-filter) the Table 2 ablations (BENCHMARKS.md) are mixed for every cue: view selection
+-17 % RMSE on antinous and -13 % on planes but +4-10 % on the other three scenes; the
+occlusion split -14 % on antinous, within 1 % on three scenes, +5 % on slanted; defocus "tv"
+-2 to -26 % on four 128 x 128 scenes but +15 % on solids and more than twice the error on
+full-resolution antinous; literal defocus worse everywhere.  So all stay off.  The study
+below was made when the default was ``fused`` (bwncc + census).  Measured on the procedural
+scenes ``planes`` and ``slanted`` (:data:`hyperlf.synthesis.SCENES`) at 96 x 128, 5 x 6
+views, 410-700 nm raster, 32 labels over (-2, 2), graph cut with ``smoothness = 1``,
+``truncation = 1``; mean RMSE (px) / bad-0.07 (%) of the two scenes; ``f*_c`` =
+correspondence-only WTA:
 
     ================================  =====================  =====================
     configuration                     metric auto (fused)    metric ncc

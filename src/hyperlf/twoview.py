@@ -25,11 +25,11 @@ Pipeline
    It costs no second volume computation.  Computing the volume again with swapped and mirrored
    inputs would *not* be exact for ``bwncc`` (mirroring maps gradient directions
    ``theta -> 1 - theta``, and the overlapping, asymmetric bins are not mirror-symmetric) and
-   would double the cost time.  The exceptions are the fusions ``fused`` (``auto``) and
-   ``census-rsncc``: their
-   normalisation subtracts a *per-pixel* minimum, which is referenced to the left pixel; so for
-   ``fused`` the raw ``bwncc`` and ``census`` parts are shifted separately and fused again with
-   the right view's validity (:func:`compute_volumes`), which is exact as well.
+   would double the cost time.  The exceptions are the fusions ``fused`` and
+   ``census-rsncc`` (``auto``): their normalisation subtracts a *per-pixel* minimum, which is
+   referenced to the left pixel; so their raw parts (``bwncc`` or ``rsncc``, and ``census``)
+   are shifted separately and fused again with the right view's validity
+   (:func:`compute_volumes`), which is exact as well.
 4. **Data term** ``D = (C - min_d C) / s`` per pixel (paper ``|C(f(p)) - C(f*(p))|``), with
    one global scale ``s`` per pair = the standard deviation of the valid raw entries of
    ``C_L`` (the same value for both references).  Dividing by ``s`` makes the smoothness
