@@ -105,6 +105,8 @@ ABLATIONS = {
     "bwncc_paper": ({"metric": "bwncc-paper"}, "cost bwncc-paper"),
     "no_median": ({"params": DepthParams(median_radius=0)}, "without the weighted-median post-filter"),
     # not a single toggle: the two cues that helped most with the stand-in costs, together
+    "selection_split": ({"view_selection": True, "occlusion_split": True},
+                        "+ view selection + occlusion split"),
     "selection_tv": ({"view_selection": True, "defocus": "tv"},
                      "+ view selection + defocus TV"),
 }
