@@ -133,6 +133,12 @@ def test_depth_command_on_a_synthetic_capture(tmp_path, capsys):
         assert (out / name).is_file(), name
     assert main(["-q", "depth", str(cap), "--method", "lin2015", "--labels", "16",
                  "-o", str(tmp_path / "lin")]) == 0
+    # the post-filter can be switched off; it changes the map, and a negative radius is refused
+    assert main(["-q", "depth", str(cap), "--metric", "ncc", "--labels", "16",
+                 "--median-radius", "0", "-o", str(tmp_path / "raw")]) == 0
+    assert not np.array_equal(read_pfm(tmp_path / "raw" / "disparity.pfm"), d)
+    assert main(["-q", "depth", str(cap), "--metric", "ncc", "--labels", "16",
+                 "--median-radius", "-1", "-o", str(tmp_path / "bad")]) == 2
 
 
 def test_complete_command_writes_a_cube_that_render_reads(tmp_path, capsys):

@@ -424,15 +424,17 @@ def _cmd_depth(args) -> int:
                                 "--disparity-range MIN,MAX (px per baseline)")
     t0 = time.perf_counter()
     if args.method == "hlf":
-        from .hlf import depth
+        from .hlf import DepthParams, depth
 
+        params = (None if args.median_radius is None
+                  else DepthParams(median_radius=args.median_radius))
         if lf.views.ndim != 4:
             raise InvalidInputError("the hlf method needs monochrome spectral views; use "
                                     "--method tao2013|wang2015|lin2015 for colour light fields "
                                     "or 'hyperlf synth hci' to make an H-LF")
         res = depth(lf, disparity_range=rng, n_labels=args.labels, metric=args.metric,
                     view_selection=args.view_selection, occlusion_split=args.occlusion_split,
-                    defocus=args.defocus, optimizer=args.optimizer,
+                    defocus=args.defocus, optimizer=args.optimizer, params=params,
                     save_intermediate=args.save_intermediate, progress=not args.quiet)
         extra = {"correspondence_only": res.f_c, "defocus_only": res.f_d}
     else:
@@ -767,9 +769,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="px per baseline (default: the capture's metadata); write "
                         "--disparity-range=-2,2 when MIN is negative")
     p.add_argument("--labels", type=int, default=64, help="number of disparity labels (64)")
-    p.add_argument("--metric", default="auto", help="correspondence cost of hlf: auto (default), "
-                   "bwncc, bwncc-paper, ncc, rsncc, census, census-rsncc (about 30x faster "
-                   "than auto)")
+    p.add_argument("--metric", default="auto", help="correspondence cost of hlf: auto (default, "
+                   "= census-rsncc), rsncc, census, ncc, or the descriptor costs fused, bwncc, "
+                   "bwncc-paper (about 50x slower)")
     p.add_argument("--optimizer", default="graphcut", choices=["graphcut", "sgm", "wta"])
     p.add_argument("--view-selection", action="store_true",
                    help="enable the paper's local view selection (off by default: it did not "
@@ -778,6 +780,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="enable the occlusion-aware half-plane split (off by default)")
     p.add_argument("--defocus", default="off", choices=["off", "paper", "gaussian", "flat", "tv"],
                    help="spectral-aware defocus cost (off by default; 'paper' is the literal one)")
+    p.add_argument("--median-radius", type=int, default=None, metavar="PX",
+                   help="radius of the guided weighted-median post-filter that snaps depth "
+                        "edges to image edges (default 4; 0 turns it off)")
     p.add_argument("--save-intermediate", action="store_true",
                    help="also write correspondence-only and defocus-only maps")
     p.add_argument("-o", "--output", required=True, help="output folder")
