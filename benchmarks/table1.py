@@ -42,10 +42,9 @@ from pathlib import Path
 
 import numpy as np
 
+from _common import data_path, log
 from hyperlf import costs
 from hyperlf import regularisers as reg
-from hyperlf.datasets import dataset_path
-from hyperlf.errors import DataNotFoundError
 from hyperlf._atomic import atomic_write_text
 from hyperlf.formats.middlebury import read_middlebury
 from hyperlf.metrics import disparity_scores
@@ -75,19 +74,6 @@ TUNE_GRID = {
                                                                               (2.0, 4.0, 8.0))],
     "sgm": [{"p1": p1, "p2": p2} for p1, p2 in itertools.product((0.5, 1.0, 2.0), (4.0, 8.0, 16.0))],
 }
-
-
-def log(msg: str) -> None:
-    print(msg, file=sys.stderr, flush=True)
-
-
-def data_path(name: str) -> Path:
-    """A dataset under HYPERLF_DATA (:func:`hyperlf.datasets.dataset_path`); exit with its
-    one-line message when the data is missing."""
-    try:
-        return dataset_path(name)
-    except DataNotFoundError as exc:
-        sys.exit(f"table1.py: {exc}")
 
 
 def load_scene(name: str):

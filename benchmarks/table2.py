@@ -64,8 +64,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hyperlf.datasets import dataset_path
-from hyperlf.errors import DataNotFoundError
+from _common import data_path, log
 from hyperlf.baselines import METHODS as BASELINES
 from hyperlf.hlf import DepthParams, depth
 from hyperlf.lightfield import LightField
@@ -123,20 +122,7 @@ def _json_default(o):
         return str(o)
 
 
-def log(msg: str) -> None:
-    print(msg, file=sys.stderr, flush=True)
-
-
 # ----------------------------------------------------------------------------- scenes
-
-def data_path(name: str) -> Path:
-    """A dataset under HYPERLF_DATA (:func:`hyperlf.datasets.dataset_path`); exit with its
-    one-line message when the data is missing."""
-    try:
-        return dataset_path(name)
-    except DataNotFoundError as exc:
-        sys.exit(f"table2.py: {exc}")
-
 
 def _block_mean(a: np.ndarray, k: int, axes=(-2, -1)) -> np.ndarray:
     """K x K block mean over the two image axes ``axes`` (cropping any remainder)."""
