@@ -75,6 +75,7 @@ import cv2
 import numpy as np
 
 from .errors import InvalidInputError
+from .imageops import gradient_magnitude, normalise_intensity
 
 __all__ = [
     "METRICS",
@@ -161,14 +162,6 @@ def _check_impl(impl, metric) -> str:
     if impl == "auto":
         return _AUTO_IMPL.get(metric, "numpy")
     return impl
-
-
-def _normalise_intensity(I: np.ndarray) -> np.ndarray:
-    m = float(I.mean())
-    if not m > 0:
-        raise InvalidInputError(
-            f"image mean must be positive to normalise I / mean(I), got {m!r} (linear intensities expected)")
-    return I / m
 
 
 def candidate_validity(shape, dmin: int, dmax: int) -> np.ndarray:
@@ -846,8 +839,8 @@ def ssd_volume(left, right, dmin, dmax, window: int = 5) -> np.ndarray:
     dmin, dmax = _check_disp(dmin, dmax)
     n = _check_window(window)
     r = n // 2
-    Ln = pad_replicate(_normalise_intensity(L), r)
-    Rn = pad_replicate(_normalise_intensity(R), r)
+    Ln = pad_replicate(normalise_intensity(L), r)
+    Rn = pad_replicate(normalise_intensity(R), r)
     H, W = L.shape
     out = np.zeros((dmax - dmin + 1, H, W), np.float32)
     for k, d in enumerate(range(dmin, dmax + 1)):
@@ -886,13 +879,6 @@ def ncc_volume(left, right, dmin, dmax, window: int = 5, impl: str = "auto",
     return fill_invalid((1.0 - xi).astype(np.float32), dmin)
 
 
-def _grad_mag(In: np.ndarray) -> np.ndarray:
-    p = np.pad(In, 1, mode="edge")
-    gx = (p[1:-1, 2:] - p[1:-1, :-2]) / 2.0
-    gy = (p[2:, 1:-1] - p[:-2, 1:-1]) / 2.0
-    return np.sqrt(gx * gx + gy * gy)
-
-
 def rsncc_volume(left, right, dmin, dmax, window: int = 5, impl: str = "auto",
                  rs_tau: float = 1.0, tau_rel: float = 1e-5) -> np.ndarray:
     """RSNCC (Shen et al. 2014): ``rho(1 - NCC(In)) + rs_tau * rho(1 - NCC(|grad In|))``."""
@@ -900,9 +886,9 @@ def rsncc_volume(left, right, dmin, dmax, window: int = 5, impl: str = "auto",
     dmin, dmax = _check_disp(dmin, dmax)
     n = _check_window(window)
     impl = _check_impl(impl, "rsncc")
-    Ln, Rn = _normalise_intensity(L), _normalise_intensity(R)
+    Ln, Rn = normalise_intensity(L), normalise_intensity(R)
     xi_i = _ncc_scores(Ln, Rn, dmin, dmax, n, tau_rel, impl)
-    xi_g = _ncc_scores(_grad_mag(Ln), _grad_mag(Rn), dmin, dmax, n, tau_rel, impl)
+    xi_g = _ncc_scores(gradient_magnitude(Ln), gradient_magnitude(Rn), dmin, dmax, n, tau_rel, impl)
     c = rho(1.0 - xi_i) + float(rs_tau) * rho(1.0 - xi_g)
     return fill_invalid(c.astype(np.float32), dmin)
 

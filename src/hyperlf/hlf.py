@@ -174,6 +174,10 @@ import numpy as np
 from numba import njit, prange
 
 from ._progress import progress_bar
+from .imageops import gradient_magnitude, normalise_intensity
+from .warp import axis_taps as _axis_interp
+from .warp import axis_valid as _axis_valid
+from .warp import shift_map
 from .errors import InvalidInputError
 
 __all__ = [
@@ -352,38 +356,6 @@ def make_labels(dmin: float, dmax: float, n_labels: int) -> np.ndarray:
 # ============================================================================================
 
 
-def _axis_interp(n: int, shift: float, r: int):
-    """Index/weight arrays for sampling an axis of length ``n`` at ``i + shift`` for
-    ``i = -r .. n - 1 + r`` with clamped (replicated-border) coordinates."""
-    coord = np.clip(np.arange(-r, n + r, dtype=np.float64) + shift, 0.0, n - 1)
-    i0 = np.minimum(np.floor(coord).astype(np.int64), max(n - 2, 0))
-    i1 = np.minimum(i0 + 1, n - 1)
-    f = coord - i0
-    return i0, i1, f
-
-
-def _axis_valid(n: int, shift: float) -> np.ndarray:
-    c = np.arange(n, dtype=np.float64) + shift
-    eps = 1e-6
-    return (c >= -eps) & (c <= n - 1 + eps)
-
-
-def shift_map(img: np.ndarray, sx: float, sy: float, r: int = 0):
-    """Sample ``img[..., y + sy, x + sx]`` bilinearly for ``y = -r..H-1+r``, ``x = -r..W-1+r``
-    (coordinates clamped: replicated border), float64; and the validity ``(H, W)`` of the
-    centre samples (inside the image)."""
-    a = np.asarray(img, dtype=np.float64)
-    H, W = a.shape[-2:]
-    y0, y1, fy = _axis_interp(H, sy, r)
-    x0, x1, fx = _axis_interp(W, sx, r)
-    top = a[..., y0, :]
-    bot = a[..., y1, :]
-    rows = top * (1 - fy)[:, None] + bot * fy[:, None]
-    out = rows[..., x0] * (1 - fx) + rows[..., x1] * fx
-    valid = _axis_valid(H, sy)[:, None] & _axis_valid(W, sx)[None, :]
-    return out, valid
-
-
 # ============================================================================================
 # Correspondence kernels
 # ============================================================================================
@@ -543,19 +515,11 @@ def _xi_terms(ref: _RefBlock, B: np.ndarray, centre_b, tauB, sx, sy, weighted=Tr
     return oF.sum(axis=0), oB.sum(axis=0), oM.sum(axis=0)
 
 
-def _normalised(img):
-    a = np.asarray(img, dtype=np.float64)
-    m = float(a.mean())
-    if not m > 0:
-        raise InvalidInputError("every view must have a positive mean intensity (In = I / mean(I))")
-    return a / m
-
-
 def _ncc_view_costs(ref_img, img, shifts, n, tau_rel):
     L = len(shifts)
     H, W = ref_img.shape
-    A = _normalised(ref_img)[None].astype(np.float32)
-    B = _normalised(img)[None].astype(np.float32)
+    A = normalise_intensity(ref_img)[None].astype(np.float32)
+    B = normalise_intensity(img)[None].astype(np.float32)
     ref = _RefBlock(A, n, tau_rel)
     tauB = _view_tau(B, n, tau_rel)
     cb = np.array([float(B.mean())])
@@ -572,12 +536,12 @@ def _rsncc_view_costs(ref_img, img, shifts, n, tau_rel, rs_tau: float = 1.0):
     by a contrast reversal between bands.  The two NCCs run as two channels of one kernel
     call (one per core), each with its own variance thresholds, so the result is that of two
     separate single-channel NCCs."""
-    from .costs import _grad_mag, rho
+    from .costs import rho
     L = len(shifts)
     H, W = ref_img.shape
-    a, b = _normalised(ref_img), _normalised(img)
-    A = np.stack([a, _grad_mag(a)]).astype(np.float32)
-    B = np.stack([b, _grad_mag(b)]).astype(np.float32)
+    a, b = normalise_intensity(ref_img), normalise_intensity(img)
+    A = np.stack([a, gradient_magnitude(a)]).astype(np.float32)
+    B = np.stack([b, gradient_magnitude(b)]).astype(np.float32)
     ref = _RefBlock(A, n, tau_rel, per_channel=True)
     tauB = _view_tau(B, n, tau_rel, per_channel=True)
     cb = B.reshape(2, -1).astype(np.float64).mean(axis=1)
@@ -906,7 +870,7 @@ def reference_edges(ref_img, sigma: float = 1.0, low=None, high=None, dilate: in
     ``low``/``high``: 8-bit Canny thresholds; None = 0.4 x / 1 x the 90th percentile of the
     Sobel magnitude of the 8-bit image.
     """
-    In = _normalised(ref_img)
+    In = normalise_intensity(ref_img)
     hi_v = float(np.percentile(In, 99.5))
     img8 = np.clip(In / (hi_v if hi_v > 0 else 1.0) * 255.0, 0, 255).astype(np.uint8)
     if sigma > 0:
@@ -1166,13 +1130,6 @@ def _occlusion_edge_weights(edges, f_c, threshold, factor):
 # ============================================================================================
 
 
-def _gradient_magnitude(In):
-    p = np.pad(In, 1, mode="edge")
-    gx = (p[1:-1, 2:] - p[1:-1, :-2]) / 2.0
-    gy = (p[2:, 1:-1] - p[:-2, 1:-1]) / 2.0
-    return np.sqrt(gx * gx + gy * gy)
-
-
 def _check_bool(name, v):
     if not isinstance(v, (bool, np.bool_)):
         raise InvalidInputError(f"{name} must be True or False, got {v!r}")
@@ -1254,12 +1211,12 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
     views = [(r, c) for r in range(R) for c in range(Cc)]
     others = [v for v in views if v != ref]
     ref_img = lf.views[ref].astype(np.float64)
-    In = {v: _normalised(lf.views[v]) for v in views}
+    In = {v: normalise_intensity(lf.views[v]) for v in views}
 
     # --- gradient magnitudes (selection) and Mbar (pass 1)
     Mn = {}
     for v in views:
-        M = _gradient_magnitude(In[v])
+        M = gradient_magnitude(In[v])
         if params.selection_normalise:
             med = float(np.median(M))
             s = med if med > 0 else float(M.mean())

@@ -12,7 +12,18 @@ import numpy as np
 
 from .errors import InvalidInputError
 
-__all__ = ["sample_bilinear", "shift_image", "warp_to_reference", "forward_warp_disparity"]
+__all__ = [
+    "sample_bilinear",
+    "shift_image",
+    "shift_map",
+    "axis_taps",
+    "axis_valid",
+    "warp_to_reference",
+    "forward_warp_disparity",
+]
+
+#: Tolerance (px) within which a sample just outside ``[0, n - 1]`` still counts as inside.
+INSIDE_EPS = 1e-6
 
 
 def sample_bilinear(image: np.ndarray, x: np.ndarray, y: np.ndarray,
@@ -130,3 +141,42 @@ def forward_warp_disparity(disparity: np.ndarray, offset: tuple[float, float]) -
     np.maximum.at(out, idx, d[ok])
     out[~np.isfinite(out)] = np.nan
     return out.reshape(H, W).astype(np.float32)
+
+
+def axis_taps(n: int, shift: float, pad: int = 0):
+    """Separable bilinear taps along one axis, coordinates clamped (replicated border).
+
+    For ``i = -pad .. n - 1 + pad`` the sample ``i + shift`` is
+    ``(1 - f) a[i0] + f a[i1]`` with the returned ``(i0, i1, f)`` (int64, int64, float64).
+    Clamping makes every window pixel outside the image take the nearest border value.
+    """
+    coord = np.clip(np.arange(-pad, n + pad, dtype=np.float64) + shift, 0.0, n - 1)
+    i0 = np.minimum(np.floor(coord).astype(np.int64), max(n - 2, 0))
+    i1 = np.minimum(i0 + 1, n - 1)
+    f = coord - i0
+    return i0, i1, f
+
+
+def axis_valid(n: int, shift: float) -> np.ndarray:
+    """True where ``i + shift`` (``i = 0 .. n - 1``) lies inside ``[0, n - 1]`` (within
+    :data:`INSIDE_EPS`)."""
+    c = np.arange(n, dtype=np.float64) + shift
+    return (c >= -INSIDE_EPS) & (c <= n - 1 + INSIDE_EPS)
+
+
+def shift_map(img: np.ndarray, sx: float, sy: float, pad: int = 0):
+    """Sample ``img[..., y + sy, x + sx]`` bilinearly on a grid padded by ``pad`` pixels.
+
+    The grid is ``y = -pad .. H - 1 + pad``, ``x = -pad .. W - 1 + pad``; coordinates are
+    clamped (replicated border, :func:`axis_taps`), the result is float64.  Also returns the
+    validity ``(H, W)`` of the unpadded samples (inside the image, :func:`axis_valid`).
+    Leading axes are carried along (channel stacks ``(..., H, W)``).
+    """
+    a = np.asarray(img, dtype=np.float64)
+    H, W = a.shape[-2:]
+    y0, y1, fy = axis_taps(H, sy, pad)
+    x0, x1, fx = axis_taps(W, sx, pad)
+    rows = a[..., y0, :] * (1 - fy)[:, None] + a[..., y1, :] * fy[:, None]
+    out = rows[..., x0] * (1 - fx) + rows[..., x1] * fx
+    valid = axis_valid(H, sy)[:, None] & axis_valid(W, sx)[None, :]
+    return out, valid
