@@ -144,8 +144,8 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str):
+def __getattr__(attr: str):
     # METRIC_NAMES follows the registry: every registered cost, then "auto".
-    if name == "METRIC_NAMES":
+    if attr == "METRIC_NAMES":
         return cost_names() + ("auto",)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    raise AttributeError(f"module {__name__!r} has no attribute {attr!r}")

@@ -572,6 +572,37 @@ def _descriptor_params(variant):
     raise InvalidInputError(f"descriptor variant must be 'default', 'paper' or a DescriptorParams, got {variant!r}")
 
 
+def _patch_sizes(params, variant, window) -> np.ndarray:
+    """NCC patch size per descriptor channel (see :func:`bwncc_volume`, ``window``)."""
+    if window is None:
+        is_paper = variant in ("paper", "bwncc-paper")
+        return np.full(params.n_channels, 5, np.int64) if is_paper else params.channel_levels
+    return np.full(params.n_channels, check_window(window), np.int64)
+
+
+def _view_scope_taus(pL, pR, n_all, block, tau_rel, descriptor_impl):
+    """``tau_scope="view"``: thresholds from the mean patch variance over all channels of each
+    view (one extra pass over the descriptor).  Returns ``(tauA, tauB, t_desc, t_stats)``."""
+    import time
+    from ..descriptor import descriptor
+    n_channels = pL.params.n_channels
+    mvA, mvB, cnt = 0.0, 0.0, 0
+    t_desc = t_stats = 0.0
+    for start in range(0, n_channels, block):
+        sl = slice(start, min(start + block, n_channels))
+        t0 = time.perf_counter()
+        A = descriptor(pL, channels=sl, impl=descriptor_impl)
+        B = descriptor(pR, channels=sl, impl=descriptor_impl)
+        t_desc += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        for c in range(A.shape[0]):
+            mvA += float(window_stats(A[c], int(n_all[sl][c]))[1].mean())
+            mvB += float(window_stats(B[c], int(n_all[sl][c]))[1].mean())
+        cnt += A.shape[0]
+        t_stats += time.perf_counter() - t0
+    return tau_rel * mvA / cnt, tau_rel * mvB / cnt, t_desc, t_stats
+
+
 def bwncc_volume(left, right, dmin, dmax, variant="default", window=None, tau_rel: float = 1e-5,
                  tau_scope: str = "block", eps: float = 1e-3, block: int | None = None,
                  impl: str = "auto", descriptor_impl: str = "auto", return_scores: bool = False,
@@ -589,7 +620,8 @@ def bwncc_volume(left, right, dmin, dmax, variant="default", window=None, tau_re
         over the channels of the current block (``tau_scope="block"``; with the default
         ``block = n_bins = 68`` one block is exactly one histogram h1/h2/h3 of one level, as in
         the prototype) or over all channels (``tau_scope="view"``: needs a first pass that
-        computes every block once more, ~+descriptor time).  Measured insensitive (notes §2).
+        computes every block once more, ~+descriptor time).  The choice matters little
+        (prototype notes §2).
     block : channels per block (default ``params.n_bins``).  Memory ~ 2 float64 ``(L, H, W)``
         accumulators + ~40 bytes * block * H * W (numba path: reused work buffers).
     timings : optional dict, filled with ``descriptor_s`` and ``cross_s`` (seconds).
@@ -598,7 +630,7 @@ def bwncc_volume(left, right, dmin, dmax, variant="default", window=None, tau_re
     Never holds more than one block of each view's descriptor.
     """
     import time
-    from ..descriptor import iter_descriptor_blocks, prepare, descriptor
+    from ..descriptor import iter_descriptor_blocks, prepare
 
     L, R = check_pair(left, right)
     dmin, dmax = check_disp(dmin, dmax)
@@ -606,11 +638,7 @@ def bwncc_volume(left, right, dmin, dmax, variant="default", window=None, tau_re
     params = _descriptor_params(variant)
     if tau_scope not in ("block", "view"):
         raise InvalidInputError(f"tau_scope must be 'block' or 'view', got {tau_scope!r}")
-    if window is None:
-        is_paper = variant in ("paper", "bwncc-paper")
-        n_all = np.full(params.n_channels, 5, np.int64) if is_paper else params.channel_levels
-    else:
-        n_all = np.full(params.n_channels, check_window(window), np.int64)
+    n_all = _patch_sizes(params, variant, window)
     block = params.n_bins if block is None else int(block)
     if block < 1:
         raise InvalidInputError(f"block must be >= 1, got {block}")
@@ -621,20 +649,9 @@ def bwncc_volume(left, right, dmin, dmax, variant="default", window=None, tau_re
     t_cross = 0.0
     tauA = tauB = None
     if tau_scope == "view":
-        mvA, mvB, cnt = 0.0, 0.0, 0
-        for start in range(0, params.n_channels, block):
-            sl = slice(start, min(start + block, params.n_channels))
-            t0 = time.perf_counter()
-            A = descriptor(pL, channels=sl, impl=descriptor_impl)
-            B = descriptor(pR, channels=sl, impl=descriptor_impl)
-            t_desc += time.perf_counter() - t0
-            t0 = time.perf_counter()
-            for c in range(A.shape[0]):
-                mvA += float(window_stats(A[c], int(n_all[sl][c]))[1].mean())
-                mvB += float(window_stats(B[c], int(n_all[sl][c]))[1].mean())
-            cnt += A.shape[0]
-            t_cross += time.perf_counter() - t0
-        tauA, tauB = tau_rel * mvA / cnt, tau_rel * mvB / cnt
+        tauA, tauB, t_d, t_cross = _view_scope_taus(pL, pR, n_all, block, tau_rel,
+                                                    descriptor_impl)
+        t_desc += t_d
     acc = _BwnccAccumulator(L.shape[0], L.shape[1], dmin, dmax, impl)
     itL = iter_descriptor_blocks(pL, block=block, impl=descriptor_impl)
     itR = iter_descriptor_blocks(pR, block=block, impl=descriptor_impl)
