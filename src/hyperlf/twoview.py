@@ -127,7 +127,7 @@ class StereoResult:
     timings : dict
         Seconds: ``cost`` (both volumes), ``optimiser`` (both references), ``total``.
     metric, optimizer, occlusion : str
-        What was run (``metric`` resolved, e.g. ``"auto"`` -> ``"fused"``).
+        What was run (``metric`` resolved, e.g. ``"auto"`` -> ``"census-rsncc"``).
     params : dict
         The optimiser parameters actually used (defaults merged with the caller's).
     window : int or None
