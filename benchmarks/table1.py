@@ -12,8 +12,10 @@ Protocol (SPEC §4)
   *filled* map (every pixel has a disparity).
 * Every cost with the **same optimiser**: graph cuts (alpha-expansion, truncated linear,
   contrast-sensitive) + left-right check + background fill; and the same with SGM.
-  Parameters come from :data:`hyperlf.twoview.DEFAULT_PARAMS` / ``DEFAULT_WINDOWS``, which are
-  meant to be tuned on **Venus only** (``--tune``) and then fixed for every other scene.
+  Parameters and windows come from each cost of the registry (``params`` / ``windows`` of
+  :class:`hyperlf.costs.Cost`, read by :func:`hyperlf.twoview.default_params` /
+  ``default_window``), which are meant to be tuned on **Venus only** (``--tune``) and then
+  fixed for every other scene.
 * Baselines: OpenCV StereoSGBM on the same red/blue inputs converted to 8 bit (invalid pixels
   background-filled like ours), and a same-spectrum control (red vs red, NCC).
 * The paper's bad5.0 figures are printed beside ours.
@@ -48,7 +50,7 @@ from hyperlf import regularisers as reg
 from hyperlf._atomic import atomic_write_text
 from hyperlf.formats.middlebury import read_middlebury
 from hyperlf.metrics import disparity_scores
-from hyperlf.twoview import (DEFAULT_PARAMS, compute_volumes, default_params, default_window,
+from hyperlf.twoview import (compute_volumes, default_params, default_window,
                             stereo_from_volumes)
 
 SCENES = ("tsukuba", "art", "teddy")
@@ -198,14 +200,16 @@ def speed_report(scene: str = "teddy", metrics=("bwncc", "census-rsncc", "fused"
 
 
 def snippet(tuned: dict) -> str:
-    lines = ["# Paste into hyperlf/twoview.py (tuned on Venus by benchmarks/table1.py --tune):",
-             "DEFAULT_PARAMS = {"]
-    for (m, opt), t in sorted(tuned.items()):
-        lines.append(f"    ({m!r}, {opt!r}): {t['params']!r},")
-    lines.append("}")
-    lines.append("# DEFAULT_WINDOWS entries, per (metric, optimizer):")
-    for (m, opt), t in sorted(tuned.items()):
-        lines.append(f"    ({m!r}, {opt!r}): {t['window']!r},")
+    """The class attributes to paste into each cost (``hyperlf/costs/builtin.py``)."""
+    lines = ["# Paste into the cost objects of hyperlf/costs/builtin.py "
+             "(tuned on Venus by benchmarks/table1.py --tune):"]
+    for m in sorted({m for m, _ in tuned}):
+        opts = sorted(o for mm, o in tuned if mm == m)
+        params = {o: tuned[(m, o)]["params"] for o in opts}
+        windows = {o: tuned[(m, o)]["window"] for o in opts}
+        lines.append(f"# cost {m!r}:")
+        lines.append(f"    windows = {windows!r}")
+        lines.append(f"    params = {params!r}")
     return "\n".join(lines)
 
 
@@ -275,8 +279,8 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
 
     tuned: dict = {}
-    param_source = ("hyperlf.twoview.DEFAULT_PARAMS / DEFAULT_WINDOWS (every cost tuned on Venus "
-                    "with --tune, see twoview.py)")
+    param_source = ("the cost registry's defaults, hyperlf.costs.get_cost(m).params / .windows "
+                    "(every cost tuned on Venus with --tune, see hyperlf/costs/builtin.py)")
     if args.params_json:
         raw = json.loads(Path(args.params_json).read_text())
         for k, v in raw.items():
@@ -368,7 +372,8 @@ def main(argv=None) -> int:
             "date": time.strftime("%Y-%m-%d %H:%M:%S")}
     results = {"meta": meta, "rows": ordered, "paper_bad5": PAPER_BAD5,
                "tuned": {f"{m}|{o}": v for (m, o), v in tuned.items()},
-               "default_params": {f"{m}|{o}": v for (m, o), v in DEFAULT_PARAMS.items()}}
+               "default_params": {f"{m}|{o}": p for m in costs.cost_names()
+                                  for o, p in costs.get_cost(m).params.items()}}
     md = markdown(results, scenes, meta)
     print(md)
     atomic_write_text(out / "table1.md", md)

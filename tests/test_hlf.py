@@ -127,7 +127,7 @@ def test_view_costs_subpixel_and_vertical(rng):
 
 
 def test_census_view_costs_numba_matches_numpy(rng):
-    from hyperlf.hlf import _census_view_costs
+    from hyperlf.costs import census_view_volume as _census_view_costs
     a = rng.random((30, 41))
     b = rng.random((30, 41))
     shifts = [(-0.35 * k, 0.6 * k) for k in range(5)] + [(2.0, -1.0), (-60.0, 0.0), (0.0, 0.5)]

@@ -9,7 +9,7 @@ from scipy import ndimage
 from hyperlf import costs
 from hyperlf import regularisers as reg
 from hyperlf.errors import InvalidInputError
-from hyperlf.twoview import (DEFAULT_PARAMS, StereoResult, compute_volumes, default_params,
+from hyperlf.twoview import (StereoResult, compute_volumes, default_params, default_window,
                             select_channels, stereo)
 
 DB, DF = 2, 8                      # background / foreground disparity
@@ -218,13 +218,19 @@ def test_input_validation():
 
 
 def test_default_params_table():
-    for (metric, opt), p in DEFAULT_PARAMS.items():
-        assert metric in costs.METRICS and opt in ("sgm", "graphcut")
-        if opt == "sgm":
-            assert p["p2"] >= p["p1"] > 0
-        else:
-            assert p["weight"] > 0 and p["max_cycles"] >= 1
+    for metric in costs.cost_names():
+        cost = costs.get_cost(metric)
+        assert metric in costs.METRICS and set(cost.params) <= {"sgm", "graphcut"}
+        for opt, p in cost.params.items():
+            if opt == "sgm":
+                assert p["p2"] >= p["p1"] > 0
+            else:
+                assert p["weight"] > 0 and p["max_cycles"] >= 1
     auto = default_params("auto", "graphcut")
-    assert auto == {**auto, **DEFAULT_PARAMS[(costs.AUTO_METRIC, "graphcut")]}
+    assert auto == {**auto, **costs.get_cost(costs.AUTO_METRIC).params["graphcut"]}
     assert auto["levels"] >= 0          # every graph-cut default says how coarse-to-fine it runs
     assert default_params("ncc", "wta") == {}
+    # windows: per optimiser where tuned, else the cost's own default (None)
+    assert default_window("ssd", "graphcut") == 9 and default_window("ssd", "sgm") is None
+    assert default_window("census", "graphcut") == 7 and default_window("census", "wta") == 5
+    assert default_window("auto", "graphcut") is None

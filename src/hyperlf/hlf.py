@@ -22,8 +22,7 @@ are sampled there **bilinearly** (sub-pixel); candidates with ``q_v`` outside th
      level, resp. ``DescriptorParams.paper()`` with ``n = 5``).  The reference's descriptor
      statistics are computed once per channel block; the other view's channel maps are streamed
      in blocks of 68 channels (one histogram of one level), shifted by ``(-d dx, -d dy)``
-     bilinearly, and the cross terms accumulated in float64 (numba kernel
-     :func:`_xi_shift_kernel`, one pass per (view, label, block)).
+     bilinearly, and the cross terms accumulated in float64 (:mod:`hyperlf.costs.lightfield`, one kernel pass per (view, label, block)).
      **Statistics of shifted maps: exact, no approximation.**  The kernel recomputes the
      patch mean and variance of the *interpolated* map together with the cross term (three
      separable running box sums instead of one), so for sub-pixel shifts the NCC is the exact
@@ -174,9 +173,8 @@ import numpy as np
 from numba import njit, prange
 
 from ._progress import progress_bar
+from .costs import cost_names, get_cost, view_costs
 from .imageops import gradient_magnitude, normalise_intensity
-from .warp import axis_taps as _axis_interp
-from .warp import axis_valid as _axis_valid
 from .warp import shift_map
 from .errors import InvalidInputError
 
@@ -203,11 +201,10 @@ __all__ = [
 
 DEFOCUS_MODES = ("off", "paper", "gaussian", "flat", "tv")
 OPTIMIZERS = ("graphcut", "sgm", "wta")
-CORR_METRICS = ("fused", "bwncc", "bwncc-paper", "ncc", "rsncc", "census", "census-rsncc")
+#: The costs available for H-LF matching (those of the registry with a light-field evaluator;
+#: :func:`hyperlf.costs.cost_names` with ``light_field=True`` is the live list).
+CORR_METRICS = cost_names(light_field=True)
 _PRIOR_CODE = {"gaussian": 0, "flat": 1, "tv": 2}
-#: The reference descriptor blocks with their float64 statistics (~20 bytes per channel and
-#: pixel) are cached across views when they fit in this many bytes, else recomputed per view.
-_REF_CACHE_BYTES = 512 * 1024 ** 2
 
 
 # ============================================================================================
@@ -349,367 +346,6 @@ def make_labels(dmin: float, dmax: float, n_labels: int) -> np.ndarray:
     if not (np.isfinite(dmin) and np.isfinite(dmax) and dmin < dmax):
         raise InvalidInputError(f"disparity range must be finite with min < max, got ({dmin}, {dmax})")
     return np.linspace(float(dmin), float(dmax), n)
-
-
-# ============================================================================================
-# Sub-pixel shifting
-# ============================================================================================
-
-
-# ============================================================================================
-# Correspondence kernels
-# ============================================================================================
-
-
-@njit(parallel=True, cache=True)
-def _xi_shift_kernel(Apad, muA, isA, ca, B, cb, y0, y1, fy, x0, x1, fx, r, tauB, weighted,
-                     outF, outB, outM):  # pragma: no cover - numba
-    """Per-channel NCC of the reference patches with the bilinearly shifted other view.
-
-    Apad (nc, H+2r, W+2r) reference channels padded (replicate); muA, isA (nc, H, W) their
-    patch means and 1/sigma (0 below tau); B (nc, H, W) other view's channels (unshifted);
-    ca, cb (nc,) per-channel centring constants; y0, y1, fy (H+2r,) and x0, x1, fx (W+2r,)
-    the shift's sampling arrays; tauB (nc,) the other view's variance threshold per channel.
-    outF, outB, outM (G, H, W) float64: group ``g`` of channels ``c = g, g + G, ...`` adds
-    ``sum_c xi_c muA_c``, ``sum_c xi_c muB_c`` and ``sum_c muB_c`` (muB = exact patch mean of
-    the shifted map) to its own slice (no write races; the caller sums over ``g``).
-    With ``weighted=False`` outF gets ``sum_c xi_c``.
-    """
-    nc, H, W = muA.shape
-    G = outF.shape[0]
-    Hp = H + 2 * r
-    Wp = W + 2 * r
-    n = 2 * r + 1
-    inv = 1.0 / (n * n)
-    for g in prange(G):
-        bs = np.empty((Hp, Wp))
-        v1 = np.empty((H, Wp))
-        v2 = np.empty((H, Wp))
-        v3 = np.empty((H, Wp))
-        for c in range(g, nc, G):
-            cbc = cb[c]
-            cac = ca[c]
-            for Y in range(Hp):
-                ya = y0[Y]
-                yb = y1[Y]
-                wy = fy[Y]
-                for X in range(Wp):
-                    xa = x0[X]
-                    xb = x1[X]
-                    wx = fx[X]
-                    bs[Y, X] = ((B[c, ya, xa] * (1.0 - wx) + B[c, ya, xb] * wx) * (1.0 - wy)
-                                + (B[c, yb, xa] * (1.0 - wx) + B[c, yb, xb] * wx) * wy) - cbc
-            for X in range(Wp):
-                s1 = 0.0
-                s2 = 0.0
-                s3 = 0.0
-                for Y in range(n):
-                    b = bs[Y, X]
-                    s1 += b
-                    s2 += b * b
-                    s3 += (Apad[c, Y, X] - cac) * b
-                v1[0, X] = s1
-                v2[0, X] = s2
-                v3[0, X] = s3
-                for y in range(1, H):
-                    bo = bs[y - 1, X]
-                    bn = bs[y + n - 1, X]
-                    s1 += bn - bo
-                    s2 += bn * bn - bo * bo
-                    s3 += (Apad[c, y + n - 1, X] - cac) * bn - (Apad[c, y - 1, X] - cac) * bo
-                    v1[y, X] = s1
-                    v2[y, X] = s2
-                    v3[y, X] = s3
-            for y in range(H):
-                s1 = 0.0
-                s2 = 0.0
-                s3 = 0.0
-                for X in range(n):
-                    s1 += v1[y, X]
-                    s2 += v2[y, X]
-                    s3 += v3[y, X]
-                for x in range(W):
-                    if x > 0:
-                        s1 += v1[y, x + n - 1] - v1[y, x - 1]
-                        s2 += v2[y, x + n - 1] - v2[y, x - 1]
-                        s3 += v3[y, x + n - 1] - v3[y, x - 1]
-                    mb = s1 * inv
-                    var = s2 * inv - mb * mb
-                    ma = muA[c, y, x]
-                    cov = s3 * inv - (ma - cac) * mb
-                    isb = 0.0
-                    if var >= tauB[c] and var > 0.0:
-                        isb = 1.0 / math.sqrt(var)
-                    xi = cov * isA[c, y, x] * isb
-                    if xi > 1.0:
-                        xi = 1.0
-                    elif xi < -1.0:
-                        xi = -1.0
-                    mbt = mb + cbc
-                    if weighted:
-                        outF[g, y, x] += xi * ma
-                    else:
-                        outF[g, y, x] += xi
-                    outB[g, y, x] += xi * mbt
-                    outM[g, y, x] += mbt
-
-
-def _inv_sigma(var, tau):
-    ok = (var >= tau) & (var > 0)
-    out = np.zeros_like(var)
-    np.divide(1.0, np.sqrt(np.where(ok, var, 1.0)), out=out, where=ok)
-    return out
-
-
-class _RefBlock:
-    """Reference channel block with padded maps and statistics (one NCC patch size).
-
-    ``per_channel``: each channel gets its own variance threshold (``tau_rel`` x its own mean
-    patch variance) instead of one for the block; for stacking unrelated maps (RSNCC's
-    intensity and gradient magnitude) so that they are computed in parallel."""
-
-    def __init__(self, A: np.ndarray, n: int, tau_rel: float, per_channel: bool = False):
-        from .costs import channel_stats, pad_replicate
-        self.n = int(n)
-        self.r = self.n // 2
-        st = channel_stats(A, self.n)
-        self.centre = st["centre"]
-        tau = (tau_rel * st["mean_var"][:, None, None] if per_channel
-               else tau_rel * float(st["mean_var"].mean()))
-        self.mu = np.ascontiguousarray(st["mu"])
-        self.isig = np.ascontiguousarray(_inv_sigma(st["var"], tau))
-        self.pad = np.ascontiguousarray(pad_replicate(np.asarray(A, np.float32), self.r))
-        self.den = self.mu.sum(axis=0)
-
-
-def _view_tau(B: np.ndarray, n: int, tau_rel: float, per_channel: bool = False):
-    """The other view's variance threshold: one for the block (float), or per channel."""
-    from .costs import window_stats
-    mv = np.array([float(window_stats(B[c], n)[1].mean()) for c in range(B.shape[0])])
-    if per_channel:
-        return tau_rel * mv
-    return tau_rel * float(np.mean(mv)) if mv.size else 0.0
-
-
-def _xi_terms(ref: _RefBlock, B: np.ndarray, centre_b, tauB, sx, sy, weighted=True,
-              per_channel: bool = False):
-    """Sums over channels of ``xi muA``, ``xi muB`` and ``muB`` for one shift: 3 x (H, W).
-
-    ``per_channel=True`` returns ``xi`` (or ``xi muA``) of every channel instead, as
-    ``(nc, H, W)`` (one channel per parallel group), and the other two as None."""
-    nc, H, W = ref.mu.shape
-    r = ref.r
-    y0, y1, fy = _axis_interp(H, sy, r)
-    x0, x1, fx = _axis_interp(W, sx, r)
-    import numba
-    G = nc if per_channel else max(1, min(nc, numba.get_num_threads()))
-    oF = np.zeros((G, H, W))
-    oB = np.zeros((G, H, W))
-    oM = np.zeros((G, H, W))
-    tau = np.broadcast_to(np.asarray(tauB, np.float64), (nc,)).copy()
-    _xi_shift_kernel(ref.pad, ref.mu, ref.isig, ref.centre, np.ascontiguousarray(B, np.float32),
-                     np.asarray(centre_b, np.float64), y0, y1, fy, x0, x1, fx, r, tau,
-                     bool(weighted), oF, oB, oM)
-    if per_channel:
-        return oF, None, None
-    return oF.sum(axis=0), oB.sum(axis=0), oM.sum(axis=0)
-
-
-def _ncc_view_costs(ref_img, img, shifts, n, tau_rel):
-    L = len(shifts)
-    H, W = ref_img.shape
-    A = normalise_intensity(ref_img)[None].astype(np.float32)
-    B = normalise_intensity(img)[None].astype(np.float32)
-    ref = _RefBlock(A, n, tau_rel)
-    tauB = _view_tau(B, n, tau_rel)
-    cb = np.array([float(B.mean())])
-    out = np.empty((L, H, W), np.float32)
-    for k, (sx, sy) in enumerate(shifts):
-        F, _, _ = _xi_terms(ref, B, cb, tauB, sx, sy, weighted=False)
-        out[k] = 1.0 - F
-    return out
-
-
-def _rsncc_view_costs(ref_img, img, shifts, n, tau_rel, rs_tau: float = 1.0):
-    """RSNCC (Shen et al. 2014, :func:`hyperlf.costs.rsncc_volume`) with sub-pixel shifts:
-    ``rho(1 - NCC(In)) + rs_tau * rho(1 - NCC(|grad In|))``; the gradient term is unchanged
-    by a contrast reversal between bands.  The two NCCs run as two channels of one kernel
-    call (one per core), each with its own variance thresholds, so the result is that of two
-    separate single-channel NCCs."""
-    from .costs import rho
-    L = len(shifts)
-    H, W = ref_img.shape
-    a, b = normalise_intensity(ref_img), normalise_intensity(img)
-    A = np.stack([a, gradient_magnitude(a)]).astype(np.float32)
-    B = np.stack([b, gradient_magnitude(b)]).astype(np.float32)
-    ref = _RefBlock(A, n, tau_rel, per_channel=True)
-    tauB = _view_tau(B, n, tau_rel, per_channel=True)
-    cb = B.reshape(2, -1).astype(np.float64).mean(axis=1)
-    out = np.empty((L, H, W), np.float32)
-    for k, (sx, sy) in enumerate(shifts):
-        xi, _, _ = _xi_terms(ref, B, cb, tauB, sx, sy, weighted=False, per_channel=True)
-        out[k] = rho(1.0 - xi[0]) + float(rs_tau) * rho(1.0 - xi[1])
-    return out
-
-
-@njit(parallel=True, cache=True)
-def _census_shift_kernel(img, cref, y0, y1, fy, x0, x1, fx, r, buf, out):  # pragma: no cover
-    """Hamming distance between the reference census codes ``cref`` and the census codes of
-    ``img`` bilinearly shifted (sampling arrays as :func:`shift_map` with ``r = 0``), without
-    building the shifted codes: bit ``k`` of a code is ``neighbour_k < centre`` (row-major
-    window, centre skipped, replicated border), as :func:`hyperlf.costs.census_transform`.
-    ``buf`` (H, W) float64 receives the shifted image; ``out`` (H, W) float32 the distances."""
-    H, W = img.shape
-    for y in prange(H):
-        wy = fy[y]
-        for x in range(W):
-            wx = fx[x]
-            top0 = img[y0[y], x0[x]]
-            top1 = img[y0[y], x1[x]]
-            bot0 = img[y1[y], x0[x]]
-            bot1 = img[y1[y], x1[x]]
-            a0 = top0 * (1 - wy) + bot0 * wy
-            a1 = top1 * (1 - wy) + bot1 * wy
-            buf[y, x] = a0 * (1 - wx) + a1 * wx
-    for y in prange(H):
-        for x in range(W):
-            c = buf[y, x]
-            code = cref[y, x]
-            k = np.uint64(0)
-            d = 0
-            for dy in range(-r, r + 1):
-                yy = min(max(y + dy, 0), H - 1)
-                for dx in range(-r, r + 1):
-                    if dy == 0 and dx == 0:
-                        continue
-                    xx = min(max(x + dx, 0), W - 1)
-                    bit_s = buf[yy, xx] < c
-                    bit_r = ((code >> k) & np.uint64(1)) == np.uint64(1)
-                    if bit_s != bit_r:
-                        d += 1
-                    k += np.uint64(1)
-            out[y, x] = d
-
-
-def _census_view_costs(ref_img, img, shifts, window, impl: str = "numba"):
-    """Census Hamming costs of the reference against ``img`` shifted by each ``(sx, sy)``.
-
-    ``impl="numpy"``: the reference (shift with :func:`shift_map`, then
-    :func:`hyperlf.costs.census_transform` and a popcount); ``"numba"``: one fused kernel
-    (:func:`_census_shift_kernel`), identical results, ~10x faster.
-    """
-    from .costs import census_transform
-    L = len(shifts)
-    H, W = ref_img.shape
-    cref = census_transform(ref_img, window)
-    out = np.empty((L, H, W), np.float32)
-    if impl == "numpy":
-        for k, (sx, sy) in enumerate(shifts):
-            s, _ = shift_map(img, sx, sy, 0)
-            out[k] = np.bitwise_count(cref ^ census_transform(s, window)).astype(np.float32)
-        return out
-    a = np.ascontiguousarray(img, dtype=np.float64)
-    buf = np.empty((H, W), np.float64)
-    for k, (sx, sy) in enumerate(shifts):
-        y0, y1, fy = _axis_interp(H, sy, 0)
-        x0, x1, fx = _axis_interp(W, sx, 0)
-        _census_shift_kernel(a, cref, y0, y1, fy, x0, x1, fx, int(window) // 2, buf, out[k])
-    return out
-
-
-def _bwncc_view_costs(ref_img, img, shifts, variant, window, tau_rel, eps, block, ref_cache):
-    from .costs import bwncc_finish
-    from .descriptor import DescriptorParams, descriptor, iter_descriptor_blocks, prepare
-    params = DescriptorParams.paper() if variant == "bwncc-paper" else DescriptorParams.default()
-    if window is not None:
-        n_all = np.full(params.n_channels, int(window), np.int64)
-    elif variant == "bwncc-paper":
-        n_all = np.full(params.n_channels, 5, np.int64)
-    else:
-        n_all = params.channel_levels
-    L = len(shifts)
-    H, W = ref_img.shape
-    accF = np.zeros((L, H, W))
-    accB = np.zeros((L, H, W))
-    denB = np.zeros((L, H, W))
-    denF = np.zeros((H, W))
-    key = ("prep", variant)
-    if key not in ref_cache:
-        ref_cache[key] = prepare(ref_img, params)
-    pA = ref_cache[key]
-    pB = prepare(img, params)
-    keep = 20.0 * params.n_channels * H * W <= _REF_CACHE_BYTES
-    for (slB, Bblk) in iter_descriptor_blocks(pB, block=block):
-        bkey = ("block", variant, slB.start, slB.stop)
-        refs = ref_cache.get(bkey)
-        if refs is None:
-            Ablk = descriptor(pA, channels=slB)
-            ns = n_all[slB]
-            refs = []
-            for nn in np.unique(ns):
-                sel = np.nonzero(ns == nn)[0]
-                refs.append((sel, int(nn), _RefBlock(Ablk[sel], int(nn), tau_rel)))
-            del Ablk
-            if keep:
-                ref_cache[bkey] = refs
-        for sel, nn, rb in refs:
-            Bs = np.ascontiguousarray(Bblk[sel])
-            tauB = _view_tau(Bs, nn, tau_rel)
-            cb = Bs.reshape(Bs.shape[0], -1).astype(np.float64).mean(axis=1)
-            denF += rb.den
-            for k, (sx, sy) in enumerate(shifts):
-                F, Bw, M = _xi_terms(rb, Bs, cb, tauB, sx, sy)
-                accF[k] += F
-                accB[k] += Bw
-                denB[k] += M
-    cost = bwncc_finish(accF, accB, denF[None], denB, eps)
-    return cost.astype(np.float32)
-
-
-def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | None = None,
-               tau_rel: float = 1e-5, eps: float = 1e-3, block: int = 68, _cache=None):
-    """Correspondence cost ``C_v[L, H, W]`` (float32, lower is better) of one view against the
-    reference, and its validity ``(L, H, W)`` (``q_v`` inside the image).
-
-    ``offset = (dx, dy) = pos_v - pos_ref``; label ``d`` compares ``p`` with ``p - d (dx, dy)``.
-    ``metric``: ``"census-rsncc"`` (``"auto"``), ``"fused"``, ``"bwncc"``, ``"bwncc-paper"``,
-    ``"ncc"``, ``"rsncc"``, ``"census"``.  Invalid entries carry the pixel's worst valid cost
-    (for display; the aggregation masks them anyway).
-    """
-    from .costs import fuse, resolve_metric
-    name = resolve_metric(metric)
-    if name not in CORR_METRICS:
-        raise InvalidInputError(
-            f"metric {metric!r} is not available for H-LF matching; choose one of "
-            f"{', '.join(CORR_METRICS)} or 'auto'")
-    A = np.asarray(ref_img, dtype=np.float64)
-    B = np.asarray(img, dtype=np.float64)
-    dx, dy = float(offset[0]), float(offset[1])
-    lab = np.asarray(labels, dtype=np.float64)
-    shifts = [(-d * dx, -d * dy) for d in lab]
-    H, W = A.shape
-    valid = np.stack([_axis_valid(H, sy)[:, None] & _axis_valid(W, sx)[None, :]
-                      for sx, sy in shifts])
-    cache = {} if _cache is None else _cache
-    if name == "ncc":
-        C = _ncc_view_costs(A, B, shifts, 5 if window is None else window, tau_rel)
-    elif name == "rsncc":
-        C = _rsncc_view_costs(A, B, shifts, 5 if window is None else window, tau_rel)
-    elif name == "census":
-        C = _census_view_costs(A, B, shifts, 7 if window is None else window)
-    elif name == "census-rsncc":
-        rs = _rsncc_view_costs(A, B, shifts, 5 if window is None else window, tau_rel)
-        cs = _census_view_costs(A, B, shifts, 7)
-        C = fuse([rs, cs], dmin=0, valid=valid)
-    elif name in ("bwncc", "bwncc-paper"):
-        C = _bwncc_view_costs(A, B, shifts, name, window, tau_rel, eps, block, cache)
-    else:  # fused
-        bw = _bwncc_view_costs(A, B, shifts, "bwncc", None, tau_rel, eps, block, cache)
-        cs = _census_view_costs(A, B, shifts, 7)
-        C = fuse([bw, cs], dmin=0, valid=valid)
-    from .costs import fill_invalid
-    C = fill_invalid(np.ascontiguousarray(C, dtype=np.float32), 0, valid)
-    return C, valid
 
 
 # ============================================================================================
@@ -1187,12 +823,7 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
         raise InvalidInputError(f"defocus must be one of {DEFOCUS_MODES}, got {defocus!r}")
     if optimizer not in OPTIMIZERS:
         raise InvalidInputError(f"optimizer must be one of {OPTIMIZERS}, got {optimizer!r}")
-    from .costs import resolve_metric
-    mname = resolve_metric(metric)
-    if mname not in CORR_METRICS:
-        raise InvalidInputError(
-            f"metric {metric!r} is not available for H-LF matching; choose one of "
-            f"{', '.join(CORR_METRICS)} or 'auto'")
+    mname = get_cost(metric, light_field=True).name
     if defocus != "off" and not lf.is_spectral:
         raise InvalidInputError(
             "the defocus cue needs a spectral light field with one wavelength per view "

@@ -25,16 +25,16 @@ Pipeline
    It costs no second volume computation.  Computing the volume again with swapped and mirrored
    inputs would *not* be exact for ``bwncc`` (mirroring maps gradient directions
    ``theta -> 1 - theta``, and the overlapping, asymmetric bins are not mirror-symmetric) and
-   would double the cost time.  The exceptions are the fusions ``fused`` and
-   ``census-rsncc`` (``auto``): their normalisation subtracts a *per-pixel* minimum, which is
-   referenced to the left pixel; so their raw parts (``bwncc`` or ``rsncc``, and ``census``)
+   would double the cost time.  The exceptions are the fused costs (``fused``,
+   ``census-rsncc`` = ``auto``; :class:`hyperlf.costs.FusedCost`): their normalisation
+   subtracts a *per-pixel* minimum, which is referenced to the left pixel; so their raw parts
    are shifted separately and fused again with the right view's validity
-   (:func:`compute_volumes`), which is exact as well.
+   (:meth:`hyperlf.costs.FusedCost.pair_volumes`), which is exact as well.
 4. **Data term** ``D = (C - min_d C) / s`` per pixel (paper ``|C(f(p)) - C(f*(p))|``), with
    one global scale ``s`` per pair = the standard deviation of the valid raw entries of
    ``C_L`` (the same value for both references).  Dividing by ``s`` makes the smoothness
    parameters comparable between costs of very different ranges (census: 0..48, ncc: 0..2);
-   they are still tuned per cost (:data:`DEFAULT_PARAMS`).
+   they are still tuned per cost (:attr:`hyperlf.costs.Cost.params`, :func:`default_params`).
 5. **Optimiser**, the same for both references: ``wta``; ``sgm`` (8 paths, P1/P2 on label
    steps, :func:`hyperlf.regularisers.sgm`); ``graphcut`` (alpha-expansion, truncated-linear
    smoothness ``weight * w_pq * min(|d_p - d_q|, truncation)`` with contrast-sensitive
@@ -68,8 +68,6 @@ from .errors import InvalidInputError
 __all__ = [
     "OPTIMIZERS",
     "OCCLUSION_MODES",
-    "DEFAULT_PARAMS",
-    "DEFAULT_WINDOWS",
     "StereoResult",
     "stereo",
     "select_channels",
@@ -97,60 +95,19 @@ _BASE_PARAMS: dict[str, dict[str, Any]] = {
                  "edge_sigma": None, "max_cycles": 3, "levels": 2},
 }
 
-#: Default optimiser parameters per ``(metric, optimizer)``; a pair that is not listed uses the
-#: optimiser's fallback (``_BASE_PARAMS``).  Tuned on **Venus only** (SPEC §4), red vs blue,
-#: LR check + background fill, by ``benchmarks/table1.py --tune`` (grid: graph cuts weight
-#: {1,2,4,8} x truncation {2,4,8} with the coarse-to-fine solver, SGM p1 {0.5,1,2} x p2
-#: {4,8,16}; windows {5,9} for ssd/ncc/rsncc, {5,7} for census; criterion Venus bad5.0, ties by
-#: bad2.0), then fixed for every other scene.  Graph-cut rows: 2026-11-23, after the solver
-#: became coarse-to-fine; SGM rows: the earlier tuning run.  Venus is piecewise planar and
-#: rewards strong smoothing: several picks sit on the grid's upper edge, and on Tsukuba a
-#: weight of 4 or more can make the MRF give the weakly textured lamp the background's
-#: disparity (BENCHMARKS.md, Table 1).
-DEFAULT_PARAMS: dict[tuple[str, str], dict[str, Any]] = {
-    # Tuned on Venus only (R vs B) by `benchmarks/table1.py --tune`; fixed for every other scene.
-    ("ssd", "graphcut"): {"smoothness": "truncated_linear", "weight": 8.0, "truncation": 8.0, "edge_sigma": None, "max_cycles": 3, "levels": 2},  # Venus bad5 9.53, window 9
-    ("ssd", "sgm"): {"p1": 1.0, "p2": 16.0, "paths": 8, "smoothness": "p1p2"},  # Venus bad5 11.80, window 5
-    ("rsncc", "graphcut"): {"smoothness": "truncated_linear", "weight": 8.0, "truncation": 4.0, "edge_sigma": None, "max_cycles": 3, "levels": 2},  # Venus bad5 0.49, window 5
-    ("rsncc", "sgm"): {"p1": 2.0, "p2": 16.0, "paths": 8, "smoothness": "p1p2"},  # Venus bad5 1.03, window 5
-    ("bwncc", "graphcut"): {"smoothness": "truncated_linear", "weight": 4.0, "truncation": 8.0, "edge_sigma": None, "max_cycles": 3, "levels": 2},  # Venus bad5 0.04, window None
-    ("bwncc", "sgm"): {"p1": 2.0, "p2": 16.0, "paths": 8, "smoothness": "p1p2"},  # Venus bad5 4.14, window None
-    ("bwncc-paper", "graphcut"): {"smoothness": "truncated_linear", "weight": 2.0, "truncation": 8.0, "edge_sigma": None, "max_cycles": 3, "levels": 2},  # Venus bad5 1.07, window None
-    ("bwncc-paper", "sgm"): {"p1": 2.0, "p2": 16.0, "paths": 8, "smoothness": "p1p2"},  # Venus bad5 8.12, window None
-    ("fused", "graphcut"): {"smoothness": "truncated_linear", "weight": 4.0, "truncation": 8.0, "edge_sigma": None, "max_cycles": 3, "levels": 2},  # Venus bad5 0.09, window None
-    ("fused", "sgm"): {"p1": 2.0, "p2": 16.0, "paths": 8, "smoothness": "p1p2"},  # Venus bad5 2.15, window None
-    ("ncc", "graphcut"): {"smoothness": "truncated_linear", "weight": 8.0, "truncation": 4.0, "edge_sigma": None, "max_cycles": 3, "levels": 2},  # Venus bad5 0.91, window 5
-    ("ncc", "sgm"): {"p1": 2.0, "p2": 16.0, "paths": 8, "smoothness": "p1p2"},
-    ("census", "graphcut"): {"smoothness": "truncated_linear", "weight": 4.0, "truncation": 8.0, "edge_sigma": None, "max_cycles": 3, "levels": 2},  # Venus bad5 1.23, window 7
-    ("census", "sgm"): {"p1": 2.0, "p2": 16.0, "paths": 8, "smoothness": "p1p2"},
-    ("census-rsncc", "graphcut"): {"smoothness": "truncated_linear", "weight": 2.0, "truncation": 4.0, "edge_sigma": None, "max_cycles": 3, "levels": 2},  # Venus bad5 0.38, window None
-    ("census-rsncc", "sgm"): {"p1": 2.0, "p2": 16.0, "paths": 8, "smoothness": "p1p2"},  # Venus bad5 0.92, window None
-}
-
-#: Cost window used when ``window=None``, per ``(metric, optimizer)`` or, failing that, per
-#: metric (None = the metric's own default in :mod:`hyperlf.costs`: 5 for ssd/ncc/rsncc, 7 for
-#: census, per level for bwncc).  Tuned on Venus together with :data:`DEFAULT_PARAMS`
-#: (:func:`default_window`).
-DEFAULT_WINDOWS: dict = {
-    "ssd": None, "ncc": 5, "rsncc": None, "census": 5,
-    "bwncc": None, "bwncc-paper": None, "fused": None, "census-rsncc": None,
-    ("ssd", "graphcut"): 9, ("ncc", "graphcut"): 5, ("rsncc", "graphcut"): 5,
-    ("census", "graphcut"): 7,
-}
-
-
 def default_window(metric: str, optimizer: str) -> int | None:
-    """The default cost window of ``(metric, optimizer)`` (:data:`DEFAULT_WINDOWS`)."""
-    m = _costs.resolve_metric(metric)
-    opt = _check_optimizer(optimizer)
-    return DEFAULT_WINDOWS.get((m, opt), DEFAULT_WINDOWS.get(m))
+    """The default cost window of ``(metric, optimizer)``: the cost's
+    :meth:`~hyperlf.costs.Cost.default_window` (None = the cost's own default)."""
+    cost = _costs.get_cost(metric)
+    return cost.default_window(_check_optimizer(optimizer))
 
 
 def default_params(metric: str, optimizer: str) -> dict:
-    """The default optimiser parameters for ``(metric, optimizer)`` (a fresh copy)."""
-    m = _costs.resolve_metric(metric)
+    """The default optimiser parameters for ``(metric, optimizer)`` (a fresh copy): the
+    optimiser's fallback updated with the cost's own (:attr:`hyperlf.costs.Cost.params`)."""
+    cost = _costs.get_cost(metric)
     opt = _check_optimizer(optimizer)
-    return {**_BASE_PARAMS[opt], **DEFAULT_PARAMS.get((m, opt), {})}
+    return {**_BASE_PARAMS[opt], **cost.default_params(opt)}
 
 
 @dataclass
@@ -170,7 +127,7 @@ class StereoResult:
     timings : dict
         Seconds: ``cost`` (both volumes), ``optimiser`` (both references), ``total``.
     metric, optimizer, occlusion : str
-        What was run (``metric`` resolved, e.g. ``"auto"`` -> ``"fused"``).
+        What was run (``metric`` resolved, e.g. ``"auto"`` -> ``"census-rsncc"``).
     params : dict
         The optimiser parameters actually used (defaults merged with the caller's).
     window : int or None
@@ -303,47 +260,16 @@ def _merge_params(metric: str, optimizer: str, params) -> dict:
 # volumes
 # ----------------------------------------------------------------------------------------------
 
-def _right_validity(shape, dmin: int, dmax: int) -> np.ndarray:
-    """``valid_R[L, H, W]``: True where the right pixel's partner ``x_r + d`` is in the image."""
-    H, W = shape
-    d = np.arange(dmin, dmax + 1)[:, None, None]
-    x = np.arange(W)[None, None, :]
-    return np.broadcast_to((x + d >= 0) & (x + d < W), (d.shape[0], H, W))
-
-
 def compute_volumes(left, right, dmin: int, dmax: int, metric: str = "auto", window=None,
                     need_right: bool = True, cost_params: dict | None = None):
     """Left- and right-referenced cost volumes ``(C_L, C_R)`` of two 2-D images.
 
-    ``C_R`` is None unless ``need_right``.  See the module docstring (step 3) for why the
-    re-referencing is exact.  ``cost_params`` go to :func:`hyperlf.costs.cost_volume`.
+    ``C_R`` is None unless ``need_right``.  See the module docstring (step 3) and
+    :meth:`hyperlf.costs.Cost.pair_volumes` for why the re-referencing is exact.
+    ``cost_params`` go to the cost (:func:`hyperlf.costs.cost_volumes`).
     """
-    name = _costs.resolve_metric(metric)
-    kw = dict(cost_params or {})
-    labels = np.arange(dmin, dmax + 1, dtype=np.float64)
-    if name in ("fused", "census-rsncc") and need_right:
-        # Shift the raw parts, then fuse each reference with its own validity (exact).
-        cw = kw.pop("census_window", 7)
-        weights = kw.pop("weights", (1.0, 1.0))
-        impl = kw.pop("impl", "auto")
-        if name == "fused":
-            bw = kw.pop("bwncc_window", None)
-            b = _costs.bwncc_volume(left, right, dmin, dmax, "default", window=bw, impl=impl,
-                                    **kw)
-        else:
-            b = _costs.rsncc_volume(left, right, dmin, dmax,
-                                    window=kw.pop("rsncc_window", 5), impl=impl, **kw)
-        c = _costs.census_volume(left, right, dmin, dmax, window=cw, impl=impl)
-        cl = _costs.fuse([b, c], weights, dmin)
-        vr = _right_validity(cl.shape[1:], dmin, dmax)
-        br = _reg.right_cost_from_left(b, labels)
-        crr = _reg.right_cost_from_left(c, labels)
-        cr = _costs.fuse([br, crr], weights, dmin, valid=vr)
-        return cl, cr
-    cl = _costs.cost_volume(left, right, dmin, dmax, metric=name, window=window, **kw)
-    cl = np.asarray(cl, dtype=np.float32)
-    cr = _reg.right_cost_from_left(cl, labels) if need_right else None
-    return cl, cr
+    return _costs.cost_volumes(left, right, dmin, dmax, metric, window=window,
+                               need_right=need_right, **dict(cost_params or {}))
 
 
 def _data_scale(cost_left: np.ndarray, dmin: int) -> float:
@@ -443,11 +369,11 @@ def stereo(left, right, disparity_range, metric: str = "auto", optimizer: str = 
     optimizer : ``"graphcut"`` (default), ``"sgm"`` or ``"wta"``.
     occlusion : ``"lr-fill"`` (left-right check + background fill) or ``"none"``.
     subpixel : parabola refinement of the chosen labels.
-    params : optimiser parameters overriding :data:`DEFAULT_PARAMS` — sgm: ``p1``, ``p2``
+    params : optimiser parameters overriding :func:`default_params` — sgm: ``p1``, ``p2``
         (``paths``, ``smoothness``); graphcut: ``smoothness``, ``weight``, ``truncation``,
         ``edge_sigma``, ``max_cycles``, ``levels`` (coarse-to-fine halvings, 0 = plain
         alpha-expansion); in units of the normalised data term.
-    window : cost window (odd); None uses :data:`DEFAULT_WINDOWS` / the metric's default.
+    window : cost window (odd); None uses :func:`default_window` (the cost's defaults).
     channel : None, int, or ``(left_channel, right_channel)`` for colour inputs.
     progress : show a progress bar during graph cuts.
     cost_params : extra keyword arguments of :func:`hyperlf.costs.cost_volume`.

@@ -1,0 +1,66 @@
+"""Argument checks shared by the cost evaluators (private module, public names)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InvalidInputError
+
+__all__ = ["IMPLS", "AUTO_IMPL", "check_pair", "check_disp", "check_window", "check_impl"]
+
+IMPLS = ("auto", "numpy", "numba")
+#: ``impl="auto"`` per evaluator: numba wherever a kernel exists (measured faster, BENCHMARKS.md).
+AUTO_IMPL = {"ncc": "numba", "rsncc": "numba", "census": "numba", "bwncc": "numba"}
+
+
+def check_pair(left, right) -> tuple[np.ndarray, np.ndarray]:
+    """Two finite, numeric, equally shaped 2-D images as float64 (InvalidInputError otherwise)."""
+    L = np.asarray(left)
+    R = np.asarray(right)
+    if L.ndim != 2 or R.ndim != 2:
+        raise InvalidInputError(
+            f"left and right must be 2-D (H, W) images, got shapes {L.shape} and {R.shape}")
+    if L.shape != R.shape:
+        raise InvalidInputError(f"left and right must have the same shape, got {L.shape} and {R.shape}")
+    if L.shape[0] < 1 or L.shape[1] < 1:
+        raise InvalidInputError(f"images must be non-empty, got shape {L.shape}")
+    if not (np.issubdtype(L.dtype, np.number) and np.issubdtype(R.dtype, np.number)):
+        raise InvalidInputError("left and right must be numeric arrays")
+    L = L.astype(np.float64)
+    R = R.astype(np.float64)
+    if not (np.isfinite(L).all() and np.isfinite(R).all()):
+        raise InvalidInputError("left and right must be finite (no NaN/inf); fill or mask them first")
+    return L, R
+
+
+def check_disp(dmin, dmax) -> tuple[int, int]:
+    """Integer ``dmin <= dmax``."""
+    try:
+        a, b = int(dmin), int(dmax)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"dmin and dmax must be integers, got {dmin!r}, {dmax!r}")
+    if a != dmin or b != dmax:
+        raise InvalidInputError(f"dmin and dmax must be integers, got {dmin!r}, {dmax!r}")
+    if b < a:
+        raise InvalidInputError(f"dmax must be >= dmin, got dmin={a}, dmax={b}")
+    return a, b
+
+
+def check_window(n, name="window") -> int:
+    """An odd positive integer window size."""
+    try:
+        k = int(n)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{name} must be an odd positive integer, got {n!r}")
+    if k != n or k < 1 or k % 2 == 0:
+        raise InvalidInputError(f"{name} must be an odd positive integer, got {n!r}")
+    return k
+
+
+def check_impl(impl, evaluator) -> str:
+    """``"numpy"`` or ``"numba"`` (``"auto"`` resolved by :data:`AUTO_IMPL` for ``evaluator``)."""
+    if impl not in IMPLS:
+        raise InvalidInputError(f"impl must be one of {IMPLS}, got {impl!r}")
+    if impl == "auto":
+        return AUTO_IMPL.get(evaluator, "numpy")
+    return impl

@@ -1,0 +1,333 @@
+"""Light-field cost evaluators: one view against the reference at sub-pixel shifts (SPEC §5).
+
+For a label ``d`` and a view at offset ``o = pos_v - pos_ref`` the reference pixel ``p`` is
+compared with ``q = p - d o`` in the view; the view's maps are sampled there **bilinearly**
+(:func:`hyperlf.warp.axis_taps`), and candidates with ``q`` outside the image are marked
+invalid (:func:`view_costs` returns the mask with the volume).
+
+* NCC terms (``ncc``, ``rsncc``, ``bwncc``): the kernel recomputes the patch mean and variance of
+  the *interpolated* map together with the cross term, so for sub-pixel shifts the NCC is the
+  exact NCC of the reference patch with the bilinearly resampled patch (shifting precomputed
+  statistics would be exact only for integer shifts).  Window pixels beyond the other view's
+  border take its replicated border values (SPEC §4); validity is decided by the centre ``q``.
+  ``tau_var = tau_rel`` x the mean patch variance of the block's channels, per view (as
+  :func:`hyperlf.costs.bwncc_volume` with ``tau_scope="block"``).
+* ``census``: Hamming distance between the reference's census code and the census code of the
+  bilinearly shifted view (one fused shift + census + popcount kernel).
+* ``bwncc`` / ``bwncc-paper``: the reference's descriptor statistics are computed once per
+  channel block; the other view's channels are streamed in blocks of 68 (one histogram of one
+  level) and the cross terms accumulated in float64, one kernel pass per (view, label, block).
+
+Every evaluator takes ``shifts``, a list of ``(sx, sy)`` with ``sample = img(p + (sx, sy))``,
+and returns float32 ``(L, H, W)``; :func:`view_costs` picks the cost from the registry and
+applies the out-of-image rule.  At integer shifts the results equal the rectified-pair ones
+(tests).
+
+References
+----------
+.. [1] X. Shen, L. Xu, Q. Zhang, J. Jia, "Multi-modal and multi-spectral registration for
+   natural images", ECCV 2014 (RSNCC).
+.. [2] R. Zabih, J. Woodfill, "Non-parametric local transforms for computing visual
+   correspondence", ECCV 1994 (census).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..imageops import gradient_magnitude, normalise_intensity
+from ..warp import axis_taps, axis_valid, shift_map
+from .pair import (bwncc_finish, census_transform, channel_stats, fill_invalid, inv_sigma,
+                   pad_replicate, rho, window_stats)
+
+__all__ = [
+    "view_costs",
+    "view_shifts",
+    "view_validity",
+    "ncc_view_volume",
+    "rsncc_view_volume",
+    "census_view_volume",
+    "bwncc_view_volume",
+    "REF_CACHE_BYTES",
+]
+
+#: The reference descriptor blocks with their float64 statistics (~20 bytes per channel and
+#: pixel) are cached across views when they fit in this many bytes, else recomputed per view.
+REF_CACHE_BYTES = 512 * 1024 ** 2
+
+
+class _RefBlock:
+    """Reference channel block with padded maps and statistics (one NCC patch size).
+
+    ``per_channel``: each channel gets its own variance threshold (``tau_rel`` x its own mean
+    patch variance) instead of one for the block; for stacking unrelated maps (RSNCC's
+    intensity and gradient magnitude) so that they are computed in parallel."""
+
+    def __init__(self, A: np.ndarray, n: int, tau_rel: float, per_channel: bool = False):
+        self.n = int(n)
+        self.r = self.n // 2
+        st = channel_stats(A, self.n)
+        self.centre = st["centre"]
+        tau = (tau_rel * st["mean_var"][:, None, None] if per_channel
+               else tau_rel * float(st["mean_var"].mean()))
+        self.mu = np.ascontiguousarray(st["mu"])
+        self.isig = np.ascontiguousarray(inv_sigma(st["var"], tau))
+        self.pad = np.ascontiguousarray(pad_replicate(np.asarray(A, np.float32), self.r))
+        self.den = self.mu.sum(axis=0)
+
+
+def _view_tau(B: np.ndarray, n: int, tau_rel: float, per_channel: bool = False):
+    """The other view's variance threshold: one for the block (float), or per channel."""
+    mv = np.array([float(window_stats(B[c], n)[1].mean()) for c in range(B.shape[0])])
+    if per_channel:
+        return tau_rel * mv
+    return tau_rel * float(np.mean(mv)) if mv.size else 0.0
+
+
+def _xi_terms(ref: _RefBlock, B: np.ndarray, centre_b, tauB, sx, sy, weighted=True,
+              per_channel: bool = False):
+    """Sums over channels of ``xi muA``, ``xi muB`` and ``muB`` for one shift: 3 x (H, W).
+
+    ``per_channel=True`` returns ``xi`` (or ``xi muA``) of every channel instead, as
+    ``(nc, H, W)`` (one channel per parallel group), and the other two as None."""
+    import numba
+
+    from . import _kernels
+    nc, H, W = ref.mu.shape
+    r = ref.r
+    y0, y1, fy = axis_taps(H, sy, r)
+    x0, x1, fx = axis_taps(W, sx, r)
+    G = nc if per_channel else max(1, min(nc, numba.get_num_threads()))
+    oF = np.zeros((G, H, W))
+    oB = np.zeros((G, H, W))
+    oM = np.zeros((G, H, W))
+    tau = np.broadcast_to(np.asarray(tauB, np.float64), (nc,)).copy()
+    _kernels.xi_shift(ref.pad, ref.mu, ref.isig, ref.centre, np.ascontiguousarray(B, np.float32),
+                      np.asarray(centre_b, np.float64), y0, y1, fy, x0, x1, fx, r, tau,
+                      bool(weighted), oF, oB, oM)
+    if per_channel:
+        return oF, None, None
+    return oF.sum(axis=0), oB.sum(axis=0), oM.sum(axis=0)
+
+
+def ncc_view_volume(ref_img, img, shifts, window: int = 5, tau_rel: float = 1e-5) -> np.ndarray:
+    """``1 - NCC`` of the intensities ``I / mean(I)`` at each shift, float32 ``(L, H, W)``.
+
+    Parameters
+    ----------
+    ref_img, img : (H, W) arrays
+        Reference and other view.
+    shifts : sequence of (sx, sy)
+        The other view is sampled at ``p + (sx, sy)``.
+    window : int
+        Odd NCC patch size.
+    tau_rel : float
+        Flat-patch threshold relative to the view's mean patch variance (NCC 0 below it).
+    """
+    L = len(shifts)
+    H, W = ref_img.shape
+    A = normalise_intensity(ref_img)[None].astype(np.float32)
+    B = normalise_intensity(img)[None].astype(np.float32)
+    ref = _RefBlock(A, window, tau_rel)
+    tauB = _view_tau(B, window, tau_rel)
+    cb = np.array([float(B.mean())])
+    out = np.empty((L, H, W), np.float32)
+    for k, (sx, sy) in enumerate(shifts):
+        F, _, _ = _xi_terms(ref, B, cb, tauB, sx, sy, weighted=False)
+        out[k] = 1.0 - F
+    return out
+
+
+def rsncc_view_volume(ref_img, img, shifts, window: int = 5, tau_rel: float = 1e-5,
+                      rs_tau: float = 1.0) -> np.ndarray:
+    """RSNCC [1]_ at each shift: ``rho(1 - NCC(In)) + rs_tau * rho(1 - NCC(|grad In|))``.
+
+    The gradient term is unchanged by a contrast reversal between bands.  The two NCCs run as
+    two channels of one kernel call (one per core), each with its own variance thresholds, so
+    the result is that of two separate single-channel NCCs.  Arguments as
+    :func:`ncc_view_volume`; float32 ``(L, H, W)``.
+    """
+    L = len(shifts)
+    H, W = ref_img.shape
+    a, b = normalise_intensity(ref_img), normalise_intensity(img)
+    A = np.stack([a, gradient_magnitude(a)]).astype(np.float32)
+    B = np.stack([b, gradient_magnitude(b)]).astype(np.float32)
+    ref = _RefBlock(A, window, tau_rel, per_channel=True)
+    tauB = _view_tau(B, window, tau_rel, per_channel=True)
+    cb = B.reshape(2, -1).astype(np.float64).mean(axis=1)
+    out = np.empty((L, H, W), np.float32)
+    for k, (sx, sy) in enumerate(shifts):
+        xi, _, _ = _xi_terms(ref, B, cb, tauB, sx, sy, weighted=False, per_channel=True)
+        out[k] = rho(1.0 - xi[0]) + float(rs_tau) * rho(1.0 - xi[1])
+    return out
+
+
+def census_view_volume(ref_img, img, shifts, window: int = 7, impl: str = "numba") -> np.ndarray:
+    """Census [2]_ Hamming costs of the reference against ``img`` shifted by each ``(sx, sy)``.
+
+    ``impl="numpy"``: the reference (shift with :func:`hyperlf.warp.shift_map`, then
+    :func:`hyperlf.costs.census_transform` and a popcount); ``"numba"``: one fused kernel,
+    identical results.
+    """
+    L = len(shifts)
+    H, W = ref_img.shape
+    cref = census_transform(ref_img, window)
+    out = np.empty((L, H, W), np.float32)
+    if impl == "numpy":
+        for k, (sx, sy) in enumerate(shifts):
+            s, _ = shift_map(img, sx, sy, 0)
+            out[k] = np.bitwise_count(cref ^ census_transform(s, window)).astype(np.float32)
+        return out
+    from . import _kernels
+    a = np.ascontiguousarray(img, dtype=np.float64)
+    buf = np.empty((H, W), np.float64)
+    for k, (sx, sy) in enumerate(shifts):
+        y0, y1, fy = axis_taps(H, sy, 0)
+        x0, x1, fx = axis_taps(W, sx, 0)
+        _kernels.census_shift(a, cref, y0, y1, fy, x0, x1, fx, int(window) // 2, buf, out[k])
+    return out
+
+
+def _reference_blocks(pA, slB, n_all, tau_rel):
+    """``[(channel selection, n, _RefBlock)]`` of the reference's channels ``slB``, one per
+    NCC patch size."""
+    from ..descriptor import descriptor
+    Ablk = descriptor(pA, channels=slB)
+    ns = n_all[slB]
+    refs = []
+    for nn in np.unique(ns):
+        sel = np.nonzero(ns == nn)[0]
+        refs.append((sel, int(nn), _RefBlock(Ablk[sel], int(nn), tau_rel)))
+    return refs
+
+
+def bwncc_view_volume(ref_img, img, shifts, *, paper: bool = False, window=None,
+                      tau_rel: float = 1e-5, eps: float = 1e-3, block: int = 68,
+                      cache: dict | None = None) -> np.ndarray:
+    """BWNCC (SPEC §3) on the descriptor of :mod:`hyperlf.descriptor` at each shift.
+
+    Parameters
+    ----------
+    paper : bool
+        False: ``DescriptorParams.default()`` with NCC patch ``n = w`` per level; True:
+        ``DescriptorParams.paper()`` with ``n = 5``.  An int ``window`` sets ``n`` for all.
+    tau_rel, eps : float
+        Flat-patch threshold (per block, as ``tau_scope="block"``) and the BWNCC floor.
+    block : int
+        Channels per streamed block.
+    cache : dict, optional
+        Shared across the views of one light field: holds the reference's prepared inputs and,
+        if they fit in :data:`REF_CACHE_BYTES`, its channel statistics.
+    """
+    from ..descriptor import DescriptorParams, iter_descriptor_blocks, prepare
+    params = DescriptorParams.paper() if paper else DescriptorParams.default()
+    variant = "bwncc-paper" if paper else "bwncc"
+    if window is not None:
+        n_all = np.full(params.n_channels, int(window), np.int64)
+    elif paper:
+        n_all = np.full(params.n_channels, 5, np.int64)
+    else:
+        n_all = params.channel_levels
+    ref_cache = {} if cache is None else cache
+    L = len(shifts)
+    H, W = ref_img.shape
+    accF = np.zeros((L, H, W))
+    accB = np.zeros((L, H, W))
+    denB = np.zeros((L, H, W))
+    denF = np.zeros((H, W))
+    key = ("prep", variant)
+    if key not in ref_cache:
+        ref_cache[key] = prepare(ref_img, params)
+    pA = ref_cache[key]
+    pB = prepare(img, params)
+    keep = 20.0 * params.n_channels * H * W <= REF_CACHE_BYTES
+    for (slB, Bblk) in iter_descriptor_blocks(pB, block=block):
+        bkey = ("block", variant, slB.start, slB.stop)
+        refs = ref_cache.get(bkey)
+        if refs is None:
+            refs = _reference_blocks(pA, slB, n_all, tau_rel)
+            if keep:
+                ref_cache[bkey] = refs
+        for sel, nn, rb in refs:
+            Bs = np.ascontiguousarray(Bblk[sel])
+            tauB = _view_tau(Bs, nn, tau_rel)
+            cb = Bs.reshape(Bs.shape[0], -1).astype(np.float64).mean(axis=1)
+            denF += rb.den
+            for k, (sx, sy) in enumerate(shifts):
+                F, Bw, M = _xi_terms(rb, Bs, cb, tauB, sx, sy)
+                accF[k] += F
+                accB[k] += Bw
+                denB[k] += M
+    cost = bwncc_finish(accF, accB, denF[None], denB, eps)
+    return cost.astype(np.float32)
+
+
+def view_shifts(offset, labels) -> list[tuple[float, float]]:
+    """``[(sx, sy)]`` per label: ``(-d dx, -d dy)`` for ``offset = (dx, dy)``."""
+    dx, dy = float(offset[0]), float(offset[1])
+    lab = np.asarray(labels, dtype=np.float64)
+    return [(-d * dx, -d * dy) for d in lab]
+
+
+def view_validity(shape, shifts) -> np.ndarray:
+    """Boolean ``(L, H, W)``: True where the shifted sample ``p + (sx, sy)`` is in the image."""
+    H, W = int(shape[-2]), int(shape[-1])
+    return np.stack([axis_valid(H, sy)[:, None] & axis_valid(W, sx)[None, :]
+                     for sx, sy in shifts])
+
+
+def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | None = None,
+               tau_rel: float = 1e-5, eps: float = 1e-3, block: int = 68, _cache=None):
+    """Correspondence cost of one view against the reference, and its validity.
+
+    Parameters
+    ----------
+    ref_img, img : (H, W) arrays
+        Reference view and the other view.
+    offset : (dx, dy)
+        ``pos_v - pos_ref``; label ``d`` compares ``p`` with ``p - d (dx, dy)``.
+    labels : (L,) floats
+        Disparities.
+    metric : str
+        A light-field cost of the registry (:func:`hyperlf.costs.cost_names` with
+        ``light_field=True``) or ``"auto"``.
+    window : int, optional
+        Cost window; None = the cost's own default.
+    tau_rel, eps, block
+        NCC flat-patch threshold, BWNCC floor, descriptor channels per block.
+
+    Returns
+    -------
+    cost : float32 (L, H, W)
+        Lower is better; invalid entries carry the pixel's worst valid cost (for display; the
+        aggregation masks them anyway).
+    valid : bool (L, H, W)
+        ``q_v`` inside the image.
+
+    Raises
+    ------
+    InvalidInputError
+        Unknown metric, or one without a light-field evaluator (``ssd``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hyperlf.costs import view_costs
+    >>> rng = np.random.default_rng(0)
+    >>> a = rng.random((16, 20)) + 0.5
+    >>> b = np.roll(a, 1, axis=1)                      # the view sees p at x + 1
+    >>> C, valid = view_costs(a, b, (-1.0, 0.0), [0.0, 1.0, 2.0], "census")
+    >>> int(C[:, 8, 10].argmin())                      # label 1
+    1
+    """
+    from .registry import get_cost
+    cost = get_cost(metric, light_field=True)
+    A = np.asarray(ref_img, dtype=np.float64)
+    B = np.asarray(img, dtype=np.float64)
+    shifts = view_shifts(offset, labels)
+    valid = view_validity(A.shape, shifts)
+    cache = {} if _cache is None else _cache
+    C = cost.view_volume(A, B, shifts, window=window, valid=valid, tau_rel=tau_rel, eps=eps,
+                         block=block, cache=cache)
+    C = fill_invalid(np.ascontiguousarray(C, dtype=np.float32), 0, valid)
+    return C, valid

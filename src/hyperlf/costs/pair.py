@@ -1,0 +1,752 @@
+"""Rectified-pair cost evaluators: integer disparities, window statistics, fusion (SPEC §3, §4).
+
+Left pixel ``(y, x)`` with disparity ``d`` in ``dmin..dmax`` matches right pixel ``(y, x - d)``.
+Every evaluator returns ``cost[L, H, W]`` float32, ``L = dmax - dmin + 1``, index ``k`` <->
+``d = dmin + k``, lower is better, with the out-of-image rule applied (:func:`fill_invalid`).
+The conventions (border rule, numerics, ``impl``) are those of :mod:`hyperlf.costs`.  The
+registry (:mod:`hyperlf.costs.registry`) calls these functions; they can also be called
+directly.
+
+References
+----------
+.. [1] X. Shen, L. Xu, Q. Zhang, J. Jia, "Multi-modal and multi-spectral registration for
+   natural images", ECCV 2014 (RSNCC).
+.. [2] R. Zabih, J. Woodfill, "Non-parametric local transforms for computing visual
+   correspondence", ECCV 1994 (census).
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import cv2
+import numpy as np
+
+from ..errors import InvalidInputError
+from ..imageops import gradient_magnitude, normalise_intensity
+from ._validate import check_disp, check_impl, check_pair, check_window
+
+__all__ = [
+    "candidate_validity",
+    "right_validity",
+    "fill_invalid",
+    "rho",
+    "pad_replicate",
+    "box_mean",
+    "window_stats",
+    "inv_sigma",
+    "channel_stats",
+    "ncc_cross_accumulate",
+    "shift_cols",
+    "ssd_volume",
+    "ncc_volume",
+    "rsncc_volume",
+    "census_transform",
+    "census_volume",
+    "bwncc_finish",
+    "bwncc_from_descriptors",
+    "bwncc_volume",
+    "normalise_volume",
+    "fuse",
+    "fused_volume",
+    "census_rsncc_volume",
+]
+
+
+# --------------------------------------------------------------------------------------------
+# Validity and the out-of-image rule
+# --------------------------------------------------------------------------------------------
+
+
+def candidate_validity(shape, dmin: int, dmax: int) -> np.ndarray:
+    """Boolean ``valid[L, H, W]``: True where ``0 <= x - d < W``.
+
+    A read-only broadcast view of an ``(L, 1, W)`` array (no ``L*H*W`` memory); use
+    ``np.array(...)`` for a writable copy.  ``shape`` is ``(H, W)`` (or any shape ending in them).
+    """
+    dmin, dmax = check_disp(dmin, dmax)
+    H, W = int(shape[-2]), int(shape[-1])
+    d = np.arange(dmin, dmax + 1)[:, None, None]
+    x = np.arange(W)[None, None, :]
+    v = (x - d >= 0) & (x - d < W)
+    return np.broadcast_to(v, (d.shape[0], H, W))
+
+
+
+def right_validity(shape, dmin: int, dmax: int) -> np.ndarray:
+    """Boolean ``valid_R[L, H, W]``: True where the right pixel's partner ``x_r + d`` is inside.
+
+    The right-referenced counterpart of :func:`candidate_validity` (read-only broadcast view).
+    """
+    H, W = int(shape[-2]), int(shape[-1])
+    d = np.arange(dmin, dmax + 1)[:, None, None]
+    x = np.arange(W)[None, None, :]
+    return np.broadcast_to((x + d >= 0) & (x + d < W), (d.shape[0], H, W))
+
+
+def fill_invalid(cost: np.ndarray, dmin: int, valid: np.ndarray | None = None) -> np.ndarray:
+    """Apply the out-of-image rule in place and return ``cost``.
+
+    Invalid entries get the pixel's worst (largest) valid cost; a pixel with no valid candidate
+    gets 0 for every disparity.  ``valid`` defaults to :func:`candidate_validity`.
+    """
+    Lc, H, W = cost.shape
+    if valid is None:
+        valid = candidate_validity((H, W), dmin, dmin + Lc - 1)
+    worst = np.where(valid, cost, -np.inf).max(axis=0)
+    none_valid = ~np.isfinite(worst)
+    worst[none_valid] = 0.0
+    np.copyto(cost, np.broadcast_to(worst.astype(cost.dtype), cost.shape), where=~valid)
+    if none_valid.any():
+        cost[:, none_valid] = 0
+    return cost
+
+
+def rho(x):
+    """Shen et al.'s robust function ``rho(x) = -log(exp(-|x|) + exp(|x| - 2))``."""
+    a = np.abs(x)
+    return -np.log(np.exp(-a) + np.exp(a - 2.0))
+
+
+# --------------------------------------------------------------------------------------------
+# Window statistics
+# --------------------------------------------------------------------------------------------
+
+
+def pad_replicate(maps: np.ndarray, r: int) -> np.ndarray:
+    """Pad the last two axes by ``r`` with replicated borders (same dtype)."""
+    if r == 0:
+        return np.ascontiguousarray(maps)
+    pw = [(0, 0)] * (maps.ndim - 2) + [(r, r), (r, r)]
+    return np.pad(maps, pw, mode="edge")
+
+
+def box_mean(image: np.ndarray, n: int) -> np.ndarray:
+    """Mean over the ``n x n`` window centred on each pixel, float64, replicate border."""
+    img = np.ascontiguousarray(image, dtype=np.float64)
+    if n == 1:
+        return img.copy()
+    return cv2.boxFilter(img, cv2.CV_64F, (n, n), normalize=True, borderType=cv2.BORDER_REPLICATE)
+
+
+def _box_valid(padded: np.ndarray, n: int) -> np.ndarray:
+    """'Valid' ``n x n`` box mean of a map padded by ``r = n // 2``: shape shrinks by ``2r``."""
+    r = n // 2
+    out = box_mean(padded, n)
+    if r == 0:
+        return out
+    return out[r:-r, r:-r]
+
+
+def window_stats(image: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and (population) variance over ``n x n`` windows, float64, replicate border.
+
+    The image is centred on its global mean (in float64) before the sums, so
+    ``var = E[c^2] - E[c]^2`` is computed on centred values (no catastrophic cancellation; a
+    naive float32 version loses patch variances of ~1e-4 on values of ~0.5, SPEC §3).  ``var``
+    is clipped at 0.
+    """
+    n = check_window(n, "n")
+    img = np.asarray(image, dtype=np.float64)
+    if img.ndim != 2:
+        raise InvalidInputError(f"image must be 2-D, got shape {img.shape}")
+    m0 = float(img.mean())
+    c = img - m0
+    mu_c = box_mean(c, n)
+    var = box_mean(c * c, n) - mu_c * mu_c
+    np.maximum(var, 0.0, out=var)
+    return mu_c + m0, var
+
+
+def inv_sigma(var: np.ndarray, tau: float) -> np.ndarray:
+    """``1 / sqrt(var)`` where ``var >= tau`` and ``var > 0``, else 0 (so that ``xi = 0``)."""
+    ok = (var >= tau) & (var > 0)
+    out = np.zeros_like(var)
+    np.divide(1.0, np.sqrt(var, where=ok, out=np.zeros_like(var)), out=out, where=ok)
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Generic per-channel NCC cross term (shared by ncc, rsncc, bwncc; reusable by the H-LF code)
+# --------------------------------------------------------------------------------------------
+
+
+def channel_stats(maps: np.ndarray, n: int | Sequence[int]) -> dict:
+    """Per-channel window statistics of one view, computed once.
+
+    Parameters
+    ----------
+    maps : (nc, H, W) array
+    n : int or (nc,) ints — NCC patch size per channel.
+
+    Returns a dict with float64 arrays ``mu`` (nc, H, W), ``var`` (nc, H, W), the per-channel
+    global means ``centre`` (nc,) and the per-channel mean patch variance ``mean_var`` (nc,).
+    """
+    maps = np.asarray(maps)
+    nc = maps.shape[0]
+    ns = np.broadcast_to(np.asarray(n, dtype=np.int64), (nc,))
+    H, W = maps.shape[1:]
+    mu = np.empty((nc, H, W), np.float64)
+    var = np.empty((nc, H, W), np.float64)
+    for c in range(nc):
+        mu[c], var[c] = window_stats(maps[c], int(ns[c]))
+    centre = maps.reshape(nc, -1).astype(np.float64).mean(axis=1)
+    return {"mu": mu, "var": var, "centre": centre, "mean_var": var.reshape(nc, -1).mean(axis=1)}
+
+
+def ncc_cross_accumulate(ref_pad: np.ndarray, oth_pad: np.ndarray, n: int,
+                         ref_mu: np.ndarray, ref_is: np.ndarray,
+                         oth_mu: np.ndarray, oth_is: np.ndarray,
+                         acc_fwd: np.ndarray, acc_bwd: np.ndarray | None = None,
+                         weighted: bool = True, valid: np.ndarray | None = None,
+                         ref_centre=None, oth_centre=None) -> None:
+    """Accumulate per-channel NCC ``xi_i`` for ONE alignment of two views (numpy reference).
+
+    This is the disparity-independent building block: the caller supplies the other view's
+    channel maps **already aligned** to the reference grid (for the two-view case: shifted by
+    ``d`` columns; for the H-LF case: shifted by any ``(dx, dy)``), together with the
+    precomputed statistics, aligned the same way.
+
+    Parameters
+    ----------
+    ref_pad, oth_pad : (nc, H + 2r, W + 2r)
+        Channel maps padded by ``r = n // 2``; ``oth_pad[Y, X]`` must be the other view's padded
+        map sampled at the aligned position (so each view keeps its own replicated border).
+    ref_mu, oth_mu : (nc, H, W) float64 — patch means (aligned).
+    ref_is, oth_is : (nc, H, W) — ``1/sigma`` of the patches, 0 where the variance is below
+        ``tau`` (see :func:`inv_sigma`), aligned.
+    acc_fwd, acc_bwd : (H, W) float64, updated in place:
+        ``acc_fwd += sum_i xi_i * ref_mu_i`` and ``acc_bwd += sum_i xi_i * oth_mu_i`` when
+        ``weighted``; otherwise ``acc_fwd += sum_i xi_i`` (``acc_bwd`` unused).
+    valid : (H, W) bool, optional — only these pixels are updated.
+    ref_centre, oth_centre : (nc,) optional per-channel constants subtracted before the product
+        (numerics only; the result does not depend on them in exact arithmetic).
+
+    ``xi_i = clip((E[a b] - mu_a mu_b) * is_a * is_b, -1, 1)``, cross term in float64.
+    """
+    nc = ref_pad.shape[0]
+    ca = np.zeros(nc) if ref_centre is None else np.asarray(ref_centre, np.float64)
+    cb = np.zeros(nc) if oth_centre is None else np.asarray(oth_centre, np.float64)
+    for c in range(nc):
+        a = ref_pad[c].astype(np.float64) - ca[c]
+        b = oth_pad[c].astype(np.float64) - cb[c]
+        cross = _box_valid(a * b, n)
+        cov = cross - (ref_mu[c] - ca[c]) * (oth_mu[c] - cb[c])
+        xi = np.clip(cov * ref_is[c] * oth_is[c], -1.0, 1.0)
+        if valid is not None:
+            xi = np.where(valid, xi, 0.0)
+        if weighted:
+            acc_fwd += xi * ref_mu[c]
+            acc_bwd += xi * oth_mu[c]
+        else:
+            acc_fwd += xi
+
+
+def shift_cols(a: np.ndarray, d: int, fill=0.0) -> np.ndarray:
+    """``out[..., x] = a[..., x - d]`` (zero/fill outside)."""
+    out = np.full_like(a, fill)
+    W = a.shape[-1]
+    if d >= 0:
+        if d < W:
+            out[..., d:] = a[..., :W - d]
+    else:
+        if -d < W:
+            out[..., :W + d] = a[..., -d:]
+    return out
+
+
+def _xcorr_numba(Ap, Bp, ca, cb, muA, isA, muB, isB, ds, r, weighted, accF, accB):
+    """Numba path.  Patch means are passed centred on the channel centre, in float64 (a float32
+    mean would put an error of ~1e-8 into covariances that may be as small as tau ~1e-9);
+    ``1/sigma`` only scales, so it is stored in the maps' dtype (float32 for descriptors).
+    Maps are float32 (descriptor output) or float64."""
+    from . import _kernels
+    k = _kernels.xcorr_accum
+    ca = np.ascontiguousarray(ca, np.float64)
+    cb = np.ascontiguousarray(cb, np.float64)
+    dt = np.float32 if (Ap.dtype == np.float32 and Bp.dtype == np.float32) else np.float64
+    mA = muA - ca[:, None, None]
+    mB = muB - cb[:, None, None]
+    k(np.ascontiguousarray(Ap), np.ascontiguousarray(Bp), ca, cb, mA, isA.astype(dt), mB,
+      isB.astype(dt), np.ascontiguousarray(ds, np.int64), int(r), bool(weighted), accF, accB)
+
+
+def _xcorr_numpy(Ap, Bp, ca, cb, muA, isA, muB, isB, ds, r, weighted, accF, accB):
+    """Reference: loop over disparities, align the right view by ``d`` and call
+    :func:`ncc_cross_accumulate`."""
+    n = 2 * r + 1
+    H, W = muA.shape[1:]
+    for k, d in enumerate(ds):
+        d = int(d)
+        valid = candidate_validity((H, W), d, d)[0]
+        if not valid.any():
+            continue
+        Bs = shift_cols(Bp, d)
+        accB_k = accB[k] if weighted else None
+        ncc_cross_accumulate(Ap, Bs, n, muA, isA, shift_cols(muB, d), shift_cols(isB, d),
+                             accF[k], accB_k, weighted=weighted, valid=valid,
+                             ref_centre=ca, oth_centre=cb)
+
+
+def _xcorr(impl, *args):
+    if impl == "numba":
+        _xcorr_numba(*args)
+    else:
+        _xcorr_numpy(*args)
+
+
+# --------------------------------------------------------------------------------------------
+# Classical costs
+# --------------------------------------------------------------------------------------------
+
+
+def _ds(dmin, dmax):
+    return np.arange(dmin, dmax + 1, dtype=np.int64)
+
+
+def ssd_volume(left, right, dmin, dmax, window: int = 5) -> np.ndarray:
+    """Window mean of squared differences of ``I / mean(I)``; float32 ``(L, H, W)``."""
+    L, R = check_pair(left, right)
+    dmin, dmax = check_disp(dmin, dmax)
+    n = check_window(window)
+    r = n // 2
+    Ln = pad_replicate(normalise_intensity(L), r)
+    Rn = pad_replicate(normalise_intensity(R), r)
+    H, W = L.shape
+    out = np.zeros((dmax - dmin + 1, H, W), np.float32)
+    for k, d in enumerate(range(dmin, dmax + 1)):
+        diff = Ln - shift_cols(Rn, d)
+        out[k] = _box_valid(diff * diff, n)
+    return fill_invalid(out, dmin)
+
+
+def _ncc_scores(A, B, dmin, dmax, n, tau_rel, impl) -> np.ndarray:
+    """NCC ``xi`` volume (float64 (L, H, W), 0 at invalid candidates) of two single maps."""
+    r = n // 2
+    H, W = A.shape
+    ds = _ds(dmin, dmax)
+    sa = channel_stats(A[None], n)
+    sb = channel_stats(B[None], n)
+    isA = inv_sigma(sa["var"], tau_rel * float(sa["mean_var"][0]))
+    isB = inv_sigma(sb["var"], tau_rel * float(sb["mean_var"][0]))
+    acc = np.zeros((len(ds), H, W))
+    _xcorr(impl, pad_replicate(A[None], r), pad_replicate(B[None], r), sa["centre"], sb["centre"],
+           sa["mu"], isA, sb["mu"], isB, ds, r, False, acc, acc)
+    return acc
+
+
+def ncc_volume(left, right, dmin, dmax, window: int = 5, impl: str = "auto",
+               tau_rel: float = 1e-5) -> np.ndarray:
+    """``1 - NCC`` of intensities over ``window x window`` patches; float32 ``(L, H, W)``.
+
+    NCC is taken as 0 where either patch's variance is below ``tau_rel`` times that view's
+    mean patch variance (and where it is exactly 0).
+    """
+    L, R = check_pair(left, right)
+    dmin, dmax = check_disp(dmin, dmax)
+    n = check_window(window)
+    impl = check_impl(impl, "ncc")
+    xi = _ncc_scores(L, R, dmin, dmax, n, tau_rel, impl)
+    return fill_invalid((1.0 - xi).astype(np.float32), dmin)
+
+
+def rsncc_volume(left, right, dmin, dmax, window: int = 5, impl: str = "auto",
+                 rs_tau: float = 1.0, tau_rel: float = 1e-5) -> np.ndarray:
+    """RSNCC (Shen et al. 2014): ``rho(1 - NCC(In)) + rs_tau * rho(1 - NCC(|grad In|))``."""
+    L, R = check_pair(left, right)
+    dmin, dmax = check_disp(dmin, dmax)
+    n = check_window(window)
+    impl = check_impl(impl, "rsncc")
+    Ln, Rn = normalise_intensity(L), normalise_intensity(R)
+    xi_i = _ncc_scores(Ln, Rn, dmin, dmax, n, tau_rel, impl)
+    xi_g = _ncc_scores(gradient_magnitude(Ln), gradient_magnitude(Rn), dmin, dmax, n, tau_rel, impl)
+    c = rho(1.0 - xi_i) + float(rs_tau) * rho(1.0 - xi_g)
+    return fill_invalid(c.astype(np.float32), dmin)
+
+
+def census_transform(image, window: int = 7) -> np.ndarray:
+    """Census codes, uint64 ``(H, W)``: one bit per neighbour in the ``window x window``
+    square (row-major, centre skipped), set where ``neighbour < centre`` (strict), replicate
+    border.  ``window`` <= 7 (at most 63 bits)."""
+    n = check_window(window)
+    if n * n - 1 > 64:
+        raise InvalidInputError(f"census window must be <= 7 (64 bits), got {n}")
+    img = np.asarray(image, dtype=np.float64)
+    r = n // 2
+    p = pad_replicate(img, r)
+    H, W = img.shape
+    code = np.zeros((H, W), np.uint64)
+    bit = 0
+    for dy in range(-r, r + 1):
+        for dx in range(-r, r + 1):
+            if dy == 0 and dx == 0:
+                continue
+            nb = p[r + dy:r + dy + H, r + dx:r + dx + W]
+            code |= (nb < img).astype(np.uint64) << np.uint64(bit)
+            bit += 1
+    return code
+
+
+def census_volume(left, right, dmin, dmax, window: int = 7, impl: str = "auto") -> np.ndarray:
+    """Hamming distance between census codes of ``(y, x)`` and ``(y, x - d)``; float32."""
+    L, R = check_pair(left, right)
+    dmin, dmax = check_disp(dmin, dmax)
+    impl = check_impl(impl, "census")
+    cl = census_transform(L, window)
+    cr = census_transform(R, window)
+    H, W = L.shape
+    ds = _ds(dmin, dmax)
+    out = np.zeros((len(ds), H, W), np.float32)
+    if impl == "numba":
+        from . import _kernels
+        _kernels.hamming_volume(cl, cr, ds, out)
+    else:
+        for k, d in enumerate(ds):
+            out[k] = np.bitwise_count(cl ^ shift_cols(cr, int(d))).astype(np.float32)
+    return fill_invalid(out, dmin)
+
+
+# --------------------------------------------------------------------------------------------
+# BWNCC (SPEC §3)
+# --------------------------------------------------------------------------------------------
+
+
+def bwncc_finish(acc_fwd, acc_bwd, den_fwd, den_bwd, eps: float = 1e-3, return_scores=False):
+    """``S_fwd = acc_fwd / den_fwd``, ``S_bwd = acc_bwd / den_bwd`` (0 where a denominator is
+    0), ``BWNCC = sqrt(max(S_fwd, 0) max(S_bwd, 0))``, cost ``-log(max(BWNCC, eps))``."""
+    Sf = np.divide(acc_fwd, den_fwd, out=np.zeros_like(acc_fwd), where=den_fwd > 0)
+    Sb = np.divide(acc_bwd, den_bwd, out=np.zeros_like(acc_bwd), where=den_bwd > 0)
+    B = np.sqrt(np.maximum(Sf, 0.0) * np.maximum(Sb, 0.0))
+    cost = -np.log(np.maximum(B, eps))
+    if return_scores:
+        return cost, Sf, Sb, B
+    return cost
+
+
+# bw_accum work partition (measured on Teddy 450 x 375, 60 disparities, 2 cores)
+_BW_BAND = 8    # rows per parallel band
+_BW_DC = 12     # disparities per chunk (channel-outer inside a chunk; local accumulators in L2)
+_BW_TILE = 16   # columns per skip tile
+
+
+class _BwnccAccumulator:
+    """Float64 accumulators ``(L, H, W)`` of ``sum_i xi_i hbar`` plus ``(H, W)`` weight sums."""
+
+    def __init__(self, H, W, dmin, dmax, impl):
+        self.ds = _ds(dmin, dmax)
+        self.dmin = dmin
+        self.H, self.W = H, W
+        self.accF = np.zeros((len(self.ds), H, W))
+        self.accB = np.zeros((len(self.ds), H, W))
+        self.denL = np.zeros((H, W))
+        self.denR = np.zeros((H, W))
+        self.impl = impl
+        self.t_stats = 0.0  # seconds in statistics / 1/sigma (numba path)
+        self.t_xterm = 0.0  # seconds in cross terms (numba path)
+
+    def add_block(self, A, B, n_per_channel, tau_rel, tau_abs_A=None, tau_abs_B=None):
+        """Add one block of channels (A: left, B: right, (nc, H, W)).  ``tau`` is ``tau_rel``
+        times the mean patch variance of the block's channels (per view), unless absolute
+        values ``tau_abs_*`` are given."""
+        ns = np.broadcast_to(np.asarray(n_per_channel, np.int64), (A.shape[0],))
+        if self.impl == "numba":
+            self._add_block_numba(A, B, ns, tau_rel, tau_abs_A, tau_abs_B)
+            return
+        sa = channel_stats(A, ns)
+        sb = channel_stats(B, ns)
+        tA = tau_rel * float(sa["mean_var"].mean()) if tau_abs_A is None else tau_abs_A
+        tB = tau_rel * float(sb["mean_var"].mean()) if tau_abs_B is None else tau_abs_B
+        self.denL += sa["mu"].sum(axis=0)
+        self.denR += sb["mu"].sum(axis=0)
+        for n in np.unique(ns):
+            sel = np.nonzero(ns == n)[0]
+            r = int(n) // 2
+            _xcorr(self.impl, pad_replicate(A[sel], r), pad_replicate(B[sel], r),
+                   sa["centre"][sel], sb["centre"][sel],
+                   np.ascontiguousarray(sa["mu"][sel]), inv_sigma(sa["var"][sel], tA),
+                   np.ascontiguousarray(sb["mu"][sel]), inv_sigma(sb["var"][sel], tB),
+                   self.ds, r, True, self.accF, self.accB)
+
+    def _buf(self, key, shape, dtype=np.float64):
+        """Reusable work array (fresh large allocations cost page faults on every block)."""
+        if not hasattr(self, "_ws"):
+            self._ws = {}
+        a = self._ws.get(key)
+        if a is None or a.shape != tuple(shape) or a.dtype != dtype:
+            a = np.empty(shape, dtype)
+            self._ws[key] = a
+        return a
+
+    def _add_block_numba(self, A, B, ns, tau_rel, tau_abs_A, tau_abs_B):
+        """Fast path (:mod:`hyperlf.costs._kernels` ``bw_*``): statistics and ``1/sigma`` in numba, then
+        the cross terms with exact skipping of column tiles where ``xi = 0``.  Same formulas
+        and float64 numerics as the reference path; the result agrees with ``impl="numpy"``
+        to rounding (tests)."""
+        import time
+        t0 = time.perf_counter()
+        from . import _kernels as K
+        A = np.ascontiguousarray(A)
+        B = np.ascontiguousarray(B)
+        if A.dtype not in (np.float32, np.float64):
+            A = A.astype(np.float64)
+        if B.dtype != A.dtype:
+            B = B.astype(A.dtype)
+        nc, H, W = A.shape
+        ns = np.ascontiguousarray(ns, np.int64)
+        stats = []
+        for v, X in (("A", A), ("B", B)):
+            mu_c = self._buf("mu" + v, (nc, H, W))
+            var = self._buf("var" + v, (nc, H, W))
+            cen = np.empty(nc)
+            K.bw_channel_stats(X, ns, mu_c, var, cen)
+            stats.append((mu_c, var, cen))
+        (mA, vA, cA), (mB, vB, cB) = stats
+        # tau: tau_rel times the mean patch variance over the block's channels (per view)
+        tA = tau_rel * float(vA.mean()) if tau_abs_A is None else tau_abs_A
+        tB = tau_rel * float(vB.mean()) if tau_abs_B is None else tau_abs_B
+        K.bw_inv_sigma(vA, float(tA))
+        K.bw_inv_sigma(vB, float(tB))
+        K.bw_den_add(mA, cA, self.denL)
+        K.bw_den_add(mB, cB, self.denR)
+        t1 = time.perf_counter()
+        self.t_stats += t1 - t0
+        for n in np.unique(ns):
+            sel = np.nonzero(ns == n)[0]
+            every = len(sel) == nc
+            r = int(n) // 2
+            pick = (lambda X: X) if every else (lambda X: np.ascontiguousarray(X[sel]))
+            pads = []
+            for v, X in (("A", A), ("B", B)):
+                Xs = pick(X)
+                P = self._buf("pad" + v, (len(sel), H + 2 * r, W + 2 * r), Xs.dtype)
+                K.bw_pad(Xs, r, P)
+                pads.append(P)
+            K.bw_accum(pads[0], pads[1],
+                          np.ascontiguousarray(cA[sel]), np.ascontiguousarray(cB[sel]),
+                          pick(mA), pick(vA), pick(mB), pick(vB), self.ds, r,
+                          self.accF, self.accB, _BW_BAND, _BW_DC, _BW_TILE)
+        self.t_xterm += time.perf_counter() - t1
+
+    def finish(self, eps, return_scores=False):
+        if self.impl == "numba" and not return_scores:
+            self._ws = {}
+            cost = np.empty(self.accF.shape, np.float32)
+            from . import _kernels
+            _kernels.bw_finish(self.accF, self.accB, self.denL, self.denR, self.ds,
+                                        float(eps), cost)
+            return cost
+        den_b = np.stack([shift_cols(self.denR, int(d)) for d in self.ds])
+        res = bwncc_finish(self.accF, self.accB, self.denL[None], den_b, eps, return_scores)
+        cost = res[0] if return_scores else res
+        cost = fill_invalid(cost.astype(np.float32), self.dmin)
+        return (cost,) + tuple(res[1:]) if return_scores else cost
+
+
+def bwncc_from_descriptors(desc_left, desc_right, dmin, dmax, n=5, tau_rel: float = 1e-5,
+                           eps: float = 1e-3, impl: str = "auto", return_scores: bool = False):
+    """BWNCC cost volume from in-memory channel stacks ``(nc, H, W)`` of the two views.
+
+    ``n``: NCC patch size, an int or one per channel.  ``tau`` = ``tau_rel`` times the mean
+    patch variance over all given channels of each view.  With ``return_scores`` also returns
+    float64 ``S_fwd, S_bwd, BWNCC`` volumes (0 at invalid candidates).
+    """
+    A = np.asarray(desc_left)
+    B = np.asarray(desc_right)
+    if A.ndim != 3 or A.shape != B.shape:
+        raise InvalidInputError(f"descriptor stacks must be (nc, H, W) of equal shape, got {A.shape}, {B.shape}")
+    dmin, dmax = check_disp(dmin, dmax)
+    impl = check_impl(impl, "bwncc")
+    acc = _BwnccAccumulator(A.shape[1], A.shape[2], dmin, dmax, impl)
+    acc.add_block(A, B, n, tau_rel)
+    return acc.finish(eps, return_scores)
+
+
+def _descriptor_params(variant):
+    from ..descriptor import DescriptorParams
+    if isinstance(variant, DescriptorParams):
+        return variant
+    if variant in ("default", "bwncc"):
+        return DescriptorParams.default()
+    if variant in ("paper", "bwncc-paper"):
+        return DescriptorParams.paper()
+    raise InvalidInputError(f"descriptor variant must be 'default', 'paper' or a DescriptorParams, got {variant!r}")
+
+
+def _patch_sizes(params, variant, window) -> np.ndarray:
+    """NCC patch size per descriptor channel (see :func:`bwncc_volume`, ``window``)."""
+    if window is None:
+        is_paper = variant in ("paper", "bwncc-paper")
+        return np.full(params.n_channels, 5, np.int64) if is_paper else params.channel_levels
+    return np.full(params.n_channels, check_window(window), np.int64)
+
+
+def _view_scope_taus(pL, pR, n_all, block, tau_rel, descriptor_impl):
+    """``tau_scope="view"``: thresholds from the mean patch variance over all channels of each
+    view (one extra pass over the descriptor).  Returns ``(tauA, tauB, t_desc, t_stats)``."""
+    import time
+    from ..descriptor import descriptor
+    n_channels = pL.params.n_channels
+    mvA, mvB, cnt = 0.0, 0.0, 0
+    t_desc = t_stats = 0.0
+    for start in range(0, n_channels, block):
+        sl = slice(start, min(start + block, n_channels))
+        t0 = time.perf_counter()
+        A = descriptor(pL, channels=sl, impl=descriptor_impl)
+        B = descriptor(pR, channels=sl, impl=descriptor_impl)
+        t_desc += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        for c in range(A.shape[0]):
+            mvA += float(window_stats(A[c], int(n_all[sl][c]))[1].mean())
+            mvB += float(window_stats(B[c], int(n_all[sl][c]))[1].mean())
+        cnt += A.shape[0]
+        t_stats += time.perf_counter() - t0
+    return tau_rel * mvA / cnt, tau_rel * mvB / cnt, t_desc, t_stats
+
+
+def bwncc_volume(left, right, dmin, dmax, variant="default", window=None, tau_rel: float = 1e-5,
+                 tau_scope: str = "block", eps: float = 1e-3, block: int | None = None,
+                 impl: str = "auto", descriptor_impl: str = "auto", return_scores: bool = False,
+                 timings: dict | None = None):
+    """BWNCC cost volume (SPEC §3), streaming descriptor channels in blocks.
+
+    Parameters
+    ----------
+    variant : "default" (metric ``bwncc``), "paper" (``bwncc-paper``) or a DescriptorParams.
+    window : None or odd int
+        NCC patch ``n``.  None: ``n = w`` (the channel's descriptor window) for ``"default"``,
+        ``n = 5`` for ``"paper"``; an int applies to all channels.
+    tau_rel : float
+        ``tau_var = tau_rel *`` mean channel patch variance of the view, where the mean runs
+        over the channels of the current block (``tau_scope="block"``; with the default
+        ``block = n_bins = 68`` one block is exactly one histogram h1/h2/h3 of one level, as in
+        the prototype) or over all channels (``tau_scope="view"``: needs a first pass that
+        computes every block once more, ~+descriptor time).  The choice matters little
+        (prototype notes §2).
+    block : channels per block (default ``params.n_bins``).  Memory ~ 2 float64 ``(L, H, W)``
+        accumulators + ~40 bytes * block * H * W (numba path: reused work buffers).
+    timings : optional dict, filled with ``descriptor_s`` and ``cross_s`` (seconds).
+
+    Returns float32 ``(L, H, W)`` costs (and ``S_fwd, S_bwd, BWNCC`` with ``return_scores``).
+    Never holds more than one block of each view's descriptor.
+    """
+    import time
+    from ..descriptor import iter_descriptor_blocks, prepare
+
+    L, R = check_pair(left, right)
+    dmin, dmax = check_disp(dmin, dmax)
+    impl = check_impl(impl, "bwncc")
+    params = _descriptor_params(variant)
+    if tau_scope not in ("block", "view"):
+        raise InvalidInputError(f"tau_scope must be 'block' or 'view', got {tau_scope!r}")
+    n_all = _patch_sizes(params, variant, window)
+    block = params.n_bins if block is None else int(block)
+    if block < 1:
+        raise InvalidInputError(f"block must be >= 1, got {block}")
+    t0 = time.perf_counter()
+    pL = prepare(L, params)
+    pR = prepare(R, params)
+    t_desc = time.perf_counter() - t0
+    t_cross = 0.0
+    tauA = tauB = None
+    if tau_scope == "view":
+        tauA, tauB, t_d, t_cross = _view_scope_taus(pL, pR, n_all, block, tau_rel,
+                                                    descriptor_impl)
+        t_desc += t_d
+    acc = _BwnccAccumulator(L.shape[0], L.shape[1], dmin, dmax, impl)
+    itL = iter_descriptor_blocks(pL, block=block, impl=descriptor_impl)
+    itR = iter_descriptor_blocks(pR, block=block, impl=descriptor_impl)
+    while True:
+        t0 = time.perf_counter()
+        try:
+            slA, A = next(itL)
+            slB, B = next(itR)
+        except StopIteration:
+            break
+        t_desc += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        acc.add_block(A, B, n_all[slA], tau_rel, tauA, tauB)
+        del A, B
+        t_cross += time.perf_counter() - t0
+    t0 = time.perf_counter()
+    res = acc.finish(eps, return_scores)
+    t_fin = time.perf_counter() - t0
+    t_cross += t_fin
+    if timings is not None:
+        timings["descriptor_s"] = t_desc
+        timings["cross_s"] = t_cross
+        timings["finish_s"] = t_fin
+        if impl == "numba":
+            timings["stats_s"] = acc.t_stats
+            timings["xterm_s"] = acc.t_xterm
+    return res
+
+
+# --------------------------------------------------------------------------------------------
+# Fusion
+# --------------------------------------------------------------------------------------------
+
+
+def normalise_volume(cost, dmin: int, valid=None) -> np.ndarray:
+    """``norm(C)`` of SPEC §3 fusion, float32.
+
+    Invalid entries -> the pixel's worst valid cost (:func:`fill_invalid`), minus the per-pixel
+    minimum, divided by the **global** standard deviation of the valid raw entries of ``C``.
+    (Global, not per-pixel: that is what the prototype measured — "divided by the std of the
+    valid raw entries" — and a per-pixel std would inflate flat, uninformative pixels.)  A
+    constant volume (std 0) is only min-subtracted.
+    """
+    C = np.array(cost, dtype=np.float64)
+    Lc, H, W = C.shape
+    if valid is None:
+        valid = candidate_validity((H, W), dmin, dmin + Lc - 1)
+    vals = C[np.broadcast_to(valid, C.shape)]
+    sd = float(vals.std()) if vals.size else 0.0
+    fill_invalid(C, dmin, valid)
+    C -= C.min(axis=0, keepdims=True)
+    if sd > 0:
+        C /= sd
+    return C.astype(np.float32)
+
+
+def fuse(volumes: Sequence[np.ndarray], weights: Sequence[float] | None = None, dmin: int = 0,
+         valid=None) -> np.ndarray:
+    """Weighted mean of normalised volumes: ``sum_i w_i norm(C_i) / sum_i w_i``; then the
+    out-of-image rule again (the fused worst valid cost).  ``dmin`` is needed only to know
+    which entries are invalid (the volumes must share ``dmin..dmax``)."""
+    vols = list(volumes)
+    if not vols:
+        raise InvalidInputError("fuse needs at least one volume")
+    shape = vols[0].shape
+    if any(v.shape != shape for v in vols) or len(shape) != 3:
+        raise InvalidInputError(f"volumes must be (L, H, W) of equal shape, got {[v.shape for v in vols]}")
+    w = np.ones(len(vols)) if weights is None else np.asarray(weights, np.float64)
+    if w.shape != (len(vols),) or not np.all(np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
+        raise InvalidInputError(f"weights must be {len(vols)} non-negative numbers with a positive sum, got {weights!r}")
+    out = np.zeros(shape, np.float64)
+    for wi, v in zip(w, vols):
+        if wi:
+            out += wi * normalise_volume(v, dmin, valid)
+    out /= w.sum()
+    return fill_invalid(out.astype(np.float32), dmin, valid)
+
+
+def fused_volume(left, right, dmin, dmax, window=None, impl: str = "auto",
+                 bwncc_window=None, census_window: int = 7, weights=(1.0, 1.0), **bwncc_params):
+    """``F = (norm(bwncc) + norm(census 7x7)) / 2`` (SPEC §3 fusion candidate; ``weights``
+    generalise the mean).  ``window`` is ignored (use ``bwncc_window`` / ``census_window``)."""
+    b = bwncc_volume(left, right, dmin, dmax, "default", window=bwncc_window, impl=impl, **bwncc_params)
+    c = census_volume(left, right, dmin, dmax, window=census_window, impl=impl)
+    return fuse([b, c], weights, dmin)
+
+
+def census_rsncc_volume(left, right, dmin, dmax, window=None, impl: str = "auto",
+                        rsncc_window: int = 5, census_window: int = 7, weights=(1.0, 1.0),
+                        **rsncc_params):
+    """``(norm(rsncc) + norm(census)) / 2`` (``weights`` generalise the mean).
+
+    ``window`` is ignored (use ``rsncc_window`` / ``census_window``); further keyword
+    arguments go to :func:`rsncc_volume`.
+    """
+    a = rsncc_volume(left, right, dmin, dmax, window=rsncc_window, impl=impl, **rsncc_params)
+    c = census_volume(left, right, dmin, dmax, window=census_window, impl=impl)
+    return fuse([a, c], weights, dmin)

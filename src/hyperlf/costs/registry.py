@@ -1,0 +1,407 @@
+"""The cost registry: every matching cost is one :class:`Cost` object, found by name.
+
+Two-view stereo (:mod:`hyperlf.twoview`), H-LF depth (:mod:`hyperlf.hlf`), cube completion and
+the command line all look costs up here (:func:`get_cost`, :func:`cost_names`), so adding a
+cost means writing one :class:`Cost` subclass and registering an instance
+(:func:`register_cost`); see ``docs/developers.md``.
+
+A cost knows
+
+* its ``name`` and a one-line ``description``;
+* ``window``: the window its evaluators use when none is given (None: the evaluator decides);
+* ``windows``: the default window per optimiser for two-view stereo (None: ``window``);
+* ``params``: default optimiser parameters per optimiser for two-view stereo, plain dicts
+  keyed by optimiser name (an optimiser that is not listed uses its own fallback);
+* :meth:`Cost.pair_volume`: the rectified-pair volume at integer disparities;
+* :meth:`Cost.view_volume`: the per-view light-field volume at sub-pixel shifts (a cost
+  without one is not available for light fields);
+* :meth:`Cost.pair_volumes`: left- and right-referenced volumes for the left-right check.
+
+:class:`FusedCost` combines registered costs: ``sum_i w_i norm(C_i) / sum_i w_i``
+(:func:`hyperlf.costs.fuse`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Mapping
+from typing import Any, Iterator, Sequence
+
+import numpy as np
+
+from ..errors import InvalidInputError
+from ._validate import IMPLS, check_window
+from .pair import fuse, right_validity
+
+__all__ = [
+    "Cost",
+    "FusedCost",
+    "AUTO_METRIC",
+    "register_cost",
+    "unregister_cost",
+    "registered_cost",
+    "get_cost",
+    "cost_names",
+    "resolve_metric",
+    "cost_volume",
+    "cost_volumes",
+    "METRICS",
+]
+
+#: What ``"auto"`` means, for two-view stereo and H-LF depth alike (decision and its measurements:
+#: BENCHMARKS.md, Tables 1 and 2).
+AUTO_METRIC = "census-rsncc"
+
+_REGISTRY: dict[str, "Cost"] = {}
+
+
+class Cost:
+    """A matching cost: name, defaults, and its two evaluators.
+
+    Subclass it, set the class attributes, implement :meth:`pair_volume` and (for light
+    fields) :meth:`view_volume`, and register an instance with :func:`register_cost`.
+
+    Attributes
+    ----------
+    name : str
+        Registry key (lower case; ``"auto"`` is reserved).
+    description : str
+        One line, shown in listings.
+    window : int or None
+        Window the evaluators use when called with ``window=None``.
+    windows : dict
+        Default window per optimiser for two-view stereo, e.g. ``{"graphcut": 9}``; a missing
+        optimiser (or None) means ``window``'s rule (the stereo result records None then).
+    params : dict
+        Default optimiser parameters per optimiser for two-view stereo, e.g.
+        ``{"graphcut": {"weight": 4.0}, "sgm": {"p1": 2.0, "p2": 16.0}}``, merged over the
+        optimiser's own fallback.
+    """
+
+    name: str = ""
+    description: str = ""
+    window: int | None = None
+    windows: dict = {}
+    params: dict = {}
+
+    # -- defaults ---------------------------------------------------------------------------
+
+    def default_window(self, optimiser: str) -> int | None:
+        """The two-view default window for ``optimiser`` (None: the cost's own default)."""
+        return self.windows.get(optimiser, None)
+
+    def default_params(self, optimiser: str) -> dict:
+        """The cost's own optimiser parameters for ``optimiser`` (a fresh copy; may be empty)."""
+        return dict(self.params.get(optimiser, {}))
+
+    @property
+    def light_field(self) -> bool:
+        """True when the cost has a light-field evaluator (:meth:`view_volume`)."""
+        return type(self).view_volume is not Cost.view_volume
+
+    # -- evaluators -------------------------------------------------------------------------
+
+    def pair_volume(self, left, right, dmin: int, dmax: int, *, window: int | None = None,
+                    impl: str = "auto", **options) -> np.ndarray:
+        """Cost volume of a rectified pair, float32 ``(dmax - dmin + 1, H, W)``.
+
+        Left ``x`` vs right ``x - d``; lower is better; out-of-image candidates carry the
+        pixel's worst valid cost (:func:`hyperlf.costs.fill_invalid`).
+        """
+        raise NotImplementedError
+
+    def view_volume(self, ref_img, img, shifts, *, window: int | None = None, valid=None,
+                    **options) -> np.ndarray:
+        """Light-field volume of one view, float32 ``(len(shifts), H, W)``.
+
+        ``img`` is sampled bilinearly at ``p + (sx, sy)`` for each shift and compared with
+        ``ref_img`` at ``p``.  ``valid`` is the in-image mask of the samples; ``options``
+        (``tau_rel``, ``eps``, ``block``, ``cache`` from :func:`hyperlf.costs.view_costs`) may
+        be ignored.  Invalid entries may hold anything: the caller fills them.
+        """
+        raise InvalidInputError(f"cost {self.name!r} is not available for light fields; "
+                                f"choose one of {', '.join(cost_names(light_field=True))}")
+
+    def pair_volumes(self, left, right, dmin: int, dmax: int, *, window: int | None = None,
+                     impl: str = "auto", need_right: bool = True, **options):
+        """Left- and right-referenced volumes ``(C_L, C_R)``; ``C_R`` is None unless
+        ``need_right``.
+
+        ``C_R[d, y, x_r] = C_L[d, y, x_r + d]``: exact for every cost that compares the left
+        patch around ``x`` with the right patch around ``x - d``, each with its own replicated
+        border (the pair's cost does not depend on which view is the reference).
+        """
+        cl = self.pair_volume(left, right, dmin, dmax, window=window, impl=impl, **options)
+        cl = np.asarray(cl, dtype=np.float32)
+        return cl, (_right_from_left(cl, dmin) if need_right else None)
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.name!r}>"
+
+
+def _right_from_left(volume, dmin: int) -> np.ndarray:
+    from ..regularisers import right_cost_from_left
+    labels = np.arange(dmin, dmin + volume.shape[0], dtype=np.float64)
+    return right_cost_from_left(volume, labels)
+
+
+class FusedCost(Cost):
+    """Weighted mean of normalised volumes of registered costs (SPEC §3 fusion).
+
+    ``C = sum_i w_i norm(C_i) / sum_i w_i`` (:func:`hyperlf.costs.fuse`).  Options of
+    :meth:`pair_volume`: ``<part>_window`` (each part's window, default the part's
+    ``window``), ``weights``, ``impl``; any other option goes to the first part.  A plain
+    ``window`` is ignored by the pair volume; for the light-field volume it sets the window of
+    part ``view_window_part`` (None: ignored there too).
+
+    The normalisation subtracts a *per-pixel* minimum, which is referenced to one view, so the
+    right-referenced volume is not a shift of the fused left one: :meth:`pair_volumes` shifts
+    the raw parts and fuses them again with the right view's validity, which is exact.
+
+    Parameters
+    ----------
+    name, description : str
+    parts : sequence of str
+        Names of registered costs.
+    weights : sequence of float
+        One per part (default all 1).
+    view_window_part : int, optional
+        Which part a light-field ``window`` applies to.
+    params, windows : dict, optional
+        As :class:`Cost`.
+    """
+
+    def __init__(self, name: str, parts: Sequence[str], *, weights: Sequence[float] | None = None,
+                 description: str = "", view_window_part: int | None = None,
+                 params: dict | None = None, windows: dict | None = None):
+        self.name = name
+        self.parts = tuple(parts)
+        self.weights = tuple(float(w) for w in weights) if weights is not None \
+            else (1.0,) * len(self.parts)
+        self.description = description
+        self.view_window_part = view_window_part
+        self.params = dict(params or {})
+        self.windows = dict(windows or {})
+
+    @property
+    def light_field(self) -> bool:
+        return all(get_cost(p).light_field for p in self.parts)
+
+    def _part_volumes(self, left, right, dmin, dmax, impl, options):
+        opts = dict(options)
+        part_windows = [opts.pop(f"{p}_window", get_cost(p).window) for p in self.parts]
+        weights = opts.pop("weights", self.weights)
+        vols = []
+        for i, (p, w) in enumerate(zip(self.parts, part_windows)):
+            extra = opts if i == 0 else {}
+            vols.append(get_cost(p).pair_volume(left, right, dmin, dmax, window=w, impl=impl,
+                                                **extra))
+        return vols, weights
+
+    def pair_volume(self, left, right, dmin, dmax, *, window=None, impl="auto", **options):
+        vols, weights = self._part_volumes(left, right, dmin, dmax, impl, options)
+        return fuse(vols, weights, dmin)
+
+    def pair_volumes(self, left, right, dmin, dmax, *, window=None, impl="auto",
+                     need_right=True, **options):
+        vols, weights = self._part_volumes(left, right, dmin, dmax, impl, options)
+        cl = fuse(vols, weights, dmin)
+        if not need_right:
+            return cl, None
+        vr = right_validity(cl.shape[1:], dmin, dmax)
+        cr = fuse([_right_from_left(v, dmin) for v in vols], weights, dmin, valid=vr)
+        return cl, cr
+
+    def view_volume(self, ref_img, img, shifts, *, window=None, valid=None, **options):
+        vols = []
+        for i, p in enumerate(self.parts):
+            w = window if i == self.view_window_part else None
+            vols.append(get_cost(p).view_volume(ref_img, img, shifts, window=w, valid=valid,
+                                                **options))
+        return fuse(vols, self.weights, dmin=0, valid=valid)
+
+
+# --------------------------------------------------------------------------------------------
+# Registry
+# --------------------------------------------------------------------------------------------
+
+
+def register_cost(cost: Cost, *, replace: bool = False) -> Cost:
+    """Add ``cost`` to the registry under ``cost.name`` and return it.
+
+    Raises
+    ------
+    InvalidInputError
+        Not a :class:`Cost`, a bad name (empty, ``"auto"``, not lower case), or a name that is
+        taken (unless ``replace``).
+    """
+    if not isinstance(cost, Cost):
+        raise InvalidInputError(f"register_cost needs a Cost instance, got {type(cost).__name__}")
+    name = cost.name
+    if not isinstance(name, str) or not name or name != name.strip().lower() or name == "auto":
+        raise InvalidInputError(f"cost name must be a non-empty lower-case string other than "
+                                f"'auto', got {name!r}")
+    if name in _REGISTRY and not replace:
+        raise InvalidInputError(f"a cost named {name!r} is already registered")
+    _REGISTRY[name] = cost
+    return cost
+
+
+def unregister_cost(name: str) -> Cost:
+    """Remove the cost ``name`` from the registry and return it.
+
+    Raises
+    ------
+    InvalidInputError
+        ``"auto"`` or a name that is not registered.
+    """
+    key = name.strip().lower() if isinstance(name, str) else name
+    if key == "auto" or key not in _REGISTRY:
+        raise InvalidInputError(f"no registered cost named {name!r}; registered: {_choices(False)}")
+    return _REGISTRY.pop(key)
+
+
+@contextlib.contextmanager
+def registered_cost(cost: Cost) -> Iterator[Cost]:
+    """Context manager: ``cost`` is registered inside the block, unregistered after it."""
+    register_cost(cost)
+    try:
+        yield cost
+    finally:
+        _REGISTRY.pop(cost.name, None)
+
+
+def cost_names(*, light_field: bool = False) -> tuple[str, ...]:
+    """Names of the registered costs, in registration order (``"auto"`` not included).
+
+    ``light_field=True``: only the costs with a light-field evaluator.
+    """
+    return tuple(n for n, c in _REGISTRY.items() if not light_field or c.light_field)
+
+
+def _choices(light_field: bool) -> str:
+    return ", ".join(cost_names(light_field=light_field) + ("auto",))
+
+
+def get_cost(name: str, *, light_field: bool = False) -> Cost:
+    """The registered cost ``name`` (case-insensitive; ``"auto"`` -> :data:`AUTO_METRIC`).
+
+    Raises
+    ------
+    InvalidInputError
+        Not a string, an unknown name (the message lists the choices), or, with
+        ``light_field=True``, a cost without a light-field evaluator.
+    """
+    if not isinstance(name, str):
+        raise InvalidInputError(
+            f"metric must be a string, one of {cost_names() + ('auto',)}, got {name!r}")
+    key = name.strip().lower()
+    if key == "auto":
+        key = AUTO_METRIC
+    cost = _REGISTRY.get(key)
+    if cost is None:
+        raise InvalidInputError(f"unknown metric {name!r}; choose one of {_choices(False)}")
+    if light_field and not cost.light_field:
+        raise InvalidInputError(
+            f"metric {name!r} is not available for H-LF matching; choose one of "
+            f"{', '.join(cost_names(light_field=True))} or 'auto'")
+    return cost
+
+
+def resolve_metric(name: str) -> str:
+    """Return the concrete cost name (``"auto"`` -> :data:`AUTO_METRIC`)."""
+    return get_cost(name).name
+
+
+class _MetricsView(Mapping):
+    """Read-only live view ``{name: cost.pair_volume}`` of the registry."""
+
+    def __getitem__(self, name: str):
+        return _REGISTRY[name].pair_volume
+
+    def __iter__(self):
+        return iter(tuple(_REGISTRY))
+
+    def __len__(self) -> int:
+        return len(_REGISTRY)
+
+
+#: ``{name: pair-volume function}`` for every registered cost (a live view of the registry).
+METRICS: Mapping[str, Any] = _MetricsView()
+
+
+@contextlib.contextmanager
+def _bad_parameters(name: str):
+    try:
+        yield
+    except TypeError as e:  # unknown keyword for this cost
+        if "unexpected keyword" not in str(e):
+            raise
+        raise InvalidInputError(f"bad parameter for metric {name!r}: {e}") from None
+
+
+def _checked(metric, window, impl) -> tuple[Cost, int | None]:
+    cost = get_cost(metric)
+    if window is not None:
+        window = check_window(window)
+    if impl not in IMPLS:
+        raise InvalidInputError(f"impl must be one of {IMPLS}, got {impl!r}")
+    return cost, window
+
+
+def cost_volume(left, right, dmin: int, dmax: int, metric: str = "auto", window: int | None = None,
+                impl: str = "auto", return_valid: bool = False, **params):
+    """Matching cost volume ``cost[L, H, W]`` float32 (lower is better) of a rectified pair.
+
+    Parameters
+    ----------
+    left, right : (H, W) arrays
+        Rectified pair; left pixel ``x`` matches right pixel ``x - d``, ``d = dmin..dmax``.
+    metric : str
+        A registered cost (:func:`cost_names`) or ``"auto"``.
+    window : int, optional
+        Odd window; None = the cost's own default.
+    impl : "auto", "numpy" or "numba"
+    return_valid : bool
+        Also return the :func:`hyperlf.costs.candidate_validity` mask.
+    **params
+        Cost options, e.g. ``tau_rel``, ``rs_tau`` for rsncc, ``block``, ``tau_scope``,
+        ``eps`` for bwncc, ``<part>_window`` and ``weights`` for fused costs.
+
+    Raises
+    ------
+    InvalidInputError
+        Unknown metric or option, bad window or impl, bad images.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hyperlf.costs import cost_volume
+    >>> rng = np.random.default_rng(0)
+    >>> right = rng.random((20, 30)) + 0.5
+    >>> left = np.roll(right, 3, axis=1)          # left x = right x - 3
+    >>> C = cost_volume(left, right, 0, 6, metric="census")
+    >>> C.shape, int(np.median(C.argmin(axis=0)))
+    ((7, 20, 30), 3)
+    """
+    from .pair import candidate_validity
+    cost, window = _checked(metric, window, impl)
+    with _bad_parameters(cost.name):
+        vol = cost.pair_volume(left, right, dmin, dmax, window=window, impl=impl, **params)
+    if return_valid:
+        return vol, candidate_validity(vol.shape[1:], dmin, dmax)
+    return vol
+
+
+def cost_volumes(left, right, dmin: int, dmax: int, metric: str = "auto", *,
+                 window: int | None = None, impl: str = "auto", need_right: bool = True,
+                 **params):
+    """Left- and right-referenced volumes ``(C_L, C_R)`` of a rectified pair.
+
+    As :func:`cost_volume`; ``C_R[d, y, x_r]`` compares right ``x_r`` with left ``x_r + d``
+    (:meth:`Cost.pair_volumes`), None unless ``need_right``.
+    """
+    cost, window = _checked(metric, window, impl)
+    with _bad_parameters(cost.name):
+        return cost.pair_volumes(left, right, dmin, dmax, window=window, impl=impl,
+                                 need_right=need_right, **params)
