@@ -105,60 +105,18 @@ are sampled there **bilinearly** (sub-pixel); candidates with ``q_v`` outside th
    (``U``; the SGM-aggregated volume for SGM) around the winning label.  Confidence:
    :func:`hyperlf.regularisers.confidence` of that volume.
 
-Defaults: measured, not assumed
--------------------------------
-Every cue of 2-4 ships with an on/off switch, and a cue that did not help on the tuning scenes
-is **off by default** (SPEC §5).  With today's defaults (``census-rsncc``, weighted-median
-post-filter) the Table 2 ablations (BENCHMARKS.md) are mixed for every cue: view selection
--17 % RMSE on antinous and -13 % on planes but +4-10 % on the other three scenes; the
-occlusion split -14 % on antinous, within 1 % on three scenes, +5 % on slanted; defocus "tv"
--2 to -26 % on four 128 x 128 scenes but +15 % on solids and more than twice the error on
-full-resolution antinous; literal defocus worse everywhere.  So all stay off.  The study
-below was made when the default was ``fused`` (bwncc + census).  Measured on the procedural
-scenes ``planes`` and ``slanted`` (:data:`hyperlf.synthesis.SCENES`) at 96 x 128, 5 x 6
-views, 410-700 nm raster, 32 labels over (-2, 2), graph cut with ``smoothness = 1``,
-``truncation = 1``; mean RMSE (px) / bad-0.07 (%) of the two scenes; ``f*_c`` =
-correspondence-only WTA:
-
-    ================================  =====================  =====================
-    configuration                     metric auto (fused)    metric ncc
-    ================================  =====================  =====================
-    all cues off (default)            0.179 / 29.1           0.201 / 18.2
-    + view selection (5.1)            0.204 / 31.6           0.180 / 18.3
-    + occlusion split (5.2)           0.179 / 35.6           0.176 / 18.2
-    + defocus "tv"                    0.208 / 34.1           0.209 / 27.3
-    + defocus "gaussian" (fixed)      0.220 / 42.6           0.223 / 30.3
-    + defocus "paper" (literal)       0.218 / 50.4           0.218 / 35.4
-    optimizer "wta" (= f*_c)          0.331 / 55.6           0.565 / 35.4
-    optimizer "sgm"                   0.224 / 19.7           0.271 / 12.7
-    ================================  =====================  =====================
-
-Third scene, ``occlusion`` (thin occluders; fused / ncc): off 0.535 / 20.4 and 0.596 / 20.3;
-selection 0.560 / 23.6 and 0.555 / 22.5; split 0.529 / 24.5 and 0.587 / 22.6; defocus tv
-0.438 / 41.7 and 0.461 / 32.0.  Over the three scenes (fused) the mean RMSE is off 0.298,
-selection 0.323, split 0.296, tv 0.285, but the mean bad-0.07 is off 26.2, split 31.9,
-tv 36.6: ``tv`` trims gross errors at occluders and blurs the fine ones (as in the prototype
-notes), the split is neutral in RMSE and worse in bad-0.07.  Not a clear win for any cue, so
-all stay off; ``defocus="tv"`` is the one to try on scenes with thin occluders.  (``solids``
-was not measured: the fused per-view volumes took ~6 min per scene on the shared 2 cores.)
-
-Defocus-only WTA ``f*_d`` RMSE: tv 0.56, gaussian 0.78, paper 0.75, flat 0.86 (``f*_c``:
-0.33 fused, 0.57 ncc), the same ordering as the prototype notes.  With the default metric every
-cue hurts or is neutral, so **all three are off by default**; with the cheap ``ncc`` stand-in,
-selection and split help a little (-0.02 px).  ``defocus="flat"`` with the per-volume
-normalisation is much worse (0.55 px with ncc): its per-pixel range is tiny in untextured
-areas, so the median-range normalisation blows it up at textured ones.  Lowering the pairwise
-weight across detected occlusion boundaries (``occlusion_weight = 0.25``) *raised* the RMSE
-(ncc: 0.201 -> 0.261), so ``occlusion_weight = 1`` (off) by default.  ``smoothness``: 0.3 /
-1 / 3 gave 0.295 / 0.261 / 0.286 (ncc, occlusion_weight 0.25), so 1.
+Defaults
+--------
+Every cue of 2-4 has an on/off switch, and a cue that did not lower the error on the tuning
+scenes is **off by default** (SPEC §5): view selection, the occlusion split and defocus are
+all off, ``occlusion_weight = 1``.  The measurements behind each default (Table 2 ablations)
+are in BENCHMARKS.md.
 
 Memory
 ------
-Held at once: the ``C`` and ``D`` volumes and up to ~10 accumulator / scratch volumes of
-``(L, H, W)`` float32 (view selection needs sums and counts for the selected and for all
-views), the per-view volume and for ``bwncc`` two float64 ``(L, H, W)`` accumulators, plus
-one descriptor block (68 channels) of two views with their float64 statistics.  At 512 x 512,
-64 labels: about 1.5 GB.  ``(n_views, L, H, W)`` is never formed.
+The per-view volumes are streamed into a few ``(L, H, W)`` float32 accumulators (plus, for
+``bwncc``, two float64 ones and one descriptor block of two views); an
+``(n_views, L, H, W)`` array is never formed.
 """
 
 from __future__ import annotations
@@ -181,7 +139,15 @@ from .errors import InvalidInputError
 __all__ = [
     "DepthParams",
     "DepthResult",
+    "DepthProblem",
     "depth",
+    "prepare",
+    "correspondence",
+    "defocus_cue",
+    "unary",
+    "regularise",
+    "refine",
+    "post_filter",
     "make_labels",
     "view_costs",
     "shift_map",
@@ -772,39 +738,79 @@ def _check_bool(name, v):
     return bool(v)
 
 
-def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
-          view_selection: bool = False, occlusion_split: bool = False, defocus: str = "off",
-          optimizer: str = "graphcut", params: DepthParams | None = None,
-          save_intermediate: bool = False, progress: bool = False) -> DepthResult:
-    """Disparity of the reference view of an H-LF (SPEC §5; module docstring for every stage).
+@dataclass
+class DepthProblem:
+    """Everything the stages of :func:`depth` share, built once by :func:`prepare`.
 
-    Parameters
+    Attributes
     ----------
     lf : LightField
-        Monochrome views ``(R, C, H, W)``; ``wavelengths`` are needed for the defocus cue.
-    disparity_range : (dmin, dmax), optional
-        Default ``lf.disparity_range``; one of the two is required.
-    n_labels : int
-        Labels evenly spaced over the range (>= 2).
-    metric : "auto" (= ``hyperlf.costs.AUTO_METRIC``, "census-rsncc"), "fused", "bwncc",
-        "bwncc-paper", "ncc", "rsncc", "census", "census-rsncc" ("fused" and the bwncc costs
-        are ~50x slower; Table 2 in BENCHMARKS.md).
+        The input.
+    metric : str
+        The resolved correspondence cost name.
     view_selection, occlusion_split : bool
-        SPEC §5.1 and §5.2 cues (defaults: measured, see the module docstring).
-    defocus : "off", "paper", "gaussian", "flat" or "tv" (SPEC §5.3).
-    optimizer : "graphcut", "sgm" or "wta".
-    params : DepthParams, optional
-    save_intermediate : keep the volumes in ``result.intermediate``.
-    progress : progress bars on stderr.
-
-    Raises
-    ------
-    InvalidInputError
-        Not a LightField / not monochrome, no disparity range, defocus without wavelengths,
-        unknown metric / optimiser / defocus mode, fewer than 2 views.
+        The SPEC §5.1 / §5.2 switches.
+    defocus, optimizer : str
+        The SPEC §5.3 mode and the MRF optimiser.
+    params : DepthParams
+        Every constant.
+    labels : ndarray, float64 (L,)
+        The disparity of every label.
+    disparity_range : (float, float)
+    views, others : list of (r, c)
+        Every view, and every view but the reference.
+    reference : (r, c)
+    offsets : ndarray (R, C, 2)
+        ``pos_v - pos_ref`` in baselines.
+    ref_img : ndarray, float64 (H, W)
+        The reference view.
+    In : dict
+        ``I_v / mean(I_v)`` per view (float64).
+    Mn : dict
+        Gradient magnitude of ``In`` per view (normalised by its median when
+        ``params.selection_normalise``).
+    M_ref : ndarray, float32 (H, W)
+    Mbar : ndarray, float32 (L, H, W) or None
+        Mean gradient magnitude over the valid views (view selection only).
+    edges : ndarray, bool (H, W)
+        Occlusion edges of the reference (all False when not needed).
+    edge_idx : ndarray, int64
+        Flat indices of the edge pixels used by the occlusion split.
+    sides : ndarray or None
+        Half-plane side of every other view at every edge pixel.
     """
-    from .lightfield import LightField, resolve_disparity_range
-    from .regularisers import confidence, graphcut, sgm, subpixel_refine, weighted_median
+
+    lf: Any
+    metric: str
+    view_selection: bool
+    occlusion_split: bool
+    defocus: str
+    optimizer: str
+    params: DepthParams
+    labels: np.ndarray
+    disparity_range: tuple
+    views: list
+    others: list
+    reference: tuple
+    offsets: np.ndarray
+    ref_img: np.ndarray
+    In: dict
+    Mn: dict = field(default_factory=dict)
+    M_ref: np.ndarray | None = None
+    Mbar: np.ndarray | None = None
+    edges: np.ndarray | None = None
+    edge_idx: np.ndarray | None = None
+    sides: np.ndarray | None = None
+
+    @property
+    def impl(self) -> str:
+        """Kernel implementation of the selection and defocus kernels."""
+        return "numpy" if self.params.impl == "numpy" else "numba"
+
+
+def _check_depth_options(lf, metric, view_selection, occlusion_split, defocus, optimizer,
+                         params):
+    from .lightfield import LightField
 
     if not isinstance(lf, LightField):
         raise InvalidInputError(f"lf must be a hyperlf.LightField, got {type(lf).__name__}")
@@ -828,161 +834,345 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
         raise InvalidInputError(
             "the defocus cue needs a spectral light field with one wavelength per view "
             "(lf.wavelengths); pass defocus='off' or set the wavelengths")
-    dmin, dmax = resolve_disparity_range(lf, disparity_range)
-    labels = make_labels(dmin, dmax, n_labels)
-    L = labels.size
-    impl = "numpy" if params.impl == "numpy" else "numba"
+    return mname, view_selection, occlusion_split, params
 
-    timings: dict[str, float] = {}
-    t0 = time.perf_counter()
-    R, Cc = lf.grid_shape
-    H, W = lf.image_shape
-    ref = lf.reference
-    offs = lf.offsets
-    views = [(r, c) for r in range(R) for c in range(Cc)]
-    others = [v for v in views if v != ref]
-    ref_img = lf.views[ref].astype(np.float64)
-    In = {v: normalise_intensity(lf.views[v]) for v in views}
 
-    # --- gradient magnitudes (selection) and Mbar (pass 1)
+def _selection_maps(In: dict, normalise: bool) -> dict:
+    """Gradient magnitude of every view, divided by its median when ``normalise``."""
     Mn = {}
-    for v in views:
-        M = gradient_magnitude(In[v])
-        if params.selection_normalise:
+    for v, img in In.items():
+        M = gradient_magnitude(img)
+        if normalise:
             med = float(np.median(M))
             s = med if med > 0 else float(M.mean())
             M = M / s if s > 0 else M
         Mn[v] = M
-    M_ref = Mn[ref].astype(np.float32)
-    Mbar = None
-    if view_selection:
-        Msum = np.zeros((L, H, W), np.float64)
-        Mcnt = np.zeros((L, H, W), np.float64)
-        if params.selection_include_ref:
-            Msum += Mn[ref][None]
-            Mcnt += 1.0
-        for v in others:
-            o = offs[v]
-            for k, d in enumerate(labels):
-                m, ok = shift_map(Mn[v], -d * o[0], -d * o[1], 0)
-                Msum[k] += np.where(ok, m, 0.0)
-                Mcnt[k] += ok
-        Mbar = (Msum / np.maximum(Mcnt, 1)).astype(np.float32)
-        del Msum, Mcnt
-    # --- occlusion edges
-    edges = np.zeros((H, W), bool)
-    edge_idx = np.zeros(0, np.int64)
-    sides = None
-    if occlusion_split or (optimizer == "graphcut" and params.occlusion_weight != 1.0):
-        edges, (gx, gy) = reference_edges(ref_img, params.canny_sigma, params.canny_low,
-                                          params.canny_high, int(params.edge_dilate))
-    if occlusion_split:
-        edge_idx = np.flatnonzero(edges).astype(np.int64)
-        gxe = gx.ravel()[edge_idx]
-        gye = gy.ravel()[edge_idx]
-        sides = half_plane_sides(gxe, gye, np.array([offs[v] for v in others]))
-    timings["prepare_s"] = time.perf_counter() - t0
+    return Mn
 
-    # --- correspondence (pass 2), streamed view by view into the accumulators
-    acc = _new_accumulators(L, H, W, len(edge_idx))
+
+def _mean_gradient(prob: DepthProblem) -> np.ndarray:
+    """``Mbar(p, d)``: mean of ``M_v(q_v)`` over the valid views (SPEC §5.1, pass 1)."""
+    L = prob.labels.size
+    H, W = prob.lf.image_shape
+    Msum = np.zeros((L, H, W), np.float64)
+    Mcnt = np.zeros((L, H, W), np.float64)
+    if prob.params.selection_include_ref:
+        Msum += prob.Mn[prob.reference][None]
+        Mcnt += 1.0
+    for v in prob.others:
+        o = prob.offsets[v]
+        for k, d in enumerate(prob.labels):
+            m, ok = shift_map(prob.Mn[v], -d * o[0], -d * o[1], 0)
+            Msum[k] += np.where(ok, m, 0.0)
+            Mcnt[k] += ok
+    return (Msum / np.maximum(Mcnt, 1)).astype(np.float32)
+
+
+def _prepare_edges(prob: DepthProblem) -> None:
+    """Occlusion edges of the reference and the half-plane side of every view (SPEC §5.2)."""
+    p = prob.params
+    H, W = prob.lf.image_shape
+    prob.edges = np.zeros((H, W), bool)
+    prob.edge_idx = np.zeros(0, np.int64)
+    if prob.occlusion_split or (prob.optimizer == "graphcut" and p.occlusion_weight != 1.0):
+        prob.edges, (gx, gy) = reference_edges(prob.ref_img, p.canny_sigma, p.canny_low,
+                                               p.canny_high, int(p.edge_dilate))
+    if prob.occlusion_split:
+        prob.edge_idx = np.flatnonzero(prob.edges).astype(np.int64)
+        offs = np.array([prob.offsets[v] for v in prob.others])
+        prob.sides = half_plane_sides(gx.ravel()[prob.edge_idx], gy.ravel()[prob.edge_idx], offs)
+
+
+def prepare(lf, *, disparity_range=None, n_labels: int = 64, metric: str = "auto",
+            view_selection: bool = False, occlusion_split: bool = False, defocus: str = "off",
+            optimizer: str = "graphcut", params: DepthParams | None = None) -> DepthProblem:
+    """Stage 1 of :func:`depth`: validate, make the labels and the per-view maps.
+
+    Builds the normalised views, the selection maps (``Mn``, ``Mbar``) and the occlusion
+    edges; arguments as :func:`depth`.
+
+    Returns
+    -------
+    DepthProblem
+    """
+    from .lightfield import resolve_disparity_range
+
+    mname, view_selection, occlusion_split, params = _check_depth_options(
+        lf, metric, view_selection, occlusion_split, defocus, optimizer, params)
+    dmin, dmax = resolve_disparity_range(lf, disparity_range)
+    labels = make_labels(dmin, dmax, n_labels)
+    R, Cc = lf.grid_shape
+    ref = lf.reference
+    views = [(r, c) for r in range(R) for c in range(Cc)]
+    prob = DepthProblem(
+        lf=lf, metric=mname, view_selection=view_selection, occlusion_split=occlusion_split,
+        defocus=defocus, optimizer=optimizer, params=params, labels=labels,
+        disparity_range=(dmin, dmax), views=views, others=[v for v in views if v != ref],
+        reference=ref, offsets=lf.offsets, ref_img=lf.views[ref].astype(np.float64),
+        In={v: normalise_intensity(lf.views[v]) for v in views})
+    prob.Mn = _selection_maps(prob.In, params.selection_normalise)
+    prob.M_ref = prob.Mn[ref].astype(np.float32)
+    if view_selection:
+        prob.Mbar = _mean_gradient(prob)
+    _prepare_edges(prob)
+    return prob
+
+
+def correspondence(prob: DepthProblem, *, progress: bool = False, timings=None):
+    """Stage 2 of :func:`depth`: per-view costs streamed into the aggregation (SPEC §5.1-5.2).
+
+    Returns
+    -------
+    C : ndarray, float32 (L, H, W)
+        The aggregated correspondence volume (entries no view saw: the pixel's worst cost).
+    n_used : ndarray
+        Views used per ``(d, p)`` before the occlusion split.
+    """
+    p = prob.params
+    L = prob.labels.size
+    H, W = prob.lf.image_shape
+    acc = _new_accumulators(L, H, W, len(prob.edge_idx))
     cache: dict = {}
     t_cost = t_agg = 0.0
-    for i, v in enumerate(progress_bar(others, "views", total=len(others), enabled=progress,
-                                       unit="view")):
+    for i, v in enumerate(progress_bar(prob.others, "views", total=len(prob.others),
+                                       enabled=progress, unit="view")):
         t1 = time.perf_counter()
-        Cv, valid = view_costs(ref_img, lf.views[v], offs[v], labels, mname, params.window,
-                               params.tau_rel, params.eps, int(params.block), cache)
+        Cv, valid = view_costs(prob.ref_img, prob.lf.views[v], prob.offsets[v], prob.labels,
+                               prob.metric, p.window, p.tau_rel, p.eps, int(p.block), cache)
         t2 = time.perf_counter()
         t_cost += t2 - t1
-        if view_selection:
-            o = offs[v]
-            Mq = np.stack([shift_map(Mn[v], -d * o[0], -d * o[1], 0)[0] for d in labels])
-        else:
-            Mq = None
-        aggregate_view(acc, Cv, valid, Mq, Mbar, M_ref, view_selection, edge_idx,
-                       sides[i] if sides is not None else None, impl)
+        Mq = None
+        if prob.view_selection:
+            o = prob.offsets[v]
+            Mq = np.stack([shift_map(prob.Mn[v], -d * o[0], -d * o[1], 0)[0]
+                           for d in prob.labels])
+        aggregate_view(acc, Cv, valid, Mq, prob.Mbar, prob.M_ref, prob.view_selection,
+                       prob.edge_idx, prob.sides[i] if prob.sides is not None else None,
+                       prob.impl)
         t_agg += time.perf_counter() - t2
         del Cv, valid
-    del cache
     t1 = time.perf_counter()
-    C, n_used = _finish_aggregation(acc, int(params.min_selected), int(params.min_half_views),
-                                    edge_idx, occlusion_split)
-    del acc
+    C, n_used = _finish_aggregation(acc, int(p.min_selected), int(p.min_half_views),
+                                    prob.edge_idx, prob.occlusion_split)
     C = _fill_nan_worst(C)
-    f_c_idx = np.argmin(C, axis=0)
-    f_c = labels[f_c_idx].astype(np.float32)
     t_agg += time.perf_counter() - t1
-    timings["correspondence_s"] = t_cost
-    timings["selection_split_s"] = t_agg
+    if timings is not None:
+        timings["correspondence_s"] = t_cost
+        timings["selection_split_s"] = t_agg
+    return C, n_used
 
-    # --- defocus
-    D = None
-    f_d = None
-    lam_r = None
-    t1 = time.perf_counter()
-    if defocus != "off":
-        prior = "gaussian" if defocus in ("paper", "gaussian") else defocus
-        lr_mode = params.lambda_r
-        if lr_mode is None:
-            lr_mode = "per_label" if defocus == "paper" else "per_pixel"
-        In_all = np.stack([In[v] for v in views])
-        wl_all = np.array([lf.wavelengths[v] for v in views])
-        off_all = np.array([offs[v] for v in views])
-        D, lam_r = defocus_volume(In_all, off_all, wl_all, labels, prior, lr_mode, f_c,
-                                  params.camera, params.sigma_d, params.achromatic_radius,
-                                  params.p_eps, impl)
-        f_d = labels[np.argmin(D, axis=0)].astype(np.float32)
-    timings["defocus_s"] = time.perf_counter() - t1
 
-    # --- MRF
-    t1 = time.perf_counter()
+def defocus_cue(prob: DepthProblem, f_c: np.ndarray):
+    """Stage 3 of :func:`depth`: the spectral-aware defocus volume (SPEC §5.3).
+
+    Returns
+    -------
+    D : ndarray, float32 (L, H, W) or None
+        None when ``defocus="off"``.
+    lambda_r : ndarray or None
+        The reference wavelength(s) used.
+    """
+    if prob.defocus == "off":
+        return None, None
+    p = prob.params
+    prior = "gaussian" if prob.defocus in ("paper", "gaussian") else prob.defocus
+    lr_mode = p.lambda_r
+    if lr_mode is None:
+        lr_mode = "per_label" if prob.defocus == "paper" else "per_pixel"
+    In_all = np.stack([prob.In[v] for v in prob.views])
+    wl_all = np.array([prob.lf.wavelengths[v] for v in prob.views])
+    off_all = np.array([prob.offsets[v] for v in prob.views])
+    return defocus_volume(In_all, off_all, wl_all, prob.labels, prior, lr_mode, f_c, p.camera,
+                          p.sigma_d, p.achromatic_radius, p.p_eps, prob.impl)
+
+
+def unary(C: np.ndarray, D: np.ndarray | None, params: DepthParams):
+    """Stage 4a of :func:`depth`: ``U = gamma_c norm(C) + norm(D)`` (SPEC §5.4).
+
+    Returns
+    -------
+    U : ndarray, float32 (L, H, W), C-contiguous
+    scale_C, scale_D : float, float or None
+        The normalisers of :func:`normalise_unary`.
+    """
     Cn, sC = normalise_unary(C, params.normalise_costs)
     U = params.gamma_c * Cn
     sD = None
     if D is not None:
         Dn, sD = normalise_unary(D, params.normalise_costs)
         U = U + Dn
-    U = np.ascontiguousarray(U, np.float32)
+    return np.ascontiguousarray(U, np.float32), sC, sD
+
+
+def regularise(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray):
+    """Stage 4b of :func:`depth`: optimise the MRF on ``U`` (SPEC §5.4).
+
+    Returns
+    -------
+    labels_map : ndarray, int (H, W)
+        The chosen label per pixel.
+    volume : ndarray, float32 (L, H, W)
+        The volume refinement and confidence read (the SGM-aggregated one for SGM).
+    """
+    from .regularisers import graphcut, sgm
+
+    p = prob.params
+    labels = prob.labels
     step = float(labels[1] - labels[0])
-    guide = In[ref].astype(np.float32)
+    guide = prob.In[prob.reference].astype(np.float32)
     vol = U
-    if optimizer == "wta" or params.smoothness == 0:
+    if prob.optimizer == "wta" or p.smoothness == 0:
         lab = np.argmin(U, axis=0)
-    elif optimizer == "sgm":
-        vol = sgm(U, params.smoothness * step, params.smoothness * params.truncation,
-                  paths=int(params.sgm_paths), guide=guide, smoothness="truncated_linear")
+    elif prob.optimizer == "sgm":
+        vol = sgm(U, p.smoothness * step, p.smoothness * p.truncation,
+                  paths=int(p.sgm_paths), guide=guide, smoothness="truncated_linear")
         lab = np.argmin(vol, axis=0)
     else:
         ew = None
-        if params.occlusion_weight != 1.0 and edges.any():
-            ew = _occlusion_edge_weights(edges, f_c, params.truncation / 2.0,
-                                         params.occlusion_weight)
-        lab = graphcut(U, "truncated_linear", params.smoothness, params.truncation, guide=guide,
-                       edge_sigma=params.edge_sigma, max_cycles=int(params.max_cycles),
+        if p.occlusion_weight != 1.0 and prob.edges.any():
+            ew = _occlusion_edge_weights(prob.edges, f_c, p.truncation / 2.0,
+                                         p.occlusion_weight)
+        lab = graphcut(U, "truncated_linear", p.smoothness, p.truncation, guide=guide,
+                       edge_sigma=p.edge_sigma, max_cycles=int(p.max_cycles),
                        labels=labels, edge_weights=ew)
-    timings["mrf_s"] = time.perf_counter() - t1
-    t1 = time.perf_counter()
-    if params.refine:
-        disp = subpixel_refine(vol, lab, labels)
-    else:
-        disp = labels[lab].astype(np.float32)
-    conf = confidence(vol, lab)
-    timings["refine_s"] = time.perf_counter() - t1
-    t1 = time.perf_counter()
-    if params.median_radius > 0:
-        disp = weighted_median(disp, guide, int(params.median_radius), params.median_sigma,
-                               impl="numpy" if params.impl == "numpy" else "numba")
-    timings["median_s"] = time.perf_counter() - t1
-    timings["total_s"] = time.perf_counter() - t0
+    return lab, vol
 
-    config = dict(metric=mname, n_labels=L, disparity_range=(dmin, dmax),
-                  view_selection=view_selection, occlusion_split=occlusion_split,
-                  defocus=defocus, optimizer=optimizer, params=asdict(params),
-                  scale_C=sC, scale_D=sD, n_edge_pixels=int(edges.sum()),
-                  reference=tuple(ref))
+
+def refine(volume: np.ndarray, labels_map: np.ndarray, labels: np.ndarray,
+           params: DepthParams):
+    """Stage 5 of :func:`depth`: sub-pixel disparity and confidence.
+
+    Returns
+    -------
+    disparity : ndarray, float32 (H, W)
+        Parabola-refined when ``params.refine``, else the label disparities.
+    confidence : ndarray, float32 (H, W)
+    """
+    from .regularisers import confidence, subpixel_refine
+
+    if params.refine:
+        disp = subpixel_refine(volume, labels_map, labels)
+    else:
+        disp = labels[labels_map].astype(np.float32)
+    return disp, confidence(volume, labels_map)
+
+
+def post_filter(disparity: np.ndarray, guide: np.ndarray, params: DepthParams) -> np.ndarray:
+    """Stage 6 of :func:`depth`: the guided weighted median (off when
+    ``params.median_radius == 0``)."""
+    from .regularisers import weighted_median
+
+    if params.median_radius <= 0:
+        return disparity
+    return weighted_median(disparity, guide, int(params.median_radius), params.median_sigma,
+                           impl="numpy" if params.impl == "numpy" else "numba")
+
+
+def _config(prob: DepthProblem, sC, sD) -> dict:
+    return dict(metric=prob.metric, n_labels=prob.labels.size,
+                disparity_range=prob.disparity_range, view_selection=prob.view_selection,
+                occlusion_split=prob.occlusion_split, defocus=prob.defocus,
+                optimizer=prob.optimizer, params=asdict(prob.params), scale_C=sC, scale_D=sD,
+                n_edge_pixels=int(prob.edges.sum()), reference=tuple(prob.reference))
+
+
+class _Clock:
+    """Records the seconds of each stage into a dict."""
+
+    def __init__(self, timings: dict):
+        self.timings = timings
+        self.t = time.perf_counter()
+
+    def lap(self, key: str | None = None) -> None:
+        now = time.perf_counter()
+        if key is not None:
+            self.timings[key] = now - self.t
+        self.t = now
+
+
+def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
+          view_selection: bool = False, occlusion_split: bool = False, defocus: str = "off",
+          optimizer: str = "graphcut", params: DepthParams | None = None,
+          save_intermediate: bool = False, progress: bool = False) -> DepthResult:
+    """Disparity of the reference view of an H-LF (SPEC §5).
+
+    A list of stages, each a public function that can be run and tested alone:
+    :func:`prepare` -> :func:`correspondence` -> :func:`defocus_cue` -> :func:`unary` ->
+    :func:`regularise` -> :func:`refine` -> :func:`post_filter`.
+
+    Parameters
+    ----------
+    lf : LightField
+        Monochrome views ``(R, C, H, W)``; ``wavelengths`` are needed for the defocus cue.
+    disparity_range : (dmin, dmax), optional
+        Default ``lf.disparity_range``; one of the two is required.
+    n_labels : int
+        Labels evenly spaced over the range (>= 2).
+    metric : str
+        A light-field cost of :mod:`hyperlf.costs` (``"auto"`` = the library default).
+    view_selection, occlusion_split : bool
+        The SPEC §5.1 and §5.2 cues (off by default: BENCHMARKS.md, Table 2 ablations).
+    defocus : {"off", "paper", "gaussian", "flat", "tv"}
+        The SPEC §5.3 cue.
+    optimizer : {"graphcut", "sgm", "wta"}
+    params : DepthParams, optional
+        Every constant.
+    save_intermediate : bool
+        Keep the volumes in ``result.intermediate``.
+    progress : bool
+        Progress bars on stderr.
+
+    Returns
+    -------
+    DepthResult
+        With ``timings`` in seconds per stage (``prepare_s``, ``correspondence_s``,
+        ``selection_split_s``, ``defocus_s``, ``mrf_s``, ``refine_s``, ``median_s``,
+        ``total_s``).
+
+    Raises
+    ------
+    InvalidInputError
+        Not a LightField / not monochrome, no disparity range, defocus without wavelengths,
+        unknown metric / optimiser / defocus mode, fewer than 2 views.
+
+    References
+    ----------
+    .. [1] K. Zhu, Y. Xue, Q. Fu, S. B. Kang, X. Chen and J. Yu, "Hyperspectral Light Field
+       Stereo Matching", IEEE TPAMI.
+
+    Examples
+    --------
+    >>> from hyperlf import synthesis
+    >>> from hyperlf.hlf import depth
+    >>> lf = synthesis.procedural_scene(seed=0, rows=3, cols=3, height=32, width=40)
+    >>> res = depth(lf, n_labels=16)
+    >>> res.disparity.shape
+    (32, 40)
+    """
+    timings: dict[str, float] = {}
+    clock = _Clock(timings)
+    t0 = clock.t
+    prob = prepare(lf, disparity_range=disparity_range, n_labels=n_labels, metric=metric,
+                   view_selection=view_selection, occlusion_split=occlusion_split,
+                   defocus=defocus, optimizer=optimizer, params=params)
+    clock.lap("prepare_s")
+    C, n_used = correspondence(prob, progress=progress, timings=timings)
+    f_c = prob.labels[np.argmin(C, axis=0)].astype(np.float32)
+    clock.lap()
+    D, lam_r = defocus_cue(prob, f_c)
+    f_d = None if D is None else prob.labels[np.argmin(D, axis=0)].astype(np.float32)
+    clock.lap("defocus_s")
+    U, sC, sD = unary(C, D, prob.params)
+    lab, vol = regularise(prob, U, f_c)
+    clock.lap("mrf_s")
+    disp, conf = refine(vol, lab, prob.labels, prob.params)
+    clock.lap("refine_s")
+    disp = post_filter(disp, prob.In[prob.reference].astype(np.float32), prob.params)
+    clock.lap("median_s")
+    timings["total_s"] = time.perf_counter() - t0
     inter = None
     if save_intermediate:
-        inter = dict(C=C, D=D, unary=U, edges=edges, lambda_r=lam_r, n_selected=n_used)
+        inter = dict(C=C, D=D, unary=U, edges=prob.edges, lambda_r=lam_r, n_selected=n_used)
     return DepthResult(disparity=np.asarray(disp, np.float32), confidence=conf, f_c=f_c,
-                       f_d=f_d, labels=labels, timings=timings, config=config,
-                       intermediate=inter)
+                       f_d=f_d, labels=prob.labels, timings=timings,
+                       config=_config(prob, sC, sD), intermediate=inter)
