@@ -146,6 +146,7 @@ from . import regularisers as _reg
 from ._progress import progress_bar
 from .errors import InvalidInputError
 from .lightfield import LightField, resolve_disparity_range
+from .warp import sample_bilinear, shift_map
 
 __all__ = ["BaselineResult", "tao2013", "wang2015", "lin2015", "METHODS", "DEFAULTS",
            "prepare_views", "label_disparities"]
@@ -263,33 +264,17 @@ def _odd_window(p: dict, name: str = "window") -> int:
     return int(w)
 
 
-def _axis_coords(n: int, s: float):
-    """Clamped linear-interpolation indices and weights along one axis for a shift ``s``."""
-    c = np.clip(np.arange(n, dtype=np.float64) + s, 0.0, n - 1)
-    i0 = np.minimum(np.floor(c).astype(np.intp), max(n - 2, 0))
-    i1 = np.minimum(i0 + 1, n - 1)
-    f = (c - i0).astype(np.float32)
-    return i0, i1, f
-
-
 def _shift(img: np.ndarray, sx: float, sy: float) -> np.ndarray:
-    """``img`` sampled at ``(x + sx, y + sy)``: bilinear, coordinates clamped to the image."""
-    H, W = img.shape
-    x0, x1, fx = _axis_coords(W, sx)
-    y0, y1, fy = _axis_coords(H, sy)
-    a = img[:, x0] * (1.0 - fx) + img[:, x1] * fx
-    return a[y0] * (1.0 - fy)[:, None] + a[y1] * fy[:, None]
+    """``img`` sampled at ``(x + sx, y + sy)``: the baselines' separable shift (module docstring:
+    replicated border, float32 weights, x then y)."""
+    return shift_map(img, sx, sy, edge="clamp", dtype=np.float32, order="xy")[0]
 
 
 def _warp_clamped(img: np.ndarray, disp: np.ndarray, dx: float, dy: float) -> np.ndarray:
     """``img`` at ``(x - disp dx, y - disp dy)`` per pixel, bilinear, clamped (SPEC §1 sign)."""
-    from .warp import sample_bilinear
-
     H, W = img.shape
     yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
-    x = np.clip(xx - disp * dx, 0, W - 1)
-    y = np.clip(yy - disp * dy, 0, H - 1)
-    out, _ = sample_bilinear(img, x, y)
+    out, _ = sample_bilinear(img, xx - disp * dx, yy - disp * dy, edge="clamp")
     return out.astype(np.float32)
 
 
@@ -649,9 +634,8 @@ def wang2015(lf: LightField, n_labels: int = 64, disparity_range=None,
     n_m = np.maximum(n_m * split, 1).astype(np.float32)
     off = float(p["consistency_offset"])
     yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
-    from .warp import sample_bilinear
-    px_p = sample_bilinear(ref, np.clip(xx + off * nx, 0, W - 1), np.clip(yy + off * ny, 0, H - 1))[0]
-    px_m = sample_bilinear(ref, np.clip(xx - off * nx, 0, W - 1), np.clip(yy - off * ny, 0, H - 1))[0]
+    px_p = sample_bilinear(ref, xx + off * nx, yy + off * ny, edge="clamp")[0]
+    px_m = sample_bilinear(ref, xx - off * nx, yy - off * ny, edge="clamp")[0]
     offs, bw = _bilateral_weights(ref, int(br), float(p["bilateral_sigma"]))
     timings["edges"] = time.perf_counter() - t
 

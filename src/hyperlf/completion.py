@@ -113,7 +113,7 @@ import numpy as np
 
 from ._progress import progress_bar
 from .errors import InvalidInputError
-from .warp import forward_warp_disparity
+from .warp import bilinear_taps, forward_warp_disparity, gather_taps
 
 __all__ = [
     "CompletionResult",
@@ -214,29 +214,6 @@ def _as_ref_disparity(lf, d) -> np.ndarray:
     if a.shape != lf.image_shape:
         raise InvalidInputError(f"reference disparity must have shape {lf.image_shape}, got {a.shape}")
     return a
-
-
-def _taps(qx: np.ndarray, qy: np.ndarray, H: int, W: int):
-    """Bilinear footprint: inside mask, 4 flat indices and 4 weights (each of qx's shape)."""
-    eps = 1e-6
-    inside = np.isfinite(qx) & np.isfinite(qy)
-    inside &= (qx >= -eps) & (qx <= W - 1 + eps) & (qy >= -eps) & (qy <= H - 1 + eps)
-    xc = np.clip(np.where(inside, qx, 0.0), 0, W - 1)
-    yc = np.clip(np.where(inside, qy, 0.0), 0, H - 1)
-    x0 = np.minimum(np.floor(xc).astype(np.intp), max(W - 2, 0))
-    y0 = np.minimum(np.floor(yc).astype(np.intp), max(H - 2, 0))
-    fx = xc - x0
-    fy = yc - y0
-    x1 = np.minimum(x0 + 1, W - 1)
-    y1 = np.minimum(y0 + 1, H - 1)
-    idx = (y0 * W + x0, y0 * W + x1, y1 * W + x0, y1 * W + x1)
-    wts = ((1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy)
-    return inside, idx, wts
-
-
-def _sample(img_flat, idx, wts):
-    return (img_flat[idx[0]] * wts[0] + img_flat[idx[1]] * wts[1]
-            + img_flat[idx[2]] * wts[2] + img_flat[idx[3]] * wts[3])
 
 
 def _footprint_ok(flat_bool_or_disp, idx, wts, d=None, scale=1.0, tol=None):
@@ -495,13 +472,13 @@ def register_view(lf, disparities: np.ndarray, view, band_index: np.ndarray,
             ox, oy = _offset(lf, (r, c), v)
             qx = xx - dv * ox
             qy = yy - dv * oy
-            inside, idx, wts = _taps(qx, qy, H, W)
+            inside, idx, wts = bilinear_taps(qx, qy, (H, W))
             ok = inside & np.isfinite(dv)
             if occlusion_tol is not None:
                 du = np.asarray(disparities[r, c], dtype=np.float64).ravel()
                 ok &= _footprint_ok(du, idx, wts, d=dv, scale=max(np.hypot(ox, oy), 1.0),
                                     tol=float(occlusion_tol))
-            val = _sample(lf.views[r, c].ravel(), idx, wts)
+            val = gather_taps(lf.views[r, c].ravel(), idx, wts)
             cube[b] = np.where(ok, val, np.nan)
             mask[b] = ok
     return cube, mask
@@ -594,7 +571,7 @@ def _propagate(lf, store, disparities, occlusion_tol, max_iter, progress=False) 
                 geom = []
                 for w in nbrs:
                     ox, oy = _offset(lf, w, v)
-                    inside, idx, wts = _taps(tx - dt * ox, ty - dt * oy, H, W)
+                    inside, idx, wts = bilinear_taps(tx - dt * ox, ty - dt * oy, (H, W))
                     if occlusion_tol is not None:
                         inside = inside & _footprint_ok(
                             np.asarray(disparities[w], np.float64).ravel(), idx, wts, d=dt,
@@ -618,7 +595,7 @@ def _propagate(lf, store, disparities, occlusion_tol, max_iter, progress=False) 
                         ok = inside[sel] & _footprint_ok(m_w.ravel(), idx, wts)
                         if not ok.any():
                             continue
-                        val = _sample(img_w.ravel(), idx, wts)
+                        val = gather_taps(img_w.ravel(), idx, wts)
                         acc[ok] += val[ok]
                         n[ok] += 1
                     got = n > 0

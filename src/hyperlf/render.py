@@ -87,7 +87,6 @@ only the bands the profile needs) at a time; a full ``[R, C, B, H, W]`` is never
 
 from __future__ import annotations
 
-import math
 import os
 import warnings
 from dataclasses import dataclass
@@ -100,7 +99,7 @@ from . import spectral
 from ._atomic import atomic_path
 from ._progress import progress_bar
 from .errors import InvalidInputError
-from .warp import forward_warp_disparity, sample_bilinear
+from .warp import coordinate_taps, forward_warp_disparity, sample_bilinear, shift_map
 
 __all__ = [
     "emulate_camera",
@@ -765,53 +764,20 @@ def _as_disparity(d, H: int, W: int, name: str = "disparity") -> np.ndarray | fl
     return a
 
 
-def _axis_coords(coord: np.ndarray, n: int):
-    """Indices and weights of bilinear sampling along one axis (as warp.sample_bilinear)."""
-    eps = 1e-6
-    valid = (coord >= -eps) & (coord <= n - 1 + eps)
-    cc = np.clip(coord, 0, n - 1)
-    i0 = np.minimum(np.floor(cc).astype(np.intp), max(n - 2, 0))
-    i1 = np.minimum(i0 + 1, n - 1)
-    f = (cc - i0).astype(np.float32)
-    return i0, i1, f, valid
+#: How refocusing samples the views (module docstring): invalid samples are 0 (with weight 0),
+#: float32 weights, x interpolated before y.
+_SAMPLING = {"fill": 0.0, "edge": "mask", "dtype": np.float32}
 
 
 def _sample_shift(img: np.ndarray, sx: float, sy: float) -> tuple[np.ndarray, np.ndarray]:
-    """``img`` (H, W, K) sampled at ``(x + sx, y + sy)``: a separable bilinear translation.
-
-    Same values as :func:`hyperlf.warp.sample_bilinear` on the shifted grid, in float32 and
-    with slices instead of 2-D gathers; samples outside are 0 and invalid.
-    """
-    H, W = img.shape[:2]
-    x0, x1, fx, vx = _axis_coords(np.arange(W) + sx, W)
-    y0, y1, fy, vy = _axis_coords(np.arange(H) + sy, H)
-    if np.any(fx != 0):
-        a = img[:, x0] * (1 - fx)[None, :, None] + img[:, x1] * fx[None, :, None]
-    else:
-        a = img[:, x0]
-    if np.any(fy != 0):
-        out = a[y0] * (1 - fy)[:, None, None] + a[y1] * fy[:, None, None]
-    else:
-        out = a[y0]
-    valid = vy[:, None] & vx[None, :]
-    if not valid.all():
-        out = np.where(valid[..., None], out, np.float32(0))
+    """``img`` (H, W, K) sampled at ``(x + sx, y + sy)``: a separable bilinear translation."""
+    out, valid = shift_map(img, sx, sy, order="xy", channel_axis=-1, skip_zero=True, **_SAMPLING)
     return out.astype(np.float32, copy=False), valid
 
 
 def _sample_map(img: np.ndarray, qx: np.ndarray, qy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``img`` (H, W, K) sampled bilinearly at float coordinates ``(qx, qy)`` (H, W), float32."""
-    H, W, K = img.shape
-    x0, x1, fx, vx = _axis_coords(qx, W)
-    y0, y1, fy, vy = _axis_coords(qy, H)
-    flat = img.reshape(H * W, K)
-    fx, fy = fx[..., None], fy[..., None]
-    top = flat[y0 * W + x0] * (1 - fx) + flat[y0 * W + x1] * fx
-    bot = flat[y1 * W + x0] * (1 - fx) + flat[y1 * W + x1] * fx
-    out = top * (1 - fy) + bot * fy
-    valid = vx & vy
-    if not valid.all():
-        out = np.where(valid[..., None], out, np.float32(0))
+    out, valid = sample_bilinear(img, qx, qy, **_SAMPLING)
     return out.astype(np.float32, copy=False), valid
 
 
@@ -1271,12 +1237,12 @@ def spectrum_at(cube, wavelengths=None, x=None, y=None, view=None) -> np.ndarray
     if xs.shape != ys.shape or xs.ndim != 1:
         raise InvalidInputError("x and y must be scalars or 1-D arrays of the same length")
     out = np.full((xs.size, B), np.nan)
+    tx0, _, _, vx = coordinate_taps(xs, W)
+    ty0, _, _, vy = coordinate_taps(ys, H)
     for i, (px, py) in enumerate(zip(xs, ys)):
-        if not (np.isfinite(px) and np.isfinite(py)) or px < -1e-6 or py < -1e-6 \
-                or px > W - 1 + 1e-6 or py > H - 1 + 1e-6:
+        if not (vx[i] and vy[i]):
             continue
-        x0 = int(min(max(math.floor(px), 0), max(W - 2, 0)))
-        y0 = int(min(max(math.floor(py), 0), max(H - 2, 0)))
+        x0, y0 = int(tx0[i]), int(ty0[i])
         x1, y1 = min(x0 + 2, W), min(y0 + 2, H)
         patch = np.asarray(data[lead + (slice(None), slice(y0, y1), slice(x0, x1))],
                            dtype=np.float64)  # (B, <=2, <=2)
