@@ -31,7 +31,7 @@ Stages
    :func:`hyperlf.regularisers.confidence`); only two running sums per view are held.
    Default metric: ``"rsncc"`` (cross-spectral robust NCC of Shen et al.); it is fast, and with
    the guidance and the narrow band the choice of metric matters little.  ``metric="bwncc"``
-   gives the paper's BWNCC, about 50x slower at the time of writing; ``"auto"`` the two-view
+   gives the paper's BWNCC (much slower; BENCHMARKS.md); ``"auto"`` the two-view
    default (:data:`hyperlf.costs.AUTO_METRIC`).
 3. **Refinement** (:func:`refine_disparity`): a confidence-weighted, edge-aware weighted least
    squares problem (after Park et al. 2014, adapted to a single spectral image as guide)::
@@ -43,13 +43,13 @@ Stages
    in its holes two data terms are combined: the **background fill** (:func:`background_fill`:
    min of the nearest valid values left/right/up/down -- holes of a forward-warped map are
    disocclusions, i.e. background; confidence ``fill_confidence``, 0.5) and the merged stereo
-   estimate (confidence ``stereo_confidence * margin``, <= 0.25).  Measured on procedural
-   scenes, the background fill alone is more accurate in the holes than cross-spectral stereo
-   (mean hole error 0.00 / 0.07 px vs 0.06 / 0.18 px on a planes / slanted scene), so stereo only
-   nudges it; ``optimizer=None`` skips the stereo (used for the 512 x 512 benchmark).
+   estimate (confidence ``stereo_confidence * margin``, <= 0.25).  The background fill is
+   trusted more than cross-spectral stereo in the holes (it measured more accurate on
+   procedural scenes, BENCHMARKS.md), so stereo only nudges it; ``optimizer=None`` skips the
+   stereo (used for the 512 x 512 benchmark).
    The stereo of stage 2 is guided by the background-filled map (not the raw warped map), so
-   hole pixels are also band-limited around the background hypothesis.  Solved exactly by a sparse direct solve
-   (``scipy.sparse.linalg.spsolve``, 5-point system; ~1-3 s at 512 x 512).  With
+   hole pixels are also band-limited around the background hypothesis.  Solved exactly by a
+   sparse direct solve (``scipy.sparse.linalg.spsolve``, 5-point system).  With
    ``keep_initial=True`` (default) the warped initial disparity is kept unchanged where it
    exists and the WLS result is used only in its holes (the initial values come from the
    reference disparity, the best estimate available; smoothing them would only blur edges).

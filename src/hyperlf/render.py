@@ -605,6 +605,53 @@ def _used_bands(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return idx, M[idx]
 
 
+def _select_views(views, lead: tuple[int, ...]) -> tuple[list[tuple[int, ...]], bool]:
+    """The leading indices ``emulate_camera(views=...)`` renders, and whether it is one view."""
+    if views is None or (isinstance(views, str) and views.lower() == "all"):
+        return (list(np.ndindex(*lead)) if lead else [()]), False
+    if isinstance(views, str) and views.lower() in ("reference", "ref"):
+        if len(lead) != 2:
+            raise InvalidInputError("views='reference' needs a 5-D cube (R, C, B, H, W)")
+        return [((lead[0] - 1) // 2, (lead[1] - 1) // 2)], True
+    single = False
+    v = views
+    if isinstance(v, tuple) and all(_is_number(i) for i in v):
+        sel, single = [tuple(int(i) for i in v)], True
+    else:
+        sel = [tuple(int(i) for i in t) for t in v]
+    for t in sel:
+        if len(t) != len(lead) or any(not (0 <= i < n) for i, n in zip(t, lead)):
+            raise InvalidInputError(f"view index {t} is outside the cube's leading axes {lead}")
+    return sel, single
+
+
+def _emulate_views(data, sel, idx: np.ndarray, B: int, M: np.ndarray, plan: _Plan, mask,
+                   progress: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Linear camera values ``(n, H, W, 3)`` of the selected views (NaN where invalid) and the
+    invalid pixels ``(n, H, W)``."""
+    H, W = (int(s) for s in data.shape[-2:])
+    out = np.empty((len(sel), H, W, 3), dtype=np.float32)
+    bad_px = np.zeros((len(sel), H, W), dtype=bool)
+    h5 = _is_h5_dataset(data)
+    for n, t in enumerate(progress_bar(sel, "emulating camera", total=len(sel), enabled=progress,
+                                       unit="view")):
+        if idx.size == B:
+            bands = data[t] if t else data[()] if h5 else data
+        elif h5:
+            bands = np.stack([np.asarray(data[t + (int(b),)]) for b in idx])
+        else:
+            bands = data[t][idx] if t else data[idx]
+        bands = np.asarray(bands, dtype=np.float32)
+        out[n] = _apply_post(_project(bands, M), plan)
+        bad = ~np.isfinite(out[n]).all(axis=-1)  # a NaN in any used band propagates
+        if mask is not None:
+            bad |= ~np.asarray(mask[t] if t else mask, dtype=bool)
+        bad_px[n] = bad
+        if bad.any():
+            out[n][bad] = np.nan
+    return out, bad_px
+
+
 def emulate_camera(cube, wavelengths=None, camera="CIE 1931", white_balance: bool = True,
                    illuminant=None, output: str = "camera", mask=None, exposure="white",
                    exposure_percentile: float = 99.5, white=None, views=None, ccm="fit",
@@ -682,42 +729,8 @@ def emulate_camera(cube, wavelengths=None, camera="CIE 1931", white_balance: boo
                         kind="cube")
     idx, M = _used_bands(plan.band_matrix)
 
-    # which leading indices
-    single = False
-    if views is None or (isinstance(views, str) and views.lower() == "all"):
-        sel = list(np.ndindex(*lead)) if lead else [()]
-    elif isinstance(views, str) and views.lower() in ("reference", "ref"):
-        if len(lead) != 2:
-            raise InvalidInputError("views='reference' needs a 5-D cube (R, C, B, H, W)")
-        sel, single = [((lead[0] - 1) // 2, (lead[1] - 1) // 2)], True
-    else:
-        v = views
-        if isinstance(v, tuple) and all(_is_number(i) for i in v):
-            sel, single = [tuple(int(i) for i in v)], True
-        else:
-            sel = [tuple(int(i) for i in t) for t in v]
-        for t in sel:
-            if len(t) != len(lead) or any(not (0 <= i < n) for i, n in zip(t, lead)):
-                raise InvalidInputError(f"view index {t} is outside the cube's leading axes {lead}")
-    out = np.empty((len(sel), H, W, 3), dtype=np.float32)
-    bad_px = np.zeros((len(sel), H, W), dtype=bool)
-    h5 = _is_h5_dataset(data)
-    for n, t in enumerate(progress_bar(sel, "emulating camera", total=len(sel), enabled=progress,
-                                       unit="view")):
-        if idx.size == B:
-            bands = data[t] if t else data[()] if h5 else data
-        elif h5:
-            bands = np.stack([np.asarray(data[t + (int(b),)]) for b in idx])
-        else:
-            bands = data[t][idx] if t else data[idx]
-        bands = np.asarray(bands, dtype=np.float32)
-        out[n] = _apply_post(_project(bands, M), plan)
-        bad = ~np.isfinite(out[n]).all(axis=-1)  # a NaN in any used band propagates
-        if mask is not None:
-            bad |= ~np.asarray(mask[t] if t else mask, dtype=bool)
-        bad_px[n] = bad
-        if bad.any():
-            out[n][bad] = np.nan
+    sel, single = _select_views(views, lead)
+    out, bad_px = _emulate_views(data, sel, idx, B, M, plan, mask, progress)
     scale = _exposure_scale([out], plan, exposure, exposure_percentile)
     for n in range(len(sel)):  # view by view: no full-size temporaries
         out[n] = _encode(out[n], plan, scale)
