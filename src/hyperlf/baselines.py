@@ -215,7 +215,18 @@ def _check_lf(lf) -> LightField:
 
 
 def prepare_views(lf: LightField) -> np.ndarray:
-    """The views as plain intensities ``(R, C, H, W)`` float32 (luma for 3-channel views)."""
+    """The views as plain intensities (module docstring, "Input").
+
+    Parameters
+    ----------
+    lf : LightField
+
+    Returns
+    -------
+    ndarray, shape (R, C, H, W)
+        Monochrome views as they are; Rec. 709 luma (float32) of 3-channel views, the channel
+        mean (float32) of others.
+    """
     v = lf.views
     if v.ndim == 4:
         return v
@@ -225,7 +236,25 @@ def prepare_views(lf: LightField) -> np.ndarray:
 
 
 def label_disparities(lf: LightField, n_labels, disparity_range=None) -> np.ndarray:
-    """``n_labels`` disparities evenly spaced over ``disparity_range`` (default the LF's)."""
+    """``n_labels`` disparities evenly spaced over ``disparity_range``.
+
+    Parameters
+    ----------
+    lf : LightField
+    n_labels : int
+        Number of labels (>= 3).
+    disparity_range : (float, float), optional
+        Default ``lf.disparity_range``.
+
+    Returns
+    -------
+    ndarray of float64 (n_labels,)
+
+    Raises
+    ------
+    InvalidInputError
+        When ``n_labels`` is not an integer >= 3.
+    """
     if isinstance(n_labels, bool) or not isinstance(n_labels, (int, np.integer)) or n_labels < 3:
         raise InvalidInputError(f"n_labels must be an integer >= 3, got {n_labels!r}")
     dmin, dmax = resolve_disparity_range(lf, disparity_range)

@@ -65,7 +65,8 @@ Default: a flat spectrum.
 Sampling
 --------
 Shift-and-add follows SPEC §1: the reference pixel ``p = (x, y)`` with disparity ``d`` is seen
-by view ``v`` at ``q_v = p - d (pos_v - pos_ref)``. Views are sampled bilinearly; a sample whose
+by view ``v`` at ``q_v = p - d (pos_v - pos_ref)``. Views are sampled bilinearly by
+:mod:`hyperlf.warp` (``edge="mask"``, float32 weights, x before y); a sample whose
 footprint leaves the view, touches an invalid (masked or non-finite) pixel, or fails the
 occlusion check is *excluded*: each output pixel is the (weight-)normalised average of its
 valid samples, never a zero-filled one. Pixels without any valid sample get ``fill``.
@@ -410,7 +411,25 @@ def camera_matrix(camera, wavelengths, white_balance: bool = True, illuminant=No
     """The ``(B, 3)`` matrix ``M`` of a camera emulation: ``linear_output = spectrum @ M``.
 
     Before exposure and the sRGB transfer function, :func:`emulate_camera` is exactly this
-    linear map (see the module docstring for the parameters).
+    linear map.
+
+    Parameters
+    ----------
+    camera, white_balance, illuminant, white, output, ccm, ccm_source
+        As :func:`emulate_camera`.
+    wavelengths : array_like (B,)
+        Band centres in nm.
+
+    Returns
+    -------
+    ndarray of float64, shape (B, 3)
+
+    Examples
+    --------
+    >>> from hyperlf import synthesis
+    >>> lf = synthesis.procedural_scene(seed=1, rows=3, cols=3, height=24, width=32)
+    >>> camera_matrix("CIE 1931", lf.cube_wavelengths).shape
+    (9, 3)
     """
     wl = spectral._as_wavelengths(wavelengths)
     plan = _camera_plan(camera, wl, white_balance, illuminant, white, output, ccm, ccm_source,
@@ -702,6 +721,19 @@ def emulate_camera(cube, wavelengths=None, camera="CIE 1931", white_balance: boo
     Returns
     -------
     ndarray of float32, shape (..., H, W, 3)
+
+    Raises
+    ------
+    InvalidInputError
+        For a cube that is not ``(..., B, H, W)``, a band count that differs from the
+        wavelengths, or a view index outside the cube.
+
+    Examples
+    --------
+    >>> from hyperlf import synthesis
+    >>> lf = synthesis.procedural_scene(seed=1, rows=3, cols=3, height=24, width=32)
+    >>> emulate_camera(lf.gt_cube[lf.reference], lf.cube_wavelengths).shape
+    (24, 32, 3)
     """
     if _is_cubefile(cube):
         data = cube.cube
@@ -936,12 +968,26 @@ def focal_stack(views_or_cube, offsets=None, disparities=(0.0,), profile="CIE 19
     Same parameters as :func:`refocus`, with ``disparities`` a sequence of scalars or
     ``(H, W)`` maps. ``exposure="percentile"`` uses one scale for the whole stack.
 
+    Parameters
+    ----------
+    disparities : sequence of float or array_like (H, W)
+        One refocusing disparity (px per baseline) or map per output image.
+
+    Other parameters are those of :func:`refocus`.
+
     Returns
     -------
     list of ndarray
         One image per disparity, laid out as in :func:`refocus`.
     counts : list of ndarray (H, W) int, only with ``return_counts``
         Number of views that contributed to each pixel.
+
+    Examples
+    --------
+    >>> from hyperlf import synthesis
+    >>> lf = synthesis.procedural_scene(seed=1, rows=3, cols=3, height=24, width=32)
+    >>> [im.shape for im in focal_stack(lf, disparities=(0.0, 1.0))]
+    [(24, 32, 3), (24, 32, 3)]
     """
     src = _make_source(views_or_cube, wavelengths, offsets, mask, reference)
     plan = _make_plan(profile, src, white_balance, illuminant, white, output, ccm, ccm_source)
@@ -1000,6 +1046,13 @@ def refocus(views_or_cube, offsets=None, disparity=0.0, profile="CIE 1931", wave
     ndarray of float32
         ``(H, W, 3)`` for a camera, ``(H, W)`` for a band or weights, ``(B, H, W)`` for all
         bands. With ``return_counts``: ``(image, counts)``.
+
+    Examples
+    --------
+    >>> from hyperlf import synthesis
+    >>> lf = synthesis.procedural_scene(seed=1, rows=3, cols=3, height=24, width=32)
+    >>> refocus(lf, None, 0.5).shape
+    (24, 32, 3)
     """
     if np.ndim(disparity) not in (0, 2):
         raise InvalidInputError(
@@ -1040,7 +1093,19 @@ def all_focus(cube_or_views, offsets=None, disparity=None, profile="CIE 1931", w
     tol : float
         Disparity tolerance (px per baseline) of the occlusion check.
 
-    Other parameters and the return value are those of :func:`refocus`.
+    Other parameters are those of :func:`refocus`.
+
+    Returns
+    -------
+    ndarray of float32
+        Laid out as in :func:`refocus`; with ``return_counts``: ``(image, counts)``.
+
+    Examples
+    --------
+    >>> from hyperlf import synthesis
+    >>> lf = synthesis.procedural_scene(seed=1, rows=3, cols=3, height=24, width=32)
+    >>> all_focus(lf, disparity=lf.gt_disparity[lf.reference]).shape
+    (24, 32, 3)
     """
     if disparity is None:
         raise InvalidInputError("all_focus needs the reference view's disparity map (H, W)")

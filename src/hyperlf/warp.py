@@ -107,8 +107,28 @@ def coordinate_taps(coord, n: int, *, dtype=np.float64):
 def axis_taps(n: int, shift: float, pad: int = 0, *, dtype=np.float64):
     """Taps of the shifted grid ``i + shift``, ``i = -pad .. n - 1 + pad`` (clamped).
 
-    Returns ``(i0, i1, f)`` of :func:`coordinate_taps`; clamping makes every sample outside the
-    image take the nearest border value (replicated border).
+    Parameters
+    ----------
+    n : int
+        Axis length.
+    shift : float
+        Shift in pixels.
+    pad : int, optional
+        Extra samples on each side of the grid.
+    dtype : numpy dtype, optional
+        Precision of the weights (default float64).
+
+    Returns
+    -------
+    i0, i1, f : ndarray, shape (n + 2 pad,)
+        As :func:`coordinate_taps`; clamping makes every sample outside the image take the
+        nearest border value (replicated border).
+
+    Examples
+    --------
+    >>> i0, i1, f = axis_taps(3, 0.5)
+    >>> i0.tolist(), i1.tolist(), f.tolist()
+    ([0, 1, 1], [1, 2, 2], [0.5, 0.5, 1.0])
     """
     i0, i1, f, _ = coordinate_taps(np.arange(-pad, n + pad, dtype=np.float64) + shift, n,
                                    dtype=dtype)
@@ -116,8 +136,15 @@ def axis_taps(n: int, shift: float, pad: int = 0, *, dtype=np.float64):
 
 
 def axis_valid(n: int, shift: float) -> np.ndarray:
-    """True where ``i + shift`` (``i = 0 .. n - 1``) lies inside ``[0, n - 1]`` (within
-    :data:`INSIDE_EPS`)."""
+    """True where ``i + shift`` (``i = 0 .. n - 1``) lies inside ``[0, n - 1]``.
+
+    Within :data:`INSIDE_EPS`; the ``valid`` of :func:`coordinate_taps` on the shifted grid.
+
+    Examples
+    --------
+    >>> axis_valid(3, 0.5).tolist()
+    [True, True, False]
+    """
     return coordinate_taps(np.arange(n, dtype=np.float64) + shift, n)[3]
 
 
@@ -287,7 +314,27 @@ def bilinear_taps(x, y, shape: tuple[int, int], *, dtype=np.float64):
 
 
 def gather_taps(flat: np.ndarray, idx, wts) -> np.ndarray:
-    """Bilinear samples from the taps of :func:`bilinear_taps`: ``sum_k flat[idx_k] wts_k``."""
+    """Bilinear samples from the taps of :func:`bilinear_taps`: ``sum_k flat[idx_k] wts_k``.
+
+    Parameters
+    ----------
+    flat : ndarray (H * W,)
+        The image, flattened (row-major).
+    idx, wts : tuples of 4 ndarrays
+        From :func:`bilinear_taps`.
+
+    Returns
+    -------
+    ndarray, shape of the taps
+        dtype: promotion of ``flat`` and the weights.
+
+    Examples
+    --------
+    >>> img = np.array([[0.0, 1.0], [2.0, 3.0]])
+    >>> valid, idx, wts = bilinear_taps(np.array([0.5]), np.array([0.5]), img.shape)
+    >>> gather_taps(img.ravel(), idx, wts).tolist()
+    [1.5]
+    """
     return (flat[idx[0]] * wts[0] + flat[idx[1]] * wts[1]
             + flat[idx[2]] * wts[2] + flat[idx[3]] * wts[3])
 
@@ -296,8 +343,25 @@ def shift_image(image: np.ndarray, dx: float, dy: float, fill: float = np.nan, *
                 edge: str = "mask") -> tuple[np.ndarray, np.ndarray]:
     """Resample ``image`` at ``(x + dx, y + dy)`` for every pixel ``(x, y)``.
 
-    Returns ``(shifted, valid)`` as :func:`sample_bilinear` (samples from outside the image are
-    invalid and, with the default ``edge="mask"``, set to ``fill``).
+    Parameters
+    ----------
+    image : ndarray, shape (H, W) or (H, W, K)
+    dx, dy : float
+        Shift in pixels.
+    fill : float, optional
+        Value of the invalid samples.
+    edge : {"mask", "clamp"}, optional
+        Edge rule (module docstring).
+
+    Returns
+    -------
+    shifted, valid
+        As :func:`sample_bilinear`.
+
+    Examples
+    --------
+    >>> shift_image(np.array([[0.0, 1.0, 2.0]]), 1.0, 0.0)[0].tolist()
+    [[1.0, 2.0, nan]]
     """
     H, W = np.asarray(image).shape[:2]
     yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
