@@ -26,9 +26,9 @@ Common conventions (all three)
 * **Geometry.** Every shift uses ``lf.offsets`` (SPEC §1): the reference pixel ``(x, y)`` at
   disparity ``d`` is sampled in the view with offset ``(dx, dy)`` at ``(x - d dx, y - d dy)``,
   bilinearly. Samples beyond the image are **clamped to the border** (as in Tao's and Wang's
-  released code) rather than masked, so every label has a finite cost at every pixel. A constant
-  shift is separable, so :func:`_shift` interpolates along x then y (identical to
-  :func:`hyperlf.warp.sample_bilinear` on clamped coordinates, checked by a test).
+  released code) rather than masked, so every label has a finite cost at every pixel. All
+  sampling goes through :mod:`hyperlf.warp` with ``edge="clamp"``; a constant shift is
+  separable (:func:`hyperlf.warp.shift_map`, float32 weights, x then y).
 * **Streaming.** Pixels are vectorised, labels are looped over (a progress bar with
   ``progress=True``), and for each label the views are accumulated one at a time (sums and sums
   of squares), so memory is a few ``(L, H, W)`` float32 volumes, never ``(L, R, C, H, W)``.
@@ -56,9 +56,9 @@ normalised by the 99th percentile of the pooled peak ratios instead of the globa
 noise-free pixel has an infinite ratio and would zero every other weight); the IRLS softness
 ``irls_epsilon`` is in label steps (so the result scales exactly with the baselines); luminance
 instead of RMS over RGB. ``confidence`` of the result = the larger of the two normalised
-confidences. Measured (grey procedural scenes ``solids``/``slanted``, 96x128, 5x5, 64 labels,
-epsilon then 0.05 px): ``irls_iterations=0`` (plain least squares) gave 0.313/0.208 px RMSE
-against 0.380/0.227 with the code's 2 reweighting steps; the default stays with the code.
+confidences. ``irls_iterations`` defaults to the code's 2 reweighting steps, even though plain
+least squares (``0``) measured better on grey procedural scenes (BENCHMARKS.md): the baseline
+follows the code.
 
 Wang et al. 2015 (ICCV), "Occlusion-aware depth estimation using light-field cameras" -- :func:`wang2015`
 ------------------------------------------------------------------------------------------------------
@@ -99,13 +99,11 @@ the reference (per-pixel derivative units) and ``|dCanny|``, ``|dOcc|`` of the b
 bilateral filter has uniform spatial weights. Sub-pixel: parabola through the filtered cost at
 the MRF label, before the median filter. **Tuned:** the code's relative scale of unary and
 pairwise terms is not known; with the code's pairwise constants and ``smooth_weight = 1`` the
-MRF over-smooths (grey ``planes``/``solids``/``slanted``, 96x128, 5x5, 64 labels: RMSE
-0.71/0.52/0.39 px against 0.55/0.35/0.28 with ``smooth_weight = 0.1``, the default).
-Measured weakness (faithful behaviour, not a bug): on densely textured scenes the Canny band
-covers almost every pixel (95 % on ``planes``), and at a *texture* edge the half whose samples
-stay on the pixel's own side has near-zero variance at every depth behind the true one, so
-the split raises the interior error (initial-depth RMSE 0.54 px vs 0.08 px with the split
-disabled, ``split_margin`` huge) while only slightly helping at true occlusions (0.49 vs 0.55).
+MRF over-smooths on grey procedural scenes, so the default is ``smooth_weight = 0.1``
+(BENCHMARKS.md). Known weakness (faithful behaviour, not a bug): on densely textured scenes the
+Canny band covers almost every pixel, and at a *texture* edge the half whose samples stay on the
+pixel's own side has near-zero variance at every depth behind the true one, so the split raises
+the interior error while only slightly helping at true occlusions (BENCHMARKS.md).
 
 Lin et al. 2015 (ICCV), "Depth recovery from light field using focal stack symmetry" -- :func:`lin2015`
 ---------------------------------------------------------------------------------------------------
@@ -125,12 +123,11 @@ views whose mirror position about the reference exists (e.g. the 5x5 centred sub
 array; all views if fewer than 2 such views); ``Fall`` (data term) uses all views. At the first
 and last labels (no symmetric pair) the symmetry cost is the pixel's worst value.
 ``rho``, ``tau``, ``K`` and the weights are our choices (no released code; ``symmetry_span = 1``
-and ``smooth_weight = 1`` picked on the grey procedural scenes ``planes``/``solids``/``slanted``,
-96x128, 5x5, 64 labels: 0.29/0.29/0.16 px RMSE). Sub-pixel: parabola through the combined
-cost at the graph-cut label. Measured: the symmetry cost alone is a poor cue (WTA RMSE
-1.5-2 px on those scenes): two slices far from focus are both blurred and nearly equal, so the
-cost is also near zero at strongly defocused labels; the data term resolves that ambiguity
-(WTA 0.22-0.46 px) and the graph cut does the rest.
+and ``smooth_weight = 1`` picked on grey procedural scenes, BENCHMARKS.md). Sub-pixel: parabola
+through the combined cost at the graph-cut label. The symmetry cost alone is a poor cue: two
+slices far from focus are both blurred and nearly equal, so the cost is also near zero at
+strongly defocused labels; the data term resolves that ambiguity and the graph cut does the
+rest (figures in BENCHMARKS.md).
 """
 
 from __future__ import annotations
@@ -146,6 +143,7 @@ from . import regularisers as _reg
 from ._progress import progress_bar
 from .errors import InvalidInputError
 from .lightfield import LightField, resolve_disparity_range
+from .warp import sample_bilinear, shift_map
 
 __all__ = ["BaselineResult", "tao2013", "wang2015", "lin2015", "METHODS", "DEFAULTS",
            "prepare_views", "label_disparities"]
@@ -217,7 +215,18 @@ def _check_lf(lf) -> LightField:
 
 
 def prepare_views(lf: LightField) -> np.ndarray:
-    """The views as plain intensities ``(R, C, H, W)`` float32 (luma for 3-channel views)."""
+    """The views as plain intensities (module docstring, "Input").
+
+    Parameters
+    ----------
+    lf : LightField
+
+    Returns
+    -------
+    ndarray, shape (R, C, H, W)
+        Monochrome views as they are; Rec. 709 luma (float32) of 3-channel views, the channel
+        mean (float32) of others.
+    """
     v = lf.views
     if v.ndim == 4:
         return v
@@ -227,7 +236,25 @@ def prepare_views(lf: LightField) -> np.ndarray:
 
 
 def label_disparities(lf: LightField, n_labels, disparity_range=None) -> np.ndarray:
-    """``n_labels`` disparities evenly spaced over ``disparity_range`` (default the LF's)."""
+    """``n_labels`` disparities evenly spaced over ``disparity_range``.
+
+    Parameters
+    ----------
+    lf : LightField
+    n_labels : int
+        Number of labels (>= 3).
+    disparity_range : (float, float), optional
+        Default ``lf.disparity_range``.
+
+    Returns
+    -------
+    ndarray of float64 (n_labels,)
+
+    Raises
+    ------
+    InvalidInputError
+        When ``n_labels`` is not an integer >= 3.
+    """
     if isinstance(n_labels, bool) or not isinstance(n_labels, (int, np.integer)) or n_labels < 3:
         raise InvalidInputError(f"n_labels must be an integer >= 3, got {n_labels!r}")
     dmin, dmax = resolve_disparity_range(lf, disparity_range)
@@ -263,33 +290,17 @@ def _odd_window(p: dict, name: str = "window") -> int:
     return int(w)
 
 
-def _axis_coords(n: int, s: float):
-    """Clamped linear-interpolation indices and weights along one axis for a shift ``s``."""
-    c = np.clip(np.arange(n, dtype=np.float64) + s, 0.0, n - 1)
-    i0 = np.minimum(np.floor(c).astype(np.intp), max(n - 2, 0))
-    i1 = np.minimum(i0 + 1, n - 1)
-    f = (c - i0).astype(np.float32)
-    return i0, i1, f
-
-
 def _shift(img: np.ndarray, sx: float, sy: float) -> np.ndarray:
-    """``img`` sampled at ``(x + sx, y + sy)``: bilinear, coordinates clamped to the image."""
-    H, W = img.shape
-    x0, x1, fx = _axis_coords(W, sx)
-    y0, y1, fy = _axis_coords(H, sy)
-    a = img[:, x0] * (1.0 - fx) + img[:, x1] * fx
-    return a[y0] * (1.0 - fy)[:, None] + a[y1] * fy[:, None]
+    """``img`` sampled at ``(x + sx, y + sy)``: the baselines' separable shift (module docstring:
+    replicated border, float32 weights, x then y)."""
+    return shift_map(img, sx, sy, edge="clamp", dtype=np.float32, order="xy")[0]
 
 
 def _warp_clamped(img: np.ndarray, disp: np.ndarray, dx: float, dy: float) -> np.ndarray:
     """``img`` at ``(x - disp dx, y - disp dy)`` per pixel, bilinear, clamped (SPEC §1 sign)."""
-    from .warp import sample_bilinear
-
     H, W = img.shape
     yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
-    x = np.clip(xx - disp * dx, 0, W - 1)
-    y = np.clip(yy - disp * dy, 0, H - 1)
-    out, _ = sample_bilinear(img, x, y)
+    out, _ = sample_bilinear(img, xx - disp * dx, yy - disp * dy, edge="clamp")
     return out.astype(np.float32)
 
 
@@ -425,6 +436,23 @@ def tao2013(lf: LightField, n_labels: int = 64, disparity_range=None,
     BaselineResult
         ``maps``: ``depth_defocus``, ``depth_correspondence`` (px), ``conf_defocus``,
         ``conf_correspondence`` (normalised), ``weight_defocus``, ``weight_correspondence``.
+
+    Raises
+    ------
+    InvalidInputError
+        For an unknown or out-of-range parameter.
+
+    References
+    ----------
+    .. [1] M. W. Tao, S. Hadap, J. Malik, R. Ramamoorthi, "Depth from combining defocus and
+       correspondence using light-field cameras", ICCV 2013.
+
+    Examples
+    --------
+    >>> from hyperlf import synthesis
+    >>> lf = synthesis.procedural_scene(seed=1, rows=3, cols=3, height=24, width=32)
+    >>> tao2013(lf, n_labels=8).disparity.shape
+    (24, 32)
     """
     t0 = time.perf_counter()
     lf = _check_lf(lf)
@@ -570,40 +598,15 @@ def _bilateral_apply(a: np.ndarray, offs, ws, radius: int) -> np.ndarray:
     return out
 
 
-def wang2015(lf: LightField, n_labels: int = 64, disparity_range=None,
-             progress: bool = False, **params) -> BaselineResult:
-    """Wang et al. 2015: occlusion-aware angular-patch split, occlusion map, edge-aware MRF.
-
-    See the module docstring for what follows the paper/code and what is simplified.
-
-    Parameters
-    ----------
-    lf, n_labels, disparity_range, progress : as :func:`tao2013`.
-    **params
-        ``band_radius`` (4), ``orientation_window`` (5), ``split_margin`` (0.5 baseline),
-        ``consistency_offset`` (2 px), ``consistency_threshold`` (0.05), ``inconsistent_cost``
-        (1), ``refocus_weight`` (1), ``bilateral_radius`` (2), ``bilateral_sigma`` (0.01),
-        ``canny_sigma`` (sqrt 2), ``canny_non_edge`` (0.7), ``canny_low_ratio`` (0.4),
-        ``canny_weight`` (1), ``occlusion_weight`` (1e5), ``smooth_weight`` (0.1, multiplies the
-        pairwise term; module docstring), ``max_cycles`` (3), ``median`` (3; 0 or 1 = off).
-
-    Returns
-    -------
-    BaselineResult
-        ``maps``: ``initial`` (px, argmin of the filtered cost), ``mrf`` (px, before the
-        median), ``edges``, ``band`` (split pixels), ``orientation`` (rad), ``occlusion``,
-        ``peak_ratio``.
-    """
-    t0 = time.perf_counter()
-    lf = _check_lf(lf)
-    labels = label_disparities(lf, n_labels, disparity_range)
+def _wang_params(params: dict) -> dict:
+    """Merged and checked Wang et al. parameters."""
     p = _merge("wang2015", params)
     for k in ("band_radius", "consistency_offset", "consistency_threshold", "inconsistent_cost",
               "refocus_weight", "canny_sigma", "canny_weight", "occlusion_weight", "smooth_weight",
               "split_margin"):
         _positive(p, k, allow_zero=True)
     _positive(p, "bilateral_sigma")
-    ow = _odd_window(p, "orientation_window")
+    _odd_window(p, "orientation_window")
     br = p["bilateral_radius"]
     if isinstance(br, bool) or not isinstance(br, (int, np.integer)) or br < 0:
         raise InvalidInputError(f"bilateral_radius must be an integer >= 0, got {br!r}")
@@ -612,20 +615,30 @@ def wang2015(lf: LightField, n_labels: int = 64, disparity_range=None,
     med = p["median"]
     if isinstance(med, bool) or not isinstance(med, (int, np.integer)) or med < 0:
         raise InvalidInputError(f"median must be an integer >= 0, got {med!r}")
+    return p
 
-    views = prepare_views(lf)
-    vl = _view_list(lf, views)
-    n = len(vl)
-    ref = views[lf.reference].astype(np.float32)
+
+@dataclass
+class _WangSplit:
+    """Edges, orientations and the per-view half-plane split (module docstring)."""
+
+    edges: np.ndarray
+    theta: np.ndarray
+    split: np.ndarray                 # pixels where the views are split
+    side_p: list                      # per view: float32 (H, W), 1 on the +n side
+    side_m: list
+    n_p: np.ndarray                   # views per half (>= 1), float32
+    n_m: np.ndarray
+    px_p: np.ndarray                  # reference intensity consistency_offset px along +n
+    px_m: np.ndarray
+
+
+def _wang_split(ref: np.ndarray, vl, p: dict) -> _WangSplit:
+    """Canny edges, their orientation spread to a band, the two half-planes of views."""
     H, W = ref.shape
-    L = labels.size
-    timings: dict[str, float] = {}
-
-    # --- edges, orientation, split masks
-    t = time.perf_counter()
     edges, gx, gy = _canny(ref, float(p["canny_sigma"]), float(p["canny_non_edge"]),
                            float(p["canny_low_ratio"]))
-    theta_e = _edge_orientation(edges, gx, gy, ow)
+    theta_e = _edge_orientation(edges, gx, gy, int(p["orientation_window"]))
     if edges.any():
         dist, (iy, ix) = ndimage.distance_transform_edt(~edges, return_indices=True)
         band = dist <= float(p["band_radius"])
@@ -643,77 +656,92 @@ def wang2015(lf: LightField, n_labels: int = 64, disparity_range=None,
     n_p = np.sum(side_p, axis=0)
     n_m = np.sum(side_m, axis=0)
     split = band & (n_p >= 2) & (n_m >= 2)
-    side_p = [(m & split).astype(np.float32) for m in side_p]
-    side_m = [(m & split).astype(np.float32) for m in side_m]
-    n_p = np.maximum(n_p * split, 1).astype(np.float32)
-    n_m = np.maximum(n_m * split, 1).astype(np.float32)
     off = float(p["consistency_offset"])
     yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
-    from .warp import sample_bilinear
-    px_p = sample_bilinear(ref, np.clip(xx + off * nx, 0, W - 1), np.clip(yy + off * ny, 0, H - 1))[0]
-    px_m = sample_bilinear(ref, np.clip(xx - off * nx, 0, W - 1), np.clip(yy - off * ny, 0, H - 1))[0]
-    offs, bw = _bilateral_weights(ref, int(br), float(p["bilateral_sigma"]))
-    timings["edges"] = time.perf_counter() - t
+    return _WangSplit(
+        edges=edges, theta=theta, split=split,
+        side_p=[(m & split).astype(np.float32) for m in side_p],
+        side_m=[(m & split).astype(np.float32) for m in side_m],
+        n_p=np.maximum(n_p * split, 1).astype(np.float32),
+        n_m=np.maximum(n_m * split, 1).astype(np.float32),
+        px_p=sample_bilinear(ref, xx + off * nx, yy + off * ny, edge="clamp")[0],
+        px_m=sample_bilinear(ref, xx - off * nx, yy - off * ny, edge="clamp")[0])
 
+
+def _angular_stats(samples, n: int, sp: _WangSplit):
+    """Mean and variance over all ``n`` views and over each half, from ``(v, mp, mm)``."""
+    H, W = sp.split.shape
+    s = np.zeros((H, W), np.float32)
+    q = np.zeros((H, W), np.float32)
+    s_p = np.zeros((H, W), np.float32)
+    q_p = np.zeros((H, W), np.float32)
+    s_m = np.zeros((H, W), np.float32)
+    q_m = np.zeros((H, W), np.float32)
+    for v, mp, mm in samples:
+        vv = v * v
+        s += v
+        q += vv
+        s_p += mp * v
+        q_p += mp * vv
+        s_m += mm * v
+        q_m += mm * vv
+    n_p, n_m = sp.n_p, sp.n_m
+    mean = s / n
+    var = np.maximum(q - n * mean * mean, 0.0) / max(n - 1, 1)
+    mean_p, mean_m = s_p / n_p, s_m / n_m
+    var_p = np.maximum(q_p - n_p * mean_p ** 2, 0.0) / np.maximum(n_p - 1, 1)
+    var_m = np.maximum(q_m - n_m * mean_m ** 2, 0.0) / np.maximum(n_m - 1, 1)
+    return mean, var, mean_p, var_p, mean_m, var_m
+
+
+def _wang_cost(vl, labels: np.ndarray, ref: np.ndarray, sp: _WangSplit, p: dict,
+               progress: bool) -> np.ndarray:
+    """Occlusion-aware correspondence + refocus cost per label, bilateral filtered."""
+    H, W = ref.shape
+    L, n = labels.size, len(vl)
     thr = float(p["consistency_threshold"])
     bad = float(p["inconsistent_cost"])
-
-    def angular_stats(samples_iter):
-        s = np.zeros((H, W), np.float32)
-        q = np.zeros((H, W), np.float32)
-        sp = np.zeros((H, W), np.float32)
-        qp = np.zeros((H, W), np.float32)
-        sm = np.zeros((H, W), np.float32)
-        qm = np.zeros((H, W), np.float32)
-        for v, mp, mm in samples_iter:
-            vv = v * v
-            s += v
-            q += vv
-            sp += mp * v
-            qp += mp * vv
-            sm += mm * v
-            qm += mm * vv
-        mean = s / n
-        var = np.maximum(q - n * mean * mean, 0.0) / max(n - 1, 1)
-        mean_p, mean_m = sp / n_p, sm / n_m
-        var_p = np.maximum(qp - n_p * mean_p ** 2, 0.0) / np.maximum(n_p - 1, 1)
-        var_m = np.maximum(qm - n_m * mean_m ** 2, 0.0) / np.maximum(n_m - 1, 1)
-        return mean, var, mean_p, var_p, mean_m, var_m
-
-    # --- cost volume
-    t = time.perf_counter()
+    br = int(p["bilateral_radius"])
+    offs, bw = _bilateral_weights(ref, br, float(p["bilateral_sigma"]))
     cost = np.empty((L, H, W), dtype=np.float32)
     for li in progress_bar(range(L), "wang2015: labels", total=L, enabled=progress, unit="label"):
         d = labels[li]
-        mean, var, mean_p, var_p, mean_m, var_m = angular_stats(
-            (_shift(img, -d * dx, -d * dy), mp, mm)
-            for (img, dx, dy), mp, mm in zip(vl, side_p, side_m))
-        dif1 = (mean_p - px_p) ** 2 + (mean_m - px_m) ** 2
-        dif2 = (mean_p - px_m) ** 2 + (mean_m - px_p) ** 2
+        mean, var, mean_p, var_p, mean_m, var_m = _angular_stats(
+            ((_shift(img, -d * dx, -d * dy), mp, mm)
+             for (img, dx, dy), mp, mm in zip(vl, sp.side_p, sp.side_m)), n, sp)
+        dif1 = (mean_p - sp.px_p) ** 2 + (mean_m - sp.px_m) ** 2
+        dif2 = (mean_p - sp.px_m) ** 2 + (mean_m - sp.px_p) ** 2
         consistent = dif1 < dif2 + thr
         sd_p, sd_m = np.sqrt(var_p), np.sqrt(var_m)
         pick_p = sd_p <= sd_m
         corr_split = np.where(consistent, np.minimum(sd_p, sd_m), bad)
         mean_split = np.where(pick_p, mean_p, mean_m)
-        corr = np.where(split, corr_split, np.sqrt(var))
-        mref = np.where(split, mean_split, mean)
+        corr = np.where(sp.split, corr_split, np.sqrt(var))
+        mref = np.where(sp.split, mean_split, mean)
         total = corr + float(p["refocus_weight"]) * np.abs(mref - ref)
-        cost[li] = _bilateral_apply(total.astype(np.float32), offs, bw, int(br)) if br > 0 else total
-    timings["cost"] = time.perf_counter() - t
+        cost[li] = _bilateral_apply(total.astype(np.float32), offs, bw, br) if br > 0 else total
+    return cost
 
-    # --- initial depth, confidence, occlusion
-    t = time.perf_counter()
+
+def _wang_confidence(cost: np.ndarray, labels: np.ndarray):
+    """Initial label, depth, peak ratio and confidence (0 in the outer 10 % of the range)."""
+    L = labels.size
     l0 = np.argmin(cost, axis=0)
-    initial = labels[l0]
     ratio = _peak_ratio(cost)
     conf = ratio - 1.0
     conf = np.where(np.isfinite(conf), conf, 0.0)
     outer = (l0 < 0.1 * L) | (l0 > 0.9 * L)
     conf = np.where(outer, 0.0, conf)
-    _, _, mean_p, var_p, mean_m, var_m = angular_stats(
-        (_warp_clamped(img, initial, dx, dy), mp, mm)
-        for (img, dx, dy), mp, mm in zip(vl, side_p, side_m))
-    occ = np.zeros((H, W), dtype=bool)
+    return l0, labels[l0], ratio, conf
+
+
+def _wang_occlusion(vl, initial: np.ndarray, sp: _WangSplit) -> np.ndarray:
+    """Occlusion map from the two halves' statistics at the initial depth."""
+    _, _, mean_p, var_p, mean_m, var_m = _angular_stats(
+        ((_warp_clamped(img, initial, dx, dy), mp, mm)
+         for (img, dx, dy), mp, mm in zip(vl, sp.side_p, sp.side_m)), len(vl), sp)
+    split = sp.split
+    occ = np.zeros(split.shape, dtype=bool)
     if split.sum() > 1:
         e = 1e-12
         occ_v = np.minimum(np.maximum((var_p + e) / (var_m + e), (var_m + e) / (var_p + e)), 100.0)
@@ -729,10 +757,12 @@ def wang2015(lf: LightField, n_labels: int = 64, disparity_range=None,
         if nlab:
             sizes = ndimage.sum(occ, lab, index=np.arange(1, nlab + 1))
             occ = np.isin(lab, 1 + np.flatnonzero(sizes >= 2))
-    timings["occlusion"] = time.perf_counter() - t
+    return occ
 
-    # --- MRF
-    t = time.perf_counter()
+
+def _wang_mrf(l0, conf, ref, edges, occ, labels: np.ndarray, p: dict) -> np.ndarray:
+    """Alpha-expansion with the Gaussian-shaped unary and edge/occlusion-aware pairwise terms."""
+    L = labels.size
     lab_idx = np.arange(L, dtype=np.float64)[:, None, None]
     sig = 0.1 * L * np.clip(1.0 - conf, 0.01, 1.0)
     unary = (1.0 - np.exp(-((lab_idx - l0[None]) ** 2) / (2 * sig[None] ** 2))).astype(np.float32)
@@ -748,20 +778,91 @@ def wang2015(lf: LightField, n_labels: int = 64, disparity_range=None,
     wy = pair(sob[1:], sob[:-1], ed[1:], ed[:-1], oc[1:], oc[:-1])
     span = float(labels[-1] - labels[0])
     T = 0.845 * 0.05 * span
-    lab_mrf = _reg.graphcut(unary, smoothness="truncated_linear",
-                            weight=float(p["smooth_weight"]) * 0.3 / T, truncation=T,
-                            init=l0, max_cycles=int(p["max_cycles"]), labels=labels,
-                            edge_weights=(wx, wy))
+    return _reg.graphcut(unary, smoothness="truncated_linear",
+                         weight=float(p["smooth_weight"]) * 0.3 / T, truncation=T,
+                         init=l0, max_cycles=int(p["max_cycles"]), labels=labels,
+                         edge_weights=(wx, wy))
+
+
+def wang2015(lf: LightField, n_labels: int = 64, disparity_range=None,
+             progress: bool = False, **params) -> BaselineResult:
+    """Wang et al. 2015: occlusion-aware angular-patch split, occlusion map, edge-aware MRF.
+
+    See the module docstring for what follows the paper/code and what is simplified.
+
+    Parameters
+    ----------
+    lf : LightField
+    n_labels : int, optional
+        Number of label disparities (>= 3).
+    disparity_range : (float, float), optional
+        Label range in px per baseline (default ``lf.disparity_range``).
+    progress : bool, optional
+        Show a progress bar over the labels.
+    **params
+        ``band_radius`` (4), ``orientation_window`` (5), ``split_margin`` (0.5 baseline),
+        ``consistency_offset`` (2 px), ``consistency_threshold`` (0.05), ``inconsistent_cost``
+        (1), ``refocus_weight`` (1), ``bilateral_radius`` (2), ``bilateral_sigma`` (0.01),
+        ``canny_sigma`` (sqrt 2), ``canny_non_edge`` (0.7), ``canny_low_ratio`` (0.4),
+        ``canny_weight`` (1), ``occlusion_weight`` (1e5), ``smooth_weight`` (0.1, multiplies the
+        pairwise term; module docstring), ``max_cycles`` (3), ``median`` (3; 0 or 1 = off).
+
+    Returns
+    -------
+    BaselineResult
+        ``maps``: ``initial`` (px, argmin of the filtered cost), ``mrf`` (px, before the
+        median), ``edges``, ``band`` (split pixels), ``orientation`` (rad), ``occlusion``,
+        ``peak_ratio``.
+
+    Raises
+    ------
+    InvalidInputError
+        For an unknown or out-of-range parameter.
+
+    References
+    ----------
+    .. [1] T.-C. Wang, A. A. Efros, R. Ramamoorthi, "Occlusion-aware depth estimation using
+       light-field cameras", ICCV 2015.
+
+    Examples
+    --------
+    >>> from hyperlf import synthesis
+    >>> lf = synthesis.procedural_scene(seed=1, rows=3, cols=3, height=24, width=32)
+    >>> wang2015(lf, n_labels=8).disparity.shape
+    (24, 32)
+    """
+    t0 = time.perf_counter()
+    lf = _check_lf(lf)
+    labels = label_disparities(lf, n_labels, disparity_range)
+    p = _wang_params(params)
+    views = prepare_views(lf)
+    vl = _view_list(lf, views)
+    ref = views[lf.reference].astype(np.float32)
+    timings: dict[str, float] = {}
+
+    t = time.perf_counter()
+    sp = _wang_split(ref, vl, p)
+    timings["edges"] = time.perf_counter() - t
+    t = time.perf_counter()
+    cost = _wang_cost(vl, labels, ref, sp, p, progress)
+    timings["cost"] = time.perf_counter() - t
+    t = time.perf_counter()
+    l0, initial, ratio, conf = _wang_confidence(cost, labels)
+    occ = _wang_occlusion(vl, initial, sp)
+    timings["occlusion"] = time.perf_counter() - t
+    t = time.perf_counter()
+    lab_mrf = _wang_mrf(l0, conf, ref, sp.edges, occ, labels, p)
     timings["mrf"] = time.perf_counter() - t
 
     t = time.perf_counter()
+    med = int(p["median"])
     mrf = _reg.subpixel_refine(cost, lab_mrf, labels)
-    disp = ndimage.median_filter(mrf, size=int(med), mode="nearest") if med > 1 else mrf
+    disp = ndimage.median_filter(mrf, size=med, mode="nearest") if med > 1 else mrf
     timings["post"] = time.perf_counter() - t
     conf_out = np.clip(conf, 0, None)
     conf_out = conf_out / (1.0 + conf_out)
-    maps = {"initial": initial.astype(np.float32), "mrf": mrf, "edges": edges, "band": split,
-            "orientation": theta.astype(np.float32), "occlusion": occ,
+    maps = {"initial": initial.astype(np.float32), "mrf": mrf, "edges": sp.edges,
+            "band": sp.split, "orientation": sp.theta.astype(np.float32), "occlusion": occ,
             "peak_ratio": ratio.astype(np.float32)}
     return _finish("wang2015", disp, conf_out, timings, maps, labels, p, t0)
 
@@ -795,7 +896,13 @@ def lin2015(lf: LightField, n_labels: int = 64, disparity_range=None,
 
     Parameters
     ----------
-    lf, n_labels, disparity_range, progress : as :func:`tao2013`.
+    lf : LightField
+    n_labels : int, optional
+        Number of label disparities (>= 3).
+    disparity_range : (float, float), optional
+        Label range in px per baseline (default ``lf.disparity_range``).
+    progress : bool, optional
+        Show a progress bar over the labels.
     **params
         ``window`` (5), ``symmetry_span`` (1 px of disparity on each side), ``tau`` (0.1,
         truncation of the L1 symmetry penalty), ``data_weight`` (1), ``smooth_weight`` (1),
@@ -807,6 +914,23 @@ def lin2015(lf: LightField, n_labels: int = 64, disparity_range=None,
     BaselineResult
         ``maps``: ``depth_symmetry``, ``depth_data`` (px, WTA of each cost), ``wta`` (combined),
         ``graphcut`` (px, integer labels), ``n_symmetric_views``.
+
+    Raises
+    ------
+    InvalidInputError
+        For an unknown or out-of-range parameter.
+
+    References
+    ----------
+    .. [1] H. Lin, C. Chen, S. B. Kang, J. Yu, "Depth recovery from light field using focal
+       stack symmetry", ICCV 2015.
+
+    Examples
+    --------
+    >>> from hyperlf import synthesis
+    >>> lf = synthesis.procedural_scene(seed=1, rows=3, cols=3, height=24, width=32)
+    >>> lin2015(lf, n_labels=8).disparity.shape
+    (24, 32)
     """
     t0 = time.perf_counter()
     lf = _check_lf(lf)

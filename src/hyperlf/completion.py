@@ -31,7 +31,7 @@ Stages
    :func:`hyperlf.regularisers.confidence`); only two running sums per view are held.
    Default metric: ``"rsncc"`` (cross-spectral robust NCC of Shen et al.); it is fast, and with
    the guidance and the narrow band the choice of metric matters little.  ``metric="bwncc"``
-   gives the paper's BWNCC, about 50x slower at the time of writing; ``"auto"`` the two-view
+   gives the paper's BWNCC (much slower; BENCHMARKS.md); ``"auto"`` the two-view
    default (:data:`hyperlf.costs.AUTO_METRIC`).
 3. **Refinement** (:func:`refine_disparity`): a confidence-weighted, edge-aware weighted least
    squares problem (after Park et al. 2014, adapted to a single spectral image as guide)::
@@ -43,13 +43,13 @@ Stages
    in its holes two data terms are combined: the **background fill** (:func:`background_fill`:
    min of the nearest valid values left/right/up/down -- holes of a forward-warped map are
    disocclusions, i.e. background; confidence ``fill_confidence``, 0.5) and the merged stereo
-   estimate (confidence ``stereo_confidence * margin``, <= 0.25).  Measured on procedural
-   scenes, the background fill alone is more accurate in the holes than cross-spectral stereo
-   (mean hole error 0.00 / 0.07 px vs 0.06 / 0.18 px on a planes / slanted scene), so stereo only
-   nudges it; ``optimizer=None`` skips the stereo (used for the 512 x 512 benchmark).
+   estimate (confidence ``stereo_confidence * margin``, <= 0.25).  The background fill is
+   trusted more than cross-spectral stereo in the holes (it measured more accurate on
+   procedural scenes, BENCHMARKS.md), so stereo only nudges it; ``optimizer=None`` skips the
+   stereo (used for the 512 x 512 benchmark).
    The stereo of stage 2 is guided by the background-filled map (not the raw warped map), so
-   hole pixels are also band-limited around the background hypothesis.  Solved exactly by a sparse direct solve
-   (``scipy.sparse.linalg.spsolve``, 5-point system; ~1-3 s at 512 x 512).  With
+   hole pixels are also band-limited around the background hypothesis.  Solved exactly by a
+   sparse direct solve (``scipy.sparse.linalg.spsolve``, 5-point system).  With
    ``keep_initial=True`` (default) the warped initial disparity is kept unchanged where it
    exists and the WLS result is used only in its holes (the initial values come from the
    reference disparity, the best estimate available; smoothing them would only blur edges).
@@ -113,7 +113,7 @@ import numpy as np
 
 from ._progress import progress_bar
 from .errors import InvalidInputError
-from .warp import forward_warp_disparity
+from .warp import bilinear_taps, forward_warp_disparity, gather_taps
 
 __all__ = [
     "CompletionResult",
@@ -190,9 +190,23 @@ def _check_lf(lf):
 
 
 def band_order(lf) -> tuple[np.ndarray, np.ndarray]:
-    """``(wavelengths (B,), band_index (R, C))``: bands sorted by wavelength, one per view.
+    """The cube's bands: the views' wavelengths sorted, and each view's band index.
 
-    Raises InvalidInputError when two views share a wavelength (the cube needs distinct bands).
+    Parameters
+    ----------
+    lf : LightField
+
+    Returns
+    -------
+    wavelengths : ndarray (B,)
+        Sorted band centres in nm, ``B = R * C``.
+    band_index : ndarray of intp (R, C)
+        Index in ``wavelengths`` of each view's band.
+
+    Raises
+    ------
+    InvalidInputError
+        When two views share a wavelength (the cube needs distinct bands).
     """
     wl = np.asarray(lf.wavelengths, dtype=np.float64)
     flat = wl.ravel()
@@ -216,29 +230,6 @@ def _as_ref_disparity(lf, d) -> np.ndarray:
     return a
 
 
-def _taps(qx: np.ndarray, qy: np.ndarray, H: int, W: int):
-    """Bilinear footprint: inside mask, 4 flat indices and 4 weights (each of qx's shape)."""
-    eps = 1e-6
-    inside = np.isfinite(qx) & np.isfinite(qy)
-    inside &= (qx >= -eps) & (qx <= W - 1 + eps) & (qy >= -eps) & (qy <= H - 1 + eps)
-    xc = np.clip(np.where(inside, qx, 0.0), 0, W - 1)
-    yc = np.clip(np.where(inside, qy, 0.0), 0, H - 1)
-    x0 = np.minimum(np.floor(xc).astype(np.intp), max(W - 2, 0))
-    y0 = np.minimum(np.floor(yc).astype(np.intp), max(H - 2, 0))
-    fx = xc - x0
-    fy = yc - y0
-    x1 = np.minimum(x0 + 1, W - 1)
-    y1 = np.minimum(y0 + 1, H - 1)
-    idx = (y0 * W + x0, y0 * W + x1, y1 * W + x0, y1 * W + x1)
-    wts = ((1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy)
-    return inside, idx, wts
-
-
-def _sample(img_flat, idx, wts):
-    return (img_flat[idx[0]] * wts[0] + img_flat[idx[1]] * wts[1]
-            + img_flat[idx[2]] * wts[2] + img_flat[idx[3]] * wts[3])
-
-
 def _footprint_ok(flat_bool_or_disp, idx, wts, d=None, scale=1.0, tol=None):
     """All weighted taps valid (bool map) or disparity-consistent with ``d``."""
     ok = None
@@ -260,7 +251,24 @@ def propagate_disparity(lf, ref_disparity) -> np.ndarray:
 
     z-buffer (larger disparity wins), nearest pixel, holes NaN
     (:func:`hyperlf.warp.forward_warp_disparity`); the reference view gets ``ref_disparity``
-    itself. Returns float32 ``(R, C, H, W)``.
+    itself.
+
+    Parameters
+    ----------
+    lf : LightField
+    ref_disparity : array_like (H, W)
+        The reference view's disparity (px per baseline).
+
+    Returns
+    -------
+    ndarray of float32, shape (R, C, H, W)
+
+    Examples
+    --------
+    >>> from hyperlf import synthesis
+    >>> lf = synthesis.procedural_scene(seed=1, rows=3, cols=3, height=24, width=32)
+    >>> propagate_disparity(lf, lf.gt_disparity[lf.reference]).shape
+    (3, 3, 24, 32)
     """
     lf = _check_lf(lf)
     d = _as_ref_disparity(lf, ref_disparity)
@@ -282,6 +290,20 @@ def background_fill(disparity: np.ndarray) -> np.ndarray:
     Each hole pixel takes the minimum (= farthest surface) of the nearest valid values to its
     left, right, top and bottom: holes of a forward-warped map are disocclusions, which belong to
     the background.  A map without any valid pixel is returned unchanged (all NaN).
+
+    Parameters
+    ----------
+    disparity : ndarray (H, W)
+        NaN = hole.
+
+    Returns
+    -------
+    ndarray, shape (H, W)
+
+    Examples
+    --------
+    >>> background_fill(np.array([[1.0, np.nan, 3.0]])).tolist()
+    [[1.0, 1.0, 3.0]]
     """
     d = np.asarray(disparity, dtype=np.float32)
     v = np.isfinite(d)
@@ -352,8 +374,13 @@ def pairwise_disparities(lf, initial: np.ndarray, metric: str = "rsncc", optimiz
     disparity (NaN holes).  ``band`` (px per baseline) limits the labels around it; pixels
     without an initial value may take any label of the pair's range (the union of both views'
     initial ranges +- band, or ``disparity_range`` / ``lf.disparity_range`` when no view has an
-    initial value).  Returns ``(merged (R, C, H, W) float32, NaN where no consistent estimate;
-    confidence (R, C, H, W) float32)``.
+    initial value).
+
+    Returns
+    -------
+    merged : ndarray of float32 (R, C, H, W)
+        Confidence-weighted mean of the consistent estimates; NaN where there is none.
+    confidence : ndarray of float32 (R, C, H, W)
     """
     from . import regularisers as _reg
     from . import twoview as _stereo
@@ -427,9 +454,28 @@ def refine_disparity(image, z, c, lam: float = 1.0, edge_sigma: float = 0.1,
                      min_weight: float = 1e-3) -> np.ndarray:
     """Confidence-weighted edge-aware WLS (module docstring, stage 3); fills every hole.
 
-    ``image`` (H, W) guide; ``z`` (H, W) data (NaN = none); ``c`` (H, W) confidences >= 0.
-    Solved with ``scipy.sparse.linalg.spsolve``.  Returns float32 (H, W), all finite (a map
-    without any data gets the constant 0).
+    Solved with ``scipy.sparse.linalg.spsolve``.
+
+    Parameters
+    ----------
+    image : ndarray (H, W)
+        The guide (the view's own spectral image).
+    z : ndarray (H, W)
+        Data term (NaN = none).
+    c : ndarray (H, W)
+        Confidences >= 0.
+    lam, edge_sigma, min_weight : float
+        Smoothness weight, edge sigma and weight floor (module docstring, stage 3).
+
+    Returns
+    -------
+    ndarray of float32 (H, W)
+        All finite (a map without any data gets the constant 0).
+
+    References
+    ----------
+    .. [1] J. Park, H. Kim, Y.-W. Tai, M. S. Brown, I. S. Kweon, "High-quality depth map
+       upsampling and completion for RGB-D cameras", IEEE Trans. Image Processing, 2014.
     """
     import scipy.sparse as sp
     import scipy.sparse.linalg as spla
@@ -473,9 +519,23 @@ def register_view(lf, disparities: np.ndarray, view, band_index: np.ndarray,
                   occlusion_tol: float | None = 0.5) -> tuple[np.ndarray, np.ndarray]:
     """Direct registration of every band into ``view`` (module docstring, stage 4).
 
-    ``disparities`` (R, C, H, W): per-view maps (NaN = unknown -> invalid).  With
-    ``occlusion_tol=None`` no occlusion check is made (naive baseline).  Returns
-    ``(cube (B, H, W) float32 with NaN where invalid, mask (B, H, W) bool)``.
+    Parameters
+    ----------
+    lf : LightField
+    disparities : ndarray (R, C, H, W)
+        Per-view maps (NaN = unknown -> invalid).
+    view : (int, int)
+        The receiving view.
+    band_index : ndarray (R, C)
+        From :func:`band_order`.
+    occlusion_tol : float or None
+        Re-projection tolerance in px; None = no occlusion check (naive baseline).
+
+    Returns
+    -------
+    cube : ndarray of float32 (B, H, W)
+        NaN where invalid.
+    mask : ndarray of bool (B, H, W)
     """
     R, C = lf.grid_shape
     H, W = lf.image_shape
@@ -495,13 +555,13 @@ def register_view(lf, disparities: np.ndarray, view, band_index: np.ndarray,
             ox, oy = _offset(lf, (r, c), v)
             qx = xx - dv * ox
             qy = yy - dv * oy
-            inside, idx, wts = _taps(qx, qy, H, W)
+            inside, idx, wts = bilinear_taps(qx, qy, (H, W))
             ok = inside & np.isfinite(dv)
             if occlusion_tol is not None:
                 du = np.asarray(disparities[r, c], dtype=np.float64).ravel()
                 ok &= _footprint_ok(du, idx, wts, d=dv, scale=max(np.hypot(ox, oy), 1.0),
                                     tol=float(occlusion_tol))
-            val = _sample(lf.views[r, c].ravel(), idx, wts)
+            val = gather_taps(lf.views[r, c].ravel(), idx, wts)
             cube[b] = np.where(ok, val, np.nan)
             mask[b] = ok
     return cube, mask
@@ -594,7 +654,7 @@ def _propagate(lf, store, disparities, occlusion_tol, max_iter, progress=False) 
                 geom = []
                 for w in nbrs:
                     ox, oy = _offset(lf, w, v)
-                    inside, idx, wts = _taps(tx - dt * ox, ty - dt * oy, H, W)
+                    inside, idx, wts = bilinear_taps(tx - dt * ox, ty - dt * oy, (H, W))
                     if occlusion_tol is not None:
                         inside = inside & _footprint_ok(
                             np.asarray(disparities[w], np.float64).ravel(), idx, wts, d=dt,
@@ -618,7 +678,7 @@ def _propagate(lf, store, disparities, occlusion_tol, max_iter, progress=False) 
                         ok = inside[sel] & _footprint_ok(m_w.ravel(), idx, wts)
                         if not ok.any():
                             continue
-                        val = _sample(img_w.ravel(), idx, wts)
+                        val = gather_taps(img_w.ravel(), idx, wts)
                         acc[ok] += val[ok]
                         n[ok] += 1
                     got = n > 0
@@ -641,7 +701,19 @@ def fill_missing(cube: np.ndarray, mask: np.ndarray, wavelengths, mode: str = "s
 
     ``"spectral"``: per pixel, linear interpolation over wavelength between the nearest valid
     bands (nearest valid band beyond the ends; 0 where no band is valid); ``"zero"``: 0.
-    Returns a new float32 array.
+
+    Parameters
+    ----------
+    cube : ndarray (B, H, W)
+    mask : ndarray of bool (B, H, W)
+        True = valid.
+    wavelengths : array_like (B,)
+    mode : {"spectral", "zero"}
+
+    Returns
+    -------
+    ndarray of float32 (B, H, W)
+        A new array.
     """
     cube = np.asarray(cube, dtype=np.float32)
     m = np.asarray(mask, dtype=bool)
@@ -825,8 +897,21 @@ def infer_missing(cube, mask, disparity, guide, *, radius: int = 6, sigma_d: flo
 
 
 def read_band_mask(path, view=None, name: str = "band_mask") -> np.ndarray:
-    """A per-entry mask of a streamed completion file (all views, or one ``(r, c)``):
-    ``name="band_mask"`` (registered entries) or ``"inferred_mask"`` (inferred entries)."""
+    """A per-entry mask of a streamed completion file.
+
+    Parameters
+    ----------
+    path : path-like
+        File written by :func:`complete` with ``out_path``.
+    view : (int, int), optional
+        One view; default all.
+    name : {"band_mask", "inferred_mask"}
+        Registered or inferred entries.
+
+    Returns
+    -------
+    ndarray of bool, shape (R, C, B, H, W) or (B, H, W)
+    """
     import h5py
 
     if name not in ("band_mask", "inferred_mask"):
@@ -967,7 +1052,27 @@ def complete(lf, disparity=None, out_path=None, *, metric: str = "rsncc",
         ``rounds``, ``impl``).  False: leave them to ``fill``.
     fill : {"spectral", "zero"}
         Value of entries that stay missing (neither registered nor inferred).
-    compression : HDF5 compression of the output file.
+    compression : str or None
+        HDF5 compression of the output file.
+
+    Returns
+    -------
+    CompletionResult
+        ``cube`` / ``mask`` ``(R, C, B, H, W)`` (None when streamed to ``out_path``), the
+        per-view ``disparities`` and ``stats`` (see :class:`CompletionResult`).
+
+    Raises
+    ------
+    InvalidInputError
+        For views sharing a wavelength, or invalid options.
+
+    Examples
+    --------
+    >>> from hyperlf import synthesis
+    >>> lf = synthesis.procedural_scene(seed=1, rows=3, cols=3, height=24, width=32)
+    >>> res = complete(lf, lf.gt_disparity[lf.reference])
+    >>> res.cube.shape, res.mask.shape
+    ((3, 3, 9, 24, 32), (3, 3, 9, 24, 32))
     """
     lf = _check_lf(lf)
     if fill not in ("spectral", "zero"):
@@ -999,7 +1104,26 @@ def naive_completion(lf, ref_disparity, out_path=None, fill: str = "spectral",
     """Naive baseline: warp every band with the forward-warped reference disparity only.
 
     No pairwise stereo, no refinement (holes of the warped disparity stay invalid), no
-    occlusion check, no propagation.  Same output format as :func:`complete`.
+    occlusion check, no propagation.
+
+    Parameters
+    ----------
+    lf : LightField
+    ref_disparity : array_like (H, W)
+    out_path, fill, compression
+        As :func:`complete`.
+
+    Returns
+    -------
+    CompletionResult
+        Same format as :func:`complete`.
+
+    Examples
+    --------
+    >>> from hyperlf import synthesis
+    >>> lf = synthesis.procedural_scene(seed=1, rows=3, cols=3, height=24, width=32)
+    >>> naive_completion(lf, lf.gt_disparity[lf.reference]).cube.shape
+    (3, 3, 9, 24, 32)
     """
     lf = _check_lf(lf)
     t_all = time.perf_counter()

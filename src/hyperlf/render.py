@@ -65,7 +65,8 @@ Default: a flat spectrum.
 Sampling
 --------
 Shift-and-add follows SPEC §1: the reference pixel ``p = (x, y)`` with disparity ``d`` is seen
-by view ``v`` at ``q_v = p - d (pos_v - pos_ref)``. Views are sampled bilinearly; a sample whose
+by view ``v`` at ``q_v = p - d (pos_v - pos_ref)``. Views are sampled bilinearly by
+:mod:`hyperlf.warp` (``edge="mask"``, float32 weights, x before y); a sample whose
 footprint leaves the view, touches an invalid (masked or non-finite) pixel, or fails the
 occlusion check is *excluded*: each output pixel is the (weight-)normalised average of its
 valid samples, never a zero-filled one. Pixels without any valid sample get ``fill``.
@@ -87,7 +88,6 @@ only the bands the profile needs) at a time; a full ``[R, C, B, H, W]`` is never
 
 from __future__ import annotations
 
-import math
 import os
 import warnings
 from dataclasses import dataclass
@@ -100,7 +100,7 @@ from . import spectral
 from ._atomic import atomic_path
 from ._progress import progress_bar
 from .errors import InvalidInputError
-from .warp import forward_warp_disparity, sample_bilinear
+from .warp import coordinate_taps, forward_warp_disparity, sample_bilinear, shift_map
 
 __all__ = [
     "emulate_camera",
@@ -411,7 +411,25 @@ def camera_matrix(camera, wavelengths, white_balance: bool = True, illuminant=No
     """The ``(B, 3)`` matrix ``M`` of a camera emulation: ``linear_output = spectrum @ M``.
 
     Before exposure and the sRGB transfer function, :func:`emulate_camera` is exactly this
-    linear map (see the module docstring for the parameters).
+    linear map.
+
+    Parameters
+    ----------
+    camera, white_balance, illuminant, white, output, ccm, ccm_source
+        As :func:`emulate_camera`.
+    wavelengths : array_like (B,)
+        Band centres in nm.
+
+    Returns
+    -------
+    ndarray of float64, shape (B, 3)
+
+    Examples
+    --------
+    >>> from hyperlf import synthesis
+    >>> lf = synthesis.procedural_scene(seed=1, rows=3, cols=3, height=24, width=32)
+    >>> camera_matrix("CIE 1931", lf.cube_wavelengths).shape
+    (9, 3)
     """
     wl = spectral._as_wavelengths(wavelengths)
     plan = _camera_plan(camera, wl, white_balance, illuminant, white, output, ccm, ccm_source,
@@ -606,6 +624,53 @@ def _used_bands(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return idx, M[idx]
 
 
+def _select_views(views, lead: tuple[int, ...]) -> tuple[list[tuple[int, ...]], bool]:
+    """The leading indices ``emulate_camera(views=...)`` renders, and whether it is one view."""
+    if views is None or (isinstance(views, str) and views.lower() == "all"):
+        return (list(np.ndindex(*lead)) if lead else [()]), False
+    if isinstance(views, str) and views.lower() in ("reference", "ref"):
+        if len(lead) != 2:
+            raise InvalidInputError("views='reference' needs a 5-D cube (R, C, B, H, W)")
+        return [((lead[0] - 1) // 2, (lead[1] - 1) // 2)], True
+    single = False
+    v = views
+    if isinstance(v, tuple) and all(_is_number(i) for i in v):
+        sel, single = [tuple(int(i) for i in v)], True
+    else:
+        sel = [tuple(int(i) for i in t) for t in v]
+    for t in sel:
+        if len(t) != len(lead) or any(not (0 <= i < n) for i, n in zip(t, lead)):
+            raise InvalidInputError(f"view index {t} is outside the cube's leading axes {lead}")
+    return sel, single
+
+
+def _emulate_views(data, sel, idx: np.ndarray, B: int, M: np.ndarray, plan: _Plan, mask,
+                   progress: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Linear camera values ``(n, H, W, 3)`` of the selected views (NaN where invalid) and the
+    invalid pixels ``(n, H, W)``."""
+    H, W = (int(s) for s in data.shape[-2:])
+    out = np.empty((len(sel), H, W, 3), dtype=np.float32)
+    bad_px = np.zeros((len(sel), H, W), dtype=bool)
+    h5 = _is_h5_dataset(data)
+    for n, t in enumerate(progress_bar(sel, "emulating camera", total=len(sel), enabled=progress,
+                                       unit="view")):
+        if idx.size == B:
+            bands = data[t] if t else data[()] if h5 else data
+        elif h5:
+            bands = np.stack([np.asarray(data[t + (int(b),)]) for b in idx])
+        else:
+            bands = data[t][idx] if t else data[idx]
+        bands = np.asarray(bands, dtype=np.float32)
+        out[n] = _apply_post(_project(bands, M), plan)
+        bad = ~np.isfinite(out[n]).all(axis=-1)  # a NaN in any used band propagates
+        if mask is not None:
+            bad |= ~np.asarray(mask[t] if t else mask, dtype=bool)
+        bad_px[n] = bad
+        if bad.any():
+            out[n][bad] = np.nan
+    return out, bad_px
+
+
 def emulate_camera(cube, wavelengths=None, camera="CIE 1931", white_balance: bool = True,
                    illuminant=None, output: str = "camera", mask=None, exposure="white",
                    exposure_percentile: float = 99.5, white=None, views=None, ccm="fit",
@@ -656,6 +721,19 @@ def emulate_camera(cube, wavelengths=None, camera="CIE 1931", white_balance: boo
     Returns
     -------
     ndarray of float32, shape (..., H, W, 3)
+
+    Raises
+    ------
+    InvalidInputError
+        For a cube that is not ``(..., B, H, W)``, a band count that differs from the
+        wavelengths, or a view index outside the cube.
+
+    Examples
+    --------
+    >>> from hyperlf import synthesis
+    >>> lf = synthesis.procedural_scene(seed=1, rows=3, cols=3, height=24, width=32)
+    >>> emulate_camera(lf.gt_cube[lf.reference], lf.cube_wavelengths).shape
+    (24, 32, 3)
     """
     if _is_cubefile(cube):
         data = cube.cube
@@ -683,42 +761,8 @@ def emulate_camera(cube, wavelengths=None, camera="CIE 1931", white_balance: boo
                         kind="cube")
     idx, M = _used_bands(plan.band_matrix)
 
-    # which leading indices
-    single = False
-    if views is None or (isinstance(views, str) and views.lower() == "all"):
-        sel = list(np.ndindex(*lead)) if lead else [()]
-    elif isinstance(views, str) and views.lower() in ("reference", "ref"):
-        if len(lead) != 2:
-            raise InvalidInputError("views='reference' needs a 5-D cube (R, C, B, H, W)")
-        sel, single = [((lead[0] - 1) // 2, (lead[1] - 1) // 2)], True
-    else:
-        v = views
-        if isinstance(v, tuple) and all(_is_number(i) for i in v):
-            sel, single = [tuple(int(i) for i in v)], True
-        else:
-            sel = [tuple(int(i) for i in t) for t in v]
-        for t in sel:
-            if len(t) != len(lead) or any(not (0 <= i < n) for i, n in zip(t, lead)):
-                raise InvalidInputError(f"view index {t} is outside the cube's leading axes {lead}")
-    out = np.empty((len(sel), H, W, 3), dtype=np.float32)
-    bad_px = np.zeros((len(sel), H, W), dtype=bool)
-    h5 = _is_h5_dataset(data)
-    for n, t in enumerate(progress_bar(sel, "emulating camera", total=len(sel), enabled=progress,
-                                       unit="view")):
-        if idx.size == B:
-            bands = data[t] if t else data[()] if h5 else data
-        elif h5:
-            bands = np.stack([np.asarray(data[t + (int(b),)]) for b in idx])
-        else:
-            bands = data[t][idx] if t else data[idx]
-        bands = np.asarray(bands, dtype=np.float32)
-        out[n] = _apply_post(_project(bands, M), plan)
-        bad = ~np.isfinite(out[n]).all(axis=-1)  # a NaN in any used band propagates
-        if mask is not None:
-            bad |= ~np.asarray(mask[t] if t else mask, dtype=bool)
-        bad_px[n] = bad
-        if bad.any():
-            out[n][bad] = np.nan
+    sel, single = _select_views(views, lead)
+    out, bad_px = _emulate_views(data, sel, idx, B, M, plan, mask, progress)
     scale = _exposure_scale([out], plan, exposure, exposure_percentile)
     for n in range(len(sel)):  # view by view: no full-size temporaries
         out[n] = _encode(out[n], plan, scale)
@@ -765,53 +809,20 @@ def _as_disparity(d, H: int, W: int, name: str = "disparity") -> np.ndarray | fl
     return a
 
 
-def _axis_coords(coord: np.ndarray, n: int):
-    """Indices and weights of bilinear sampling along one axis (as warp.sample_bilinear)."""
-    eps = 1e-6
-    valid = (coord >= -eps) & (coord <= n - 1 + eps)
-    cc = np.clip(coord, 0, n - 1)
-    i0 = np.minimum(np.floor(cc).astype(np.intp), max(n - 2, 0))
-    i1 = np.minimum(i0 + 1, n - 1)
-    f = (cc - i0).astype(np.float32)
-    return i0, i1, f, valid
+#: How refocusing samples the views (module docstring): invalid samples are 0 (with weight 0),
+#: float32 weights, x interpolated before y.
+_SAMPLING = {"fill": 0.0, "edge": "mask", "dtype": np.float32}
 
 
 def _sample_shift(img: np.ndarray, sx: float, sy: float) -> tuple[np.ndarray, np.ndarray]:
-    """``img`` (H, W, K) sampled at ``(x + sx, y + sy)``: a separable bilinear translation.
-
-    Same values as :func:`hyperlf.warp.sample_bilinear` on the shifted grid, in float32 and
-    with slices instead of 2-D gathers; samples outside are 0 and invalid.
-    """
-    H, W = img.shape[:2]
-    x0, x1, fx, vx = _axis_coords(np.arange(W) + sx, W)
-    y0, y1, fy, vy = _axis_coords(np.arange(H) + sy, H)
-    if np.any(fx != 0):
-        a = img[:, x0] * (1 - fx)[None, :, None] + img[:, x1] * fx[None, :, None]
-    else:
-        a = img[:, x0]
-    if np.any(fy != 0):
-        out = a[y0] * (1 - fy)[:, None, None] + a[y1] * fy[:, None, None]
-    else:
-        out = a[y0]
-    valid = vy[:, None] & vx[None, :]
-    if not valid.all():
-        out = np.where(valid[..., None], out, np.float32(0))
+    """``img`` (H, W, K) sampled at ``(x + sx, y + sy)``: a separable bilinear translation."""
+    out, valid = shift_map(img, sx, sy, order="xy", channel_axis=-1, skip_zero=True, **_SAMPLING)
     return out.astype(np.float32, copy=False), valid
 
 
 def _sample_map(img: np.ndarray, qx: np.ndarray, qy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``img`` (H, W, K) sampled bilinearly at float coordinates ``(qx, qy)`` (H, W), float32."""
-    H, W, K = img.shape
-    x0, x1, fx, vx = _axis_coords(qx, W)
-    y0, y1, fy, vy = _axis_coords(qy, H)
-    flat = img.reshape(H * W, K)
-    fx, fy = fx[..., None], fy[..., None]
-    top = flat[y0 * W + x0] * (1 - fx) + flat[y0 * W + x1] * fx
-    bot = flat[y1 * W + x0] * (1 - fx) + flat[y1 * W + x1] * fx
-    out = top * (1 - fy) + bot * fy
-    valid = vx & vy
-    if not valid.all():
-        out = np.where(valid[..., None], out, np.float32(0))
+    out, valid = sample_bilinear(img, qx, qy, **_SAMPLING)
     return out.astype(np.float32, copy=False), valid
 
 
@@ -957,12 +968,26 @@ def focal_stack(views_or_cube, offsets=None, disparities=(0.0,), profile="CIE 19
     Same parameters as :func:`refocus`, with ``disparities`` a sequence of scalars or
     ``(H, W)`` maps. ``exposure="percentile"`` uses one scale for the whole stack.
 
+    Parameters
+    ----------
+    disparities : sequence of float or array_like (H, W)
+        One refocusing disparity (px per baseline) or map per output image.
+
+    Other parameters are those of :func:`refocus`.
+
     Returns
     -------
     list of ndarray
         One image per disparity, laid out as in :func:`refocus`.
     counts : list of ndarray (H, W) int, only with ``return_counts``
         Number of views that contributed to each pixel.
+
+    Examples
+    --------
+    >>> from hyperlf import synthesis
+    >>> lf = synthesis.procedural_scene(seed=1, rows=3, cols=3, height=24, width=32)
+    >>> [im.shape for im in focal_stack(lf, disparities=(0.0, 1.0))]
+    [(24, 32, 3), (24, 32, 3)]
     """
     src = _make_source(views_or_cube, wavelengths, offsets, mask, reference)
     plan = _make_plan(profile, src, white_balance, illuminant, white, output, ccm, ccm_source)
@@ -1021,6 +1046,13 @@ def refocus(views_or_cube, offsets=None, disparity=0.0, profile="CIE 1931", wave
     ndarray of float32
         ``(H, W, 3)`` for a camera, ``(H, W)`` for a band or weights, ``(B, H, W)`` for all
         bands. With ``return_counts``: ``(image, counts)``.
+
+    Examples
+    --------
+    >>> from hyperlf import synthesis
+    >>> lf = synthesis.procedural_scene(seed=1, rows=3, cols=3, height=24, width=32)
+    >>> refocus(lf, None, 0.5).shape
+    (24, 32, 3)
     """
     if np.ndim(disparity) not in (0, 2):
         raise InvalidInputError(
@@ -1061,7 +1093,19 @@ def all_focus(cube_or_views, offsets=None, disparity=None, profile="CIE 1931", w
     tol : float
         Disparity tolerance (px per baseline) of the occlusion check.
 
-    Other parameters and the return value are those of :func:`refocus`.
+    Other parameters are those of :func:`refocus`.
+
+    Returns
+    -------
+    ndarray of float32
+        Laid out as in :func:`refocus`; with ``return_counts``: ``(image, counts)``.
+
+    Examples
+    --------
+    >>> from hyperlf import synthesis
+    >>> lf = synthesis.procedural_scene(seed=1, rows=3, cols=3, height=24, width=32)
+    >>> all_focus(lf, disparity=lf.gt_disparity[lf.reference]).shape
+    (24, 32, 3)
     """
     if disparity is None:
         raise InvalidInputError("all_focus needs the reference view's disparity map (H, W)")
@@ -1271,12 +1315,12 @@ def spectrum_at(cube, wavelengths=None, x=None, y=None, view=None) -> np.ndarray
     if xs.shape != ys.shape or xs.ndim != 1:
         raise InvalidInputError("x and y must be scalars or 1-D arrays of the same length")
     out = np.full((xs.size, B), np.nan)
+    tx0, _, _, vx = coordinate_taps(xs, W)
+    ty0, _, _, vy = coordinate_taps(ys, H)
     for i, (px, py) in enumerate(zip(xs, ys)):
-        if not (np.isfinite(px) and np.isfinite(py)) or px < -1e-6 or py < -1e-6 \
-                or px > W - 1 + 1e-6 or py > H - 1 + 1e-6:
+        if not (vx[i] and vy[i]):
             continue
-        x0 = int(min(max(math.floor(px), 0), max(W - 2, 0)))
-        y0 = int(min(max(math.floor(py), 0), max(H - 2, 0)))
+        x0, y0 = int(tx0[i]), int(ty0[i])
         x1, y1 = min(x0 + 2, W), min(y0 + 2, H)
         patch = np.asarray(data[lead + (slice(None), slice(y0, y1), slice(x0, x1))],
                            dtype=np.float64)  # (B, <=2, <=2)

@@ -1,9 +1,31 @@
-"""Sub-pixel image shifts and warps (SPEC §1 "Sub-pixel sampling").
+"""Sub-pixel sampling: the only place where bilinear taps and weights are computed (SPEC §1).
 
-Bilinear interpolation; samples that fall outside the image are *invalid* (returned in a mask,
-value set to ``fill``), never silently zero-filled. All functions work on single 2-D images or on
-stacks whose last two axes are ``(H, W)``... except where noted; channel-last colour images are
-handled by passing ``channel_axis=-1``.
+Every module that resamples an image (two-view and light-field costs, the baselines, rendering,
+cube completion) goes through this module, so the interpolation rule exists once.
+
+Conventions
+-----------
+* Pixel centres sit at integer coordinates; ``x`` is the column, ``y`` the row.
+* A coordinate ``c`` along an axis of length ``n`` is sampled from the taps
+  ``i0 = min(floor(clip(c, 0, n - 1)), n - 2)``, ``i1 = min(i0 + 1, n - 1)`` with weight
+  ``f = clip(c, 0, n - 1) - i0`` on ``i1`` (:func:`coordinate_taps`). The last pixel is reached
+  with ``f = 1`` on the pair ``(n - 2, n - 1)``.
+* A sample is **valid** when both coordinates are finite and lie inside ``[0, n - 1]`` within
+  :data:`INSIDE_EPS`. Validity is always returned; the **edge rule** decides what an invalid
+  sample's value is:
+
+  - ``edge="mask"``: the value is ``fill`` (default NaN), never a silent zero;
+  - ``edge="clamp"``: the coordinate is clamped to the image (replicated border), so the value is
+    the border value; only non-finite coordinates get ``fill``.
+
+* ``dtype`` is the precision of the interpolation weights (float64 by default). The arithmetic
+  follows numpy's promotion of the image dtype with ``dtype``: float32 weights on a float32
+  image compute in float32, float64 weights compute in float64.
+* Separable shifts (:func:`shift_map`) interpolate one axis after the other; ``order`` says which
+  axis comes first (the rounding differs in the last bit). General coordinate maps
+  (:func:`sample_bilinear`) interpolate along x, then y. :func:`bilinear_taps` returns the four
+  flat indices and product weights of each sample for callers that check or accumulate taps
+  themselves (:func:`gather_taps`).
 """
 
 from __future__ import annotations
@@ -13,11 +35,16 @@ import numpy as np
 from .errors import InvalidInputError
 
 __all__ = [
-    "sample_bilinear",
-    "shift_image",
-    "shift_map",
+    "INSIDE_EPS",
+    "EDGE_RULES",
+    "coordinate_taps",
     "axis_taps",
     "axis_valid",
+    "shift_map",
+    "sample_bilinear",
+    "bilinear_taps",
+    "gather_taps",
+    "shift_image",
     "warp_to_reference",
     "forward_warp_disparity",
 ]
@@ -25,9 +52,183 @@ __all__ = [
 #: Tolerance (px) within which a sample just outside ``[0, n - 1]`` still counts as inside.
 INSIDE_EPS = 1e-6
 
+#: The edge rules every sampler accepts (module docstring).
+EDGE_RULES = ("mask", "clamp")
+
+
+def _check_edge(edge: str) -> str:
+    if edge not in EDGE_RULES:
+        raise InvalidInputError(f"edge must be one of {EDGE_RULES}, got {edge!r}")
+    return edge
+
+
+def coordinate_taps(coord, n: int, *, dtype=np.float64):
+    """Bilinear taps of coordinates along one axis of length ``n``.
+
+    Parameters
+    ----------
+    coord : array_like of float
+        Coordinates in pixels (pixel centres at integers), any shape.
+    n : int
+        Length of the axis (>= 1).
+    dtype : numpy dtype, optional
+        Precision of the returned weights ``f`` (default float64).
+
+    Returns
+    -------
+    i0, i1 : ndarray of intp, shape coord.shape
+        The two taps; the sample is ``(1 - f) a[i0] + f a[i1]``.
+    f : ndarray of ``dtype``, shape coord.shape
+        Weight of ``i1``, computed in float64 on the clamped coordinate and then cast.
+    valid : ndarray of bool, shape coord.shape
+        True where the coordinate is finite and inside ``[0, n - 1]`` within
+        :data:`INSIDE_EPS`. Non-finite coordinates get the taps of coordinate 0.
+
+    Examples
+    --------
+    >>> i0, i1, f, valid = coordinate_taps([-0.5, 0.25, 3.0], 4)
+    >>> i0.tolist(), i1.tolist(), f.tolist(), valid.tolist()
+    ([0, 0, 2], [1, 1, 3], [0.0, 0.25, 1.0], [False, True, True])
+    """
+    c = np.asarray(coord, dtype=np.float64)
+    finite = np.isfinite(c)
+    valid = finite & (c >= -INSIDE_EPS) & (c <= n - 1 + INSIDE_EPS)
+    cc = np.clip(c, 0.0, n - 1)
+    if not finite.all():
+        cc = np.where(finite, cc, 0.0)
+    i0 = np.minimum(np.floor(cc).astype(np.intp), max(n - 2, 0))
+    i1 = np.minimum(i0 + 1, n - 1)
+    f = cc - i0
+    if np.dtype(dtype) != f.dtype:
+        f = f.astype(dtype)
+    return i0, i1, f, valid
+
+
+def axis_taps(n: int, shift: float, pad: int = 0, *, dtype=np.float64):
+    """Taps of the shifted grid ``i + shift``, ``i = -pad .. n - 1 + pad`` (clamped).
+
+    Parameters
+    ----------
+    n : int
+        Axis length.
+    shift : float
+        Shift in pixels.
+    pad : int, optional
+        Extra samples on each side of the grid.
+    dtype : numpy dtype, optional
+        Precision of the weights (default float64).
+
+    Returns
+    -------
+    i0, i1, f : ndarray, shape (n + 2 pad,)
+        As :func:`coordinate_taps`; clamping makes every sample outside the image take the
+        nearest border value (replicated border).
+
+    Examples
+    --------
+    >>> i0, i1, f = axis_taps(3, 0.5)
+    >>> i0.tolist(), i1.tolist(), f.tolist()
+    ([0, 1, 1], [1, 2, 2], [0.5, 0.5, 1.0])
+    """
+    i0, i1, f, _ = coordinate_taps(np.arange(-pad, n + pad, dtype=np.float64) + shift, n,
+                                   dtype=dtype)
+    return i0, i1, f
+
+
+def axis_valid(n: int, shift: float) -> np.ndarray:
+    """True where ``i + shift`` (``i = 0 .. n - 1``) lies inside ``[0, n - 1]``.
+
+    Within :data:`INSIDE_EPS`; the ``valid`` of :func:`coordinate_taps` on the shifted grid.
+
+    Examples
+    --------
+    >>> axis_valid(3, 0.5).tolist()
+    [True, True, False]
+    """
+    return coordinate_taps(np.arange(n, dtype=np.float64) + shift, n)[3]
+
+
+def _interp_axis(a: np.ndarray, axis: int, i0, i1, f, skip_zero: bool) -> np.ndarray:
+    """``(1 - f) a[i0] + f a[i1]`` along ``axis`` (``f`` broadcast along it)."""
+    if skip_zero and not np.any(f != 0):
+        return np.take(a, i0, axis=axis)
+    shape = [1] * a.ndim
+    shape[axis] = -1
+    f = f.reshape(shape)
+    return np.take(a, i0, axis=axis) * (1 - f) + np.take(a, i1, axis=axis) * f
+
+
+def shift_map(img, sx: float, sy: float, pad: int = 0, *, edge: str = "clamp",
+              fill: float = np.nan, dtype=np.float64, order: str = "yx",
+              channel_axis: int | None = None, skip_zero: bool = False):
+    """Sample ``img`` at ``(x + sx, y + sy)`` for every pixel: a separable bilinear shift.
+
+    Parameters
+    ----------
+    img : array_like, shape (..., H, W), or (H, W, K) with ``channel_axis=-1``
+        Leading axes (channel stacks) are carried along.
+    sx, sy : float
+        Shift in pixels along x (columns) and y (rows).
+    pad : int, optional
+        Sample the grid ``y = -pad .. H - 1 + pad``, ``x = -pad .. W - 1 + pad`` (only with
+        ``edge="clamp"``).
+    edge : {"clamp", "mask"}, optional
+        Edge rule (module docstring). Default ``"clamp"``: replicated border.
+    fill : float, optional
+        Value of the invalid samples with ``edge="mask"`` (default NaN).
+    dtype : numpy dtype, optional
+        Precision of the weights (default float64); the result has the promoted dtype of
+        ``img`` and ``dtype``.
+    order : {"yx", "xy"}, optional
+        Interpolate along y first (default), or along x first.
+    channel_axis : {None, -1}, optional
+        ``-1`` for channel-last images ``(H, W, K)``.
+    skip_zero : bool, optional
+        Where every weight along an axis is 0 (a negative integer shift) take the ``i0``
+        samples as they are instead of computing ``1 * a + 0 * b`` (faster; differs only for
+        non-finite neighbours and the sign of zero).
+
+    Returns
+    -------
+    out : ndarray
+        The shifted image (padded grid when ``pad > 0``).
+    valid : ndarray of bool, shape (H, W)
+        True where the unpadded sample lies inside the image.
+
+    Examples
+    --------
+    >>> ramp = np.arange(4.0)[None, :].repeat(2, axis=0)
+    >>> out, valid = shift_map(ramp, 0.5, 0.0)
+    >>> out[0].tolist(), valid[0].tolist()
+    ([0.5, 1.5, 2.5, 3.0], [True, True, True, False])
+    """
+    _check_edge(edge)
+    a = np.asarray(img)
+    if channel_axis not in (None, -1):
+        raise InvalidInputError(f"channel_axis must be None or -1, got {channel_axis!r}")
+    if order not in ("yx", "xy"):
+        raise InvalidInputError(f"order must be 'yx' or 'xy', got {order!r}")
+    if edge == "mask" and pad:
+        raise InvalidInputError("pad needs edge='clamp' (the padded samples are outside)")
+    ay, ax = (a.ndim - 3, a.ndim - 2) if channel_axis == -1 else (a.ndim - 2, a.ndim - 1)
+    H, W = a.shape[ay], a.shape[ax]
+    y0, y1, fy, vy = coordinate_taps(np.arange(-pad, H + pad, dtype=np.float64) + sy, H,
+                                     dtype=dtype)
+    x0, x1, fx, vx = coordinate_taps(np.arange(-pad, W + pad, dtype=np.float64) + sx, W,
+                                     dtype=dtype)
+    if order == "yx":
+        out = _interp_axis(_interp_axis(a, ay, y0, y1, fy, skip_zero), ax, x0, x1, fx, skip_zero)
+    else:
+        out = _interp_axis(_interp_axis(a, ax, x0, x1, fx, skip_zero), ay, y0, y1, fy, skip_zero)
+    valid = vy[pad:pad + H, None] & vx[None, pad:pad + W]
+    if edge == "mask" and not valid.all():
+        out = np.where(valid[..., None] if channel_axis == -1 else valid, out, fill)
+    return out, valid
+
 
 def sample_bilinear(image: np.ndarray, x: np.ndarray, y: np.ndarray,
-                    fill: float = np.nan) -> tuple[np.ndarray, np.ndarray]:
+                    fill: float = np.nan, *, edge: str = "mask",
+                    dtype=np.float64) -> tuple[np.ndarray, np.ndarray]:
     """Sample ``image`` at float coordinates by bilinear interpolation.
 
     Parameters
@@ -36,54 +237,139 @@ def sample_bilinear(image: np.ndarray, x: np.ndarray, y: np.ndarray,
     x, y : ndarray, same shape (any)
         Column and row coordinates in pixels (pixel centres at integers).
     fill : float
-        Value given to samples outside ``[0, W-1] x [0, H-1]``.
+        Value of the invalid samples (``edge="mask"``; with ``"clamp"`` only non-finite
+        coordinates get it).
+    edge : {"mask", "clamp"}, optional
+        Edge rule (module docstring). Default ``"mask"``.
+    dtype : numpy dtype, optional
+        Precision of the weights (default float64).
 
     Returns
     -------
     values : ndarray, shape x.shape (+ (K,))
+        dtype ``result_type(image.dtype, float32)``.
     valid : ndarray of bool, shape x.shape
         True where the sample lies inside the image.
+
+    Examples
+    --------
+    >>> img = np.array([[0.0, 1.0], [2.0, 3.0]])
+    >>> vals, valid = sample_bilinear(img, np.array([0.5, 2.0]), np.array([0.5, 0.0]))
+    >>> vals.tolist(), valid.tolist()
+    ([1.5, nan], [True, False])
     """
+    _check_edge(edge)
     img = np.asarray(image)
     if img.ndim not in (2, 3):
         raise InvalidInputError(f"image must be (H, W) or (H, W, K), got shape {img.shape}")
     H, W = img.shape[:2]
-    x = np.asarray(x, dtype=np.float64)
-    y = np.asarray(y, dtype=np.float64)
-    eps = 1e-6
-    valid = (x >= -eps) & (x <= W - 1 + eps) & (y >= -eps) & (y <= H - 1 + eps)
-    xc = np.clip(x, 0, W - 1)
-    yc = np.clip(y, 0, H - 1)
-    x0 = np.minimum(np.floor(xc).astype(np.intp), max(W - 2, 0))
-    y0 = np.minimum(np.floor(yc).astype(np.intp), max(H - 2, 0))
-    x1 = np.minimum(x0 + 1, W - 1)
-    y1 = np.minimum(y0 + 1, H - 1)
-    fx = xc - x0
-    fy = yc - y0
+    x0, x1, fx, vx = coordinate_taps(x, W, dtype=dtype)
+    y0, y1, fy, vy = coordinate_taps(y, H, dtype=dtype)
+    valid = vx & vy
     if img.ndim == 3:
         fx = fx[..., None]
         fy = fy[..., None]
     out = ((img[y0, x0] * (1 - fx) + img[y0, x1] * fx) * (1 - fy)
            + (img[y1, x0] * (1 - fx) + img[y1, x1] * fx) * fy)
     out = out.astype(np.result_type(img.dtype, np.float32), copy=False)
-    if not valid.all():
-        out[~valid] = fill
+    bad = ~valid if edge == "mask" else ~(np.isfinite(x) & np.isfinite(y))
+    if bad.any():
+        out[bad] = fill
     return out, valid
 
 
-def shift_image(image: np.ndarray, dx: float, dy: float,
-                fill: float = np.nan) -> tuple[np.ndarray, np.ndarray]:
+def bilinear_taps(x, y, shape: tuple[int, int], *, dtype=np.float64):
+    """The four taps of each bilinear sample at ``(x, y)`` in an ``(H, W)`` image.
+
+    Parameters
+    ----------
+    x, y : array_like of float, same shape
+        Column and row coordinates.
+    shape : (H, W)
+    dtype : numpy dtype, optional
+        Precision of the weights (default float64).
+
+    Returns
+    -------
+    valid : ndarray of bool
+        Inside the image (as :func:`sample_bilinear`); taps of invalid samples are clamped
+        and must be ignored by the caller.
+    idx : tuple of 4 ndarrays of intp
+        Flat indices ``y * W + x`` of the taps (top-left, top-right, bottom-left, bottom-right).
+    wts : tuple of 4 ndarrays
+        Their weights ``(1-fx)(1-fy), fx(1-fy), (1-fx)fy, fx fy``.
+
+    Examples
+    --------
+    >>> valid, idx, wts = bilinear_taps(np.array([0.5]), np.array([1.0]), (3, 2))
+    >>> [int(i[0]) for i in idx], [float(w[0]) for w in wts]
+    ([2, 3, 4, 5], [0.5, 0.5, 0.0, 0.0])
+    """
+    H, W = shape
+    x0, x1, fx, vx = coordinate_taps(x, W, dtype=dtype)
+    y0, y1, fy, vy = coordinate_taps(y, H, dtype=dtype)
+    idx = (y0 * W + x0, y0 * W + x1, y1 * W + x0, y1 * W + x1)
+    wts = ((1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy)
+    return vx & vy, idx, wts
+
+
+def gather_taps(flat: np.ndarray, idx, wts) -> np.ndarray:
+    """Bilinear samples from the taps of :func:`bilinear_taps`: ``sum_k flat[idx_k] wts_k``.
+
+    Parameters
+    ----------
+    flat : ndarray (H * W,)
+        The image, flattened (row-major).
+    idx, wts : tuples of 4 ndarrays
+        From :func:`bilinear_taps`.
+
+    Returns
+    -------
+    ndarray, shape of the taps
+        dtype: promotion of ``flat`` and the weights.
+
+    Examples
+    --------
+    >>> img = np.array([[0.0, 1.0], [2.0, 3.0]])
+    >>> valid, idx, wts = bilinear_taps(np.array([0.5]), np.array([0.5]), img.shape)
+    >>> gather_taps(img.ravel(), idx, wts).tolist()
+    [1.5]
+    """
+    return (flat[idx[0]] * wts[0] + flat[idx[1]] * wts[1]
+            + flat[idx[2]] * wts[2] + flat[idx[3]] * wts[3])
+
+
+def shift_image(image: np.ndarray, dx: float, dy: float, fill: float = np.nan, *,
+                edge: str = "mask") -> tuple[np.ndarray, np.ndarray]:
     """Resample ``image`` at ``(x + dx, y + dy)`` for every pixel ``(x, y)``.
 
-    Returns ``(shifted, valid)``; samples from outside the image are invalid.
+    Parameters
+    ----------
+    image : ndarray, shape (H, W) or (H, W, K)
+    dx, dy : float
+        Shift in pixels.
+    fill : float, optional
+        Value of the invalid samples.
+    edge : {"mask", "clamp"}, optional
+        Edge rule (module docstring).
+
+    Returns
+    -------
+    shifted, valid
+        As :func:`sample_bilinear`.
+
+    Examples
+    --------
+    >>> shift_image(np.array([[0.0, 1.0, 2.0]]), 1.0, 0.0)[0].tolist()
+    [[1.0, 2.0, nan]]
     """
     H, W = np.asarray(image).shape[:2]
     yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
-    return sample_bilinear(image, xx + dx, yy + dy, fill=fill)
+    return sample_bilinear(image, xx + dx, yy + dy, fill=fill, edge=edge)
 
 
 def warp_to_reference(image: np.ndarray, disparity: np.ndarray, offset: tuple[float, float],
-                      fill: float = np.nan) -> tuple[np.ndarray, np.ndarray]:
+                      fill: float = np.nan, *, edge: str = "mask") -> tuple[np.ndarray, np.ndarray]:
     """Backward-warp a view into the reference view's frame (SPEC §1 sign convention).
 
     A reference pixel ``(x, y)`` with disparity ``d`` appears in the view at
@@ -94,14 +380,25 @@ def warp_to_reference(image: np.ndarray, disparity: np.ndarray, offset: tuple[fl
     image : ndarray, shape (H, W) or (H, W, K)
         The other view.
     disparity : ndarray, shape (H, W) or scalar
-        Disparity of the reference view (px per baseline).
+        Disparity of the reference view (px per baseline); non-finite = invalid, set to ``fill``.
     offset : (dx, dy)
         View position minus reference position, in baselines.
+    fill : float, optional
+        Value of the invalid samples.
+    edge : {"mask", "clamp"}, optional
+        Edge rule for samples outside the view (module docstring).
 
     Returns
     -------
     warped : ndarray, same shape as ``image``
     valid : ndarray of bool, shape (H, W)
+
+    Examples
+    --------
+    >>> view = np.tile(np.arange(5.0), (3, 1))
+    >>> warped, valid = warp_to_reference(view, 1.0, (1.0, 0.0))
+    >>> warped[0].tolist()
+    [nan, 0.0, 1.0, 2.0, 3.0]
     """
     img = np.asarray(image)
     H, W = img.shape[:2]
@@ -110,7 +407,7 @@ def warp_to_reference(image: np.ndarray, disparity: np.ndarray, offset: tuple[fl
     dx, dy = offset
     valid_d = np.isfinite(d)
     d = np.where(valid_d, d, 0.0)
-    out, valid = sample_bilinear(img, xx - d * dx, yy - d * dy, fill=fill)
+    out, valid = sample_bilinear(img, xx - d * dx, yy - d * dy, fill=fill, edge=edge)
     valid &= valid_d
     if not valid_d.all():
         out[~valid_d] = fill
@@ -124,9 +421,21 @@ def forward_warp_disparity(disparity: np.ndarray, offset: tuple[float, float]) -
     land on the same pixel the larger disparity (nearer surface) wins. Pixels nothing lands on
     are NaN (holes).
 
+    Parameters
+    ----------
+    disparity : ndarray, shape (H, W)
+        Reference disparity (px per baseline); NaN = unknown.
+    offset : (dx, dy)
+        View position minus reference position, in baselines.
+
     Returns
     -------
     ndarray of float32, shape (H, W)
+
+    Examples
+    --------
+    >>> forward_warp_disparity(np.ones((1, 3)), (1.0, 0.0)).tolist()
+    [[1.0, 1.0, nan]]
     """
     d = np.asarray(disparity, dtype=np.float64)
     H, W = d.shape
@@ -141,42 +450,3 @@ def forward_warp_disparity(disparity: np.ndarray, offset: tuple[float, float]) -
     np.maximum.at(out, idx, d[ok])
     out[~np.isfinite(out)] = np.nan
     return out.reshape(H, W).astype(np.float32)
-
-
-def axis_taps(n: int, shift: float, pad: int = 0):
-    """Separable bilinear taps along one axis, coordinates clamped (replicated border).
-
-    For ``i = -pad .. n - 1 + pad`` the sample ``i + shift`` is
-    ``(1 - f) a[i0] + f a[i1]`` with the returned ``(i0, i1, f)`` (int64, int64, float64).
-    Clamping makes every window pixel outside the image take the nearest border value.
-    """
-    coord = np.clip(np.arange(-pad, n + pad, dtype=np.float64) + shift, 0.0, n - 1)
-    i0 = np.minimum(np.floor(coord).astype(np.int64), max(n - 2, 0))
-    i1 = np.minimum(i0 + 1, n - 1)
-    f = coord - i0
-    return i0, i1, f
-
-
-def axis_valid(n: int, shift: float) -> np.ndarray:
-    """True where ``i + shift`` (``i = 0 .. n - 1``) lies inside ``[0, n - 1]`` (within
-    :data:`INSIDE_EPS`)."""
-    c = np.arange(n, dtype=np.float64) + shift
-    return (c >= -INSIDE_EPS) & (c <= n - 1 + INSIDE_EPS)
-
-
-def shift_map(img: np.ndarray, sx: float, sy: float, pad: int = 0):
-    """Sample ``img[..., y + sy, x + sx]`` bilinearly on a grid padded by ``pad`` pixels.
-
-    The grid is ``y = -pad .. H - 1 + pad``, ``x = -pad .. W - 1 + pad``; coordinates are
-    clamped (replicated border, :func:`axis_taps`), the result is float64.  Also returns the
-    validity ``(H, W)`` of the unpadded samples (inside the image, :func:`axis_valid`).
-    Leading axes are carried along (channel stacks ``(..., H, W)``).
-    """
-    a = np.asarray(img, dtype=np.float64)
-    H, W = a.shape[-2:]
-    y0, y1, fy = axis_taps(H, sy, pad)
-    x0, x1, fx = axis_taps(W, sx, pad)
-    rows = a[..., y0, :] * (1 - fy)[:, None] + a[..., y1, :] * fy[:, None]
-    out = rows[..., x0] * (1 - fx) + rows[..., x1] * fx
-    valid = axis_valid(H, sy)[:, None] & axis_valid(W, sx)[None, :]
-    return out, valid
