@@ -179,6 +179,7 @@ from .warp import axis_taps as _axis_interp
 from .warp import axis_valid as _axis_valid
 from .warp import shift_map
 from .errors import InvalidInputError
+from . import regularisers as _reg
 
 __all__ = [
     "DepthParams",
@@ -202,7 +203,7 @@ __all__ = [
 ]
 
 DEFOCUS_MODES = ("off", "paper", "gaussian", "flat", "tv")
-OPTIMIZERS = ("graphcut", "sgm", "wta")
+OPTIMIZERS = tuple(_reg.OPTIMISERS)
 CORR_METRICS = ("fused", "bwncc", "bwncc-paper", "ncc", "rsncc", "census", "census-rsncc")
 _PRIOR_CODE = {"gaussian": 0, "flat": 1, "tv": 2}
 #: The reference descriptor blocks with their float64 statistics (~20 bytes per channel and
@@ -845,18 +846,6 @@ def _finish_aggregation(acc, min_selected, min_half_views, edge_idx, split: bool
     return C, N
 
 
-def _fill_nan_worst(C):
-    """Entries with no valid view (NaN) -> the pixel's worst valid cost (SPEC §4 rule)."""
-    bad = ~np.isfinite(C)
-    if not bad.any():
-        return C
-    worst = np.where(bad, -np.inf, C).max(axis=0)
-    gw = worst[np.isfinite(worst)]
-    g = float(gw.max()) if gw.size else 0.0
-    worst = np.where(np.isfinite(worst), worst, g).astype(np.float32)
-    return np.where(bad, worst[None], C).astype(np.float32)
-
-
 # ============================================================================================
 # Occlusion edges
 # ============================================================================================
@@ -1092,7 +1081,7 @@ def defocus_volume(In_views, offsets, wl, labels, prior="gaussian", lambda_r="pe
             lr = 0.0
         D[k] = defocus_cost(P, V, wl, lr, prior, sigma_d, p_eps, impl)
         anyvalid[k] = V.any(axis=0)
-    D = _fill_nan_worst(np.where(anyvalid, D, np.nan).astype(np.float32))
+    D = _reg.fill_invalid(np.where(anyvalid, D, np.nan).astype(np.float32))
     return D, lam_fixed
 
 
@@ -1128,6 +1117,25 @@ def _occlusion_edge_weights(edges, f_c, threshold, factor):
 # ============================================================================================
 # Public entry point
 # ============================================================================================
+
+
+def _mrf_params(optimizer: str, params: DepthParams, step: float):
+    """The optimiser settings of :func:`depth`: ``lambda min(|Δd|, T)`` with ``lambda =
+    params.smoothness`` per disparity unit and ``T = params.truncation`` (SGM: per label step
+    ``p1 = lambda step``, ``p2 = lambda T``, P2 adapted to the guide; graph cuts: plain
+    alpha-expansion).  ``smoothness == 0`` is WTA."""
+    lam, T = params.smoothness, params.truncation
+    if lam == 0:
+        return _reg.WTAParams()
+    settings = {
+        "wta": {},
+        "sgm": dict(p1=lam * step, p2=lam * T, paths=int(params.sgm_paths),
+                    smoothness="truncated_linear", adaptive_p2=True),
+        "graphcut": dict(smoothness="truncated_linear", weight=lam, truncation=T,
+                         edge_sigma=params.edge_sigma, max_cycles=int(params.max_cycles),
+                         levels=0),
+    }
+    return _reg.make_params(optimizer, settings[optimizer])
 
 
 def _check_bool(name, v):
@@ -1168,7 +1176,7 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
         unknown metric / optimiser / defocus mode, fewer than 2 views.
     """
     from .lightfield import LightField, resolve_disparity_range
-    from .regularisers import confidence, graphcut, sgm, subpixel_refine, weighted_median
+    from .regularisers import confidence, subpixel_refine, weighted_median
 
     if not isinstance(lf, LightField):
         raise InvalidInputError(f"lf must be a hyperlf.LightField, got {type(lf).__name__}")
@@ -1277,7 +1285,7 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
     C, n_used = _finish_aggregation(acc, int(params.min_selected), int(params.min_half_views),
                                     edge_idx, occlusion_split)
     del acc
-    C = _fill_nan_worst(C)
+    C = _reg.fill_invalid(C)
     f_c_idx = np.argmin(C, axis=0)
     f_c = labels[f_c_idx].astype(np.float32)
     t_agg += time.perf_counter() - t1
@@ -1314,21 +1322,13 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
     U = np.ascontiguousarray(U, np.float32)
     step = float(labels[1] - labels[0])
     guide = In[ref].astype(np.float32)
-    vol = U
-    if optimizer == "wta" or params.smoothness == 0:
-        lab = np.argmin(U, axis=0)
-    elif optimizer == "sgm":
-        vol = sgm(U, params.smoothness * step, params.smoothness * params.truncation,
-                  paths=int(params.sgm_paths), guide=guide, smoothness="truncated_linear")
-        lab = np.argmin(vol, axis=0)
-    else:
-        ew = None
-        if params.occlusion_weight != 1.0 and edges.any():
-            ew = _occlusion_edge_weights(edges, f_c, params.truncation / 2.0,
-                                         params.occlusion_weight)
-        lab = graphcut(U, "truncated_linear", params.smoothness, params.truncation, guide=guide,
-                       edge_sigma=params.edge_sigma, max_cycles=int(params.max_cycles),
-                       labels=labels, edge_weights=ew)
+    mrf = _mrf_params(optimizer, params, step)
+    ew = None
+    if isinstance(mrf, _reg.GraphCutParams) and params.occlusion_weight != 1.0 and edges.any():
+        ew = _occlusion_edge_weights(edges, f_c, params.truncation / 2.0,
+                                     params.occlusion_weight)
+    res = _reg.optimise(U, mrf, guide=guide, labels=labels, edge_weights=ew)
+    vol, lab = res.volume, res.labels
     timings["mrf_s"] = time.perf_counter() - t1
     t1 = time.perf_counter()
     if params.refine:
