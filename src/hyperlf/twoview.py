@@ -40,8 +40,9 @@ Pipeline
    smoothness ``weight * w_pq * min(|d_p - d_q|, truncation)`` with contrast-sensitive
    ``w_pq = exp(-dI^2 / (2 edge_sigma^2))`` from the reference view's input image,
    solved coarse-to-fine by :func:`hyperlf.regularisers.graphcut_multiscale`: parameter
-   ``levels``, default 2 halvings; ``levels=0`` is plain alpha-expansion, about 8-12x slower
-   on Teddy for an energy 0.5-1 % lower).
+   ``levels``, default 2 halvings; ``levels=0`` is plain alpha-expansion, slower for a
+   slightly lower energy).  Each optimiser's parameters become a typed object
+   (:func:`hyperlf.regularisers.make_params`) run by :func:`hyperlf.regularisers.optimise`.
 6. **Occlusions** (``"lr-fill"``): :func:`~hyperlf.regularisers.left_right_check` (tolerance
    1 px) on the integer maps, then :func:`~hyperlf.regularisers.fill_occlusions` (each
    inconsistent pixel takes the lower of the nearest consistent disparities on its row, i.e.

@@ -25,12 +25,29 @@ def _check_disp(d, name):
 
 
 def left_right_check(disp_left, disp_right, tol: float = 1.0) -> np.ndarray:
-    """Left-right consistency: bool mask ``(H, W)``, True where the left disparity is confirmed.
+    """Left-right consistency: True where the left disparity is confirmed by the right one.
 
     Left pixel ``x`` with disparity ``d`` looks up the right map at ``x_r = round(x - d)``
     (Middlebury: ``x_right = x_left - d``; the right map stores, for right pixel ``x_r``, the
-    disparity ``d_R`` with ``x_left = x_r + d_R``, both positive). Valid iff ``x_r`` is inside
-    the image, both values are finite and ``|d_L - d_R(x_r)| <= tol``.
+    disparity ``d_R`` with ``x_left = x_r + d_R``, both positive).
+
+    Parameters
+    ----------
+    disp_left, disp_right : array_like, shape (H, W)
+        Disparity maps of the two views (NaN allowed: never valid).
+    tol : float
+        Largest accepted ``|d_L - d_R(x_r)|``.
+
+    Returns
+    -------
+    ndarray of bool, shape (H, W)
+        True iff ``x_r`` is inside the image, both values are finite and they agree to ``tol``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> left_right_check(np.full((1, 4), 1.0), np.full((1, 4), 1.0)).tolist()
+    [[False, True, True, True]]
     """
     dl = _check_disp(disp_left, "disp_left").astype(np.float64)
     dr = _check_disp(disp_right, "disp_right").astype(np.float64)
@@ -55,9 +72,32 @@ def fill_occlusions(disp, valid) -> np.ndarray:
 
     Each invalid pixel takes ``min`` of the nearest valid disparity to its left and to its right
     on the same row (the lower disparity = the background); with a valid neighbour on one side
-    only, that one. Rows with no valid pixel get the minimum valid disparity of the whole map.
-    No median filtering. Returns a float array (float32 unless ``disp`` is float64).
-    Raises :class:`InvalidInputError` when no pixel is valid.
+    only, that one.  Rows with no valid pixel get the minimum valid disparity of the whole map.
+    No median filtering.
+
+    Parameters
+    ----------
+    disp : array_like, shape (H, W)
+        Disparity map.
+    valid : array_like of bool, shape (H, W)
+        Pixels to keep (e.g. :func:`left_right_check`); non-finite values count as invalid.
+
+    Returns
+    -------
+    ndarray, shape (H, W)
+        float32 (float64 when ``disp`` is float64), every pixel filled.
+
+    Raises
+    ------
+    InvalidInputError
+        No pixel is valid.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> fill_occlusions(np.array([[5.0, 1.0, 7.0, 3.0]]),
+    ...                 np.array([[False, True, False, True]])).tolist()
+    [[1.0, 1.0, 1.0, 3.0]]
     """
     d = _check_disp(disp, "disp")
     out_dtype = np.float64 if d.dtype == np.float64 else np.float32
@@ -83,11 +123,21 @@ def fill_occlusions(disp, valid) -> np.ndarray:
 def right_cost_from_left(cost_left, labels=None) -> np.ndarray:
     """Cost volume for the right view from the left one: ``C_R(x, d) = C_L(x + d, d)``.
 
-    ``labels`` are the (L,) disparities of the labels (default ``0..L-1``). Integer disparities
-    shift exactly; non-integer ones interpolate ``C_L`` linearly along x. Entries whose source
-    ``x + d`` falls outside the image get that right pixel's worst valid cost (a right pixel with
-    no valid label gets the worst cost of the volume). WTA on the result gives the right
-    disparity map for :func:`left_right_check`.
+    Integer disparities shift exactly; non-integer ones interpolate ``C_L`` linearly along x.
+    Entries whose source ``x + d`` falls outside the image get that right pixel's worst valid
+    cost (a right pixel with no valid label gets the worst cost of the volume).  WTA on the
+    result gives the right disparity map for :func:`left_right_check`.
+
+    Parameters
+    ----------
+    cost_left : array_like, shape (L, H, W)
+        Finite left-referenced volume (left ``x`` vs right ``x - d``).
+    labels : array_like, shape (L,), optional
+        Disparities of the labels (default ``0..L-1``).
+
+    Returns
+    -------
+    ndarray, float32, shape (L, H, W)
     """
     c = check_cost(cost_left, "cost_left")
     L, H, W = c.shape
@@ -125,11 +175,30 @@ def right_cost_from_left(cost_left, labels=None) -> np.ndarray:
 def subpixel_refine(cost, labels_map, labels=None) -> np.ndarray:
     """Sub-pixel disparity by a parabola through the cost at labels ``l-1, l, l+1``.
 
-    ``labels`` must be evenly spaced (step ``s``, default ``0..L-1``). Offset
-    ``o = (c[l-1] - c[l+1]) / (2 (c[l-1] - 2 c[l] + c[l+1]))`` clamped to ``[-0.5, 0.5]``;
-    disparity ``labels[l] + o * s``. No refinement (``o = 0``) at the first and last label or
-    where the parabola is not convex. Pass the volume whose minimum chose the labels (for SGM,
-    the aggregated volume). Returns float32 ``(H, W)``.
+    Offset ``o = (c[l-1] - c[l+1]) / (2 (c[l-1] - 2 c[l] + c[l+1]))`` clamped to
+    ``[-0.5, 0.5]``; disparity ``labels[l] + o * s``.  No refinement (``o = 0``) at the first
+    and last label or where the parabola is not convex.
+
+    Parameters
+    ----------
+    cost : array_like, shape (L, H, W)
+        The volume whose minimum chose the labels (for SGM the aggregated volume,
+        :attr:`OptimiseResult.volume`).
+    labels_map : array_like of int, shape (H, W)
+        Chosen label indices.
+    labels : array_like, shape (L,), optional
+        Evenly spaced label disparities (step ``s``, default ``0..L-1``).
+
+    Returns
+    -------
+    ndarray, float32, shape (H, W)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> c = ((np.arange(5.0) - 2.25) ** 2)[:, None, None]
+    >>> float(subpixel_refine(c, np.array([[2]]))[0, 0])
+    2.25
     """
     c = check_cost(cost)
     L, H, W = c.shape
@@ -160,13 +229,24 @@ def subpixel_refine(cost, labels_map, labels=None) -> np.ndarray:
 
 
 def confidence(cost, labels_map=None) -> np.ndarray:
-    """Cost-margin confidence in [0, 1], float32 ``(H, W)``.
+    """Cost-margin confidence in [0, 1].
 
     ``(c2 - c(l)) / (max_l c - min_l c)`` clipped to [0, 1], where ``l`` is the chosen label
-    (default: WTA) and ``c2`` the lowest cost among labels more than one step away from ``l``
-    (so a broad minimum is not penalised). 0 for flat cost curves and where a distant label is
-    as good as the chosen one; 1 when the chosen label is the minimum and everything away from
-    it is the maximum.
+    and ``c2`` the lowest cost among labels more than one step away from ``l`` (so a broad
+    minimum is not penalised).  0 for flat cost curves and where a distant label is as good as
+    the chosen one; 1 when the chosen label is the minimum and everything away from it is the
+    maximum.
+
+    Parameters
+    ----------
+    cost : array_like, shape (L, H, W)
+        The volume that chose the labels.
+    labels_map : array_like of int, shape (H, W), optional
+        Chosen label indices (default: WTA of ``cost``).
+
+    Returns
+    -------
+    ndarray, float32, shape (H, W)
     """
     c = check_cost(cost)
     L, H, W = c.shape
@@ -224,27 +304,41 @@ def _weighted_median_numpy(d, g, r, sigma):
 
 def weighted_median(disparity, guide, radius: int = 7, sigma: float = 0.1,
                     impl: str = "auto") -> np.ndarray:
-    """Guided weighted median of a disparity map: an edge-aware post-filter that moves depth
-    edges onto image edges (window-based costs "fatten" foreground objects by about half a
-    window across occlusion boundaries).
+    """Guided weighted median of a disparity map: an edge-aware post-filter.
 
-    Each pixel takes the weighted median of the disparities in its ``(2 radius + 1)^2`` window,
-    weights ``exp(-(g_p - g_q)^2 / (2 sigma^2))`` from the guide divided by its mean absolute
-    value (borders replicated).  The weighted median is the smallest window value whose
-    cumulative weight reaches half the total.  A median keeps planar (linear) disparity ramps
-    where the weights are symmetric and removes isolated outliers.  It corrects a fattened
-    edge of up to about ``radius / 2`` px: beyond that the wrong disparity holds the majority
-    of the pixels on the edge's own side.
+    It moves depth edges onto image edges (window-based costs "fatten" foreground objects by
+    about half a window across occlusion boundaries).  Each pixel takes the weighted median of
+    the disparities in its ``(2 radius + 1)^2`` window, weights
+    ``exp(-(g_p - g_q)^2 / (2 sigma^2))`` from the guide divided by its mean absolute value
+    (borders replicated).  The weighted median is the smallest window value whose cumulative
+    weight reaches half the total.  A median keeps planar (linear) disparity ramps where the
+    weights are symmetric and removes isolated outliers.  It corrects a fattened edge of up to
+    about ``radius / 2`` px: beyond that the wrong disparity holds the majority of the pixels
+    on the edge's own side.
 
     Parameters
     ----------
-    disparity : finite (H, W) map, px.
-    guide : (H, W) image of the same view (any positive scale).
-    radius : window radius in px (0: no-op).
-    sigma : guide similarity scale, relative to the guide's mean.
-    impl : ``"numpy"`` (reference, memory ~ 16 (2r+1)^2 H W bytes), ``"numba"`` or ``"auto"``.
+    disparity : array_like, shape (H, W)
+        Finite disparity map, px.
+    guide : array_like, shape (H, W)
+        Image of the same view (any positive scale).
+    radius : int
+        Window radius in px (0: no-op).
+    sigma : float
+        Guide similarity scale, relative to the guide's mean.
+    impl : {"auto", "numba", "numpy"}
+        ``"numpy"`` is the reference (memory ~ 16 (2r+1)^2 H W bytes); ``"auto"`` is numba.
 
-    Returns float32 (H, W).
+    Returns
+    -------
+    ndarray, float32, shape (H, W)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> d = np.zeros((5, 5)); d[2, 2] = 9.0          # an isolated outlier
+    >>> float(weighted_median(d, np.ones((5, 5)), radius=1, impl="numpy")[2, 2])
+    0.0
     """
     d, g, r, sigma = _wmf_args(disparity, guide, radius, sigma)
     if impl not in ("auto", "numpy", "numba"):
