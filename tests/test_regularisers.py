@@ -107,6 +107,58 @@ def test_fill_invalid_uses_pixel_worst_valid_cost():
     assert np.isfinite(out).all()
 
 
+def _fill_nan_worst_reference(C):
+    """The rule hyperlf.hlf used before it called fill_invalid (kept to pin bit identity)."""
+    bad = ~np.isfinite(C)
+    if not bad.any():
+        return C
+    worst = np.where(bad, -np.inf, C).max(axis=0)
+    gw = worst[np.isfinite(worst)]
+    g = float(gw.max()) if gw.size else 0.0
+    worst = np.where(np.isfinite(worst), worst, g).astype(np.float32)
+    return np.where(bad, worst[None], C).astype(np.float32)
+
+
+def test_fill_invalid_is_bit_identical_to_the_former_hlf_rule(rng):
+    c = rng.random((6, 9, 11)).astype(np.float32)
+    c[rng.random(c.shape) < 0.3] = np.nan
+    c[:, 2, 3] = np.nan                               # a pixel with no valid entry
+    out = R.fill_invalid(c)
+    np.testing.assert_array_equal(out, _fill_nan_worst_reference(c))
+    assert out.dtype == np.float32
+    assert out[0, 2, 3] == np.nanmax(c)               # the volume's worst valid cost
+
+
+def test_fill_invalid_empty_zero_and_mask():
+    c = np.array([[[1.0, 2.0, np.nan]], [[3.0, 5.0, np.nan]], [[4.0, 0.5, np.nan]]], np.float32)
+    invalid = np.array([[[False, False, True]], [[False, True, True]], [[True, False, True]]])
+    out = R.fill_invalid(c, invalid, empty="zero")
+    np.testing.assert_array_equal(out[:, 0, 0], [1.0, 3.0, 3.0])    # worst valid of the pixel
+    np.testing.assert_array_equal(out[:, 0, 1], [2.0, 2.0, 0.5])    # label 1 invalid: max(2, .5)
+    np.testing.assert_array_equal(out[:, 0, 2], [0.0, 0.0, 0.0])    # no valid entry: 0
+    glob = R.fill_invalid(c, invalid)
+    np.testing.assert_array_equal(glob[:, 0, 2], [3.0, 3.0, 3.0])   # the volume's worst valid
+    np.testing.assert_array_equal(R.fill_invalid(np.full((2, 1, 1), np.nan), empty="zero"),
+                                  np.zeros((2, 1, 1), np.float32))
+    with pytest.raises(InvalidInputError, match="no valid entry"):
+        R.fill_invalid(np.full((2, 1, 1), np.nan))
+    with pytest.raises(InvalidInputError, match="empty must be one of"):
+        R.fill_invalid(c, empty="nan")
+
+
+def test_fill_invalid_zero_matches_the_costs_rule(rng):
+    from hyperlf import costs
+
+    L, H, W, dmin = 7, 5, 6, 0
+    c = rng.random((L, H, W)).astype(np.float32)
+    valid = costs.candidate_validity((H, W), dmin, dmin + L - 1)
+    valid = valid & (rng.random((L, H, W)) < 0.8)
+    valid[:, 1, 4] = False                            # a pixel with no valid candidate
+    expected = costs.fill_invalid(c.copy(), dmin, valid)
+    np.testing.assert_array_equal(R.fill_invalid(c, ~valid, empty="zero"), expected)
+    assert np.all(expected[:, 1, 4] == 0)
+
+
 # ----------------------------------------------------------------------------------------------
 # SGM
 # ----------------------------------------------------------------------------------------------

@@ -341,26 +341,31 @@ def _guided_term(n_labels: int, kmin: int, base: float, init: np.ndarray, guidan
     return g
 
 
-def _optimise(D, optimizer, params, guide, labels):
+#: Completion's optimiser settings per name, in units of the normalised data term: plain
+#: alpha-expansion (no coarse to fine) and SGM without a guide; ``params`` override them.
+_OPTIMISER_DEFAULTS: dict[str, dict[str, Any]] = {
+    "wta": {},
+    "sgm": {"p1": 0.5, "p2": 2.0, "paths": 8, "smoothness": "p1p2", "adaptive_p2": False},
+    "graphcut": {"smoothness": "truncated_linear", "weight": 1.0, "truncation": 2.0,
+                 "edge_sigma": None, "max_cycles": 3, "levels": 0},
+}
+
+
+def _optimiser_params(optimizer, params):
+    """The typed parameters of ``optimizer``: completion's defaults updated with ``params``."""
     from . import regularisers as _reg
 
-    if optimizer == "sgm":
-        vol = _reg.sgm(D, params.get("p1", 0.5), params.get("p2", 2.0),
-                       paths=int(params.get("paths", 8)))
-        f = _reg.wta(vol)
-    elif optimizer == "graphcut":
-        f = _reg.graphcut(D, weight=params.get("weight", 1.0),
-                          truncation=params.get("truncation", 2.0), guide=guide,
-                          edge_sigma=params.get("edge_sigma"),
-                          max_cycles=int(params.get("max_cycles", 3)), labels=labels)
-        vol = D
-    elif optimizer == "wta":
-        f = _reg.wta(D)
-        vol = D
-    else:
-        raise InvalidInputError(f"optimizer must be 'sgm', 'graphcut' or 'wta', got {optimizer!r}")
-    disp = _reg.subpixel_refine(vol, f, labels)
-    conf = _reg.confidence(vol, f)
+    return _reg.make_params(optimizer, {**_OPTIMISER_DEFAULTS.get(optimizer, {}),
+                                        **(params or {})})
+
+
+def _optimise(D, opt, guide, labels):
+    """Sub-pixel disparity and confidence of one reference's data term ``D``."""
+    from . import regularisers as _reg
+
+    res = _reg.optimise(D, opt, guide=guide, labels=labels)
+    disp = _reg.subpixel_refine(res.volume, res.labels, labels)
+    conf = _reg.confidence(res.volume, res.labels)
     return disp, conf
 
 
@@ -391,7 +396,7 @@ def pairwise_disparities(lf, initial: np.ndarray, metric: str = "rsncc", optimiz
     init = np.asarray(initial, dtype=np.float32)
     if init.shape != (R, C, H, W):
         raise InvalidInputError(f"initial must have shape {(R, C, H, W)}, got {init.shape}")
-    params = dict(params or {})
+    opt = _optimiser_params(optimizer, params)
     sum_wd = np.zeros((R, C, H, W), dtype=np.float32)
     sum_w = np.zeros((R, C, H, W), dtype=np.float32)
     cnt = np.zeros((R, C, H, W), dtype=np.uint8)
@@ -430,7 +435,7 @@ def pairwise_disparities(lf, initial: np.ndarray, metric: str = "rsncc", optimiz
         for side, vol, img, ini in (("L", cl, L_img, ia), ("R", cr, R_img, ib)):
             D = _reg.data_term(vol) / np.float32(s)
             D = D + _guided_term(n, kmin, base, ini, guidance, band, outside=10.0)
-            disp, conf = _optimise(D.astype(np.float32), optimizer, params, img, labels)
+            disp, conf = _optimise(D.astype(np.float32), opt, img, labels)
             out[side] = (disp, conf)
         dL, cL = out["L"]
         dR, cR = out["R"]

@@ -135,6 +135,7 @@ from .costs import cost_names, get_cost, view_costs
 from .imageops import gradient_magnitude, normalise_intensity
 from .warp import shift_map
 from .errors import InvalidInputError
+from . import regularisers as _reg
 
 __all__ = [
     "DepthParams",
@@ -166,7 +167,7 @@ __all__ = [
 ]
 
 DEFOCUS_MODES = ("off", "paper", "gaussian", "flat", "tv")
-OPTIMIZERS = ("graphcut", "sgm", "wta")
+OPTIMIZERS = tuple(_reg.OPTIMISERS)
 #: The costs available for H-LF matching (those of the registry with a light-field evaluator;
 #: :func:`hyperlf.costs.cost_names` with ``light_field=True`` is the live list).
 CORR_METRICS = cost_names(light_field=True)
@@ -447,18 +448,6 @@ def _finish_aggregation(acc, min_selected, min_half_views, edge_idx, split: bool
     return C, N
 
 
-def _fill_nan_worst(C):
-    """Entries with no valid view (NaN) -> the pixel's worst valid cost (SPEC §4 rule)."""
-    bad = ~np.isfinite(C)
-    if not bad.any():
-        return C
-    worst = np.where(bad, -np.inf, C).max(axis=0)
-    gw = worst[np.isfinite(worst)]
-    g = float(gw.max()) if gw.size else 0.0
-    worst = np.where(np.isfinite(worst), worst, g).astype(np.float32)
-    return np.where(bad, worst[None], C).astype(np.float32)
-
-
 # ============================================================================================
 # Occlusion edges
 # ============================================================================================
@@ -694,7 +683,7 @@ def defocus_volume(In_views, offsets, wl, labels, prior="gaussian", lambda_r="pe
             lr = 0.0
         D[k] = defocus_cost(P, V, wl, lr, prior, sigma_d, p_eps, impl)
         anyvalid[k] = V.any(axis=0)
-    D = _fill_nan_worst(np.where(anyvalid, D, np.nan).astype(np.float32))
+    D = _reg.fill_invalid(np.where(anyvalid, D, np.nan).astype(np.float32))
     return D, lam_fixed
 
 
@@ -730,6 +719,25 @@ def _occlusion_edge_weights(edges, f_c, threshold, factor):
 # ============================================================================================
 # Public entry point
 # ============================================================================================
+
+
+def _mrf_params(optimizer: str, params: DepthParams, step: float):
+    """The optimiser settings of :func:`depth`: ``lambda min(|Δd|, T)`` with ``lambda =
+    params.smoothness`` per disparity unit and ``T = params.truncation`` (SGM: per label step
+    ``p1 = lambda step``, ``p2 = lambda T``, P2 adapted to the guide; graph cuts: plain
+    alpha-expansion).  ``smoothness == 0`` is WTA."""
+    lam, T = params.smoothness, params.truncation
+    if lam == 0:
+        return _reg.WTAParams()
+    settings = {
+        "wta": {},
+        "sgm": dict(p1=lam * step, p2=lam * T, paths=int(params.sgm_paths),
+                    smoothness="truncated_linear", adaptive_p2=True),
+        "graphcut": dict(smoothness="truncated_linear", weight=lam, truncation=T,
+                         edge_sigma=params.edge_sigma, max_cycles=int(params.max_cycles),
+                         levels=0),
+    }
+    return _reg.make_params(optimizer, settings[optimizer])
 
 
 def _check_bool(name, v):
@@ -954,7 +962,12 @@ def correspondence(prob: DepthProblem, *, progress: bool = False, timings=None):
     t1 = time.perf_counter()
     C, n_used = _finish_aggregation(acc, int(p.min_selected), int(p.min_half_views),
                                     prob.edge_idx, prob.occlusion_split)
-    C = _fill_nan_worst(C)
+    if not np.isfinite(C).any():
+        dmin, dmax = prob.disparity_range
+        raise InvalidInputError(
+            f"no view overlaps the reference at any disparity in ({dmin:g}, {dmax:g}): "
+            "narrow the disparity range")
+    C = _reg.fill_invalid(C)
     t_agg += time.perf_counter() - t1
     if timings is not None:
         timings["correspondence_s"] = t_cost
@@ -1014,28 +1027,16 @@ def regularise(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray):
     volume : ndarray, float32 (L, H, W)
         The volume refinement and confidence read (the SGM-aggregated one for SGM).
     """
-    from .regularisers import graphcut, sgm
-
     p = prob.params
     labels = prob.labels
     step = float(labels[1] - labels[0])
     guide = prob.In[prob.reference].astype(np.float32)
-    vol = U
-    if prob.optimizer == "wta" or p.smoothness == 0:
-        lab = np.argmin(U, axis=0)
-    elif prob.optimizer == "sgm":
-        vol = sgm(U, p.smoothness * step, p.smoothness * p.truncation,
-                  paths=int(p.sgm_paths), guide=guide, smoothness="truncated_linear")
-        lab = np.argmin(vol, axis=0)
-    else:
-        ew = None
-        if p.occlusion_weight != 1.0 and prob.edges.any():
-            ew = _occlusion_edge_weights(prob.edges, f_c, p.truncation / 2.0,
-                                         p.occlusion_weight)
-        lab = graphcut(U, "truncated_linear", p.smoothness, p.truncation, guide=guide,
-                       edge_sigma=p.edge_sigma, max_cycles=int(p.max_cycles),
-                       labels=labels, edge_weights=ew)
-    return lab, vol
+    mrf = _mrf_params(prob.optimizer, p, step)
+    ew = None
+    if isinstance(mrf, _reg.GraphCutParams) and p.occlusion_weight != 1.0 and prob.edges.any():
+        ew = _occlusion_edge_weights(prob.edges, f_c, p.truncation / 2.0, p.occlusion_weight)
+    res = _reg.optimise(U, mrf, guide=guide, labels=labels, edge_weights=ew)
+    return res.labels, res.volume
 
 
 def refine(volume: np.ndarray, labels_map: np.ndarray, labels: np.ndarray,

@@ -40,8 +40,9 @@ Pipeline
    smoothness ``weight * w_pq * min(|d_p - d_q|, truncation)`` with contrast-sensitive
    ``w_pq = exp(-dI^2 / (2 edge_sigma^2))`` from the reference view's input image,
    solved coarse-to-fine by :func:`hyperlf.regularisers.graphcut_multiscale`: parameter
-   ``levels``, default 2 halvings; ``levels=0`` is plain alpha-expansion, about 8-12x slower
-   on Teddy for an energy 0.5-1 % lower).
+   ``levels``, default 2 halvings; ``levels=0`` is plain alpha-expansion, slower for a
+   slightly lower energy).  Each optimiser's parameters become a typed object
+   (:func:`hyperlf.regularisers.make_params`) run by :func:`hyperlf.regularisers.optimise`.
 6. **Occlusions** (``"lr-fill"``): :func:`~hyperlf.regularisers.left_right_check` (tolerance
    1 px) on the integer maps, then :func:`~hyperlf.regularisers.fill_occlusions` (each
    inconsistent pixel takes the lower of the nearest consistent disparities on its row, i.e.
@@ -77,17 +78,12 @@ __all__ = [
     "default_window",
 ]
 
-OPTIMIZERS = ("graphcut", "sgm", "wta")
+#: Optimiser names (:data:`hyperlf.regularisers.OPTIMISERS`).
+OPTIMIZERS = tuple(_reg.OPTIMISERS)
 OCCLUSION_MODES = ("lr-fill", "none")
 
-# Parameter names accepted per optimiser (``params`` of :func:`stereo`).
-_PARAM_KEYS = {
-    "wta": set(),
-    "sgm": {"p1", "p2", "paths", "smoothness"},
-    "graphcut": {"smoothness", "weight", "truncation", "edge_sigma", "max_cycles", "levels"},
-}
-
-# Fallback parameters per optimiser, in units of the normalised data term (module doc, step 4).
+# Two-view's own fallback parameters per optimiser, in units of the normalised data term
+# (module doc, step 4); graph cuts run coarse to fine (``levels=2``).
 _BASE_PARAMS: dict[str, dict[str, Any]] = {
     "wta": {},
     "sgm": {"p1": 0.5, "p2": 2.0, "paths": 8, "smoothness": "p1p2"},
@@ -242,17 +238,14 @@ def select_channels(left, right, channel=None) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _merge_params(metric: str, optimizer: str, params) -> dict:
+    """Defaults of ``(metric, optimizer)`` updated with ``params``, checked by the optimiser's
+    parameter dataclass (unknown keys and invalid values raise InvalidInputError)."""
     p = default_params(metric, optimizer)
-    if params is None:
-        return p
-    if not isinstance(params, dict):
-        raise InvalidInputError(f"params must be a dict, got {type(params).__name__}")
-    unknown = set(params) - _PARAM_KEYS[optimizer]
-    if unknown:
-        allowed = ", ".join(sorted(_PARAM_KEYS[optimizer])) or "none"
-        raise InvalidInputError(
-            f"unknown parameter(s) {sorted(unknown)} for optimizer {optimizer!r} (allowed: {allowed})")
-    p.update(params)
+    if params is not None:
+        if not isinstance(params, dict):
+            raise InvalidInputError(f"params must be a dict, got {type(params).__name__}")
+        p.update(params)
+    _reg.make_params(optimizer, p)
     return p
 
 
@@ -280,28 +273,14 @@ def _data_scale(cost_left: np.ndarray, dmin: int) -> float:
     return s if s > 0 and np.isfinite(s) else 1.0
 
 
-def _optimise(D: np.ndarray, optimizer: str, p: dict, guide, labels, subpixel: bool,
-              progress: bool):
+def _optimise(D: np.ndarray, params, guide, labels, subpixel: bool, progress: bool):
     """Return (integer label map, float disparity, volume used for confidence)."""
-    if optimizer == "wta":
-        f = _reg.wta(D)
-        vol = D
-    elif optimizer == "sgm":
-        vol = _reg.sgm(D, p["p1"], p["p2"], paths=p.get("paths", 8),
-                       smoothness=p.get("smoothness", "p1p2"))
-        f = _reg.wta(vol)
-    else:
-        f = _reg.graphcut_multiscale(
-            D, smoothness=p.get("smoothness", "truncated_linear"), weight=p["weight"],
-            truncation=p.get("truncation"), guide=guide, edge_sigma=p.get("edge_sigma"),
-            max_cycles=int(p.get("max_cycles", 3)), labels=labels,
-            levels=int(p.get("levels", 2)), progress=bool(progress) or None)
-        vol = D
+    res = _reg.optimise(D, params, guide=guide, labels=labels, progress=progress)
     if subpixel:
-        disp = _reg.subpixel_refine(vol, f, labels)
+        disp = _reg.subpixel_refine(res.volume, res.labels, labels)
     else:
-        disp = labels[f].astype(np.float32)
-    return f, disp, vol
+        disp = labels[res.labels].astype(np.float32)
+    return res.labels, disp, res.volume
 
 
 def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "graphcut",
@@ -318,6 +297,7 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
     occlusion = _check_occlusion(occlusion)
     name = _costs.resolve_metric(metric)
     p = _merge_params(name, optimizer, params)
+    opt = _reg.make_params(optimizer, p)
     cl = np.asarray(cost_left, dtype=np.float32)
     if cl.ndim != 3:
         raise InvalidInputError(f"cost_left must be (L, H, W), got {cl.shape}")
@@ -326,7 +306,7 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
     s = _data_scale(cl, dmin)
     t0 = time.perf_counter()
     DL = _reg.data_term(cl) / np.float32(s)
-    fl, disp_l, vol_l = _optimise(DL, optimizer, p, guide_left, labels, subpixel, progress)
+    fl, disp_l, vol_l = _optimise(DL, opt, guide_left, labels, subpixel, progress)
     conf = _reg.confidence(vol_l, fl)
     disp_r = None
     if occlusion == "lr-fill":
@@ -336,7 +316,7 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
         if cr.shape != cl.shape:
             raise InvalidInputError(f"cost_right shape {cr.shape} != cost_left shape {cl.shape}")
         DR = _reg.data_term(cr) / np.float32(s)
-        fr, _, _ = _optimise(DR, optimizer, p, guide_right, labels, False, progress)
+        fr, _, _ = _optimise(DR, opt, guide_right, labels, False, progress)
         disp_r = labels[fr].astype(np.float32)
         valid = _reg.left_right_check(labels[fl], disp_r, tol=1.0)
         if valid.any():

@@ -1,0 +1,107 @@
+"""Numba kernels of :mod:`hyperlf.regularisers` (compiled on first use, cached on disk).
+
+Each kernel has a numpy reference beside its user that the tests compare it with:
+:func:`sgm_path` <-> ``semiglobal._sgm_numpy_direction``, :func:`weighted_median` <->
+``postprocess._weighted_median_numpy``.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+
+@numba.njit(parallel=True, cache=True, fastmath=False)
+def sgm_path(C, acc, starts_y, starts_x, dy, dx, p1, p2map, mode):  # pragma: no cover - numba
+    """Add one SGM path direction ``(dy, dx)`` to ``acc[H, W, L]``; one scanline per start.
+
+    ``mode`` 0: P1/P2 smoothness; 1: truncated linear ``min(p1 |dl|, P2)`` (distance transform).
+    """
+    H, W, L = C.shape
+    n = starts_y.shape[0]
+    for s in numba.prange(n):
+        prev = np.empty(L, dtype=np.float64)
+        cur = np.empty(L, dtype=np.float64)
+        dt = np.empty(L, dtype=np.float64)
+        y = starts_y[s]
+        x = starts_x[s]
+        first = True
+        while y >= 0 and y < H and x >= 0 and x < W:
+            if first:
+                for l in range(L):
+                    cur[l] = C[y, x, l]
+                first = False
+            else:
+                mprev = prev[0]
+                for l in range(1, L):
+                    if prev[l] < mprev:
+                        mprev = prev[l]
+                p2 = p2map[y, x]
+                jump = mprev + p2
+                if mode == 0:
+                    for l in range(L):
+                        v = prev[l]
+                        if l > 0:
+                            t = prev[l - 1] + p1
+                            if t < v:
+                                v = t
+                        if l < L - 1:
+                            t = prev[l + 1] + p1
+                            if t < v:
+                                v = t
+                        if jump < v:
+                            v = jump
+                        cur[l] = C[y, x, l] + v - mprev
+                else:
+                    dt[0] = prev[0]
+                    for l in range(1, L):
+                        t = dt[l - 1] + p1
+                        dt[l] = prev[l] if prev[l] < t else t
+                    for l in range(L - 2, -1, -1):
+                        t = dt[l + 1] + p1
+                        if t < dt[l]:
+                            dt[l] = t
+                    for l in range(L):
+                        v = dt[l]
+                        if jump < v:
+                            v = jump
+                        cur[l] = C[y, x, l] + v - mprev
+            for l in range(L):
+                acc[y, x, l] += cur[l]
+                prev[l] = cur[l]
+            y += dy
+            x += dx
+
+
+@numba.njit(parallel=True, cache=True)
+def weighted_median(d, g, r, sigma, out):  # pragma: no cover - numba
+    """Guided weighted median of ``d`` into ``out`` (window radius ``r``, borders replicated)."""
+    H, W = d.shape
+    n = (2 * r + 1) * (2 * r + 1)
+    c = 1.0 / (2.0 * sigma * sigma)
+    for y in numba.prange(H):
+        v = np.empty(n)
+        w = np.empty(n)
+        for x in range(W):
+            gp = g[y, x]
+            k = 0
+            tot = 0.0
+            for dy in range(-r, r + 1):
+                yy = min(max(y + dy, 0), H - 1)
+                for dx in range(-r, r + 1):
+                    xx = min(max(x + dx, 0), W - 1)
+                    v[k] = d[yy, xx]
+                    e = g[yy, xx] - gp
+                    w[k] = np.exp(-e * e * c)
+                    tot += w[k]
+                    k += 1
+            order = np.argsort(v)
+            half = 0.5 * tot
+            acc = 0.0
+            res = v[order[n - 1]]
+            for i in range(n):
+                acc += w[order[i]]
+                if acc >= half:
+                    res = v[order[i]]
+                    break
+            out[y, x] = res

@@ -1,0 +1,114 @@
+"""Per-pixel basics of a cost volume: data term, winner-takes-all, worst-cost fill (SPEC §4)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InvalidInputError
+from ._checks import check_cost
+
+__all__ = ["data_term", "wta", "fill_invalid", "FILL_EMPTY_MODES"]
+
+#: What :func:`fill_invalid` gives a pixel with no valid entry.
+FILL_EMPTY_MODES = ("global", "zero")
+
+
+def data_term(cost) -> np.ndarray:
+    """Subtract each pixel's minimum cost.
+
+    The paper's data term ``|C(f(p)) - C(f*(p))|``; it shifts the MRF energy by a constant and
+    leaves its minimiser unchanged.
+
+    Parameters
+    ----------
+    cost : array_like, shape (L, H, W)
+        Finite cost volume, lower is better.
+
+    Returns
+    -------
+    ndarray, float32, shape (L, H, W)
+        ``cost - min_l cost[l]``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> data_term(np.array([[[2.0]], [[5.0]]])).ravel().tolist()
+    [0.0, 3.0]
+    """
+    c = check_cost(cost)
+    return c - c.min(axis=0, keepdims=True)
+
+
+def wta(cost) -> np.ndarray:
+    """Winner-takes-all: the label index of each pixel's minimum cost.
+
+    Parameters
+    ----------
+    cost : array_like, shape (L, H, W)
+        Finite cost volume, lower is better.
+
+    Returns
+    -------
+    ndarray, int32, shape (H, W)
+        Label indices; ties go to the lowest index.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> wta(np.array([[[3.0, 1.0]], [[2.0, 1.0]]])).tolist()
+    [[1, 0]]
+    """
+    c = check_cost(cost)
+    return np.argmin(c, axis=0).astype(np.int32)
+
+
+def fill_invalid(cost, invalid=None, *, empty: str = "global") -> np.ndarray:
+    """Give invalid entries the pixel's worst valid cost (SPEC §4).
+
+    Parameters
+    ----------
+    cost : array_like, shape (L, H, W)
+        Cost volume; its non-finite entries are always invalid.
+    invalid : array_like of bool, optional
+        Further invalid entries, broadcastable to ``cost``.
+    empty : {"global", "zero"}
+        Value for a pixel with no valid entry at all: ``"global"`` (default) the worst valid
+        cost of the whole volume; ``"zero"`` 0 for every label (the rule of
+        :func:`hyperlf.costs.fill_invalid`).
+
+    Returns
+    -------
+    ndarray, float32, shape (L, H, W)
+        A new, finite volume.
+
+    Raises
+    ------
+    InvalidInputError
+        ``cost`` is not 3-D, ``empty`` is unknown, or (``empty="global"``) no entry is valid.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> c = np.array([[[1.0, np.nan]], [[3.0, np.nan]], [[np.nan, np.nan]]])
+    >>> fill_invalid(c)[:, 0, :].tolist()
+    [[1.0, 3.0], [3.0, 3.0], [3.0, 3.0]]
+    >>> fill_invalid(c, empty="zero")[:, 0, 1].tolist()
+    [0.0, 0.0, 0.0]
+    """
+    if empty not in FILL_EMPTY_MODES:
+        raise InvalidInputError(f"empty must be one of {FILL_EMPTY_MODES}, got {empty!r}")
+    c = np.array(cost, dtype=np.float32)
+    if c.ndim != 3:
+        raise InvalidInputError(f"cost must have shape (L, H, W), got {c.shape}")
+    bad = ~np.isfinite(c)
+    if invalid is not None:
+        bad = bad | np.broadcast_to(np.asarray(invalid, dtype=bool), c.shape)
+    if not bad.any():
+        return c
+    if bad.all() and empty == "global":
+        raise InvalidInputError("cost volume has no valid entry to fill the invalid ones from")
+    worst = np.where(bad, -np.inf, c).max(axis=0)
+    none_valid = ~np.isfinite(worst)
+    fallback = worst[~none_valid].max() if empty == "global" else np.float32(0.0)
+    worst = np.where(none_valid, fallback, worst).astype(np.float32)
+    return np.where(bad, worst[None], c).astype(np.float32)
