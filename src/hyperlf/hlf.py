@@ -126,9 +126,7 @@ import time
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-import cv2
 import numpy as np
-from numba import njit, prange
 
 from ._progress import progress_bar
 from .costs import cost_names, get_cost, view_costs
@@ -354,44 +352,6 @@ def aggregate_view_reference(acc: dict, Cv, valid, Mq, Mbar, M_ref, use_selectio
             acc["E_N_all"][h] += m_all.astype(np.float32)
 
 
-@njit(parallel=True, cache=True)
-def _aggregate_kernel(Cv, valid, Mq, Mbar, M_ref, use_sel, S_sel, N_sel, S_all, N_all,
-                      edge_idx, edge_side, ES_sel, EN_sel, ES_all, EN_all):  # pragma: no cover
-    L, H, W = Cv.shape
-    for l in prange(L):
-        for y in range(H):
-            for x in range(W):
-                if not valid[l, y, x]:
-                    continue
-                c = Cv[l, y, x]
-                S_all[l, y, x] += c
-                N_all[l, y, x] += 1.0
-                s = True
-                if use_sel:
-                    s = (M_ref[y, x] > Mbar[l, y, x]) == (Mq[l, y, x] > Mbar[l, y, x])
-                if s:
-                    S_sel[l, y, x] += c
-                    N_sel[l, y, x] += 1.0
-        for e in range(edge_idx.shape[0]):
-            i = edge_idx[e]
-            y = i // W
-            x = i - y * W
-            if not valid[l, y, x]:
-                continue
-            c = Cv[l, y, x]
-            s = True
-            if use_sel:
-                s = (M_ref[y, x] > Mbar[l, y, x]) == (Mq[l, y, x] > Mbar[l, y, x])
-            sd = edge_side[e]
-            for h in range(2):
-                if sd == 0 or (h == 0 and sd == 1) or (h == 1 and sd == -1):
-                    ES_all[h, l, e] += c
-                    EN_all[h, l, e] += 1.0
-                    if s:
-                        ES_sel[h, l, e] += c
-                        EN_sel[h, l, e] += 1.0
-
-
 def _new_accumulators(L, H, W, E):
     z = lambda *s: np.zeros(s, np.float32)  # noqa: E731
     return {"S_sel": z(L, H, W), "N_sel": z(L, H, W), "S_all": z(L, H, W), "N_all": z(L, H, W),
@@ -417,13 +377,17 @@ def aggregate_view(acc: dict, Cv, valid, Mq, Mbar, M_ref, use_selection: bool,
     if impl == "numpy":
         return aggregate_view_reference(acc, Cv, valid, Mq, Mbar, M_ref, use_selection, edge_idx,
                                         edge_side)
-    _aggregate_kernel(np.ascontiguousarray(Cv, np.float32), np.ascontiguousarray(valid, np.bool_),
-                      np.ascontiguousarray(Mq, np.float32), np.ascontiguousarray(Mbar, np.float32),
-                      np.ascontiguousarray(M_ref, np.float32), bool(use_selection),
-                      acc["S_sel"], acc["N_sel"], acc["S_all"], acc["N_all"],
-                      np.ascontiguousarray(edge_idx, np.int64),
-                      np.ascontiguousarray(edge_side, np.int8),
-                      acc["E_S_sel"], acc["E_N_sel"], acc["E_S_all"], acc["E_N_all"])
+    from . import _hlf_kernels
+
+    _hlf_kernels.aggregate(np.ascontiguousarray(Cv, np.float32),
+                           np.ascontiguousarray(valid, np.bool_),
+                           np.ascontiguousarray(Mq, np.float32),
+                           np.ascontiguousarray(Mbar, np.float32),
+                           np.ascontiguousarray(M_ref, np.float32), bool(use_selection),
+                           acc["S_sel"], acc["N_sel"], acc["S_all"], acc["N_all"],
+                           np.ascontiguousarray(edge_idx, np.int64),
+                           np.ascontiguousarray(edge_side, np.int8),
+                           acc["E_S_sel"], acc["E_N_sel"], acc["E_S_all"], acc["E_N_all"])
 
 
 def _finish_aggregation(acc, min_selected, min_half_views, edge_idx, split: bool):
@@ -461,6 +425,8 @@ def reference_edges(ref_img, sigma: float = 1.0, low=None, high=None, dilate: in
     ``low``/``high``: 8-bit Canny thresholds; None = 0.4 x / 1 x the 90th percentile of the
     Sobel magnitude of the 8-bit image.
     """
+    import cv2
+
     In = normalise_intensity(ref_img)
     hi_v = float(np.percentile(In, 99.5))
     img8 = np.clip(In / (hi_v if hi_v > 0 else 1.0) * 255.0, 0, 255).astype(np.uint8)
@@ -537,61 +503,6 @@ def defocus_cost_reference(P, valid, wl, lam_r, prior: str = "gaussian", sigma_d
     return np.where(nval > 0, terms.sum(axis=0), 0.0)
 
 
-@njit(parallel=True, cache=True)
-def _defocus_kernel(P, valid, wl_sorted_idx, wl, lam_r, prior, sigma_d, p_eps, out):  # pragma: no cover
-    N, H, W = P.shape
-    inv2s2 = 1.0 / (2.0 * sigma_d * sigma_d)
-    for y in prange(H):
-        for x in range(W):
-            tot = 0.0
-            nv = 0
-            for v in range(N):
-                if valid[v, y, x]:
-                    tot += P[v, y, x]
-                    nv += 1
-            if nv == 0:
-                out[y, x] = 0.0
-                continue
-            if prior == 2:
-                d = 0.0
-                have = False
-                last = 0.0
-                for k in range(N):
-                    v = wl_sorted_idx[k]
-                    if valid[v, y, x]:
-                        ps = P[v, y, x] / tot if tot > 0 else 0.0
-                        if ps < p_eps:
-                            ps = p_eps
-                        if have:
-                            d += abs(ps - last)
-                        last = ps
-                        have = True
-                out[y, x] = d
-                continue
-            gs = 0.0
-            lr = lam_r[y, x]
-            for v in range(N):
-                if valid[v, y, x]:
-                    if prior == 1:
-                        gs += 1.0
-                    else:
-                        gs += math.exp(-(wl[v] - lr) * (wl[v] - lr) * inv2s2)
-            d = 0.0
-            if gs > 0:
-                for v in range(N):
-                    if valid[v, y, x]:
-                        if prior == 1:
-                            g = 1.0 / gs
-                        else:
-                            g = math.exp(-(wl[v] - lr) * (wl[v] - lr) * inv2s2) / gs
-                        if g > 0:
-                            ps = P[v, y, x] / tot if tot > 0 else 0.0
-                            if ps < p_eps:
-                                ps = p_eps
-                            d += g * math.log(g / ps)
-            out[y, x] = d
-
-
 def defocus_cost(P, valid, wl, lam_r, prior: str = "gaussian", sigma_d: float = 96.5,
                  p_eps: float = 1e-6, impl: str = "auto") -> np.ndarray:
     """Defocus cost ``D`` (H, W) float64 of one profile stack (SPEC §5.3).
@@ -610,9 +521,11 @@ def defocus_cost(P, valid, wl, lam_r, prior: str = "gaussian", sigma_d: float = 
     wl = np.asarray(wl, np.float64)
     lr = np.ascontiguousarray(np.broadcast_to(np.asarray(lam_r, np.float64), (H, W)))
     out = np.empty((H, W))
-    _defocus_kernel(P, np.ascontiguousarray(np.broadcast_to(valid, P.shape), np.bool_),
-                    np.argsort(wl, kind="stable").astype(np.int64), wl, lr, _PRIOR_CODE[prior],
-                    float(sigma_d), float(p_eps), out)
+    from . import _hlf_kernels
+
+    _hlf_kernels.defocus(P, np.ascontiguousarray(np.broadcast_to(valid, P.shape), np.bool_),
+                         np.argsort(wl, kind="stable").astype(np.int64), wl, lr,
+                         _PRIOR_CODE[prior], float(sigma_d), float(p_eps), out)
     return out
 
 

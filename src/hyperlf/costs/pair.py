@@ -19,7 +19,6 @@ from __future__ import annotations
 
 from typing import Sequence
 
-import cv2
 import numpy as np
 
 from ..errors import InvalidInputError
@@ -126,6 +125,8 @@ def box_mean(image: np.ndarray, n: int) -> np.ndarray:
     img = np.ascontiguousarray(image, dtype=np.float64)
     if n == 1:
         return img.copy()
+    import cv2
+
     return cv2.boxFilter(img, cv2.CV_64F, (n, n), normalize=True, borderType=cv2.BORDER_REPLICATE)
 
 
