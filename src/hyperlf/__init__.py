@@ -100,7 +100,7 @@ def load(path, **kwargs):
     --------
     >>> import tempfile, pathlib, hyperlf
     >>> from hyperlf.synthesis import procedural_scene
-    >>> lf = procedural_scene("planes", rows=2, cols=2, height=16, width=20)
+    >>> lf = procedural_scene(seed=1, rows=2, cols=2, height=16, width=20)
     >>> folder = pathlib.Path(tempfile.mkdtemp()) / "cap"
     >>> _ = hyperlf.save(lf, folder)
     >>> hyperlf.load(folder).views.shape
