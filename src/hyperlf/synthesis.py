@@ -79,7 +79,24 @@ def add_noise(views: np.ndarray, sigma: float, seed: Any = 0) -> np.ndarray:
 
 def band_grid(rows: int, cols: int, lambda_min: float = 410.0,
               lambda_max: float = 700.0) -> np.ndarray:
-    """The ``rows * cols`` band centres (nm), equal steps from ``lambda_min`` to ``lambda_max``."""
+    """The ``rows * cols`` band centres (nm), equal steps from ``lambda_min`` to ``lambda_max``.
+
+    Parameters
+    ----------
+    rows, cols : int
+        Grid of views (one band per view).
+    lambda_min, lambda_max : float
+        Band range in nm.
+
+    Returns
+    -------
+    ndarray of float64, shape (rows * cols,)
+
+    Examples
+    --------
+    >>> band_grid(1, 3, 400.0, 600.0).tolist()
+    [400.0, 500.0, 600.0]
+    """
     if rows < 1 or cols < 1:
         raise InvalidInputError(f"grid must have at least one view, got {rows} x {cols}")
     if not (0 < lambda_min <= lambda_max) or not np.isfinite(lambda_max):
@@ -500,6 +517,18 @@ def from_rgb_lightfield(lf_rgb: LightField, rows: int = 5, cols: int = 6,
     ------
     InvalidInputError
         For a non-RGB input, a sub-grid that does not fit, or bad parameters.
+
+    References
+    ----------
+    I. Mallett, C. Yuksel, "Spectral primary decomposition for rendering with sRGB
+    reflectance", Eurographics Symposium on Rendering 2019 (the RGB -> spectrum basis).
+
+    Examples
+    --------
+    >>> rgb = LightField(np.full((3, 3, 8, 8, 3), 0.5, np.float32))
+    >>> H = from_rgb_lightfield(rgb, rows=3, cols=3)
+    >>> H.views.shape, H.wavelengths[1, 1]
+    ((3, 3, 8, 8), 555.0)
     """
     _check_rgb_args(lf_rgb, view_disparity, normalization)
     rows, cols = int(rows), int(cols)
@@ -544,6 +573,23 @@ def from_hci_scene(folder: Any, **kw: Any) -> LightField:
     keyword arguments ``kw`` (rows, cols, lambda_min, ..., see there). For ``antinous`` and the
     default 5 x 6 grid the reference view is the centre camera ``input_Cam040``. The scene is
     CC BY-NC-SA 4.0 (Honauer et al. 2016), recorded in the metadata.
+
+    Parameters
+    ----------
+    folder : path-like
+        HCI scene folder (``input_Cam###.png``, ``gt_disp_lowres.pfm``).
+    **kw
+        Keyword arguments of :func:`from_rgb_lightfield`.
+
+    Returns
+    -------
+    LightField
+        The H-LF with its ground-truth cube and disparity.
+
+    References
+    ----------
+    K. Honauer, O. Johannsen, D. Kondermann, B. Goldluecke, "A dataset and evaluation
+    methodology for depth estimation on 4D light fields", ACCV 2016.
     """
     from .formats import read_hci_scene
 
@@ -1133,6 +1179,13 @@ def procedural_scene(seed: int = 0, rows: int = 5, cols: int = 6, height: int = 
     Returns
     -------
     LightField
+
+    Examples
+    --------
+    >>> lf = procedural_scene(**dict(SCENES["planes"], rows=3, cols=3, height=24, width=32,
+    ...                              reflectance_source="colorchecker"))
+    >>> lf.views.shape, lf.gt_cube.shape
+    ((3, 3, 24, 32), (3, 3, 9, 24, 32))
     """
     t_start = time.perf_counter()
     rows, cols, H, W = int(rows), int(cols), int(height), int(width)
