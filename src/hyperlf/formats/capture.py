@@ -69,7 +69,17 @@ _KNOWN_KEYS = {"format", "version", "grid", "reference", "disparity_range", "bit
 
 
 def is_capture(folder: str | os.PathLike) -> bool:
-    """True when ``folder`` is a folder with a ``capture.toml`` manifest."""
+    """True when ``folder`` is a folder with a ``capture.toml`` manifest.
+
+    Parameters
+    ----------
+    folder : path-like
+        Any path.
+
+    Returns
+    -------
+    bool
+    """
     p = Path(folder)
     return p.is_dir() and (p / MANIFEST).is_file()
 
@@ -292,6 +302,16 @@ def read_capture(folder: str | os.PathLike) -> LightField:
         When the folder, the manifest or a file it names is missing.
     FormatError
         When the manifest is malformed or inconsistent (one line saying what and where).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from hyperlf.synthesis import procedural_scene
+    >>> lf = procedural_scene(seed=3, rows=2, cols=2, height=12, width=16)
+    >>> man = write_capture(lf, pathlib.Path(tempfile.mkdtemp()) / "cap")
+    >>> back = read_capture(man.parent)
+    >>> back.views.shape, bool(abs(back.views - lf.views).max() < 1e-4)
+    ((2, 2, 12, 16), True)
     """
     root = Path(folder)
     man, doc = _read_manifest(root)
