@@ -593,6 +593,21 @@ def srgb_to_linear(x) -> np.ndarray:
     ``x / 12.92`` for ``x <= 0.04045``, else ``((x + 0.055) / 1.055) ** 2.4``. Negative values
     are mapped antisymmetrically (``f(-x) = -f(x)``), as in extended sRGB, so nothing becomes
     NaN. Values are not clipped. float32 stays float32; other types become float64.
+
+    Parameters
+    ----------
+    x : array_like
+        sRGB-encoded values.
+
+    Returns
+    -------
+    ndarray
+        Linear values, same shape.
+
+    Examples
+    --------
+    >>> srgb_to_linear(np.array([0.0, 1.0])).tolist()
+    [0.0, 1.0]
     """
     a = _float(_as_array(x, "x"))
     ax = np.abs(a)
@@ -605,6 +620,22 @@ def linear_to_srgb(x) -> np.ndarray:
 
     ``12.92 x`` for ``x <= 0.0031308``, else ``1.055 x ** (1/2.4) - 0.055``; antisymmetric for
     negative values; not clipped. Inverse of :func:`srgb_to_linear`.
+
+    Parameters
+    ----------
+    x : array_like
+        Linear values.
+
+    Returns
+    -------
+    ndarray
+        sRGB-encoded values, same shape.
+
+    Examples
+    --------
+    >>> x = np.array([0.001, 0.2, 0.9])
+    >>> bool(np.allclose(srgb_to_linear(linear_to_srgb(x)), x))
+    True
     """
     a = _float(_as_array(x, "x"))
     ax = np.abs(a)
