@@ -1,11 +1,23 @@
-"""Shared fixtures. Tests that need real data skip with a clear message when HYPERLF_DATA is unset."""
+"""Shared fixtures and markers.
+
+Tests that need real data skip with a clear message when HYPERLF_DATA is unset, and carry the
+``data`` marker (added here at collection, see :func:`pytest_collection_modifyitems`), so
+``python -m pytest -m data`` selects exactly them and ``-m "not data"`` leaves them out.
+"""
 
 from __future__ import annotations
+
+import ast
+import inspect
+import textwrap
 
 import numpy as np
 import pytest
 
 from hyperlf.datasets import ENV_VAR, has_data, dataset_path
+
+#: Calls that mean "this test reads the real data in HYPERLF_DATA".
+_DATA_CALLS = frozenset({"require_dataset", "has_data"})
 
 
 def require_dataset(name: str):
@@ -18,3 +30,49 @@ def require_dataset(name: str):
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
+
+
+# ----------------------------------------------------------------------------- data marker
+def _called_names(func) -> set[str]:
+    """Names of the functions ``func`` calls (decorators included), from its source."""
+    try:
+        tree = ast.parse(textwrap.dedent(inspect.getsource(func)))
+    except (OSError, TypeError, SyntaxError):
+        return set()
+    names = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call):
+            f = node.func
+            names.add(f.id if isinstance(f, ast.Name) else getattr(f, "attr", ""))
+    return names
+
+
+def _data_helpers(module) -> frozenset[str]:
+    """``_DATA_CALLS`` plus the module's own helpers that call one of them."""
+    found = set(_DATA_CALLS)
+    for name, obj in vars(module).items():
+        if inspect.isfunction(obj) and obj.__module__ == module.__name__ \
+                and not name.startswith("test_") and _called_names(obj) & _DATA_CALLS:
+            found.add(name)
+    return frozenset(found)
+
+
+def _needs_data(item, helpers: frozenset[str]) -> bool:
+    funcs = [item.function]
+    for name in getattr(item, "fixturenames", ()):
+        for fixturedef in item._fixtureinfo.name2fixturedefs.get(name, ()):
+            funcs.append(fixturedef.func)
+    return any(_called_names(f) & helpers for f in funcs)
+
+
+def pytest_collection_modifyitems(config, items):
+    """Mark every test that (directly, through a fixture or a helper) needs HYPERLF_DATA."""
+    helpers: dict[str, frozenset[str]] = {}
+    for item in items:
+        module = getattr(item, "module", None)
+        if module is None or not hasattr(item, "function"):
+            continue
+        if module.__name__ not in helpers:
+            helpers[module.__name__] = _data_helpers(module)
+        if _needs_data(item, helpers[module.__name__]):
+            item.add_marker(pytest.mark.data)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 
 import numpy as np
 import pytest
@@ -66,15 +67,32 @@ def test_errors(tmp_path):
     assert not (tmp_path / "bad.pfm").exists()
 
 
+_PFM_ERRORS = ("not a PFM file|malformed PFM header|empty image|PFM scale|is truncated"
+               "|bytes more than its header")
+
+
 @FAST
-@given(data=st.binary(max_size=64))
+@given(data=st.one_of(
+    st.binary(max_size=64),
+    st.builds(lambda head, rest: head + rest, st.sampled_from([b"Pf", b"PF", b"Pf\n1 1\n-1\n"]),
+              st.binary(max_size=62))))
 def test_garbage_raises_format_error(tmp_path, data):
+    """Garbage is refused with a FormatError saying why; only a well-formed file is read."""
     p = tmp_path / "g.pfm"
     p.write_bytes(data)
+    if data[:2] not in (b"Pf", b"PF"):
+        with pytest.raises(FormatError, match="not a PFM file"):
+            read_pfm(p)
+        return
     try:
-        read_pfm(p)
-    except FormatError:
-        pass
+        out = read_pfm(p)
+    except FormatError as exc:
+        assert re.search(_PFM_ERRORS, str(exc)), str(exc)
+        return
+    # accepted: the header's shape, and every byte after the header is one float32 value
+    assert out.dtype == np.float32
+    assert out.ndim == (2 if data[:2] == b"Pf" else 3)
+    assert out.size >= 1 and len(data) >= 4 * out.size + 7
 
 
 @FAST

@@ -1,4 +1,8 @@
-"""The LightField data model: validation and geometry helpers."""
+"""The LightField data model: validation and geometry helpers; the package's lazy import."""
+
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -91,3 +95,30 @@ def test_top_level_api_functions_survive_submodule_imports():
 
     for name in ("depth", "stereo", "complete", "load", "save"):
         assert callable(getattr(hyperlf, name)), name
+
+
+# ----------------------------------------------------------------------------- package import
+def test_import_hyperlf_is_cheap_and_submodules_attach_lazily():
+    code = (
+        "import sys, hyperlf\n"
+        "heavy = [m for m in ('numba', 'cv2', 'colour', 'matplotlib', 'h5py') if m in sys.modules]\n"
+        "print(','.join(heavy) or 'none')\n"
+        "print('hyperlf.render' in sys.modules)\n"
+        "mods = [hyperlf.render, hyperlf.costs, hyperlf.regularisers, hyperlf.synthesis,\n"
+        "        hyperlf.pipeline, hyperlf.formats, hyperlf.spectral, hyperlf.metrics]\n"
+        "print(all(m.__name__.startswith('hyperlf.') for m in mods))\n"
+        "print(callable(hyperlf.render.emulate_camera), 'render' in dir(hyperlf))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, env={k: v for k, v in os.environ.items() if k != "EAGER_IMPORT"})
+    assert out.stdout.split() == ["none", "False", "True", "True", "True"]
+
+
+def test_top_level_api_names():
+    import hyperlf
+
+    for name in ("load", "save", "stereo", "depth", "complete", "LightField", "HyperLFError",
+                 "InvalidInputError", "FormatError", "DataNotFoundError", "__version__"):
+        assert name in hyperlf.__all__ and hasattr(hyperlf, name)
+    with pytest.raises(AttributeError):
+        hyperlf.no_such_module

@@ -353,6 +353,7 @@ def antinous_hlf():
     return S.from_hci_scene(folder)
 
 
+@pytest.mark.slow  # full-resolution 5 x 6 x 30-band synthesis from the HCI scene
 def test_from_hci_scene_antinous(antinous_hlf):
     lf = antinous_hlf
     assert lf.views.shape == (5, 6, 512, 512)
@@ -370,6 +371,7 @@ def test_from_hci_scene_antinous(antinous_hlf):
     assert lf.gt_cube.shape == (5, 6, 30, 512, 512)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("rc", [(2, 3), (2, 4), (3, 2), (4, 2), (3, 3), (4, 4), (0, 0)])
 def test_from_hci_scene_warp_residual(antinous_hlf, rc):
     """Measured mean abs residual (same band, 15 px border excluded): 0.0016-0.0048 with the

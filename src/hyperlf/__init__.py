@@ -9,17 +9,56 @@ The public API is small and stable:
 * :func:`hyperlf.complete` — plenoptic cube completion (:mod:`hyperlf.completion`, SPEC §7);
 * :mod:`hyperlf.render` — colour emulation, refocusing, all-focus (SPEC §8);
 * :mod:`hyperlf.spectral`, :mod:`hyperlf.synthesis`, :mod:`hyperlf.metrics`,
-  :mod:`hyperlf.baselines` — tools.
+  :mod:`hyperlf.baselines`, :mod:`hyperlf.pipeline` — tools.
 
-Heavy modules (colour-science, numba kernels) are imported lazily.
+Submodules are attached lazily with ``lazy_loader`` (as scikit-image does): ``import hyperlf``
+is cheap (it imports neither numba, OpenCV, colour-science, matplotlib nor h5py) and
+``hyperlf.render`` (or any other submodule) is imported on first attribute access.
+
+Examples
+--------
+>>> import hyperlf
+>>> hyperlf.__version__
+'0.1.0'
+>>> callable(hyperlf.render.emulate_camera)
+True
 """
 
 from __future__ import annotations
+
+import lazy_loader as _lazy
 
 from .errors import DataNotFoundError, FormatError, HyperLFError, InvalidInputError
 from .lightfield import LightField, filter_layout, raster_wavelengths
 
 __version__ = "0.1.0"
+
+#: Submodules attached lazily (by module name: a flat module or a package both work).
+_SUBMODULES = [
+    "baselines",
+    "cli",
+    "completion",
+    "costs",
+    "datasets",
+    "descriptor",
+    "errors",
+    "formats",
+    "hlf",
+    "imageops",
+    "lightfield",
+    "metrics",
+    "pipeline",
+    "regularisers",
+    "render",
+    "report",
+    "spectral",
+    "synthesis",
+    "twoview",
+    "visualise",
+    "warp",
+]
+
+__getattr__, _lazy_dir, _ = _lazy.attach(__name__, submodules=_SUBMODULES)
 
 __all__ = [
     "LightField",
@@ -38,10 +77,34 @@ __all__ = [
 ]
 
 
+def __dir__():
+    return sorted(set(__all__) | set(_lazy_dir()))
+
+
 def load(path, **kwargs):
     """Load a light field from a capture folder, an HDF5 file or an HCI scene folder.
 
-    See :func:`hyperlf.formats.load_lightfield`.
+    Parameters
+    ----------
+    path : str or path-like
+        A capture folder (SPEC §2), an ``.h5``/``.hdf5`` file or an HCI 4D scene folder.
+    **kwargs
+        Passed to :func:`hyperlf.formats.load_lightfield`.
+
+    Returns
+    -------
+    LightField
+        The light field, views float32 in [0, 1].
+
+    Examples
+    --------
+    >>> import tempfile, pathlib, hyperlf
+    >>> from hyperlf.synthesis import procedural_scene
+    >>> lf = procedural_scene(seed=1, rows=2, cols=2, height=16, width=20)
+    >>> folder = pathlib.Path(tempfile.mkdtemp()) / "cap"
+    >>> _ = hyperlf.save(lf, folder)
+    >>> hyperlf.load(folder).views.shape
+    (2, 2, 16, 20)
     """
     from .formats import load_lightfield
 
@@ -51,7 +114,19 @@ def load(path, **kwargs):
 def save(lightfield, path, **kwargs):
     """Save a light field as a capture folder (default) or HDF5 file (``.h5``/``.hdf5``).
 
-    See :func:`hyperlf.formats.save_lightfield`.
+    Parameters
+    ----------
+    lightfield : LightField
+        What to write.
+    path : str or path-like
+        Destination; the suffix ``.h5``/``.hdf5`` selects HDF5, anything else a capture folder.
+    **kwargs
+        Passed to :func:`hyperlf.formats.save_lightfield`.
+
+    Returns
+    -------
+    pathlib.Path
+        What was written.
     """
     from .formats import save_lightfield
 
@@ -59,21 +134,66 @@ def save(lightfield, path, **kwargs):
 
 
 def stereo(left, right, disparity_range, **kwargs):
-    """Cross-spectral two-view stereo; see :func:`hyperlf.twoview.stereo`."""
+    """Cross-spectral two-view stereo; see :func:`hyperlf.twoview.stereo`.
+
+    Parameters
+    ----------
+    left, right : ndarray
+        Rectified views of different spectral bands.
+    disparity_range : tuple of int
+        ``(d_min, d_max)`` in pixels.
+    **kwargs
+        Passed to :func:`hyperlf.twoview.stereo`.
+
+    Returns
+    -------
+    hyperlf.twoview.StereoResult
+        The disparity of the left view and its diagnostics.
+    """
     from .twoview import stereo as _stereo
 
     return _stereo(left, right, disparity_range, **kwargs)
 
 
 def depth(lightfield, **kwargs):
-    """Disparity of an H-LF's reference view; see :func:`hyperlf.hlf.depth`."""
+    """Disparity of an H-LF's reference view; see :func:`hyperlf.hlf.depth`.
+
+    Parameters
+    ----------
+    lightfield : LightField
+        The hyperspectral light field.
+    **kwargs
+        Passed to :func:`hyperlf.hlf.depth`.
+
+    Returns
+    -------
+    hyperlf.hlf.DepthResult
+        The reference-view disparity and its diagnostics.
+    """
     from .hlf import depth as _depth
 
     return _depth(lightfield, **kwargs)
 
 
 def complete(lightfield, disparity=None, out_path=None, **kwargs):
-    """Plenoptic cube completion; see :func:`hyperlf.completion.complete`."""
+    """Plenoptic cube completion; see :func:`hyperlf.completion.complete`.
+
+    Parameters
+    ----------
+    lightfield : LightField
+        The hyperspectral light field.
+    disparity : ndarray, optional
+        Reference-view disparity; estimated with :func:`depth` when omitted.
+    out_path : str or path-like, optional
+        Where to write the cube (see :func:`hyperlf.completion.complete`).
+    **kwargs
+        Passed to :func:`hyperlf.completion.complete`.
+
+    Returns
+    -------
+    hyperlf.completion.CompletionResult
+        The completed cube (and where it was written).
+    """
     from .completion import complete as _complete
 
     return _complete(lightfield, disparity, out_path, **kwargs)

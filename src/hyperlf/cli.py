@@ -150,35 +150,10 @@ def _cmd_info(args) -> int:
     return 0
 
 
-def _write_lightfield_pictures(lf, out: Path, stem: str = "") -> list[Path]:
-    """Mosaic of the views, the reference ground truth, and an sRGB rendering of the cube."""
-    from . import visualise
-
-    written = [visualise.save_mosaic_png(out / f"{stem}views.png", lf.views, lf.wavelengths,
-                                         title="views (false colour by filter wavelength)")]
-    gt = lf.reference_gt_disparity
-    if gt is not None:
-        written.append(visualise.save_disparity_png(out / f"{stem}gt_disparity.png", gt,
-                                                    title="ground-truth disparity (reference)"))
-    if lf.gt_cube is not None:
-        from . import render
-        from .formats import write_image
-
-        cube = lf.gt_cube[lf.reference]  # (B, H, W)
-        srgb = render.emulate_camera(cube, lf.cube_wavelengths, "CIE 1931", output="srgb",
-                                     exposure="percentile")
-        written.append(write_image(out / f"{stem}reference_srgb.png", srgb, bit_depth=8))
-        H, W = lf.image_shape
-        y, x = H // 2, W // 2
-        written.append(visualise.save_spectrum_plot(
-            out / f"{stem}spectrum_centre.png", lf.cube_wavelengths, cube[:, y, x],
-            title=f"ground-truth spectrum at reference pixel (x={x}, y={y})"))
-    return written
-
-
 def _cmd_synth(args) -> int:
     from . import synthesis
     from .formats import save_lightfield
+    from .pipeline import write_lightfield_pictures
 
     t0 = time.perf_counter()
     R, C = args.grid
@@ -201,7 +176,7 @@ def _cmd_synth(args) -> int:
                     progress=not args.quiet)
     if not args.no_pictures:
         pics_dir = out if out.suffix.lower() not in (".h5", ".hdf5") else out.with_suffix("")
-        _write_lightfield_pictures(lf, pics_dir if pics_dir != out else out / "preview")
+        write_lightfield_pictures(lf, pics_dir if pics_dir != out else out / "preview")
     _say(args, f"wrote {out} ({R} x {C} views, {lf.image_shape[1]} x {lf.image_shape[0]} px) "
                f"in {time.perf_counter() - t0:.1f} s")
     print(out)
@@ -249,141 +224,16 @@ def _cmd_convert(args) -> int:
 
 
 def _cmd_demo(args) -> int:
-    """The whole chain on a synthetic scene: capture -> depth -> cube -> colour -> refocus."""
-    from . import metrics, render, synthesis, visualise
-    from .completion import complete
-    from .hlf import depth
-    from .formats import save_lightfield, write_image, write_pfm
-    from .report import Section, write_html_report
+    """The whole chain on a synthetic scene (:func:`hyperlf.pipeline.run_demo`)."""
+    from .pipeline import run_demo
 
-    t_start = time.perf_counter()
-    out = Path(args.output)
-    quiet = args.quiet
-    timings = {}
-    _say(args, f"hyperlf demo: building a {args.grid[0]} x {args.grid[1]} synthetic H-LF "
-               f"(seed {args.seed}) ...")
-    t0 = time.perf_counter()
-    scene = {**synthesis.SCENES["solids"], "seed": args.seed, "rows": args.grid[0],
-             "cols": args.grid[1], "height": args.size[0], "width": args.size[1],
-             "progress": not quiet}
-    lf = synthesis.procedural_scene(**scene)
-    save_lightfield(lf, out / "capture", overwrite=True)
-    gt = lf.reference_gt_disparity
-    write_pfm(out / "gt_disparity.pfm", gt)
-    pics = _write_lightfield_pictures(lf, out)
-    timings["synthesis"] = time.perf_counter() - t0
-
-    _say(args, f"depth: H-LF stereo matching ({args.metric}, graph cuts, {args.labels} labels) ...")
-    t0 = time.perf_counter()
-    dres = depth(lf, n_labels=args.labels, metric=args.metric, progress=not quiet)
-    timings["depth"] = time.perf_counter() - t0
-    disp_pics = _save_disparity_outputs(out / "depth", dres.disparity,
-                                        f"estimated disparity ({args.metric})", truth=gt,
-                                        confidence=dres.confidence)
-    sc = metrics.disparity_scores(dres.disparity, gt, mask_name="all")
-
-    _say(args, "cube completion: every view gets every band ...")
-    t0 = time.perf_counter()
-    cres = complete(lf, dres.disparity, out_path=out / "cube.h5", optimizer=None,
-                    progress=not quiet)
-    timings["completion"] = time.perf_counter() - t0
-    from .formats import read_cube_h5
-
-    cube, wl, _ = read_cube_h5(cres.path)
-    valid = np.isfinite(lf.gt_cube)
-    cube_psnr = metrics.psnr(cube, lf.gt_cube, mask=valid)
-    cube_sam = metrics.sam(cube, lf.gt_cube, band_axis=2)
-
-    _say(args, "rendering: emulated colour camera, focal sweep, spectra ...")
-    t0 = time.perf_counter()
-    ref = lf.reference
-    srgb = render.emulate_camera(cube[ref], wl, "CIE 1931", output="srgb", white="D65")
-    srgb_gt = render.emulate_camera(lf.gt_cube[ref], lf.cube_wavelengths, "CIE 1931",
-                                    output="srgb", white="D65")
-    srgb_psnr = metrics.psnr(srgb, srgb_gt)
-    big = lambda im: np.repeat(np.repeat(im, 3, axis=0), 3, axis=1)  # noqa: E731
-    p_rgb = write_image(out / "render" / "reference_srgb_completed.png", big(srgb), bit_depth=8)
-    p_rgb_gt = write_image(out / "render" / "reference_srgb_truth.png", big(srgb_gt), bit_depth=8)
-    sweep = render.focal_sweep(cube, lf.offsets, np.linspace(*_finite_range(gt), 7), "CIE 1931",
-                               out_dir=out / "refocus", formats=("gif",), white="D65",
-                               wavelengths=wl)
-    H, W = lf.image_shape
-    y, x = int(0.5 * H), int(0.68 * W)
-    p_spec = visualise.save_spectrum_plot(
-        out / "render" / "spectrum.png", wl,
-        [cube[ref][:, y, x], lf.gt_cube[ref][:, y, x]], labels=["completed", "ground truth"],
-        title=f"reference view, pixel x={x}, y={y}")
-    timings["rendering"] = time.perf_counter() - t0
-    total = time.perf_counter() - t_start
-
-    sections = [
-        Section("Synthetic capture",
-                f"{lf.grid_shape[0]} x {lf.grid_shape[1]} views of {W} x {H} px, one narrow band "
-                f"each ({lf.wavelengths.min():g}-{lf.wavelengths.max():g} nm, raster order); "
-                "procedural box and sphere over a textured background, real reflectance spectra, "
-                "exact ground truth.", pictures=[(pics[0], "views, tinted by filter wavelength"),
-                                                 (pics[1], "ground-truth disparity")]),
-        Section("Depth", f"H-LF stereo matching with the {args.metric} cost and graph cuts.",
-                table=[("RMSE (px)", "MSE x 100", "bad 0.07 (%)", "bad 0.5 (%)", "time (s)"),
-                       (f"{sc.rmse:.3f}", f"{sc.mse_x100:.2f}", f"{sc.badpix_007:.1f}",
-                        f"{sc.bad_0_5:.1f}", f"{timings['depth']:.1f}")],
-                pictures=[(disp_pics[3], "estimated disparity"),
-                          (disp_pics[4], "absolute error against the ground truth")]),
-        Section("Plenoptic cube", "Every view receives every band by disparity-guided "
-                "registration with occlusion checks and propagation.",
-                table=[("PSNR (dB)", "SAM (deg)", "completed (%)", "time (s)"),
-                       (f"{cube_psnr:.2f}", f"{cube_sam:.2f}",
-                        f"{cres.stats['completed_pct']:.1f}", f"{timings['completion']:.1f}")]),
-        Section("Rendering", f"The reference view as a CIE 1931 observer would see it (sRGB, "
-                f"D65 white), from the completed cube: {srgb_psnr:.1f} dB against the rendering "
-                "of the true cube. Focal sweep from near to far.",
-                pictures=[(p_rgb, "emulated sRGB, completed cube"),
-                          (p_rgb_gt, "emulated sRGB, ground-truth cube"),
-                          (sweep["gif"], "focal sweep"), (p_spec, "spectral profile")]),
-    ]
-    rep = write_html_report(out / "report.html", "hyperlf demo", sections,
-                            footer=f"total {total:.1f} s: " + ", ".join(
-                                f"{k} {v:.1f} s" for k, v in timings.items()))
-    _say(args, f"depth RMSE {sc.rmse:.3f} px; cube PSNR {cube_psnr:.1f} dB, "
-               f"SAM {cube_sam:.2f} deg; emulated sRGB {srgb_psnr:.1f} dB")
-    _say(args, f"done in {total:.1f} s; open {rep}")
-    print(out)
+    run_demo(args.output, seed=args.seed, grid=args.grid, size=args.size, metric=args.metric,
+             labels=args.labels, progress=not args.quiet, log=lambda msg: _say(args, msg))
+    print(Path(args.output))
     return 0
 
 
-def _finite_range(gt: np.ndarray) -> tuple[float, float]:
-    """Finite min and max of a disparity map (for sweeps)."""
-    f = gt[np.isfinite(gt)]
-    return float(f.min()), float(f.max())
-
-
-
 # --------------------------------------------------------------------------- stereo
-def _save_disparity_outputs(out: Path, disparity: np.ndarray, title: str, truth=None,
-                            confidence=None, stem: str = "disparity") -> list[Path]:
-    """PFM (exact), 16-bit PNG (disparity x 256, offset recorded in a sidecar), colour map."""
-    from . import visualise
-    from ._atomic import atomic_write_text
-    from .formats import write_image, write_pfm
-
-    written = [write_pfm(out / f"{stem}.pfm", disparity)]
-    d = np.nan_to_num(np.asarray(disparity, dtype=np.float64), nan=0.0)
-    offset = float(min(0.0, np.floor(d.min())))
-    png = np.clip(np.rint((d - offset) * 256.0), 0, 65535).astype(np.uint16)
-    written.append(write_image(out / f"{stem}_16bit.png", png))
-    written.append(atomic_write_text(
-        out / f"{stem}_16bit.txt",
-        f"disparity = value / 256 + ({offset:g})   # px per baseline; exact values in {stem}.pfm\n"))
-    written.append(visualise.save_disparity_png(out / f"{stem}.png", disparity, title=title))
-    if truth is not None:
-        written.append(visualise.save_error_png(out / f"{stem}_error.png", disparity, truth))
-    if confidence is not None:
-        written.append(visualise.save_disparity_png(out / "confidence.png", confidence,
-                                                    title="confidence", vmin=0, vmax=1,
-                                                    cmap="viridis", label="confidence"))
-    return written
-
-
 def _read_stereo_image(path: str) -> np.ndarray:
     from .formats import read_image
 
@@ -391,6 +241,7 @@ def _read_stereo_image(path: str) -> np.ndarray:
 
 
 def _cmd_stereo(args) -> int:
+    from .pipeline import save_disparity_outputs
     from .twoview import stereo
 
     left, right = _read_stereo_image(args.left), _read_stereo_image(args.right)
@@ -405,7 +256,7 @@ def _cmd_stereo(args) -> int:
                  occlusion="none" if args.no_occlusion else "lr-fill", subpixel=args.subpixel,
                  channel=channel, progress=not args.quiet)
     out = Path(args.output)
-    written = _save_disparity_outputs(out, res.disparity,
+    written = save_disparity_outputs(out, res.disparity,
                                       f"{res.metric} + {res.optimizer}", confidence=res.confidence)
     t = res.timings
     _say(args, f"cost {t['cost']:.1f} s, optimiser {t['optimiser']:.1f} s, total {t['total']:.1f} s")
@@ -415,6 +266,7 @@ def _cmd_stereo(args) -> int:
 def _cmd_depth(args) -> int:
     from . import metrics
     from .formats import load_lightfield
+    from .pipeline import save_disparity_outputs
 
     lf = load_lightfield(args.input)
     out = Path(args.output)
@@ -445,7 +297,7 @@ def _cmd_depth(args) -> int:
         extra = {k: v for k, v in res.maps.items()
                  if isinstance(v, np.ndarray) and v.shape == res.disparity.shape}
     gt = lf.reference_gt_disparity
-    written = _save_disparity_outputs(out, res.disparity, f"{args.method} disparity", truth=gt,
+    written = save_disparity_outputs(out, res.disparity, f"{args.method} disparity", truth=gt,
                                       confidence=res.confidence)
     if args.save_intermediate:
         from . import visualise
@@ -645,18 +497,18 @@ def _cmd_spectrum(args) -> int:
 
 
 # --------------------------------------------------------------------------- parser
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="hyperlf",
-        description="Hyperspectral light fields: depth from a camera array whose views each "
-                    "see a different narrow band, plenoptic cube completion and rendering.",
-        epilog=EXAMPLES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    parser.add_argument("--version", action="version", version=f"hyperlf {__version__}")
-    parser.add_argument("-q", "--quiet", action="store_true", help="no progress or messages")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+_CUBE_HELP = "cube file (.h5 from 'hyperlf complete') or a capture folder with gt_cube.h5"
 
+
+def _metric_choices() -> list[str]:
+    """Names ``--metric`` accepts: the cost registry's, ``auto`` first."""
+    from .costs import METRIC_NAMES
+
+    return ["auto"] + [m for m in METRIC_NAMES if m != "auto"]
+
+
+def _add_demo_parser(sub) -> None:
+    """The ``demo`` subcommand."""
     p = sub.add_parser("demo", help="build a synthetic H-LF and write pictures and data",
                        description="Run the whole chain on a small synthetic hyperspectral light "
                                    "field with ground truth: capture -> depth -> plenoptic cube "
@@ -668,12 +520,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--grid", type=_pair_of_ints, default=(5, 6), metavar="R,C")
     p.add_argument("--size", type=_pair_of_ints, default=(96, 128), metavar="H,W",
                    help="view size in pixels (default 96,128)")
-    p.add_argument("--metric", default="auto",
+    p.add_argument("--metric", default="auto", choices=_metric_choices(),
                    help="correspondence cost of the depth step (default auto = census-rsncc; "
                         "ncc is faster still, fused/bwncc far slower)")
     p.add_argument("--labels", type=int, default=32, help="disparity labels (default 32)")
     p.set_defaults(func=_cmd_demo)
 
+
+def _add_synth_parser(sub) -> None:
+    """The ``synth`` subcommand."""
     p = sub.add_parser("synth", help="make a synthetic H-LF capture with ground truth",
                        description="Make a synthetic hyperspectral light field with ground-truth "
                                    "disparity and cube (SPEC §6) and write it as a capture folder "
@@ -699,12 +554,18 @@ def build_parser() -> argparse.ArgumentParser:
         _add_spectral_options(q)
         q.set_defaults(func=_cmd_synth)
 
+
+def _add_info_parser(sub) -> None:
+    """The ``info`` subcommand."""
     p = sub.add_parser("info", help="describe a capture, HDF5 light field or HCI scene",
                        description="Print grid, bands, image size, reference view, baselines "
                                    "and disparity range of a light field.")
     p.add_argument("input", help="capture folder, .h5 light field or HCI scene folder")
     p.set_defaults(func=_cmd_info)
 
+
+def _add_convert_parser(sub) -> None:
+    """The ``convert`` subcommand."""
     p = sub.add_parser("convert", help="convert between formats",
                        description="Convert a light field between capture folder, HCI folder "
                                    "(read only) and HDF5 (.h5); a PFM to 16-bit PNG/TIFF (with a "
@@ -721,6 +582,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
     p.set_defaults(func=_cmd_convert)
 
+
+def _add_stereo_parser(sub) -> None:
+    """The ``stereo`` subcommand."""
     p = sub.add_parser("stereo", help="cross-spectral two-view stereo",
                        description="Disparity of the left image of a rectified pair whose images "
                                    "may see different spectra (SPEC §4). Left x matches right "
@@ -736,9 +600,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("right")
     p.add_argument("--disparity-range", type=_pair_of_floats, default=None, metavar="MIN,MAX",
                    help="integer disparity search range in px (required)")
-    p.add_argument("--metric", default="auto",
-                   choices=["auto", "bwncc", "bwncc-paper", "ssd", "ncc", "rsncc", "census",
-                            "fused", "census-rsncc"],
+    p.add_argument("--metric", default="auto", choices=_metric_choices(),
                    help="matching cost (default auto: the library's cross-spectral default)")
     p.add_argument("--optimizer", default="graphcut", choices=["graphcut", "sgm", "wta"],
                    help="regulariser (default graphcut: alpha-expansion)")
@@ -751,6 +613,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, help="output folder")
     p.set_defaults(func=_cmd_stereo)
 
+
+def _add_depth_parser(sub) -> None:
+    """The ``depth`` subcommand."""
     p = sub.add_parser("depth", help="disparity of the reference view of an H-LF",
                        description="Estimate the reference view's disparity of a hyperspectral "
                                    "light field (SPEC §5) or run a baseline light-field method on "
@@ -769,7 +634,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="px per baseline (default: the capture's metadata); write "
                         "--disparity-range=-2,2 when MIN is negative")
     p.add_argument("--labels", type=int, default=64, help="number of disparity labels (64)")
-    p.add_argument("--metric", default="auto", help="correspondence cost of hlf: auto (default, "
+    p.add_argument("--metric", default="auto", choices=_metric_choices(),
+                   help="correspondence cost of hlf: auto (default, "
                    "= census-rsncc), rsncc, census, ncc, or the descriptor costs fused, bwncc, "
                    "bwncc-paper (about 50x slower)")
     p.add_argument("--optimizer", default="graphcut", choices=["graphcut", "sgm", "wta"])
@@ -788,6 +654,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, help="output folder")
     p.set_defaults(func=_cmd_depth)
 
+
+def _add_complete_parser(sub) -> None:
+    """The ``complete`` subcommand."""
     p = sub.add_parser("complete", help="complete the plenoptic cube: every view gets every band",
                        description="Register every band into every view (SPEC §7): the reference "
                                    "disparity is warped to every view, refined (pairwise "
@@ -805,7 +674,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="reference disparity (e.g. from 'hyperlf depth'); default: estimate it")
     p.add_argument("--use-ground-truth", action="store_true",
                    help="use the capture's ground-truth disparity (synthetic data)")
-    p.add_argument("--metric", default="rsncc", help="pairwise stereo cost (default rsncc)")
+    p.add_argument("--metric", default="rsncc", choices=_metric_choices(),
+                   help="pairwise stereo cost (default rsncc)")
     p.add_argument("--stereo", default="sgm", choices=["sgm", "graphcut", "wta", "none"],
                    help="pairwise stereo optimiser, or none (WLS refinement only)")
     p.add_argument("--no-infer", action="store_true",
@@ -815,7 +685,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, help="output folder")
     p.set_defaults(func=_cmd_complete)
 
-    cube_help = "cube file (.h5 from 'hyperlf complete') or a capture folder with gt_cube.h5"
+
+def _add_render_parser(sub) -> None:
+    """The ``render`` subcommand."""
     p = sub.add_parser("render", help="emulate a colour camera from a cube",
                        description="Render what a colour camera would have recorded (SPEC §8): "
                                    "RGB = sum over bands of cube x camera sensitivity, white-"
@@ -823,7 +695,7 @@ def build_parser() -> argparse.ArgumentParser:
                        epilog="examples:\n  hyperlf render cube.h5 --camera 'Nikon 5100' -o out\n"
                               "  hyperlf render scene3 --all-views -o out   # CIE 1931 -> sRGB",
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("cube", help=cube_help)
+    p.add_argument("cube", help=_CUBE_HELP)
     p.add_argument("--camera", default="CIE 1931",
                    help="camera name (colour-science or camspec), CSV of sensitivities "
                         "(wavelength,r,g,b), or 'CIE 1931' (default)")
@@ -835,6 +707,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, help="output folder")
     p.set_defaults(func=_cmd_render)
 
+
+def _add_refocus_parser(sub) -> None:
+    """The ``refocus`` subcommand."""
     p = sub.add_parser("refocus", help="spectral refocusing at a disparity, or a focal sweep",
                        description="Shift-and-add over the views at a disparity for a spectral "
                                    "profile: a camera (RGB), one band, or a weight vector.",
@@ -842,7 +717,7 @@ def build_parser() -> argparse.ArgumentParser:
                               "  hyperlf refocus cube.h5 --profile band:550 --disparity 0 -o out\n"
                               "  hyperlf refocus cube.h5 --sweep=-2,2,17 -o sweep  # GIF + MP4",
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("cube", help=cube_help)
+    p.add_argument("cube", help=_CUBE_HELP)
     p.add_argument("--disparity", type=float, default=0.0, help="focus disparity (px/baseline)")
     p.add_argument("--sweep", type=_sweep_arg, default=None, metavar="MIN,MAX,N",
                    help="write a focal sweep of N frames instead (write --sweep=-2,2,17 when "
@@ -855,16 +730,43 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, help="output folder")
     p.set_defaults(func=_cmd_refocus)
 
+
+def _add_spectrum_parser(sub) -> None:
+    """The ``spectrum`` subcommand."""
     p = sub.add_parser("spectrum", help="plot the spectral profile of a pixel",
                        description="Plot (PNG) and tabulate (CSV) the spectrum of a cube at a "
                                    "pixel of a view.")
-    p.add_argument("cube", help=cube_help)
+    p.add_argument("cube", help=_CUBE_HELP)
     p.add_argument("--at", type=_pair_of_floats, required=True, metavar="X,Y",
                    help="pixel position (x = column, y = row)")
     p.add_argument("--view", type=_view_index, default=None, metavar="R,C",
                    help="view (0-based; default the reference)")
     p.add_argument("-o", "--output", default="spectrum.png", help="output PNG (CSV beside it)")
     p.set_defaults(func=_cmd_spectrum)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``hyperlf`` argument parser: one small function per subcommand."""
+    parser = argparse.ArgumentParser(
+        prog="hyperlf",
+        description="Hyperspectral light fields: depth from a camera array whose views each "
+                    "see a different narrow band, plenoptic cube completion and rendering.",
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"hyperlf {__version__}")
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress or messages")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    _add_demo_parser(sub)
+    _add_synth_parser(sub)
+    _add_info_parser(sub)
+    _add_convert_parser(sub)
+    _add_stereo_parser(sub)
+    _add_depth_parser(sub)
+    _add_complete_parser(sub)
+    _add_render_parser(sub)
+    _add_refocus_parser(sub)
+    _add_spectrum_parser(sub)
     return parser
 
 

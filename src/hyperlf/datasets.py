@@ -41,6 +41,16 @@ DATASETS: dict[str, str] = {
 def data_root(root: str | os.PathLike | None = None) -> Path:
     """The data root: ``root`` if given, else ``$HYPERLF_DATA``.
 
+    Parameters
+    ----------
+    root : path-like, optional
+        Explicit data folder.
+
+    Returns
+    -------
+    Path
+        The existing folder.
+
     Raises
     ------
     DataNotFoundError
@@ -59,7 +69,33 @@ def data_root(root: str | os.PathLike | None = None) -> Path:
 
 
 def dataset_path(name: str, root: str | os.PathLike | None = None) -> Path:
-    """Path of a named dataset (see :data:`DATASETS`) or of a relative path under the root."""
+    """Path of a named dataset (see :data:`DATASETS`) or of a relative path under the root.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`DATASETS` (``"tsukuba"``, ``"antinous"``, ``"munsell"``, ...) or a
+        path relative to the data root.
+    root : path-like, optional
+        Data root (default ``$HYPERLF_DATA``).
+
+    Returns
+    -------
+    Path
+        The existing file or folder.
+
+    Raises
+    ------
+    DataNotFoundError
+        When the root is unknown or the dataset is missing.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> root = pathlib.Path(tempfile.mkdtemp()); (root / "hci4d" / "antinous").mkdir(parents=True)
+    >>> dataset_path("antinous", root=root).name
+    'antinous'
+    """
     rel = DATASETS.get(name, name)
     path = data_root(root) / rel
     if not path.exists():
@@ -71,7 +107,17 @@ def dataset_path(name: str, root: str | os.PathLike | None = None) -> Path:
 
 
 def has_data(name: str | None = None) -> bool:
-    """True when the data root (and the named dataset, if given) is available."""
+    """True when the data root (and the named dataset, if given) is available.
+
+    Parameters
+    ----------
+    name : str, optional
+        A dataset name (see :func:`dataset_path`).
+
+    Returns
+    -------
+    bool
+    """
     try:
         if name is None:
             data_root()

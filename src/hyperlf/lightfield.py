@@ -88,9 +88,25 @@ def raster_wavelengths(rows: int = 5, cols: int = 6, lambda_min: float = 410.0,
     For 5 x 6 and 410..700 nm with the raster layout, view ``(2, 2)`` sees 550 nm. A single
     view gets ``lambda_min``.
 
+    Parameters
+    ----------
+    rows, cols : int
+        Grid of views.
+    lambda_min, lambda_max : float
+        Band range in nm; ``rows * cols`` bands in equal steps.
+    order : {"raster", "serpentine", "random"} or sequence of int
+        Filter layout (:func:`filter_layout`).
+    seed : int
+        Seed of a random layout.
+
     Returns
     -------
     ndarray of float64, shape (rows, cols)
+
+    Examples
+    --------
+    >>> float(raster_wavelengths(5, 6)[2, 2])
+    550.0
     """
     if rows < 1 or cols < 1:
         raise InvalidInputError(f"grid must have at least one view, got {rows} x {cols}")
@@ -104,12 +120,42 @@ def raster_wavelengths(rows: int = 5, cols: int = 6, lambda_min: float = 410.0,
 
 
 def view_offsets(positions: np.ndarray, reference: tuple[int, int]) -> np.ndarray:
-    """Offsets ``pos[r, c] - pos[ref]`` of every view, shape ``(R, C, 2)`` as ``(dx, dy)``."""
+    """Offsets ``pos[r, c] - pos[ref]`` of every view, as ``(dx, dy)``.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (R, C, 2)
+        View positions ``(px, py)`` in baselines.
+    reference : (int, int)
+        Reference view ``(row, col)``.
+
+    Returns
+    -------
+    ndarray, shape (R, C, 2)
+
+    Examples
+    --------
+    >>> pos = np.stack(np.meshgrid(np.arange(3.0), np.arange(2.0)), axis=-1)
+    >>> view_offsets(pos, (1, 1))[0, 0].tolist()
+    [-1.0, -1.0]
+    """
     return positions - positions[reference][None, None, :]
 
 
 def resolve_disparity_range(lf: "LightField", disparity_range=None) -> tuple[float, float]:
     """``disparity_range`` if given, else the light field's own; checked ``(dmin, dmax)``.
+
+    Parameters
+    ----------
+    lf : LightField
+        Supplies the default range.
+    disparity_range : (float, float), optional
+        Explicit range (px per baseline).
+
+    Returns
+    -------
+    (float, float)
+        ``(dmin, dmax)``.
 
     Raises
     ------

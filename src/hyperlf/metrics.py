@@ -57,6 +57,17 @@ def evaluation_mask(truth: np.ndarray, mask: np.ndarray | None = None,
         Extra mask (e.g. Middlebury's ``all`` or ``nonocc``).
     border : int
         Width in pixels of a frame excluded on every side (HCI: 15).
+
+    Returns
+    -------
+    ndarray of bool, shape (H, W)
+        True where a pixel is evaluated.
+
+    Examples
+    --------
+    >>> gt = np.array([[0.0, np.nan], [1.0, 2.0]])
+    >>> evaluation_mask(gt).tolist()
+    [[True, False], [True, True]]
     """
     gt = np.asarray(truth)
     m = np.isfinite(gt)
@@ -85,19 +96,89 @@ def _masked_error(estimate, truth, mask, border) -> np.ndarray:
 
 
 def bad_pixels(estimate, truth, tau: float, mask=None, border: int = 0) -> float:
-    """Percentage of evaluated pixels with ``|estimate - truth| > tau`` (bad-tau, %)."""
+    """Percentage of evaluated pixels with ``|estimate - truth| > tau`` (bad-tau, %).
+
+    Parameters
+    ----------
+    estimate, truth : array_like
+        Estimated and true disparity, same shape (px). A non-finite estimate counts as an
+        infinitely bad pixel; non-finite ground truth is not evaluated.
+    mask : array_like of bool, optional
+        Extra evaluation mask (:func:`evaluation_mask`).
+    border : int
+        Frame excluded on every side, pixels.
+    tau : float
+        Error threshold, px.
+
+    Returns
+    -------
+    float
+        Percentage in [0, 100].
+
+    Examples
+    --------
+    >>> bad_pixels([[0.0, 1.0]], [[0.0, 0.0]], tau=0.5)
+    50.0
+    """
     err = _masked_error(estimate, truth, mask, border)
     return float(100.0 * np.mean(np.abs(err) > tau))
 
 
 def rmse(estimate, truth, mask=None, border: int = 0) -> float:
-    """Root-mean-square disparity error (px) over evaluated pixels."""
+    """Root-mean-square disparity error (px) over evaluated pixels.
+
+    Parameters
+    ----------
+    estimate, truth : array_like
+        Estimated and true disparity, same shape (px). A non-finite estimate counts as an
+        infinitely bad pixel; non-finite ground truth is not evaluated.
+    mask : array_like of bool, optional
+        Extra evaluation mask (:func:`evaluation_mask`).
+    border : int
+        Frame excluded on every side, pixels.
+
+    Returns
+    -------
+    float
+        RMSE in px.
+
+    Examples
+    --------
+    >>> rmse([[3.0, 4.0]], [[0.0, 0.0]])  # sqrt((9 + 16) / 2)
+    3.5355339059327378
+    """
     err = _masked_error(estimate, truth, mask, border)
     return float(np.sqrt(np.mean(err ** 2)))
 
 
 def mse_x100(estimate, truth, mask=None, border: int = 0) -> float:
-    """Mean squared error times 100, as the HCI benchmark reports it."""
+    """Mean squared error times 100, as the HCI benchmark reports it.
+
+    Parameters
+    ----------
+    estimate, truth : array_like
+        Estimated and true disparity, same shape (px). A non-finite estimate counts as an
+        infinitely bad pixel; non-finite ground truth is not evaluated.
+    mask : array_like of bool, optional
+        Extra evaluation mask (:func:`evaluation_mask`).
+    border : int
+        Frame excluded on every side, pixels.
+
+    Returns
+    -------
+    float
+        ``100 * mean(error ** 2)`` (px squared).
+
+    References
+    ----------
+    K. Honauer, O. Johannsen, D. Kondermann, B. Goldluecke, "A dataset and evaluation
+    methodology for depth estimation on 4D light fields", ACCV 2016.
+
+    Examples
+    --------
+    >>> mse_x100([[0.1, 0.0]], [[0.0, 0.0]])
+    0.5000000000000001
+    """
     err = _masked_error(estimate, truth, mask, border)
     return float(100.0 * np.mean(err ** 2))
 
@@ -105,13 +186,55 @@ def mse_x100(estimate, truth, mask=None, border: int = 0) -> float:
 def badpix(estimate, truth, threshold: float = 0.07, mask=None,
            border: int = HCI_BORDER) -> float:
     """HCI BadPix(threshold): % of pixels with error above ``threshold`` (default 0.07 px),
-    excluding the benchmark's 15-pixel border."""
+    excluding the benchmark's 15-pixel border.
+
+    Parameters
+    ----------
+    estimate, truth : array_like
+        Estimated and true disparity, same shape (px).
+    threshold : float
+        Error threshold, px (HCI: 0.07).
+    mask : array_like of bool, optional
+        Extra evaluation mask.
+    border : int
+        Frame excluded on every side (default :data:`HCI_BORDER`).
+
+    Returns
+    -------
+    float
+        Percentage in [0, 100].
+
+    References
+    ----------
+    K. Honauer, O. Johannsen, D. Kondermann, B. Goldluecke, "A dataset and evaluation
+    methodology for depth estimation on 4D light fields", ACCV 2016.
+
+    Examples
+    --------
+    >>> gt = np.zeros((40, 40)); est = gt.copy(); est[20, 20] = 1.0
+    >>> round(badpix(est, gt), 4)  # one bad pixel among the 10 x 10 inside the border
+    1.0
+    """
     return bad_pixels(estimate, truth, threshold, mask=mask, border=border)
 
 
 @dataclass(frozen=True)
 class DisparityScores:
-    """Disparity metrics on one mask (percentages in %, errors in px)."""
+    """Disparity metrics on one mask (percentages in %, errors in px).
+
+    Attributes
+    ----------
+    rmse, mse_x100 : float
+        Root-mean-square error (px) and mean squared error x 100.
+    badpix_007, bad_0_5, bad_1, bad_2, bad_5 : float
+        Percentage of pixels whose error exceeds 0.07, 0.5, 1, 2 and 5 px.
+    n_pixels : int
+        Number of evaluated pixels.
+    mask : str
+        Name of the evaluation mask.
+    border : int
+        Frame excluded on every side, pixels.
+    """
 
     rmse: float
     mse_x100: float
@@ -134,6 +257,27 @@ def disparity_scores(estimate, truth, mask=None, mask_name: str = "all",
 
     BadPix(0.07) uses the same ``border`` as the rest here, so all numbers of a row refer to
     the same pixels; pass ``border=HCI_BORDER`` for the HCI protocol.
+
+    Parameters
+    ----------
+    estimate, truth : array_like
+        Estimated and true disparity, same shape (px).
+    mask : array_like of bool, optional
+        Extra evaluation mask.
+    mask_name : str
+        Name recorded in the result (e.g. Middlebury's ``"all"``).
+    border : int
+        Frame excluded on every side, pixels.
+
+    Returns
+    -------
+    DisparityScores
+
+    Examples
+    --------
+    >>> s = disparity_scores([[0.0, 1.0]], [[0.0, 0.0]])
+    >>> s.rmse, s.bad_0_5, s.n_pixels
+    (0.7071067811865476, 50.0, 2)
     """
     err = np.abs(_masked_error(estimate, truth, mask, border))
     return DisparityScores(
@@ -153,8 +297,24 @@ def disparity_scores(estimate, truth, mask=None, mask_name: str = "all",
 def psnr(estimate, truth, data_range: float = 1.0, mask=None) -> float:
     """Peak signal-to-noise ratio (dB) over all (masked) entries.
 
-    ``data_range`` is the peak value (1.0 for intensities in [0, 1]). Identical inputs give
-    ``inf``.
+    Parameters
+    ----------
+    estimate, truth : array_like
+        Same shape.
+    data_range : float
+        The peak value (1.0 for intensities in [0, 1]).
+    mask : array_like of bool, optional
+        Broadcast to the inputs' shape; selects the entries compared.
+
+    Returns
+    -------
+    float
+        PSNR in dB; ``inf`` for identical inputs.
+
+    Examples
+    --------
+    >>> psnr(np.full(4, 0.1), np.zeros(4))
+    20.0
     """
     est, gt = _pair(estimate, truth)
     if data_range <= 0:
@@ -172,8 +332,24 @@ def psnr(estimate, truth, data_range: float = 1.0, mask=None) -> float:
 
 def psnr_per_band(estimate, truth, band_axis: int = -3, data_range: float = 1.0,
                   mask=None) -> np.ndarray:
-    """PSNR (dB) of every band of a cube; ``band_axis`` indexes the bands
-    (default -3 for ``[..., B, H, W]``)."""
+    """PSNR (dB) of every band of a cube.
+
+    Parameters
+    ----------
+    estimate, truth : array_like
+        Cubes of the same shape.
+    band_axis : int
+        Axis of the bands (default -3 for ``[..., B, H, W]``).
+    data_range : float
+        The peak value.
+    mask : array_like of bool, optional
+        Broadcast to the cube's shape.
+
+    Returns
+    -------
+    ndarray, shape (B,)
+        PSNR of every band, dB.
+    """
     est, gt = _pair(estimate, truth)
     est = np.moveaxis(est, band_axis, 0)
     gt = np.moveaxis(gt, band_axis, 0)
@@ -189,6 +365,32 @@ def sam(estimate, truth, band_axis: int = -3, mask=None, eps: float = 1e-12) -> 
     Spectra run along ``band_axis``; every other position is one spectrum. ``mask`` (shape of
     one band, i.e. the array without ``band_axis``) selects spectra. Spectra whose norm is
     zero in either input are skipped.
+
+    Parameters
+    ----------
+    estimate, truth : array_like
+        Cubes of the same shape.
+    band_axis : int
+        Axis of the bands (default -3 for ``[..., B, H, W]``).
+    mask : array_like of bool, optional
+        Shape of the cube without ``band_axis``.
+    eps : float
+        Norm product below which a spectrum is skipped.
+
+    Returns
+    -------
+    float
+        Mean spectral angle in degrees.
+
+    References
+    ----------
+    F. A. Kruse et al., "The spectral image processing system (SIPS)", Remote Sensing of
+    Environment 44, 1993.
+
+    Examples
+    --------
+    >>> round(sam(np.array([1.0, 0.0]), np.array([1.0, 1.0]), band_axis=-1), 6)
+    45.0
     """
     est, gt = _pair(estimate, truth)
     est = np.moveaxis(est, band_axis, -1)
@@ -208,7 +410,23 @@ def sam(estimate, truth, band_axis: int = -3, mask=None, eps: float = 1e-12) -> 
 
 
 def completion_ratio(valid) -> float:
-    """Percentage of (view, band, pixel) entries marked valid in a completion mask."""
+    """Percentage of (view, band, pixel) entries marked valid in a completion mask.
+
+    Parameters
+    ----------
+    valid : array_like of bool
+        Completion mask, any shape.
+
+    Returns
+    -------
+    float
+        Percentage in [0, 100].
+
+    Examples
+    --------
+    >>> completion_ratio([True, False, True, True])
+    75.0
+    """
     v = np.asarray(valid, dtype=bool)
     if v.size == 0:
         raise InvalidInputError("completion_ratio: empty mask")

@@ -20,7 +20,19 @@ __all__ = ["Section", "write_html_report"]
 
 @dataclass
 class Section:
-    """One section of the report."""
+    """One section of the report.
+
+    Attributes
+    ----------
+    title : str
+        Section heading.
+    text : str
+        One paragraph (escaped).
+    table : sequence of sequence of str
+        Rows of a table; the first row is the header.
+    pictures : sequence of (path, caption)
+        PNG or GIF files embedded in the report.
+    """
 
     title: str
     text: str = ""
@@ -48,7 +60,32 @@ def _img_tag(path: Path) -> str:
 
 def write_html_report(path: str | os.PathLike, title: str, sections: Sequence[Section],
                       footer: str = "") -> Path:
-    """Write an HTML report with every picture embedded, so the one file can be shared."""
+    """Write an HTML report with every picture embedded, so the one file can be shared.
+
+    Parameters
+    ----------
+    path : path-like
+        Output ``.html`` (written atomically).
+    title : str
+        Page title and heading.
+    sections : sequence of Section
+        The sections, in order.
+    footer : str
+        Small print at the end (e.g. timings).
+
+    Returns
+    -------
+    Path
+        The written report.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "r.html"
+    >>> rep = write_html_report(out, "demo", [Section("a", "text", [("x",), ("1",)])])
+    >>> "<h2>a</h2>" in rep.read_text()
+    True
+    """
     parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}"
              f"</title><style>{_STYLE}</style></head><body><h1>{html.escape(title)}</h1>"]
     for sec in sections:

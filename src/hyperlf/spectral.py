@@ -62,6 +62,8 @@ __all__ = [
     "load_filter_transmissions",
     "filter_response",
     "sample_widths",
+    "as_wavelengths",
+    "illuminant_values",
 ]
 
 #: Name of the default observer (colour-science's key).
@@ -95,7 +97,31 @@ _BRADFORD = np.array([[0.8951, 0.2664, -0.1614],
 # small validation helpers
 # ---------------------------------------------------------------------------------------------
 
-def _as_wavelengths(wavelengths, name: str = "wavelengths") -> np.ndarray:
+def as_wavelengths(wavelengths, name: str = "wavelengths") -> np.ndarray:
+    """Validate wavelengths: a finite, non-empty 1-D float64 array (a scalar becomes 1-D).
+
+    Parameters
+    ----------
+    wavelengths : array_like
+        Wavelengths in nm.
+    name : str
+        What to call the argument in error messages.
+
+    Returns
+    -------
+    ndarray
+        ``(N,)`` float64.
+
+    Raises
+    ------
+    InvalidInputError
+        For non-numeric, empty, multi-dimensional or non-finite input.
+
+    Examples
+    --------
+    >>> as_wavelengths(550)
+    array([550.])
+    """
     try:
         wl = np.asarray(wavelengths, dtype=np.float64)
     except (TypeError, ValueError):
@@ -157,7 +183,7 @@ def sample_widths(wavelengths) -> np.ndarray:
     ndarray, shape (N,)
         Widths in nm, in the order of ``wavelengths``.
     """
-    wl = _as_wavelengths(wavelengths)
+    wl = as_wavelengths(wavelengths)
     if wl.size == 1:
         return np.ones(1)
     order = np.argsort(wl, kind="stable")
@@ -221,7 +247,7 @@ def cmfs(wavelengths, observer: str = CIE1931) -> np.ndarray:
     ndarray, shape (N, 3)
         x̄ȳz̄ linearly interpolated from the 1 nm table; zero outside the table.
     """
-    wl = _as_wavelengths(wavelengths)
+    wl = as_wavelengths(wavelengths)
     table_wl, table = _cmf_table(observer)
     return _interp_table(wl, table_wl, table, outside="zero")
 
@@ -526,7 +552,7 @@ def camera_sensitivities(name_or_path, wavelengths) -> np.ndarray:
     DataNotFoundError, FormatError
         A CSV path that does not exist or is malformed.
     """
-    wl = _as_wavelengths(wavelengths)
+    wl = as_wavelengths(wavelengths)
     if _looks_like_path(name_or_path):
         table_wl, table = load_sensitivities_csv(name_or_path)
         return _interp_table(wl, table_wl, table, outside="zero")
@@ -567,6 +593,21 @@ def srgb_to_linear(x) -> np.ndarray:
     ``x / 12.92`` for ``x <= 0.04045``, else ``((x + 0.055) / 1.055) ** 2.4``. Negative values
     are mapped antisymmetrically (``f(-x) = -f(x)``), as in extended sRGB, so nothing becomes
     NaN. Values are not clipped. float32 stays float32; other types become float64.
+
+    Parameters
+    ----------
+    x : array_like
+        sRGB-encoded values.
+
+    Returns
+    -------
+    ndarray
+        Linear values, same shape.
+
+    Examples
+    --------
+    >>> srgb_to_linear(np.array([0.0, 1.0])).tolist()
+    [0.0, 1.0]
     """
     a = _float(_as_array(x, "x"))
     ax = np.abs(a)
@@ -579,6 +620,22 @@ def linear_to_srgb(x) -> np.ndarray:
 
     ``12.92 x`` for ``x <= 0.0031308``, else ``1.055 x ** (1/2.4) - 0.055``; antisymmetric for
     negative values; not clipped. Inverse of :func:`srgb_to_linear`.
+
+    Parameters
+    ----------
+    x : array_like
+        Linear values.
+
+    Returns
+    -------
+    ndarray
+        sRGB-encoded values, same shape.
+
+    Examples
+    --------
+    >>> x = np.array([0.001, 0.2, 0.9])
+    >>> bool(np.allclose(srgb_to_linear(linear_to_srgb(x)), x))
+    True
     """
     a = _float(_as_array(x, "x"))
     ax = np.abs(a)
@@ -696,7 +753,7 @@ def illuminant_spd(name: str, wavelengths) -> np.ndarray:
         Linear interpolation of the tabulated SPD; the end values are held outside the table
         (colour-science's constant extrapolation). Scaled to mean 1 over ``wavelengths``.
     """
-    wl = _as_wavelengths(wavelengths)
+    wl = as_wavelengths(wavelengths)
     table_wl, table = _illuminant_table(str(name))
     spd = np.interp(wl, table_wl, table)
     m = spd.mean()
@@ -725,7 +782,31 @@ def _illuminant_table(name: str) -> tuple[np.ndarray, np.ndarray]:
     return wl, v
 
 
-def _illuminant_values(illuminant, wl: np.ndarray) -> np.ndarray | None:
+def illuminant_values(illuminant, wl: np.ndarray) -> np.ndarray | None:
+    """An illuminant's SPD on ``wl``: a name (:func:`illuminant_spd`), an array or None.
+
+    Parameters
+    ----------
+    illuminant : str, array_like or None
+        A colour-science illuminant name (e.g. ``"D65"``), one value per wavelength, or None.
+    wl : ndarray
+        ``(N,)`` wavelengths in nm.
+
+    Returns
+    -------
+    ndarray or None
+        ``(N,)`` float64 SPD, or None when ``illuminant`` is None.
+
+    Raises
+    ------
+    InvalidInputError
+        For an array of the wrong shape or with non-finite values.
+
+    Examples
+    --------
+    >>> illuminant_values([1.0, 2.0], np.array([500.0, 600.0]))
+    array([1., 2.])
+    """
     if illuminant is None:
         return None
     if isinstance(illuminant, str):
@@ -791,11 +872,11 @@ def spectrum_to_xyz(spectra, wavelengths, illuminant=None, normalise: str | None
     InvalidInputError
         Shape mismatch, or the wavelengths lie outside the CMFs (no luminance).
     """
-    wl = _as_wavelengths(wavelengths)
+    wl = as_wavelengths(wavelengths)
     arr = _float(_as_array(spectra, "spectra"))
     moved = _spectral_axis(arr, wl.size, axis, "spectra")
     weights = cmfs(wl, observer) * sample_widths(wl)[:, None]  # (N, 3)
-    ill = _illuminant_values(illuminant, wl)
+    ill = illuminant_values(illuminant, wl)
     if ill is not None:
         weights = weights * ill[:, None]
     if normalise in ("equal-energy", "white"):
@@ -848,7 +929,7 @@ def spectrum_to_rgb(spectra, wavelengths, camera="CIE 1931", white_balance: bool
     InvalidInputError
         Shape mismatch, or a channel with zero response over the bands while white-balancing.
     """
-    wl = _as_wavelengths(wavelengths)
+    wl = as_wavelengths(wavelengths)
     arr = _float(_as_array(spectra, "spectra"))
     moved = _spectral_axis(arr, wl.size, axis, "spectra")
     if isinstance(camera, (str, os.PathLike)):
@@ -860,7 +941,7 @@ def spectrum_to_rgb(spectra, wavelengths, camera="CIE 1931", white_balance: bool
                 f"camera sensitivities must have shape ({wl.size}, 3) to match the wavelengths, "
                 f"got {S.shape}"
             )
-    ill = _illuminant_values(illuminant, wl)
+    ill = illuminant_values(illuminant, wl)
     if ill is not None:
         S = S * ill[:, None]
     if white_balance:
@@ -918,7 +999,7 @@ def rgb_to_spectrum(rgb_linear, wavelengths) -> np.ndarray:
     ndarray, shape (..., N)
         float32 for float32 input, else float64.
     """
-    wl = _as_wavelengths(wavelengths)
+    wl = as_wavelengths(wavelengths)
     a = _float(_as_array(rgb_linear, "rgb_linear", last=3))
     basis = _mallett_basis(tuple(wl.tolist()))
     return a @ basis.astype(a.dtype)
@@ -1213,7 +1294,7 @@ def reflectance_library(source: str = "auto", wavelengths=None) -> tuple[np.ndar
         )
     if wavelengths is None:
         return wl, refl
-    new = _as_wavelengths(wavelengths)
+    new = as_wavelengths(wavelengths)
     out = _interp_table(new, wl, refl.T, outside="hold").T
     return new, np.ascontiguousarray(out)
 
@@ -1320,7 +1401,7 @@ def filter_response(center_nm, wavelengths, shape: str = "dirac", fwhm: float = 
         Unknown shape, bad fwhm, a Dirac centre outside the wavelengths, or a filter that does
         not overlap the wavelengths.
     """
-    wl = _as_wavelengths(wavelengths)
+    wl = as_wavelengths(wavelengths)
     c_arr = np.asarray(center_nm, dtype=np.float64)
     scalar = c_arr.ndim == 0
     c = c_arr.reshape(-1)
@@ -1382,3 +1463,8 @@ def filter_response(center_nm, wavelengths, shape: str = "dirac", fwhm: float = 
         )
     W = W / tot
     return W[0] if scalar else W
+
+
+# Former private names, kept while callers move to the public ones.
+_as_wavelengths = as_wavelengths
+_illuminant_values = illuminant_values

@@ -79,7 +79,24 @@ def add_noise(views: np.ndarray, sigma: float, seed: Any = 0) -> np.ndarray:
 
 def band_grid(rows: int, cols: int, lambda_min: float = 410.0,
               lambda_max: float = 700.0) -> np.ndarray:
-    """The ``rows * cols`` band centres (nm), equal steps from ``lambda_min`` to ``lambda_max``."""
+    """The ``rows * cols`` band centres (nm), equal steps from ``lambda_min`` to ``lambda_max``.
+
+    Parameters
+    ----------
+    rows, cols : int
+        Grid of views (one band per view).
+    lambda_min, lambda_max : float
+        Band range in nm.
+
+    Returns
+    -------
+    ndarray of float64, shape (rows * cols,)
+
+    Examples
+    --------
+    >>> band_grid(1, 3, 400.0, 600.0).tolist()
+    [400.0, 500.0, 600.0]
+    """
     if rows < 1 or cols < 1:
         raise InvalidInputError(f"grid must have at least one view, got {rows} x {cols}")
     if not (0 < lambda_min <= lambda_max) or not np.isfinite(lambda_max):
@@ -270,6 +287,173 @@ def _simple(v: Any) -> bool:
 
 
 # ----------------------------------------------------------------------------- from RGB
+def _check_rgb_args(lf_rgb: Any, view_disparity: str, normalization: str) -> None:
+    if not isinstance(lf_rgb, LightField):
+        raise InvalidInputError(
+            f"from_rgb_lightfield needs a LightField, got {type(lf_rgb).__name__}; "
+            "read one with hyperlf.formats.read_hci_scene"
+        )
+    if lf_rgb.views.ndim != 5 or lf_rgb.views.shape[4] != 3:
+        raise InvalidInputError(
+            f"from_rgb_lightfield needs RGB views (R, C, H, W, 3); got {lf_rgb.views.shape}"
+        )
+    if view_disparity not in ("warp", "reference"):
+        raise InvalidInputError(
+            f"view_disparity must be 'warp' or 'reference', got {view_disparity!r}"
+        )
+    if normalization not in ("white", "max"):
+        raise InvalidInputError(f"normalization must be 'white' or 'max', got {normalization!r}")
+
+
+class _RGBToBands:
+    """Linear RGB -> band values through ``spectral.rgb_to_spectrum`` and the band weights.
+
+    When the spectral map is linear (checked numerically on random probes) and non-negative it
+    is folded once into a 3 x B matrix; otherwise spectra are computed per pixel, clipped at 0.
+    """
+
+    def __init__(self, wl: np.ndarray, Wt: np.ndarray):
+        from . import spectral
+
+        self._spectral = spectral
+        self.wl, self.Wt, self.B = wl, Wt, Wt.shape[1]
+        basis = np.asarray(spectral.rgb_to_spectrum(np.eye(3), wl), dtype=np.float64)
+        probe = np.random.default_rng(1).random((8, 3))
+        self.linear = bool(
+            basis.shape == (3, wl.size) and np.all(np.isfinite(basis))
+            and np.allclose(np.asarray(spectral.rgb_to_spectrum(probe, wl), dtype=np.float64),
+                            probe @ basis, atol=1e-6)
+            and basis.min() >= 0)
+        self.M = basis @ Wt if self.linear else None  # (3, B)
+        self.M32 = np.ascontiguousarray(self.M.T, dtype=np.float32) if self.linear else None
+
+    def __call__(self, rgb_lin: np.ndarray) -> np.ndarray:
+        """(H, W, 3) linear RGB -> (B, H, W) float32."""
+        h, w = rgb_lin.shape[:2]
+        B, wl = self.B, self.wl
+        if self.linear:
+            planes = np.ascontiguousarray(np.moveaxis(rgb_lin, -1, 0).reshape(3, -1),
+                                          dtype=np.float32)
+            return (self.M32 @ planes).reshape(B, h, w)
+        flat = rgb_lin.reshape(-1, 3)
+        out = np.empty((flat.shape[0], B))
+        step = max(1, 2_000_000 // max(wl.size, 1))
+        for i in range(0, flat.shape[0], step):
+            sp = np.asarray(self._spectral.rgb_to_spectrum(flat[i:i + step], wl),
+                            dtype=np.float64)
+            out[i:i + step] = np.clip(sp, 0.0, None) @ self.Wt
+        return out.T.reshape(B, h, w).astype(np.float32)
+
+    def white(self) -> np.ndarray:
+        """Band values of a perfect white (linear RGB 1, 1, 1)."""
+        if self.linear:
+            return np.ones(3) @ self.M
+        sp = np.asarray(self._spectral.rgb_to_spectrum(np.ones((1, 3)), self.wl),
+                        dtype=np.float64)
+        return np.clip(sp, 0.0, None) @ self.Wt
+
+
+def _rgb_cube(lf_rgb: LightField, start: tuple[int, int], rows: int, cols: int,
+              to_bands: _RGBToBands, progress: bool) -> np.ndarray:
+    """Every band of every view of the sub-grid starting at ``start``: (R, C, B, H, W)."""
+    from . import spectral
+
+    sr, sc = start
+    H, W = lf_rgb.image_shape
+    cube = np.empty((rows, cols, to_bands.B, H, W), dtype=np.float32)
+    for r, c in grid_views(rows, cols, "spectra per view", progress):
+        srgb = np.asarray(lf_rgb.views[sr + r, sc + c], dtype=np.float32)
+        lin = np.asarray(spectral.srgb_to_linear(srgb), dtype=np.float32)
+        np.maximum(lin, 0.0, out=lin)
+        cube[r, c] = to_bands(lin)
+    return cube
+
+
+def _normalise_cube(cube: np.ndarray, white: np.ndarray, normalization: str) -> float:
+    """Scale ``cube`` in place (``"white"`` or ``"max"``; see :func:`from_rgb_lightfield`)."""
+    cmax = float(cube.max())
+    if normalization == "white" and float(np.max(white)) > 0:
+        scale = 1.0 / float(np.max(white))
+        if cmax * scale > 1.0:
+            scale = 1.0 / cmax
+    else:
+        scale = 1.0 / cmax if cmax > 0 else 1.0
+    if scale != 1.0:
+        cube *= np.float32(scale)
+    np.clip(cube, 0.0, 1.0, out=cube)  # rounding only; the scale already keeps it <= 1
+    return scale
+
+
+def _subgrid_gt_disparity(lf_rgb: LightField, start: tuple[int, int], rows: int, cols: int,
+                          view_disparity: str) -> tuple[np.ndarray | None, str | None]:
+    """Ground-truth disparity of the sub-grid and how it was obtained."""
+    gt = lf_rgb.gt_disparity
+    if gt is None:
+        return None, None
+    sr, sc = start
+    if gt.ndim == 4:
+        return gt[sr:sr + rows, sc:sc + cols].copy(), "source, every view"
+    if view_disparity == "reference":
+        return gt.copy(), "source reference view only"
+    H, W = lf_rgb.image_shape
+    offsets = lf_rgb.offsets[sr:sr + rows, sc:sc + cols]
+    ref = ((rows - 1) // 2, (cols - 1) // 2)
+    gt_out = np.empty((rows, cols, H, W), dtype=np.float32)
+    for r in range(rows):
+        for c in range(cols):
+            if (r, c) == ref:
+                gt_out[r, c] = gt
+            else:
+                gt_out[r, c] = view_disparity_from_reference(gt, tuple(offsets[r, c]))
+    return gt_out, ("reference: source; other views: forward-warped reference "
+                    "(z-buffer), refined and crack-filled by a consistency check "
+                    "against the reference ground truth; unknown pixels NaN")
+
+
+def _source_disparity_range(lf_rgb: LightField) -> tuple[float, float] | None:
+    gt = lf_rgb.gt_disparity
+    if lf_rgb.disparity_range is not None:
+        return lf_rgb.disparity_range
+    if gt is not None and np.isfinite(gt).any():
+        lo, hi = float(np.nanmin(gt)), float(np.nanmax(gt))
+        return (lo, hi) if hi > lo else (lo - 0.5, hi + 0.5)
+    return None
+
+
+def _rgb_metadata(lf_rgb: LightField, start: tuple[int, int], origin: np.ndarray,
+                  opts: dict, kmap: np.ndarray, linear: bool, scale: float,
+                  disp_method: str | None) -> dict:
+    sr, sc = start
+    rows, cols, filter_shape = opts["rows"], opts["cols"], opts["filter_shape"]
+    src_meta = {k: v for k, v in lf_rgb.metadata.items() if _simple(v)}
+    return {
+        "synthesis": "from_rgb_lightfield",
+        "source": src_meta.get("source", src_meta.get("path", "rgb light field")),
+        "source_metadata": src_meta,
+        "source_grid": list(lf_rgb.grid_shape),
+        "source_reference": list(lf_rgb.reference),
+        "subgrid_rows": [sr, sr + rows - 1],
+        "subgrid_cols": [sc, sc + cols - 1],
+        "source_position_origin": [float(v) for v in origin],
+        "licence": src_meta.get("licence"),
+        "rows": rows, "cols": cols,
+        "lambda_min": float(opts["lambda_min"]), "lambda_max": float(opts["lambda_max"]),
+        "layout": _layout_meta(opts["layout"]),
+        "band_index": kmap.tolist(),
+        "filter_shape": filter_shape,
+        "fwhm": float(opts["fwhm"]) if filter_shape != "dirac" else None,
+        "quantum_efficiency": _qe_meta(opts["quantum_efficiency"]),
+        "illuminant": opts["illuminant"],
+        "spectral_basis": "hyperlf.spectral.rgb_to_spectrum (Mallett & Yuksel 2019)",
+        "spectral_path": "linear 3xB matrix" if linear else "per-pixel spectra clipped at 0",
+        "normalization": opts["normalization"],
+        "intensity_scale": float(scale),
+        "noise_sigma": float(opts["noise_sigma"]),
+        "seed": int(opts["seed"]),
+        "gt_disparity": disp_method,
+    }
+
+
 def from_rgb_lightfield(lf_rgb: LightField, rows: int = 5, cols: int = 6,
                         lambda_min: float = 410.0, lambda_max: float = 700.0,
                         layout: str | Sequence[int] = "raster", filter_shape: str = "dirac",
@@ -333,152 +517,50 @@ def from_rgb_lightfield(lf_rgb: LightField, rows: int = 5, cols: int = 6,
     ------
     InvalidInputError
         For a non-RGB input, a sub-grid that does not fit, or bad parameters.
-    """
-    from . import spectral
 
-    if not isinstance(lf_rgb, LightField):
-        raise InvalidInputError(
-            f"from_rgb_lightfield needs a LightField, got {type(lf_rgb).__name__}; "
-            "read one with hyperlf.formats.read_hci_scene"
-        )
-    if lf_rgb.views.ndim != 5 or lf_rgb.views.shape[4] != 3:
-        raise InvalidInputError(
-            f"from_rgb_lightfield needs RGB views (R, C, H, W, 3); got {lf_rgb.views.shape}"
-        )
-    if view_disparity not in ("warp", "reference"):
-        raise InvalidInputError(
-            f"view_disparity must be 'warp' or 'reference', got {view_disparity!r}"
-        )
-    if normalization not in ("white", "max"):
-        raise InvalidInputError(f"normalization must be 'white' or 'max', got {normalization!r}")
+    References
+    ----------
+    I. Mallett, C. Yuksel, "Spectral primary decomposition for rendering with sRGB
+    reflectance", Eurographics Symposium on Rendering 2019 (the RGB -> spectrum basis).
+
+    Examples
+    --------
+    >>> rgb = LightField(np.full((3, 3, 8, 8, 3), 0.5, np.float32))
+    >>> H = from_rgb_lightfield(rgb, rows=3, cols=3)
+    >>> H.views.shape, H.wavelengths[1, 1]
+    ((3, 3, 8, 8), 555.0)
+    """
+    _check_rgb_args(lf_rgb, view_disparity, normalization)
     rows, cols = int(rows), int(cols)
     t_start = time.perf_counter()
     cube_wl = band_grid(rows, cols, lambda_min, lambda_max)
     kmap = filter_layout(rows, cols, layout, seed)
     wavelengths = cube_wl[kmap]
-    sr, sc = _subgrid_start(lf_rgb.grid_shape, lf_rgb.reference, rows, cols)
-    H, W = lf_rgb.image_shape
-    B = cube_wl.size
+    start = _subgrid_start(lf_rgb.grid_shape, lf_rgb.reference, rows, cols)
 
     wl, Wt = _band_weights(cube_wl, filter_shape, float(fwhm), quantum_efficiency, illuminant)
-
-    # Linear-map fast path: basis (3, N) on the sampling grid.
-    basis = np.asarray(spectral.rgb_to_spectrum(np.eye(3), wl), dtype=np.float64)
-    probe = np.random.default_rng(1).random((8, 3))
-    linear = (basis.shape == (3, wl.size) and np.all(np.isfinite(basis))
-              and np.allclose(np.asarray(spectral.rgb_to_spectrum(probe, wl), dtype=np.float64),
-                              probe @ basis, atol=1e-6)
-              and basis.min() >= 0)
-    M = basis @ Wt if linear else None  # (3, B)
-
-    M32 = np.ascontiguousarray(M.T, dtype=np.float32) if linear else None  # (B, 3)
-
-    def bands_of(rgb_lin: np.ndarray) -> np.ndarray:
-        """(H, W, 3) linear RGB -> (B, H, W) float32."""
-        h, w = rgb_lin.shape[:2]
-        if linear:
-            planes = np.ascontiguousarray(np.moveaxis(rgb_lin, -1, 0).reshape(3, -1),
-                                          dtype=np.float32)
-            return (M32 @ planes).reshape(B, h, w)
-        flat = rgb_lin.reshape(-1, 3)
-        out = np.empty((flat.shape[0], B))
-        step = max(1, 2_000_000 // max(wl.size, 1))
-        for i in range(0, flat.shape[0], step):
-            sp = np.asarray(spectral.rgb_to_spectrum(flat[i:i + step], wl), dtype=np.float64)
-            out[i:i + step] = np.clip(sp, 0.0, None) @ Wt
-        return out.T.reshape(B, h, w).astype(np.float32)
-
-    cube = np.empty((rows, cols, B, H, W), dtype=np.float32)
-    t_views = time.perf_counter()
-    for r, c in grid_views(rows, cols, "spectra per view", progress):
-        srgb = np.asarray(lf_rgb.views[sr + r, sc + c], dtype=np.float32)
-        lin = np.asarray(spectral.srgb_to_linear(srgb), dtype=np.float32)
-        np.maximum(lin, 0.0, out=lin)
-        cube[r, c] = bands_of(lin)
-    t_views = time.perf_counter() - t_views
-
-    if linear:
-        white = np.ones(3) @ M
-    else:
-        white = np.clip(np.asarray(spectral.rgb_to_spectrum(np.ones((1, 3)), wl), dtype=np.float64),
-                        0.0, None) @ Wt
-    cmax = float(cube.max())
-    if normalization == "white" and float(np.max(white)) > 0:
-        scale = 1.0 / float(np.max(white))
-        if cmax * scale > 1.0:
-            scale = 1.0 / cmax
-    else:
-        scale = 1.0 / cmax if cmax > 0 else 1.0
-    if scale != 1.0:
-        cube *= np.float32(scale)
-    np.clip(cube, 0.0, 1.0, out=cube)  # rounding only; the scale already keeps it <= 1
+    to_bands = _RGBToBands(wl, Wt)
+    cube = _rgb_cube(lf_rgb, start, rows, cols, to_bands, progress)
+    scale = _normalise_cube(cube, to_bands.white(), normalization)
 
     clean = cube[np.arange(rows)[:, None], np.arange(cols)[None, :], kmap]  # (R, C, H, W)
     views = add_noise(clean, noise_sigma, seed=[int(seed), 1]) if noise_sigma > 0 else clean
 
-    # Ground-truth disparity.
-    gt = lf_rgb.gt_disparity
-    gt_out = None
-    disp_method = None
-    offsets = lf_rgb.offsets[sr:sr + rows, sc:sc + cols]
+    gt_out, disp_method = _subgrid_gt_disparity(lf_rgb, start, rows, cols, view_disparity)
+    drange = _source_disparity_range(lf_rgb)
     ref = ((rows - 1) // 2, (cols - 1) // 2)
-    if gt is not None:
-        if gt.ndim == 4:
-            gt_out = gt[sr:sr + rows, sc:sc + cols].copy()
-            disp_method = "source, every view"
-        elif view_disparity == "reference":
-            gt_out = gt.copy()
-            disp_method = "source reference view only"
-        else:
-            gt_out = np.empty((rows, cols, H, W), dtype=np.float32)
-            for r in range(rows):
-                for c in range(cols):
-                    if (r, c) == ref:
-                        gt_out[r, c] = gt
-                    else:
-                        gt_out[r, c] = view_disparity_from_reference(gt, tuple(offsets[r, c]))
-            disp_method = ("reference: source; other views: forward-warped reference "
-                           "(z-buffer), refined and crack-filled by a consistency check "
-                           "against the reference ground truth; unknown pixels NaN")
-    if lf_rgb.disparity_range is not None:
-        drange = lf_rgb.disparity_range
-    elif gt is not None and np.isfinite(gt).any():
-        lo, hi = float(np.nanmin(gt)), float(np.nanmax(gt))
-        drange = (lo, hi) if hi > lo else (lo - 0.5, hi + 0.5)
-    else:
-        drange = None
 
+    sr, sc = start
     positions = lf_rgb.positions[sr:sr + rows, sc:sc + cols]
     origin = positions[0, 0].copy()
     positions = positions - origin[None, None, :]
-    src_meta = {k: v for k, v in lf_rgb.metadata.items() if _simple(v)}
-    metadata = {
-        "synthesis": "from_rgb_lightfield",
-        "source": src_meta.get("source", src_meta.get("path", "rgb light field")),
-        "source_metadata": src_meta,
-        "source_grid": list(lf_rgb.grid_shape),
-        "source_reference": list(lf_rgb.reference),
-        "subgrid_rows": [sr, sr + rows - 1],
-        "subgrid_cols": [sc, sc + cols - 1],
-        "source_position_origin": [float(v) for v in origin],
-        "licence": src_meta.get("licence"),
-        "rows": rows, "cols": cols,
-        "lambda_min": float(lambda_min), "lambda_max": float(lambda_max),
-        "layout": _layout_meta(layout),
-        "band_index": kmap.tolist(),
-        "filter_shape": filter_shape,
-        "fwhm": float(fwhm) if filter_shape != "dirac" else None,
-        "quantum_efficiency": _qe_meta(quantum_efficiency),
-        "illuminant": illuminant,
-        "spectral_basis": "hyperlf.spectral.rgb_to_spectrum (Mallett & Yuksel 2019)",
-        "spectral_path": "linear 3xB matrix" if linear else "per-pixel spectra clipped at 0",
-        "normalization": normalization,
-        "intensity_scale": float(scale),
-        "noise_sigma": float(noise_sigma),
-        "seed": int(seed),
-        "gt_disparity": disp_method,
-        "runtime_s": round(time.perf_counter() - t_start, 3),
-    }
+    opts = dict(rows=rows, cols=cols, lambda_min=lambda_min, lambda_max=lambda_max,
+                layout=layout, filter_shape=filter_shape, fwhm=fwhm,
+                quantum_efficiency=quantum_efficiency, illuminant=illuminant,
+                normalization=normalization, noise_sigma=noise_sigma, seed=seed)
+    metadata = _rgb_metadata(lf_rgb, start, origin, opts, kmap, to_bands.linear, scale,
+                             disp_method)
+    metadata["runtime_s"] = round(time.perf_counter() - t_start, 3)
     return LightField(views=views, wavelengths=wavelengths, positions=positions,
                       reference=ref, disparity_range=drange, gt_disparity=gt_out,
                       gt_cube=cube, cube_wavelengths=cube_wl, metadata=metadata)
@@ -491,6 +573,23 @@ def from_hci_scene(folder: Any, **kw: Any) -> LightField:
     keyword arguments ``kw`` (rows, cols, lambda_min, ..., see there). For ``antinous`` and the
     default 5 x 6 grid the reference view is the centre camera ``input_Cam040``. The scene is
     CC BY-NC-SA 4.0 (Honauer et al. 2016), recorded in the metadata.
+
+    Parameters
+    ----------
+    folder : path-like
+        HCI scene folder (``input_Cam###.png``, ``gt_disp_lowres.pfm``).
+    **kw
+        Keyword arguments of :func:`from_rgb_lightfield`.
+
+    Returns
+    -------
+    LightField
+        The H-LF with its ground-truth cube and disparity.
+
+    References
+    ----------
+    K. Honauer, O. Johannsen, D. Kondermann, B. Goldluecke, "A dataset and evaluation
+    methodology for depth estimation on 4D light fields", ACCV 2016.
     """
     from .formats import read_hci_scene
 
@@ -808,6 +907,208 @@ def _build_surface(o: dict, H: int, W: int, f: float, d0: float) -> _Surface:
     raise InvalidInputError(f"unknown object kind {kind!r}; use plane, fronto, slanted, box, sphere")
 
 
+def _check_procedural_args(H: int, W: int, supersample: int, texture_scale: float,
+                           disparity_range: Any, kinds: Sequence[str]) -> tuple[float, float]:
+    if H < 2 or W < 2:
+        raise InvalidInputError(f"image must be at least 2 x 2 pixels, got {H} x {W}")
+    if supersample < 1:
+        raise InvalidInputError(f"supersample must be >= 1, got {supersample}")
+    if not (np.isfinite(texture_scale) and texture_scale > 0):
+        raise InvalidInputError(f"texture_scale must be > 0, got {texture_scale}")
+    try:
+        dmin, dmax = (float(v) for v in disparity_range)
+    except (TypeError, ValueError):
+        raise InvalidInputError(
+            f"disparity_range must be (min, max), got {disparity_range!r}") from None
+    if not (np.isfinite(dmin) and np.isfinite(dmax) and dmin < dmax):
+        raise InvalidInputError(f"disparity_range must be finite with min < max, got {disparity_range}")
+    for k in kinds:
+        if k not in _KINDS:
+            raise InvalidInputError(f"unknown object kind {k!r}; use one of {', '.join(_KINDS)}")
+    return dmin, dmax
+
+
+def _focal_length(focal_length: float | None, H: int, W: int) -> float:
+    f = float(focal_length) if focal_length is not None else float(max(H, W))
+    if not (np.isfinite(f) and f > 0):
+        raise InvalidInputError(f"focal_length must be > 0 pixels, got {focal_length}")
+    return f
+
+
+def _reflectances(reflectance_source: str) -> tuple[np.ndarray, np.ndarray]:
+    """The reflectance library as float64, reflectances clipped to [0, 1]."""
+    from . import spectral
+
+    lib_wl, lib_refl = spectral.reflectance_library(reflectance_source)
+    lib_wl = np.asarray(lib_wl, dtype=np.float64)
+    return lib_wl, np.clip(np.asarray(lib_refl, dtype=np.float64), 0.0, 1.0)
+
+
+def _scene_objects(objects: Sequence[Mapping[str, Any]] | None, scene_rng: np.random.Generator,
+                   tex_rng: np.random.Generator, n_objects: int, kinds: Sequence[str],
+                   drange: tuple[float, float], refl_mean: np.ndarray) -> list[dict]:
+    """The scene description: random or explicit objects, textures completed from the seed."""
+    if objects is None:
+        objs = _random_objects(scene_rng, int(n_objects), list(kinds), drange)
+    else:
+        objs = [dict(o) for o in objects]
+        if not objs:
+            raise InvalidInputError("objects is empty; give at least a background plane")
+    for o in objs:
+        o["texture"] = _complete_texture(o.get("texture"), tex_rng, refl_mean)
+    return objs
+
+
+def _chip_palette(objs: list[dict], lib_wl: np.ndarray, lib_refl: np.ndarray,
+                  cube_wl: np.ndarray, filter_shape: str, fwhm: float, quantum_efficiency: Any,
+                  illuminant: str | None) -> tuple[np.ndarray, dict, float]:
+    """Every chip used, as band values (filters, illuminant, QE folded in), scaled to <= 1."""
+    wl, Wt = _band_weights(cube_wl, filter_shape, float(fwhm), quantum_efficiency, illuminant,
+                           spectral_range=(max(380.0, lib_wl.min()), min(780.0, lib_wl.max())))
+    chips = sorted({c for o in objs for c in o["texture"]["chips"]})
+    chip_index = {c: i for i, c in enumerate(chips)}
+    refl_wl = np.stack([np.interp(wl, lib_wl, lib_refl[c]) for c in chips])
+    palette = (refl_wl @ Wt).astype(np.float64)  # (n_chips, B)
+    pal_max = float(palette.max()) if palette.size else 0.0
+    pscale = 1.0 / pal_max if pal_max > 1.0 else 1.0
+    palette *= pscale
+    return palette, chip_index, pscale
+
+
+class _RayCaster:
+    """Pinhole-array ray caster of the procedural renderer (camera model: module docstring)."""
+
+    #: Fixed light direction and ambient term of the Lambertian shading.
+    AMBIENT = 0.35
+
+    def __init__(self, surfaces: list[_Surface], H: int, W: int, f: float, d0: float,
+                 palette: np.ndarray, chip_index: dict, base_period: float, shading: bool,
+                 supersample: int):
+        self.surfaces, self.f, self.d0 = surfaces, f, d0
+        self.palette, self.chip_index, self.base_period = palette, chip_index, base_period
+        self.shading, self.supersample = shading, supersample
+        self.H, self.W = H, W
+        light = np.array([-0.35, -0.55, -1.0])
+        light /= np.linalg.norm(light)
+        self.light = light
+        self.cx, self.cy = (W - 1) / 2.0, (H - 1) / 2.0
+        yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
+        self.xx, self.yy = xx.ravel(), yy.ravel()
+        self.sub = (np.arange(supersample) + 0.5) / supersample - 0.5
+
+    def cast(self, dx: float, dy: float, sx: float, sy: float):
+        """Nearest hit of every pixel's ray (sub-pixel offset ``sx, sy``) from view ``dx, dy``."""
+        xx, yy, f, d0 = self.xx, self.yy, self.f, self.d0
+        C = np.array([dx, dy, 0.0])
+        D = np.stack([(xx + sx - self.cx - d0 * dx) / f, (yy + sy - self.cy - d0 * dy) / f,
+                      np.ones_like(xx)], axis=1)
+        best_t = np.full(xx.size, np.inf)
+        best_i = np.full(xx.size, -1, np.int64)
+        auxs = []
+        for i, s in enumerate(self.surfaces):
+            t, aux = s.intersect(C, D)
+            auxs.append(aux)
+            closer = t < best_t
+            best_t = np.where(closer, t, best_t)
+            best_i = np.where(closer, i, best_i)
+        return C, D, best_t, best_i, auxs
+
+    def radiance(self, hits, acc: np.ndarray) -> None:
+        """Add the band values of every hit (textured, shaded) to ``acc (n_pixels, B)``."""
+        C, D, t, idx, auxs = hits
+        palette, ambient = self.palette, self.AMBIENT
+        for i, s in enumerate(self.surfaces):
+            sel = np.flatnonzero(idx == i)
+            if sel.size == 0:
+                continue
+            P = C[None, :] + t[sel, None] * D[sel]
+            aux = auxs[i]
+            if aux is not None:
+                aux = tuple(a[sel] for a in aux)
+            u, v, nrm = s.surface(P, aux)
+            tex = s.spec["texture"]
+            i1, i2, w = _texture(tex, u, v, tex["period"] * self.base_period)
+            gidx = np.array([self.chip_index[ch] for ch in tex["chips"]])
+            rad = (w[:, None] * palette[gidx[i1]]
+                   + (1.0 - w)[:, None] * palette[gidx[i2]])
+            if self.shading:
+                lam = np.clip(nrm @ self.light, 0.0, None)
+                rad *= (ambient + (1.0 - ambient) * lam)[:, None]
+            acc[sel] += rad
+
+    def render_view(self, dx: float, dy: float) -> tuple[np.ndarray, np.ndarray, int]:
+        """Exact disparity ``(H, W)``, bands ``(B, H, W)`` and missed pixels of one view."""
+        H, W, f, d0 = self.H, self.W, self.f, self.d0
+        n = self.xx.size
+        # exact disparity at pixel centres (the centre sample when supersample is odd)
+        centre = self.cast(dx, dy, 0.0, 0.0)
+        t0 = centre[2]
+        hit0 = np.isfinite(t0)
+        disp = np.full(n, np.nan)
+        disp[hit0] = f / t0[hit0] - d0  # t is the depth Z since D_z = 1, C_z = 0
+        acc = np.zeros((n, self.palette.shape[1]))
+        for sy in self.sub:
+            for sx in self.sub:
+                hits = centre if sx == 0.0 and sy == 0.0 else self.cast(dx, dy, sx, sy)
+                self.radiance(hits, acc)
+        acc /= self.supersample * self.supersample
+        bands = acc.T.reshape(-1, H, W).astype(np.float32)
+        return disp.reshape(H, W), bands, int((~hit0).sum())
+
+    def render_grid(self, offsets: np.ndarray, progress: bool = False):
+        """Ground truth ``(R, C, H, W)``, cube ``(R, C, B, H, W)`` (clipped to [0, 1]) and
+        missed-pixel count of every view at ``offsets (R, C, 2)``."""
+        rows, cols = offsets.shape[:2]
+        cube = np.zeros((rows, cols, self.palette.shape[1], self.H, self.W), dtype=np.float32)
+        gt = np.full((rows, cols, self.H, self.W), np.nan, dtype=np.float32)
+        missed = 0
+        for r, c in grid_views(rows, cols, "rendering views", progress):
+            dx, dy = offsets[r, c]
+            gt[r, c], cube[r, c], n_missed = self.render_view(dx, dy)
+            missed += n_missed
+        np.clip(cube, 0.0, 1.0, out=cube)
+        return gt, cube, missed
+
+
+def _procedural_metadata(opts: dict, objs: list[dict], kmap: np.ndarray, dmin: float,
+                         dmax: float, gmin: float, gmax: float, n_library: int, f: float,
+                         d0: float, pscale: float, missed: int) -> dict:
+    name, filter_shape = opts["name"], opts["filter_shape"]
+    return {
+        "synthesis": "procedural_scene",
+        "source": f"procedural:{name}" if name else "procedural",
+        "scene": name,
+        "seed": int(opts["seed"]),
+        "rows": opts["rows"], "cols": opts["cols"],
+        "height": opts["height"], "width": opts["width"],
+        "lambda_min": float(opts["lambda_min"]), "lambda_max": float(opts["lambda_max"]),
+        "layout": _layout_meta(opts["layout"]),
+        "band_index": kmap.tolist(),
+        "n_objects": len(objs) - (1 if opts["objects"] is None else 0),
+        "kinds": list(opts["kinds"]),
+        "objects": objs,
+        "disparity_range_requested": [dmin, dmax],
+        "gt_disparity_min": gmin, "gt_disparity_max": gmax,
+        "reflectance_source": opts["reflectance_source"],
+        "reflectance_library_size": n_library,
+        "illuminant": opts["illuminant"],
+        "filter_shape": filter_shape,
+        "fwhm": float(opts["fwhm"]) if filter_shape != "dirac" else None,
+        "quantum_efficiency": _qe_meta(opts["quantum_efficiency"]),
+        "noise_sigma": float(opts["noise_sigma"]),
+        "texture_scale": float(opts["texture_scale"]),
+        "supersample": opts["supersample"],
+        "shading": bool(opts["shading"]),
+        "focal_length_px": f,
+        "disparity_offset_d0": d0,
+        "palette_scale": pscale,
+        "camera_model": "pinhole array, d = f/Z - d0, baseline 1, sensor shift d0*(dx, dy)",
+        "gt_disparity": "exact ray casting at pixel centres, every view",
+        "missed_pixels": missed,
+        "runtime_s": 0.0,
+    }
+
+
 def procedural_scene(seed: int = 0, rows: int = 5, cols: int = 6, height: int = 128,
                      width: int = 160, lambda_min: float = 410.0, lambda_max: float = 700.0,
                      layout: str | Sequence[int] = "raster", n_objects: int = 4,
@@ -878,136 +1179,41 @@ def procedural_scene(seed: int = 0, rows: int = 5, cols: int = 6, height: int = 
     Returns
     -------
     LightField
-    """
-    from . import spectral
 
+    Examples
+    --------
+    >>> lf = procedural_scene(**dict(SCENES["planes"], rows=3, cols=3, height=24, width=32,
+    ...                              reflectance_source="colorchecker"))
+    >>> lf.views.shape, lf.gt_cube.shape
+    ((3, 3, 24, 32), (3, 3, 9, 24, 32))
+    """
     t_start = time.perf_counter()
     rows, cols, H, W = int(rows), int(cols), int(height), int(width)
-    if H < 2 or W < 2:
-        raise InvalidInputError(f"image must be at least 2 x 2 pixels, got {H} x {W}")
     supersample = int(supersample)
-    if supersample < 1:
-        raise InvalidInputError(f"supersample must be >= 1, got {supersample}")
-    if not (np.isfinite(texture_scale) and texture_scale > 0):
-        raise InvalidInputError(f"texture_scale must be > 0, got {texture_scale}")
-    try:
-        dmin, dmax = (float(v) for v in disparity_range)
-    except (TypeError, ValueError):
-        raise InvalidInputError(
-            f"disparity_range must be (min, max), got {disparity_range!r}") from None
-    if not (np.isfinite(dmin) and np.isfinite(dmax) and dmin < dmax):
-        raise InvalidInputError(f"disparity_range must be finite with min < max, got {disparity_range}")
-    for k in kinds:
-        if k not in _KINDS:
-            raise InvalidInputError(f"unknown object kind {k!r}; use one of {', '.join(_KINDS)}")
+    dmin, dmax = _check_procedural_args(H, W, supersample, texture_scale, disparity_range,
+                                        kinds)
 
     cube_wl = band_grid(rows, cols, lambda_min, lambda_max)
     kmap = filter_layout(rows, cols, layout, seed)
     wavelengths = cube_wl[kmap]
-    B = cube_wl.size
-    f = float(focal_length) if focal_length is not None else float(max(H, W))
-    if not (np.isfinite(f) and f > 0):
-        raise InvalidInputError(f"focal_length must be > 0 pixels, got {focal_length}")
-    span = dmax - dmin
-    d0 = -dmin + 0.5 * span  # inverse-depth offset: f / Z = d + d0 > 0 on the whole range
+    f = _focal_length(focal_length, H, W)
+    d0 = -dmin + 0.5 * (dmax - dmin)  # inverse-depth offset: f / Z = d + d0 > 0 on the range
 
     ss = np.random.SeedSequence(int(seed))
     scene_rng, tex_rng = (np.random.default_rng(s) for s in ss.spawn(2))
-
-    lib_wl, lib_refl = spectral.reflectance_library(reflectance_source)
-    lib_wl = np.asarray(lib_wl, dtype=np.float64)
-    lib_refl = np.clip(np.asarray(lib_refl, dtype=np.float64), 0.0, 1.0)
-    refl_mean = lib_refl.mean(axis=1)
-
-    if objects is None:
-        objs = _random_objects(scene_rng, int(n_objects), list(kinds), (dmin, dmax))
-    else:
-        objs = [dict(o) for o in objects]
-        if not objs:
-            raise InvalidInputError("objects is empty; give at least a background plane")
-    for o in objs:
-        o["texture"] = _complete_texture(o.get("texture"), tex_rng, refl_mean)
-
-    # Palette: every chip used, as band values (filters, illuminant, QE folded in).
-    wl, Wt = _band_weights(cube_wl, filter_shape, float(fwhm), quantum_efficiency, illuminant,
-                           spectral_range=(max(380.0, lib_wl.min()), min(780.0, lib_wl.max())))
-    chips = sorted({c for o in objs for c in o["texture"]["chips"]})
-    chip_index = {c: i for i, c in enumerate(chips)}
-    refl_wl = np.stack([np.interp(wl, lib_wl, lib_refl[c]) for c in chips])
-    palette = (refl_wl @ Wt).astype(np.float64)  # (n_chips, B)
-    pal_max = float(palette.max()) if palette.size else 0.0
-    pscale = 1.0 / pal_max if pal_max > 1.0 else 1.0
-    palette *= pscale
-
-    surfaces = [_build_surface(o, H, W, f, d0) for o in objs]
-    base_period = min(H, W) * float(texture_scale)
-    light = np.array([-0.35, -0.55, -1.0])
-    light /= np.linalg.norm(light)
-    ambient = 0.35
+    lib_wl, lib_refl = _reflectances(reflectance_source)
+    objs = _scene_objects(objects, scene_rng, tex_rng, n_objects, kinds, (dmin, dmax),
+                          lib_refl.mean(axis=1))
+    palette, chip_index, pscale = _chip_palette(objs, lib_wl, lib_refl, cube_wl, filter_shape,
+                                                fwhm, quantum_efficiency, illuminant)
+    caster = _RayCaster([_build_surface(o, H, W, f, d0) for o in objs], H, W, f, d0, palette,
+                        chip_index, min(H, W) * float(texture_scale), shading, supersample)
 
     positions = np.stack(np.meshgrid(np.arange(cols, dtype=float), np.arange(rows, dtype=float)),
                          axis=-1)
     ref = ((rows - 1) // 2, (cols - 1) // 2)
     offsets = positions - positions[ref][None, None, :]
-    cx, cy = (W - 1) / 2.0, (H - 1) / 2.0
-    yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
-    xx, yy = xx.ravel(), yy.ravel()
-    sub = (np.arange(supersample) + 0.5) / supersample - 0.5
-
-    def cast(dx: float, dy: float, sx: float, sy: float):
-        C = np.array([dx, dy, 0.0])
-        D = np.stack([(xx + sx - cx - d0 * dx) / f, (yy + sy - cy - d0 * dy) / f,
-                      np.ones_like(xx)], axis=1)
-        best_t = np.full(xx.size, np.inf)
-        best_i = np.full(xx.size, -1, np.int64)
-        auxs = []
-        for i, s in enumerate(surfaces):
-            t, aux = s.intersect(C, D)
-            auxs.append(aux)
-            closer = t < best_t
-            best_t = np.where(closer, t, best_t)
-            best_i = np.where(closer, i, best_i)
-        return C, D, best_t, best_i, auxs
-
-    cube = np.zeros((rows, cols, B, H, W), dtype=np.float32)
-    gt = np.full((rows, cols, H, W), np.nan, dtype=np.float32)
-    missed = 0
-    for r, c in grid_views(rows, cols, "rendering views", progress):
-        dx, dy = offsets[r, c]
-        # exact disparity at pixel centres (the centre sample when supersample is odd)
-        centre = cast(dx, dy, 0.0, 0.0)
-        t0 = centre[2]
-        hit0 = np.isfinite(t0)
-        missed += int((~hit0).sum())
-        disp = np.full(xx.size, np.nan)
-        disp[hit0] = f / t0[hit0] - d0  # t is the depth Z since D_z = 1, C_z = 0
-        gt[r, c] = disp.reshape(H, W)
-        acc = np.zeros((xx.size, B))
-        for sy in sub:
-            for sx in sub:
-                C, D, t, idx, auxs = (centre if sx == 0.0 and sy == 0.0
-                                      else cast(dx, dy, sx, sy))
-                for i, s in enumerate(surfaces):
-                    sel = np.flatnonzero(idx == i)
-                    if sel.size == 0:
-                        continue
-                    P = C[None, :] + t[sel, None] * D[sel]
-                    aux = auxs[i]
-                    if aux is not None:
-                        aux = tuple(a[sel] for a in aux)
-                    u, v, nrm = s.surface(P, aux)
-                    tex = s.spec["texture"]
-                    i1, i2, w = _texture(tex, u, v, tex["period"] * base_period)
-                    gidx = np.array([chip_index[ch] for ch in tex["chips"]])
-                    rad = (w[:, None] * palette[gidx[i1]]
-                           + (1.0 - w)[:, None] * palette[gidx[i2]])
-                    if shading:
-                        lam = np.clip(nrm @ light, 0.0, None)
-                        rad *= (ambient + (1.0 - ambient) * lam)[:, None]
-                    acc[sel] += rad
-        acc /= supersample * supersample
-        cube[r, c] = acc.T.reshape(B, H, W).astype(np.float32)
-    np.clip(cube, 0.0, 1.0, out=cube)
+    gt, cube, missed = caster.render_grid(offsets, progress)
 
     clean = cube[np.arange(rows)[:, None], np.arange(cols)[None, :], kmap]
     views = add_noise(clean, noise_sigma, seed=[int(seed), 1]) if noise_sigma > 0 else clean
@@ -1015,44 +1221,20 @@ def procedural_scene(seed: int = 0, rows: int = 5, cols: int = 6, height: int = 
     finite = np.isfinite(gt)
     gmin = float(gt[finite].min()) if finite.any() else dmin
     gmax = float(gt[finite].max()) if finite.any() else dmax
-    drange = (min(dmin, gmin), max(dmax, gmax))
 
-    metadata = {
-        "synthesis": "procedural_scene",
-        "source": f"procedural:{name}" if name else "procedural",
-        "scene": name,
-        "seed": int(seed),
-        "rows": rows, "cols": cols, "height": H, "width": W,
-        "lambda_min": float(lambda_min), "lambda_max": float(lambda_max),
-        "layout": _layout_meta(layout),
-        "band_index": kmap.tolist(),
-        "n_objects": len(objs) - (1 if objects is None else 0),
-        "kinds": list(kinds),
-        "objects": objs,
-        "disparity_range_requested": [dmin, dmax],
-        "gt_disparity_min": gmin, "gt_disparity_max": gmax,
-        "reflectance_source": reflectance_source,
-        "reflectance_library_size": int(lib_refl.shape[0]),
-        "illuminant": illuminant,
-        "filter_shape": filter_shape,
-        "fwhm": float(fwhm) if filter_shape != "dirac" else None,
-        "quantum_efficiency": _qe_meta(quantum_efficiency),
-        "noise_sigma": float(noise_sigma),
-        "texture_scale": float(texture_scale),
-        "supersample": supersample,
-        "shading": bool(shading),
-        "focal_length_px": f,
-        "disparity_offset_d0": d0,
-        "palette_scale": pscale,
-        "camera_model": "pinhole array, d = f/Z - d0, baseline 1, sensor shift d0*(dx, dy)",
-        "gt_disparity": "exact ray casting at pixel centres, every view",
-        "missed_pixels": missed,
-        "runtime_s": 0.0,
-    }
+    opts = dict(name=name, seed=seed, rows=rows, cols=cols, height=H, width=W,
+                lambda_min=lambda_min, lambda_max=lambda_max, layout=layout, objects=objects,
+                kinds=kinds, reflectance_source=reflectance_source, illuminant=illuminant,
+                filter_shape=filter_shape, fwhm=fwhm, quantum_efficiency=quantum_efficiency,
+                noise_sigma=noise_sigma, texture_scale=texture_scale, supersample=supersample,
+                shading=shading)
+    metadata = _procedural_metadata(opts, objs, kmap, dmin, dmax, gmin, gmax,
+                                    int(lib_refl.shape[0]), f, d0, pscale, missed)
     metadata["runtime_s"] = round(time.perf_counter() - t_start, 3)
     return LightField(views=views, wavelengths=wavelengths, positions=positions,
-                      reference=ref, disparity_range=drange, gt_disparity=gt,
-                      gt_cube=cube, cube_wavelengths=cube_wl, metadata=metadata)
+                      reference=ref, disparity_range=(min(dmin, gmin), max(dmax, gmax)),
+                      gt_disparity=gt, gt_cube=cube, cube_wavelengths=cube_wl,
+                      metadata=metadata)
 
 
 # ----------------------------------------------------------------------------- named scenes

@@ -57,7 +57,33 @@ def _robust_range(values: np.ndarray, vmin=None, vmax=None) -> tuple[float, floa
 def save_disparity_png(path: str | os.PathLike, disparity: np.ndarray, title: str = "disparity",
                        vmin: float | None = None, vmax: float | None = None,
                        cmap: str = "turbo", label: str = "disparity (px / baseline)") -> Path:
-    """Colour-mapped disparity map with a colour bar (PNG). Unknown (NaN) pixels are black."""
+    """Colour-mapped disparity map with a colour bar (PNG). Unknown (NaN) pixels are black.
+
+    Parameters
+    ----------
+    path : path-like
+        Output PNG (parent folders are created).
+    disparity : ndarray, shape (H, W)
+        Values to show.
+    title, label : str
+        Figure title and colour-bar label.
+    vmin, vmax : float, optional
+        Colour range; default a robust (percentile) range of the finite values.
+    cmap : str
+        Matplotlib colour map.
+
+    Returns
+    -------
+    Path
+        The written PNG.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "d.png"
+    >>> save_disparity_png(out, np.eye(8)).suffix
+    '.png'
+    """
     d = np.asarray(disparity, dtype=np.float64)
     if d.ndim != 2:
         raise InvalidInputError(f"disparity must be 2-D, got shape {d.shape}")
@@ -75,7 +101,24 @@ def save_disparity_png(path: str | os.PathLike, disparity: np.ndarray, title: st
 
 def save_error_png(path: str | os.PathLike, estimate: np.ndarray, truth: np.ndarray,
                    title: str = "absolute error", vmax: float = 1.0) -> Path:
-    """Absolute disparity error map with a colour bar; unknown ground truth is black."""
+    """Absolute disparity error map with a colour bar; unknown ground truth is black.
+
+    Parameters
+    ----------
+    path : path-like
+        Output PNG.
+    estimate, truth : ndarray, shape (H, W)
+        Estimated and true disparity.
+    title : str
+        Figure title.
+    vmax : float
+        Error (px) shown at the top of the colour map.
+
+    Returns
+    -------
+    Path
+        The written PNG.
+    """
     err = np.abs(np.asarray(estimate, dtype=np.float64) - np.asarray(truth, dtype=np.float64))
     return save_disparity_png(path, err, title=title, vmin=0.0, vmax=vmax, cmap="magma",
                               label="|error| (px)")
@@ -85,7 +128,22 @@ def wavelength_to_rgb(wavelengths: np.ndarray) -> np.ndarray:
     """Display sRGB colour (in [0, 1]) of monochromatic light, for plots and false colour.
 
     Uses the CIE 1931 colour matching functions, maps to sRGB, desaturates out-of-gamut colours
-    by adding white and normalises each colour's maximum to 1. Shape ``(..., 3)``.
+    by adding white and normalises each colour's maximum to 1.
+
+    Parameters
+    ----------
+    wavelengths : array_like
+        Wavelengths in nm, any shape.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        Display sRGB in [0, 1].
+
+    Examples
+    --------
+    >>> wavelength_to_rgb([650.0]).argmax(axis=-1)  # red
+    array([0])
     """
     from . import spectral
 
@@ -120,8 +178,23 @@ def save_mosaic_png(path: str | os.PathLike, views: np.ndarray,
                     max_side: int = 1600) -> Path:
     """Grid of all views as one picture; spectral views are tinted by their wavelength.
 
-    ``views`` has shape (R, C, H, W) or (R, C, H, W, 3). Views are labelled with their
-    wavelength when known.
+    Parameters
+    ----------
+    path : path-like
+        Output PNG.
+    views : ndarray, shape (R, C, H, W) or (R, C, H, W, 3)
+        The views; labelled with their wavelength when known.
+    wavelengths : ndarray, shape (R, C), optional
+        Filter wavelengths (nm) for the tint and the labels.
+    title : str, optional
+        Figure title.
+    max_side : int
+        Longest side of the mosaic in pixels (views are subsampled to fit).
+
+    Returns
+    -------
+    Path
+        The written PNG.
     """
     v = np.asarray(views, dtype=np.float32)
     if v.ndim not in (4, 5):
@@ -156,7 +229,26 @@ def save_spectrum_plot(path: str | os.PathLike, wavelengths: np.ndarray,
                        spectra: Sequence[np.ndarray] | np.ndarray,
                        labels: Sequence[str] | None = None, title: str = "spectral profile",
                        ylabel: str = "relative intensity") -> Path:
-    """Line plot of one or more spectra against wavelength (nm), with a spectrum-coloured band."""
+    """Line plot of one or more spectra against wavelength (nm), with a spectrum-coloured band.
+
+    Parameters
+    ----------
+    path : path-like
+        Output PNG.
+    wavelengths : ndarray, shape (B,)
+        Wavelengths in nm.
+    spectra : ndarray, shape (B,) or (N, B), or a sequence of them
+        The spectra.
+    labels : sequence of str, optional
+        One legend entry per spectrum.
+    title, ylabel : str
+        Figure title and y-axis label.
+
+    Returns
+    -------
+    Path
+        The written PNG.
+    """
     wl = np.asarray(wavelengths, dtype=np.float64)
     sp = np.atleast_2d(np.asarray(spectra, dtype=np.float64))
     if sp.shape[-1] != wl.size:

@@ -75,6 +75,26 @@ def load_lightfield(path: str | os.PathLike, **kwargs) -> LightField:
     * folder with ``input_Cam000.png`` -> :func:`read_hci_scene` (``kwargs``: grid, rows, cols);
     * ``.h5`` / ``.hdf5`` file -> :func:`read_lightfield_h5`.
 
+    Parameters
+    ----------
+    path : path-like
+        Capture folder, HCI scene folder or HDF5 file.
+    **kwargs
+        Passed to the HCI reader.
+
+    Returns
+    -------
+    LightField
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from hyperlf.synthesis import procedural_scene
+    >>> lf = procedural_scene(seed=2, rows=2, cols=3, height=12, width=16)
+    >>> path = save_lightfield(lf, pathlib.Path(tempfile.mkdtemp()) / "lf.h5")
+    >>> load_lightfield(path).grid_shape
+    (2, 3)
+
     Raises
     ------
     DataNotFoundError

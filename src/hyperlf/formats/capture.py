@@ -69,7 +69,17 @@ _KNOWN_KEYS = {"format", "version", "grid", "reference", "disparity_range", "bit
 
 
 def is_capture(folder: str | os.PathLike) -> bool:
-    """True when ``folder`` is a folder with a ``capture.toml`` manifest."""
+    """True when ``folder`` is a folder with a ``capture.toml`` manifest.
+
+    Parameters
+    ----------
+    folder : path-like
+        Any path.
+
+    Returns
+    -------
+    bool
+    """
     p = Path(folder)
     return p.is_dir() and (p / MANIFEST).is_file()
 
@@ -107,30 +117,8 @@ def _safe_file(man: Path, root: Path, name, what: str) -> Path:
     return root / Path(*pp.parts)
 
 
-def read_capture(folder: str | os.PathLike) -> LightField:
-    """Read a capture folder.
-
-    Parameters
-    ----------
-    folder : path-like
-        Folder holding ``capture.toml`` and the view images.
-
-    Returns
-    -------
-    LightField
-        ``views`` float32 ``(R, C, H, W)`` (or ``(R, C, H, W, 3)`` with ``channels = 3``) in
-        [0, 1]; wavelengths (nm), positions, reference, disparity range and ground truth from
-        the manifest; ``metadata`` holds the ``[metadata]`` table, ``calibration`` and
-        ``capture_folder``.
-
-    Raises
-    ------
-    DataNotFoundError
-        When the folder, the manifest or a file it names is missing.
-    FormatError
-        When the manifest is malformed or inconsistent (one line saying what and where).
-    """
-    root = Path(folder)
+def _read_manifest(root: Path) -> tuple[Path, dict]:
+    """The parsed ``capture.toml`` of ``root`` (errors say what is missing or malformed)."""
     if not root.is_dir():
         raise DataNotFoundError(f"capture folder {root} does not exist")
     man = root / MANIFEST
@@ -147,7 +135,11 @@ def read_capture(folder: str | os.PathLike) -> LightField:
         raise _err(man, f"is not valid TOML ({str(exc).splitlines()[0]}); fix the syntax") from None
     except OSError as exc:
         raise _err(man, f"cannot be read ({exc.strerror or exc})") from None
+    return man, doc
 
+
+def _manifest_header(man: Path, doc: dict) -> dict[str, Any]:
+    """Checked top-level keys: grid, reference, disparity range, bit depth, channels."""
     fmt = doc.get("format")
     if fmt != CAPTURE_FORMAT:
         raise _err(man, f"format is {fmt!r}, expected format = \"{CAPTURE_FORMAT}\"")
@@ -175,7 +167,40 @@ def read_capture(folder: str | os.PathLike) -> LightField:
     for key in ("calibration", "metadata"):
         if key in doc and not isinstance(doc[key], dict):
             raise _err(man, f"'{key}' must be a table ([{key}]), got {type(doc[key]).__name__}")
+    return dict(R=R, C=C, reference=reference, drange=drange, bit_depth=bit_depth,
+                channels=channels)
 
+
+def _view_entry(man: Path, root: Path, i: int, e: dict, R: int, C: int, files: dict,
+                wl: np.ndarray, pos: np.ndarray) -> bool:
+    """Check one ``[[view]]`` table and record it; True when it gives a wavelength."""
+    r, c = e.get("row"), e.get("col")
+    if not (_is_int(r) and _is_int(c)):
+        raise _err(man, f"view #{i + 1} needs integer 'row' and 'col', got row={r!r}, col={c!r}")
+    if not (0 <= r < R and 0 <= c < C):
+        raise _err(man, f"view #{i + 1} at ({r}, {c}) is outside grid = [{R}, {C}]; "
+                        "fix the view or the grid")
+    if (r, c) in files:
+        raise _err(man, f"view ({r}, {c}) is listed twice; keep one [[view]] per (row, col)")
+    files[(r, c)] = _safe_file(man, root, e.get("file"), f"view ({r}, {c}) 'file'")
+    has_wl = "wavelength" in e
+    if has_wl:
+        w = e["wavelength"]
+        if not _is_num(w) or w <= 0:
+            raise _err(man, f"view ({r}, {c}) wavelength must be a positive number (nm), got {w!r}")
+        wl[r, c] = float(w)
+    if "position" in e:
+        pv = e["position"]
+        if not isinstance(pv, list) or len(pv) != 2 or not all(_is_num(x) for x in pv):
+            raise _err(man, f"view ({r}, {c}) position must be [px, py] numbers, got {pv!r}")
+        pos[r, c] = pv
+    else:
+        pos[r, c] = (c, r)
+    return has_wl
+
+
+def _view_table(man: Path, root: Path, doc: dict, R: int, C: int):
+    """Files, wavelengths (NaN when absent), positions and wavelength count of every view."""
     entries = doc.get("view")
     if not isinstance(entries, list) or not entries or not all(isinstance(e, dict) for e in entries):
         raise _err(man, "needs one [[view]] table per view (row, col, file, wavelength)")
@@ -184,28 +209,7 @@ def read_capture(folder: str | os.PathLike) -> LightField:
     pos = np.full((R, C, 2), np.nan)
     n_wl = 0
     for i, e in enumerate(entries):
-        r, c = e.get("row"), e.get("col")
-        if not (_is_int(r) and _is_int(c)):
-            raise _err(man, f"view #{i + 1} needs integer 'row' and 'col', got row={r!r}, col={c!r}")
-        if not (0 <= r < R and 0 <= c < C):
-            raise _err(man, f"view #{i + 1} at ({r}, {c}) is outside grid = [{R}, {C}]; "
-                            "fix the view or the grid")
-        if (r, c) in files:
-            raise _err(man, f"view ({r}, {c}) is listed twice; keep one [[view]] per (row, col)")
-        files[(r, c)] = _safe_file(man, root, e.get("file"), f"view ({r}, {c}) 'file'")
-        if "wavelength" in e:
-            w = e["wavelength"]
-            if not _is_num(w) or w <= 0:
-                raise _err(man, f"view ({r}, {c}) wavelength must be a positive number (nm), got {w!r}")
-            wl[r, c] = float(w)
-            n_wl += 1
-        if "position" in e:
-            pv = e["position"]
-            if not isinstance(pv, list) or len(pv) != 2 or not all(_is_num(x) for x in pv):
-                raise _err(man, f"view ({r}, {c}) position must be [px, py] numbers, got {pv!r}")
-            pos[r, c] = pv
-        else:
-            pos[r, c] = (c, r)
+        n_wl += _view_entry(man, root, i, e, R, C, files, wl, pos)
     missing = [(r, c) for r in range(R) for c in range(C) if (r, c) not in files]
     if missing:
         shown = ", ".join(f"({r}, {c})" for r, c in missing[:10])
@@ -219,42 +223,52 @@ def read_capture(folder: str | os.PathLike) -> LightField:
             f"capture {root}: {len(absent)} view file(s) not found: {', '.join(absent[:6])}"
             f"{' ...' if len(absent) > 6 else ''}"
         )
+    return files, wl, pos, n_wl
 
+
+def _read_views(root: Path, files: dict, R: int, C: int, channels: int) -> np.ndarray:
     order = [(r, c) for r in range(R) for c in range(C)]
     rc_of = {files[rc]: rc for rc in order}
     stack = read_images_same_size(
         [files[rc] for rc in order], lambda f: _load_view(f, channels, rc_of[f]),
         f"capture {root}", labels=[f"view {rc} ({files[rc].name})" for rc in order])
-    views = stack.reshape((R, C) + stack.shape[1:])
-    H, W = stack.shape[1:3]
-    gt = None
-    gspec = doc.get("gt_disparity")
-    if gspec is not None:
-        if not isinstance(gspec, str):
-            raise _err(man, f"gt_disparity must be a file name or pattern, got {gspec!r}")
-        if "{row}" in gspec or "{col}" in gspec:
-            gt = np.empty((R, C, H, W), dtype=np.float32)
-            for r, c in order:
-                try:
-                    name = gspec.format(row=r, col=c)
-                except (KeyError, IndexError, ValueError):
-                    raise _err(man, f"gt_disparity pattern {gspec!r} may only use {{row}} and {{col}}") from None
-                g = read_pfm(_safe_file(man, root, name, "gt_disparity"))
-                if g.shape != (H, W):
-                    raise _err(man, f"ground truth {name} is {g.shape}, views are {(H, W)}")
-                gt[r, c] = g
-        else:
-            gpath = _safe_file(man, root, gspec, "gt_disparity")
-            gt = read_pfm(gpath)
-            if gt.shape != (H, W):
-                raise _err(man, f"ground truth {gspec} is {gt.shape}, views are {(H, W)}")
-    cube = cube_wl = None
-    cspec = doc.get("gt_cube")
-    if cspec is not None:
-        cube, cube_wl, _mask = read_cube_h5(_safe_file(man, root, cspec, "gt_cube"))
-        if cube.shape[:2] != (R, C) or cube.shape[3:] != (H, W):
-            raise _err(man, f"gt_cube {cspec} has shape {cube.shape}, expected ({R}, {C}, B, {H}, {W})")
+    return stack.reshape((R, C) + stack.shape[1:])
 
+
+def _read_gt_disparity(man: Path, root: Path, gspec, R: int, C: int, H: int, W: int):
+    """The ground truth named by ``gt_disparity`` (a file or a {row}/{col} pattern), or None."""
+    if gspec is None:
+        return None
+    if not isinstance(gspec, str):
+        raise _err(man, f"gt_disparity must be a file name or pattern, got {gspec!r}")
+    if "{row}" not in gspec and "{col}" not in gspec:
+        gt = read_pfm(_safe_file(man, root, gspec, "gt_disparity"))
+        if gt.shape != (H, W):
+            raise _err(man, f"ground truth {gspec} is {gt.shape}, views are {(H, W)}")
+        return gt
+    gt = np.empty((R, C, H, W), dtype=np.float32)
+    for r, c in [(r, c) for r in range(R) for c in range(C)]:
+        try:
+            name = gspec.format(row=r, col=c)
+        except (KeyError, IndexError, ValueError):
+            raise _err(man, f"gt_disparity pattern {gspec!r} may only use {{row}} and {{col}}") from None
+        g = read_pfm(_safe_file(man, root, name, "gt_disparity"))
+        if g.shape != (H, W):
+            raise _err(man, f"ground truth {name} is {g.shape}, views are {(H, W)}")
+        gt[r, c] = g
+    return gt
+
+
+def _read_gt_cube(man: Path, root: Path, cspec, R: int, C: int, H: int, W: int):
+    if cspec is None:
+        return None, None
+    cube, cube_wl, _mask = read_cube_h5(_safe_file(man, root, cspec, "gt_cube"))
+    if cube.shape[:2] != (R, C) or cube.shape[3:] != (H, W):
+        raise _err(man, f"gt_cube {cspec} has shape {cube.shape}, expected ({R}, {C}, B, {H}, {W})")
+    return cube, cube_wl
+
+
+def _manifest_metadata(doc: dict, root: Path, bit_depth: int) -> dict[str, Any]:
     metadata: dict[str, Any] = dict(doc.get("metadata", {}))
     if "calibration" in doc:
         metadata["calibration"] = doc["calibration"]
@@ -263,11 +277,57 @@ def read_capture(folder: str | os.PathLike) -> LightField:
         metadata["manifest_extra"] = extra
     metadata["capture_folder"] = str(root)
     metadata["bit_depth"] = bit_depth
+    return metadata
+
+
+def read_capture(folder: str | os.PathLike) -> LightField:
+    """Read a capture folder.
+
+    Parameters
+    ----------
+    folder : path-like
+        Folder holding ``capture.toml`` and the view images.
+
+    Returns
+    -------
+    LightField
+        ``views`` float32 ``(R, C, H, W)`` (or ``(R, C, H, W, 3)`` with ``channels = 3``) in
+        [0, 1]; wavelengths (nm), positions, reference, disparity range and ground truth from
+        the manifest; ``metadata`` holds the ``[metadata]`` table, ``calibration`` and
+        ``capture_folder``.
+
+    Raises
+    ------
+    DataNotFoundError
+        When the folder, the manifest or a file it names is missing.
+    FormatError
+        When the manifest is malformed or inconsistent (one line saying what and where).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from hyperlf.synthesis import procedural_scene
+    >>> lf = procedural_scene(seed=3, rows=2, cols=2, height=12, width=16)
+    >>> man = write_capture(lf, pathlib.Path(tempfile.mkdtemp()) / "cap")
+    >>> back = read_capture(man.parent)
+    >>> back.views.shape, bool(abs(back.views - lf.views).max() < 1e-4)
+    ((2, 2, 12, 16), True)
+    """
+    root = Path(folder)
+    man, doc = _read_manifest(root)
+    hd = _manifest_header(man, doc)
+    R, C = hd["R"], hd["C"]
+    files, wl, pos, n_wl = _view_table(man, root, doc, R, C)
+    views = _read_views(root, files, R, C, hd["channels"])
+    H, W = views.shape[2:4]
+    gt = _read_gt_disparity(man, root, doc.get("gt_disparity"), R, C, H, W)
+    cube, cube_wl = _read_gt_cube(man, root, doc.get("gt_cube"), R, C, H, W)
+    metadata = _manifest_metadata(doc, root, hd["bit_depth"])
     try:
         return LightField(
-            views=views, wavelengths=wl if n_wl else None, positions=pos, reference=reference,
-            disparity_range=drange, gt_disparity=gt, gt_cube=cube, cube_wavelengths=cube_wl,
-            metadata=metadata,
+            views=views, wavelengths=wl if n_wl else None, positions=pos,
+            reference=hd["reference"], disparity_range=hd["drange"], gt_disparity=gt,
+            gt_cube=cube, cube_wavelengths=cube_wl, metadata=metadata,
         )
     except InvalidInputError as exc:
         raise _err(man, f"describes an invalid light field: {exc}") from None
@@ -319,6 +379,129 @@ def _toml_value(v: Any):
 _DROP = object()
 
 
+def _check_write_args(lf: Any, bit_depth: int, image_format: str) -> str:
+    """Validate the arguments of :func:`write_capture`; the view files' suffix."""
+    if not isinstance(lf, LightField):
+        raise InvalidInputError(f"expected a LightField, got {type(lf).__name__}")
+    if bit_depth not in (8, 16, 32):
+        raise InvalidInputError(f"bit_depth must be 8, 16 or 32, got {bit_depth!r}")
+    if lf.channels not in (1, 3):
+        raise InvalidInputError(
+            f"a capture holds monochrome or RGB views, got {lf.channels} channels per view"
+        )
+    if image_format not in ("png", "tiff", "tif"):
+        raise InvalidInputError(f"image_format must be 'png' or 'tiff', got {image_format!r}")
+    if bit_depth != 32:
+        lo, hi = float(lf.views.min()), float(lf.views.max())
+        if lo < 0 or hi > 1:
+            raise InvalidInputError(
+                f"views range {lo:.4g}..{hi:.4g} does not fit {bit_depth}-bit files (0..1); "
+                "rescale them or use bit_depth=32 (float TIFF)"
+            )
+    return ".tif" if (bit_depth == 32 or image_format != "png") else ".png"
+
+
+def _old_capture_files(man: Path) -> set[str]:
+    """Files named by an existing manifest (empty when it cannot be read)."""
+    try:
+        old = tomllib.loads(man.read_text(encoding="utf-8"))
+        old_files = {e["file"] for e in old.get("view", []) if isinstance(e, dict)
+                     and isinstance(e.get("file"), str)}
+        for k in ("gt_disparity", "gt_cube"):
+            if isinstance(old.get(k), str) and "{" not in old[k]:
+                old_files.add(old[k])
+    except Exception:  # an unreadable old manifest is simply replaced
+        old_files = set()
+    return old_files
+
+
+def _prepare_folder(root: Path, man: Path, overwrite: bool) -> set[str]:
+    """Create ``root``; with ``overwrite`` remove the old manifest and return its files."""
+    old_files: set[str] = set()
+    if root.exists():
+        if not root.is_dir():
+            raise InvalidInputError(f"{root} exists and is not a folder")
+        if any(root.iterdir()):
+            if not overwrite:
+                raise InvalidInputError(
+                    f"{root} is not empty; choose a new folder or pass overwrite=True"
+                )
+            if man.is_file():
+                old_files = _old_capture_files(man)
+                man.unlink()  # the folder is visibly incomplete until the new manifest lands
+    root.mkdir(parents=True, exist_ok=True)
+    return old_files
+
+
+def _write_views(lf: LightField, root: Path, ext: str, bit_depth: int, progress: bool,
+                 new_files: set[str]) -> list[dict[str, Any]]:
+    """Write every view (in parallel: encoding 16-bit PNGs is the slow part); the entries."""
+    R, C = lf.grid_shape
+    entries = []
+    jobs = []
+    for r in range(R):
+        for c in range(C):
+            name = f"view_r{r}_c{c}{ext}"
+            e: dict[str, Any] = {"row": r, "col": c, "file": name}
+            if lf.wavelengths is not None:
+                e["wavelength"] = float(lf.wavelengths[r, c])
+            e["position"] = [float(v) for v in lf.positions[r, c]]
+            entries.append(e)
+            jobs.append((root / name, lf.views[r, c]))
+            new_files.add(name)
+    with ThreadPoolExecutor(max_workers=min(8, len(jobs))) as pool:
+        results = pool.map(lambda j: write_image(j[0], j[1], bit_depth=bit_depth), jobs)
+        list(progress_bar(results, "writing views", total=len(jobs), enabled=progress,
+                          unit="view"))
+    return entries
+
+
+def _write_ground_truth(lf: LightField, root: Path, doc: dict, new_files: set[str]) -> None:
+    """Write the ground-truth disparity and cube (if any) and name them in ``doc``."""
+    R, C = lf.grid_shape
+    if lf.gt_disparity is not None:
+        if lf.gt_disparity.ndim == 2:
+            doc["gt_disparity"] = "gt_disparity.pfm"
+            write_pfm(root / "gt_disparity.pfm", lf.gt_disparity)
+            new_files.add("gt_disparity.pfm")
+        else:
+            doc["gt_disparity"] = "gt_disparity_r{row}_c{col}.pfm"
+            for r in range(R):
+                for c in range(C):
+                    name = f"gt_disparity_r{r}_c{c}.pfm"
+                    write_pfm(root / name, lf.gt_disparity[r, c])
+                    new_files.add(name)
+    if lf.gt_cube is not None:
+        doc["gt_cube"] = "gt_cube.h5"
+        write_cube_h5(root / "gt_cube.h5", lf.gt_cube, lf.cube_wavelengths)
+        new_files.add("gt_cube.h5")
+
+
+def _metadata_tables(lf: LightField, doc: dict) -> None:
+    """Add the ``[calibration]`` and ``[metadata]`` tables of ``lf`` to ``doc``."""
+    meta = {k: v for k, v in lf.metadata.items()
+            if k not in ("calibration", "capture_folder", "bit_depth", "manifest_extra")}
+    if "calibration" in lf.metadata:
+        cal = _toml_value(lf.metadata["calibration"])
+        if isinstance(cal, dict):
+            doc["calibration"] = cal
+        elif cal is not _DROP:
+            meta["calibration"] = cal
+    meta_t = _toml_value(meta)
+    if meta_t:
+        doc["metadata"] = meta_t
+
+
+def _remove_stale(man: Path, root: Path, names: set[str]) -> None:
+    for name in names:
+        try:
+            target = _safe_file(man, root, name, "old file")
+        except FormatError:
+            continue
+        if target.is_file():
+            target.unlink()
+
+
 def write_capture(lightfield: LightField, folder: str | os.PathLike, bit_depth: int = 16,
                   overwrite: bool = False, image_format: str = "png",
                   progress: bool = False) -> Path:
@@ -356,48 +539,11 @@ def write_capture(lightfield: LightField, folder: str | os.PathLike, bit_depth: 
     """
     import tomli_w
 
-    if not isinstance(lightfield, LightField):
-        raise InvalidInputError(f"expected a LightField, got {type(lightfield).__name__}")
+    ext = _check_write_args(lightfield, bit_depth, image_format)
     lf = lightfield
-    if bit_depth not in (8, 16, 32):
-        raise InvalidInputError(f"bit_depth must be 8, 16 or 32, got {bit_depth!r}")
-    if lf.channels not in (1, 3):
-        raise InvalidInputError(
-            f"a capture holds monochrome or RGB views, got {lf.channels} channels per view"
-        )
-    if image_format not in ("png", "tiff", "tif"):
-        raise InvalidInputError(f"image_format must be 'png' or 'tiff', got {image_format!r}")
-    ext = ".tif" if (bit_depth == 32 or image_format != "png") else ".png"
-    if bit_depth != 32:
-        lo, hi = float(lf.views.min()), float(lf.views.max())
-        if lo < 0 or hi > 1:
-            raise InvalidInputError(
-                f"views range {lo:.4g}..{hi:.4g} does not fit {bit_depth}-bit files (0..1); "
-                "rescale them or use bit_depth=32 (float TIFF)"
-            )
     root = Path(folder)
     man = root / MANIFEST
-    old_files: set[str] = set()
-    if root.exists():
-        if not root.is_dir():
-            raise InvalidInputError(f"{root} exists and is not a folder")
-        if any(root.iterdir()):
-            if not overwrite:
-                raise InvalidInputError(
-                    f"{root} is not empty; choose a new folder or pass overwrite=True"
-                )
-            if man.is_file():
-                try:
-                    old = tomllib.loads(man.read_text(encoding="utf-8"))
-                    old_files = {e["file"] for e in old.get("view", []) if isinstance(e, dict)
-                                 and isinstance(e.get("file"), str)}
-                    for k in ("gt_disparity", "gt_cube"):
-                        if isinstance(old.get(k), str) and "{" not in old[k]:
-                            old_files.add(old[k])
-                except Exception:  # an unreadable old manifest is simply replaced
-                    old_files = set()
-                man.unlink()  # the folder is visibly incomplete until the new manifest lands
-    root.mkdir(parents=True, exist_ok=True)
+    old_files = _prepare_folder(root, man, overwrite)
 
     R, C = lf.grid_shape
     doc: dict[str, Any] = {
@@ -411,65 +557,14 @@ def write_capture(lightfield: LightField, folder: str | os.PathLike, bit_depth: 
     doc["bit_depth"] = bit_depth
     doc["channels"] = lf.channels
     new_files: set[str] = set()
-
-    # views first (in parallel: encoding 16-bit PNGs is the slow part)
-    entries = []
-    jobs = []
-    for r in range(R):
-        for c in range(C):
-            name = f"view_r{r}_c{c}{ext}"
-            e: dict[str, Any] = {"row": r, "col": c, "file": name}
-            if lf.wavelengths is not None:
-                e["wavelength"] = float(lf.wavelengths[r, c])
-            e["position"] = [float(v) for v in lf.positions[r, c]]
-            entries.append(e)
-            jobs.append((root / name, lf.views[r, c]))
-            new_files.add(name)
-    with ThreadPoolExecutor(max_workers=min(8, len(jobs))) as pool:
-        results = pool.map(lambda j: write_image(j[0], j[1], bit_depth=bit_depth), jobs)
-        list(progress_bar(results, "writing views", total=len(jobs), enabled=progress,
-                          unit="view"))
-
-    if lf.gt_disparity is not None:
-        if lf.gt_disparity.ndim == 2:
-            doc["gt_disparity"] = "gt_disparity.pfm"
-            write_pfm(root / "gt_disparity.pfm", lf.gt_disparity)
-            new_files.add("gt_disparity.pfm")
-        else:
-            doc["gt_disparity"] = "gt_disparity_r{row}_c{col}.pfm"
-            for r in range(R):
-                for c in range(C):
-                    name = f"gt_disparity_r{r}_c{c}.pfm"
-                    write_pfm(root / name, lf.gt_disparity[r, c])
-                    new_files.add(name)
-    if lf.gt_cube is not None:
-        doc["gt_cube"] = "gt_cube.h5"
-        write_cube_h5(root / "gt_cube.h5", lf.gt_cube, lf.cube_wavelengths)
-        new_files.add("gt_cube.h5")
-
+    entries = _write_views(lf, root, ext, bit_depth, progress, new_files)
+    _write_ground_truth(lf, root, doc, new_files)
     doc["view"] = entries
-    meta = {k: v for k, v in lf.metadata.items()
-            if k not in ("calibration", "capture_folder", "bit_depth", "manifest_extra")}
-    if "calibration" in lf.metadata:
-        cal = _toml_value(lf.metadata["calibration"])
-        if isinstance(cal, dict):
-            doc["calibration"] = cal
-        elif cal is not _DROP:
-            meta["calibration"] = cal
-    meta_t = _toml_value(meta)
-    if meta_t:
-        doc["metadata"] = meta_t
+    _metadata_tables(lf, doc)
     try:
         text = tomli_w.dumps(doc)
     except (TypeError, ValueError) as exc:
         raise InvalidInputError(f"metadata cannot be stored in TOML: {exc}") from None
     atomic_write_bytes(man, text.encode("utf-8"))  # last: marks the capture complete
-
-    for name in old_files - new_files:
-        try:
-            target = _safe_file(man, root, name, "old file")
-        except FormatError:
-            continue
-        if target.is_file():
-            target.unlink()
+    _remove_stale(man, root, old_files - new_files)
     return man

@@ -29,7 +29,17 @@ _CAM = re.compile(r"^input_Cam(\d{3})\.png$")
 
 
 def is_hci_scene(folder: str | os.PathLike) -> bool:
-    """True when ``folder`` is a folder holding ``input_Cam000.png`` (an HCI 4D LF scene)."""
+    """True when ``folder`` is a folder holding ``input_Cam000.png`` (an HCI 4D LF scene).
+
+    Parameters
+    ----------
+    folder : path-like
+        Any path.
+
+    Returns
+    -------
+    bool
+    """
     p = Path(folder)
     return p.is_dir() and (p / "input_Cam000.png").is_file()
 

@@ -164,6 +164,15 @@ def write_lightfield_h5(path: str | os.PathLike, lf: LightField,
 def read_lightfield_h5(path: str | os.PathLike) -> LightField:
     """Read a light field written by :func:`write_lightfield_h5`.
 
+    Parameters
+    ----------
+    path : path-like
+        The ``.h5`` file.
+
+    Returns
+    -------
+    LightField
+
     Raises
     ------
     DataNotFoundError
@@ -443,12 +452,29 @@ class CubeFile:
 
 
 def open_cube_h5(path: str | os.PathLike) -> CubeFile:
-    """Open a cube file for lazy reading; use as a context manager or call ``close()``."""
+    """Open a cube file for lazy reading; use as a context manager or call ``close()``.
+
+    Parameters
+    ----------
+    path : path-like
+        A cube file written by :func:`write_cube_h5` or :class:`CubeWriter`.
+
+    Returns
+    -------
+    CubeFile
+        ``cube`` (an h5py dataset, ``[R, C, B, H, W]``), ``wavelengths``, ``mask``,
+        ``metadata``.
+    """
     return CubeFile(path)
 
 
 def read_cube_h5(path: str | os.PathLike):
     """Read a whole cube file.
+
+    Parameters
+    ----------
+    path : path-like
+        A cube file written by :func:`write_cube_h5` or :class:`CubeWriter`.
 
     Returns
     -------

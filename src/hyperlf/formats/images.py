@@ -241,6 +241,21 @@ def read_images_same_size(paths, read, where: str, labels=None) -> np.ndarray:
     ``read(path)`` reads one image; every image must have the first one's shape, otherwise a
     :class:`FormatError` names both files (``labels`` give each one a name for the message,
     default the file names; ``where`` says which light field is being read).
+
+    Parameters
+    ----------
+    paths : sequence of path-like
+        The image files.
+    read : callable
+        ``read(path) -> ndarray`` for one file.
+    where : str
+        What is being read, for error messages.
+    labels : sequence of str, optional
+        A name per file for error messages.
+
+    Returns
+    -------
+    ndarray of float32, shape (N, ...)
     """
     from concurrent.futures import ThreadPoolExecutor
 

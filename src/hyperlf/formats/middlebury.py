@@ -193,6 +193,18 @@ def write_middlebury(folder: str | os.PathLike, pair: StereoPair) -> Path:
     Images are written as 8-bit RGB PNG, the ground truth as ``round(d * scale)`` in an 8-bit
     grey PNG (NaN -> 0), masks as 0/255 grey PNGs.
 
+    Parameters
+    ----------
+    folder : path-like
+        Target folder (created).
+    pair : StereoPair
+        What to write.
+
+    Returns
+    -------
+    Path
+        The folder.
+
     Raises
     ------
     InvalidInputError

@@ -1,0 +1,87 @@
+"""Published figures of BENCHMARKS.md, reproduced to the printed digits from the real data.
+
+Benchmark-style tests: marked ``slow`` (kept out of the default run; ``python -m pytest -m slow``
+runs them) and ``data`` (they need ``HYPERLF_DATA``; they skip, saying so, without it). Each
+runs one cell of a published table with the benchmark script's own functions
+(``benchmarks/table1.py``, ``benchmarks/table2.py``), so the protocol exists once.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+from pathlib import Path
+
+import pytest
+
+from conftest import require_dataset
+
+pytestmark = pytest.mark.slow
+
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+
+
+def _script(name: str):
+    """Import ``benchmarks/<name>.py`` (the scripts import their sibling ``_common``)."""
+    if str(BENCHMARKS) not in sys.path:
+        sys.path.insert(0, str(BENCHMARKS))
+    return importlib.import_module(name)
+
+
+# ----------------------------------------------------------------------------- Table 1
+@pytest.fixture(scope="module")
+def table1():
+    require_dataset("tsukuba")
+    return _script("table1")
+
+
+def _table1_cell(t1, scene: str, metric: str, optimizer: str) -> dict:
+    """One cell of Table 1: red of the left image vs blue of the right, the library defaults
+    for ``(metric, optimizer)``, left-right check + background fill, scored on mask ``all``."""
+    pair, drange, mask, mask_name = t1.load_scene(scene)
+    left, right = pair.left[:, :, t1.RED], pair.right[:, :, t1.BLUE]
+    m = t1.costs.resolve_metric(metric)
+    params, window = t1.default_params(m, optimizer), t1.default_window(m, optimizer)
+    cost_left, cost_right = t1.compute_volumes(left, right, *drange, metric=m, window=window)
+    res, _ = t1.run_cell((cost_left, cost_right, 0.0), drange, optimizer, params, (left, right))
+    return t1.score(res.disparity, pair, mask, mask_name)
+
+
+@pytest.mark.parametrize("optimizer, expected", [
+    ("graphcut", (1.63, 2.65, 3.64)),  # BENCHMARKS.md, Table 1, Tsukuba, census-rsncc (auto)
+    ("sgm", (4.06, 7.46, 9.43)),
+])
+def test_table1_tsukuba_auto(table1, optimizer, expected):
+    s = _table1_cell(table1, "tsukuba", "auto", optimizer)
+    assert s["n_pixels"] == 87696 and s["mask"] == "all"
+    assert (round(s["bad5"], 2), round(s["bad2"], 2), round(s["bad1"], 2)) == expected
+
+
+# ----------------------------------------------------------------------------- Table 2
+@pytest.fixture(scope="module")
+def table2():
+    require_dataset("munsell")  # the procedural scenes are textured with Munsell spectra
+    return _script("table2")
+
+
+# BENCHMARKS.md, Table 2 (benchmarks/results/table2/table2_auto.md): the default ("auto"),
+# 32 labels, 128 x 128: RMSE / MSE x 100 / BadPix(0.07) %.
+@pytest.mark.parametrize("scene, expected", [
+    ("planes", (0.2266, 5.134, 5.25)),
+    ("slanted", (0.0986, 0.973, 3.88)),
+])
+def test_table2_default_128(table2, scene, expected):
+    lf, _, unit, _ = table2.load_scene(scene, (128, 128), 1)
+    disparity, _, _ = table2.run_ours(lf, 32, "auto", {})
+    s = table2.score(disparity, lf.reference_gt_disparity, unit)
+    assert (round(s["rmse"], 4), round(s["mse_x100"], 3), round(s["badpix_007"], 2)) == expected
+
+
+def test_table2_antinous_downscaled(table2):
+    """antinous area-downscaled x4 to 128 x 128, scored in full-resolution px."""
+    require_dataset("antinous")
+    lf, _, unit, _ = table2.load_scene("antinous", (128, 128), 4)
+    disparity, _, _ = table2.run_ours(lf, 32, "auto", {})
+    s = table2.score(disparity, lf.reference_gt_disparity, unit)
+    assert (round(s["rmse"], 4), round(s["mse_x100"], 3), round(s["badpix_007"], 2)) == \
+        (0.4848, 23.498, 36.29)
