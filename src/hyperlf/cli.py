@@ -500,11 +500,33 @@ def _cmd_spectrum(args) -> int:
 _CUBE_HELP = "cube file (.h5 from 'hyperlf complete') or a capture folder with gt_cube.h5"
 
 
-def _metric_choices() -> list[str]:
-    """Names ``--metric`` accepts: the cost registry's, ``auto`` first."""
-    from .costs import METRIC_NAMES
+def _metric_choices(*, light_field: bool = False) -> list[str]:
+    """Names ``--metric`` accepts: the cost registry's (those with a light-field evaluator for
+    ``light_field``), ``auto`` first."""
+    from .costs import cost_names
 
-    return ["auto"] + [m for m in METRIC_NAMES if m != "auto"]
+    return ["auto"] + list(cost_names(light_field=light_field))
+
+
+def _baseline_choices() -> list[str]:
+    """The light-field depth baselines by name."""
+    from .baselines import METHODS
+
+    return list(METHODS)
+
+
+def _defocus_choices() -> list[str]:
+    """The modes of the spectral-aware defocus cue."""
+    from .hlf import DEFOCUS_MODES
+
+    return list(DEFOCUS_MODES)
+
+
+def _optimiser_choices() -> list[str]:
+    """Names ``--optimizer`` accepts: the optimiser registry's."""
+    from .regularisers import OPTIMISERS
+
+    return list(OPTIMISERS)
 
 
 def _add_demo_parser(sub) -> None:
@@ -520,7 +542,7 @@ def _add_demo_parser(sub) -> None:
     p.add_argument("--grid", type=_pair_of_ints, default=(5, 6), metavar="R,C")
     p.add_argument("--size", type=_pair_of_ints, default=(96, 128), metavar="H,W",
                    help="view size in pixels (default 96,128)")
-    p.add_argument("--metric", default="auto", choices=_metric_choices(),
+    p.add_argument("--metric", default="auto", choices=_metric_choices(light_field=True),
                    help="correspondence cost of the depth step (default auto = census-rsncc; "
                         "ncc is faster still, fused/bwncc far slower)")
     p.add_argument("--labels", type=int, default=32, help="disparity labels (default 32)")
@@ -602,7 +624,7 @@ def _add_stereo_parser(sub) -> None:
                    help="integer disparity search range in px (required)")
     p.add_argument("--metric", default="auto", choices=_metric_choices(),
                    help="matching cost (default auto: the library's cross-spectral default)")
-    p.add_argument("--optimizer", default="graphcut", choices=["graphcut", "sgm", "wta"],
+    p.add_argument("--optimizer", default="graphcut", choices=_optimiser_choices(),
                    help="regulariser (default graphcut: alpha-expansion)")
     p.add_argument("--channel", type=_channel_arg, default=None, metavar="C or L,R",
                    help="image channel(s) to match for colour inputs: 0 red, 1 green, 2 blue; "
@@ -628,23 +650,23 @@ def _add_depth_parser(sub) -> None:
                               "  hyperlf depth antinous-hlf --method wang2015 -o d-wang",
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("input", help="capture folder, .h5 light field or HCI scene folder")
-    p.add_argument("--method", default="hlf", choices=["hlf", "tao2013", "wang2015", "lin2015"],
+    p.add_argument("--method", default="hlf", choices=["hlf", *_baseline_choices()],
                    help="hlf (ours, default) or a baseline")
     p.add_argument("--disparity-range", type=_pair_of_floats, default=None, metavar="MIN,MAX",
                    help="px per baseline (default: the capture's metadata); write "
                         "--disparity-range=-2,2 when MIN is negative")
     p.add_argument("--labels", type=int, default=64, help="number of disparity labels (64)")
-    p.add_argument("--metric", default="auto", choices=_metric_choices(),
+    p.add_argument("--metric", default="auto", choices=_metric_choices(light_field=True),
                    help="correspondence cost of hlf: auto (default, "
                    "= census-rsncc), rsncc, census, ncc, or the descriptor costs fused, bwncc, "
                    "bwncc-paper (about 50x slower)")
-    p.add_argument("--optimizer", default="graphcut", choices=["graphcut", "sgm", "wta"])
+    p.add_argument("--optimizer", default="graphcut", choices=_optimiser_choices())
     p.add_argument("--view-selection", action="store_true",
                    help="enable the paper's local view selection (off by default: it did not "
                         "help on the tuning scenes)")
     p.add_argument("--occlusion-split", action="store_true",
                    help="enable the occlusion-aware half-plane split (off by default)")
-    p.add_argument("--defocus", default="off", choices=["off", "paper", "gaussian", "flat", "tv"],
+    p.add_argument("--defocus", default="off", choices=_defocus_choices(),
                    help="spectral-aware defocus cost (off by default; 'paper' is the literal one)")
     p.add_argument("--median-radius", type=int, default=None, metavar="PX",
                    help="radius of the guided weighted-median post-filter that snaps depth "
@@ -676,7 +698,7 @@ def _add_complete_parser(sub) -> None:
                    help="use the capture's ground-truth disparity (synthetic data)")
     p.add_argument("--metric", default="rsncc", choices=_metric_choices(),
                    help="pairwise stereo cost (default rsncc)")
-    p.add_argument("--stereo", default="sgm", choices=["sgm", "graphcut", "wta", "none"],
+    p.add_argument("--stereo", default="sgm", choices=[*_optimiser_choices(), "none"],
                    help="pairwise stereo optimiser, or none (WLS refinement only)")
     p.add_argument("--no-infer", action="store_true",
                    help="do not infer entries no view observed (points hidden in the view that "

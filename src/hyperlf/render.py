@@ -250,7 +250,7 @@ def _make_source(obj, wavelengths=None, offsets=None, mask=None, reference=None)
         mask = None
     shape = tuple(int(s) for s in data.shape)
     if kind == "cube":
-        wl = spectral._as_wavelengths(wl)
+        wl = spectral.as_wavelengths(wl)
         if wl.size != shape[2]:
             raise InvalidInputError(
                 f"the cube has {shape[2]} bands but {wl.size} wavelengths were given")
@@ -338,7 +338,7 @@ def _camera_stage(camera, wl: np.ndarray, white_balance: bool, illuminant, white
     """Sensitivities (incl. illuminant), the white's raw response, XYZ flag."""
     S = _camera_S(camera, wl)
     xyz = _is_xyz(S, wl)
-    ill = spectral._illuminant_values(illuminant, wl)
+    ill = spectral.illuminant_values(illuminant, wl)
     if ill is not None:
         S = S * ill[:, None]
     Wraw = (_white_spd(white, wl)[:, None] * S).sum(axis=0)  # (3,)
@@ -374,7 +374,7 @@ def fit_ccm(camera, wavelengths, illuminant=None, white=None, source: str = "aut
     ndarray, shape (3, 3)
         ``srgb_linear = rgb @ M``.
     """
-    wl = spectral._as_wavelengths(wavelengths)
+    wl = spectral.as_wavelengths(wavelengths)
     S, Wraw, _ = _camera_stage(camera, wl, True, illuminant, white)
     _, refl = spectral.reflectance_library(source, wl)
     spectra = np.clip(refl, 0.0, None) * _white_spd(white, wl)[None, :]
@@ -400,7 +400,7 @@ def fit_ccm(camera, wavelengths, illuminant=None, white=None, source: str = "aut
 def _xyz_of(spectra: np.ndarray, wl: np.ndarray, illuminant, white):
     """Plain-sum XYZ of ``spectra`` (n, B) (times the illuminant) and of the white."""
     cmf = spectral.cmfs(wl)
-    ill = spectral._illuminant_values(illuminant, wl)
+    ill = spectral.illuminant_values(illuminant, wl)
     if ill is not None:
         cmf = cmf * ill[:, None]
     return spectra @ cmf, (_white_spd(white, wl)[:, None] * cmf).sum(axis=0)
@@ -431,7 +431,7 @@ def camera_matrix(camera, wavelengths, white_balance: bool = True, illuminant=No
     >>> camera_matrix("CIE 1931", lf.cube_wavelengths).shape
     (9, 3)
     """
-    wl = spectral._as_wavelengths(wavelengths)
+    wl = spectral.as_wavelengths(wavelengths)
     plan = _camera_plan(camera, wl, white_balance, illuminant, white, output, ccm, ccm_source,
                         kind="cube")
     M = plan.band_matrix * plan.gain[None, :]
@@ -747,7 +747,7 @@ def emulate_camera(cube, wavelengths=None, camera="CIE 1931", white_balance: boo
         mask = None
     if wavelengths is None:
         raise InvalidInputError("wavelengths (B,) are required for an array cube")
-    wl = spectral._as_wavelengths(wavelengths)
+    wl = spectral.as_wavelengths(wavelengths)
     shape = tuple(int(s) for s in data.shape)
     if len(shape) < 3:
         raise InvalidInputError(f"cube must be (..., B, H, W), got shape {shape}")
@@ -1308,7 +1308,7 @@ def spectrum_at(cube, wavelengths=None, x=None, y=None, view=None) -> np.ndarray
     else:
         raise InvalidInputError(f"cube must be (B, H, W) or (R, C, B, H, W), got shape {shape}")
     B, H, W = shape[-3:]
-    if wavelengths is not None and spectral._as_wavelengths(wavelengths).size != B:
+    if wavelengths is not None and spectral.as_wavelengths(wavelengths).size != B:
         raise InvalidInputError(f"the cube has {B} bands but {np.size(wavelengths)} wavelengths")
     xs = np.atleast_1d(np.asarray(x, dtype=np.float64))
     ys = np.atleast_1d(np.asarray(y, dtype=np.float64))

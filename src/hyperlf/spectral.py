@@ -1464,7 +1464,3 @@ def filter_response(center_nm, wavelengths, shape: str = "dirac", fwhm: float = 
     W = W / tot
     return W[0] if scalar else W
 
-
-# Former private names, kept while callers move to the public ones.
-_as_wavelengths = as_wavelengths
-_illuminant_values = illuminant_values

@@ -92,7 +92,7 @@ from .lightfield import (bwncc_view_volume, census_view_volume, ncc_view_volume,
                          rsncc_view_volume, view_costs)
 from .pair import (box_mean, bwncc_finish, bwncc_from_descriptors, bwncc_volume,
                    candidate_validity, census_rsncc_volume, census_transform, census_volume,
-                   channel_stats, fill_invalid, fuse, fused_volume, inv_sigma,
+                   channel_stats, fill_invalid, worst_fill, fuse, fused_volume, inv_sigma,
                    ncc_cross_accumulate, ncc_volume, normalise_volume, pad_replicate,
                    right_validity, rho, rsncc_volume, shift_cols, ssd_volume, window_stats)
 from .registry import (AUTO_METRIC, METRICS, Cost, FusedCost, cost_names, cost_volume,
@@ -117,6 +117,7 @@ __all__ = [
     "candidate_validity",
     "right_validity",
     "fill_invalid",
+    "worst_fill",
     "window_stats",
     "box_mean",
     "pad_replicate",

@@ -92,12 +92,55 @@ def fill_invalid(cost: np.ndarray, dmin: int, valid: np.ndarray | None = None) -
     Lc, H, W = cost.shape
     if valid is None:
         valid = candidate_validity((H, W), dmin, dmin + Lc - 1)
-    worst = np.where(valid, cost, -np.inf).max(axis=0)
+    return worst_fill(cost, ~np.asarray(valid, dtype=bool), empty="zero")
+
+
+#: What :func:`worst_fill` gives a pixel with no valid entry.
+FILL_EMPTY_MODES = ("zero", "global")
+
+
+def worst_fill(cost: np.ndarray, invalid, *, empty: str = "zero") -> np.ndarray:
+    """The worst-cost rule of SPEC §4, in place: every invalid entry of a cost volume gets its
+    pixel's worst (largest) valid cost.
+
+    The one implementation behind :func:`fill_invalid` and
+    :func:`hyperlf.regularisers.fill_invalid`.
+
+    Parameters
+    ----------
+    cost : ndarray, shape (L, H, W)
+        Modified in place (its dtype is kept).
+    invalid : array_like of bool, broadcastable to ``cost``
+    empty : {"zero", "global"}
+        A pixel with no valid entry gets 0 (``"zero"``) or the worst valid cost of the whole
+        volume (``"global"``).
+
+    Returns
+    -------
+    ndarray
+        ``cost``.
+
+    Raises
+    ------
+    InvalidInputError
+        Unknown ``empty``, or ``empty="global"`` with no valid entry at all.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> c = np.array([[[1.0, 5.0]], [[3.0, 7.0]]])
+    >>> worst_fill(c, np.array([[[False, True]], [[True, True]]]))[:, 0, :].tolist()
+    [[1.0, 0.0], [1.0, 0.0]]
+    """
+    if empty not in FILL_EMPTY_MODES:
+        raise InvalidInputError(f"empty must be one of {FILL_EMPTY_MODES}, got {empty!r}")
+    worst = np.where(invalid, -np.inf, cost).max(axis=0)
     none_valid = ~np.isfinite(worst)
-    worst[none_valid] = 0.0
-    np.copyto(cost, np.broadcast_to(worst.astype(cost.dtype), cost.shape), where=~valid)
     if none_valid.any():
-        cost[:, none_valid] = 0
+        if empty == "global" and none_valid.all():
+            raise InvalidInputError("cost volume has no valid entry to fill the invalid ones from")
+        worst[none_valid] = 0.0 if empty == "zero" else worst[~none_valid].max()
+    np.copyto(cost, np.broadcast_to(worst.astype(cost.dtype), cost.shape), where=invalid)
     return cost
 
 

@@ -44,7 +44,7 @@ does not change the minimiser; it only shifts the energy by a constant.
 
 from __future__ import annotations
 
-from .basic import FILL_EMPTY_MODES, data_term, fill_invalid, wta
+from .basic import data_term, fill_invalid, wta
 from .dispatch import OptimiseResult, optimise
 from .graphcuts import (GRAPHCUT_SMOOTHNESS, candidate_labels, edge_weights_from_guide,
                         graphcut, graphcut_multiscale, mrf_energy)
@@ -65,7 +65,6 @@ __all__ = [
     "data_term",
     "wta",
     "fill_invalid",
-    "FILL_EMPTY_MODES",
     "sgm",
     "sgm_labels",
     "SGM_PATHS",

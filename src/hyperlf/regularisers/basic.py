@@ -7,10 +7,9 @@ import numpy as np
 from ..errors import InvalidInputError
 from ._checks import check_cost
 
-__all__ = ["data_term", "wta", "fill_invalid", "FILL_EMPTY_MODES"]
+__all__ = ["data_term", "wta", "fill_invalid"]
 
 #: What :func:`fill_invalid` gives a pixel with no valid entry.
-FILL_EMPTY_MODES = ("global", "zero")
 
 
 def data_term(cost) -> np.ndarray:
@@ -95,6 +94,8 @@ def fill_invalid(cost, invalid=None, *, empty: str = "global") -> np.ndarray:
     >>> fill_invalid(c, empty="zero")[:, 0, 1].tolist()
     [0.0, 0.0, 0.0]
     """
+    from ..costs.pair import FILL_EMPTY_MODES, worst_fill
+
     if empty not in FILL_EMPTY_MODES:
         raise InvalidInputError(f"empty must be one of {FILL_EMPTY_MODES}, got {empty!r}")
     c = np.array(cost, dtype=np.float32)
@@ -105,10 +106,4 @@ def fill_invalid(cost, invalid=None, *, empty: str = "global") -> np.ndarray:
         bad = bad | np.broadcast_to(np.asarray(invalid, dtype=bool), c.shape)
     if not bad.any():
         return c
-    if bad.all() and empty == "global":
-        raise InvalidInputError("cost volume has no valid entry to fill the invalid ones from")
-    worst = np.where(bad, -np.inf, c).max(axis=0)
-    none_valid = ~np.isfinite(worst)
-    fallback = worst[~none_valid].max() if empty == "global" else np.float32(0.0)
-    worst = np.where(none_valid, fallback, worst).astype(np.float32)
-    return np.where(bad, worst[None], c).astype(np.float32)
+    return worst_fill(c, bad, empty=empty)
