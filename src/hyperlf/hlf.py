@@ -15,39 +15,12 @@ the reference pixel ``p`` is compared with ``q_v = p - d o_v`` in view ``v``; th
 are sampled there **bilinearly** (sub-pixel); candidates with ``q_v`` outside the image are
 *masked* (excluded from every mean), never zero-filled.
 
-1. **Correspondence cost** ``C_v(p, d)`` per view ``v != ref`` (:func:`view_costs`):
-
-   * ``bwncc`` / ``bwncc-paper`` (SPEC §3) on the 612-channel descriptor of
-     :mod:`hyperlf.descriptor` (``DescriptorParams.default()`` with NCC patch ``n = w`` per
-     level, resp. ``DescriptorParams.paper()`` with ``n = 5``).  The reference's descriptor
-     statistics are computed once per channel block; the other view's channel maps are streamed
-     in blocks of 68 channels (one histogram of one level), shifted by ``(-d dx, -d dy)``
-     bilinearly, and the cross terms accumulated in float64 (:mod:`hyperlf.costs.lightfield`, one kernel pass per (view, label, block)).
-     **Statistics of shifted maps: exact, no approximation.**  The kernel recomputes the
-     patch mean and variance of the *interpolated* map together with the cross term (three
-     separable running box sums instead of one), so for sub-pixel shifts the NCC is the exact
-     NCC of the reference patch with the bilinearly resampled patch.  (Shifting the
-     precomputed statistics instead would be exact only for integer shifts and costs about the
-     same, so it is not offered.)  Window pixels beyond the other view's border take its
-     replicated border values (SPEC §4 border rule: each view keeps its own replicated
-     border); validity is decided by the centre ``q_v`` alone.  ``tau_var = tau_rel`` x the
-     mean patch variance of the block's channels, per view (as :func:`hyperlf.costs.bwncc_volume`
-     with ``tau_scope="block"``).
-   * ``census-rsncc`` (= ``auto``, :data:`hyperlf.costs.AUTO_METRIC`): per view,
-     ``(norm(rsncc 5x5) + norm(census 7x7)) / 2`` with :func:`hyperlf.costs.fuse`; the
-     census part by a fused shift + census + Hamming numba kernel.  Chosen as the H-LF
-     default on Table 2: lower RMSE than ``fused`` on the four procedural scenes, higher on
-     antinous (whose spectra, derived from RGB, rarely reverse contrast between bands, which
-     favours census), and ~50x faster.
-   * ``fused``: per view,
-     ``(norm(bwncc) + norm(census 7x7)) / 2`` with :func:`hyperlf.costs.fuse` on that view's
-     volumes and validity (so the fusion is exactly the two-view one, view by view).
-   * ``ncc``: ``1 - NCC`` of the intensities, 5 x 5, same kernel (one channel).
-   * ``census``: Hamming distance between the reference's 7 x 7 census code and the census
-     code of the bilinearly shifted view.
-
-   Single cheap costs (``ncc``, ``census``, ``rsncc``) are meant for tests, quick looks and
-   ablations.
+1. **Correspondence cost** ``C_v(p, d)`` per view ``v != ref``: the light-field form of a
+   cost of the registry (:mod:`hyperlf.costs`, :func:`hyperlf.costs.view_costs`; how each is
+   evaluated at sub-pixel shifts: :mod:`hyperlf.costs.lightfield`).  The default ``auto`` is
+   ``census-rsncc``, ``(norm(rsncc 5x5) + norm(census 7x7)) / 2`` per view; ``fused``,
+   ``bwncc`` and ``bwncc-paper`` use the 612-channel descriptor and are much slower; ``ncc``,
+   ``census`` and ``rsncc`` alone serve tests, quick looks and ablations.
 
 2. **View selection** (SPEC §5.1, ``view_selection=True``; :func:`aggregate_view`): with
    ``M_v`` = gradient magnitude of ``In_v = I_v / mean(I_v)`` (central differences),
@@ -301,7 +274,14 @@ class DepthResult:
 
 
 def make_labels(dmin: float, dmax: float, n_labels: int) -> np.ndarray:
-    """``n_labels`` disparities evenly spaced over ``[dmin, dmax]`` (float64)."""
+    """``n_labels`` disparities evenly spaced over ``[dmin, dmax]`` (float64).
+
+    Examples
+    --------
+    >>> from hyperlf.hlf import make_labels
+    >>> make_labels(-1, 1, 5).tolist()
+    [-1.0, -0.5, 0.0, 0.5, 1.0]
+    """
     try:
         n = int(n_labels)
     except (TypeError, ValueError):
@@ -323,6 +303,19 @@ def selection_masks(M_ref, Mq, valid, Mbar):
 
     All arrays broadcast to ``(L, H, W)`` (``M_ref`` (H, W)).  (Equality: ``M_ref > Mbar``
     selects ``Mq > Mbar``, otherwise ``Mq <= Mbar``.)
+
+    References
+    ----------
+    .. [1] K. Zhu et al., "Hyperspectral Light Field Stereo Matching", IEEE TPAMI, §5.1.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hyperlf.hlf import selection_masks
+    >>> M_ref = np.array([[2.0, 0.5]])            # an edge pixel and a flat one
+    >>> Mq = np.array([[[3.0, 3.0]]])             # the view sees an edge at both
+    >>> selection_masks(M_ref, Mq, True, 1.0)[0].tolist()
+    [[True, False]]
     """
     return np.asarray(valid) & ((np.asarray(M_ref)[None] > Mbar) == (np.asarray(Mq) > Mbar))
 
@@ -453,6 +446,12 @@ def half_plane_sides(gx, gy, offsets) -> np.ndarray:
     The line through ``pos_ref`` along the edge (perpendicular to ``g``) separates the
     half-planes; a view on the line (``|g . o| <= 1e-9 |g| |o|``) gets 0 (both halves).
     Returns int8 (V, E).
+
+    Examples
+    --------
+    >>> from hyperlf.hlf import half_plane_sides
+    >>> half_plane_sides([1.0], [0.0], [(-1, 0), (0, 1), (1, 0)])[:, 0].tolist()
+    [-1, 0, 1]
     """
     g = np.stack([np.asarray(gx, np.float64), np.asarray(gy, np.float64)], axis=-1)  # (E, 2)
     o = np.asarray(offsets, np.float64).reshape(-1, 2)
@@ -607,7 +606,16 @@ def defocus_volume(In_views, offsets, wl, labels, prior="gaussian", lambda_r="pe
 
 def normalise_unary(X, enabled: bool = True):
     """``(X - min_d X) / s`` with ``s`` = median over pixels of ``max_d X - min_d X``
-    (``s = 1`` when disabled or when that median is 0).  Returns (float32 volume, s)."""
+    (``s = 1`` when disabled or when that median is 0).  Returns (float32 volume, s).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hyperlf.hlf import normalise_unary
+    >>> U, s = normalise_unary(np.array([[[1.0]], [[5.0]]]))
+    >>> U[:, 0, 0].tolist(), s
+    ([0.0, 1.0], 4.0)
+    """
     X = np.asarray(X, np.float32)
     Y = X - X.min(axis=0, keepdims=True)
     s = 1.0

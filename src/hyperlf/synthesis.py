@@ -527,7 +527,7 @@ def from_rgb_lightfield(lf_rgb: LightField, rows: int = 5, cols: int = 6,
     --------
     >>> rgb = LightField(np.full((3, 3, 8, 8, 3), 0.5, np.float32))
     >>> H = from_rgb_lightfield(rgb, rows=3, cols=3)
-    >>> H.views.shape, H.wavelengths[1, 1]
+    >>> H.views.shape, float(H.wavelengths[1, 1])
     ((3, 3, 8, 8), 555.0)
     """
     _check_rgb_args(lf_rgb, view_disparity, normalization)

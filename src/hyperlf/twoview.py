@@ -92,15 +92,33 @@ _BASE_PARAMS: dict[str, dict[str, Any]] = {
 }
 
 def default_window(metric: str, optimizer: str) -> int | None:
-    """The default cost window of ``(metric, optimizer)``: the cost's
-    :meth:`~hyperlf.costs.Cost.default_window` (None = the cost's own default)."""
+    """The default cost window of ``(metric, optimizer)``.
+
+    The cost's :meth:`~hyperlf.costs.Cost.default_window` (None = the cost's own default).
+
+    Examples
+    --------
+    >>> from hyperlf.twoview import default_window
+    >>> default_window("census", "graphcut")
+    7
+    """
     cost = _costs.get_cost(metric)
     return cost.default_window(_check_optimizer(optimizer))
 
 
 def default_params(metric: str, optimizer: str) -> dict:
-    """The default optimiser parameters for ``(metric, optimizer)`` (a fresh copy): the
-    optimiser's fallback updated with the cost's own (:attr:`hyperlf.costs.Cost.params`)."""
+    """The default optimiser parameters of two-view stereo for ``(metric, optimizer)``.
+
+    The optimiser's two-view fallback updated with the cost's own tuned values
+    (:attr:`hyperlf.costs.Cost.params`); a fresh dict, in units of the normalised data term.
+
+    Examples
+    --------
+    >>> from hyperlf.twoview import default_params
+    >>> p = default_params("census-rsncc", "graphcut")
+    >>> p["weight"], p["truncation"], p["levels"]
+    (2.0, 4.0, 2)
+    """
     cost = _costs.get_cost(metric)
     opt = _check_optimizer(optimizer)
     return {**_BASE_PARAMS[opt], **cost.default_params(opt)}
@@ -218,8 +236,30 @@ def _pick(img, ch, side: str) -> np.ndarray:
 def select_channels(left, right, channel=None) -> tuple[np.ndarray, np.ndarray]:
     """Return the two 2-D float32 images :func:`stereo` matches.
 
-    ``channel``: None (2-D inputs as they are; colour inputs -> mean of channels), an int (the
-    same channel of both), or a pair ``(left_channel, right_channel)``.
+    Parameters
+    ----------
+    left, right : array_like, (H, W) or (H, W, K)
+    channel : None, int or (int, int)
+        None: 2-D inputs as they are, colour inputs reduced to the mean of their channels; an
+        int: the same channel of both; a pair: ``(left_channel, right_channel)``.
+
+    Returns
+    -------
+    (ndarray, ndarray)
+        float32 (H, W) each.
+
+    Raises
+    ------
+    InvalidInputError
+        Different sizes, a channel out of range, non-finite values, images under 2 x 2.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hyperlf.twoview import select_channels
+    >>> rgb = np.ones((4, 5, 3))
+    >>> [a.shape for a in select_channels(rgb, rgb, channel=(0, 2))]
+    [(4, 5), (4, 5)]
     """
     if channel is None or isinstance(channel, (int, np.integer)):
         cl = cr = channel
@@ -257,9 +297,25 @@ def compute_volumes(left, right, dmin: int, dmax: int, metric: str = "auto", win
                     need_right: bool = True, cost_params: dict | None = None):
     """Left- and right-referenced cost volumes ``(C_L, C_R)`` of two 2-D images.
 
-    ``C_R`` is None unless ``need_right``.  See the module docstring (step 3) and
-    :meth:`hyperlf.costs.Cost.pair_volumes` for why the re-referencing is exact.
-    ``cost_params`` go to the cost (:func:`hyperlf.costs.cost_volumes`).
+    Parameters
+    ----------
+    left, right : ndarray (H, W)
+    dmin, dmax : int
+        Left ``x`` is compared with right ``x - d`` for ``d = dmin..dmax``.
+    metric : str
+        A cost of the registry (:func:`hyperlf.costs.cost_names`) or ``"auto"``.
+    window : int, optional
+        The cost's window (None: its default).
+    need_right : bool
+        Also return ``C_R`` (else None).
+    cost_params : dict, optional
+        Options of the cost (:func:`hyperlf.costs.cost_volumes`).
+
+    Returns
+    -------
+    (ndarray, ndarray or None)
+        float32 ``(dmax - dmin + 1, H, W)`` volumes, lower is better.  Why the re-referencing
+        is exact: the module docstring (step 3) and :meth:`hyperlf.costs.Cost.pair_volumes`.
     """
     return _costs.cost_volumes(left, right, dmin, dmax, metric, window=window,
                                need_right=need_right, **dict(cost_params or {}))
@@ -289,9 +345,24 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
                         metric: str = "auto", progress: bool = False) -> StereoResult:
     """Steps 4-7 of the pipeline on precomputed volumes (see :func:`compute_volumes`).
 
-    ``params`` here must be complete (use :func:`default_params`); ``metric`` is only recorded
-    (and used to look up defaults when ``params`` is None).  ``guide_*`` are the input images
-    used for graph-cut edge weights.  ``timings`` holds only ``optimiser``.
+    Parameters
+    ----------
+    cost_left, cost_right : ndarray (L, H, W)
+        Left- and right-referenced volumes (``cost_right`` may be None with
+        ``occlusion="none"``).
+    dmin : int
+        Disparity of label 0.
+    optimizer, occlusion, params, subpixel, progress
+        As :func:`stereo`; ``params`` override :func:`default_params` of ``metric``.
+    guide_left, guide_right : ndarray (H, W), optional
+        The input images, for the graph-cut edge weights.
+    metric : str
+        Recorded, and used to look up the default parameters.
+
+    Returns
+    -------
+    StereoResult
+        ``timings`` holds only ``optimiser``.
     """
     optimizer = _check_optimizer(optimizer)
     occlusion = _check_occlusion(occlusion)
@@ -343,25 +414,59 @@ def stereo(left, right, disparity_range, metric: str = "auto", optimizer: str = 
 
     Parameters
     ----------
-    left, right : (H, W) or (H, W, K) arrays (linear intensities; any positive scale).
-    disparity_range : (dmin, dmax) integers, ``dmin < dmax``; left ``x`` matches right ``x - d``.
-    metric : a name of :data:`hyperlf.costs.METRIC_NAMES` (``"auto"`` = the library default).
-    optimizer : ``"graphcut"`` (default), ``"sgm"`` or ``"wta"``.
-    occlusion : ``"lr-fill"`` (left-right check + background fill) or ``"none"``.
-    subpixel : parabola refinement of the chosen labels.
-    params : optimiser parameters overriding :func:`default_params` — sgm: ``p1``, ``p2``
-        (``paths``, ``smoothness``); graphcut: ``smoothness``, ``weight``, ``truncation``,
-        ``edge_sigma``, ``max_cycles``, ``levels`` (coarse-to-fine halvings, 0 = plain
-        alpha-expansion); in units of the normalised data term.
-    window : cost window (odd); None uses :func:`default_window` (the cost's defaults).
-    channel : None, int, or ``(left_channel, right_channel)`` for colour inputs.
-    progress : show a progress bar during graph cuts.
-    cost_params : extra keyword arguments of :func:`hyperlf.costs.cost_volume`.
+    left, right : array_like, (H, W) or (H, W, K)
+        Linear intensities (any positive scale).
+    disparity_range : (int, int)
+        ``(dmin, dmax)``, ``dmin < dmax``; left ``x`` matches right ``x - d``.
+    metric : str
+        A cost of the registry (:data:`hyperlf.costs.METRIC_NAMES`; ``"auto"`` = the library
+        default).
+    optimizer : {"graphcut", "sgm", "wta"}
+        The names of :data:`hyperlf.regularisers.OPTIMISERS`.
+    occlusion : {"lr-fill", "none"}
+        Left-right check + background fill, or nothing.
+    subpixel : bool
+        Parabola refinement of the chosen labels.
+    params : dict, optional
+        Optimiser parameters overriding :func:`default_params` (the fields of
+        :class:`hyperlf.regularisers.SGMParams` / :class:`~hyperlf.regularisers.GraphCutParams`;
+        graph cuts' ``levels`` = coarse-to-fine halvings, 0 = plain alpha-expansion), in units
+        of the normalised data term.
+    window : int, optional
+        Cost window (odd); None uses :func:`default_window`.
+    channel : None, int or (int, int)
+        Channel(s) of colour inputs (:func:`select_channels`).
+    progress : bool
+        A progress bar during graph cuts.
+    cost_params : dict, optional
+        Extra options of the cost (:func:`hyperlf.costs.cost_volume`).
+
+    Returns
+    -------
+    StereoResult
 
     Raises
     ------
     InvalidInputError
         Bad shapes, NaN, ``dmin >= dmax``, a range wider than the image, unknown names/params.
+
+    References
+    ----------
+    .. [1] D. Scharstein, R. Szeliski, "A taxonomy and evaluation of dense two-frame stereo
+       correspondence algorithms", IJCV 47, 2002 (the protocol and bad-pixel scores).
+    .. [2] K. Zhu, Y. Xue, Q. Fu, S. B. Kang, X. Chen, J. Yu, "Hyperspectral Light Field Stereo
+       Matching", IEEE TPAMI (Table 1: cross-spectral two-view stereo).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hyperlf.twoview import stereo
+    >>> rng = np.random.default_rng(0)
+    >>> scene = rng.random((24, 48)) + 0.1
+    >>> left, right = scene[:, 4:36], scene[:, 1:33]   # left x matches right x - 3
+    >>> res = stereo(left, right, (0, 6), optimizer="wta", occlusion="none")
+    >>> float(np.median(res.disparity))
+    3.0
     """
     t_all = time.perf_counter()
     name = _costs.resolve_metric(metric)
