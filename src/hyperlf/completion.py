@@ -787,55 +787,6 @@ def _infer_round_numpy(cube, src, disp, guide, radius, sigma_d, sigma_g, min_wei
     return out, got
 
 
-_INFER_KERNEL: list = []
-
-
-def _infer_kernel():
-    if _INFER_KERNEL:
-        return _INFER_KERNEL[0]
-    from numba import njit, prange
-
-    @njit(parallel=True, cache=True)
-    def infer_round(cube, src, disp, guide, radius, sigma_d, sigma_g, min_weight, out, got):
-        B, H, W = cube.shape
-        sig_s = max(radius / 2.0, 0.5)
-        cs = 1.0 / (2.0 * sig_s * sig_s)
-        cd = 1.0 / (2.0 * sigma_d * sigma_d)
-        cg = 1.0 / (2.0 * sigma_g * sigma_g)
-        for b in prange(B):
-            for y in range(H):
-                for x in range(W):
-                    out[b, y, x] = cube[b, y, x]
-                    got[b, y, x] = False
-                    if src[b, y, x]:
-                        continue
-                    dp = disp[y, x]
-                    gp = guide[y, x]
-                    if not (np.isfinite(dp) and np.isfinite(gp)):
-                        continue
-                    acc = 0.0
-                    ws = 0.0
-                    for qy in range(max(y - radius, 0), min(y + radius + 1, H)):
-                        for qx in range(max(x - radius, 0), min(x + radius + 1, W)):
-                            if not src[b, qy, qx]:
-                                continue
-                            dq = disp[qy, qx]
-                            gq = guide[qy, qx]
-                            if not (np.isfinite(dq) and np.isfinite(gq)):
-                                continue
-                            e = (((qy - y) ** 2 + (qx - x) ** 2) * cs + (dp - dq) ** 2 * cd
-                                 + (gp - gq) ** 2 * cg)
-                            w = np.exp(-e)
-                            acc += w * cube[b, qy, qx]
-                            ws += w
-                    if ws >= min_weight:
-                        out[b, y, x] = acc / ws
-                        got[b, y, x] = True
-
-    _INFER_KERNEL.append(infer_round)
-    return infer_round
-
-
 def infer_missing(cube, mask, disparity, guide, *, radius: int = 6, sigma_d: float = 0.5,
                   sigma_g: float = 0.1, min_weight: float = 0.05, rounds: int = 3,
                   impl: str = "auto") -> tuple[np.ndarray, np.ndarray]:
@@ -892,7 +843,10 @@ def infer_missing(cube, mask, disparity, guide, *, radius: int = 6, sigma_d: flo
         else:
             nxt = np.empty_like(out)
             got = np.empty(out.shape, dtype=bool)
-            _infer_kernel()(out, src, d, g, radius, sigma_d, sigma_g, min_weight, nxt, got)
+            from . import _completion_kernels
+
+            _completion_kernels.infer_round(out, src, d, g, radius, sigma_d, sigma_g, min_weight,
+                                            nxt, got)
             out = nxt
         if not got.any():
             break
