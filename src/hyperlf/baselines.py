@@ -13,6 +13,13 @@ Public API
 names to the functions; :data:`DEFAULTS` holds each method's parameters (``**params`` overrides
 them; an unknown name raises :class:`~hyperlf.errors.InvalidInputError`).
 
+Examples
+--------
+>>> from hyperlf import synthesis
+>>> lf = synthesis.procedural_scene(seed=1, rows=3, cols=3, height=24, width=32)
+>>> {name: method(lf, n_labels=8).disparity.shape for name, method in METHODS.items()}
+{'tao2013': (24, 32), 'wang2015': (24, 32), 'lin2015': (24, 32)}
+
 Common conventions (all three)
 ------------------------------
 * **Input.** A :class:`~hyperlf.lightfield.LightField`. Monochrome views ``(R, C, H, W)`` are
@@ -133,6 +140,7 @@ rest (figures in BENCHMARKS.md).
 from __future__ import annotations
 
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -345,17 +353,60 @@ def _peak_ratio(cost: np.ndarray, maximise: bool = False, eps: float = 1e-9) -> 
     return np.where(np.isfinite(ratio), np.maximum(ratio, 1.0), 1.0)
 
 
-def _labels_to_disp(z: np.ndarray, labels: np.ndarray) -> np.ndarray:
-    step = labels[1] - labels[0]
-    return (labels[0] + z * step).astype(np.float32)
+def _shifted_views(vl, d: float):
+    """Each view of ``vl`` as ``(img, shifted)``, ``shifted`` sampled at disparity ``d``."""
+    for img, dx, dy in vl:
+        yield img, _shift(img, -d * dx, -d * dy)
 
 
-def _finish(method, disparity, confidence, timings, maps, labels, params, t0) -> BaselineResult:
-    timings["total"] = time.perf_counter() - t0
-    return BaselineResult(disparity=np.asarray(disparity, dtype=np.float32),
-                          confidence=np.clip(np.asarray(confidence, dtype=np.float32), 0, 1),
-                          timings=timings, maps=maps, method=method,
-                          labels=np.asarray(labels, dtype=np.float64), params=params)
+@dataclass
+class _Run:
+    """One baseline run: the stages every method shares (checked input, labels, parameters,
+    intensity views) and the bookkeeping of its stage timings."""
+
+    method: str
+    labels: np.ndarray
+    p: dict
+    vl: list
+    ref: np.ndarray
+    progress: bool
+    t0: float
+    timings: dict = field(default_factory=dict)
+
+    @contextmanager
+    def stage(self, name: str):
+        """Time the block as stage ``name``."""
+        t = time.perf_counter()
+        yield
+        self.timings[name] = time.perf_counter() - t
+
+    def each_label(self, what: str = "labels"):
+        """``(index, disparity)`` of every label, with a progress bar when asked for."""
+        L = self.labels.size
+        return progress_bar(enumerate(self.labels), f"{self.method}: {what}", total=L,
+                            enabled=self.progress, unit="label")
+
+    def finish(self, disparity, confidence, maps) -> BaselineResult:
+        """The result; floating-point maps become float32, confidence is clipped to [0, 1]."""
+        self.timings["total"] = time.perf_counter() - self.t0
+        maps = {k: v.astype(np.float32) if isinstance(v, np.ndarray) and v.dtype.kind == "f"
+                else v for k, v in maps.items()}
+        return BaselineResult(disparity=np.asarray(disparity, dtype=np.float32),
+                              confidence=np.clip(np.asarray(confidence, dtype=np.float32), 0, 1),
+                              timings=self.timings, maps=maps, method=self.method,
+                              labels=np.asarray(self.labels, dtype=np.float64), params=self.p)
+
+
+def _start(method: str, lf, n_labels, disparity_range, params: dict, progress: bool) -> _Run:
+    """Check the light field, make the labels, merge and check the parameters, and reduce the
+    views to intensities (module docstring, "Common conventions")."""
+    t0 = time.perf_counter()
+    lf = _check_lf(lf)
+    labels = label_disparities(lf, n_labels, disparity_range)
+    p = _PARAMS[method](params)
+    views = prepare_views(lf)
+    return _Run(method=method, labels=labels, p=p, vl=_view_list(lf, views),
+                ref=views[lf.reference].astype(np.float32), progress=progress, t0=t0)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -410,21 +461,77 @@ def _tao_fuse(z_src, w_src, lam_flat, lam_smooth, n_irls, eps):
     return z.reshape(H, W)
 
 
+def _tao_params(params: dict) -> dict:
+    """Merged and checked Tao et al. parameters."""
+    p = _merge("tao2013", params)
+    _odd_window(p)
+    if p["defocus_operator"] not in ("laplacian", "gradient_x"):
+        raise InvalidInputError(
+            f"defocus_operator must be 'laplacian' or 'gradient_x', got {p['defocus_operator']!r}")
+    for k in ("conf_exponent_corr", "conf_exponent_defocus", "lambda_flat", "lambda_smooth"):
+        _positive(p, k, allow_zero=True)
+    _positive(p, "irls_epsilon")
+    pct = _positive(p, "conf_percentile")
+    if pct > 100:
+        raise InvalidInputError(f"conf_percentile must be in (0, 100], got {pct}")
+    return p
+
+
+def _tao_responses(run: _Run):
+    """Defocus response (contrast of the refocused image) and correspondence response (angular
+    standard deviation) per label, both box-averaged over the window."""
+    w = int(run.p["window"])
+    laplacian = run.p["defocus_operator"] == "laplacian"
+    n = len(run.vl)
+    H, W = run.ref.shape
+    Dvol = np.empty((run.labels.size, H, W), dtype=np.float32)
+    Cvol = np.empty((run.labels.size, H, W), dtype=np.float32)
+    for li, d in run.each_label():
+        s = np.zeros((H, W), dtype=np.float32)
+        q = np.zeros((H, W), dtype=np.float32)
+        for _, v in _shifted_views(run.vl, d):
+            s += v
+            q += v * v
+        mean = s / n
+        var = np.maximum(q / n - mean * mean, 0.0)
+        if laplacian:
+            contrast = np.abs(ndimage.laplace(mean, mode="nearest"))
+        else:
+            contrast = np.abs(np.gradient(mean, axis=1))
+        Dvol[li] = _box(contrast, w)
+        Cvol[li] = _box(np.sqrt(var), w)
+    return Dvol, Cvol
+
+
+def _tao_cues(Dvol: np.ndarray, Cvol: np.ndarray, labels: np.ndarray, pct: float):
+    """Sub-pixel cue depths and their peak-ratio confidences, normalised jointly by the
+    ``pct`` percentile of the pooled ratios."""
+    depth_d = _reg.subpixel_refine(-Dvol, np.argmax(Dvol, axis=0), labels)
+    depth_c = _reg.subpixel_refine(Cvol, np.argmin(Cvol, axis=0), labels)
+    ratio_d = _peak_ratio(Dvol, maximise=True)
+    ratio_c = _peak_ratio(Cvol)
+    norm = float(np.percentile(np.concatenate([ratio_d.ravel(), ratio_c.ravel()]), pct))
+    norm = norm if norm > 0 else 1.0
+    return depth_d, depth_c, np.clip(ratio_d / norm, 0, 1), np.clip(ratio_c / norm, 0, 1)
+
+
 def tao2013(lf: LightField, n_labels: int = 64, disparity_range=None,
             progress: bool = False, **params) -> BaselineResult:
     """Tao et al. 2013: defocus + correspondence cues, peak-ratio confidences, global fusion.
 
-    See the module docstring for what follows the paper and what is simplified.
+    The module docstring ("Tao et al. 2013") says which steps follow the paper's equations or
+    the released code and which are simplified; its Examples run all three baselines.
 
     Parameters
     ----------
     lf : LightField
-    n_labels : int
+        At least 2 views of at least 3 x 3 px (module docstring, "Input").
+    n_labels : int, optional
         Number of label disparities (>= 3).
     disparity_range : (float, float), optional
-        Default ``lf.disparity_range``.
-    progress : bool
-        Progress bar over labels.
+        Label range in px per baseline (default ``lf.disparity_range``).
+    progress : bool, optional
+        Show a progress bar over the labels.
     **params
         ``window`` (9), ``defocus_operator`` (``"laplacian"`` | ``"gradient_x"``),
         ``conf_exponent_corr`` (0.2), ``conf_exponent_defocus`` (0.6), ``lambda_flat`` (2),
@@ -440,88 +547,31 @@ def tao2013(lf: LightField, n_labels: int = 64, disparity_range=None,
     Raises
     ------
     InvalidInputError
-        For an unknown or out-of-range parameter.
+        For an unknown or out-of-range parameter, ``n_labels`` < 3, or a light field with a
+        single view or views smaller than 3 x 3 px.
 
     References
     ----------
     .. [1] M. W. Tao, S. Hadap, J. Malik, R. Ramamoorthi, "Depth from combining defocus and
        correspondence using light-field cameras", ICCV 2013.
-
-    Examples
-    --------
-    >>> from hyperlf import synthesis
-    >>> lf = synthesis.procedural_scene(seed=1, rows=3, cols=3, height=24, width=32)
-    >>> tao2013(lf, n_labels=8).disparity.shape
-    (24, 32)
     """
-    t0 = time.perf_counter()
-    lf = _check_lf(lf)
-    labels = label_disparities(lf, n_labels, disparity_range)
-    p = _merge("tao2013", params)
-    w = _odd_window(p)
-    if p["defocus_operator"] not in ("laplacian", "gradient_x"):
-        raise InvalidInputError(
-            f"defocus_operator must be 'laplacian' or 'gradient_x', got {p['defocus_operator']!r}")
-    for k in ("conf_exponent_corr", "conf_exponent_defocus", "lambda_flat", "lambda_smooth"):
-        _positive(p, k, allow_zero=True)
-    eps = _positive(p, "irls_epsilon")
-    pct = _positive(p, "conf_percentile")
-    if pct > 100:
-        raise InvalidInputError(f"conf_percentile must be in (0, 100], got {pct}")
-
-    views = prepare_views(lf)
-    vl = _view_list(lf, views)
-    n = len(vl)
-    H, W = lf.image_shape
-    L = labels.size
-    timings: dict[str, float] = {}
-    t = time.perf_counter()
-    Dvol = np.empty((L, H, W), dtype=np.float32)
-    Cvol = np.empty((L, H, W), dtype=np.float32)
-    for li in progress_bar(range(L), "tao2013: labels", total=L, enabled=progress, unit="label"):
-        d = labels[li]
-        s = np.zeros((H, W), dtype=np.float32)
-        q = np.zeros((H, W), dtype=np.float32)
-        for img, dx, dy in vl:
-            v = _shift(img, -d * dx, -d * dy)
-            s += v
-            q += v * v
-        mean = s / n
-        var = np.maximum(q / n - mean * mean, 0.0)
-        if p["defocus_operator"] == "laplacian":
-            contrast = np.abs(ndimage.laplace(mean, mode="nearest"))
-        else:
-            contrast = np.abs(np.gradient(mean, axis=1))
-        Dvol[li] = _box(contrast, w)
-        Cvol[li] = _box(np.sqrt(var), w)
-    timings["responses"] = time.perf_counter() - t
-
-    t = time.perf_counter()
-    lab_d = np.argmax(Dvol, axis=0)
-    lab_c = np.argmin(Cvol, axis=0)
-    depth_d = _reg.subpixel_refine(-Dvol, lab_d, labels)
-    depth_c = _reg.subpixel_refine(Cvol, lab_c, labels)
-    ratio_d = _peak_ratio(Dvol, maximise=True)
-    ratio_c = _peak_ratio(Cvol)
-    pooled = np.concatenate([ratio_d.ravel(), ratio_c.ravel()])
-    norm = float(np.percentile(pooled, pct))
-    norm = norm if norm > 0 else 1.0
-    conf_d = np.clip(ratio_d / norm, 0, 1)
-    conf_c = np.clip(ratio_c / norm, 0, 1)
-    w_d = conf_d ** p["conf_exponent_defocus"]
-    w_c = conf_c ** p["conf_exponent_corr"]
-    timings["confidence"] = time.perf_counter() - t
-
-    t = time.perf_counter()
-    step = float(labels[1] - labels[0])
-    z = _tao_fuse([depth_c, depth_d], [w_c, w_d], p["lambda_flat"], p["lambda_smooth"],
-                  p["irls_iterations"], eps * step)
-    disp = np.clip(z, labels[0], labels[-1])
-    timings["fusion"] = time.perf_counter() - t
-    maps = {"depth_defocus": depth_d, "depth_correspondence": depth_c,
-            "conf_defocus": conf_d.astype(np.float32), "conf_correspondence": conf_c.astype(np.float32),
-            "weight_defocus": w_d.astype(np.float32), "weight_correspondence": w_c.astype(np.float32)}
-    return _finish("tao2013", disp, np.maximum(conf_d, conf_c), timings, maps, labels, p, t0)
+    run = _start("tao2013", lf, n_labels, disparity_range, params, progress)
+    p, labels = run.p, run.labels
+    with run.stage("responses"):
+        Dvol, Cvol = _tao_responses(run)
+    with run.stage("confidence"):
+        depth_d, depth_c, conf_d, conf_c = _tao_cues(Dvol, Cvol, labels,
+                                                     float(p["conf_percentile"]))
+        w_d = conf_d ** p["conf_exponent_defocus"]
+        w_c = conf_c ** p["conf_exponent_corr"]
+    with run.stage("fusion"):
+        step = float(labels[1] - labels[0])
+        z = _tao_fuse([depth_c, depth_d], [w_c, w_d], p["lambda_flat"], p["lambda_smooth"],
+                      p["irls_iterations"], float(p["irls_epsilon"]) * step)
+        disp = np.clip(z, labels[0], labels[-1])
+    maps = {"depth_defocus": depth_d, "depth_correspondence": depth_c, "conf_defocus": conf_d,
+            "conf_correspondence": conf_c, "weight_defocus": w_d, "weight_correspondence": w_c}
+    return run.finish(disp, np.maximum(conf_d, conf_c), maps)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -694,21 +744,20 @@ def _angular_stats(samples, n: int, sp: _WangSplit):
     return mean, var, mean_p, var_p, mean_m, var_m
 
 
-def _wang_cost(vl, labels: np.ndarray, ref: np.ndarray, sp: _WangSplit, p: dict,
-               progress: bool) -> np.ndarray:
+def _wang_cost(run: _Run, sp: _WangSplit) -> np.ndarray:
     """Occlusion-aware correspondence + refocus cost per label, bilateral filtered."""
+    p, ref = run.p, run.ref
     H, W = ref.shape
-    L, n = labels.size, len(vl)
+    L, n = run.labels.size, len(run.vl)
     thr = float(p["consistency_threshold"])
     bad = float(p["inconsistent_cost"])
     br = int(p["bilateral_radius"])
     offs, bw = _bilateral_weights(ref, br, float(p["bilateral_sigma"]))
     cost = np.empty((L, H, W), dtype=np.float32)
-    for li in progress_bar(range(L), "wang2015: labels", total=L, enabled=progress, unit="label"):
-        d = labels[li]
+    for li, d in run.each_label():
         mean, var, mean_p, var_p, mean_m, var_m = _angular_stats(
-            ((_shift(img, -d * dx, -d * dy), mp, mm)
-             for (img, dx, dy), mp, mm in zip(vl, sp.side_p, sp.side_m)), n, sp)
+            ((v, mp, mm) for (_, v), mp, mm in zip(_shifted_views(run.vl, d), sp.side_p, sp.side_m)),
+            n, sp)
         dif1 = (mean_p - sp.px_p) ** 2 + (mean_m - sp.px_m) ** 2
         dif2 = (mean_p - sp.px_m) ** 2 + (mean_m - sp.px_p) ** 2
         consistent = dif1 < dif2 + thr
@@ -788,17 +837,13 @@ def wang2015(lf: LightField, n_labels: int = 64, disparity_range=None,
              progress: bool = False, **params) -> BaselineResult:
     """Wang et al. 2015: occlusion-aware angular-patch split, occlusion map, edge-aware MRF.
 
-    See the module docstring for what follows the paper/code and what is simplified.
+    The module docstring ("Wang et al. 2015") says which steps follow the paper and the
+    released code, which are simplified and which default was tuned.
 
     Parameters
     ----------
-    lf : LightField
-    n_labels : int, optional
-        Number of label disparities (>= 3).
-    disparity_range : (float, float), optional
-        Label range in px per baseline (default ``lf.disparity_range``).
-    progress : bool, optional
-        Show a progress bar over the labels.
+    lf, n_labels, disparity_range, progress
+        As in :func:`tao2013`, which also lists the errors raised.
     **params
         ``band_radius`` (4), ``orientation_window`` (5), ``split_margin`` (0.5 baseline),
         ``consistency_offset`` (2 px), ``consistency_threshold`` (0.05), ``inconsistent_cost``
@@ -814,57 +859,30 @@ def wang2015(lf: LightField, n_labels: int = 64, disparity_range=None,
         median), ``edges``, ``band`` (split pixels), ``orientation`` (rad), ``occlusion``,
         ``peak_ratio``.
 
-    Raises
-    ------
-    InvalidInputError
-        For an unknown or out-of-range parameter.
-
     References
     ----------
     .. [1] T.-C. Wang, A. A. Efros, R. Ramamoorthi, "Occlusion-aware depth estimation using
        light-field cameras", ICCV 2015.
-
-    Examples
-    --------
-    >>> from hyperlf import synthesis
-    >>> lf = synthesis.procedural_scene(seed=1, rows=3, cols=3, height=24, width=32)
-    >>> wang2015(lf, n_labels=8).disparity.shape
-    (24, 32)
     """
-    t0 = time.perf_counter()
-    lf = _check_lf(lf)
-    labels = label_disparities(lf, n_labels, disparity_range)
-    p = _wang_params(params)
-    views = prepare_views(lf)
-    vl = _view_list(lf, views)
-    ref = views[lf.reference].astype(np.float32)
-    timings: dict[str, float] = {}
-
-    t = time.perf_counter()
-    sp = _wang_split(ref, vl, p)
-    timings["edges"] = time.perf_counter() - t
-    t = time.perf_counter()
-    cost = _wang_cost(vl, labels, ref, sp, p, progress)
-    timings["cost"] = time.perf_counter() - t
-    t = time.perf_counter()
-    l0, initial, ratio, conf = _wang_confidence(cost, labels)
-    occ = _wang_occlusion(vl, initial, sp)
-    timings["occlusion"] = time.perf_counter() - t
-    t = time.perf_counter()
-    lab_mrf = _wang_mrf(l0, conf, ref, sp.edges, occ, labels, p)
-    timings["mrf"] = time.perf_counter() - t
-
-    t = time.perf_counter()
-    med = int(p["median"])
-    mrf = _reg.subpixel_refine(cost, lab_mrf, labels)
-    disp = ndimage.median_filter(mrf, size=med, mode="nearest") if med > 1 else mrf
-    timings["post"] = time.perf_counter() - t
+    run = _start("wang2015", lf, n_labels, disparity_range, params, progress)
+    p, labels, ref = run.p, run.labels, run.ref
+    with run.stage("edges"):
+        sp = _wang_split(ref, run.vl, p)
+    with run.stage("cost"):
+        cost = _wang_cost(run, sp)
+    with run.stage("occlusion"):
+        l0, initial, ratio, conf = _wang_confidence(cost, labels)
+        occ = _wang_occlusion(run.vl, initial, sp)
+    with run.stage("mrf"):
+        lab_mrf = _wang_mrf(l0, conf, ref, sp.edges, occ, labels, p)
+    with run.stage("post"):
+        med = int(p["median"])
+        mrf = _reg.subpixel_refine(cost, lab_mrf, labels)
+        disp = ndimage.median_filter(mrf, size=med, mode="nearest") if med > 1 else mrf
     conf_out = np.clip(conf, 0, None)
-    conf_out = conf_out / (1.0 + conf_out)
-    maps = {"initial": initial.astype(np.float32), "mrf": mrf, "edges": sp.edges,
-            "band": sp.split, "orientation": sp.theta.astype(np.float32), "occlusion": occ,
-            "peak_ratio": ratio.astype(np.float32)}
-    return _finish("wang2015", disp, conf_out, timings, maps, labels, p, t0)
+    maps = {"initial": initial, "mrf": mrf, "edges": sp.edges, "band": sp.split,
+            "orientation": sp.theta, "occlusion": occ, "peak_ratio": ratio}
+    return run.finish(disp, conf_out / (1.0 + conf_out), maps)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -888,21 +906,75 @@ def _robust_range(vol: np.ndarray) -> float:
     return float(r) if r > 0 else 1.0
 
 
+def _lin_params(params: dict) -> dict:
+    """Merged and checked Lin et al. parameters."""
+    p = _merge("lin2015", params)
+    _odd_window(p)
+    _positive(p, "symmetry_span")
+    _positive(p, "tau")
+    _positive(p, "data_weight", allow_zero=True)
+    _positive(p, "smooth_weight", allow_zero=True)
+    if p["truncation"] is not None:
+        _positive(p, "truncation")
+    return p
+
+
+def _lin_focal_stack(run: _Run, sym) -> tuple[np.ndarray, np.ndarray]:
+    """Focal stack ``F`` of the symmetric views and the data term ``|Fall - I_ref|`` (boxed)."""
+    w = int(run.p["window"])
+    H, W = run.ref.shape
+    F = np.empty((run.labels.size, H, W), dtype=np.float32)
+    Dvol = np.empty((run.labels.size, H, W), dtype=np.float32)
+    sym_ids = {id(x[0]) for x in sym}
+    for li, d in run.each_label("focal stack"):
+        s_all = np.zeros((H, W), np.float32)
+        s_sym = np.zeros((H, W), np.float32)
+        for img, v in _shifted_views(run.vl, d):
+            s_all += v
+            if id(img) in sym_ids:
+                s_sym += v
+        F[li] = s_sym / len(sym)
+        Dvol[li] = _box(np.abs(s_all / len(run.vl) - run.ref), w)
+    return F, Dvol
+
+
+def _lin_symmetry(F: np.ndarray, K: int, tau: float, w: int) -> np.ndarray:
+    """Focal-stack symmetry cost over ``K`` label pairs; the end labels get the worst value."""
+    L, H, W = F.shape
+    S = np.full((L, H, W), np.nan, dtype=np.float32)
+    for li in range(1, L - 1):
+        kmax = min(K, li, L - 1 - li)
+        acc = np.zeros((H, W), np.float32)
+        for k in range(1, kmax + 1):
+            acc += np.minimum(np.abs(F[li + k] - F[li - k]), tau)
+        S[li] = _box(acc / kmax, w)
+    return _reg.fill_invalid(S)
+
+
+def _lin_graphcut(run: _Run, S: np.ndarray, Dvol: np.ndarray):
+    """The combined normalised cost ``S + data_weight D`` and its graph-cut labels."""
+    p, labels = run.p, run.labels
+    Sn = (S - S.min(axis=0, keepdims=True)) / _robust_range(S)
+    Dn = (Dvol - Dvol.min(axis=0, keepdims=True)) / _robust_range(Dvol)
+    E = (Sn + float(p["data_weight"]) * Dn).astype(np.float32)
+    T = p["truncation"] if p["truncation"] is not None else 0.25 * float(labels[-1] - labels[0])
+    lab = _reg.graphcut(E, smoothness="truncated_linear", weight=float(p["smooth_weight"]),
+                        truncation=float(T), guide=run.ref, edge_sigma=p["edge_sigma"],
+                        max_cycles=int(p["max_cycles"]), labels=labels)
+    return E, lab
+
+
 def lin2015(lf: LightField, n_labels: int = 64, disparity_range=None,
             progress: bool = False, **params) -> BaselineResult:
     """Lin et al. 2015: focal-stack symmetry + data consistency, graph cuts.
 
-    See the module docstring for what follows the paper and what is simplified.
+    The module docstring ("Lin et al. 2015") says which steps follow the paper and which are
+    our own choices (no code was released); its Examples run all three baselines.
 
     Parameters
     ----------
-    lf : LightField
-    n_labels : int, optional
-        Number of label disparities (>= 3).
-    disparity_range : (float, float), optional
-        Label range in px per baseline (default ``lf.disparity_range``).
-    progress : bool, optional
-        Show a progress bar over the labels.
+    lf, n_labels, disparity_range, progress
+        As in :func:`tao2013`, which also lists the errors raised.
     **params
         ``window`` (5), ``symmetry_span`` (1 px of disparity on each side), ``tau`` (0.1,
         truncation of the L1 symmetry penalty), ``data_weight`` (1), ``smooth_weight`` (1),
@@ -915,97 +987,41 @@ def lin2015(lf: LightField, n_labels: int = 64, disparity_range=None,
         ``maps``: ``depth_symmetry``, ``depth_data`` (px, WTA of each cost), ``wta`` (combined),
         ``graphcut`` (px, integer labels), ``n_symmetric_views``.
 
-    Raises
-    ------
-    InvalidInputError
-        For an unknown or out-of-range parameter.
-
     References
     ----------
     .. [1] H. Lin, C. Chen, S. B. Kang, J. Yu, "Depth recovery from light field using focal
        stack symmetry", ICCV 2015.
-
-    Examples
-    --------
-    >>> from hyperlf import synthesis
-    >>> lf = synthesis.procedural_scene(seed=1, rows=3, cols=3, height=24, width=32)
-    >>> lin2015(lf, n_labels=8).disparity.shape
-    (24, 32)
     """
-    t0 = time.perf_counter()
-    lf = _check_lf(lf)
-    labels = label_disparities(lf, n_labels, disparity_range)
-    p = _merge("lin2015", params)
-    w = _odd_window(p)
-    span_px = _positive(p, "symmetry_span")
-    tau = _positive(p, "tau")
-    _positive(p, "data_weight", allow_zero=True)
-    _positive(p, "smooth_weight", allow_zero=True)
-    if p["truncation"] is not None:
-        _positive(p, "truncation")
-
-    views = prepare_views(lf)
-    vl = _view_list(lf, views)
-    sym = _symmetric_views(vl)
+    run = _start("lin2015", lf, n_labels, disparity_range, params, progress)
+    p, labels = run.p, run.labels
+    sym = _symmetric_views(run.vl)
     if len(sym) < 2:
-        sym = vl
-    ref = views[lf.reference].astype(np.float32)
-    H, W = ref.shape
-    L = labels.size
-    step = float(labels[1] - labels[0])
-    K = int(max(1, np.ceil(span_px / step - 1e-9)))
-    timings: dict[str, float] = {}
-
-    t = time.perf_counter()
-    F = np.empty((L, H, W), dtype=np.float32)
-    Dvol = np.empty((L, H, W), dtype=np.float32)
-    sym_ids = {id(x[0]) for x in sym}
-    for li in progress_bar(range(L), "lin2015: focal stack", total=L, enabled=progress,
-                           unit="label"):
-        d = labels[li]
-        s_all = np.zeros((H, W), np.float32)
-        s_sym = np.zeros((H, W), np.float32)
-        for img, dx, dy in vl:
-            v = _shift(img, -d * dx, -d * dy)
-            s_all += v
-            if id(img) in sym_ids:
-                s_sym += v
-        F[li] = s_sym / len(sym)
-        Dvol[li] = _box(np.abs(s_all / len(vl) - ref), w)
-    timings["focal_stack"] = time.perf_counter() - t
-
-    t = time.perf_counter()
-    S = np.full((L, H, W), np.nan, dtype=np.float32)
-    for li in range(1, L - 1):
-        kmax = min(K, li, L - 1 - li)
-        acc = np.zeros((H, W), np.float32)
-        for k in range(1, kmax + 1):
-            acc += np.minimum(np.abs(F[li + k] - F[li - k]), tau)
-        S[li] = _box(acc / kmax, w)
-    S = _reg.fill_invalid(S)
-    timings["symmetry"] = time.perf_counter() - t
-
-    t = time.perf_counter()
-    Sn = (S - S.min(axis=0, keepdims=True)) / _robust_range(S)
-    Dn = (Dvol - Dvol.min(axis=0, keepdims=True)) / _robust_range(Dvol)
-    E = (Sn + float(p["data_weight"]) * Dn).astype(np.float32)
-    del Sn, Dn
-    T = p["truncation"] if p["truncation"] is not None else 0.25 * float(labels[-1] - labels[0])
-    lab = _reg.graphcut(E, smoothness="truncated_linear", weight=float(p["smooth_weight"]),
-                        truncation=float(T), guide=ref, edge_sigma=p["edge_sigma"],
-                        max_cycles=int(p["max_cycles"]), labels=labels)
-    disp = _reg.subpixel_refine(E, lab, labels)
-    timings["graphcut"] = time.perf_counter() - t
-    maps = {"depth_symmetry": labels[np.argmin(S, axis=0)].astype(np.float32),
-            "depth_data": labels[np.argmin(Dvol, axis=0)].astype(np.float32),
-            "wta": labels[np.argmin(E, axis=0)].astype(np.float32),
-            "graphcut": labels[lab].astype(np.float32),
+        sym = run.vl
+    with run.stage("focal_stack"):
+        F, Dvol = _lin_focal_stack(run, sym)
+    with run.stage("symmetry"):
+        step = float(labels[1] - labels[0])
+        K = int(max(1, np.ceil(float(p["symmetry_span"]) / step - 1e-9)))
+        S = _lin_symmetry(F, K, float(p["tau"]), int(p["window"]))
+    with run.stage("graphcut"):
+        E, lab = _lin_graphcut(run, S, Dvol)
+        disp = _reg.subpixel_refine(E, lab, labels)
+    maps = {"depth_symmetry": labels[np.argmin(S, axis=0)],
+            "depth_data": labels[np.argmin(Dvol, axis=0)],
+            "wta": labels[np.argmin(E, axis=0)], "graphcut": labels[lab],
             "n_symmetric_views": len(sym)}
-    return _finish("lin2015", disp, _reg.confidence(E, lab), timings, maps, labels, p, t0)
+    return run.finish(disp, _reg.confidence(E, lab), maps)
 
 
 METHODS: dict[str, Callable[..., BaselineResult]] = {
     "tao2013": tao2013,
     "wang2015": wang2015,
     "lin2015": lin2015,
+}
+
+#: Each method's parameter check: merges ``**params`` into :data:`DEFAULTS` and validates them.
+_PARAMS: dict[str, Callable[[dict], dict]] = {
+    "tao2013": _tao_params,
+    "wang2015": _wang_params,
+    "lin2015": _lin_params,
 }

@@ -1,4 +1,21 @@
-"""Per-pixel basics of a cost volume: data term, winner-takes-all, worst-cost fill (SPEC §4)."""
+"""Per-pixel basics of a cost volume: data term, winner-takes-all, worst-cost fill (SPEC §4).
+
+A cost volume ``cost`` is an array_like of shape (L, H, W): one cost per label and pixel, lower
+is better.
+
+Examples
+--------
+Two pixels, three labels: the data term measures each label against the pixel's best one, and
+winner-takes-all picks the best one.
+
+>>> import numpy as np
+>>> from hyperlf.regularisers import data_term, wta
+>>> c = np.array([[[2.0, 1.0]], [[5.0, 0.5]], [[3.0, 1.0]]])
+>>> data_term(c)[:, 0, :].tolist()
+[[0.0, 0.5], [3.0, 0.0], [1.0, 0.5]]
+>>> wta(c).tolist()
+[[0, 1]]
+"""
 
 from __future__ import annotations
 
@@ -8,8 +25,6 @@ from ..errors import InvalidInputError
 from ._checks import check_cost
 
 __all__ = ["data_term", "wta", "fill_invalid"]
-
-#: What :func:`fill_invalid` gives a pixel with no valid entry.
 
 
 def data_term(cost) -> np.ndarray:
@@ -21,18 +36,12 @@ def data_term(cost) -> np.ndarray:
     Parameters
     ----------
     cost : array_like, shape (L, H, W)
-        Finite cost volume, lower is better.
+        Finite cost volume (module docstring, with an example).
 
     Returns
     -------
     ndarray, float32, shape (L, H, W)
         ``cost - min_l cost[l]``.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> data_term(np.array([[[2.0]], [[5.0]]])).ravel().tolist()
-    [0.0, 3.0]
     """
     c = check_cost(cost)
     return c - c.min(axis=0, keepdims=True)
@@ -44,18 +53,12 @@ def wta(cost) -> np.ndarray:
     Parameters
     ----------
     cost : array_like, shape (L, H, W)
-        Finite cost volume, lower is better.
+        As in :func:`data_term`.
 
     Returns
     -------
     ndarray, int32, shape (H, W)
         Label indices; ties go to the lowest index.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> wta(np.array([[[3.0, 1.0]], [[2.0, 1.0]]])).tolist()
-    [[1, 0]]
     """
     c = check_cost(cost)
     return np.argmin(c, axis=0).astype(np.int32)

@@ -90,14 +90,10 @@ def optimise(volume, params, *, guide=None, labels=None, edge_weights=None,
         ``params`` is not an optimiser's parameters, ``edge_weights`` with an optimiser that
         has no pairwise weights, or any error of the optimiser itself.
 
-    References
-    ----------
-    .. [1] H. Hirschmüller, "Stereo processing by semiglobal matching and mutual information",
-       IEEE Trans. Pattern Anal. Mach. Intell. 30(2), 328-341, 2008.
-       https://doi.org/10.1109/TPAMI.2007.1166
-    .. [2] Y. Boykov, O. Veksler, R. Zabih, "Fast approximate energy minimization via graph
-       cuts", IEEE Trans. Pattern Anal. Mach. Intell. 23(11), 1222-1239, 2001.
-       https://doi.org/10.1109/34.969114
+    See Also
+    --------
+    wta, sgm, graphcut, graphcut_multiscale : The optimisers it runs; :func:`sgm` and
+        :func:`graphcut` cite the papers they follow.
 
     Examples
     --------

@@ -192,6 +192,8 @@ def subpixel_refine(cost, labels_map, labels=None) -> np.ndarray:
     Returns
     -------
     ndarray, float32, shape (H, W)
+        Disparity in the units of ``labels``: the chosen label's value plus the parabola's
+        offset times the label step.
 
     Examples
     --------
@@ -247,6 +249,7 @@ def confidence(cost, labels_map=None) -> np.ndarray:
     Returns
     -------
     ndarray, float32, shape (H, W)
+        The cost margin of each pixel's label, 0 (ambiguous) to 1 (unique).
     """
     c = check_cost(cost)
     L, H, W = c.shape
@@ -332,6 +335,7 @@ def weighted_median(disparity, guide, radius: int = 7, sigma: float = 0.1,
     Returns
     -------
     ndarray, float32, shape (H, W)
+        The filtered disparity, px; ``disparity`` itself when ``radius`` is 0.
 
     Examples
     --------
