@@ -441,7 +441,6 @@ def _tao_fuse(z_src, w_src, lam_flat, lam_smooth, n_irls, eps):
     from scipy.sparse.linalg import spsolve
 
     H, W = z_src[0].shape
-    N = H * W
     Dx, Dy, Lxx, Lyy = _grid_operators(H, W)
     # |Laplacian Z|^2 with the Laplacian split as the two second differences on the interior
     P = lam_flat * (Dx.T @ Dx + Dy.T @ Dy) + lam_smooth * (Lxx.T @ Lxx + Lyy.T @ Lyy)
