@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InvalidInputError
+from ..warp import coordinate_taps
 from ._checks import check_cost, check_label_map, check_labels, check_positive, gather
 
 __all__ = ["left_right_check", "fill_occlusions", "right_cost_from_left", "subpixel_refine",
@@ -155,13 +156,8 @@ def right_cost_from_left(cost_left, labels=None) -> np.ndarray:
                 out[l, :, lo:hi] = c[l, :, lo + k:hi + k]
                 valid[l, lo:hi] = True
         else:
-            src = xs + d
-            ok = (src >= 0) & (src <= W - 1)
-            x0 = np.clip(np.floor(src).astype(np.intp), 0, max(W - 2, 0))
-            t = (src - x0)
-            x1 = np.minimum(x0 + 1, W - 1)
+            x0, x1, t, valid[l] = coordinate_taps(xs + d, W)
             out[l] = (c[l][:, x0] * (1 - t) + c[l][:, x1] * t).astype(np.float32)
-            valid[l] = ok
     vmask = np.broadcast_to(valid[:, None, :], c.shape)
     worst = np.where(vmask, out, -np.inf).max(axis=0)
     worst = np.where(np.isfinite(worst), worst, c.max())
