@@ -29,17 +29,8 @@ _CAM = re.compile(r"^input_Cam(\d{3})\.png$")
 
 
 def is_hci_scene(folder: str | os.PathLike) -> bool:
-    """True when ``folder`` is a folder holding ``input_Cam000.png`` (an HCI 4D LF scene).
-
-    Parameters
-    ----------
-    folder : path-like
-        Any path.
-
-    Returns
-    -------
-    bool
-    """
+    """True when ``folder`` (any path) is a folder holding ``input_Cam000.png``: an HCI 4D LF
+    scene, as :func:`~hyperlf.formats.capture.is_capture` tells a capture."""
     p = Path(folder)
     return p.is_dir() and (p / "input_Cam000.png").is_file()
 
