@@ -198,6 +198,7 @@ def _cmd_convert(args) -> int:
     PFM to 16-bit PNG/TIFF (with a colour-mapped preview) or back; one view of a cube (.h5) to
     ENVI (.hdr + .img)."""
     from . import formats, visualise
+    from .lightfield import centre_view
 
     src, dst = Path(args.input), Path(args.output)
     img_ext = {".png", ".tif", ".tiff"}
@@ -224,7 +225,7 @@ def _cmd_convert(args) -> int:
             raise InvalidInputError("ENVI export needs a cube file (.h5) as input")
         cube, wl, _ = formats.read_cube_h5(src)
         R, C = cube.shape[:2]
-        r, c = args.view if args.view is not None else ((R - 1) // 2, (C - 1) // 2)
+        r, c = args.view if args.view is not None else centre_view(R, C)
         if not (r < R and c < C):
             raise InvalidInputError(f"--view {r},{c} is outside the {R} x {C} grid of {src}")
         formats.write_envi(dst, cube[r, c], wl)
@@ -420,6 +421,7 @@ def _open_cube(path):
     for a capture folder, from its manifest; otherwise the regular grid ``(c, r)``.
     """
     from .formats import is_capture, open_cube_h5, read_capture
+    from .lightfield import centre_view, grid_positions, view_offsets
 
     p = Path(path)
     positions = reference = None
@@ -438,13 +440,12 @@ def _open_cube(path):
     if reference is None and "reference" in cf.metadata:
         reference = tuple(int(v) for v in cf.metadata["reference"])
     if reference is None:
-        reference = ((R - 1) // 2, (C - 1) // 2)
+        reference = centre_view(R, C)
     if positions is None:
-        cc, rr = np.meshgrid(np.arange(C, dtype=float), np.arange(R, dtype=float))
-        positions = np.stack([cc, rr], axis=-1)
+        positions = grid_positions(R, C)
     if positions.shape != (R, C, 2):
         raise InvalidInputError(f"{p}: positions in the metadata do not match the {R} x {C} grid")
-    offsets = positions - positions[reference]
+    offsets = view_offsets(positions, reference)
     return cf, offsets, reference
 
 
