@@ -244,3 +244,14 @@ def test_binary_manifest(capdir):
     (folder / MANIFEST).write_bytes(b"\xff\xfe\x00garbage")
     with pytest.raises(FormatError, match="UTF-8"):
         read_capture(folder)
+
+
+def test_formats_package_exports_every_module_api():
+    import hyperlf.formats as formats
+    from hyperlf.formats import capture, envi, hci, hdf5, images, middlebury, pfm
+
+    for module in (capture, envi, hci, hdf5, images, middlebury, pfm):
+        for name in module.__all__:
+            assert name in formats.__all__
+            assert getattr(formats, name) is getattr(module, name)
+    assert {"load_lightfield", "save_lightfield"} <= set(formats.__all__)

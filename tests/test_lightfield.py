@@ -122,3 +122,23 @@ def test_top_level_api_names():
         assert name in hyperlf.__all__ and hasattr(hyperlf, name)
     with pytest.raises(AttributeError):
         hyperlf.no_such_module
+
+
+def test_grid_defaults_are_the_ones_lightfield_uses():
+    from hyperlf.lightfield import centre_view, grid_positions
+
+    pos = grid_positions(2, 3)
+    assert pos.shape == (2, 3, 2) and pos.dtype == np.float64
+    assert pos[1, 2].tolist() == [2.0, 1.0]
+    assert centre_view(5, 6) == (2, 2) and centre_view(4, 4) == (1, 1)
+    lf = LightField(views=np.zeros((2, 3, 4, 5), np.float32))
+    assert np.array_equal(lf.positions, pos) and lf.reference == centre_view(2, 3)
+
+
+@pytest.mark.parametrize("bad", [(1.0, 1.0), (np.nan, 1.0), (0.0,), "ab", None])
+def test_check_disparity_range_rejects_what_is_not_an_ordered_finite_pair(bad):
+    from hyperlf.lightfield import check_disparity_range
+
+    with pytest.raises(InvalidInputError, match="disparity_range must be"):
+        check_disparity_range(bad)
+    assert check_disparity_range([-2, 2]) == (-2.0, 2.0)

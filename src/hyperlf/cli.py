@@ -8,6 +8,7 @@ impossible input; 3 an unreadable or malformed file; 4 a missing file or dataset
 from __future__ import annotations
 
 import argparse
+import inspect
 import sys
 import time
 from pathlib import Path
@@ -142,6 +143,8 @@ def _add_spectral_options(p: argparse.ArgumentParser) -> None:
 
 # --------------------------------------------------------------------------- commands
 def _cmd_info(args) -> int:
+    """Print grid, bands, image size, reference view, baselines and disparity range of a light
+    field."""
     from .formats import load_lightfield
 
     lf = load_lightfield(args.input)
@@ -151,6 +154,13 @@ def _cmd_info(args) -> int:
 
 
 def _cmd_synth(args) -> int:
+    """Make a synthetic hyperspectral light field with ground-truth disparity and cube (SPEC
+    §6) and write it as a capture folder (or .h5 file).
+
+    examples:
+      hyperlf synth procedural --seed 3 -o scene3
+      hyperlf synth hci $HYPERLF_DATA/hci4d/antinous -o antinous-hlf
+    """
     from . import synthesis
     from .formats import save_lightfield
     from .pipeline import write_lightfield_pictures
@@ -184,7 +194,11 @@ def _cmd_synth(args) -> int:
 
 
 def _cmd_convert(args) -> int:
+    """Convert a light field between capture folder, HCI folder (read only) and HDF5 (.h5); a
+    PFM to 16-bit PNG/TIFF (with a colour-mapped preview) or back; one view of a cube (.h5) to
+    ENVI (.hdr + .img)."""
     from . import formats, visualise
+    from .lightfield import centre_view
 
     src, dst = Path(args.input), Path(args.output)
     img_ext = {".png", ".tif", ".tiff"}
@@ -211,7 +225,7 @@ def _cmd_convert(args) -> int:
             raise InvalidInputError("ENVI export needs a cube file (.h5) as input")
         cube, wl, _ = formats.read_cube_h5(src)
         R, C = cube.shape[:2]
-        r, c = args.view if args.view is not None else ((R - 1) // 2, (C - 1) // 2)
+        r, c = args.view if args.view is not None else centre_view(R, C)
         if not (r < R and c < C):
             raise InvalidInputError(f"--view {r},{c} is outside the {R} x {C} grid of {src}")
         formats.write_envi(dst, cube[r, c], wl)
@@ -224,8 +238,10 @@ def _cmd_convert(args) -> int:
 
 
 def _cmd_demo(args) -> int:
-    """The whole chain on a synthetic scene (:func:`hyperlf.pipeline.run_demo`)."""
-    from .pipeline import run_demo
+    """Run the whole chain on a small synthetic hyperspectral light field with ground truth:
+    capture -> depth -> plenoptic cube -> emulated colour image -> focal sweep, and write
+    report.html with every picture and figure. Needs no data."""
+    from .pipeline import run_demo  # the chain itself
 
     run_demo(args.output, seed=args.seed, grid=args.grid, size=args.size, metric=args.metric,
              labels=args.labels, progress=not args.quiet, log=lambda msg: _say(args, msg))
@@ -241,6 +257,15 @@ def _read_stereo_image(path: str) -> np.ndarray:
 
 
 def _cmd_stereo(args) -> int:
+    """Disparity of the left image of a rectified pair whose images may see different spectra
+    (SPEC §4). Left x matches right x - d. Writes disparity.pfm (exact), disparity_16bit.png
+    (value/256 + offset, see the .txt beside it), a colour-mapped disparity.png and
+    confidence.png.
+
+    examples:
+      hyperlf stereo imL.png imR.png --disparity-range 0,59 -o out
+      hyperlf stereo imL.png imR.png --channel 0,2 --metric bwncc --disparity-range 0,15 -o out   # red vs blue
+    """
     from .pipeline import save_disparity_outputs
     from .twoview import stereo
 
@@ -264,6 +289,16 @@ def _cmd_stereo(args) -> int:
 
 
 def _cmd_depth(args) -> int:
+    """Estimate the reference view's disparity of a hyperspectral light field (SPEC §5) or run
+    a baseline light-field method on the views as plain intensities. Writes disparity.pfm,
+    disparity_16bit.png, a colour-mapped disparity.png, confidence.png, and an error map when
+    the input has ground truth.
+
+    examples:
+      hyperlf depth scene3 -o depth3
+      hyperlf depth antinous-hlf --labels 64 --save-intermediate -o d
+      hyperlf depth antinous-hlf --method wang2015 -o d-wang
+    """
     from . import metrics
     from .formats import load_lightfield
     from .pipeline import save_disparity_outputs
@@ -319,6 +354,17 @@ def _cmd_depth(args) -> int:
 
 
 def _cmd_complete(args) -> int:
+    """Register every band into every view (SPEC §7): the reference disparity is warped to
+    every view, refined (pairwise cross-spectral stereo + edge-aware WLS), then each band is
+    warped in with occlusion checks and propagated. Writes cube.h5 ([R, C, B, H, W] +
+    registration and inference masks), a map of missing bands and an sRGB rendering of the
+    reference.
+
+    examples:
+      hyperlf complete scene3 -o cube3
+      hyperlf complete scene3 --disparity depth3/disparity.pfm -o cube3
+      hyperlf render cube3/cube.h5 --camera 'Nikon 5100' -o rgb3
+    """
     from . import metrics, render, visualise
     from .completion import complete, read_band_mask
     from .formats import load_lightfield, read_pfm, write_image
@@ -375,6 +421,7 @@ def _open_cube(path):
     for a capture folder, from its manifest; otherwise the regular grid ``(c, r)``.
     """
     from .formats import is_capture, open_cube_h5, read_capture
+    from .lightfield import centre_view, grid_positions, view_offsets
 
     p = Path(path)
     positions = reference = None
@@ -393,13 +440,12 @@ def _open_cube(path):
     if reference is None and "reference" in cf.metadata:
         reference = tuple(int(v) for v in cf.metadata["reference"])
     if reference is None:
-        reference = ((R - 1) // 2, (C - 1) // 2)
+        reference = centre_view(R, C)
     if positions is None:
-        cc, rr = np.meshgrid(np.arange(C, dtype=float), np.arange(R, dtype=float))
-        positions = np.stack([cc, rr], axis=-1)
+        positions = grid_positions(R, C)
     if positions.shape != (R, C, 2):
         raise InvalidInputError(f"{p}: positions in the metadata do not match the {R} x {C} grid")
-    offsets = positions - positions[reference]
+    offsets = view_offsets(positions, reference)
     return cf, offsets, reference
 
 
@@ -420,6 +466,13 @@ def _profile_arg(text: str):
 
 
 def _cmd_render(args) -> int:
+    """Render what a colour camera would have recorded (SPEC §8): RGB = sum over bands of cube
+    x camera sensitivity, white-balanced so a flat spectrum is grey, mapped to sRGB.
+
+    examples:
+      hyperlf render cube.h5 --camera 'Nikon 5100' -o out
+      hyperlf render scene3 --all-views -o out   # CIE 1931 -> sRGB
+    """
     from . import render, visualise
     from .formats import write_image
 
@@ -446,6 +499,14 @@ def _cmd_render(args) -> int:
 
 
 def _cmd_refocus(args) -> int:
+    """Shift-and-add over the views at a disparity for a spectral profile: a camera (RGB), one
+    band, or a weight vector.
+
+    examples:
+      hyperlf refocus cube.h5 --disparity 1.2 -o out
+      hyperlf refocus cube.h5 --profile band:550 --disparity 0 -o out
+      hyperlf refocus cube.h5 --sweep=-2,2,17 -o sweep  # GIF + MP4
+    """
     from . import render
     from .formats import write_image
 
@@ -476,6 +537,7 @@ def _cmd_refocus(args) -> int:
 
 
 def _cmd_spectrum(args) -> int:
+    """Plot (PNG) and tabulate (CSV) the spectrum of a cube at a pixel of a view."""
     from . import render
     from ._atomic import atomic_write_text
 
@@ -529,35 +591,55 @@ def _optimiser_choices() -> list[str]:
     return list(OPTIMISERS)
 
 
+def _subcommand(sub, name: str, func, *, help: str) -> argparse.ArgumentParser:
+    """Add subcommand ``name`` running ``func``. The docstring of ``func`` is its ``--help``
+    page: the description, then an optional ``examples:`` block printed as written."""
+    description, _, examples = inspect.cleandoc(func.__doc__ or "").partition("\n\nexamples:\n")
+    kw = {}
+    if examples:
+        kw = dict(epilog="examples:\n" + examples,
+                  formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = sub.add_parser(name, help=help, description=" ".join(description.split()) or None, **kw)
+    p.set_defaults(func=func)
+    return p
+
+
+def _add_output_folder(p: argparse.ArgumentParser) -> None:
+    """The required ``-o/--output`` folder of the commands that write several files."""
+    p.add_argument("-o", "--output", required=True, help="output folder")
+
+
+def _add_metric_option(p: argparse.ArgumentParser, *, help: str, light_field: bool = False,
+                       default: str = "auto") -> None:
+    """``--metric``: a cost of the registry (one with a light-field evaluator for
+    ``light_field``) or ``auto``."""
+    p.add_argument("--metric", default=default, choices=_metric_choices(light_field=light_field),
+                   help=help)
+
+
+def _add_optimizer_option(p: argparse.ArgumentParser, *, help: str | None = None) -> None:
+    """``--optimizer``: an optimiser of the registry, graph cuts by default."""
+    p.add_argument("--optimizer", default="graphcut", choices=_optimiser_choices(), help=help)
+
+
 def _add_demo_parser(sub) -> None:
-    """The ``demo`` subcommand."""
-    p = sub.add_parser("demo", help="build a synthetic H-LF and write pictures and data",
-                       description="Run the whole chain on a small synthetic hyperspectral light "
-                                   "field with ground truth: capture -> depth -> plenoptic cube "
-                                   "-> emulated colour image -> focal sweep, and write "
-                                   "report.html with every picture and figure. Needs no data.")
+    p = _subcommand(sub, "demo", _cmd_demo,
+                    help="build a synthetic H-LF and write pictures and data")
     p.add_argument("-o", "--output", default="hyperlf-demo", help="output folder "
                    "(default ./hyperlf-demo)")
     p.add_argument("--seed", type=int, default=0, help="scene seed (default 0)")
     p.add_argument("--grid", type=_pair_of_ints, default=(5, 6), metavar="R,C")
     p.add_argument("--size", type=_pair_of_ints, default=(96, 128), metavar="H,W",
                    help="view size in pixels (default 96,128)")
-    p.add_argument("--metric", default="auto", choices=_metric_choices(light_field=True),
-                   help="correspondence cost of the depth step (default auto = census-rsncc; "
-                        "ncc is faster still, fused/bwncc far slower)")
+    _add_metric_option(p, light_field=True,
+                       help="correspondence cost of the depth step (default auto = census-rsncc; "
+                            "ncc is faster still, fused/bwncc far slower)")
     p.add_argument("--labels", type=int, default=32, help="disparity labels (default 32)")
-    p.set_defaults(func=_cmd_demo)
 
 
 def _add_synth_parser(sub) -> None:
-    """The ``synth`` subcommand."""
-    p = sub.add_parser("synth", help="make a synthetic H-LF capture with ground truth",
-                       description="Make a synthetic hyperspectral light field with ground-truth "
-                                   "disparity and cube (SPEC §6) and write it as a capture folder "
-                                   "(or .h5 file).",
-                       epilog="examples:\n  hyperlf synth procedural --seed 3 -o scene3\n"
-                              "  hyperlf synth hci $HYPERLF_DATA/hci4d/antinous -o antinous-hlf",
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = _subcommand(sub, "synth", _cmd_synth,
+                    help="make a synthetic H-LF capture with ground truth")
     ssub = p.add_subparsers(dest="source", metavar="SOURCE", required=True)
     ph = ssub.add_parser("hci", help="from an RGB light field (HCI 4D LF scene folder)")
     ph.add_argument("scene", help="HCI scene folder (input_Cam###.png, gt_disp_lowres.pfm)")
@@ -578,22 +660,13 @@ def _add_synth_parser(sub) -> None:
 
 
 def _add_info_parser(sub) -> None:
-    """The ``info`` subcommand."""
-    p = sub.add_parser("info", help="describe a capture, HDF5 light field or HCI scene",
-                       description="Print grid, bands, image size, reference view, baselines "
-                                   "and disparity range of a light field.")
+    p = _subcommand(sub, "info", _cmd_info,
+                    help="describe a capture, HDF5 light field or HCI scene")
     p.add_argument("input", help="capture folder, .h5 light field or HCI scene folder")
-    p.set_defaults(func=_cmd_info)
 
 
 def _add_convert_parser(sub) -> None:
-    """The ``convert`` subcommand."""
-    p = sub.add_parser("convert", help="convert between formats",
-                       description="Convert a light field between capture folder, HCI folder "
-                                   "(read only) and HDF5 (.h5); a PFM to 16-bit PNG/TIFF (with a "
-                                   "colour-mapped preview) or back; one view of a cube (.h5) to "
-                                   "ENVI (.hdr + .img).",
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = _subcommand(sub, "convert", _cmd_convert, help="convert between formats")
     p.add_argument("input")
     p.add_argument("-o", "--output", required=True,
                    help="target: folder (capture), .h5, .pfm, .png, .tif or .hdr")
@@ -602,53 +675,28 @@ def _add_convert_parser(sub) -> None:
                    help="view (0-based row,col) whose cube is exported to ENVI "
                         "(default: the centre view)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
-    p.set_defaults(func=_cmd_convert)
 
 
 def _add_stereo_parser(sub) -> None:
-    """The ``stereo`` subcommand."""
-    p = sub.add_parser("stereo", help="cross-spectral two-view stereo",
-                       description="Disparity of the left image of a rectified pair whose images "
-                                   "may see different spectra (SPEC §4). Left x matches right "
-                                   "x - d. Writes disparity.pfm (exact), disparity_16bit.png "
-                                   "(value/256 + offset, see the .txt beside it), a colour-mapped "
-                                   "disparity.png and confidence.png.",
-                       epilog="examples:\n"
-                              "  hyperlf stereo imL.png imR.png --disparity-range 0,59 -o out\n"
-                              "  hyperlf stereo imL.png imR.png --channel 0,2 --metric bwncc "
-                              "--disparity-range 0,15 -o out   # red vs blue",
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = _subcommand(sub, "stereo", _cmd_stereo, help="cross-spectral two-view stereo")
     p.add_argument("left")
     p.add_argument("right")
     p.add_argument("--disparity-range", type=_pair_of_floats, default=None, metavar="MIN,MAX",
                    help="integer disparity search range in px (required)")
-    p.add_argument("--metric", default="auto", choices=_metric_choices(),
-                   help="matching cost (default auto: the library's cross-spectral default)")
-    p.add_argument("--optimizer", default="graphcut", choices=_optimiser_choices(),
-                   help="regulariser (default graphcut: alpha-expansion)")
+    _add_metric_option(p, help="matching cost (default auto: the library's cross-spectral "
+                               "default)")
+    _add_optimizer_option(p, help="regulariser (default graphcut: alpha-expansion)")
     p.add_argument("--channel", type=_channel_arg, default=None, metavar="C or L,R",
                    help="image channel(s) to match for colour inputs: 0 red, 1 green, 2 blue; "
                         "L,R picks one per image (default: mean of channels)")
     p.add_argument("--subpixel", action="store_true", help="parabola sub-pixel refinement")
     p.add_argument("--no-occlusion", action="store_true",
                    help="skip the left-right check and background fill")
-    p.add_argument("-o", "--output", required=True, help="output folder")
-    p.set_defaults(func=_cmd_stereo)
+    _add_output_folder(p)
 
 
 def _add_depth_parser(sub) -> None:
-    """The ``depth`` subcommand."""
-    p = sub.add_parser("depth", help="disparity of the reference view of an H-LF",
-                       description="Estimate the reference view's disparity of a hyperspectral "
-                                   "light field (SPEC §5) or run a baseline light-field method on "
-                                   "the views as plain intensities. Writes disparity.pfm, "
-                                   "disparity_16bit.png, a colour-mapped disparity.png, "
-                                   "confidence.png, and an error map when the input has ground "
-                                   "truth.",
-                       epilog="examples:\n  hyperlf depth scene3 -o depth3\n"
-                              "  hyperlf depth antinous-hlf --labels 64 --save-intermediate -o d\n"
-                              "  hyperlf depth antinous-hlf --method wang2015 -o d-wang",
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = _subcommand(sub, "depth", _cmd_depth, help="disparity of the reference view of an H-LF")
     p.add_argument("input", help="capture folder, .h5 light field or HCI scene folder")
     p.add_argument("--method", default="hlf", choices=["hlf", *_baseline_choices()],
                    help="hlf (ours, default) or a baseline")
@@ -656,11 +704,11 @@ def _add_depth_parser(sub) -> None:
                    help="px per baseline (default: the capture's metadata); write "
                         "--disparity-range=-2,2 when MIN is negative")
     p.add_argument("--labels", type=int, default=64, help="number of disparity labels (64)")
-    p.add_argument("--metric", default="auto", choices=_metric_choices(light_field=True),
-                   help="correspondence cost of hlf: auto (default, "
-                   "= census-rsncc), rsncc, census, ncc, or the descriptor costs fused, bwncc, "
-                   "bwncc-paper (about 50x slower)")
-    p.add_argument("--optimizer", default="graphcut", choices=_optimiser_choices())
+    _add_metric_option(p, light_field=True,
+                       help="correspondence cost of hlf: auto (default, = census-rsncc), rsncc, "
+                            "census, ncc, or the descriptor costs fused, bwncc, bwncc-paper "
+                            "(about 50x slower)")
+    _add_optimizer_option(p)
     p.add_argument("--view-selection", action="store_true",
                    help="enable the paper's local view selection (off by default: it did not "
                         "help on the tuning scenes)")
@@ -673,50 +721,29 @@ def _add_depth_parser(sub) -> None:
                         "edges to image edges (default 4; 0 turns it off)")
     p.add_argument("--save-intermediate", action="store_true",
                    help="also write correspondence-only and defocus-only maps")
-    p.add_argument("-o", "--output", required=True, help="output folder")
-    p.set_defaults(func=_cmd_depth)
+    _add_output_folder(p)
 
 
 def _add_complete_parser(sub) -> None:
-    """The ``complete`` subcommand."""
-    p = sub.add_parser("complete", help="complete the plenoptic cube: every view gets every band",
-                       description="Register every band into every view (SPEC §7): the reference "
-                                   "disparity is warped to every view, refined (pairwise "
-                                   "cross-spectral stereo + edge-aware WLS), then each band is "
-                                   "warped in with occlusion checks and propagated. Writes "
-                                   "cube.h5 ([R, C, B, H, W] + registration and inference "
-                                   "masks), a map of missing "
-                                   "bands and an sRGB rendering of the reference.",
-                       epilog="examples:\n  hyperlf complete scene3 -o cube3\n"
-                              "  hyperlf complete scene3 --disparity depth3/disparity.pfm -o cube3\n"
-                              "  hyperlf render cube3/cube.h5 --camera 'Nikon 5100' -o rgb3",
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = _subcommand(sub, "complete", _cmd_complete,
+                    help="complete the plenoptic cube: every view gets every band")
     p.add_argument("input", help="capture folder or .h5 light field (monochrome spectral views)")
     p.add_argument("--disparity", default=None, metavar="PFM",
                    help="reference disparity (e.g. from 'hyperlf depth'); default: estimate it")
     p.add_argument("--use-ground-truth", action="store_true",
                    help="use the capture's ground-truth disparity (synthetic data)")
-    p.add_argument("--metric", default="rsncc", choices=_metric_choices(),
-                   help="pairwise stereo cost (default rsncc)")
+    _add_metric_option(p, default="rsncc", help="pairwise stereo cost (default rsncc)")
     p.add_argument("--stereo", default="sgm", choices=[*_optimiser_choices(), "none"],
                    help="pairwise stereo optimiser, or none (WLS refinement only)")
     p.add_argument("--no-infer", action="store_true",
                    help="do not infer entries no view observed (points hidden in the view that "
                         "records the band) from the same band nearby; leave them to the "
                         "spectral fill and mark them missing")
-    p.add_argument("-o", "--output", required=True, help="output folder")
-    p.set_defaults(func=_cmd_complete)
+    _add_output_folder(p)
 
 
 def _add_render_parser(sub) -> None:
-    """The ``render`` subcommand."""
-    p = sub.add_parser("render", help="emulate a colour camera from a cube",
-                       description="Render what a colour camera would have recorded (SPEC §8): "
-                                   "RGB = sum over bands of cube x camera sensitivity, white-"
-                                   "balanced so a flat spectrum is grey, mapped to sRGB.",
-                       epilog="examples:\n  hyperlf render cube.h5 --camera 'Nikon 5100' -o out\n"
-                              "  hyperlf render scene3 --all-views -o out   # CIE 1931 -> sRGB",
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = _subcommand(sub, "render", _cmd_render, help="emulate a colour camera from a cube")
     p.add_argument("cube", help=_CUBE_HELP)
     p.add_argument("--camera", default="CIE 1931",
                    help="camera name (colour-science or camspec), CSV of sensitivities "
@@ -726,19 +753,12 @@ def _add_render_parser(sub) -> None:
                         "default: a flat spectrum is neutral, exposure by percentile")
     p.add_argument("--all-views", action="store_true", help="render every view, not only the "
                    "reference")
-    p.add_argument("-o", "--output", required=True, help="output folder")
-    p.set_defaults(func=_cmd_render)
+    _add_output_folder(p)
 
 
 def _add_refocus_parser(sub) -> None:
-    """The ``refocus`` subcommand."""
-    p = sub.add_parser("refocus", help="spectral refocusing at a disparity, or a focal sweep",
-                       description="Shift-and-add over the views at a disparity for a spectral "
-                                   "profile: a camera (RGB), one band, or a weight vector.",
-                       epilog="examples:\n  hyperlf refocus cube.h5 --disparity 1.2 -o out\n"
-                              "  hyperlf refocus cube.h5 --profile band:550 --disparity 0 -o out\n"
-                              "  hyperlf refocus cube.h5 --sweep=-2,2,17 -o sweep  # GIF + MP4",
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = _subcommand(sub, "refocus", _cmd_refocus,
+                    help="spectral refocusing at a disparity, or a focal sweep")
     p.add_argument("cube", help=_CUBE_HELP)
     p.add_argument("--disparity", type=float, default=0.0, help="focus disparity (px/baseline)")
     p.add_argument("--sweep", type=_sweep_arg, default=None, metavar="MIN,MAX,N",
@@ -749,22 +769,17 @@ def _add_refocus_parser(sub) -> None:
                         "per band, comma-separated); default CIE 1931 -> sRGB")
     p.add_argument("--white", default=None, help="illuminant to render neutral (e.g. D65)")
     p.add_argument("--fps", type=float, default=8.0, help="frames per second of the sweep")
-    p.add_argument("-o", "--output", required=True, help="output folder")
-    p.set_defaults(func=_cmd_refocus)
+    _add_output_folder(p)
 
 
 def _add_spectrum_parser(sub) -> None:
-    """The ``spectrum`` subcommand."""
-    p = sub.add_parser("spectrum", help="plot the spectral profile of a pixel",
-                       description="Plot (PNG) and tabulate (CSV) the spectrum of a cube at a "
-                                   "pixel of a view.")
+    p = _subcommand(sub, "spectrum", _cmd_spectrum, help="plot the spectral profile of a pixel")
     p.add_argument("cube", help=_CUBE_HELP)
     p.add_argument("--at", type=_pair_of_floats, required=True, metavar="X,Y",
                    help="pixel position (x = column, y = row)")
     p.add_argument("--view", type=_view_index, default=None, metavar="R,C",
                    help="view (0-based; default the reference)")
     p.add_argument("-o", "--output", default="spectrum.png", help="output PNG (CSV beside it)")
-    p.set_defaults(func=_cmd_spectrum)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -25,7 +25,7 @@ import numpy as np
 from .errors import InvalidInputError
 
 __all__ = ["LightField", "raster_wavelengths", "filter_layout", "view_offsets",
-           "resolve_disparity_range"]
+           "grid_positions", "centre_view", "check_disparity_range", "resolve_disparity_range"]
 
 
 def _finite(name: str, arr: np.ndarray) -> None:
@@ -142,6 +142,72 @@ def view_offsets(positions: np.ndarray, reference: tuple[int, int]) -> np.ndarra
     return positions - positions[reference][None, None, :]
 
 
+def grid_positions(rows: int, cols: int) -> np.ndarray:
+    """The default view positions: the regular grid ``(c, r)``, in baselines.
+
+    Parameters
+    ----------
+    rows, cols : int
+        Grid size ``R x C``.
+
+    Returns
+    -------
+    ndarray of float64, shape (R, C, 2)
+        ``positions[r, c] = (c, r)``.
+
+    Examples
+    --------
+    >>> grid_positions(2, 3)[1, 2].tolist()
+    [2.0, 1.0]
+    """
+    cc, rr = np.meshgrid(np.arange(cols, dtype=np.float64), np.arange(rows, dtype=np.float64))
+    return np.stack([cc, rr], axis=-1)
+
+
+def centre_view(rows: int, cols: int) -> tuple[int, int]:
+    """The default reference view of an ``R x C`` grid: ``((R - 1) // 2, (C - 1) // 2)``.
+
+    Examples
+    --------
+    >>> centre_view(5, 6)
+    (2, 2)
+    """
+    return (rows - 1) // 2, (cols - 1) // 2
+
+
+def check_disparity_range(disparity_range) -> tuple[float, float]:
+    """A disparity range checked and converted: two finite numbers with ``dmin < dmax``.
+
+    Parameters
+    ----------
+    disparity_range : (float, float)
+        ``(dmin, dmax)``, px per baseline.
+
+    Returns
+    -------
+    (float, float)
+
+    Raises
+    ------
+    InvalidInputError
+        Not a pair of numbers, not finite, or ``dmin >= dmax``.
+
+    Examples
+    --------
+    >>> check_disparity_range([-2, 2])
+    (-2.0, 2.0)
+    """
+    try:
+        dmin, dmax = (float(v) for v in disparity_range)
+    except (TypeError, ValueError):
+        raise InvalidInputError(
+            f"disparity_range must be (dmin, dmax), got {disparity_range!r}") from None
+    if not (np.isfinite(dmin) and np.isfinite(dmax) and dmin < dmax):
+        raise InvalidInputError(
+            f"disparity_range must be finite with min < max, got {disparity_range!r}")
+    return dmin, dmax
+
+
 def resolve_disparity_range(lf: "LightField", disparity_range=None) -> tuple[float, float]:
     """``disparity_range`` if given, else the light field's own; checked ``(dmin, dmax)``.
 
@@ -166,13 +232,7 @@ def resolve_disparity_range(lf: "LightField", disparity_range=None) -> tuple[flo
     if rng is None:
         raise InvalidInputError(
             "no disparity range: pass disparity_range=(dmin, dmax) or set lf.disparity_range")
-    try:
-        dmin, dmax = (float(v) for v in rng)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"disparity_range must be (dmin, dmax), got {rng!r}") from None
-    if not (np.isfinite(dmin) and np.isfinite(dmax) and dmin < dmax):
-        raise InvalidInputError(f"disparity_range must be finite with min < max, got {rng!r}")
-    return dmin, dmax
+    return check_disparity_range(rng)
 
 
 @dataclass
@@ -253,8 +313,7 @@ class LightField:
             pass
 
         if self.positions is None:
-            cc, rr = np.meshgrid(np.arange(C, dtype=np.float64), np.arange(R, dtype=np.float64))
-            self.positions = np.stack([cc, rr], axis=-1)
+            self.positions = grid_positions(R, C)
         else:
             pos = np.asarray(self.positions, dtype=np.float64)
             if pos.shape != (R, C, 2):
@@ -265,7 +324,7 @@ class LightField:
             self.positions = pos
 
         if self.reference is None:
-            self.reference = ((R - 1) // 2, (C - 1) // 2)
+            self.reference = centre_view(R, C)
         else:
             try:
                 r0, c0 = (int(v) for v in self.reference)
@@ -281,17 +340,7 @@ class LightField:
             self.reference = (r0, c0)
 
         if self.disparity_range is not None:
-            try:
-                dmin, dmax = (float(v) for v in self.disparity_range)
-            except (TypeError, ValueError):
-                raise InvalidInputError(
-                    f"disparity_range must be (min, max), got {self.disparity_range!r}"
-                ) from None
-            if not (np.isfinite(dmin) and np.isfinite(dmax) and dmin < dmax):
-                raise InvalidInputError(
-                    f"disparity_range must be finite with min < max, got ({dmin}, {dmax})"
-                )
-            self.disparity_range = (dmin, dmax)
+            self.disparity_range = check_disparity_range(self.disparity_range)
 
         if self.gt_disparity is not None:
             gt = np.asarray(self.gt_disparity, dtype=np.float32)

@@ -113,7 +113,7 @@ def bad_pixels(estimate, truth, tau: float, mask=None, border: int = 0) -> float
     Returns
     -------
     float
-        Percentage in [0, 100].
+        Bad pixels, % of the evaluated pixels.
 
     Examples
     --------
@@ -129,13 +129,8 @@ def rmse(estimate, truth, mask=None, border: int = 0) -> float:
 
     Parameters
     ----------
-    estimate, truth : array_like
-        Estimated and true disparity, same shape (px). A non-finite estimate counts as an
-        infinitely bad pixel; non-finite ground truth is not evaluated.
-    mask : array_like of bool, optional
-        Extra evaluation mask (:func:`evaluation_mask`).
-    border : int
-        Frame excluded on every side, pixels.
+    estimate, truth, mask, border
+        As in :func:`bad_pixels`.
 
     Returns
     -------
@@ -152,27 +147,9 @@ def rmse(estimate, truth, mask=None, border: int = 0) -> float:
 
 
 def mse_x100(estimate, truth, mask=None, border: int = 0) -> float:
-    """Mean squared error times 100, as the HCI benchmark reports it.
-
-    Parameters
-    ----------
-    estimate, truth : array_like
-        Estimated and true disparity, same shape (px). A non-finite estimate counts as an
-        infinitely bad pixel; non-finite ground truth is not evaluated.
-    mask : array_like of bool, optional
-        Extra evaluation mask (:func:`evaluation_mask`).
-    border : int
-        Frame excluded on every side, pixels.
-
-    Returns
-    -------
-    float
-        ``100 * mean(error ** 2)`` (px squared).
-
-    References
-    ----------
-    K. Honauer, O. Johannsen, D. Kondermann, B. Goldluecke, "A dataset and evaluation
-    methodology for depth estimation on 4D light fields", ACCV 2016.
+    """Mean squared error times 100, ``100 * mean(error ** 2)`` (px squared), as the HCI
+    benchmark reports it (reference at :func:`badpix`); parameters and evaluated pixels as in
+    :func:`rmse`.
 
     Examples
     --------
@@ -190,19 +167,17 @@ def badpix(estimate, truth, threshold: float = 0.07, mask=None,
 
     Parameters
     ----------
-    estimate, truth : array_like
-        Estimated and true disparity, same shape (px).
+    estimate, truth, mask
+        As in :func:`bad_pixels`.
     threshold : float
         Error threshold, px (HCI: 0.07).
-    mask : array_like of bool, optional
-        Extra evaluation mask.
     border : int
         Frame excluded on every side (default :data:`HCI_BORDER`).
 
     Returns
     -------
     float
-        Percentage in [0, 100].
+        Bad pixels, % of the pixels inside the border.
 
     References
     ----------
@@ -336,14 +311,10 @@ def psnr_per_band(estimate, truth, band_axis: int = -3, data_range: float = 1.0,
 
     Parameters
     ----------
-    estimate, truth : array_like
-        Cubes of the same shape.
-    band_axis : int
-        Axis of the bands (default -3 for ``[..., B, H, W]``).
-    data_range : float
-        The peak value.
-    mask : array_like of bool, optional
-        Broadcast to the cube's shape.
+    estimate, truth, band_axis
+        As in :func:`sam`.
+    data_range, mask
+        As in :func:`psnr`.
 
     Returns
     -------
@@ -420,7 +391,7 @@ def completion_ratio(valid) -> float:
     Returns
     -------
     float
-        Percentage in [0, 100].
+        Valid entries, % of all entries.
 
     Examples
     --------

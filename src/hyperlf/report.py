@@ -76,7 +76,7 @@ def write_html_report(path: str | os.PathLike, title: str, sections: Sequence[Se
     Returns
     -------
     Path
-        The written report.
+        ``path``: one self-contained page that needs none of the picture files.
 
     Examples
     --------

@@ -837,6 +837,18 @@ def _spectral_axis(arr: np.ndarray, n: int, axis: int, name: str) -> np.ndarray:
     return moved
 
 
+def _spectra_last(spectra, n: int, axis: int) -> np.ndarray:
+    """``spectra`` as a float array with its spectral axis (``n`` samples at ``axis``) last."""
+    return _spectral_axis(_float(_as_array(spectra, "spectra")), n, axis, "spectra")
+
+
+def _weigh_spectra(moved: np.ndarray, weights: np.ndarray, axis: int) -> np.ndarray:
+    """``moved`` (spectral axis last) times ``weights`` (N, k), in the spectra's dtype; the
+    k-axis takes the spectral axis' place ``axis``."""
+    out = moved @ weights.astype(moved.dtype)
+    return np.moveaxis(out, -1, axis) if axis not in (-1, moved.ndim - 1) else out
+
+
 def spectrum_to_xyz(spectra, wavelengths, illuminant=None, normalise: str | None = "equal-energy",
                     observer: str = CIE1931, axis: int = -1) -> np.ndarray:
     """CIE XYZ of spectra (reflectances, or emission spectra when ``illuminant`` is None).
@@ -865,7 +877,7 @@ def spectrum_to_xyz(spectra, wavelengths, illuminant=None, normalise: str | None
     Returns
     -------
     ndarray, shape (..., 3)
-        float32 for float32 input, else float64.
+        XYZ; float32 for float32 input, else float64.
 
     Raises
     ------
@@ -873,8 +885,7 @@ def spectrum_to_xyz(spectra, wavelengths, illuminant=None, normalise: str | None
         Shape mismatch, or the wavelengths lie outside the CMFs (no luminance).
     """
     wl = as_wavelengths(wavelengths)
-    arr = _float(_as_array(spectra, "spectra"))
-    moved = _spectral_axis(arr, wl.size, axis, "spectra")
+    moved = _spectra_last(spectra, wl.size, axis)
     weights = cmfs(wl, observer) * sample_widths(wl)[:, None]  # (N, 3)
     ill = illuminant_values(illuminant, wl)
     if ill is not None:
@@ -891,8 +902,7 @@ def spectrum_to_xyz(spectra, wavelengths, illuminant=None, normalise: str | None
         raise InvalidInputError(
             f"normalise must be 'equal-energy', 'white' or None, got {normalise!r}"
         )
-    out = moved @ weights.astype(moved.dtype)
-    return np.moveaxis(out, -1, axis) if axis not in (-1, arr.ndim - 1) else out
+    return _weigh_spectra(moved, weights, axis)
 
 
 def spectrum_to_rgb(spectra, wavelengths, camera="CIE 1931", white_balance: bool = True,
@@ -922,7 +932,7 @@ def spectrum_to_rgb(spectra, wavelengths, camera="CIE 1931", white_balance: bool
     Returns
     -------
     ndarray, shape (..., 3)
-        float32 for float32 input, else float64.
+        Camera RGB, of the dtype :func:`spectrum_to_xyz` gives.
 
     Raises
     ------
@@ -930,8 +940,7 @@ def spectrum_to_rgb(spectra, wavelengths, camera="CIE 1931", white_balance: bool
         Shape mismatch, or a channel with zero response over the bands while white-balancing.
     """
     wl = as_wavelengths(wavelengths)
-    arr = _float(_as_array(spectra, "spectra"))
-    moved = _spectral_axis(arr, wl.size, axis, "spectra")
+    moved = _spectra_last(spectra, wl.size, axis)
     if isinstance(camera, (str, os.PathLike)):
         S = camera_sensitivities(camera, wl)
     else:
@@ -953,8 +962,7 @@ def spectrum_to_rgb(spectra, wavelengths, camera="CIE 1931", white_balance: bool
                 f"{wl.max():g} nm; cannot white-balance (use white_balance=False or other bands)"
             )
         S = S / white
-    out = moved @ S.astype(moved.dtype)
-    return np.moveaxis(out, -1, axis) if axis not in (-1, arr.ndim - 1) else out
+    return _weigh_spectra(moved, S, axis)
 
 
 # ---------------------------------------------------------------------------------------------

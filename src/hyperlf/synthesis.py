@@ -35,7 +35,8 @@ import numpy as np
 
 from ._progress import grid_views
 from .errors import InvalidInputError
-from .lightfield import LightField, filter_layout
+from .lightfield import (LightField, centre_view, check_disparity_range, filter_layout,
+                         grid_positions, view_offsets)
 from .warp import forward_warp_disparity
 
 __all__ = [
@@ -75,6 +76,14 @@ def add_noise(views: np.ndarray, sigma: float, seed: Any = 0) -> np.ndarray:
     rng = np.random.default_rng(seed)
     noisy = v + rng.normal(0.0, sigma, size=v.shape).astype(np.float32)
     return np.clip(noisy, 0.0, 1.0, out=noisy)
+
+
+def _observe(cube: np.ndarray, kmap: np.ndarray, noise_sigma: float, seed) -> np.ndarray:
+    """The captured views: view ``(r, c)`` records band ``kmap[r, c]`` of its cube, plus sensor
+    noise (seeded by ``[seed, 1]``) when ``noise_sigma > 0``."""
+    R, C = kmap.shape
+    clean = cube[np.arange(R)[:, None], np.arange(C)[None, :], kmap]
+    return add_noise(clean, noise_sigma, seed=[int(seed), 1]) if noise_sigma > 0 else clean
 
 
 def band_grid(rows: int, cols: int, lambda_min: float = 410.0,
@@ -272,7 +281,7 @@ def _subgrid_start(src_shape: tuple[int, int], src_ref: tuple[int, int], rows: i
             f"cannot take a {rows} x {cols} sub-grid from a {R0} x {C0} light field; "
             f"ask for at most {R0} x {C0} views"
         )
-    r0, c0 = (rows - 1) // 2, (cols - 1) // 2
+    r0, c0 = centre_view(rows, cols)
     sr, sc = src_ref[0] - r0, src_ref[1] - c0
     if sr < 0 or sc < 0 or sr + rows > R0 or sc + cols > C0:
         raise InvalidInputError(
@@ -397,7 +406,7 @@ def _subgrid_gt_disparity(lf_rgb: LightField, start: tuple[int, int], rows: int,
         return gt.copy(), "source reference view only"
     H, W = lf_rgb.image_shape
     offsets = lf_rgb.offsets[sr:sr + rows, sc:sc + cols]
-    ref = ((rows - 1) // 2, (cols - 1) // 2)
+    ref = centre_view(rows, cols)
     gt_out = np.empty((rows, cols, H, W), dtype=np.float32)
     for r in range(rows):
         for c in range(cols):
@@ -543,12 +552,11 @@ def from_rgb_lightfield(lf_rgb: LightField, rows: int = 5, cols: int = 6,
     cube = _rgb_cube(lf_rgb, start, rows, cols, to_bands, progress)
     scale = _normalise_cube(cube, to_bands.white(), normalization)
 
-    clean = cube[np.arange(rows)[:, None], np.arange(cols)[None, :], kmap]  # (R, C, H, W)
-    views = add_noise(clean, noise_sigma, seed=[int(seed), 1]) if noise_sigma > 0 else clean
+    views = _observe(cube, kmap, noise_sigma, seed)  # (R, C, H, W)
 
     gt_out, disp_method = _subgrid_gt_disparity(lf_rgb, start, rows, cols, view_disparity)
     drange = _source_disparity_range(lf_rgb)
-    ref = ((rows - 1) // 2, (cols - 1) // 2)
+    ref = centre_view(rows, cols)
 
     sr, sc = start
     positions = lf_rgb.positions[sr:sr + rows, sc:sc + cols]
@@ -607,7 +615,7 @@ def from_hci_scene(folder: Any, **kw: Any) -> LightField:
     if sub is not None:
         lf = read_hci_scene(folder, rows=range(sub[0], sub[0] + rows),
                             cols=range(sub[1], sub[1] + cols))
-        if lf.reference != ((rows - 1) // 2, (cols - 1) // 2) or lf.gt_disparity is None:
+        if lf.reference != centre_view(rows, cols) or lf.gt_disparity is None:
             lf = read_hci_scene(folder)
             sub = None
     else:
@@ -915,13 +923,7 @@ def _check_procedural_args(H: int, W: int, supersample: int, texture_scale: floa
         raise InvalidInputError(f"supersample must be >= 1, got {supersample}")
     if not (np.isfinite(texture_scale) and texture_scale > 0):
         raise InvalidInputError(f"texture_scale must be > 0, got {texture_scale}")
-    try:
-        dmin, dmax = (float(v) for v in disparity_range)
-    except (TypeError, ValueError):
-        raise InvalidInputError(
-            f"disparity_range must be (min, max), got {disparity_range!r}") from None
-    if not (np.isfinite(dmin) and np.isfinite(dmax) and dmin < dmax):
-        raise InvalidInputError(f"disparity_range must be finite with min < max, got {disparity_range}")
+    dmin, dmax = check_disparity_range(disparity_range)
     for k in kinds:
         if k not in _KINDS:
             raise InvalidInputError(f"unknown object kind {k!r}; use one of {', '.join(_KINDS)}")
@@ -1070,6 +1072,14 @@ class _RayCaster:
         return gt, cube, missed
 
 
+def _finite_range(values: np.ndarray, default: tuple[float, float]) -> tuple[float, float]:
+    """``(min, max)`` of the finite ``values``; ``default`` when none is finite."""
+    finite = np.isfinite(values)
+    if not finite.any():
+        return default
+    return float(values[finite].min()), float(values[finite].max())
+
+
 def _procedural_metadata(opts: dict, objs: list[dict], kmap: np.ndarray, dmin: float,
                          dmax: float, gmin: float, gmax: float, n_library: int, f: float,
                          d0: float, pscale: float, missed: int) -> dict:
@@ -1209,18 +1219,10 @@ def procedural_scene(seed: int = 0, rows: int = 5, cols: int = 6, height: int = 
     caster = _RayCaster([_build_surface(o, H, W, f, d0) for o in objs], H, W, f, d0, palette,
                         chip_index, min(H, W) * float(texture_scale), shading, supersample)
 
-    positions = np.stack(np.meshgrid(np.arange(cols, dtype=float), np.arange(rows, dtype=float)),
-                         axis=-1)
-    ref = ((rows - 1) // 2, (cols - 1) // 2)
-    offsets = positions - positions[ref][None, None, :]
-    gt, cube, missed = caster.render_grid(offsets, progress)
-
-    clean = cube[np.arange(rows)[:, None], np.arange(cols)[None, :], kmap]
-    views = add_noise(clean, noise_sigma, seed=[int(seed), 1]) if noise_sigma > 0 else clean
-
-    finite = np.isfinite(gt)
-    gmin = float(gt[finite].min()) if finite.any() else dmin
-    gmax = float(gt[finite].max()) if finite.any() else dmax
+    positions, ref = grid_positions(rows, cols), centre_view(rows, cols)
+    gt, cube, missed = caster.render_grid(view_offsets(positions, ref), progress)
+    views = _observe(cube, kmap, noise_sigma, seed)
+    gmin, gmax = _finite_range(gt, default=(dmin, dmax))
 
     opts = dict(name=name, seed=seed, rows=rows, cols=cols, height=H, width=W,
                 lambda_min=lambda_min, lambda_max=lambda_max, layout=layout, objects=objects,
@@ -1238,48 +1240,41 @@ def procedural_scene(seed: int = 0, rows: int = 5, cols: int = 6, height: int = 
 
 
 # ----------------------------------------------------------------------------- named scenes
+def _textured(kind: str, pattern: str, period: float, angle: float | None = None,
+              **geometry) -> dict[str, Any]:
+    """One object of a scene description: ``kind``, its geometry keys (in the order given) and
+    its texture (``pattern``, ``period``, ``angle`` when given)."""
+    texture = {"pattern": pattern, "period": period}
+    if angle is not None:
+        texture["angle"] = angle
+    return {"kind": kind, **geometry, "texture": texture}
+
+
+def _scene(name: str, seed: int, *objects: dict[str, Any]) -> dict[str, Any]:
+    """A named scene: its own seed, the disparity range every named scene shares, its objects."""
+    return dict(name=name, seed=seed, disparity_range=(-2.0, 2.0), objects=list(objects))
+
+
 #: Named deterministic scenes: ``procedural_scene(**SCENES[name])`` (any size via height/width).
-SCENES: dict[str, dict[str, Any]] = {
-    "planes": dict(
-        name="planes", seed=101, disparity_range=(-2.0, 2.0),
-        objects=[
-            {"kind": "plane", "disparity": -1.5, "name": "background",
-             "texture": {"pattern": "patches", "period": 0.08}},
-            {"kind": "plane", "disparity": 0.0, "rect": [0.08, 0.12, 0.5, 0.88],
-             "texture": {"pattern": "stripes", "period": 0.06, "angle": 30.0}},
-            {"kind": "plane", "disparity": 1.5, "rect": [0.48, 0.3, 0.88, 0.72],
-             "texture": {"pattern": "checker", "period": 0.07}},
-        ]),
-    "slanted": dict(
-        name="slanted", seed=202, disparity_range=(-2.0, 2.0),
-        objects=[
-            {"kind": "plane", "disparity": -0.8, "gradient": [1.6, 0.4], "name": "slanted",
-             "texture": {"pattern": "patches", "period": 0.07}},
-            {"kind": "plane", "disparity": 1.2, "rect": [0.55, 0.25, 0.85, 0.65],
-             "texture": {"pattern": "noise", "period": 0.1}},
-        ]),
-    "occlusion": dict(
-        name="occlusion", seed=303, disparity_range=(-2.0, 2.0),
-        objects=[
-            {"kind": "plane", "disparity": -1.2, "name": "background",
-             "texture": {"pattern": "patches", "period": 0.06}},
-            {"kind": "plane", "disparity": 1.6, "rect": [0.15, 0.05, 0.19, 0.95],
-             "texture": {"pattern": "stripes", "period": 0.05, "angle": 90.0}},
-            {"kind": "plane", "disparity": 1.3, "rect": [0.42, 0.05, 0.47, 0.95],
-             "texture": {"pattern": "checker", "period": 0.04}},
-            {"kind": "plane", "disparity": 1.0, "rect": [0.70, 0.05, 0.73, 0.95],
-             "texture": {"pattern": "noise", "period": 0.05}},
-            {"kind": "plane", "disparity": 0.6, "rect": [0.05, 0.58, 0.95, 0.62],
-             "texture": {"pattern": "stripes", "period": 0.05, "angle": 0.0}},
-        ]),
-    "solids": dict(
-        name="solids", seed=404, disparity_range=(-2.0, 2.0),
-        objects=[
-            {"kind": "plane", "disparity": -1.5, "name": "background",
-             "texture": {"pattern": "checker", "period": 0.09}},
-            {"kind": "box", "rect": [0.12, 0.2, 0.42, 0.6], "disparity": 0.8, "depth": 1.0,
-             "texture": {"pattern": "patches", "period": 0.06}},
-            {"kind": "sphere", "center": [0.68, 0.55], "radius": 0.2, "disparity": 1.4,
-             "texture": {"pattern": "stripes", "period": 0.06, "angle": 60.0}},
-        ]),
-}
+SCENES: dict[str, dict[str, Any]] = {scene["name"]: scene for scene in (
+    _scene("planes", 101,
+           _textured("plane", "patches", 0.08, disparity=-1.5, name="background"),
+           _textured("plane", "stripes", 0.06, 30.0, disparity=0.0, rect=[0.08, 0.12, 0.5, 0.88]),
+           _textured("plane", "checker", 0.07, disparity=1.5, rect=[0.48, 0.3, 0.88, 0.72])),
+    _scene("slanted", 202,
+           _textured("plane", "patches", 0.07, disparity=-0.8, gradient=[1.6, 0.4],
+                     name="slanted"),
+           _textured("plane", "noise", 0.1, disparity=1.2, rect=[0.55, 0.25, 0.85, 0.65])),
+    _scene("occlusion", 303,
+           _textured("plane", "patches", 0.06, disparity=-1.2, name="background"),
+           _textured("plane", "stripes", 0.05, 90.0, disparity=1.6, rect=[0.15, 0.05, 0.19, 0.95]),
+           _textured("plane", "checker", 0.04, disparity=1.3, rect=[0.42, 0.05, 0.47, 0.95]),
+           _textured("plane", "noise", 0.05, disparity=1.0, rect=[0.70, 0.05, 0.73, 0.95]),
+           _textured("plane", "stripes", 0.05, 0.0, disparity=0.6, rect=[0.05, 0.58, 0.95, 0.62])),
+    _scene("solids", 404,
+           _textured("plane", "checker", 0.09, disparity=-1.5, name="background"),
+           _textured("box", "patches", 0.06, rect=[0.12, 0.2, 0.42, 0.6], disparity=0.8,
+                     depth=1.0),
+           _textured("sphere", "stripes", 0.06, 60.0, center=[0.68, 0.55], radius=0.2,
+                     disparity=1.4)),
+)}

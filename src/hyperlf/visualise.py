@@ -80,9 +80,9 @@ def save_disparity_png(path: str | os.PathLike, disparity: np.ndarray, title: st
     Examples
     --------
     >>> import tempfile, pathlib
-    >>> out = pathlib.Path(tempfile.mkdtemp()) / "d.png"
-    >>> save_disparity_png(out, np.eye(8)).suffix
-    '.png'
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "new" / "d.png"  # "new" is created
+    >>> save_disparity_png(out, np.eye(8)).is_file()
+    True
     """
     d = np.asarray(disparity, dtype=np.float64)
     if d.ndim != 2:

@@ -20,48 +20,20 @@ from pathlib import Path
 
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
 from ..lightfield import LightField
-from .capture import MANIFEST, is_capture, read_capture, write_capture
-from .envi import read_envi, write_envi
-from .hci import is_hci_scene, read_hci_scene
-from .hdf5 import (
-    CubeFile,
-    CubeWriter,
-    open_cube_h5,
-    read_cube_h5,
-    read_lightfield_h5,
-    write_cube_h5,
-    write_lightfield_h5,
-)
-from .images import read_image, to_grey, write_image
-from .middlebury import StereoPair, read_middlebury, write_middlebury
+from . import capture, envi, hci, hdf5, images, middlebury, pfm
+from .capture import CAPTURE_FORMAT, MANIFEST, is_capture, read_capture, write_capture
+from .envi import ENVI_DTYPES, read_envi, write_envi
+from .hci import HCI_LICENCE, is_hci_scene, read_hci_scene
+from .hdf5 import (CubeFile, CubeWriter, open_cube_h5, read_cube_h5, read_lightfield_h5,
+                   write_cube_h5, write_lightfield_h5)
+from .images import REC709_WEIGHTS, read_image, read_images_same_size, to_grey, write_image
+from .middlebury import MASK_NAMES, StereoPair, read_middlebury, write_middlebury
 from .pfm import read_pfm, write_pfm
 
-__all__ = [
-    "load_lightfield",
-    "save_lightfield",
-    "read_pfm",
-    "write_pfm",
-    "read_image",
-    "write_image",
-    "to_grey",
-    "read_hci_scene",
-    "is_hci_scene",
-    "StereoPair",
-    "read_middlebury",
-    "write_middlebury",
-    "read_capture",
-    "write_capture",
-    "is_capture",
-    "write_lightfield_h5",
-    "read_lightfield_h5",
-    "write_cube_h5",
-    "read_cube_h5",
-    "CubeWriter",
-    "CubeFile",
-    "open_cube_h5",
-    "write_envi",
-    "read_envi",
-]
+# the package's public API: its own two functions and every format module's
+__all__ = ["load_lightfield", "save_lightfield"] + [
+    name for module in (pfm, images, hci, middlebury, capture, hdf5, envi)
+    for name in module.__all__]
 
 _H5 = (".h5", ".hdf5")
 _SUPPORTED = ("a capture folder with capture.toml, an HCI scene folder with input_Cam000.png, "
@@ -91,9 +63,11 @@ def load_lightfield(path: str | os.PathLike, **kwargs) -> LightField:
     >>> import tempfile, pathlib
     >>> from hyperlf.synthesis import procedural_scene
     >>> lf = procedural_scene(seed=2, rows=2, cols=3, height=12, width=16)
-    >>> path = save_lightfield(lf, pathlib.Path(tempfile.mkdtemp()) / "lf.h5")
-    >>> load_lightfield(path).grid_shape
-    (2, 3)
+    >>> tmp = pathlib.Path(tempfile.mkdtemp())
+    >>> h5 = save_lightfield(lf, tmp / "lf.h5")  # an HDF5 file
+    >>> cap = save_lightfield(lf, tmp / "cap").parent  # a capture folder (returns its manifest)
+    >>> load_lightfield(h5).grid_shape, load_lightfield(cap).grid_shape
+    ((2, 3), (2, 3))
 
     Raises
     ------

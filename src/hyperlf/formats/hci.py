@@ -18,7 +18,7 @@ from typing import Iterable
 import numpy as np
 
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
-from ..lightfield import LightField
+from ..lightfield import LightField, centre_view
 from .images import read_image, read_images_same_size
 from .pfm import read_pfm
 
@@ -29,17 +29,8 @@ _CAM = re.compile(r"^input_Cam(\d{3})\.png$")
 
 
 def is_hci_scene(folder: str | os.PathLike) -> bool:
-    """True when ``folder`` is a folder holding ``input_Cam000.png`` (an HCI 4D LF scene).
-
-    Parameters
-    ----------
-    folder : path-like
-        Any path.
-
-    Returns
-    -------
-    bool
-    """
+    """True when ``folder`` (any path) is a folder holding ``input_Cam000.png``: an HCI 4D LF
+    scene, as :func:`~hyperlf.formats.capture.is_capture` tells a capture."""
     p = Path(folder)
     return p.is_dir() and (p / "input_Cam000.png").is_file()
 
@@ -164,7 +155,7 @@ def read_hci_scene(folder: str | os.PathLike, grid=None, rows=None, cols=None,
 
     cc, rr = np.meshgrid(np.asarray(csel, float), np.asarray(rsel, float))
     positions = np.stack([cc, rr], axis=-1)
-    centre = ((R - 1) // 2, (C - 1) // 2)
+    centre = centre_view(R, C)
     centre_in = centre[0] in rsel and centre[1] in csel
     reference = (rsel.index(centre[0]), csel.index(centre[1])) if centre_in else None
 

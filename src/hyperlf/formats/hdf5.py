@@ -162,12 +162,12 @@ def write_lightfield_h5(path: str | os.PathLike, lf: LightField,
 
 
 def read_lightfield_h5(path: str | os.PathLike) -> LightField:
-    """Read a light field written by :func:`write_lightfield_h5`.
+    """Read a whole light field file into memory.
 
     Parameters
     ----------
     path : path-like
-        The ``.h5`` file.
+        A light field file written by :func:`write_lightfield_h5`.
 
     Returns
     -------
@@ -474,7 +474,7 @@ def read_cube_h5(path: str | os.PathLike):
     Parameters
     ----------
     path : path-like
-        A cube file written by :func:`write_cube_h5` or :class:`CubeWriter`.
+        As in :func:`open_cube_h5`.
 
     Returns
     -------
