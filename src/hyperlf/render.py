@@ -100,6 +100,7 @@ from . import spectral
 from ._atomic import atomic_path
 from ._progress import progress_bar
 from .errors import InvalidInputError
+from .lightfield import centre_view, grid_positions
 from .warp import coordinate_taps, forward_warp_disparity, sample_bilinear, shift_map
 
 __all__ = [
@@ -196,10 +197,10 @@ def _check_mask(mask, shape: tuple[int, ...], name: str = "mask"):
 
 
 def _default_offsets(R: int, C: int, reference=None) -> tuple[np.ndarray, tuple[int, int]]:
-    ref = ((R - 1) // 2, (C - 1) // 2) if reference is None else tuple(int(v) for v in reference)
+    ref = centre_view(R, C) if reference is None else tuple(int(v) for v in reference)
     if not (0 <= ref[0] < R and 0 <= ref[1] < C):
         raise InvalidInputError(f"reference {ref} is outside the {R} x {C} grid")
-    pos = np.stack(np.meshgrid(np.arange(C, dtype=float), np.arange(R, dtype=float)), axis=-1)
+    pos = grid_positions(R, C)
     return pos - pos[ref][None, None, :], ref
 
 
@@ -1299,7 +1300,7 @@ def spectrum_at(cube, wavelengths=None, x=None, y=None, view=None) -> np.ndarray
     shape = tuple(int(s) for s in data.shape)
     if len(shape) == 5:
         R, C = shape[:2]
-        r, c = ((R - 1) // 2, (C - 1) // 2) if view is None else (int(view[0]), int(view[1]))
+        r, c = centre_view(R, C) if view is None else (int(view[0]), int(view[1]))
         if not (0 <= r < R and 0 <= c < C):
             raise InvalidInputError(f"view {(r, c)} is outside the {R} x {C} grid")
         lead = (r, c)
