@@ -73,7 +73,10 @@ References
 .. [2] R. Zabih, J. Woodfill, "Non-parametric local transforms for computing visual
    correspondence", ECCV 1994.
 .. [3] K. Zhu, Y. Xue, Q. Fu, S. B. Kang, X. Chen, J. Yu, "Hyperspectral Light Field Stereo
-   Matching".
+   Matching" (the paper this library implements).
+
+The modules and cost classes of this package cite these papers by author and year and point
+here; the list lives only in this docstring.
 
 Examples
 --------

@@ -5,16 +5,8 @@ Default windows and optimiser parameters for two-view stereo were tuned on **Ven
 (graph cuts weight {1,2,4,8} x truncation {2,4,8} with the coarse-to-fine solver; SGM p1
 {0.5,1,2} x p2 {4,8,16}; windows {5,9} for ssd/ncc/rsncc, {5,7} for census; criterion Venus
 bad5.0, ties by bad2.0), then fixed for every other scene.  ``--tune`` prints the ``windows``
-and ``params`` to paste here; the scores behind them are in BENCHMARKS.md.
-
-References
-----------
-.. [1] X. Shen, L. Xu, Q. Zhang, J. Jia, "Multi-modal and multi-spectral registration for
-   natural images", ECCV 2014.
-.. [2] R. Zabih, J. Woodfill, "Non-parametric local transforms for computing visual
-   correspondence", ECCV 1994.
-.. [3] K. Zhu, Y. Xue, Q. Fu, S. B. Kang, X. Chen, J. Yu, "Hyperspectral Light Field Stereo
-   Matching" (the paper this library implements).
+and ``params`` to paste here; the scores behind them are in BENCHMARKS.md.  The papers behind
+the costs are listed in :mod:`hyperlf.costs` (References).
 """
 
 from __future__ import annotations
@@ -70,16 +62,12 @@ class NCC(Cost):
 
 
 class RSNCC(Cost):
-    """Robust selective NCC [1]_: ``rho(1 - NCC(In)) + tau rho(1 - NCC(|grad In|))``.
+    """Robust selective NCC (Shen et al. 2014, :mod:`hyperlf.costs` References [1]):
+    ``rho(1 - NCC(In)) + tau rho(1 - NCC(|grad In|))``.
 
     ``rho(x) = -log(exp(-|x|) + exp(|x| - 2))``, ``tau = 1`` (option ``rs_tau``, alias
     ``tau``); ``grad`` is the central difference of ``In`` (borders replicated), ``|grad|``
     its Euclidean magnitude.
-
-    References
-    ----------
-    .. [1] X. Shen, L. Xu, Q. Zhang, J. Jia, "Multi-modal and multi-spectral registration for
-       natural images", ECCV 2014.
     """
 
     name = "rsncc"
@@ -102,13 +90,9 @@ class RSNCC(Cost):
 
 
 class Census(Cost):
-    """Hamming distance of census codes [1]_: one bit per neighbour of the window (48 bits at
-    7 x 7), set where the neighbour is strictly less than the centre, replicate border.
-
-    References
-    ----------
-    .. [1] R. Zabih, J. Woodfill, "Non-parametric local transforms for computing visual
-       correspondence", ECCV 1994.
+    """Hamming distance of census codes (Zabih & Woodfill 1994, :mod:`hyperlf.costs`
+    References [2]): one bit per neighbour of the window (48 bits at 7 x 7), set where the
+    neighbour is strictly less than the centre, replicate border.
     """
 
     name = "census"
@@ -127,17 +111,13 @@ class Census(Cost):
 
 
 class BWNCC(Cost):
-    """BWNCC on the spectral-invariant descriptor [1]_ (SPEC §3, :mod:`hyperlf.descriptor`).
+    """BWNCC on the spectral-invariant descriptor (Zhu et al., :mod:`hyperlf.costs`
+    References [3]; SPEC §3, :mod:`hyperlf.descriptor`).
 
     ``paper=False`` (``bwncc``): ``DescriptorParams.default()`` with NCC patch ``n = w`` for
     each level's channels; ``paper=True`` (``bwncc-paper``): the literal
     ``DescriptorParams.paper()`` with ``n = 5`` for all channels.  An explicit window sets
     ``n`` for all channels.
-
-    References
-    ----------
-    .. [1] K. Zhu, Y. Xue, Q. Fu, S. B. Kang, X. Chen, J. Yu, "Hyperspectral Light Field
-       Stereo Matching".
     """
 
     window = None
