@@ -22,6 +22,7 @@ __all__ = [
     "candidate_validity",
     "right_validity",
     "fill_invalid",
+    "worst_fill",
     "rho",
     "pad_replicate",
     "box_mean",
