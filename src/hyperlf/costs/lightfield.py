@@ -307,12 +307,12 @@ def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | 
     --------
     >>> import numpy as np
     >>> from hyperlf.costs import view_costs
-    >>> rng = np.random.default_rng(0)
-    >>> a = rng.random((16, 20)) + 0.5
+    >>> a = np.random.default_rng(0).random((16, 20)) + 0.5
     >>> b = np.roll(a, 1, axis=1)                      # the view sees p at x + 1
-    >>> C, valid = view_costs(a, b, (-1.0, 0.0), [0.0, 1.0, 2.0], "census")
-    >>> int(C[:, 8, 10].argmin())                      # label 1
-    1
+    >>> labels = np.arange(0.0, 2.5, 0.5)              # sub-pixel labels
+    >>> C, valid = view_costs(a, b, (-1.0, 0.0), labels, "census")
+    >>> float(labels[C[:, 8, 10].argmin()])
+    1.0
     """
     from .registry import get_cost
     cost = get_cost(metric, light_field=True)
