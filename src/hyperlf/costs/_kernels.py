@@ -26,6 +26,15 @@ def overlap(d, W):
 
 
 @numba.njit(inline="always")
+def window_geometry(Ap, mA, r):
+    """Sizes for the cross-term kernels: channels ``nc``, image ``H``, ``W`` (of the patch
+    means ``mA``), window side ``n = 2r + 1``, ``1 / n^2`` and the padded width ``W + 2r``."""
+    n = 2 * r + 1
+    W = mA.shape[2]
+    return Ap.shape[0], mA.shape[1], W, n, 1.0 / (n * n), W + 2 * r
+
+
+@numba.njit(inline="always")
 def products_init(Ap, Bp, c, y0, n, a0, b0, m, ca, cb, V):
     """``V[j] = sum_{v < n} (Ap[c, y0 + v, a0 + j] - ca) (Bp[c, y0 + v, b0 + j] - cb)`` for
     ``j < m``: the vertical window sums of centred products at the top row of a band (float64,
@@ -74,12 +83,7 @@ def xcorr_accum(Ap, Bp, ca, cb, mA, isA, mB, isB, ds, r, weighted, accF, accB):
     Vertical box sums run down the band (re-initialised per band), horizontal ones use
     prefix sums; the per-pixel loop is branch-free."""
     BAND = 16
-    nc = Ap.shape[0]
-    H = mA.shape[1]
-    W = mA.shape[2]
-    n = 2 * r + 1
-    inv = 1.0 / (n * n)
-    Wp = W + 2 * r
+    nc, H, W, n, inv, Wp = window_geometry(Ap, mA, r)
     nb = (H + BAND - 1) // BAND
     for b in prange(nb):
         y0 = b * BAND
@@ -148,48 +152,58 @@ def hamming_volume(cl, cr, ds, out):
                 out[k, y, x] = np.float32(popcount64(cl[y, x] ^ cr[y, x - d]))
 
 @numba.njit(inline="always")
+def shifted_sum(out, a, b, sb, m):
+    """``out[j] = a[j] + b[sb + j]`` for ``j < m``."""
+    bs = b[sb:]
+    for j in range(m):
+        out[j] = a[j] + bs[j]
+
+
+@numba.njit(inline="always")
+def shifted_sum3(out, a, b, sb, c, sc, m):
+    """``out[j] = a[j] + b[sb + j] + c[sc + j]`` for ``j < m`` (summed left to right)."""
+    bs = b[sb:]
+    cs = c[sc:]
+    for j in range(m):
+        out[j] = a[j] + bs[j] + cs[j]
+
+
+@numba.njit(inline="always")
+def shifted_add(out, b, sb, m):
+    """``out[j] += b[sb + j]`` for ``j < m``."""
+    bs = b[sb:]
+    for j in range(m):
+        out[j] += bs[j]
+
+
+@numba.njit(inline="always")
 def hsum(Vs, T1, T2, S, nX, n):
     """``S[j] = sum_{t < n} Vs[j + t]`` for ``j < nX - n + 1`` by doubling (vectorisable
-    passes over contiguous rows; a prefix sum is a serial dependency chain)."""
+    passes over contiguous rows; a prefix sum is a serial dependency chain): ``T1`` holds the
+    sums of 2 neighbours, ``T2`` of 4; n = 1, 3, 5, 9 have their own closed forms."""
     m = nX - n + 1
     if n == 1:
         for j in range(m):
             S[j] = Vs[j]
         return
-    V1 = Vs[1:]
-    for j in range(nX - 1):
-        T1[j] = Vs[j] + V1[j]
+    shifted_sum(T1, Vs, Vs, 1, nX - 1)
     if n == 3:
-        V2 = Vs[2:]
-        for j in range(m):
-            S[j] = T1[j] + V2[j]
+        shifted_sum(S, T1, Vs, 2, m)
         return
     if n == 5:
-        T1b = T1[2:]
-        V4 = Vs[4:]
-        for j in range(m):
-            S[j] = T1[j] + T1b[j] + V4[j]
+        shifted_sum3(S, T1, T1, 2, Vs, 4, m)
         return
-    T1b = T1[2:]
-    for j in range(nX - 3):
-        T2[j] = T1[j] + T1b[j]
+    shifted_sum(T2, T1, T1, 2, nX - 3)
     if n == 9:
-        T2b = T2[4:]
-        V8 = Vs[8:]
-        for j in range(m):
-            S[j] = T2[j] + T2b[j] + V8[j]
+        shifted_sum3(S, T2, T2, 4, Vs, 8, m)
         return
     for j in range(m):
         S[j] = T2[j]
-    q = n // 4
-    for t in range(1, q):
-        Tt = T2[4 * t:]
-        for j in range(m):
-            S[j] += Tt[j]
-    for t in range(4 * q, n):
-        Vt = Vs[t:]
-        for j in range(m):
-            S[j] += Vt[j]
+    for t in range(1, n // 4):
+        shifted_add(S, T2, 4 * t, m)
+    for t in range(4 * (n // 4), n):
+        shifted_add(S, Vs, t, m)
+
 
 @numba.njit(parallel=True, cache=True)
 def bw_channel_stats(maps, ns, mu_c, var, centre):
@@ -279,12 +293,7 @@ def bw_accum(Ap, Bp, ca, cb, mA, sA, mB, sB, ds, r, accF, accB, BAND, DC, TW):
     ``xi = 0`` elsewhere) are computed, in runs of consecutive tiles; within a run the
     window sums are separable: a vertical running sum down the band, then horizontal sums
     by doubling (O(1) per pixel in the window size, vectorised)."""
-    nc = Ap.shape[0]
-    H = mA.shape[1]
-    W = mA.shape[2]
-    n = 2 * r + 1
-    inv = 1.0 / (n * n)
-    Wp = W + 2 * r
+    nc, H, W, n, inv, Wp = window_geometry(Ap, mA, r)
     L = ds.shape[0]
     nb = (H + BAND - 1) // BAND
     ntile = (W + TW - 1) // TW
