@@ -18,6 +18,59 @@ import numba
 import numpy as np
 from numba import prange
 
+
+@numba.njit(inline="always")
+def overlap(d, W):
+    """Columns ``x0 <= x < x1`` of a row of width ``W`` whose match ``x - d`` is in the image."""
+    return max(0, d), min(W, W + d)
+
+
+@numba.njit(inline="always")
+def window_geometry(Ap, mA, r):
+    """Sizes for the cross-term kernels: channels ``nc``, image ``H``, ``W`` (of the patch
+    means ``mA``), window side ``n = 2r + 1``, ``1 / n^2`` and the padded width ``W + 2r``."""
+    n = 2 * r + 1
+    W = mA.shape[2]
+    return Ap.shape[0], mA.shape[1], W, n, 1.0 / (n * n), W + 2 * r
+
+
+@numba.njit(inline="always")
+def products_init(Ap, Bp, c, y0, n, a0, b0, m, ca, cb, V):
+    """``V[j] = sum_{v < n} (Ap[c, y0 + v, a0 + j] - ca) (Bp[c, y0 + v, b0 + j] - cb)`` for
+    ``j < m``: the vertical window sums of centred products at the top row of a band (float64,
+    ``v`` ascending)."""
+    for j in range(m):
+        V[j] = 0.0
+    for v in range(n):
+        ar = Ap[c, y0 + v, a0:a0 + m]
+        br = Bp[c, y0 + v, b0:b0 + m]
+        for j in range(m):
+            V[j] += (np.float64(ar[j]) - ca) * (np.float64(br[j]) - cb)
+
+
+@numba.njit(inline="always")
+def products_slide(Ap, Bp, c, yin, yout, a0, b0, m, ca, cb, V):
+    """Move the window sums of :func:`products_init` down one row: add row ``yin``'s centred
+    products and remove row ``yout``'s (one update per column)."""
+    ai = Ap[c, yin, a0:a0 + m]
+    bi = Bp[c, yin, b0:b0 + m]
+    ao = Ap[c, yout, a0:a0 + m]
+    bo = Bp[c, yout, b0:b0 + m]
+    for j in range(m):
+        V[j] += ((np.float64(ai[j]) - ca) * (np.float64(bi[j]) - cb)
+                 - (np.float64(ao[j]) - ca) * (np.float64(bo[j]) - cb))
+
+
+@numba.njit(inline="always")
+def band_columns_active(s, c, y0, y1, fl):
+    """``fl[x]`` = some row ``y0 <= y < y1`` of channel ``c`` of ``s`` is non-zero at ``x``."""
+    fl[:] = False
+    for y in range(y0, y1):
+        row = s[c, y]
+        for x in range(fl.shape[0]):
+            fl[x] = fl[x] or (row[x] != 0.0)
+
+
 @numba.njit(parallel=True, cache=True, fastmath=False)
 def xcorr_accum(Ap, Bp, ca, cb, mA, isA, mB, isB, ds, r, weighted, accF, accB):
     """For every disparity ds[k] and channel c: xi of the left patch at (y, x) and the right
@@ -30,12 +83,7 @@ def xcorr_accum(Ap, Bp, ca, cb, mA, isA, mB, isB, ds, r, weighted, accF, accB):
     Vertical box sums run down the band (re-initialised per band), horizontal ones use
     prefix sums; the per-pixel loop is branch-free."""
     BAND = 16
-    nc = Ap.shape[0]
-    H = mA.shape[1]
-    W = mA.shape[2]
-    n = 2 * r + 1
-    inv = 1.0 / (n * n)
-    Wp = W + 2 * r
+    nc, H, W, n, inv, Wp = window_geometry(Ap, mA, r)
     nb = (H + BAND - 1) // BAND
     for b in prange(nb):
         y0 = b * BAND
@@ -46,8 +94,7 @@ def xcorr_accum(Ap, Bp, ca, cb, mA, isA, mB, isB, ds, r, weighted, accF, accB):
         bB = np.zeros((BAND, W))
         for k in range(ds.shape[0]):
             d = ds[k]
-            x0 = max(0, d)
-            x1 = min(W, W + d)
+            x0, x1 = overlap(d, W)
             if x1 <= x0:
                 continue
             X0 = x0
@@ -57,18 +104,12 @@ def xcorr_accum(Ap, Bp, ca, cb, mA, isA, mB, isB, ds, r, weighted, accF, accB):
             for c in range(nc):
                 cac = ca[c]
                 cbc = cb[c]
-                for X in range(X0, X1):
-                    V[X] = 0.0
-                for v in range(n):
-                    for X in range(X0, X1):
-                        V[X] += (Ap[c, y0 + v, X] - cac) * (Bp[c, y0 + v, X - d] - cbc)
+                VX = V[X0:X1]
+                products_init(Ap, Bp, c, y0, n, X0, X0 - d, X1 - X0, cac, cbc, VX)
                 for y in range(y0, y1):
                     if y > y0:
-                        yin = y + 2 * r
-                        yout = y - 1
-                        for X in range(X0, X1):
-                            V[X] += ((Ap[c, yin, X] - cac) * (Bp[c, yin, X - d] - cbc)
-                                     - (Ap[c, yout, X] - cac) * (Bp[c, yout, X - d] - cbc))
+                        products_slide(Ap, Bp, c, y + 2 * r, y - 1, X0, X0 - d, X1 - X0, cac, cbc,
+                                       VX)
                     acc = 0.0
                     P[X0] = 0.0
                     for X in range(X0, X1):
@@ -105,55 +146,64 @@ def hamming_volume(cl, cr, ds, out):
     H, W = cl.shape
     for k in prange(ds.shape[0]):
         d = ds[k]
-        x0 = max(0, d)
-        x1 = min(W, W + d)
+        x0, x1 = overlap(d, W)
         for y in range(H):
             for x in range(x0, x1):
                 out[k, y, x] = np.float32(popcount64(cl[y, x] ^ cr[y, x - d]))
 
 @numba.njit(inline="always")
+def shifted_sum(out, a, b, sb, m):
+    """``out[j] = a[j] + b[sb + j]`` for ``j < m``."""
+    bs = b[sb:]
+    for j in range(m):
+        out[j] = a[j] + bs[j]
+
+
+@numba.njit(inline="always")
+def shifted_sum3(out, a, b, sb, c, sc, m):
+    """``out[j] = a[j] + b[sb + j] + c[sc + j]`` for ``j < m`` (summed left to right)."""
+    bs = b[sb:]
+    cs = c[sc:]
+    for j in range(m):
+        out[j] = a[j] + bs[j] + cs[j]
+
+
+@numba.njit(inline="always")
+def shifted_add(out, b, sb, m):
+    """``out[j] += b[sb + j]`` for ``j < m``."""
+    bs = b[sb:]
+    for j in range(m):
+        out[j] += bs[j]
+
+
+@numba.njit(inline="always")
 def hsum(Vs, T1, T2, S, nX, n):
     """``S[j] = sum_{t < n} Vs[j + t]`` for ``j < nX - n + 1`` by doubling (vectorisable
-    passes over contiguous rows; a prefix sum is a serial dependency chain)."""
+    passes over contiguous rows; a prefix sum is a serial dependency chain): ``T1`` holds the
+    sums of 2 neighbours, ``T2`` of 4; n = 1, 3, 5, 9 have their own closed forms."""
     m = nX - n + 1
     if n == 1:
         for j in range(m):
             S[j] = Vs[j]
         return
-    V1 = Vs[1:]
-    for j in range(nX - 1):
-        T1[j] = Vs[j] + V1[j]
+    shifted_sum(T1, Vs, Vs, 1, nX - 1)
     if n == 3:
-        V2 = Vs[2:]
-        for j in range(m):
-            S[j] = T1[j] + V2[j]
+        shifted_sum(S, T1, Vs, 2, m)
         return
     if n == 5:
-        T1b = T1[2:]
-        V4 = Vs[4:]
-        for j in range(m):
-            S[j] = T1[j] + T1b[j] + V4[j]
+        shifted_sum3(S, T1, T1, 2, Vs, 4, m)
         return
-    T1b = T1[2:]
-    for j in range(nX - 3):
-        T2[j] = T1[j] + T1b[j]
+    shifted_sum(T2, T1, T1, 2, nX - 3)
     if n == 9:
-        T2b = T2[4:]
-        V8 = Vs[8:]
-        for j in range(m):
-            S[j] = T2[j] + T2b[j] + V8[j]
+        shifted_sum3(S, T2, T2, 4, Vs, 8, m)
         return
     for j in range(m):
         S[j] = T2[j]
-    q = n // 4
-    for t in range(1, q):
-        Tt = T2[4 * t:]
-        for j in range(m):
-            S[j] += Tt[j]
-    for t in range(4 * q, n):
-        Vt = Vs[t:]
-        for j in range(m):
-            S[j] += Vt[j]
+    for t in range(1, n // 4):
+        shifted_add(S, T2, 4 * t, m)
+    for t in range(4 * (n // 4), n):
+        shifted_add(S, Vs, t, m)
+
 
 @numba.njit(parallel=True, cache=True)
 def bw_channel_stats(maps, ns, mu_c, var, centre):
@@ -243,12 +293,7 @@ def bw_accum(Ap, Bp, ca, cb, mA, sA, mB, sB, ds, r, accF, accB, BAND, DC, TW):
     ``xi = 0`` elsewhere) are computed, in runs of consecutive tiles; within a run the
     window sums are separable: a vertical running sum down the band, then horizontal sums
     by doubling (O(1) per pixel in the window size, vectorised)."""
-    nc = Ap.shape[0]
-    H = mA.shape[1]
-    W = mA.shape[2]
-    n = 2 * r + 1
-    inv = 1.0 / (n * n)
-    Wp = W + 2 * r
+    nc, H, W, n, inv, Wp = window_geometry(Ap, mA, r)
     L = ds.shape[0]
     nb = (H + BAND - 1) // BAND
     ntile = (W + TW - 1) // TW
@@ -267,21 +312,13 @@ def bw_accum(Ap, Bp, ca, cb, mA, sA, mB, sB, ds, r, accF, accB, BAND, DC, TW):
         cntBs = np.zeros((nc, W + 1), np.int32)
         fl = np.zeros(W, np.bool_)
         for c in range(nc):
-            fl[:] = False
-            for y in range(y0, y1):
-                row = sA[c, y]
-                for x in range(W):
-                    fl[x] = fl[x] or (row[x] != 0.0)
+            band_columns_active(sA, c, y0, y1, fl)
             for t in range(ntile):
                 f = False
                 for x in range(t * TW, min(W, (t + 1) * TW)):
                     f = f or fl[x]
                 colAs[c, t] = f
-            fl[:] = False
-            for y in range(y0, y1):
-                row = sB[c, y]
-                for x in range(W):
-                    fl[x] = fl[x] or (row[x] != 0.0)
+            band_columns_active(sB, c, y0, y1, fl)
             for x in range(W):
                 cntBs[c, x + 1] = cntBs[c, x] + (1 if fl[x] else 0)
         for k0 in range(0, L, DC):
@@ -297,8 +334,7 @@ def bw_accum(Ap, Bp, ca, cb, mA, sA, mB, sB, ds, r, accF, accB, BAND, DC, TW):
                     continue
                 for k in range(k0, k1):
                     d = ds[k]
-                    x0 = max(0, d)
-                    x1 = min(W, W + d)
+                    x0, x1 = overlap(d, W)
                     if x1 <= x0:
                         continue
                     t = x0 // TW
@@ -326,22 +362,10 @@ def bw_accum(Ap, Bp, ca, cb, mA, sA, mB, sB, ds, r, accF, accB, BAND, DC, TW):
                         m = xe - xs
                         xq0 = xs - d
                         nX = m + 2 * r
-                        for j in range(nX):
-                            V[j] = 0.0
-                        for v in range(n):
-                            ar = Ap[c, y0 + v, xs:xs + nX]
-                            br = Bp[c, y0 + v, xq0:xq0 + nX]
-                            for j in range(nX):
-                                V[j] += (np.float64(ar[j]) - cac) * (np.float64(br[j]) - cbc)
+                        products_init(Ap, Bp, c, y0, n, xs, xq0, nX, cac, cbc, V)
                         for y in range(y0, y1):
                             if y > y0:
-                                ai = Ap[c, y + 2 * r, xs:xs + nX]
-                                bi = Bp[c, y + 2 * r, xq0:xq0 + nX]
-                                ao = Ap[c, y - 1, xs:xs + nX]
-                                bo = Bp[c, y - 1, xq0:xq0 + nX]
-                                for j in range(nX):
-                                    V[j] += ((np.float64(ai[j]) - cac) * (np.float64(bi[j]) - cbc)
-                                             - (np.float64(ao[j]) - cac) * (np.float64(bo[j]) - cbc))
+                                products_slide(Ap, Bp, c, y + 2 * r, y - 1, xs, xq0, nX, cac, cbc, V)
                             hsum(V, T1, T2, S, nX, n)
                             yb = y - y0
                             mar = mA[c, y, xs:xe]

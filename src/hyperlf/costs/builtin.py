@@ -5,16 +5,8 @@ Default windows and optimiser parameters for two-view stereo were tuned on **Ven
 (graph cuts weight {1,2,4,8} x truncation {2,4,8} with the coarse-to-fine solver; SGM p1
 {0.5,1,2} x p2 {4,8,16}; windows {5,9} for ssd/ncc/rsncc, {5,7} for census; criterion Venus
 bad5.0, ties by bad2.0), then fixed for every other scene.  ``--tune`` prints the ``windows``
-and ``params`` to paste here; the scores behind them are in BENCHMARKS.md.
-
-References
-----------
-.. [1] X. Shen, L. Xu, Q. Zhang, J. Jia, "Multi-modal and multi-spectral registration for
-   natural images", ECCV 2014.
-.. [2] R. Zabih, J. Woodfill, "Non-parametric local transforms for computing visual
-   correspondence", ECCV 1994.
-.. [3] K. Zhu, Y. Xue, Q. Fu, S. B. Kang, X. Chen, J. Yu, "Hyperspectral Light Field Stereo
-   Matching" (the paper this library implements).
+and ``params`` to paste here; the scores behind them are in BENCHMARKS.md.  The papers behind
+the costs are listed in :mod:`hyperlf.costs` (References).
 """
 
 from __future__ import annotations
@@ -35,6 +27,17 @@ def _sgm(p1: float, p2: float) -> dict:
     return {"p1": p1, "p2": p2, "paths": 8, "smoothness": "p1p2"}
 
 
+class _FunctionCost(Cost):
+    """A built-in cost whose rectified-pair volume is one function of :mod:`hyperlf.costs.pair`
+    called as ``pair_function(left, right, dmin, dmax, window, impl=impl, **options)``."""
+
+    pair_function = None
+
+    def pair_volume(self, left, right, dmin, dmax, *, window=None, impl="auto", **options):
+        return type(self).pair_function(left, right, dmin, dmax, self.window_for(window),
+                                        impl=impl, **options)
+
+
 class SSD(Cost):
     """Window mean of ``(InL - InR)^2`` with ``In = I / mean(I)`` (rectified pairs only)."""
 
@@ -45,11 +48,10 @@ class SSD(Cost):
     params = {"graphcut": _graphcut(8.0, 8.0), "sgm": _sgm(1.0, 16.0)}
 
     def pair_volume(self, left, right, dmin, dmax, *, window=None, impl="auto", **options):
-        return _pair.ssd_volume(left, right, dmin, dmax, self.window if window is None else window,
-                                **options)
+        return _pair.ssd_volume(left, right, dmin, dmax, self.window_for(window), **options)
 
 
-class NCC(Cost):
+class NCC(_FunctionCost):
     """``1 - NCC`` of intensities; NCC is 0 (cost 1) where either patch's variance is below
     ``tau_rel`` (default 1e-5) times the view's mean patch variance (flat patch)."""
 
@@ -58,28 +60,20 @@ class NCC(Cost):
     window = 5
     windows = {"graphcut": 5, "sgm": 5, "wta": 5}
     params = {"graphcut": _graphcut(8.0, 4.0), "sgm": _sgm(2.0, 16.0)}
-
-    def pair_volume(self, left, right, dmin, dmax, *, window=None, impl="auto", **options):
-        return _pair.ncc_volume(left, right, dmin, dmax, self.window if window is None else window,
-                                impl=impl, **options)
+    pair_function = _pair.ncc_volume
 
     def view_volume(self, ref_img, img, shifts, *, window=None, valid=None, tau_rel=1e-5,
                     **options):
-        return _lf.ncc_view_volume(ref_img, img, shifts, self.window if window is None else window,
-                                   tau_rel)
+        return _lf.ncc_view_volume(ref_img, img, shifts, self.window_for(window), tau_rel)
 
 
-class RSNCC(Cost):
-    """Robust selective NCC [1]_: ``rho(1 - NCC(In)) + tau rho(1 - NCC(|grad In|))``.
+class RSNCC(_FunctionCost):
+    """Robust selective NCC (Shen et al. 2014, :mod:`hyperlf.costs` References [1]):
+    ``rho(1 - NCC(In)) + tau rho(1 - NCC(|grad In|))``.
 
     ``rho(x) = -log(exp(-|x|) + exp(|x| - 2))``, ``tau = 1`` (option ``rs_tau``, alias
     ``tau``); ``grad`` is the central difference of ``In`` (borders replicated), ``|grad|``
     its Euclidean magnitude.
-
-    References
-    ----------
-    .. [1] X. Shen, L. Xu, Q. Zhang, J. Jia, "Multi-modal and multi-spectral registration for
-       natural images", ECCV 2014.
     """
 
     name = "rsncc"
@@ -87,28 +81,24 @@ class RSNCC(Cost):
     window = 5
     windows = {"graphcut": 5}
     params = {"graphcut": _graphcut(8.0, 4.0), "sgm": _sgm(2.0, 16.0)}
+    pair_function = _pair.rsncc_volume
 
     def pair_volume(self, left, right, dmin, dmax, *, window=None, impl="auto", tau=None,
                     **options):
         if tau is not None:
             options["rs_tau"] = tau
-        return _pair.rsncc_volume(left, right, dmin, dmax,
-                                  self.window if window is None else window, impl=impl, **options)
+        return super().pair_volume(left, right, dmin, dmax, window=window, impl=impl, **options)
 
     def view_volume(self, ref_img, img, shifts, *, window=None, valid=None, tau_rel=1e-5,
                     rs_tau=1.0, **options):
-        return _lf.rsncc_view_volume(ref_img, img, shifts,
-                                     self.window if window is None else window, tau_rel, rs_tau)
+        return _lf.rsncc_view_volume(ref_img, img, shifts, self.window_for(window), tau_rel,
+                                     rs_tau)
 
 
-class Census(Cost):
-    """Hamming distance of census codes [1]_: one bit per neighbour of the window (48 bits at
-    7 x 7), set where the neighbour is strictly less than the centre, replicate border.
-
-    References
-    ----------
-    .. [1] R. Zabih, J. Woodfill, "Non-parametric local transforms for computing visual
-       correspondence", ECCV 1994.
+class Census(_FunctionCost):
+    """Hamming distance of census codes (Zabih & Woodfill 1994, :mod:`hyperlf.costs`
+    References [2]): one bit per neighbour of the window (48 bits at 7 x 7), set where the
+    neighbour is strictly less than the centre, replicate border.
     """
 
     name = "census"
@@ -116,28 +106,20 @@ class Census(Cost):
     window = 7
     windows = {"graphcut": 7, "sgm": 5, "wta": 5}
     params = {"graphcut": _graphcut(4.0, 8.0), "sgm": _sgm(2.0, 16.0)}
-
-    def pair_volume(self, left, right, dmin, dmax, *, window=None, impl="auto", **options):
-        return _pair.census_volume(left, right, dmin, dmax,
-                                   self.window if window is None else window, impl=impl, **options)
+    pair_function = _pair.census_volume
 
     def view_volume(self, ref_img, img, shifts, *, window=None, valid=None, **options):
-        return _lf.census_view_volume(ref_img, img, shifts,
-                                      self.window if window is None else window)
+        return _lf.census_view_volume(ref_img, img, shifts, self.window_for(window))
 
 
 class BWNCC(Cost):
-    """BWNCC on the spectral-invariant descriptor [1]_ (SPEC §3, :mod:`hyperlf.descriptor`).
+    """BWNCC on the spectral-invariant descriptor (Zhu et al., :mod:`hyperlf.costs`
+    References [3]; SPEC §3, :mod:`hyperlf.descriptor`).
 
     ``paper=False`` (``bwncc``): ``DescriptorParams.default()`` with NCC patch ``n = w`` for
     each level's channels; ``paper=True`` (``bwncc-paper``): the literal
     ``DescriptorParams.paper()`` with ``n = 5`` for all channels.  An explicit window sets
     ``n`` for all channels.
-
-    References
-    ----------
-    .. [1] K. Zhu, Y. Xue, Q. Fu, S. B. Kang, X. Chen, J. Yu, "Hyperspectral Light Field
-       Stereo Matching".
     """
 
     window = None

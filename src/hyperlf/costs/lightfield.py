@@ -21,14 +21,7 @@ invalid (:func:`view_costs` returns the mask with the volume).
 Every evaluator takes ``shifts``, a list of ``(sx, sy)`` with ``sample = img(p + (sx, sy))``,
 and returns float32 ``(L, H, W)``; :func:`view_costs` picks the cost from the registry and
 applies the out-of-image rule.  At integer shifts the results equal the rectified-pair ones
-(tests).
-
-References
-----------
-.. [1] X. Shen, L. Xu, Q. Zhang, J. Jia, "Multi-modal and multi-spectral registration for
-   natural images", ECCV 2014 (RSNCC).
-.. [2] R. Zabih, J. Woodfill, "Non-parametric local transforms for computing visual
-   correspondence", ECCV 1994 (census).
+(tests).  The papers behind the costs are listed in :mod:`hyperlf.costs` (References).
 """
 
 from __future__ import annotations
@@ -140,7 +133,8 @@ def ncc_view_volume(ref_img, img, shifts, window: int = 5, tau_rel: float = 1e-5
 
 def rsncc_view_volume(ref_img, img, shifts, window: int = 5, tau_rel: float = 1e-5,
                       rs_tau: float = 1.0) -> np.ndarray:
-    """RSNCC [1]_ at each shift: ``rho(1 - NCC(In)) + rs_tau * rho(1 - NCC(|grad In|))``.
+    """RSNCC (Shen et al. 2014) at each shift:
+    ``rho(1 - NCC(In)) + rs_tau * rho(1 - NCC(|grad In|))``.
 
     The gradient term is unchanged by a contrast reversal between bands.  The two NCCs run as
     two channels of one kernel call (one per core), each with its own variance thresholds, so
@@ -163,7 +157,7 @@ def rsncc_view_volume(ref_img, img, shifts, window: int = 5, tau_rel: float = 1e
 
 
 def census_view_volume(ref_img, img, shifts, window: int = 7, impl: str = "numba") -> np.ndarray:
-    """Census [2]_ Hamming costs of the reference against ``img`` shifted by each ``(sx, sy)``.
+    """Census (Zabih & Woodfill 1994) Hamming costs of the reference against ``img`` shifted by each ``(sx, sy)``.
 
     ``impl="numpy"``: the reference (shift with :func:`hyperlf.warp.shift_map`, then
     :func:`hyperlf.costs.census_transform` and a popcount); ``"numba"``: one fused kernel,
@@ -313,12 +307,12 @@ def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | 
     --------
     >>> import numpy as np
     >>> from hyperlf.costs import view_costs
-    >>> rng = np.random.default_rng(0)
-    >>> a = rng.random((16, 20)) + 0.5
+    >>> a = np.random.default_rng(0).random((16, 20)) + 0.5
     >>> b = np.roll(a, 1, axis=1)                      # the view sees p at x + 1
-    >>> C, valid = view_costs(a, b, (-1.0, 0.0), [0.0, 1.0, 2.0], "census")
-    >>> int(C[:, 8, 10].argmin())                      # label 1
-    1
+    >>> labels = np.arange(0.0, 2.5, 0.5)              # sub-pixel labels
+    >>> C, valid = view_costs(a, b, (-1.0, 0.0), labels, "census")
+    >>> float(labels[C[:, 8, 10].argmin()])
+    1.0
     """
     from .registry import get_cost
     cost = get_cost(metric, light_field=True)

@@ -5,14 +5,7 @@ Every evaluator returns ``cost[L, H, W]`` float32, ``L = dmax - dmin + 1``, inde
 ``d = dmin + k``, lower is better, with the out-of-image rule applied (:func:`fill_invalid`).
 The conventions (border rule, numerics, ``impl``) are those of :mod:`hyperlf.costs`.  The
 registry (:mod:`hyperlf.costs.registry`) calls these functions; they can also be called
-directly.
-
-References
-----------
-.. [1] X. Shen, L. Xu, Q. Zhang, J. Jia, "Multi-modal and multi-spectral registration for
-   natural images", ECCV 2014 (RSNCC).
-.. [2] R. Zabih, J. Woodfill, "Non-parametric local transforms for computing visual
-   correspondence", ECCV 1994 (census).
+directly.  The papers behind the costs are listed in :mod:`hyperlf.costs` (References).
 """
 
 from __future__ import annotations
@@ -29,6 +22,7 @@ __all__ = [
     "candidate_validity",
     "right_validity",
     "fill_invalid",
+    "worst_fill",
     "rho",
     "pad_replicate",
     "box_mean",

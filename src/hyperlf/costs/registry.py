@@ -90,6 +90,10 @@ class Cost:
         """The two-view default window for ``optimiser`` (None: the cost's own default)."""
         return self.windows.get(optimiser, None)
 
+    def window_for(self, window: int | None) -> int | None:
+        """The window an evaluator uses: ``window``, or the cost's own :attr:`window` if None."""
+        return self.window if window is None else window
+
     def default_params(self, optimiser: str) -> dict:
         """The cost's own optimiser parameters for ``optimiser`` (a fresh copy; may be empty)."""
         return dict(self.params.get(optimiser, {}))
