@@ -1,0 +1,128 @@
+"""Behaviour-preserving refactors: run the public computations on small inputs and compare
+every array bit for bit with a recording made before the change.
+
+    python benchmarks/regression.py save before.npz      # on the commit before the change
+    python benchmarks/regression.py compare before.npz   # after; ends "0 not bit-identical"
+
+About 160 arrays (every cost volume in both implementations, two-view stereo for every cost x
+optimiser, every light-field cost, H-LF depth with every cue and optimiser, completion,
+rendering, the baselines, warp and the regularisers) in under a minute on 2 cores.  Run both
+with the same environment (``HYPERLF_DATA`` set or unset in both: it changes the synthetic
+scenes' reflectances) and the same number of threads.
+"""
+import sys, time, warnings
+import numpy as np
+warnings.filterwarnings("ignore")
+
+def cases():
+    import hyperlf
+    from hyperlf import synthesis, costs, twoview, hlf, completion, render, baselines, warp, regularisers
+    rng = np.random.default_rng(0)
+    lf = synthesis.procedural_scene(seed=1, rows=3, cols=4, height=40, width=48, disparity_range=(-1.5, 1.5))
+    yield "lf_views", lf.views
+    # two-view pair from the light field: red-ish vs blue-ish views of one row
+    L = lf.views[1, 2].astype(np.float32); R = lf.views[1, 1].astype(np.float32)
+    # integer-shift pair with real structure
+    base = rng.random((36, 52)).astype(np.float32)
+    import cv2
+    base = cv2.GaussianBlur(base, (0, 0), 1.2) + 0.05
+    Lp = base[:, 6:46].copy(); Rp = (1.3 - base[:, 4:44]).copy()
+    for m in ["ssd", "ncc", "rsncc", "census", "bwncc", "bwncc-paper", "fused", "census-rsncc"]:
+        for impl in ["numpy", "numba"]:
+            if m == "ssd" and impl == "numba":
+                continue
+            yield f"cv_{m}_{impl}", costs.cost_volume(Lp, Rp, 0, 5, metric=m, impl=impl)
+    for m in ["auto", "ncc", "census", "rsncc", "ssd", "bwncc", "fused"]:
+        for opt in ["graphcut", "sgm", "wta"]:
+            r = twoview.stereo(Lp, Rp, (0, 5), metric=m, optimizer=opt, subpixel=(opt == "sgm"))
+            yield f"st_{m}_{opt}_disp", r.disparity
+            yield f"st_{m}_{opt}_conf", r.confidence
+    r = twoview.stereo(Lp, Rp, (0, 5), optimizer="graphcut", occlusion="none", params={"levels": 0})
+    yield "st_gc_l0", r.disparity
+    labels = hlf.make_labels(-1.5, 1.5, 7)
+    for m in hlf.CORR_METRICS:
+        C, v = hlf.view_costs(lf.views[1, 1], lf.views[0, 3], (1.0, -1.0), labels, m)
+        yield f"vc_{m}", C
+        yield f"vc_{m}_valid", v
+    lab = 9
+    for name, kw in [("default", {}), ("vs", dict(view_selection=True)), ("split", dict(occlusion_split=True)),
+                     ("vs_split", dict(view_selection=True, occlusion_split=True)),
+                     ("tv", dict(defocus="tv")), ("paper", dict(defocus="paper")), ("sgm", dict(optimizer="sgm")),
+                     ("wta", dict(optimizer="wta")), ("ncc", dict(metric="ncc")), ("census", dict(metric="census")),
+                     ("rsncc", dict(metric="rsncc")), ("bwnccp", dict(metric="bwncc-paper")),
+                     ("occw", dict(params=hlf.DepthParams(occlusion_weight=0.3))),
+                     ("norefine", dict(params=hlf.DepthParams(refine=False, median_radius=0))),
+                     ("numpy", dict(params=hlf.DepthParams(impl="numpy")))]:
+        res = hlf.depth(lf, n_labels=lab, save_intermediate=True, **kw)
+        yield f"d_{name}_disp", res.disparity
+        yield f"d_{name}_conf", res.confidence
+        yield f"d_{name}_fc", res.f_c
+        if res.f_d is not None:
+            yield f"d_{name}_fd", res.f_d
+        yield f"d_{name}_U", res.intermediate["unary"]
+    gt = lf.gt_disparity[lf.reference]
+    cr = completion.complete(lf, gt)
+    yield "comp_cube", cr.cube; yield "comp_mask", cr.mask
+    cr = completion.complete(lf, None if gt is None else gt, optimizer="graphcut")
+    yield "comp_gc_cube", cr.cube
+    cr = completion.complete(lf, gt, infer=False, optimizer="wta")
+    yield "comp_wta_cube", cr.cube
+    nr = completion.naive_completion(lf, gt)
+    yield "naive_cube", nr.cube; yield "naive_mask", nr.mask
+    cube = cr.cube
+    wl = cr.wavelengths
+    yield "emu", render.emulate_camera(cube[1, 2], wl)
+    yield "emu_srgb", render.emulate_camera(cube[1, 2], wl, output="srgb")
+    offs = lf.offsets
+    yield "refocus", render.refocus(cube, offs, disparity=0.7, wavelengths=wl)
+    yield "refocus_map", render.refocus(cube, offs, disparity=gt, wavelengths=wl)
+    yield "stack", np.asarray(render.focal_stack(cube, offs, disparities=(-1.0, 0.25), wavelengths=wl))
+    yield "allfocus", render.all_focus(cube, offs, disparity=gt, wavelengths=wl)
+    for meth in ["tao2013", "wang2015", "lin2015"]:
+        b = getattr(baselines, meth)(lf, n_labels=lab)
+        yield f"bl_{meth}", b.disparity
+    x = rng.uniform(-2, 50, (20, 30)); y = rng.uniform(-2, 42, (20, 30))
+    v, ok = warp.sample_bilinear(lf.views[0, 0], x, y)
+    yield "warp_sb", v; yield "warp_sb_ok", ok
+    yield "warp_shift", warp.shift_image(lf.views[0, 0], 0.3, -1.7)[0]
+    yield "warp_ref", warp.warp_to_reference(lf.views[0, 0], gt, (1.0, -1.0))[0]
+    yield "warp_fwd", warp.forward_warp_disparity(gt, (1.0, -1.0))
+    yield "shiftmap", hlf.shift_map(lf.views[0, 0], 0.4, -0.6, 2)[0]
+    c = rng.random((6, 20, 24)).astype(np.float32)
+    yield "reg_sgm", regularisers.sgm(c, 0.2, 1.0)
+    yield "reg_gc", regularisers.graphcut(c, weight=0.3, truncation=2.0)
+    yield "reg_gcm", regularisers.graphcut_multiscale(c, weight=0.3, truncation=2.0)
+    yield "reg_wm", regularisers.weighted_median(c[0] * 5, c[1], 3, 0.1)
+
+def main():
+    mode, path = sys.argv[1], sys.argv[2]
+    t0 = time.time()
+    if mode == "save":
+        out = {}
+        for k, v in cases():
+            out[k] = np.asarray(v)
+        np.savez_compressed(path, **out)
+        print(f"saved {len(out)} arrays in {time.time()-t0:.0f}s")
+        return
+    ref = np.load(path)
+    seen = set(); bad = 0; inexact = 0
+    for k, v in cases():
+        seen.add(k)
+        v = np.asarray(v)
+        if k not in ref:
+            print("NEW", k); continue
+        r = ref[k]
+        if r.shape != v.shape:
+            print("SHAPE", k, r.shape, v.shape); bad += 1; continue
+        if r.dtype != v.dtype:
+            print("DTYPE", k, r.dtype, v.dtype)
+        if np.array_equal(r, v, equal_nan=True):
+            continue
+        d = np.nanmax(np.abs(r.astype(np.float64) - v.astype(np.float64))) if r.size else 0
+        nd = int((~((r == v) | (np.isnan(r.astype(float)) & np.isnan(v.astype(float))))).sum())
+        print(f"DIFF {k}: max abs {d:.3g}, {nd}/{r.size} entries differ")
+        inexact += 1
+    for k in set(ref.files) - seen:
+        print("MISSING", k)
+    print(f"compared {len(seen)} arrays in {time.time()-t0:.0f}s: {bad} shape errors, {inexact} not bit-identical")
+main()
