@@ -15,13 +15,10 @@ import numpy as np
 warnings.filterwarnings("ignore")
 
 def cases():
-    import hyperlf
     from hyperlf import synthesis, costs, twoview, hlf, completion, render, baselines, warp, regularisers
     rng = np.random.default_rng(0)
     lf = synthesis.procedural_scene(seed=1, rows=3, cols=4, height=40, width=48, disparity_range=(-1.5, 1.5))
     yield "lf_views", lf.views
-    # two-view pair from the light field: red-ish vs blue-ish views of one row
-    L = lf.views[1, 2].astype(np.float32); R = lf.views[1, 1].astype(np.float32)
     # integer-shift pair with real structure
     base = rng.random((36, 52)).astype(np.float32)
     import cv2
