@@ -1,4 +1,8 @@
-"""Files as a careful user sees them: output modes follow the umask (issue 10, item 5)."""
+"""Files as a careful user sees them (issue 10, items 1, 2 and 5).
+
+Output modes follow the umask; ``write_capture(overwrite=True)`` deletes nothing outside its folder
+and nothing it must keep; ``read_capture`` reads nothing outside its folder, symlinks included.
+"""
 
 from __future__ import annotations
 
@@ -11,10 +15,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import tomli_w
 
 import hyperlf._atomic as atomic
 from hyperlf import LightField, raster_wavelengths
-from hyperlf.formats import write_capture
+from hyperlf.cli import main
+from hyperlf.errors import FormatError
+from hyperlf.formats import read_capture, write_capture, write_image
+from hyperlf.formats.capture import MANIFEST
+
+try:
+    import tomllib
+except ImportError:  # pragma: no cover
+    import tomli as tomllib
 
 UMASKS = [0o022, 0o077, 0o002, 0o027]
 
@@ -127,3 +140,111 @@ def test_cli_outputs_follow_the_umask(tmp_path, mask):
     files = not_cube(p for p in out.rglob("*") if p.is_file())
     assert len(files) >= 5 and any(p.suffix == ".png" for p in files)
     assert {str(p): mode(p) for p in files} == {str(p): 0o666 & ~mask for p in files}
+
+
+# ----------------------------------------------------------------------------- capture helpers
+
+def manifest(folder: Path) -> dict:
+    return tomllib.loads((folder / MANIFEST).read_text())
+
+
+def save_manifest(folder: Path, doc: dict) -> None:
+    (folder / MANIFEST).write_text(tomli_w.dumps(doc))
+
+
+def plant(path: Path, text: str) -> Path:
+    """A user's file with known content."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+    return path
+
+
+def old_capture(tmp_path: Path, rng, *names: str) -> Path:
+    """A 2 x 2 capture whose manifest also names ``names`` (hostile or stale old entries)."""
+    folder = tmp_path / "cap"
+    write_capture(LightField(views=rng.random((2, 2, 6, 5))), folder, bit_depth=8)
+    doc = manifest(folder)
+    doc["view"] += [{"row": 9, "col": i, "file": n} for i, n in enumerate(names)]
+    save_manifest(folder, doc)
+    return folder
+
+
+def overwrite(folder: Path, rng) -> None:
+    """Write a smaller 1 x 2 capture over ``folder``; it must come out whole and readable."""
+    write_capture(LightField(views=rng.random((1, 2, 6, 5))), folder, bit_depth=8, overwrite=True)
+    assert read_capture(folder).grid_shape == (1, 2)
+
+
+# ----------------------------------------------------------------------------- overwrite
+def test_overwrite_removes_the_previous_captures_stale_files(tmp_path, rng):
+    folder = old_capture(tmp_path, rng, "sub/old.png")
+    plant(folder / "sub" / "old.png", "stale view in a real subfolder")
+    plant(folder / "notes.txt", "not named by the manifest")
+    overwrite(folder, rng)
+    assert sorted(os.listdir(folder)) == [MANIFEST, "notes.txt", "sub", "view_r0_c0.png",
+                                          "view_r0_c1.png"]
+    assert os.listdir(folder / "sub") == []  # the stale file went, the folder stays
+    assert (folder / "notes.txt").read_text() == "not named by the manifest"
+
+
+def test_overwrite_never_follows_a_symlinked_folder(tmp_path, rng):
+    victim = plant(tmp_path / "elsewhere" / "precious.png", "user data")
+    folder = old_capture(tmp_path, rng, "link/precious.png")
+    (folder / "link").symlink_to(tmp_path / "elsewhere", target_is_directory=True)
+    overwrite(folder, rng)
+    assert victim.read_text() == "user data"
+    assert (folder / "link").is_symlink()
+
+
+@pytest.mark.parametrize("kind", ["parent", "absolute", "nested parent"])
+def test_overwrite_never_leaves_the_folder(tmp_path, rng, kind):
+    victim = plant(tmp_path / "outside.png", "user data")
+    name = {"parent": "../outside.png", "absolute": str(victim),
+            "nested parent": "sub/../../outside.png"}[kind]
+    folder = old_capture(tmp_path, rng, name)
+    (folder / "sub").mkdir()
+    overwrite(folder, rng)
+    assert victim.read_text() == "user data"
+
+
+@pytest.mark.parametrize("name", [MANIFEST, f"./{MANIFEST}", "view_r0_c0.png", "./view_r0_c1.png"])
+def test_overwrite_keeps_the_new_manifest_and_views(tmp_path, rng, name):
+    folder = old_capture(tmp_path, rng, name)
+    overwrite(folder, rng)  # reads the new capture back, manifest included
+    assert sorted(os.listdir(folder)) == [MANIFEST, "view_r0_c0.png", "view_r0_c1.png"]
+
+
+def test_overwrite_keeps_old_gt_names_that_the_new_capture_reuses(tmp_path, rng):
+    folder = old_capture(tmp_path, rng)
+    doc = manifest(folder)
+    save_manifest(folder, dict(doc, gt_disparity=MANIFEST, gt_cube="./view_r0_c0.png"))
+    overwrite(folder, rng)
+    assert sorted(os.listdir(folder)) == [MANIFEST, "view_r0_c0.png", "view_r0_c1.png"]
+
+
+@pytest.mark.parametrize("where", ["outside", "inside"])
+def test_overwrite_leaves_symlinks_and_their_targets(tmp_path, rng, where):
+    folder = old_capture(tmp_path, rng, "alias.png")
+    target = plant((tmp_path if where == "outside" else folder) / "target.png", "linked data")
+    (folder / "alias.png").symlink_to(target)
+    overwrite(folder, rng)
+    assert (folder / "alias.png").is_symlink()  # not the writer's file: left alone
+    assert target.read_text() == "linked data"
+
+
+def test_overwrite_leaves_folders_named_as_files(tmp_path, rng):
+    folder = old_capture(tmp_path, rng, "views", "")
+    plant(folder / "views" / "keep.png", "inside a folder named by the old manifest")
+    overwrite(folder, rng)
+    assert (folder / "views" / "keep.png").read_text() == "inside a folder named by the old manifest"
+
+
+def test_cli_overwrite_touches_nothing_outside(tmp_path, rng):
+    victims = [plant(tmp_path / "elsewhere" / "a.png", "A"), plant(tmp_path / "b.png", "B")]
+    folder = old_capture(tmp_path, rng, "link/a.png", "../b.png", str(victims[0]), MANIFEST)
+    (folder / "link").symlink_to(tmp_path / "elsewhere", target_is_directory=True)
+    code = main(["-q", "synth", "procedural", "--size", "20,24", "--grid", "2,2", "--no-pictures",
+                 "-o", str(folder), "--overwrite"])
+    assert code == 0
+    assert [v.read_text() for v in victims] == ["A", "B"]
+    assert read_capture(folder).grid_shape == (2, 2)

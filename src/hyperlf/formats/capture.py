@@ -33,12 +33,16 @@ Decisions
   or declare ``channels = 3``.
 * The manifest is written last, so a folder without ``capture.toml`` is an unfinished capture.
 * File names in the manifest are relative to the folder and may not leave it.
+* ``write_capture(..., overwrite=True)`` deletes only what the old capture left that the new
+  one does not use, and only plain files really inside the folder (see :func:`write_capture`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
+import stat
 import sys
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path, PurePosixPath
@@ -108,13 +112,21 @@ def _pair(man: Path, doc: dict, key: str, kind: str, required: bool):
     return tuple(int(x) if kind == "int" else float(x) for x in v)
 
 
+def _entry_parts(name: str) -> tuple[str, ...] | None:
+    """The components of a relative manifest file name; None when it is absolute or uses '..'."""
+    pp = PurePosixPath(name.replace("\\", "/"))
+    if pp.is_absolute() or ".." in pp.parts or Path(name).is_absolute() or not pp.parts:
+        return None
+    return pp.parts
+
+
 def _safe_file(man: Path, root: Path, name, what: str) -> Path:
     if not isinstance(name, str) or not name.strip():
         raise _err(man, f"{what} must be a non-empty file name string, got {name!r}")
-    pp = PurePosixPath(name.replace("\\", "/"))
-    if pp.is_absolute() or ".." in pp.parts or Path(name).is_absolute():
+    parts = _entry_parts(name)
+    if parts is None:
         raise _err(man, f"{what} {name!r} must be a path inside the capture folder")
-    return root / Path(*pp.parts)
+    return root / Path(*parts)
 
 
 def _read_manifest(root: Path) -> tuple[Path, dict]:
@@ -492,14 +504,56 @@ def _metadata_tables(lf: LightField, doc: dict) -> None:
         doc["metadata"] = meta_t
 
 
-def _remove_stale(man: Path, root: Path, names: set[str]) -> None:
-    for name in names:
-        try:
-            target = _safe_file(man, root, name, "old file")
-        except FormatError:
+def _unlink_plain_file(root: Path, parts: tuple[str, ...], protected: set) -> None:
+    """Unlink ``root/parts`` only when it is a regular file reached through real folders.
+
+    Each folder on the way is opened with ``O_NOFOLLOW`` relative to the previous one, so a
+    symlinked folder (even one swapped in meanwhile) is never followed; the last component is
+    examined without following it, so a symlink is left alone, and ``protected`` (device, inode)
+    pairs are never unlinked.
+    """
+    if not {os.open, os.stat, os.unlink} <= os.supports_dir_fd:  # pragma: no cover - not POSIX
+        path = root.joinpath(*parts)
+        if os.path.realpath(path) != os.path.join(os.path.realpath(root), *parts):
+            return
+        st = os.lstat(path)
+        if stat.S_ISREG(st.st_mode) and (st.st_dev, st.st_ino) not in protected:
+            path.unlink()
+        return
+    dir_flags = os.O_RDONLY | os.O_DIRECTORY
+    fd = os.open(root, dir_flags)
+    try:
+        for part in parts[:-1]:
+            sub = os.open(part, dir_flags | os.O_NOFOLLOW, dir_fd=fd)
+            os.close(fd)
+            fd = sub
+        st = os.stat(parts[-1], dir_fd=fd, follow_symlinks=False)
+        if stat.S_ISREG(st.st_mode) and (st.st_dev, st.st_ino) not in protected:
+            os.unlink(parts[-1], dir_fd=fd)
+    finally:
+        os.close(fd)
+
+
+def _remove_stale(root: Path, old_names: set[str], keep: set[str]) -> None:
+    """Delete the files the old manifest named that the new capture does not use.
+
+    Only plain files really inside ``root`` go. Left alone: the manifest and every file in
+    ``keep`` (what the new capture wrote, also matched by inode), an absolute name or one with
+    '..', anything reached through a symlinked folder, a symlink itself (the writer did not make
+    it, and its target is not the capture's), a folder, anything missing or unreadable.
+    """
+    keep = keep | {MANIFEST}
+    protected = set()
+    for name in keep:
+        with contextlib.suppress(OSError):
+            st = os.lstat(root / name)
+            protected.add((st.st_dev, st.st_ino))
+    for name in old_names:
+        parts = _entry_parts(name) if isinstance(name, str) and name.strip() else None
+        if parts is None or "/".join(parts) in keep:
             continue
-        if target.is_file():
-            target.unlink()
+        with contextlib.suppress(OSError):
+            _unlink_plain_file(root, parts, protected)
 
 
 def write_capture(lightfield: LightField, folder: str | os.PathLike, bit_depth: int = 16,
@@ -519,7 +573,9 @@ def write_capture(lightfield: LightField, folder: str | os.PathLike, bit_depth: 
     overwrite : bool
         Refuse (InvalidInputError) to write into a folder that is not empty unless True. When
         True, the old manifest is removed first and files it named but the new capture does not
-        use are deleted afterwards.
+        use are deleted afterwards, but only plain files really inside ``folder``: never the
+        new manifest or a file the new capture wrote, never a symlink (the link and its target
+        both stay), nor anything reached through ``..``, an absolute path or a symlinked folder.
     image_format : {"png", "tiff"}
         Container of the view files (``bit_depth=32`` always uses TIFF).
     progress : bool
@@ -566,5 +622,5 @@ def write_capture(lightfield: LightField, folder: str | os.PathLike, bit_depth: 
     except (TypeError, ValueError) as exc:
         raise InvalidInputError(f"metadata cannot be stored in TOML: {exc}") from None
     atomic_write_bytes(man, text.encode("utf-8"))  # last: marks the capture complete
-    _remove_stale(man, root, old_files - new_files)
+    _remove_stale(root, old_files, new_files)
     return man
