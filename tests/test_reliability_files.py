@@ -82,7 +82,8 @@ def test_every_capture_file_follows_the_umask(tmp_path, rng, mask, fmt):
     with umask(mask):
         man = write_capture(full_lf(rng), tmp_path / "cap", image_format=fmt)
     files = sorted(man.parent.iterdir())
-    assert {f.suffix for f in files} >= {".toml", ".pfm", ".h5", ".tif" if fmt == "tiff" else ".png"}
+    view_suffix = ".tif" if fmt == "tiff" else ".png"
+    assert {f.suffix for f in files} >= {".toml", ".pfm", ".h5", view_suffix}
     files = not_cube(files)
     assert {f.name: mode(f) for f in files} == {f.name: 0o666 & ~mask for f in files}
     assert mode(man.parent) == 0o777 & ~mask  # the folder too (plain mkdir)
@@ -234,9 +235,9 @@ def test_overwrite_leaves_symlinks_and_their_targets(tmp_path, rng, where):
 
 def test_overwrite_leaves_folders_named_as_files(tmp_path, rng):
     folder = old_capture(tmp_path, rng, "views", "")
-    plant(folder / "views" / "keep.png", "inside a folder named by the old manifest")
+    keep = plant(folder / "views" / "keep.png", "inside a folder named by the old manifest")
     overwrite(folder, rng)
-    assert (folder / "views" / "keep.png").read_text() == "inside a folder named by the old manifest"
+    assert keep.read_text() == "inside a folder named by the old manifest"
 
 
 def test_cli_overwrite_touches_nothing_outside(tmp_path, rng):
@@ -248,3 +249,118 @@ def test_cli_overwrite_touches_nothing_outside(tmp_path, rng):
     assert code == 0
     assert [v.read_text() for v in victims] == ["A", "B"]
     assert read_capture(folder).grid_shape == (2, 2)
+
+
+# ----------------------------------------------------------------------------- reading
+@pytest.fixture
+def cap(tmp_path, rng):
+    """A valid 2 x 2 capture with 8-bit views, ground-truth disparity and cube."""
+    folder = tmp_path / "cap"
+    write_capture(full_lf(rng, H=6, W=5), folder, bit_depth=8)
+    return folder
+
+
+@pytest.fixture
+def no_decoding(monkeypatch):
+    """Record every image, PFM or cube file the capture reader decodes."""
+    import hyperlf.formats.capture as capture
+
+    opened = []
+    def recording(read):
+        def wrapper(path, *args, **kwargs):
+            opened.append(path)
+            return read(path, *args, **kwargs)
+        return wrapper
+
+    for name in ("read_image", "read_pfm", "read_cube_h5"):
+        monkeypatch.setattr(capture, name, recording(getattr(capture, name)))
+    return opened
+
+
+def point(folder: Path, entry: str, **fields) -> None:
+    """Make the manifest name ``entry`` for view (0, 1), or set top-level ``fields``."""
+    doc = manifest(folder)
+    if entry:
+        doc["view"][1]["file"] = entry
+    doc.update(fields)
+    save_manifest(folder, doc)
+
+
+def refused(folder: Path, *words: str) -> str:
+    with pytest.raises(FormatError) as info:
+        read_capture(folder)
+    msg = str(info.value)
+    assert "\n" not in msg and all(w in msg for w in words), msg
+    return msg
+
+
+def test_view_symlink_out_of_the_folder_is_refused_before_decoding(cap, tmp_path, rng, no_decoding):
+    write_image(tmp_path / "outside.png", rng.random((6, 5)), bit_depth=8)
+    (cap / "evil.png").symlink_to(tmp_path / "outside.png")
+    point(cap, "evil.png")
+    refused(cap, "view (0, 1) 'file' 'evil.png'", "resolves outside the capture folder",
+            str(tmp_path / "outside.png"))
+    assert no_decoding == []
+
+
+def test_view_in_a_symlinked_folder_out_of_the_folder_is_refused(cap, tmp_path, rng, no_decoding):
+    write_image(tmp_path / "elsewhere" / "v.png", rng.random((6, 5)), bit_depth=8)
+    (cap / "sub").symlink_to(tmp_path / "elsewhere", target_is_directory=True)
+    point(cap, "sub/v.png")
+    refused(cap, "'sub/v.png'", "resolves outside the capture folder")
+    assert no_decoding == []
+
+
+def test_dangling_symlink_out_of_the_folder_is_refused(cap, tmp_path):
+    (cap / "gone.png").symlink_to(tmp_path / "never-there.png")
+    point(cap, "gone.png")
+    refused(cap, "'gone.png'", "resolves outside the capture folder")
+
+
+@pytest.mark.parametrize("field", ["gt_disparity", "gt_cube", "pattern"])
+def test_ground_truth_symlink_out_of_the_folder_is_refused_before_decoding(cap, tmp_path, field,
+                                                                           no_decoding):
+    src = cap / ("gt_cube.h5" if field == "gt_cube" else "gt_disparity.pfm")
+    os.replace(src, tmp_path / src.name)
+    (cap / src.name).symlink_to(tmp_path / src.name)
+    if field == "pattern":
+        for r, c in [(0, 0), (0, 1), (1, 0), (1, 1)]:
+            os.symlink(tmp_path / src.name, cap / f"gt_r{r}_c{c}.pfm")
+        point(cap, "", gt_disparity="gt_r{row}_c{col}.pfm")
+    refused(cap, "gt_cube" if field == "gt_cube" else "gt_disparity", "resolves outside")
+    assert no_decoding == []
+
+
+def test_symlinks_that_stay_inside_are_read(cap, rng, no_decoding):
+    before = read_capture(cap)
+    (cap / "real").mkdir()
+    os.replace(cap / "view_r0_c1.png", cap / "real" / "v.png")
+    (cap / "alias").symlink_to("real", target_is_directory=True)
+    (cap / "view_r0_c1.png").symlink_to(Path("alias") / "v.png")
+    point(cap, "alias/v.png")
+    np.testing.assert_array_equal(read_capture(cap).views, before.views)
+    point(cap, "view_r0_c1.png")
+    np.testing.assert_array_equal(read_capture(cap).views, before.views)
+    assert cap / "alias" / "v.png" in no_decoding  # the recorder the refusals rely on works
+
+
+def test_a_capture_folder_reached_through_a_symlink_is_read(cap, tmp_path):
+    (tmp_path / "link").symlink_to(cap, target_is_directory=True)
+    assert read_capture(tmp_path / "link").grid_shape == (2, 2)
+
+
+@pytest.mark.parametrize("name", ["../cap/view_r0_c1.png", "sub/../../x.png", "ABS"])
+def test_parent_and_absolute_entries_keep_their_message(cap, name, no_decoding):
+    name = str(cap / "view_r0_c1.png") if name == "ABS" else name
+    point(cap, name)
+    refused(cap, f"view (0, 1) 'file' {name!r} must be a path inside the capture folder")
+    assert no_decoding == []
+
+
+def test_cli_refuses_a_view_outside_with_exit_3(cap, tmp_path, rng, capsys):
+    write_image(tmp_path / "outside.png", rng.random((6, 5)), bit_depth=8)
+    (cap / "evil.png").symlink_to(tmp_path / "outside.png")
+    point(cap, "evil.png")
+    assert main(["info", str(cap)]) == 3
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "resolves outside the capture folder" in err

@@ -32,7 +32,9 @@ Decisions
   silently mixed from colour channels): convert it with :func:`hyperlf.formats.to_grey` first
   or declare ``channels = 3``.
 * The manifest is written last, so a folder without ``capture.toml`` is an unfinished capture.
-* File names in the manifest are relative to the folder and may not leave it.
+* File names in the manifest are relative to the folder and may not leave it, on real paths
+  too: a view file that is a symlink (or sits in a symlinked folder) pointing outside the
+  folder is refused; a symlink that stays inside is fine.
 * ``write_capture(..., overwrite=True)`` deletes only what the old capture left that the new
   one does not use, and only plain files really inside the folder (see :func:`write_capture`).
 """
@@ -121,12 +123,22 @@ def _entry_parts(name: str) -> tuple[str, ...] | None:
 
 
 def _safe_file(man: Path, root: Path, name, what: str) -> Path:
+    """The file ``name`` of the manifest ``man``, refused unless it stays inside ``root``.
+
+    The check is on real paths too: a symlinked file or folder leading out of the capture
+    folder is refused before anything is read.
+    """
     if not isinstance(name, str) or not name.strip():
         raise _err(man, f"{what} must be a non-empty file name string, got {name!r}")
     parts = _entry_parts(name)
     if parts is None:
         raise _err(man, f"{what} {name!r} must be a path inside the capture folder")
-    return root / Path(*parts)
+    path = root / Path(*parts)
+    real, real_root = os.path.realpath(path), os.path.realpath(root)
+    if os.path.commonpath([real, real_root]) != real_root or real == real_root:
+        raise _err(man, f"{what} {name!r} resolves outside the capture folder (to {real}); "
+                        "copy the file into the folder instead of linking to it")
+    return path
 
 
 def _read_manifest(root: Path) -> tuple[Path, dict]:
@@ -247,34 +259,48 @@ def _read_views(root: Path, files: dict, R: int, C: int, channels: int) -> np.nd
     return stack.reshape((R, C) + stack.shape[1:])
 
 
-def _read_gt_disparity(man: Path, root: Path, gspec, R: int, C: int, H: int, W: int):
-    """The ground truth named by ``gt_disparity`` (a file or a {row}/{col} pattern), or None."""
+def _gt_disparity_files(man: Path, root: Path, gspec, R: int, C: int):
+    """The checked file(s) named by ``gt_disparity``: None, one path, or {(row, col): path}."""
     if gspec is None:
         return None
     if not isinstance(gspec, str):
         raise _err(man, f"gt_disparity must be a file name or pattern, got {gspec!r}")
     if "{row}" not in gspec and "{col}" not in gspec:
-        gt = read_pfm(_safe_file(man, root, gspec, "gt_disparity"))
-        if gt.shape != (H, W):
-            raise _err(man, f"ground truth {gspec} is {gt.shape}, views are {(H, W)}")
-        return gt
-    gt = np.empty((R, C, H, W), dtype=np.float32)
+        return _safe_file(man, root, gspec, "gt_disparity")
+    files = {}
     for r, c in [(r, c) for r in range(R) for c in range(C)]:
         try:
             name = gspec.format(row=r, col=c)
         except (KeyError, IndexError, ValueError):
             raise _err(man, f"gt_disparity pattern {gspec!r} may only use {{row}} and {{col}}") from None
-        g = read_pfm(_safe_file(man, root, name, "gt_disparity"))
+        files[(r, c)] = _safe_file(man, root, name, "gt_disparity")
+    return files
+
+
+def _read_gt_disparity(man: Path, root: Path, gfiles, R: int, C: int, H: int, W: int):
+    """The ground truth from :func:`_gt_disparity_files`' answer, or None."""
+    if gfiles is None:
+        return None
+    if isinstance(gfiles, Path):
+        gt = read_pfm(gfiles)
+        if gt.shape != (H, W):
+            raise _err(man, f"ground truth {gfiles.relative_to(root).as_posix()} is {gt.shape}, "
+                            f"views are {(H, W)}")
+        return gt
+    gt = np.empty((R, C, H, W), dtype=np.float32)
+    for (r, c), path in gfiles.items():
+        g = read_pfm(path)
         if g.shape != (H, W):
-            raise _err(man, f"ground truth {name} is {g.shape}, views are {(H, W)}")
+            raise _err(man, f"ground truth {path.relative_to(root).as_posix()} is {g.shape}, "
+                            f"views are {(H, W)}")
         gt[r, c] = g
     return gt
 
 
-def _read_gt_cube(man: Path, root: Path, cspec, R: int, C: int, H: int, W: int):
-    if cspec is None:
+def _read_gt_cube(man: Path, cfile: Path | None, cspec, R: int, C: int, H: int, W: int):
+    if cfile is None:
         return None, None
-    cube, cube_wl, _mask = read_cube_h5(_safe_file(man, root, cspec, "gt_cube"))
+    cube, cube_wl, _mask = read_cube_h5(cfile)
     if cube.shape[:2] != (R, C) or cube.shape[3:] != (H, W):
         raise _err(man, f"gt_cube {cspec} has shape {cube.shape}, expected ({R}, {C}, B, {H}, {W})")
     return cube, cube_wl
@@ -313,7 +339,9 @@ def read_capture(folder: str | os.PathLike) -> LightField:
     DataNotFoundError
         When the folder, the manifest or a file it names is missing.
     FormatError
-        When the manifest is malformed or inconsistent (one line saying what and where).
+        When the manifest is malformed or inconsistent (one line saying what and where), or
+        names a file that leaves the folder: an absolute path, ``..``, or a symlinked file or
+        folder whose real path is outside it (checked before any file is decoded).
 
     Examples
     --------
@@ -330,10 +358,13 @@ def read_capture(folder: str | os.PathLike) -> LightField:
     hd = _manifest_header(man, doc)
     R, C = hd["R"], hd["C"]
     files, wl, pos, n_wl = _view_table(man, root, doc, R, C)
+    gfiles = _gt_disparity_files(man, root, doc.get("gt_disparity"), R, C)
+    cspec = doc.get("gt_cube")
+    cfile = None if cspec is None else _safe_file(man, root, cspec, "gt_cube")
     views = _read_views(root, files, R, C, hd["channels"])
     H, W = views.shape[2:4]
-    gt = _read_gt_disparity(man, root, doc.get("gt_disparity"), R, C, H, W)
-    cube, cube_wl = _read_gt_cube(man, root, doc.get("gt_cube"), R, C, H, W)
+    gt = _read_gt_disparity(man, root, gfiles, R, C, H, W)
+    cube, cube_wl = _read_gt_cube(man, cfile, cspec, R, C, H, W)
     metadata = _manifest_metadata(doc, root, hd["bit_depth"])
     try:
         return LightField(
