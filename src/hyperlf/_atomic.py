@@ -1,6 +1,8 @@
 """Atomic file output: write to a temporary file beside the target, then rename.
 
-An interrupted run therefore never leaves a half-written file that looks complete.
+An interrupted run therefore never leaves a half-written file that looks complete. The final file
+gets the mode a plain ``open(path, "w")`` would give it (``0o666`` less the umask), not the
+``0o600`` of the temporary file.
 """
 
 from __future__ import annotations
@@ -8,10 +10,54 @@ from __future__ import annotations
 import contextlib
 import os
 import tempfile
+import threading
 from pathlib import Path
 from typing import Iterator
 
-__all__ = ["atomic_path", "atomic_write_bytes", "atomic_write_text"]
+__all__ = ["atomic_path", "atomic_write_bytes", "atomic_write_text", "current_umask",
+           "publish"]
+
+_UMASK_LOCK = threading.Lock()
+
+
+def current_umask() -> int:
+    """The process's umask, read without changing it for other threads.
+
+    Returns
+    -------
+    int
+        The umask bits (e.g. ``0o022``).
+
+    Notes
+    -----
+    Linux reports the umask in ``/proc/self/status``; elsewhere it is read with a set-and-restore
+    of :func:`os.umask` under a lock, setting the restrictive ``0o077`` meanwhile so that a file
+    another thread creates in that instant is never more open than intended.
+    """
+    with contextlib.suppress(OSError, ValueError):
+        with open("/proc/self/status", encoding="ascii", errors="replace") as f:
+            for line in f:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    with _UMASK_LOCK:
+        old = os.umask(0o077)
+        os.umask(old)
+    return old
+
+
+def publish(tmp: str | os.PathLike, target: str | os.PathLike) -> None:
+    """Give a finished temporary file the umask's mode and rename it onto ``target``.
+
+    Parameters
+    ----------
+    tmp : path-like
+        The finished temporary file (``tempfile.mkstemp`` makes it ``0o600``), in the target's
+        folder.
+    target : path-like
+        Its final name; an existing file there is replaced atomically.
+    """
+    os.chmod(tmp, 0o666 & ~current_umask())
+    os.replace(tmp, target)
 
 
 @contextlib.contextmanager
@@ -20,7 +66,8 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
 
     On any exception the temporary file is removed and ``path`` is left untouched. The parent
     folder is created when missing. ``suffix`` defaults to the target's suffix, so libraries that
-    pick a codec from the extension (OpenCV, tifffile) still work on the temporary name.
+    pick a codec from the extension (OpenCV, tifffile) still work on the temporary name. The
+    renamed file's mode is ``0o666`` less the process's umask, as for any newly created file.
     """
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
@@ -33,7 +80,7 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     tmp_path = Path(tmp)
     try:
         yield tmp_path
-        os.replace(tmp_path, target)
+        publish(tmp_path, target)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             tmp_path.unlink()

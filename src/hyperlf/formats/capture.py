@@ -32,13 +32,19 @@ Decisions
   silently mixed from colour channels): convert it with :func:`hyperlf.formats.to_grey` first
   or declare ``channels = 3``.
 * The manifest is written last, so a folder without ``capture.toml`` is an unfinished capture.
-* File names in the manifest are relative to the folder and may not leave it.
+* File names in the manifest are relative to the folder and may not leave it, on real paths
+  too: a view file that is a symlink (or sits in a symlinked folder) pointing outside the
+  folder is refused; a symlink that stays inside is fine.
+* ``write_capture(..., overwrite=True)`` deletes only what the old capture left that the new
+  one does not use, and only plain files really inside the folder (see :func:`write_capture`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
+import stat
 import sys
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path, PurePosixPath
@@ -108,13 +114,31 @@ def _pair(man: Path, doc: dict, key: str, kind: str, required: bool):
     return tuple(int(x) if kind == "int" else float(x) for x in v)
 
 
+def _entry_parts(name: str) -> tuple[str, ...] | None:
+    """The components of a relative manifest file name; None when it is absolute or uses '..'."""
+    pp = PurePosixPath(name.replace("\\", "/"))
+    if pp.is_absolute() or ".." in pp.parts or Path(name).is_absolute() or not pp.parts:
+        return None
+    return pp.parts
+
+
 def _safe_file(man: Path, root: Path, name, what: str) -> Path:
+    """The file ``name`` of the manifest ``man``, refused unless it stays inside ``root``.
+
+    The check is on real paths too: a symlinked file or folder leading out of the capture
+    folder is refused before anything is read.
+    """
     if not isinstance(name, str) or not name.strip():
         raise _err(man, f"{what} must be a non-empty file name string, got {name!r}")
-    pp = PurePosixPath(name.replace("\\", "/"))
-    if pp.is_absolute() or ".." in pp.parts or Path(name).is_absolute():
+    parts = _entry_parts(name)
+    if parts is None:
         raise _err(man, f"{what} {name!r} must be a path inside the capture folder")
-    return root / Path(*pp.parts)
+    path = root / Path(*parts)
+    real, real_root = os.path.realpath(path), os.path.realpath(root)
+    if os.path.commonpath([real, real_root]) != real_root or real == real_root:
+        raise _err(man, f"{what} {name!r} resolves outside the capture folder (to {real}); "
+                        "copy the file into the folder instead of linking to it")
+    return path
 
 
 def _read_manifest(root: Path) -> tuple[Path, dict]:
@@ -235,34 +259,48 @@ def _read_views(root: Path, files: dict, R: int, C: int, channels: int) -> np.nd
     return stack.reshape((R, C) + stack.shape[1:])
 
 
-def _read_gt_disparity(man: Path, root: Path, gspec, R: int, C: int, H: int, W: int):
-    """The ground truth named by ``gt_disparity`` (a file or a {row}/{col} pattern), or None."""
+def _gt_disparity_files(man: Path, root: Path, gspec, R: int, C: int):
+    """The checked file(s) named by ``gt_disparity``: None, one path, or {(row, col): path}."""
     if gspec is None:
         return None
     if not isinstance(gspec, str):
         raise _err(man, f"gt_disparity must be a file name or pattern, got {gspec!r}")
     if "{row}" not in gspec and "{col}" not in gspec:
-        gt = read_pfm(_safe_file(man, root, gspec, "gt_disparity"))
-        if gt.shape != (H, W):
-            raise _err(man, f"ground truth {gspec} is {gt.shape}, views are {(H, W)}")
-        return gt
-    gt = np.empty((R, C, H, W), dtype=np.float32)
+        return _safe_file(man, root, gspec, "gt_disparity")
+    files = {}
     for r, c in [(r, c) for r in range(R) for c in range(C)]:
         try:
             name = gspec.format(row=r, col=c)
         except (KeyError, IndexError, ValueError):
             raise _err(man, f"gt_disparity pattern {gspec!r} may only use {{row}} and {{col}}") from None
-        g = read_pfm(_safe_file(man, root, name, "gt_disparity"))
+        files[(r, c)] = _safe_file(man, root, name, "gt_disparity")
+    return files
+
+
+def _read_gt_disparity(man: Path, root: Path, gfiles, R: int, C: int, H: int, W: int):
+    """The ground truth from :func:`_gt_disparity_files`' answer, or None."""
+    if gfiles is None:
+        return None
+    if isinstance(gfiles, Path):
+        gt = read_pfm(gfiles)
+        if gt.shape != (H, W):
+            raise _err(man, f"ground truth {gfiles.relative_to(root).as_posix()} is {gt.shape}, "
+                            f"views are {(H, W)}")
+        return gt
+    gt = np.empty((R, C, H, W), dtype=np.float32)
+    for (r, c), path in gfiles.items():
+        g = read_pfm(path)
         if g.shape != (H, W):
-            raise _err(man, f"ground truth {name} is {g.shape}, views are {(H, W)}")
+            raise _err(man, f"ground truth {path.relative_to(root).as_posix()} is {g.shape}, "
+                            f"views are {(H, W)}")
         gt[r, c] = g
     return gt
 
 
-def _read_gt_cube(man: Path, root: Path, cspec, R: int, C: int, H: int, W: int):
-    if cspec is None:
+def _read_gt_cube(man: Path, cfile: Path | None, cspec, R: int, C: int, H: int, W: int):
+    if cfile is None:
         return None, None
-    cube, cube_wl, _mask = read_cube_h5(_safe_file(man, root, cspec, "gt_cube"))
+    cube, cube_wl, _mask = read_cube_h5(cfile)
     if cube.shape[:2] != (R, C) or cube.shape[3:] != (H, W):
         raise _err(man, f"gt_cube {cspec} has shape {cube.shape}, expected ({R}, {C}, B, {H}, {W})")
     return cube, cube_wl
@@ -301,7 +339,9 @@ def read_capture(folder: str | os.PathLike) -> LightField:
     DataNotFoundError
         When the folder, the manifest or a file it names is missing.
     FormatError
-        When the manifest is malformed or inconsistent (one line saying what and where).
+        When the manifest is malformed or inconsistent (one line saying what and where), or
+        names a file that leaves the folder: an absolute path, ``..``, or a symlinked file or
+        folder whose real path is outside it (checked before any file is decoded).
 
     Examples
     --------
@@ -318,10 +358,13 @@ def read_capture(folder: str | os.PathLike) -> LightField:
     hd = _manifest_header(man, doc)
     R, C = hd["R"], hd["C"]
     files, wl, pos, n_wl = _view_table(man, root, doc, R, C)
+    gfiles = _gt_disparity_files(man, root, doc.get("gt_disparity"), R, C)
+    cspec = doc.get("gt_cube")
+    cfile = None if cspec is None else _safe_file(man, root, cspec, "gt_cube")
     views = _read_views(root, files, R, C, hd["channels"])
     H, W = views.shape[2:4]
-    gt = _read_gt_disparity(man, root, doc.get("gt_disparity"), R, C, H, W)
-    cube, cube_wl = _read_gt_cube(man, root, doc.get("gt_cube"), R, C, H, W)
+    gt = _read_gt_disparity(man, root, gfiles, R, C, H, W)
+    cube, cube_wl = _read_gt_cube(man, cfile, cspec, R, C, H, W)
     metadata = _manifest_metadata(doc, root, hd["bit_depth"])
     try:
         return LightField(
@@ -492,14 +535,56 @@ def _metadata_tables(lf: LightField, doc: dict) -> None:
         doc["metadata"] = meta_t
 
 
-def _remove_stale(man: Path, root: Path, names: set[str]) -> None:
-    for name in names:
-        try:
-            target = _safe_file(man, root, name, "old file")
-        except FormatError:
+def _unlink_plain_file(root: Path, parts: tuple[str, ...], protected: set) -> None:
+    """Unlink ``root/parts`` only when it is a regular file reached through real folders.
+
+    Each folder on the way is opened with ``O_NOFOLLOW`` relative to the previous one, so a
+    symlinked folder (even one swapped in meanwhile) is never followed; the last component is
+    examined without following it, so a symlink is left alone, and ``protected`` (device, inode)
+    pairs are never unlinked.
+    """
+    if not {os.open, os.stat, os.unlink} <= os.supports_dir_fd:  # pragma: no cover - not POSIX
+        path = root.joinpath(*parts)
+        if os.path.realpath(path) != os.path.join(os.path.realpath(root), *parts):
+            return
+        st = os.lstat(path)
+        if stat.S_ISREG(st.st_mode) and (st.st_dev, st.st_ino) not in protected:
+            path.unlink()
+        return
+    dir_flags = os.O_RDONLY | os.O_DIRECTORY
+    fd = os.open(root, dir_flags)
+    try:
+        for part in parts[:-1]:
+            sub = os.open(part, dir_flags | os.O_NOFOLLOW, dir_fd=fd)
+            os.close(fd)
+            fd = sub
+        st = os.stat(parts[-1], dir_fd=fd, follow_symlinks=False)
+        if stat.S_ISREG(st.st_mode) and (st.st_dev, st.st_ino) not in protected:
+            os.unlink(parts[-1], dir_fd=fd)
+    finally:
+        os.close(fd)
+
+
+def _remove_stale(root: Path, old_names: set[str], keep: set[str]) -> None:
+    """Delete the files the old manifest named that the new capture does not use.
+
+    Only plain files really inside ``root`` go. Left alone: the manifest and every file in
+    ``keep`` (what the new capture wrote, also matched by inode), an absolute name or one with
+    '..', anything reached through a symlinked folder, a symlink itself (the writer did not make
+    it, and its target is not the capture's), a folder, anything missing or unreadable.
+    """
+    keep = keep | {MANIFEST}
+    protected = set()
+    for name in keep:
+        with contextlib.suppress(OSError):
+            st = os.lstat(root / name)
+            protected.add((st.st_dev, st.st_ino))
+    for name in old_names:
+        parts = _entry_parts(name) if isinstance(name, str) and name.strip() else None
+        if parts is None or "/".join(parts) in keep:
             continue
-        if target.is_file():
-            target.unlink()
+        with contextlib.suppress(OSError):
+            _unlink_plain_file(root, parts, protected)
 
 
 def write_capture(lightfield: LightField, folder: str | os.PathLike, bit_depth: int = 16,
@@ -519,7 +604,9 @@ def write_capture(lightfield: LightField, folder: str | os.PathLike, bit_depth: 
     overwrite : bool
         Refuse (InvalidInputError) to write into a folder that is not empty unless True. When
         True, the old manifest is removed first and files it named but the new capture does not
-        use are deleted afterwards.
+        use are deleted afterwards, but only plain files really inside ``folder``: never the
+        new manifest or a file the new capture wrote, never a symlink (the link and its target
+        both stay), nor anything reached through ``..``, an absolute path or a symlinked folder.
     image_format : {"png", "tiff"}
         Container of the view files (``bit_depth=32`` always uses TIFF).
     progress : bool
@@ -566,5 +653,5 @@ def write_capture(lightfield: LightField, folder: str | os.PathLike, bit_depth: 
     except (TypeError, ValueError) as exc:
         raise InvalidInputError(f"metadata cannot be stored in TOML: {exc}") from None
     atomic_write_bytes(man, text.encode("utf-8"))  # last: marks the capture complete
-    _remove_stale(man, root, old_files - new_files)
+    _remove_stale(root, old_files, new_files)
     return man
