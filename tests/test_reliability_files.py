@@ -45,17 +45,6 @@ def mode(path: Path) -> int:
     return stat.S_IMODE(os.stat(path).st_mode)
 
 
-# hyperlf.formats.hdf5.CubeWriter renames its own mkstemp file (not through _atomic); until it
-# calls hyperlf._atomic.publish, cube files stay 0600 and are checked apart, as a strict xfail.
-CUBE_0600 = pytest.mark.xfail(
-    strict=True, reason="CubeWriter (formats/hdf5.py) still os.replace()s its 0600 temporary; "
-                        "make it call hyperlf._atomic.publish and remove this marker")
-
-
-def not_cube(files):
-    return [f for f in files if f.suffix != ".h5"]
-
-
 def full_lf(rng, R=2, C=2, H=6, W=7, B=3) -> LightField:
     """A small light field with every kind of file a capture holds (views, PFM, HDF5 cube)."""
     return LightField(
@@ -84,12 +73,10 @@ def test_every_capture_file_follows_the_umask(tmp_path, rng, mask, fmt):
     files = sorted(man.parent.iterdir())
     view_suffix = ".tif" if fmt == "tiff" else ".png"
     assert {f.suffix for f in files} >= {".toml", ".pfm", ".h5", view_suffix}
-    files = not_cube(files)
     assert {f.name: mode(f) for f in files} == {f.name: 0o666 & ~mask for f in files}
     assert mode(man.parent) == 0o777 & ~mask  # the folder too (plain mkdir)
 
 
-@CUBE_0600
 def test_cube_file_follows_the_umask(tmp_path, rng):
     with umask(0o022):
         man = write_capture(full_lf(rng), tmp_path / "cap")
@@ -138,7 +125,7 @@ def test_cli_outputs_follow_the_umask(tmp_path, mask):
         capture_output=True, text=True, timeout=300, env=env,
         preexec_fn=lambda: os.umask(mask))
     assert proc.returncode == 0, proc.stderr
-    files = not_cube(p for p in out.rglob("*") if p.is_file())
+    files = [p for p in out.rglob("*") if p.is_file()]
     assert len(files) >= 5 and any(p.suffix == ".png" for p in files)
     assert {str(p): mode(p) for p in files} == {str(p): 0o666 & ~mask for p in files}
 

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from .._atomic import atomic_path
+from .._atomic import atomic_path, publish
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
 from ..lightfield import LightField
 
@@ -357,7 +357,7 @@ class CubeWriter:
         try:
             self._file.close()
             self._file = None
-            os.replace(self._tmp, self.path)
+            publish(self._tmp, self.path)
             self._tmp = None
         except BaseException:
             self._discard()
