@@ -47,7 +47,7 @@ def _number(text: str):
 
 
 def _read_cfg(path: Path) -> dict[str, dict[str, object]]:
-    cp = configparser.ConfigParser()
+    cp = configparser.ConfigParser(interpolation=None)  # values are raw text ("%" is fine)
     try:
         with open(path, encoding="utf-8") as fh:
             cp.read_file(fh)
