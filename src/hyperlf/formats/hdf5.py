@@ -105,11 +105,16 @@ def _open_read(path: str | os.PathLike, expected: str):
     except HyperLFError:
         raise
     except Exception as exc:  # whatever else a corrupt file makes h5py raise
-        raise FormatError(f"{p}: cannot read the file ({type(exc).__name__}: "
-                          f"{str(exc).splitlines()[0][:80] if str(exc) else ''}); "
-                          "it is corrupt, re-create it with hyperlf") from None
+        raise _corrupt(p, exc) from None
     finally:
         f.close()
+
+
+def _corrupt(p: Path, exc: Exception) -> FormatError:
+    """The one-line error for an unexpected h5py failure on a corrupt file."""
+    first = str(exc).splitlines()[0][:80] if str(exc) else ""
+    return FormatError(f"{p}: cannot read the file ({type(exc).__name__}: {first}); "
+                       "it is corrupt, re-create it with hyperlf")
 
 
 def _dataset(p: Path, f, name: str, required: bool = True):
@@ -500,8 +505,10 @@ class CubeFile:
                 _check_numeric(p, "mask", self.mask)
             self.metadata = _metadata(p, f, strict=False)
             self._file = f
-        except BaseException:
+        except BaseException as exc:
             self._cm.__exit__(None, None, None)
+            if isinstance(exc, Exception) and not isinstance(exc, HyperLFError):
+                raise _corrupt(p, exc) from None
             raise
 
     @property
