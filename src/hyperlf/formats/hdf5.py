@@ -98,7 +98,7 @@ def _open_read(path: str | os.PathLike, expected: str):
             fmt = fmt.decode(errors="replace")
         if not isinstance(fmt, str) or fmt != expected:
             raise FormatError(
-                f"{p} is an HDF5 file but not a {expected} file (format attribute {fmt!r}); "
+                f"{p} is an HDF5 file but not a {expected} file (format attribute {str(fmt)[:40]!r}); "
                 f"write it with hyperlf's {'write_lightfield_h5' if expected == LF_FORMAT else 'write_cube_h5'}"
             )
         yield p, f
