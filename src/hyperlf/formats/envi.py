@@ -158,7 +158,7 @@ def _int(hdr: Path, h: dict, key: str, default=None) -> int:
     try:
         return int(h[key])
     except ValueError:
-        raise FormatError(f"{hdr}: '{key} = {h[key][:30]}' is not an integer") from None
+        raise FormatError(f"{hdr}: {key} = {h[key][:30]!r} is not an integer") from None
 
 
 def read_envi(path: str | os.PathLike):

@@ -47,7 +47,7 @@ def _number(text: str):
 
 
 def _read_cfg(path: Path) -> dict[str, dict[str, object]]:
-    cp = configparser.ConfigParser()
+    cp = configparser.ConfigParser(interpolation=None)  # values are raw text ("%" is fine)
     try:
         with open(path, encoding="utf-8") as fh:
             cp.read_file(fh)
@@ -57,19 +57,40 @@ def _read_cfg(path: Path) -> dict[str, dict[str, object]]:
     return {s: {k: _number(v) for k, v in cp.items(s)} for s in cp.sections()}
 
 
+#: View files are named ``input_Cam###.png`` (three digits), so a scene has at most 1000 views.
+MAX_VIEWS = 1000
+
+
+def _check_grid(R: int, C: int, where: str, err) -> tuple[int, int]:
+    """Refuse grids that are not positive or hold more than :data:`MAX_VIEWS` views."""
+    if R < 1 or C < 1 or R * C > MAX_VIEWS:
+        raise err(f"{where} gives a {R} x {C} camera grid; an HCI scene has 1..{MAX_VIEWS} "
+                  "views (input_Cam000..999), fix it or pass grid=(rows, cols)")
+    return R, C
+
+
+def _cfg_grid(cfg: dict, path: Path) -> tuple[int, int] | None:
+    """``(num_cams_y, num_cams_x)`` from ``[extrinsics]``, validated; None when absent."""
+    ext = cfg.get("extrinsics", {})
+    nx, ny = ext.get("num_cams_x"), ext.get("num_cams_y")
+    if nx is None and ny is None:
+        return None
+    if not all(isinstance(v, int) for v in (nx, ny)):
+        raise FormatError(f"{path}: num_cams_x = {str(nx)[:20]!r} and num_cams_y = "
+                          f"{str(ny)[:20]!r} must both be whole numbers; fix or remove them")
+    return _check_grid(ny, nx, f"{path} (num_cams_y, num_cams_x)", FormatError)
+
+
 def _grid_from(folder: Path, cfg: dict, grid) -> tuple[int, int]:
     if grid is not None:
         try:
             R, C = (int(v) for v in grid)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise InvalidInputError(f"grid must be (rows, cols), got {grid!r}") from None
-        if R < 1 or C < 1:
-            raise InvalidInputError(f"grid must be positive, got {grid!r}")
-        return R, C
-    ext = cfg.get("extrinsics", {})
-    nx, ny = ext.get("num_cams_x"), ext.get("num_cams_y")
-    if isinstance(nx, int) and isinstance(ny, int) and nx > 0 and ny > 0:
-        return ny, nx
+        return _check_grid(R, C, f"grid={grid!r}", InvalidInputError)
+    from_cfg = _cfg_grid(cfg, folder / "parameters.cfg")
+    if from_cfg is not None:
+        return from_cfg
     idx = [int(m.group(1)) for f in os.listdir(folder) if (m := _CAM.match(f))]
     n = max(idx) + 1 if idx else 0
     s = math.isqrt(n)

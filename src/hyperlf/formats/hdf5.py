@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from .._atomic import atomic_path, publish
-from ..errors import DataNotFoundError, FormatError, InvalidInputError
+from ..errors import DataNotFoundError, FormatError, HyperLFError, InvalidInputError
 from ..lightfield import LightField
 
 __all__ = [
@@ -95,26 +95,113 @@ def _open_read(path: str | os.PathLike, expected: str):
     try:
         fmt = f.attrs.get("format")
         if isinstance(fmt, bytes):
-            fmt = fmt.decode()
-        if fmt != expected:
+            fmt = fmt.decode(errors="replace")
+        if not isinstance(fmt, str) or fmt != expected:
             raise FormatError(
-                f"{p} is an HDF5 file but not a {expected} file (format attribute {fmt!r}); "
+                f"{p} is an HDF5 file but not a {expected} file (format attribute {str(fmt)[:40]!r}); "
                 f"write it with hyperlf's {'write_lightfield_h5' if expected == LF_FORMAT else 'write_cube_h5'}"
             )
         yield p, f
+    except HyperLFError:
+        raise
+    except Exception as exc:  # whatever else a corrupt file makes h5py raise
+        raise _corrupt(p, exc) from None
     finally:
         f.close()
 
 
-def _get(p: Path, f, name: str, required: bool = True):
-    if name not in f:
+def _corrupt(p: Path, exc: Exception) -> FormatError:
+    """The one-line error for an unexpected h5py failure on a corrupt file."""
+    first = str(exc).splitlines()[0][:80] if str(exc) else ""
+    return FormatError(f"{p}: cannot read the file ({type(exc).__name__}: {first}); "
+                       "it is corrupt, re-create it with hyperlf")
+
+
+def _dataset(p: Path, f, name: str, required: bool = True):
+    """The h5py dataset ``/name``, or None when absent and not required."""
+    h5py = _h5py()
+    try:
+        obj = f.get(name)
+    except Exception as exc:  # a corrupt object header
+        raise FormatError(f"{p}: cannot open '/{name}' ({type(exc).__name__}); the file is corrupt") from None
+    if obj is None:
         if required:
             raise FormatError(f"{p} has no dataset '/{name}'; the file is incomplete or corrupt")
         return None
+    if not isinstance(obj, h5py.Dataset):
+        raise FormatError(f"{p}: '/{name}' is a {type(obj).__name__.lower()}, not a dataset; "
+                          "the file was not written by hyperlf or is corrupt")
+    return obj
+
+
+def _check_numeric(p: Path, name: str, ds) -> None:
+    """Refuse a dataset of strings, compounds or complex numbers."""
+    if ds.dtype.kind not in "biuf":
+        raise FormatError(f"{p}: '/{name}' holds {ds.dtype} values, not real numbers; "
+                          "the file was not written by hyperlf or is corrupt")
+
+
+def _check_fits(p: Path, name: str, nbytes: int) -> None:
+    """Refuse to read ``nbytes`` that cannot fit in this machine's memory."""
     try:
-        return f[name][()]
+        ram = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        ram = 2 ** 40
+    if nbytes > ram:
+        raise FormatError(
+            f"{p}: '/{name}' needs {nbytes / 1e9:.1f} GB of memory but this machine has "
+            f"{ram / 1e9:.1f} GB; read it lazily with open_cube_h5 or on a larger machine"
+        )
+
+
+def _read(p: Path, name: str, ds, sel=()):
+    """``ds[sel]`` as numbers, any decoding failure (e.g. a corrupt chunk) a FormatError."""
+    try:
+        return ds[sel]
     except Exception as exc:  # h5py raises OSError/KeyError/TypeError on corrupt data
-        raise FormatError(f"{p}: cannot read dataset '/{name}' ({type(exc).__name__}); the file is corrupt") from None
+        raise FormatError(f"{p}: cannot read dataset '/{name}' ({type(exc).__name__}); "
+                          "the file is corrupt") from None
+
+
+def _get(p: Path, f, name: str, required: bool = True):
+    ds = _dataset(p, f, name, required)
+    if ds is None:
+        return None
+    _check_numeric(p, name, ds)
+    _check_fits(p, name, ds.size * max(ds.dtype.itemsize, 4))
+    return _read(p, name, ds)
+
+
+def _pair_attr(p: Path, f, name: str, integral: bool):
+    """Root attribute ``name`` as a pair of finite numbers (integers when ``integral``)."""
+    raw = f.attrs.get(name)
+    if raw is None:
+        return None
+    a = np.asarray(raw)
+    ok = a.dtype.kind in "biuf" and a.size == 2 and a.ndim <= 1
+    if ok:
+        a = a.astype(np.float64)
+        ok = bool(np.all(np.isfinite(a))) and (not integral or bool(
+            np.all((a == np.round(a)) & (np.abs(a) < 2 ** 31))))
+    if not ok:
+        kind = "integers (row, col)" if integral else "finite numbers (min, max)"
+        raise FormatError(f"{p}: the '{name}' attribute must be two {kind}, got "
+                          f"{str(raw)[:40]!r}; the file is corrupt")
+    return tuple(int(v) for v in a) if integral else tuple(float(v) for v in a)
+
+
+def _metadata(p: Path, f, strict: bool) -> dict:
+    """The 'metadata' JSON attribute as a dict ({} when not ``strict`` and unreadable)."""
+    txt = f.attrs.get("metadata", "{}")
+    try:
+        meta = json.loads(txt.decode() if isinstance(txt, bytes) else txt)
+        if isinstance(meta, dict):
+            return meta
+    except (ValueError, TypeError):
+        pass
+    if not strict:
+        return {}
+    raise FormatError(f"{p}: the 'metadata' attribute is not a JSON object; the file is corrupt")
 
 
 def write_lightfield_h5(path: str | os.PathLike, lf: LightField,
@@ -187,21 +274,14 @@ def read_lightfield_h5(path: str | os.PathLike) -> LightField:
         gt = _get(p, f, "gt_disparity", required=False)
         cube = _get(p, f, "gt_cube", required=False)
         cw = _get(p, f, "cube_wavelengths", required=False)
-        ref = f.attrs.get("reference")
-        dr = f.attrs.get("disparity_range")
-        meta_txt = f.attrs.get("metadata", "{}")
-    try:
-        meta = json.loads(meta_txt.decode() if isinstance(meta_txt, bytes) else str(meta_txt))
-        if not isinstance(meta, dict):
-            raise ValueError
-    except ValueError:
-        raise FormatError(f"{p}: the 'metadata' attribute is not a JSON object; the file is corrupt") from None
+        ref = _pair_attr(p, f, "reference", integral=True)
+        dr = _pair_attr(p, f, "disparity_range", integral=False)
+        meta = _metadata(p, f, strict=True)
     try:
         return LightField(
-            views=views, wavelengths=wl, positions=positions,
-            reference=None if ref is None else tuple(int(v) for v in np.ravel(ref)),
-            disparity_range=None if dr is None else tuple(float(v) for v in np.ravel(dr)),
-            gt_disparity=gt, gt_cube=cube, cube_wavelengths=cw, metadata=meta,
+            views=views, wavelengths=wl, positions=positions, reference=ref,
+            disparity_range=dr, gt_disparity=gt, gt_cube=cube, cube_wavelengths=cw,
+            metadata=meta,
         )
     except InvalidInputError as exc:
         raise FormatError(f"{p} holds an invalid light field: {exc}") from None
@@ -414,21 +494,21 @@ class CubeFile:
         self._cm = _open_read(path, CUBE_FORMAT)
         p, f = self._cm.__enter__()
         try:
-            if "cube" not in f or "wavelengths" not in f:
-                raise FormatError(f"{p} lacks '/cube' or '/wavelengths'; the file is incomplete")
             self.path = p
-            self.cube = f["cube"]
+            self.cube = _dataset(p, f, "cube")
+            _check_numeric(p, "cube", self.cube)
             if self.cube.ndim != 5:
                 raise FormatError(f"{p}: '/cube' must be 5-D (R, C, B, H, W), got {self.cube.shape}")
             self.wavelengths = _get(p, f, "wavelengths").astype(np.float64)
-            self.mask = f["mask"] if "mask" in f else None
-            try:
-                self.metadata = json.loads(f.attrs.get("metadata", "{}"))
-            except ValueError:
-                self.metadata = {}
+            self.mask = _dataset(p, f, "mask", required=False)
+            if self.mask is not None:
+                _check_numeric(p, "mask", self.mask)
+            self.metadata = _metadata(p, f, strict=False)
             self._file = f
-        except BaseException:
+        except BaseException as exc:
             self._cm.__exit__(None, None, None)
+            if isinstance(exc, Exception) and not isinstance(exc, HyperLFError):
+                raise _corrupt(p, exc) from None
             raise
 
     @property
@@ -437,7 +517,7 @@ class CubeFile:
 
     def view(self, r: int, c: int) -> np.ndarray:
         """The ``(B, H, W)`` float32 cube of view ``(r, c)``."""
-        return np.asarray(self.cube[r, c], dtype=np.float32)
+        return np.asarray(_read(self.path, "cube", self.cube, (r, c)), dtype=np.float32)
 
     def close(self) -> None:
         if self._file is not None:
@@ -483,11 +563,9 @@ def read_cube_h5(path: str | os.PathLike):
     mask : ndarray of bool, shape (R, C, H, W), or None
     """
     with open_cube_h5(path) as cf:
-        try:
-            cube = np.asarray(cf.cube[()], dtype=np.float32)
-            mask = None if cf.mask is None else np.asarray(cf.mask[()], dtype=bool)
-        except Exception as exc:
-            raise FormatError(f"{cf.path}: cannot read the cube ({type(exc).__name__}); the file is corrupt") from None
+        _check_fits(cf.path, "cube", cf.cube.size * 4)
+        cube = np.asarray(_read(cf.path, "cube", cf.cube), dtype=np.float32)
+        mask = None if cf.mask is None else np.asarray(_read(cf.path, "mask", cf.mask), dtype=bool)
         if cube.shape[2] != cf.wavelengths.size:
             raise FormatError(f"{cf.path}: {cf.wavelengths.size} wavelengths for {cube.shape[2]} bands")
         return cube, cf.wavelengths, mask

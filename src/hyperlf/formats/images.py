@@ -10,22 +10,40 @@ Conventions
 * TIFF files (8/16-bit integer and float32) go through :mod:`tifffile`; the rest through OpenCV.
 * ``as_float=True`` maps integer images to [0, 1] by dividing by the dtype's maximum
   (255 or 65535); float images are returned as float32 unchanged.
+
+Memory limit (decompression bombs)
+----------------------------------
+Before anything is decoded, the image size is read from the file's header (PNG ``IHDR``,
+TIFF page tags) and the memory reading it needs is estimated as
+``width * height * channels * (bytes per sample + 4)`` (the stored image plus its float32 copy).
+Above :data:`MAX_IMAGE_BYTES` (2 GiB) the read is refused with a :class:`FormatError` saying how
+much it would need. To read a genuine larger image, set the environment variable
+``HYPERLF_MAX_IMAGE_BYTES`` (bytes) or assign ``hyperlf.formats.images.MAX_IMAGE_BYTES``.
+PNG files are also checked whole (chunk CRCs, zlib stream, row filters) before OpenCV sees them,
+so a corrupt PNG gives hyperlf's one-line error and libpng prints nothing.
 """
 
 from __future__ import annotations
 
 import os
+import struct
+import zlib
 from pathlib import Path
 
 import numpy as np
 
 from .._atomic import atomic_path
-from ..errors import DataNotFoundError, FormatError, InvalidInputError
+from ..errors import DataNotFoundError, FormatError, HyperLFError, InvalidInputError
 
 __all__ = ["read_image", "read_images_same_size", "write_image", "to_grey", "REC709_WEIGHTS"]
 
 #: Rec. 709 luma weights (R, G, B) used by :func:`to_grey`.
 REC709_WEIGHTS = (0.2126, 0.7152, 0.0722)
+
+#: Largest estimated memory (bytes) :func:`read_image` may use for one image; see the module
+#: docstring. The environment variable named by :data:`MAX_IMAGE_BYTES_ENV` overrides it.
+MAX_IMAGE_BYTES = 2 * 1024 ** 3
+MAX_IMAGE_BYTES_ENV = "HYPERLF_MAX_IMAGE_BYTES"
 
 _TIFF = (".tif", ".tiff")
 _WRITABLE = (".png", ".tif", ".tiff")
@@ -41,12 +59,141 @@ def _is_palette_png(path: Path) -> bool:
     return len(head) == 26 and head[:8] == b"\x89PNG\r\n\x1a\n" and head[12:16] == b"IHDR" \
         and head[25] == 3
 
+def human_bytes(n: int) -> str:
+    """``n`` bytes as "12 MB" / "4.6 GB" for messages."""
+    return f"{n / 1e9:.1f} GB" if n >= 1e9 else f"{n / 1e6:.0f} MB"
+
+
+def max_image_bytes() -> int:
+    """The memory limit per image: ``$HYPERLF_MAX_IMAGE_BYTES`` or :data:`MAX_IMAGE_BYTES`."""
+    text = os.environ.get(MAX_IMAGE_BYTES_ENV)
+    if text is None:
+        return int(MAX_IMAGE_BYTES)
+    try:
+        value = int(text.strip())
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise InvalidInputError(
+            f"{MAX_IMAGE_BYTES_ENV}={text[:30]!r} is not a positive number of bytes; "
+            "unset it or give e.g. 4000000000"
+        )
+    return value
+
+
+def check_image_size(p: Path, w: int, h: int, channels: int, itemsize: int) -> None:
+    """Refuse an image whose decoding would need more than :func:`max_image_bytes`."""
+    need = w * h * channels * (itemsize + 4)
+    limit = max_image_bytes()
+    if need > limit:
+        raise FormatError(
+            f"{p} declares a {w} x {h} image ({channels} x {itemsize}-byte samples) that needs "
+            f"about {human_bytes(need)} of memory to read, above the {human_bytes(limit)} limit; "
+            f"if it is genuine, raise the limit with {MAX_IMAGE_BYTES_ENV}=<bytes>"
+        )
+
+
+_PNG_SIG = b"\x89PNG\r\n\x1a\n"
+# colour type -> (samples per pixel in the file, bit depths allowed, channels OpenCV returns)
+_PNG_TYPES = {0: (1, (1, 2, 4, 8, 16), 1), 2: (3, (8, 16), 3), 3: (1, (1, 2, 4, 8), 3),
+              4: (2, (8, 16), 4), 6: (4, (8, 16), 4)}
+_ADAM7 = ((0, 0, 8, 8), (4, 0, 8, 8), (0, 4, 4, 8), (2, 0, 4, 4), (0, 2, 2, 4), (1, 0, 2, 2),
+          (0, 1, 1, 2))
+
+
+def _bad_png(p: Path, what: str) -> FormatError:
+    return FormatError(f"{p} is a corrupt PNG ({what}); re-export or copy the image again")
+
+
+def _png_ihdr(p: Path, buf: bytes) -> tuple[int, int, int, int, int]:
+    """(width, height, bit depth, colour type, interlace) of a PNG, validated."""
+    if len(buf) < 33 or buf[12:16] != b"IHDR" or buf[8:12] != b"\0\0\0\x0d":
+        raise _bad_png(p, "no IHDR header chunk")
+    w, h, depth, colour, comp, filt, inter = struct.unpack(">IIBBBBB", buf[16:29])
+    if not (0 < w < 2 ** 31 and 0 < h < 2 ** 31) or colour not in _PNG_TYPES \
+            or depth not in _PNG_TYPES[colour][1] or comp or filt or inter > 1:
+        raise _bad_png(p, f"impossible header: {w} x {h}, depth {depth}, colour type {colour}")
+    return w, h, depth, colour, inter
+
+
+def _png_data_size(w: int, h: int, depth: int, colour: int, inter: int) -> tuple[int, int]:
+    """(decompressed IDAT bytes, row stride or 0 when interlaced) the header implies."""
+    bits = _PNG_TYPES[colour][0] * depth
+    if not inter:
+        stride = 1 + (w * bits + 7) // 8
+        return h * stride, stride
+    total = 0
+    for x0, y0, dx, dy in _ADAM7:
+        pw, ph = max(0, (w - x0 + dx - 1) // dx), max(0, (h - y0 + dy - 1) // dy)
+        total += ph * (1 + (pw * bits + 7) // 8) if pw else 0
+    return total, 0
+
+
+def _png_idat(p: Path, buf: bytes) -> list[memoryview]:
+    """The IDAT payloads, after checking every chunk's length and CRC up to IEND."""
+    view, pos, idat = memoryview(buf), 8, []
+    while True:
+        if pos + 12 > len(buf):
+            raise _bad_png(p, "truncated: it ends before its IEND chunk")
+        n, kind = struct.unpack(">I4s", buf[pos: pos + 8])
+        end = pos + 12 + n
+        if end > len(buf):
+            raise _bad_png(p, f"truncated inside a {kind.decode('latin-1')!r} chunk")
+        if zlib.crc32(view[pos + 4: end - 4]) != struct.unpack(">I", buf[end - 4: end])[0]:
+            raise _bad_png(p, f"CRC error in a {kind.decode('latin-1')!r} chunk")
+        if kind == b"IDAT":
+            idat.append(view[pos + 8: end - 4])
+        if kind == b"IEND":
+            return idat
+        pos = end
+
+
+def _check_png_rows(p: Path, idat: list[memoryview], size: int, stride: int) -> None:
+    """Inflate the image data in bounded pieces: it must be whole zlib data of ``size`` bytes
+    with valid row filter types (0..4); nothing the size of the image is kept."""
+    d, total = zlib.decompressobj(), 0
+    try:
+        for data in idat:
+            while data:
+                out = d.decompress(data, 1 << 20)
+                if stride:
+                    rows = np.frombuffer(out, np.uint8)[(-total) % stride::stride]
+                    if rows.size and rows.max() > 4:
+                        raise _bad_png(p, "invalid row filter type")
+                total += len(out)
+                if total > size:
+                    raise _bad_png(p, "more image data than its header declares")
+                data = d.unconsumed_tail
+    except zlib.error as exc:
+        raise _bad_png(p, f"bad compressed data: {exc}") from None
+    if total != size or not d.eof:
+        raise _bad_png(p, f"image data ends after {total} of {size} bytes")
+
+
+def _check_png(p: Path, buf: bytes) -> None:
+    """Refuse a PNG that is corrupt or too large to decode, before OpenCV sees it."""
+    w, h, depth, colour, inter = _png_ihdr(p, buf)
+    check_image_size(p, w, h, _PNG_TYPES[colour][2], 2 if depth == 16 else 1)
+    idat = _png_idat(p, buf)
+    if not idat:
+        raise _bad_png(p, "no IDAT image data")
+    _check_png_rows(p, idat, *_png_data_size(w, h, depth, colour, inter))
+
 
 def _read_tiff(p: Path) -> np.ndarray:
     import tifffile
 
     try:
-        arr = tifffile.imread(p, key=0)
+        with tifffile.TiffFile(p) as tif:
+            page = tif.pages[0]
+            shape, dtype = tuple(int(v) for v in page.shape), np.dtype(page.dtype)
+            if len(shape) >= 2:
+                contig = len(shape) == 3 and shape[-1] == page.samplesperpixel
+                h, w = shape[:2] if contig else shape[-2:]
+                check_image_size(p, w, h, int(np.prod(shape)) // (w * h), dtype.itemsize)
+            arr = tif.asarray(key=0)
+    except HyperLFError:
+        raise
     except Exception as exc:  # tifffile raises many kinds on corrupt input
         raise FormatError(
             f"{p} is not a readable TIFF image ({type(exc).__name__}: {str(exc)[:80]}); "
@@ -62,8 +209,14 @@ def _read_cv2(p: Path) -> np.ndarray:
     import cv2
 
     try:
+        buf = p.read_bytes()
+    except OSError as exc:
+        raise FormatError(f"cannot read image file {p}: {exc.strerror or exc}") from None
+    if buf[:8] == _PNG_SIG:
+        _check_png(p, buf)
+    try:
         # IMREAD_UNCHANGED keeps 16-bit depth; OpenCV expands palette PNGs to BGR itself.
-        arr = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+        arr = cv2.imdecode(np.frombuffer(buf, np.uint8), cv2.IMREAD_UNCHANGED) if buf else None
     except cv2.error:
         arr = None
     if arr is None:
@@ -109,9 +262,12 @@ def read_image(path: str | os.PathLike, as_float: bool = True,
     DataNotFoundError
         When the file does not exist.
     FormatError
-        When the file cannot be decoded.
+        When the file cannot be decoded, is a folder, or would need more memory than
+        ``HYPERLF_MAX_IMAGE_BYTES`` / :data:`MAX_IMAGE_BYTES` (checked from its header).
     """
     p = Path(path)
+    if p.is_dir():
+        raise FormatError(f"{p} is a folder, not an image file; give the path of an image in it")
     if not p.is_file():
         raise DataNotFoundError(f"image file {p} does not exist")
     arr = _read_tiff(p) if p.suffix.lower() in _TIFF else _read_cv2(p)
