@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import inspect
+import os
 import sys
 import time
 from pathlib import Path
@@ -17,7 +18,7 @@ from typing import Sequence
 import numpy as np
 
 from . import __version__
-from .errors import HyperLFError, InvalidInputError
+from .errors import DataNotFoundError, HyperLFError, InvalidInputError
 
 __all__ = ["main", "build_parser"]
 
@@ -43,6 +44,8 @@ def _pair_of_floats(text: str) -> tuple[float, float]:
         raise argparse.ArgumentTypeError(
             f"expected two numbers separated by a comma, like -1.5,2.5; got {text!r}"
         ) from None
+    if not (np.isfinite(a) and np.isfinite(b)):
+        raise argparse.ArgumentTypeError(f"expected two finite numbers; got {text!r}")
     return a, b
 
 
@@ -90,6 +93,33 @@ def _view_index(text: str) -> tuple[int, int]:
     return a, b
 
 
+def _finite_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not np.isfinite(v):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return v
+
+
+def _int_at_least(low: int, what: str):
+    """An argparse type: an integer >= ``low`` (``what`` names it in the message)."""
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if v < low:
+            raise argparse.ArgumentTypeError(f"{what} must be at least {low}, got {v}")
+        return v
+    return parse
+
+
+_labels_arg = _int_at_least(2, "the number of disparity labels")
+_seed_arg = _int_at_least(0, "the seed")
+
+
 def _nonneg_float(text: str) -> float:
     try:
         v = float(text)
@@ -111,6 +141,116 @@ def _done(args, out, written) -> int:
         _say(args, f"wrote {w}")
     print(out)
     return 0
+
+
+# --------------------------------------------------------------------------- checks
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line on stderr (exit 2)."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message}; see '{self.prog} --help'\n")
+
+
+def _check_input_file(path, what: str) -> Path:
+    """``path`` as a Path; a folder is refused (exit 2), a missing file too (exit 4)."""
+    p = Path(path)
+    if p.is_dir():
+        raise InvalidInputError(f"{what} {p} is a folder; give a file")
+    if not p.exists():
+        raise DataNotFoundError(f"{what} {p} does not exist; check the path")
+    return p
+
+
+def _check_output(path, kind: str) -> None:
+    """Refuse, before any work, an output ``path`` (a ``"folder"`` or a ``"file"``) that cannot
+    be written: a file where a folder is expected or the reverse, a name over 255 bytes, a
+    missing folder that cannot be created, a folder that is not writable."""
+    p = Path(path)
+    long = [part for part in p.parts if len(os.fsencode(part)) > 255]
+    if long:
+        raise InvalidInputError(f"-o: the name {long[0][:40]}... is too long (at most 255 bytes "
+                                "per file or folder name); choose a shorter one")
+    if kind == "folder" and p.exists() and not p.is_dir():
+        raise InvalidInputError(f"-o {p} is an existing file but this command writes a folder; "
+                                "give a folder name")
+    if kind == "file" and p.is_dir():
+        raise InvalidInputError(f"-o {p} is an existing folder but this command writes a file; "
+                                f"give a file name such as {p / 'out'}{p.suffix or '.png'}")
+    target = Path(os.path.abspath(p if kind == "folder" else p.parent))
+    existing = next(a for a in (target, *target.parents) if a.exists())
+    if not existing.is_dir():
+        raise InvalidInputError(f"cannot create -o {p}: {existing} is a file, not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise InvalidInputError(f"cannot write -o {p}: the folder {existing} is not writable; "
+                                "choose another output location")
+
+
+_FILE_OUTPUTS = {".h5", ".hdf5", ".pfm", ".png", ".tif", ".tiff", ".hdr", ".img"}
+
+
+def _output_kind(args) -> str | None:
+    """What ``-o`` names for this command: ``"folder"``, ``"file"`` or None (no output)."""
+    if getattr(args, "output", None) is None:
+        return None
+    if args.command == "spectrum":
+        return "file"
+    if args.command in ("synth", "convert"):
+        return "file" if Path(args.output).suffix.lower() in _FILE_OUTPUTS else "folder"
+    return "folder"
+
+
+def _writes_lightfield(args) -> bool:
+    """Whether the command writes a light field with ``save_lightfield`` (capture or .h5)."""
+    if args.command == "synth":
+        return True
+    if args.command != "convert":
+        return False
+    single = {".pfm", ".png", ".tif", ".tiff", ".hdr", ".img"}
+    return not ({Path(args.input).suffix.lower(), Path(args.output).suffix.lower()} & single)
+
+
+def _check_overwrite(args) -> None:
+    """A light-field output that exists (a file, or a folder with files) needs --overwrite."""
+    p = Path(args.output)
+    if args.overwrite or not _writes_lightfield(args):
+        return
+    if p.is_file() or (p.is_dir() and any(p.iterdir())):
+        raise InvalidInputError(f"{p} exists; choose another name or pass --overwrite")
+
+
+def _available_memory() -> int:
+    """Bytes of memory available now (``MemAvailable`` on Linux, else the physical memory)."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+
+
+def _check_memory(nbytes: float, what: str, remedy: str) -> None:
+    """Refuse (exit 2) work whose arrays would need more than the available memory."""
+    avail = _available_memory()
+    if nbytes > avail:
+        raise InvalidInputError(f"{what} would need about {nbytes / 2**30:.3g} GiB of memory, "
+                                f"more than the {avail / 2**30:.3g} GiB available; {remedy}")
+
+
+def _check_views_memory(grid, size) -> None:
+    """A synthetic capture: R x C views of H x W px, each with the R*C-band float32 cube."""
+    (R, C), (H, W) = grid, size
+    _check_memory(4.0 * (R * C) ** 2 * H * W,
+                  f"{R} x {C} views of {W} x {H} px with {R * C} bands",
+                  "reduce --size or --grid")
+
+
+def _check_labels_memory(labels: int, shape) -> None:
+    """Depth: a few float32 cost volumes of ``labels`` x H x W (a lower bound)."""
+    H, W = shape
+    _check_memory(4.0 * 4 * labels * H * W, f"--labels {labels} on {W} x {H} px views",
+                  "use fewer --labels")
 
 
 def _layout_arg(text: str):
@@ -178,7 +318,8 @@ def _cmd_synth(args) -> int:
         H, W = args.size
         kw = dict(common, height=H, width=W)
         if args.scene_name:
-            kw = {**synthesis.SCENES[args.scene_name], **kw}
+            kw = {**synthesis.named_scene(args.scene_name), **kw}
+        _check_views_memory(args.grid, args.size)
         lf = synthesis.procedural_scene(**kw)
     out = Path(args.output)
     _say(args, f"writing {out} ...")
@@ -203,6 +344,7 @@ def _cmd_convert(args) -> int:
     src, dst = Path(args.input), Path(args.output)
     img_ext = {".png", ".tif", ".tiff"}
     if src.suffix.lower() == ".pfm" or (src.suffix.lower() in img_ext and dst.suffix.lower() == ".pfm"):
+        _check_input_file(src, "input")
         data = formats.read_pfm(src) if src.suffix.lower() == ".pfm" else formats.read_image(src)
         if dst.suffix.lower() == ".pfm":
             formats.write_pfm(dst, data)
@@ -243,6 +385,8 @@ def _cmd_demo(args) -> int:
     report.html with every picture and figure. Needs no data."""
     from .pipeline import run_demo  # the chain itself
 
+    _check_views_memory(args.grid, args.size)
+    _check_labels_memory(args.labels, args.size)
     run_demo(args.output, seed=args.seed, grid=args.grid, size=args.size, metric=args.metric,
              labels=args.labels, progress=not args.quiet, log=lambda msg: _say(args, msg))
     print(Path(args.output))
@@ -253,7 +397,7 @@ def _cmd_demo(args) -> int:
 def _read_stereo_image(path: str) -> np.ndarray:
     from .formats import read_image
 
-    return read_image(path, as_float=True)
+    return read_image(_check_input_file(path, "image"), as_float=True)
 
 
 def _cmd_stereo(args) -> int:
@@ -292,14 +436,14 @@ def _cmd_depth(args) -> int:
     """Estimate the reference view's disparity of a hyperspectral light field (SPEC §5) or run
     a baseline light-field method on the views as plain intensities. Writes disparity.pfm,
     disparity_16bit.png, a colour-mapped disparity.png, confidence.png, and an error map when
-    the input has ground truth.
+    the input has ground truth; the scores against it skip a 15 px border, so views of 30 px or
+    less are written but not scored.
 
     examples:
       hyperlf depth scene3 -o depth3
       hyperlf depth antinous-hlf --labels 64 --save-intermediate -o d
       hyperlf depth antinous-hlf --method wang2015 -o d-wang
     """
-    from . import metrics
     from .formats import load_lightfield
     from .pipeline import save_disparity_outputs
 
@@ -309,6 +453,7 @@ def _cmd_depth(args) -> int:
     if rng is None and lf.disparity_range is None:
         raise InvalidInputError(f"{args.input} has no disparity range in its metadata; give "
                                 "--disparity-range MIN,MAX (px per baseline)")
+    _check_labels_memory(args.labels, lf.image_shape)
     t0 = time.perf_counter()
     if args.method == "hlf":
         from .hlf import DepthParams, depth
@@ -346,11 +491,23 @@ def _cmd_depth(args) -> int:
     _say(args, f"{args.method}: {time.perf_counter() - t0:.1f} s "
                + ", ".join(f"{k} {v:.1f} s" for k, v in res.timings.items()))
     if gt is not None:
-        sc = metrics.disparity_scores(res.disparity, gt, border=metrics.HCI_BORDER,
-                                      mask_name="all-15px-border")
-        _say(args, f"against the ground truth: RMSE {sc.rmse:.4f} px, MSE x 100 "
-                   f"{sc.mse_x100:.3f}, BadPix(0.07) {sc.badpix_007:.2f} %")
+        _say_depth_scores(args, res.disparity, gt)
     return _done(args, out, written)
+
+
+def _say_depth_scores(args, disparity: np.ndarray, gt: np.ndarray) -> None:
+    """Scores against the ground truth without the HCI 15 px border; views too small to keep
+    any pixel inside it are not scored (the result is still valid: exit 0)."""
+    from . import metrics
+
+    b = metrics.HCI_BORDER
+    if min(gt.shape) <= 2 * b:
+        _say(args, f"views of {gt.shape[1]} x {gt.shape[0]} px are too small to score inside "
+                   f"the {b} px border; no scores against the ground truth")
+        return
+    sc = metrics.disparity_scores(disparity, gt, border=b, mask_name="all-15px-border")
+    _say(args, f"against the ground truth: RMSE {sc.rmse:.4f} px, MSE x 100 "
+               f"{sc.mse_x100:.3f}, BadPix(0.07) {sc.badpix_007:.2f} %")
 
 
 def _cmd_complete(args) -> int:
@@ -373,7 +530,7 @@ def _cmd_complete(args) -> int:
     out = Path(args.output)
     disparity = None
     if args.disparity is not None:
-        disparity = read_pfm(args.disparity)
+        disparity = read_pfm(_check_input_file(args.disparity, "--disparity"))
         if disparity.shape != lf.image_shape:
             raise InvalidInputError(f"--disparity {args.disparity} is {disparity.shape[1]} x "
                                     f"{disparity.shape[0]} px but the views are "
@@ -457,7 +614,7 @@ def _profile_arg(text: str):
         except ValueError:
             raise InvalidInputError(f"--profile band:NM needs a wavelength in nm, got {text!r}") from None
     if text.startswith("weights:"):
-        path = Path(text[8:])
+        path = _check_input_file(text[8:], "weights file")
         try:
             return np.loadtxt(path, delimiter=",", ndmin=1).astype(np.float64).ravel()
         except (OSError, ValueError) as exc:
@@ -541,10 +698,18 @@ def _cmd_spectrum(args) -> int:
     from . import render
     from ._atomic import atomic_write_text
 
+    out = Path(args.output)
+    if out.suffix.lower() == ".csv":
+        raise InvalidInputError(f"-o {out}: give the picture's name, e.g. "
+                                f"{out.with_suffix('.png')}; the CSV is written beside it")
     cf, offsets, reference = _open_cube(args.cube)
     view = args.view if args.view is not None else reference
     x, y = args.at
-    out = Path(args.output)
+    H, W = cf.cube.shape[-2:]
+    if not (0 <= x <= W - 1 and 0 <= y <= H - 1):
+        cf.close()
+        raise InvalidInputError(f"--at {x:g},{y:g} is outside the {W} x {H} px image "
+                                f"(x from 0 to {W - 1}, y from 0 to {H - 1})")
     with cf:
         spec = render.spectrum_at(cf, None, x, y, view=view)
         wl = np.asarray(cf.wavelengths)
@@ -627,14 +792,15 @@ def _add_demo_parser(sub) -> None:
                     help="build a synthetic H-LF and write pictures and data")
     p.add_argument("-o", "--output", default="hyperlf-demo", help="output folder "
                    "(default ./hyperlf-demo)")
-    p.add_argument("--seed", type=int, default=0, help="scene seed (default 0)")
+    p.add_argument("--seed", type=_seed_arg, default=0, help="scene seed (default 0)")
     p.add_argument("--grid", type=_pair_of_ints, default=(5, 6), metavar="R,C")
     p.add_argument("--size", type=_pair_of_ints, default=(96, 128), metavar="H,W",
                    help="view size in pixels (default 96,128)")
     _add_metric_option(p, light_field=True,
                        help="correspondence cost of the depth step (default auto = census-rsncc; "
                             "ncc is faster still, fused/bwncc far slower)")
-    p.add_argument("--labels", type=int, default=32, help="disparity labels (default 32)")
+    p.add_argument("--labels", type=_labels_arg, default=32,
+                   help="disparity labels (default 32)")
 
 
 def _add_synth_parser(sub) -> None:
@@ -652,7 +818,7 @@ def _add_synth_parser(sub) -> None:
     for q in (ph, pp):
         q.add_argument("-o", "--output", required=True,
                        help="output capture folder, or a .h5 file")
-        q.add_argument("--seed", type=int, default=None,
+        q.add_argument("--seed", type=_seed_arg, default=None,
                        help="random seed (default: 0, or the named scene's own)")
         q.add_argument("--no-pictures", action="store_true", help="write data only")
         _add_spectral_options(q)
@@ -703,7 +869,8 @@ def _add_depth_parser(sub) -> None:
     p.add_argument("--disparity-range", type=_pair_of_floats, default=None, metavar="MIN,MAX",
                    help="px per baseline (default: the capture's metadata); write "
                         "--disparity-range=-2,2 when MIN is negative")
-    p.add_argument("--labels", type=int, default=64, help="number of disparity labels (64)")
+    p.add_argument("--labels", type=_labels_arg, default=64,
+                   help="number of disparity labels (64)")
     _add_metric_option(p, light_field=True,
                        help="correspondence cost of hlf: auto (default, = census-rsncc), rsncc, "
                             "census, ncc, or the descriptor costs fused, bwncc, bwncc-paper "
@@ -760,7 +927,8 @@ def _add_refocus_parser(sub) -> None:
     p = _subcommand(sub, "refocus", _cmd_refocus,
                     help="spectral refocusing at a disparity, or a focal sweep")
     p.add_argument("cube", help=_CUBE_HELP)
-    p.add_argument("--disparity", type=float, default=0.0, help="focus disparity (px/baseline)")
+    p.add_argument("--disparity", type=_finite_float, default=0.0,
+                   help="focus disparity (px/baseline)")
     p.add_argument("--sweep", type=_sweep_arg, default=None, metavar="MIN,MAX,N",
                    help="write a focal sweep of N frames instead (write --sweep=-2,2,17 when "
                         "MIN is negative)")
@@ -779,12 +947,13 @@ def _add_spectrum_parser(sub) -> None:
                    help="pixel position (x = column, y = row)")
     p.add_argument("--view", type=_view_index, default=None, metavar="R,C",
                    help="view (0-based; default the reference)")
-    p.add_argument("-o", "--output", default="spectrum.png", help="output PNG (CSV beside it)")
+    p.add_argument("-o", "--output", default="spectrum.png",
+                   help="output picture, e.g. s.png (s.csv is written beside it)")
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``hyperlf`` argument parser: one small function per subcommand."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="hyperlf",
         description="Hyperspectral light fields: depth from a camera array whose views each "
                     "see a different narrow band, plenoptic cube completion and rendering.",
@@ -807,6 +976,15 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _check_arguments(args) -> None:
+    """Checks every command shares, before any work: the output location and --overwrite."""
+    kind = _output_kind(args)
+    if kind is not None:
+        _check_output(args.output, kind)
+    if hasattr(args, "overwrite"):
+        _check_overwrite(args)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -814,18 +992,25 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
+        _check_arguments(args)
         return int(args.func(args) or 0)
     except HyperLFError as exc:
         print(f"hyperlf {args.command}: error: {exc}", file=sys.stderr)
         return exc.exit_code
+    except MemoryError:
+        print(f"hyperlf {args.command}: error: out of memory; reduce the size of the work "
+              "(--size, --grid, --labels) or free memory", file=sys.stderr)
+        return 2
+    except BrokenPipeError:  # output piped into e.g. `head`, which closed early
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
+    except OSError as exc:  # the output checks come first; this is the last resort
+        where = f": {exc.filename}" if exc.filename else ""
+        print(f"hyperlf {args.command}: error: {exc.strerror or exc}{where}", file=sys.stderr)
+        return 4 if isinstance(exc, FileNotFoundError) else 1
     except KeyboardInterrupt:
         print("hyperlf: interrupted; no partial output was left behind", file=sys.stderr)
         return 130
-    except BrokenPipeError:  # output piped into e.g. `head`, which closed early
-        import os
-
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 141
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -290,6 +290,19 @@ def _demo_report(out: Path, lf, metric: str, sc, cres, scores: dict, timings: di
                                  f"{k} {v:.1f} s" for k, v in stages.items()))
 
 
+def _check_demo_options(grid, size, labels) -> None:
+    """Refuse impossible demo options before anything is written."""
+    from .errors import InvalidInputError
+
+    R, C = (int(v) for v in grid)
+    H, W = (int(v) for v in size)
+    if min(R, C, H, W) < 1 or R * C < 2:
+        raise InvalidInputError(f"the demo needs at least 2 views of at least 1 x 1 px; got a "
+                                f"{R} x {C} grid of {W} x {H} px")
+    if isinstance(labels, bool) or int(labels) != labels or labels < 2:
+        raise InvalidInputError(f"labels must be an integer >= 2, got {labels}")
+
+
 def run_demo(out_dir: str | os.PathLike, *, seed: int = 0, grid: tuple[int, int] = (5, 6),
              size: tuple[int, int] = (96, 128), metric: str = "auto", labels: int = 32,
              progress: bool = False, log: Callable[[str], None] | None = None) -> DemoResult:
@@ -335,6 +348,7 @@ def run_demo(out_dir: str | os.PathLike, *, seed: int = 0, grid: tuple[int, int]
     >>> res.report.name  # doctest: +SKIP
     'report.html'
     """
+    _check_demo_options(grid, size, labels)
     log = log or _quiet
     t_start = time.perf_counter()
     out = Path(out_dir)

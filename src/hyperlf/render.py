@@ -482,6 +482,8 @@ def _camera_plan(camera, wl_bands: np.ndarray, white_balance: bool, illuminant, 
 
 
 def _band_index(wl_bands: np.ndarray, lam: float) -> int:
+    if not np.isfinite(lam):
+        raise InvalidInputError(f"a band profile needs a finite wavelength in nm, got {lam}")
     b = int(np.argmin(np.abs(wl_bands - lam)))
     if wl_bands.size > 1:
         step = float(np.min(np.diff(np.sort(wl_bands))))

@@ -47,6 +47,7 @@ __all__ = [
     "band_grid",
     "view_disparity_from_reference",
     "SCENES",
+    "named_scene",
 ]
 
 
@@ -1278,3 +1279,22 @@ SCENES: dict[str, dict[str, Any]] = {scene["name"]: scene for scene in (
            _textured("sphere", "stripes", 0.06, 60.0, center=[0.68, 0.55], radius=0.2,
                      disparity=1.4)),
 )}
+
+
+def named_scene(name: str) -> dict[str, Any]:
+    """The parameters of the named scene ``name`` (a copy of ``SCENES[name]``).
+
+    Raises
+    ------
+    InvalidInputError
+        For a name that is not in :data:`SCENES`; the message lists the names.
+
+    Examples
+    --------
+    >>> named_scene("planes")["seed"]
+    101
+    """
+    if name not in SCENES:
+        raise InvalidInputError(f"unknown scene {name!r}; the named scenes are "
+                                f"{', '.join(SCENES)}")
+    return dict(SCENES[name])

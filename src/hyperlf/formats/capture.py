@@ -44,7 +44,9 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import re
 import stat
+import string
 import sys
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path, PurePosixPath
@@ -265,16 +267,40 @@ def _gt_disparity_files(man: Path, root: Path, gspec, R: int, C: int):
         return None
     if not isinstance(gspec, str):
         raise _err(man, f"gt_disparity must be a file name or pattern, got {gspec!r}")
-    if "{row}" not in gspec and "{col}" not in gspec:
-        return _safe_file(man, root, gspec, "gt_disparity")
+    if not _is_gt_pattern(man, gspec):
+        return _safe_file(man, root, _short_name(man, gspec), "gt_disparity")
     files = {}
     for r, c in [(r, c) for r in range(R) for c in range(C)]:
-        try:
-            name = gspec.format(row=r, col=c)
-        except (KeyError, IndexError, ValueError):
-            raise _err(man, f"gt_disparity pattern {gspec!r} may only use {{row}} and {{col}}") from None
+        name = _short_name(man, gspec.format(row=r, col=c))
         files[(r, c)] = _safe_file(man, root, name, "gt_disparity")
     return files
+
+
+#: The format spec a ``gt_disparity`` field may carry: a zero-padded width below 100 (``02d``).
+_GT_FIELD_SPEC = re.compile(r"0?\d{0,2}d?")
+
+
+def _is_gt_pattern(man: Path, gspec: str) -> bool:
+    """Whether ``gspec`` has ``{row}``/``{col}`` fields; any other field (attributes, indices,
+    conversions, wide or odd format specs, stray braces) is a FormatError."""
+    bad = _err(man, f"gt_disparity pattern {gspec!r} may only use {{row}} and {{col}}, "
+                    "optionally with a width below 100 such as {row:02d}")
+    try:
+        fields = [f for f in string.Formatter().parse(gspec) if f[1] is not None]
+    except ValueError:
+        raise bad from None
+    for _, name, spec, conversion in fields:
+        if name not in ("row", "col") or conversion or not _GT_FIELD_SPEC.fullmatch(spec or ""):
+            raise bad
+    return bool(fields)
+
+
+def _short_name(man: Path, name: str) -> str:
+    """``name``, refused when one of its parts is longer than a file name can be (255 bytes)."""
+    if any(len(os.fsencode(part)) > 255 for part in name.replace("\\", "/").split("/")):
+        raise _err(man, f"gt_disparity names a file over 255 bytes long ({name[:40]}...); "
+                        "use a shorter name")
+    return name
 
 
 def _read_gt_disparity(man: Path, root: Path, gfiles, R: int, C: int, H: int, W: int):
