@@ -295,3 +295,45 @@ def test_a_missing_image_is_exit_4(pair, tmp_path):
 def test_usage_errors_are_one_line(tmp_path):
     proc = run_cli("synth", "procedural", "--grid", "5,zero", "-o", tmp_path / "o")
     assert_one_line_error(proc, 2, "expected two integers", "--help")
+
+
+# --- item 3: one --overwrite rule for every output kind -------------------------------------
+
+def _convert_cases(capture):
+    pfm = capture / "gt_disparity.pfm"
+    if not pfm.exists():  # the fixture writes per-view ground truth; take any PFM it has
+        pfm = next(capture.glob("*.pfm"))
+    return [
+        ("pfm-to-png", ["convert", pfm], "d.png", ["d.png", "d_colour.png"]),
+        ("pfm-to-pfm", ["convert", pfm], "d.pfm", ["d.pfm"]),
+        ("cube-to-envi", ["convert", capture / "gt_cube.h5"], "c.hdr", ["c.hdr", "c.img"]),
+    ]
+
+
+@pytest.mark.parametrize("which", [0, 1, 2])
+def test_convert_to_one_file_needs_overwrite_for_it_and_its_sidecars(tmp_path, capture, which):
+    name, cmd, out, written = _convert_cases(capture)[which]
+    for existing in written:  # any one of the files it would write blocks the run
+        folder = tmp_path / f"{name}-{existing}"
+        folder.mkdir()
+        (folder / existing).write_bytes(b"the user's own file")
+        before = listing(folder)
+        proc = run_cli(*cmd, "-o", folder / out)
+        assert_one_line_error(proc, 2, existing, "--overwrite")
+        assert listing(folder) == before
+        assert (folder / existing).read_bytes() == b"the user's own file"
+        proc = run_cli(*cmd, "-o", folder / out, "--overwrite")
+        assert proc.returncode == 0, proc.stderr
+        assert (folder / existing).read_bytes() != b"the user's own file"
+
+
+@pytest.mark.parametrize("existing", ["s.png", "s.csv"])
+def test_spectrum_needs_overwrite_for_the_picture_and_the_csv(tmp_path, capture, existing):
+    (tmp_path / existing).write_text("keep me")
+    proc = run_cli("spectrum", capture, "--at", "10,12", "-o", tmp_path / "s.png")
+    assert_one_line_error(proc, 2, existing, "--overwrite")
+    assert (tmp_path / existing).read_text() == "keep me"
+    assert listing(tmp_path) == [Path(existing)]
+    proc = run_cli("spectrum", capture, "--at", "10,12", "-o", tmp_path / "s.png", "--overwrite")
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "s.csv").read_text().startswith("wavelength_nm,value")

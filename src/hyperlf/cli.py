@@ -209,13 +209,34 @@ def _writes_lightfield(args) -> bool:
     return not ({Path(args.input).suffix.lower(), Path(args.output).suffix.lower()} & single)
 
 
+def _file_outputs(args) -> list[Path]:
+    """Every file a single-file command would write (its sidecars included)."""
+    out = Path(args.output)
+    if args.command == "spectrum":
+        return [out, out.with_suffix(".csv")]
+    if args.command != "convert" or _writes_lightfield(args):
+        return []
+    suffix = out.suffix.lower()
+    if suffix in (".hdr", ".img"):
+        return [out.with_suffix(".hdr"), out.with_suffix(".img")]
+    if suffix in (".png", ".tif", ".tiff"):
+        return [out, out.with_name(out.stem + "_colour.png")]
+    return [out]
+
+
 def _check_overwrite(args) -> None:
-    """A light-field output that exists (a file, or a folder with files) needs --overwrite."""
-    p = Path(args.output)
-    if args.overwrite or not _writes_lightfield(args):
+    """The same rule for every output kind: what exists is replaced only with --overwrite
+    (a light field: a file, or a folder with files; a single-file output: it or a sidecar)."""
+    if args.overwrite:
         return
-    if p.is_file() or (p.is_dir() and any(p.iterdir())):
-        raise InvalidInputError(f"{p} exists; choose another name or pass --overwrite")
+    p = Path(args.output)
+    if _writes_lightfield(args):
+        if p.is_file() or (p.is_dir() and any(p.iterdir())):
+            raise InvalidInputError(f"{p} exists; choose another name or pass --overwrite")
+        return
+    for f in _file_outputs(args):
+        if f.exists() or f.is_symlink():
+            raise InvalidInputError(f"{f} exists; choose another name or pass --overwrite")
 
 
 def _available_memory() -> int:
@@ -949,6 +970,8 @@ def _add_spectrum_parser(sub) -> None:
                    help="view (0-based; default the reference)")
     p.add_argument("-o", "--output", default="spectrum.png",
                    help="output picture, e.g. s.png (s.csv is written beside it)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing picture or CSV")
 
 
 def build_parser() -> argparse.ArgumentParser:
