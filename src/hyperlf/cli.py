@@ -1032,7 +1032,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"hyperlf {args.command}: error: {exc.strerror or exc}{where}", file=sys.stderr)
         return 4 if isinstance(exc, FileNotFoundError) else 1
     except KeyboardInterrupt:
-        print("hyperlf: interrupted; no partial output was left behind", file=sys.stderr)
+        print("hyperlf: interrupted; every file written so far is complete, but the output "
+              "may hold only some of them", file=sys.stderr)
         return 130
 
 
