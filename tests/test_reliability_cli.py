@@ -300,9 +300,7 @@ def test_usage_errors_are_one_line(tmp_path):
 # --- item 3: one --overwrite rule for every output kind -------------------------------------
 
 def _convert_cases(capture):
-    pfm = capture / "gt_disparity.pfm"
-    if not pfm.exists():  # the fixture writes per-view ground truth; take any PFM it has
-        pfm = next(capture.glob("*.pfm"))
+    pfm = capture / "gt_disparity_r0_c0.pfm"  # the fixture writes per-view ground truth
     return [
         ("pfm-to-png", ["convert", pfm], "d.png", ["d.png", "d_colour.png"]),
         ("pfm-to-pfm", ["convert", pfm], "d.pfm", ["d.pfm"]),

@@ -205,7 +205,7 @@ def _writes_lightfield(args) -> bool:
         return True
     if args.command != "convert":
         return False
-    single = {".pfm", ".png", ".tif", ".tiff", ".hdr", ".img"}
+    single = _FILE_OUTPUTS - {".h5", ".hdf5"}
     return not ({Path(args.input).suffix.lower(), Path(args.output).suffix.lower()} & single)
 
 

@@ -46,18 +46,14 @@ MAX_IMAGE_BYTES = 2 * 1024 ** 3
 MAX_IMAGE_BYTES_ENV = "HYPERLF_MAX_IMAGE_BYTES"
 
 _TIFF = (".tif", ".tiff")
+_PNG_SIG = b"\x89PNG\r\n\x1a\n"
 _WRITABLE = (".png", ".tif", ".tiff")
 
 
-def _is_palette_png(path: Path) -> bool:
-    """True when ``path`` is a PNG with colour type 3 (palette)."""
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(26)
-    except OSError:
-        return False
-    return len(head) == 26 and head[:8] == b"\x89PNG\r\n\x1a\n" and head[12:16] == b"IHDR" \
-        and head[25] == 3
+def _is_palette_png(buf: bytes) -> bool:
+    """True when ``buf`` (a file's bytes) is a PNG with colour type 3 (palette)."""
+    return len(buf) >= 26 and buf[:8] == _PNG_SIG and buf[12:16] == b"IHDR" and buf[25] == 3
+
 
 def human_bytes(n: int) -> str:
     """``n`` bytes as "12 MB" / "4.6 GB" for messages."""
@@ -93,7 +89,6 @@ def check_image_size(p: Path, w: int, h: int, channels: int, itemsize: int) -> N
         )
 
 
-_PNG_SIG = b"\x89PNG\r\n\x1a\n"
 # colour type -> (samples per pixel in the file, bit depths allowed, channels OpenCV returns)
 _PNG_TYPES = {0: (1, (1, 2, 4, 8, 16), 1), 2: (3, (8, 16), 3), 3: (1, (1, 2, 4, 8), 3),
               4: (2, (8, 16), 4), 6: (4, (8, 16), 4)}
@@ -231,7 +226,7 @@ def _read_cv2(p: Path) -> np.ndarray:
             arr = arr[..., ::-1]  # BGR -> RGB
         if arr.shape[2] == 1:
             arr = arr[..., 0]
-    if _is_palette_png(p) and arr.ndim == 3 and arr.shape[2] == 3 \
+    if _is_palette_png(buf) and arr.ndim == 3 and arr.shape[2] == 3 \
             and np.array_equal(arr[..., 0], arr[..., 1]) and np.array_equal(arr[..., 0], arr[..., 2]):
         arr = arr[..., 0]
     return np.ascontiguousarray(arr)
