@@ -158,4 +158,4 @@ def test_complete_command_writes_a_cube_that_render_reads(tmp_path, capsys):
         assert (out / name).is_file(), name
     assert main(["-q", "render", str(out / "cube.h5"), "-o", str(tmp_path / "r")]) == 0
     assert main(["-q", "complete", str(cap), "--disparity", str(tmp_path / "nope.pfm"),
-                 "-o", str(out)]) == 4
+                 "-o", str(tmp_path / "c2")]) == 4

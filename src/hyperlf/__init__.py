@@ -29,7 +29,6 @@ from __future__ import annotations
 import lazy_loader as _lazy
 
 from .errors import DataNotFoundError, FormatError, HyperLFError, InvalidInputError
-from .lightfield import LightField, filter_layout, raster_wavelengths
 
 __version__ = "0.1.0"
 
@@ -47,6 +46,7 @@ _SUBMODULES = [
     "imageops",
     "lightfield",
     "metrics",
+    "outputs",
     "pipeline",
     "regularisers",
     "render",
@@ -58,7 +58,13 @@ _SUBMODULES = [
     "warp",
 ]
 
-__getattr__, _lazy_dir, _ = _lazy.attach(__name__, submodules=_SUBMODULES)
+#: Names of submodules offered at the top level, imported on first access as well, so that
+#: ``import hyperlf`` does not import numpy (the ``hyperlf`` command installs its signal
+#: handlers before any heavy import).
+_ATTRIBUTES = {"lightfield": ["LightField", "filter_layout", "raster_wavelengths"]}
+
+__getattr__, _lazy_dir, _ = _lazy.attach(__name__, submodules=_SUBMODULES,
+                                         submod_attrs=_ATTRIBUTES)
 
 __all__ = [
     "LightField",

@@ -8,6 +8,7 @@ impossible input; 3 an unreadable or malformed file; 4 a missing file or dataset
 from __future__ import annotations
 
 import argparse
+import contextlib
 import inspect
 import os
 import sys
@@ -18,7 +19,7 @@ from typing import Sequence
 import numpy as np
 
 from . import __version__
-from .errors import DataNotFoundError, HyperLFError, InvalidInputError
+from .errors import DataNotFoundError, HyperLFError, InvalidInputError, Terminated
 
 __all__ = ["main", "build_parser"]
 
@@ -135,12 +136,18 @@ def _say(args, msg: str) -> None:
         print(msg, file=sys.stderr)
 
 
-def _done(args, out, written) -> int:
-    """List the files a command wrote (stderr), print its output location (stdout), exit 0."""
-    for w in written:
-        _say(args, f"wrote {w}")
-    print(out)
-    return 0
+def _report(args, written, dest) -> None:
+    """After the result set is in place: list the files written (stderr, under their final
+    names) and print the output location (stdout)."""
+    kind, targets = _targets(args)
+    roots = [dest] if kind == "folder" else list(dest)
+    for w in written or []:
+        for root, final in zip(roots, targets):
+            with contextlib.suppress(ValueError):
+                rel = Path(w).relative_to(root)
+                _say(args, f"wrote {final / rel if rel.parts else final}")
+                break
+    print(args.output)
 
 
 # --------------------------------------------------------------------------- checks
@@ -214,8 +221,9 @@ def _file_outputs(args) -> list[Path]:
     out = Path(args.output)
     if args.command == "spectrum":
         return [out, out.with_suffix(".csv")]
-    if args.command != "convert" or _writes_lightfield(args):
-        return []
+    if _writes_lightfield(args):  # a .h5 light field, and synth's pictures folder beside it
+        pics = args.command == "synth" and not args.no_pictures
+        return [out, out.with_suffix("")] if pics else [out]
     suffix = out.suffix.lower()
     if suffix in (".hdr", ".img"):
         return [out.with_suffix(".hdr"), out.with_suffix(".img")]
@@ -224,19 +232,40 @@ def _file_outputs(args) -> list[Path]:
     return [out]
 
 
+def _targets(args) -> tuple[str, list[Path]] | tuple[None, list]:
+    """The command's result set: ``("folder", [OUT])``, ``("files", [paths])`` or no output."""
+    kind = _output_kind(args)
+    if kind is None:
+        return None, []
+    if kind == "folder":
+        return "folder", [Path(args.output)]
+    return "files", _file_outputs(args)
+
+
 def _check_overwrite(args) -> None:
-    """The same rule for every output kind: what exists is replaced only with --overwrite
-    (a light field: a file, or a folder with files; a single-file output: it or a sidecar)."""
-    if args.overwrite:
+    """The same rule for every output kind (:func:`hyperlf.outputs.check_replaceable`): what
+    exists is replaced only with --overwrite, a folder only when it holds nothing but a previous
+    result set, a symlink never."""
+    from .outputs import check_replaceable
+
+    for target in _targets(args)[1]:
+        check_replaceable(target, overwrite=args.overwrite)
+
+
+@contextlib.contextmanager
+def _result(args):
+    """The staging area of the command's result set (None without output); moved into place
+    when the block ends normally, removed when it raises."""
+    from .outputs import result_files, result_folder
+
+    kind, targets = _targets(args)
+    if kind is None:
+        yield None
         return
-    p = Path(args.output)
-    if _writes_lightfield(args):
-        if p.is_file() or (p.is_dir() and any(p.iterdir())):
-            raise InvalidInputError(f"{p} exists; choose another name or pass --overwrite")
-        return
-    for f in _file_outputs(args):
-        if f.exists() or f.is_symlink():
-            raise InvalidInputError(f"{f} exists; choose another name or pass --overwrite")
+    opts = dict(overwrite=args.overwrite, command=args.command)
+    with (result_folder(targets[0], **opts) if kind == "folder"
+          else result_files(targets, **opts)) as dest:
+        yield dest
 
 
 def _available_memory() -> int:
@@ -299,11 +328,10 @@ def _add_spectral_options(p: argparse.ArgumentParser) -> None:
                    help="Gaussian noise std on [0,1] intensities (default 0)")
     g.add_argument("--bit-depth", type=int, choices=(8, 16), default=16,
                    help="bit depth of the written view images (default 16)")
-    g.add_argument("--overwrite", action="store_true", help="replace an existing output")
 
 
 # --------------------------------------------------------------------------- commands
-def _cmd_info(args) -> int:
+def _cmd_info(args, dest) -> None:
     """Print grid, bands, image size, reference view, baselines and disparity range of a light
     field."""
     from .formats import load_lightfield
@@ -311,10 +339,9 @@ def _cmd_info(args) -> int:
     lf = load_lightfield(args.input)
     print(f"{args.input}")
     print(lf.describe())
-    return 0
 
 
-def _cmd_synth(args) -> int:
+def _cmd_synth(args, dest) -> list[Path]:
     """Make a synthetic hyperspectral light field with ground-truth disparity and cube (SPEC
     §6) and write it as a capture folder (or .h5 file).
 
@@ -343,46 +370,43 @@ def _cmd_synth(args) -> int:
         _check_views_memory(args.grid, args.size)
         lf = synthesis.procedural_scene(**kw)
     out = Path(args.output)
+    data = dest if isinstance(dest, Path) else dest[0]  # a capture folder, or a .h5 file
     _say(args, f"writing {out} ...")
-    save_lightfield(lf, out, bit_depth=args.bit_depth, overwrite=args.overwrite,
-                    progress=not args.quiet)
+    save_lightfield(lf, data, bit_depth=args.bit_depth, progress=not args.quiet)
     if not args.no_pictures:
-        pics_dir = out if out.suffix.lower() not in (".h5", ".hdf5") else out.with_suffix("")
-        write_lightfield_pictures(lf, pics_dir if pics_dir != out else out / "preview")
-    _say(args, f"wrote {out} ({R} x {C} views, {lf.image_shape[1]} x {lf.image_shape[0]} px) "
+        write_lightfield_pictures(lf, data / "preview" if data is dest else dest[1])
+    _say(args, f"made {R} x {C} views of {lf.image_shape[1]} x {lf.image_shape[0]} px "
                f"in {time.perf_counter() - t0:.1f} s")
-    print(out)
-    return 0
+    return [data]
 
 
-def _cmd_convert(args) -> int:
+def _cmd_convert(args, dest) -> list[Path]:
     """Convert a light field between capture folder, HCI folder (read only) and HDF5 (.h5); a
     PFM to 16-bit PNG/TIFF (with a colour-mapped preview) or back; one view of a cube (.h5) to
     ENVI (.hdr + .img)."""
     from . import formats, visualise
     from .lightfield import centre_view
 
-    src, dst = Path(args.input), Path(args.output)
+    src = Path(args.input)
+    dst = dest if isinstance(dest, Path) else dest[0]  # where this run writes args.output
     img_ext = {".png", ".tif", ".tiff"}
     if src.suffix.lower() == ".pfm" or (src.suffix.lower() in img_ext and dst.suffix.lower() == ".pfm"):
         _check_input_file(src, "input")
         data = formats.read_pfm(src) if src.suffix.lower() == ".pfm" else formats.read_image(src)
         if dst.suffix.lower() == ".pfm":
-            formats.write_pfm(dst, data)
-        elif dst.suffix.lower() in img_ext:
-            finite = data[np.isfinite(data)]
-            lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
-            scaled = (data - lo) / (hi - lo) if hi > lo else np.zeros_like(data)
-            formats.write_image(dst, np.nan_to_num(scaled), bit_depth=16)
-            _say(args, f"values {lo:g}..{hi:g} mapped linearly to 0..65535")
-            if data.ndim == 2:
-                visualise.save_disparity_png(dst.with_name(dst.stem + "_colour.png"), data,
-                                             title=src.name, label="value")
-        else:
+            return [formats.write_pfm(dst, data)]
+        if dst.suffix.lower() not in img_ext:
             raise InvalidInputError(f"cannot convert {src.suffix} to {dst.suffix}; "
                                     "use .pfm, .png or .tif")
-        print(dst)
-        return 0
+        finite = data[np.isfinite(data)]
+        lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
+        scaled = (data - lo) / (hi - lo) if hi > lo else np.zeros_like(data)
+        written = [formats.write_image(dst, np.nan_to_num(scaled), bit_depth=16)]
+        _say(args, f"values {lo:g}..{hi:g} mapped linearly to 0..65535")
+        if data.ndim == 2:
+            written.append(visualise.save_disparity_png(dest[1], data, title=src.name,
+                                                        label="value"))
+        return written
     if dst.suffix.lower() in (".hdr", ".img"):
         if src.suffix.lower() not in (".h5", ".hdf5"):
             raise InvalidInputError("ENVI export needs a cube file (.h5) as input")
@@ -391,16 +415,13 @@ def _cmd_convert(args) -> int:
         r, c = args.view if args.view is not None else centre_view(R, C)
         if not (r < R and c < C):
             raise InvalidInputError(f"--view {r},{c} is outside the {R} x {C} grid of {src}")
-        formats.write_envi(dst, cube[r, c], wl)
-        print(dst)
-        return 0
+        formats.write_envi(dest[0], cube[r, c], wl)
+        return list(dest)
     lf = formats.load_lightfield(src)
-    formats.save_lightfield(lf, dst, bit_depth=args.bit_depth, overwrite=args.overwrite)
-    print(dst)
-    return 0
+    return [formats.save_lightfield(lf, dst, bit_depth=args.bit_depth)]
 
 
-def _cmd_demo(args) -> int:
+def _cmd_demo(args, dest) -> list[Path]:
     """Run the whole chain on a small synthetic hyperspectral light field with ground truth:
     capture -> depth -> plenoptic cube -> emulated colour image -> focal sweep, and write
     report.html with every picture and figure. Needs no data."""
@@ -408,10 +429,9 @@ def _cmd_demo(args) -> int:
 
     _check_views_memory(args.grid, args.size)
     _check_labels_memory(args.labels, args.size)
-    run_demo(args.output, seed=args.seed, grid=args.grid, size=args.size, metric=args.metric,
-             labels=args.labels, progress=not args.quiet, log=lambda msg: _say(args, msg))
-    print(Path(args.output))
-    return 0
+    res = run_demo(dest, seed=args.seed, grid=args.grid, size=args.size, metric=args.metric,
+                   labels=args.labels, progress=not args.quiet, log=lambda msg: _say(args, msg))
+    return [res.report]
 
 
 # --------------------------------------------------------------------------- stereo
@@ -421,7 +441,7 @@ def _read_stereo_image(path: str) -> np.ndarray:
     return read_image(_check_input_file(path, "image"), as_float=True)
 
 
-def _cmd_stereo(args) -> int:
+def _cmd_stereo(args, dest) -> list[Path]:
     """Disparity of the left image of a rectified pair whose images may see different spectra
     (SPEC §4). Left x matches right x - d. Writes disparity.pfm (exact), disparity_16bit.png
     (value/256 + offset, see the .txt beside it), a colour-mapped disparity.png and
@@ -445,15 +465,14 @@ def _cmd_stereo(args) -> int:
     res = stereo(left, right, (int(lo), int(hi)), metric=args.metric, optimizer=args.optimizer,
                  occlusion="none" if args.no_occlusion else "lr-fill", subpixel=args.subpixel,
                  channel=channel, progress=not args.quiet)
-    out = Path(args.output)
-    written = save_disparity_outputs(out, res.disparity,
+    written = save_disparity_outputs(dest, res.disparity,
                                       f"{res.metric} + {res.optimizer}", confidence=res.confidence)
     t = res.timings
     _say(args, f"cost {t['cost']:.1f} s, optimiser {t['optimiser']:.1f} s, total {t['total']:.1f} s")
-    return _done(args, out, written)
+    return written
 
 
-def _cmd_depth(args) -> int:
+def _cmd_depth(args, dest) -> list[Path]:
     """Estimate the reference view's disparity of a hyperspectral light field (SPEC §5) or run
     a baseline light-field method on the views as plain intensities. Writes disparity.pfm,
     disparity_16bit.png, a colour-mapped disparity.png, confidence.png, and an error map when
@@ -469,7 +488,7 @@ def _cmd_depth(args) -> int:
     from .pipeline import save_disparity_outputs
 
     lf = load_lightfield(args.input)
-    out = Path(args.output)
+    out = dest
     rng = args.disparity_range
     if rng is None and lf.disparity_range is None:
         raise InvalidInputError(f"{args.input} has no disparity range in its metadata; give "
@@ -513,7 +532,7 @@ def _cmd_depth(args) -> int:
                + ", ".join(f"{k} {v:.1f} s" for k, v in res.timings.items()))
     if gt is not None:
         _say_depth_scores(args, res.disparity, gt)
-    return _done(args, out, written)
+    return written
 
 
 def _say_depth_scores(args, disparity: np.ndarray, gt: np.ndarray) -> None:
@@ -531,7 +550,7 @@ def _say_depth_scores(args, disparity: np.ndarray, gt: np.ndarray) -> None:
                f"{sc.mse_x100:.3f}, BadPix(0.07) {sc.badpix_007:.2f} %")
 
 
-def _cmd_complete(args) -> int:
+def _cmd_complete(args, dest) -> list[Path]:
     """Register every band into every view (SPEC §7): the reference disparity is warped to
     every view, refined (pairwise cross-spectral stereo + edge-aware WLS), then each band is
     warped in with occlusion checks and propagated. Writes cube.h5 ([R, C, B, H, W] +
@@ -548,7 +567,7 @@ def _cmd_complete(args) -> int:
     from .formats import load_lightfield, read_pfm, write_image
 
     lf = load_lightfield(args.input)
-    out = Path(args.output)
+    out = dest
     disparity = None
     if args.disparity is not None:
         disparity = read_pfm(_check_input_file(args.disparity, "--disparity"))
@@ -588,7 +607,7 @@ def _cmd_complete(args) -> int:
                f"({res.stats['registered_pct']:.1f} % registered, "
                f"{res.stats['inferred_pct']:.1f} % inferred) in "
                f"{res.stats['timings']['total']:.1f} s")
-    return _done(args, out, written)
+    return written
 
 
 # --------------------------------------------------------------------------- cube commands
@@ -643,7 +662,7 @@ def _profile_arg(text: str):
     return text
 
 
-def _cmd_render(args) -> int:
+def _cmd_render(args, dest) -> list[Path]:
     """Render what a colour camera would have recorded (SPEC §8): RGB = sum over bands of cube
     x camera sensitivity, white-balanced so a flat spectrum is grey, mapped to sRGB.
 
@@ -655,7 +674,7 @@ def _cmd_render(args) -> int:
     from .formats import write_image
 
     cf, offsets, reference = _open_cube(args.cube)
-    out = Path(args.output)
+    out = dest
     with cf:
         views = "all" if args.all_views else "reference"
         kw = dict(camera=args.camera, output="srgb", white=args.white, views=views,
@@ -673,10 +692,10 @@ def _cmd_render(args) -> int:
             written.append(write_image(out / f"rgb_r{r}_c{c}.png", rgb[r, c], bit_depth=8))
         written.append(visualise.save_mosaic_png(out / "rgb_views.png", rgb,
                                                  title=f"emulated {args.camera}"))
-    return _done(args, out, written)
+    return written
 
 
-def _cmd_refocus(args) -> int:
+def _cmd_refocus(args, dest) -> list[Path]:
     """Shift-and-add over the views at a disparity for a spectral profile: a camera (RGB), one
     band, or a weight vector.
 
@@ -689,7 +708,7 @@ def _cmd_refocus(args) -> int:
     from .formats import write_image
 
     cf, offsets, reference = _open_cube(args.cube)
-    out = Path(args.output)
+    out = dest
     profile = _profile_arg(args.profile)
     with cf:
         if args.sweep is not None:
@@ -697,10 +716,8 @@ def _cmd_refocus(args) -> int:
             res = render.focal_sweep(cf, offsets, np.linspace(lo, hi, int(n)), profile,
                                      out_dir=out, fps=args.fps, progress=not args.quiet,
                                      reference=reference, white=args.white)
-            for key in ("gif", "mp4"):
-                if res.get(key):
-                    _say(args, f"wrote {res[key]}")
-            _say(args, f"wrote {len(res['frames'])} frames in {out}")
+            written = [res[key] for key in ("gif", "mp4") if res.get(key)]
+            _say(args, f"{len(res['frames'])} frames")
         else:
             img = render.refocus(cf, offsets, args.disparity, profile, output="srgb"
                                  if not isinstance(profile, (float, np.ndarray)) else "camera",
@@ -708,21 +725,16 @@ def _cmd_refocus(args) -> int:
                                  progress=not args.quiet)
             img = np.clip(img / max(float(np.percentile(img, 99.5)), 1e-6), 0, 1) \
                 if img.ndim == 2 else img
-            path = write_image(out / f"refocus_d{args.disparity:+.2f}.png", img, bit_depth=8)
-            _say(args, f"wrote {path}")
-    print(out)
-    return 0
+            written = [write_image(out / f"refocus_d{args.disparity:+.2f}.png", img,
+                                   bit_depth=8)]
+    return written
 
 
-def _cmd_spectrum(args) -> int:
+def _cmd_spectrum(args, dest) -> list[Path]:
     """Plot (PNG) and tabulate (CSV) the spectrum of a cube at a pixel of a view."""
     from . import render
     from ._atomic import atomic_write_text
 
-    out = Path(args.output)
-    if out.suffix.lower() == ".csv":
-        raise InvalidInputError(f"-o {out}: give the picture's name, e.g. "
-                                f"{out.with_suffix('.png')}; the CSV is written beside it")
     cf, offsets, reference = _open_cube(args.cube)
     view = args.view if args.view is not None else reference
     x, y = args.at
@@ -734,14 +746,11 @@ def _cmd_spectrum(args) -> int:
     with cf:
         spec = render.spectrum_at(cf, None, x, y, view=view)
         wl = np.asarray(cf.wavelengths)
-        png = render.save_spectrum_figure(out, cf, None, points=[(x, y)], view=view,
+        png = render.save_spectrum_figure(dest[0], cf, None, points=[(x, y)], view=view,
                                           labels=[f"view {view}, x={x:g}, y={y:g}"])
-    csv = out.with_suffix(".csv")
-    atomic_write_text(csv, "wavelength_nm,value\n" + "".join(
+    csv = atomic_write_text(dest[1], "wavelength_nm,value\n" + "".join(
         f"{w:g},{v:.6g}\n" for w, v in zip(wl, np.ravel(spec))))
-    _say(args, f"wrote {png} and {csv}")
-    print(png)
-    return 0
+    return [png, csv]
 
 
 # --------------------------------------------------------------------------- parser
@@ -790,9 +799,17 @@ def _subcommand(sub, name: str, func, *, help: str) -> argparse.ArgumentParser:
     return p
 
 
+def _add_overwrite_option(p: argparse.ArgumentParser) -> None:
+    """``--overwrite``: the one rule of every command that writes (see :mod:`hyperlf.outputs`)."""
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing output: a file, or a folder holding only a result "
+                        "set hyperlf wrote (files it did not write are never touched)")
+
+
 def _add_output_folder(p: argparse.ArgumentParser) -> None:
     """The required ``-o/--output`` folder of the commands that write several files."""
     p.add_argument("-o", "--output", required=True, help="output folder")
+    _add_overwrite_option(p)
 
 
 def _add_metric_option(p: argparse.ArgumentParser, *, help: str, light_field: bool = False,
@@ -822,6 +839,7 @@ def _add_demo_parser(sub) -> None:
                             "ncc is faster still, fused/bwncc far slower)")
     p.add_argument("--labels", type=_labels_arg, default=32,
                    help="disparity labels (default 32)")
+    _add_overwrite_option(p)
 
 
 def _add_synth_parser(sub) -> None:
@@ -843,6 +861,7 @@ def _add_synth_parser(sub) -> None:
                        help="random seed (default: 0, or the named scene's own)")
         q.add_argument("--no-pictures", action="store_true", help="write data only")
         _add_spectral_options(q)
+        _add_overwrite_option(q)
         q.set_defaults(func=_cmd_synth)
 
 
@@ -861,7 +880,7 @@ def _add_convert_parser(sub) -> None:
     p.add_argument("--view", type=_view_index, default=None, metavar="R,C",
                    help="view (0-based row,col) whose cube is exported to ENVI "
                         "(default: the centre view)")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing output")
+    _add_overwrite_option(p)
 
 
 def _add_stereo_parser(sub) -> None:
@@ -970,8 +989,7 @@ def _add_spectrum_parser(sub) -> None:
                    help="view (0-based; default the reference)")
     p.add_argument("-o", "--output", default="spectrum.png",
                    help="output picture, e.g. s.png (s.csv is written beside it)")
-    p.add_argument("--overwrite", action="store_true",
-                   help="replace an existing picture or CSV")
+    _add_overwrite_option(p)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -1004,37 +1022,61 @@ def _check_arguments(args) -> None:
     kind = _output_kind(args)
     if kind is not None:
         _check_output(args.output, kind)
+    out = Path(getattr(args, "output", None) or ".")
+    if args.command == "spectrum" and out.suffix.lower() == ".csv":
+        raise InvalidInputError(f"-o {out}: give the picture's name, e.g. "
+                                f"{out.with_suffix('.png')}; the CSV is written beside it")
     if hasattr(args, "overwrite"):
         _check_overwrite(args)
 
 
+def _run(args) -> int:
+    """Check, run the command into its staging area, put the result set in place, report."""
+    _check_arguments(args)
+    with _result(args) as dest:
+        written = args.func(args, dest)
+    if dest is not None:
+        _report(args, written, dest)
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    """The ``hyperlf`` command: parse ``argv``, run the subcommand, return the exit status.
+
+    Exit statuses: 0 success, 1 other error, 2 bad usage or impossible input, 3 unreadable or
+    malformed file, 4 missing file, 130 interrupted (SIGINT), 143 terminated (SIGTERM), 129
+    hung up (SIGHUP). An interrupted or failed command leaves its output as it was before.
+    """
+    from .outputs import signals_as_exceptions
+
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
-    try:
-        _check_arguments(args)
-        return int(args.func(args) or 0)
-    except HyperLFError as exc:
-        print(f"hyperlf {args.command}: error: {exc}", file=sys.stderr)
-        return exc.exit_code
-    except MemoryError:
-        print(f"hyperlf {args.command}: error: out of memory; reduce the size of the work "
-              "(--size, --grid, --labels) or free memory", file=sys.stderr)
-        return 2
-    except BrokenPipeError:  # output piped into e.g. `head`, which closed early
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 141
-    except OSError as exc:  # the output checks come first; this is the last resort
-        where = f": {exc.filename}" if exc.filename else ""
-        print(f"hyperlf {args.command}: error: {exc.strerror or exc}{where}", file=sys.stderr)
-        return 4 if isinstance(exc, FileNotFoundError) else 1
-    except KeyboardInterrupt:
-        print("hyperlf: interrupted; every file written so far is complete, but the output "
-              "may hold only some of them", file=sys.stderr)
-        return 130
+    with signals_as_exceptions():
+        try:
+            return _run(args)
+        except HyperLFError as exc:
+            print(f"hyperlf {args.command}: error: {exc}", file=sys.stderr)
+            return exc.exit_code
+        except MemoryError:
+            print(f"hyperlf {args.command}: error: out of memory; reduce the size of the work "
+                  "(--size, --grid, --labels) or free memory", file=sys.stderr)
+            return 2
+        except BrokenPipeError:  # output piped into e.g. `head`, which closed early
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            return 141
+        except OSError as exc:  # the output checks come first; this is the last resort
+            where = f": {exc.filename}" if exc.filename else ""
+            print(f"hyperlf {args.command}: error: {exc.strerror or exc}{where}",
+                  file=sys.stderr)
+            return 4 if isinstance(exc, FileNotFoundError) else 1
+        except KeyboardInterrupt as exc:  # Ctrl-C, or Terminated (SIGTERM, SIGHUP)
+            what = "terminated" if isinstance(exc, Terminated) else "interrupted"
+            print(f"hyperlf {args.command}: {what}; the output holds its previous results "
+                  "(or the new ones, if they were complete)", file=sys.stderr)
+            return getattr(exc, "exit_code", 130)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -1095,6 +1095,20 @@ def naive_completion(lf, ref_disparity, out_path=None, fill: str = "spectral",
                          timings, cfg, t_all, name="naive")
 
 
+def _scratch_store(out_path: Path, shape) -> "_H5Store":
+    """The scratch HDF5 store beside ``out_path``; removed again if making it fails or is
+    interrupted (the caller's ``finally`` closes, and so removes, the store it got)."""
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{out_path.name}.scratch-", suffix=".h5",
+                               dir=out_path.parent)
+    try:
+        os.close(fd)
+        return _H5Store(Path(tmp), shape)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
 def _register_all(lf, disp, wl, bidx, out_path, occlusion_tol, max_iter, fill, compression,
                   progress, timings, cfg, t_all, name, infer=None):
     from .formats.hdf5 import CubeWriter
@@ -1104,17 +1118,9 @@ def _register_all(lf, disp, wl, bidx, out_path, occlusion_tol, max_iter, fill, c
     B = R * C
     shape = (R, C, B, H, W)
     views = [(r, c) for r in range(R) for c in range(C)]
-    scratch = None
-    if out_path is None:
-        store = _MemStore(shape)
-    else:
+    if out_path is not None:
         out_path = Path(out_path)
-        out_path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{out_path.name}.scratch-", suffix=".h5",
-                                   dir=out_path.parent)
-        os.close(fd)
-        scratch = Path(tmp)
-        store = _H5Store(scratch, shape)
+    store = _MemStore(shape) if out_path is None else _scratch_store(out_path, shape)
     try:
         t0 = time.perf_counter()
         direct = 0

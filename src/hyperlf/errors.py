@@ -7,7 +7,7 @@ a meaningful code instead of showing a traceback.
 
 from __future__ import annotations
 
-__all__ = ["HyperLFError", "InvalidInputError", "FormatError", "DataNotFoundError"]
+__all__ = ["HyperLFError", "InvalidInputError", "FormatError", "DataNotFoundError", "Terminated"]
 
 
 class HyperLFError(Exception):
@@ -35,3 +35,16 @@ class DataNotFoundError(HyperLFError, FileNotFoundError):
     """A file, folder or dataset the operation needs does not exist."""
 
     exit_code = 4
+
+
+class Terminated(KeyboardInterrupt):
+    """The process received SIGTERM or SIGHUP (see :func:`hyperlf.outputs.signals_as_exceptions`).
+
+    A subclass of ``KeyboardInterrupt``, so every clean-up that runs on Ctrl-C runs here too.
+    ``exit_code`` is the shell's convention, 128 + the signal number (143 for SIGTERM).
+    """
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = int(signum)
+        self.exit_code = 128 + self.signum

@@ -1,0 +1,562 @@
+"""Whole result sets: a command's outputs appear all together or not at all.
+
+Every command of the command-line tool writes its outputs through :func:`result_folder` or
+:func:`result_files`. The
+files are written into a hidden staging folder beside the target (``.hyperlf-<token>.new``)
+and moved into place only when the command has finished, so the target holds either the
+previous complete result set or the new complete one, also when the run is interrupted, killed
+or fails half-way. A folder output gets a manifest, :data:`MANIFEST`, listing the files of its
+set; ``overwrite=True`` replaces a folder only when everything in it belongs to the set its
+manifest lists, so a command never deletes or replaces a file it did not write, and never follows
+a symlink inside the folder.
+
+How a set is moved into place:
+
+* a new name or an empty folder: one ``rename`` (atomic);
+* a folder holding a previous result set: an atomic exchange of the two folders
+  (``renameat2(RENAME_EXCHANGE)`` on Linux), then the old set is removed; where the exchange is
+  not available the old folder is first renamed aside (a kill between the two renames is
+  repaired by the next run, which puts the old folder back);
+* single files (and their sidecars): one ``os.replace`` each;
+* a target folder that is a mount point, the working folder, or whose parent folder is not
+  writable: the staging folder lives inside the target and the files are moved one by one.
+
+While a set is moved, SIGINT, SIGTERM and SIGHUP are held back (:func:`deferred_signals`) and
+delivered afterwards. Only SIGKILL can interrupt the moves, and only in the last two cases.
+Staging folders left by a killed run are found by their lock files (``.hyperlf-<token>.lock``,
+held with ``flock`` while the run lives) and removed by the next run that writes beside them.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import errno
+import json
+import os
+import secrets
+import signal
+import threading
+from pathlib import Path
+from typing import Iterable, Iterator, Sequence
+
+from .errors import InvalidInputError, Terminated
+
+__all__ = [
+    "MANIFEST",
+    "result_folder",
+    "result_files",
+    "manifest_files",
+    "foreign_entries",
+    "check_replaceable",
+    "clean_stale",
+    "deferred_signals",
+    "signals_as_exceptions",
+]
+
+MANIFEST = ".hyperlf-result.json"
+"""Name of the manifest a folder output carries: the files of its result set."""
+
+_PREFIX = ".hyperlf-"
+_HELD_SIGNALS = tuple(s for s in (getattr(signal, n, None) for n in ("SIGINT", "SIGTERM",
+                                                                     "SIGHUP")) if s)
+
+
+# ----------------------------------------------------------------------------- signals
+@contextlib.contextmanager
+def deferred_signals() -> Iterator[None]:
+    """Hold back SIGINT, SIGTERM and SIGHUP in the block; deliver them when it ends.
+
+    Used around the few system calls that move a finished result set into place, so that an
+    interrupt can never leave it half moved. The signals are recorded by a Python handler (which
+    always runs in the main thread, whichever thread the kernel picked) and raised again, under
+    the previous handlers, when the block ends. Outside the main thread the block runs
+    unprotected.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending: list[int] = []
+    previous = {}
+    for sig in _HELD_SIGNALS:
+        if signal.getsignal(sig) not in (signal.SIG_IGN, None):
+            previous[sig] = signal.signal(sig, lambda signum, frame: pending.append(signum))
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        if pending:
+            signal.raise_signal(pending[0])
+
+
+def _raise_terminated(signum, frame):  # noqa: ARG001 - the signal module's signature
+    raise Terminated(signum)
+
+
+@contextlib.contextmanager
+def signals_as_exceptions() -> Iterator[None]:
+    """Turn SIGTERM and SIGHUP into :class:`~hyperlf.errors.Terminated` (SIGINT already raises
+    ``KeyboardInterrupt``) for the block, so that clean-up code runs as on Ctrl-C.
+
+    A signal the process ignores (``nohup``, a background job) stays ignored. The previous
+    handlers are restored at the end. Outside the main thread this does nothing.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {}
+    for sig in _HELD_SIGNALS:
+        if sig != signal.SIGINT and signal.getsignal(sig) not in (signal.SIG_IGN, None):
+            previous[sig] = signal.signal(sig, _raise_terminated)
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+# ----------------------------------------------------------------------------- manifests
+def _walk_files(folder: Path) -> list[str]:
+    """Relative POSIX paths of the regular files under ``folder`` (symlinks not followed)."""
+    out = []
+    for root, dirs, files in os.walk(folder, followlinks=False):
+        rel = Path(root).relative_to(folder)
+        out += [(rel / f).as_posix() for f in files
+                if not (Path(root) / f).is_symlink() and (Path(root) / f).is_file()]
+        dirs[:] = [d for d in dirs if not (Path(root) / d).is_symlink()]
+    return sorted(f for f in out if f != MANIFEST)
+
+
+def _write_manifest(folder: Path, command: str | None) -> None:
+    from . import __version__
+    from ._atomic import atomic_write_text
+
+    doc = {"written_by": f"hyperlf {__version__}", "command": command,
+           "files": _walk_files(folder)}
+    atomic_write_text(folder / MANIFEST, json.dumps(doc, indent=1) + "\n")
+
+
+def manifest_files(folder: str | os.PathLike) -> set[str] | None:
+    """The files of the result set a folder's manifest lists, or None (no valid manifest).
+
+    Parameters
+    ----------
+    folder : path-like
+        A folder written by a hyperlf command.
+
+    Returns
+    -------
+    set of str or None
+        Relative POSIX paths; None when :data:`MANIFEST` is missing, a symlink or unreadable.
+    """
+    man = Path(folder) / MANIFEST
+    if man.is_symlink() or not man.is_file():
+        return None
+    try:
+        files = json.loads(man.read_text(encoding="utf-8"))["files"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    if not isinstance(files, list) or not all(isinstance(f, str) for f in files):
+        return None
+    return set(files)
+
+
+def foreign_entries(folder: str | os.PathLike) -> list[str]:
+    """Entries of ``folder`` that do not belong to the result set its manifest lists.
+
+    An entry belongs when it is a regular file the manifest lists (or the manifest itself), or a
+    real folder (not a symlink) holding such files and nothing else. Without a manifest every
+    entry is foreign.
+
+    Returns
+    -------
+    list of str
+        Relative POSIX paths, sorted; empty when the folder holds only its result set.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> d = pathlib.Path(tempfile.mkdtemp())
+    >>> _ = (d / "notes.txt").write_text("mine")
+    >>> foreign_entries(d)
+    ['notes.txt']
+    """
+    root = Path(folder)
+    files = manifest_files(root) or set()
+    return sorted(f for f in _foreign_in(root, root, files | {MANIFEST}) if not _is_temporary(f))
+
+
+def _is_temporary(name: str) -> bool:
+    """A staging folder, set-aside folder or lock of a hyperlf run (see :func:`clean_stale`)."""
+    return name.startswith(_PREFIX) and name.endswith((".new", ".old", ".lock"))
+
+
+def _foreign_in(root: Path, folder: Path, files: set[str]) -> list[str]:
+    out = []
+    for entry in os.scandir(folder):
+        rel = Path(entry.path).relative_to(root).as_posix()
+        if entry.is_symlink():
+            out.append(rel)
+        elif entry.is_dir():
+            inner = _foreign_in(root, Path(entry.path), files)
+            owned = any(f.startswith(rel + "/") for f in files)
+            out += inner if owned else [rel]
+        elif not (entry.is_file() and rel in files):
+            out.append(rel)
+    return out
+
+
+def check_replaceable(target: str | os.PathLike, *, overwrite: bool) -> None:
+    """Refuse (:class:`~hyperlf.errors.InvalidInputError`) to replace what a command may not.
+
+    A missing target or an empty folder may always be written. A file may be replaced with
+    ``overwrite``. A folder may be replaced with ``overwrite`` only when it holds nothing but a
+    previous result set (see :func:`foreign_entries`). A symlink is never replaced.
+    """
+    p = Path(target)
+    if p.is_symlink():
+        raise InvalidInputError(f"{p} is a symlink; hyperlf does not write through or replace "
+                                "symlinks: give the real path or another name")
+    if not p.exists():
+        return
+    if p.is_dir() and all(_is_temporary(e.name) for e in p.iterdir()):
+        return  # empty but for hyperlf runs' temporaries
+    if not overwrite:
+        raise InvalidInputError(f"{p} exists; choose another name or pass --overwrite")
+    if p.is_dir():
+        foreign = foreign_entries(p)
+        if foreign:
+            shown = ", ".join(foreign[:3]) + (f" and {len(foreign) - 3} more"
+                                              if len(foreign) > 3 else "")
+            raise InvalidInputError(
+                f"{p} holds files hyperlf did not write ({shown}); --overwrite replaces only a "
+                f"result set hyperlf wrote (listed in its {MANIFEST}): move them away or choose "
+                "another folder")
+
+
+# ----------------------------------------------------------------------------- stale runs
+def _try_lock(path: Path, *, create: bool):
+    """Open and ``flock`` ``path`` without waiting: the open file, or None when another live
+    process holds it (or locking is unsupported and the file is not ours)."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX
+        return open(path, "a") if create else None
+    flags = os.O_RDWR | (os.O_CREAT | os.O_EXCL if create else 0) | getattr(os, "O_NOFOLLOW", 0)
+    try:
+        fd = os.open(path, flags, 0o600)
+    except OSError:
+        return None
+    f = os.fdopen(fd, "r+")
+    try:
+        fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        f.close()
+        return None
+    return f
+
+
+def clean_stale(folder: str | os.PathLike) -> list[Path]:
+    """Remove what killed hyperlf runs left in ``folder``; return what was removed or restored.
+
+    A run's temporaries are ``.hyperlf-<token>.new`` (its staging folder) and
+    ``.hyperlf-<token>.old`` (a previous result set being replaced), next to the lock file
+    ``.hyperlf-<token>.lock`` that the run holds while it lives. A lock nobody holds marks a dead
+    run: an ``.old`` entry whose target is missing is put back (the run died between the two
+    renames of a replacement), everything else of that run is removed. Live runs are left alone.
+    """
+    root = Path(folder)
+    done: list[Path] = []
+    with contextlib.suppress(OSError):
+        locks = [p for p in root.iterdir() if p.name.startswith(_PREFIX)
+                 and p.name.endswith(".lock") and not p.is_symlink()]
+        for lock in locks:
+            held = _try_lock(lock, create=False)
+            if held is None:
+                continue
+            with held:
+                done += _recover_run(root, lock.name[: -len(".lock")])
+                lock.unlink()
+    return done
+
+
+def _recover_run(root: Path, stem: str) -> list[Path]:
+    done = []
+    old = root / f"{stem}.old"
+    if old.is_dir() and not old.is_symlink():
+        for entry in list(old.iterdir()):
+            if not os.path.lexists(root / entry.name):
+                os.rename(entry, root / entry.name)
+                done.append(root / entry.name)
+    for tmp in (root / f"{stem}.new", old):
+        if os.path.lexists(tmp):
+            _remove_tree(tmp)
+            done.append(tmp)
+    return done
+
+
+def _remove_tree(path: Path) -> None:
+    """Remove a tree this module made: links are unlinked, never followed."""
+    if path.is_symlink() or not path.is_dir():
+        path.unlink(missing_ok=True)
+        return
+    for entry in list(os.scandir(path)):
+        _remove_tree(Path(entry.path))
+    path.rmdir()
+
+
+# ----------------------------------------------------------------------------- moving sets
+_RENAME_EXCHANGE = 2
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Swap two paths atomically (Linux ``renameat2``); False where that is not available."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        renameat2 = libc.renameat2
+    except (OSError, AttributeError):
+        return False
+    at_fdcwd = -100
+    rc = renameat2(at_fdcwd, os.fsencode(a), at_fdcwd, os.fsencode(b), _RENAME_EXCHANGE)
+    if rc == 0:
+        return True
+    err = ctypes.get_errno()
+    if err in (errno.ENOSYS, errno.EINVAL, errno.EOPNOTSUPP, errno.ENOTSUP):
+        return False
+    raise OSError(err, os.strerror(err), str(b))
+
+
+def _copy_folder_mode(src: Path, dst: Path) -> None:
+    with contextlib.suppress(OSError):
+        os.chmod(dst, src.stat().st_mode & 0o7777)
+
+
+def _replace_folder(staged: Path, target: Path, aside: Path) -> None:
+    """Put the finished folder ``staged`` at ``target`` (missing, empty or a result set)."""
+    if not os.path.lexists(target):
+        os.rename(staged, target)
+        return
+    _copy_folder_mode(target, staged)
+    if not any(target.iterdir()):
+        os.rename(staged, target)  # rename replaces an empty folder
+    elif _exchange(staged, target):
+        _remove_tree(staged)  # now the old set
+    else:
+        aside.mkdir(exist_ok=True)
+        os.rename(target, aside / target.name)
+        os.rename(staged, target)
+        _remove_tree(aside / target.name)
+
+
+def _merge_into(staged: Path, target: Path) -> None:
+    """In-place commit: drop the old set's files, move the new ones in one by one."""
+    old = manifest_files(target) or set()
+    new = set(_walk_files(staged)) | {MANIFEST}
+    for rel in sorted(old - new):
+        f = target / rel
+        if f.is_file() and not f.is_symlink():
+            f.unlink()
+    for rel in sorted(new):
+        dest = target / rel
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        os.replace(staged / rel, dest)
+    _remove_tree(staged)
+
+
+# ----------------------------------------------------------------------------- the set
+class _ResultSet:
+    """The staging area of one command's outputs and the moves that publish it."""
+
+    def __init__(self, targets: Sequence[Path], *, overwrite: bool, command: str | None,
+                 inplace: bool = True):
+        self.targets = [Path(os.path.abspath(t)) for t in targets]
+        self.overwrite, self.command = overwrite, command
+        self.parent = self.targets[0].parent
+        if any(t.parent != self.parent for t in self.targets):
+            raise InvalidInputError("the outputs of one result set must share one folder")
+        if len({t.name for t in self.targets}) != len(self.targets):
+            raise InvalidInputError("the outputs of one result set must have distinct names")
+        self.inplace = inplace and self._needs_inplace(self.targets[0])
+        self.home = self.targets[0] if self.inplace else self.parent
+        self.created: list[Path] = []
+        self.lock = None
+
+    @staticmethod
+    def _needs_inplace(target: Path) -> bool:
+        """Whether the set must be staged inside ``target`` rather than beside it: a mount
+        point, a folder whose parent is not writable, or the working folder (or one holding
+        it), which a rename would leave the process (and the user's shell) outside of."""
+        if not target.is_dir() or target.is_symlink():
+            return False
+        cwd = Path(os.path.abspath(os.getcwd()))
+        return (os.path.ismount(target) or not os.access(target.parent, os.W_OK | os.X_OK)
+                or target == cwd or target in cwd.parents)
+
+    def check(self) -> None:
+        for t in self.targets:
+            check_replaceable(t, overwrite=self.overwrite)
+
+    def open(self) -> Path:
+        """Create the staging folder (and missing parents); return it."""
+        self.check()
+        missing = [p for p in (self.home, *self.home.parents) if not p.exists()]
+        self.home.mkdir(parents=True, exist_ok=True)
+        self.created = missing  # deepest first, as rmdir needs
+        clean_stale(self.home)
+        for _ in range(100):
+            self.stem = f"{_PREFIX}{os.getpid()}-{secrets.token_hex(4)}"
+            self.lock = _try_lock(self.home / f"{self.stem}.lock", create=True)
+            if self.lock is not None:
+                break
+        else:  # pragma: no cover - 100 collisions
+            raise InvalidInputError(f"cannot create a staging folder in {self.home}")
+        self.stage = self.home / f"{self.stem}.new"
+        self.stage.mkdir()
+        return self.stage
+
+    def commit(self) -> None:
+        """Move the staged outputs into place (signals held back meanwhile)."""
+        with deferred_signals():
+            self.check()
+            if self.inplace:
+                _write_manifest(self.stage, self.command)
+                _merge_into(self.stage, self.targets[0])
+            else:
+                for t in self.targets:
+                    self._commit_one(self.stage / t.name, t)
+            self.close()
+
+    def _commit_one(self, staged: Path, target: Path) -> None:
+        if not os.path.lexists(staged):
+            return
+        if staged.is_dir():
+            _write_manifest(staged, self.command)
+            _replace_folder(staged, target, self.home / f"{self.stem}.old")
+        else:
+            os.replace(staged, target)
+
+    def abort(self) -> None:
+        """Remove the staging folder and the folders this run created, leave the rest."""
+        with deferred_signals():
+            self.close()
+            for p in self.created:
+                with contextlib.suppress(OSError):
+                    p.rmdir()
+
+    def close(self) -> None:
+        for tmp in (self.home / f"{self.stem}.new", self.home / f"{self.stem}.old"):
+            if os.path.lexists(tmp):
+                _remove_tree(tmp)
+        if self.lock is not None:
+            (self.home / f"{self.stem}.lock").unlink(missing_ok=True)
+            self.lock.close()
+            self.lock = None
+
+
+def _as_targets(targets) -> list[Path]:
+    if isinstance(targets, (str, os.PathLike)):
+        return [Path(targets)]
+    return [Path(t) for t in targets]
+
+
+@contextlib.contextmanager
+def _staged(rs: _ResultSet) -> Iterator[Path]:
+    stage = rs.open()
+    try:
+        yield stage
+    except BaseException:
+        rs.abort()
+        raise
+    rs.commit()
+
+
+@contextlib.contextmanager
+def result_folder(folder: str | os.PathLike, *, overwrite: bool = False,
+                  command: str | None = None) -> Iterator[Path]:
+    """Write a command's output folder as one whole result set.
+
+    Yields the folder to write into (a staging folder). When the block ends normally its
+    content is moved into place at ``folder`` with a :data:`MANIFEST` listing the files; when it
+    raises (an error, Ctrl-C, :class:`~hyperlf.errors.Terminated`) nothing is moved and the
+    staging folder is removed. ``folder`` is checked with :func:`check_replaceable` before the
+    block and again just before the move.
+
+    Parameters
+    ----------
+    folder : path-like
+        The output folder: missing, empty, or (with ``overwrite``) a previous result set.
+    overwrite : bool
+        Replace a previous result set.
+    command : str, optional
+        Recorded in the manifest.
+
+    Yields
+    ------
+    Path
+        Where to write the outputs. Usually a hidden sibling of ``folder``; when ``folder`` is a
+        mount point or its parent is not writable, a hidden folder inside it (its files are then
+        moved one by one at the end).
+
+    Raises
+    ------
+    InvalidInputError
+        ``folder`` exists and may not be replaced.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "result"
+    >>> with result_folder(out) as stage:
+    ...     _ = (stage / "a.txt").write_text("1")
+    ...     out.exists()
+    False
+    >>> sorted(p.name for p in out.iterdir())
+    ['.hyperlf-result.json', 'a.txt']
+    """
+    rs = _ResultSet(_as_targets(folder), overwrite=overwrite, command=command)
+    with _staged(rs) as stage:
+        if rs.inplace:
+            yield stage
+        else:
+            inner = stage / rs.targets[0].name
+            inner.mkdir()
+            yield inner
+
+
+@contextlib.contextmanager
+def result_files(paths: Iterable[str | os.PathLike], *, overwrite: bool = False,
+                 command: str | None = None) -> Iterator[list[Path]]:
+    """Write single files (and sidecars, or a folder beside a file) as one result set.
+
+    Yields one staging path per entry of ``paths``, in order; write each entry there (a file,
+    or a folder with files). When the block ends normally every entry that was written is moved
+    onto its target; when it raises nothing is moved. Entries must share one folder.
+
+    Parameters
+    ----------
+    paths : iterable of path-like
+        The outputs.
+    overwrite : bool
+        Replace existing files (a folder only when it holds a previous result set).
+    command : str, optional
+        Recorded in the manifest of folder entries.
+
+    Yields
+    ------
+    list of Path
+        Where to write each output.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> d = pathlib.Path(tempfile.mkdtemp())
+    >>> with result_files([d / "s.png", d / "s.csv"]) as (png, csv):
+    ...     _ = png.write_bytes(b"x")
+    ...     _ = csv.write_text("wavelength_nm,value")
+    >>> sorted(p.name for p in d.iterdir())
+    ['s.csv', 's.png']
+    """
+    rs = _ResultSet(_as_targets(paths), overwrite=overwrite, command=command, inplace=False)
+    with _staged(rs) as stage:
+        yield [stage / t.name for t in rs.targets]

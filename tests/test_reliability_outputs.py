@@ -1,0 +1,379 @@
+"""Whole result sets (issue 10): outputs appear all together or not at all.
+
+Unit tests of :mod:`hyperlf.outputs` (every way a set is moved into place, what it refuses, what
+a killed run leaves and how the next run repairs it, umask, signals held back), then the CLI
+rules every command shares.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import stat
+import time
+
+import numpy as np
+import pytest
+
+from hyperlf import outputs
+from hyperlf.cli import main
+from hyperlf.errors import InvalidInputError, Terminated
+from hyperlf.outputs import (MANIFEST, check_replaceable, clean_stale, deferred_signals,
+                             foreign_entries, manifest_files, result_files, result_folder,
+                             signals_as_exceptions)
+
+
+def write_set(out, files, *, overwrite=False, fail=False):
+    """Write ``files`` ({relative name: text}) as the result set ``out``."""
+    with result_folder(out, overwrite=overwrite, command="test") as stage:
+        for name, text in files.items():
+            (stage / name).parent.mkdir(parents=True, exist_ok=True)
+            (stage / name).write_text(text)
+        if fail:
+            raise RuntimeError("the command failed half-way")
+
+
+def snapshot(folder):
+    """{relative path: bytes} of every file under ``folder`` (symlinks as their target)."""
+    out = {}
+    for root, dirs, files in os.walk(folder):
+        for f in files + [d for d in dirs if os.path.islink(os.path.join(root, d))]:
+            p = os.path.join(root, f)
+            rel = os.path.relpath(p, folder)
+            out[rel] = os.readlink(p) if os.path.islink(p) else open(p, "rb").read()
+    return out
+
+
+def temporaries(folder):
+    return sorted(n for n in os.listdir(folder) if n.startswith(".hyperlf-") and n != MANIFEST)
+
+
+@pytest.fixture(params=["exchange", "two renames"])
+def replace_mode(request, monkeypatch):
+    """Run a test with the atomic exchange and with the fallback of two renames."""
+    if request.param == "two renames":
+        monkeypatch.setattr(outputs, "_exchange", lambda a, b: False)
+    return request.param
+
+
+# ----------------------------------------------------------------------------- result folders
+def test_new_folder_appears_whole_with_its_manifest(tmp_path):
+    out = tmp_path / "a" / "b" / "out"
+    write_set(out, {"x.txt": "1", "sub/y.txt": "2"})
+    assert snapshot(out).keys() == {"x.txt", "sub/y.txt", MANIFEST}
+    assert manifest_files(out) == {"x.txt", "sub/y.txt"}
+    assert foreign_entries(out) == []
+    assert temporaries(out.parent) == []
+
+
+def test_empty_folder_is_filled_without_overwrite(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    write_set(out, {"x.txt": "1"})
+    assert (out / "x.txt").read_text() == "1"
+
+
+def test_existing_result_needs_overwrite(tmp_path):
+    out = tmp_path / "out"
+    write_set(out, {"x.txt": "old"})
+    with pytest.raises(InvalidInputError, match="--overwrite"):
+        write_set(out, {"x.txt": "new"})
+    assert (out / "x.txt").read_text() == "old"
+
+
+def test_overwrite_replaces_the_whole_set(tmp_path, replace_mode):
+    out = tmp_path / "out"
+    write_set(out, {"x.txt": "old", "old_only.txt": "o", "d/z.txt": "z"})
+    write_set(out, {"x.txt": "new", "new_only.txt": "n"}, overwrite=True)
+    assert snapshot(out) == {"x.txt": b"new", "new_only.txt": b"n",
+                             MANIFEST: (out / MANIFEST).read_bytes()}
+    assert sorted(os.listdir(tmp_path)) == ["out"]
+
+
+def test_overwrite_keeps_the_folder_mode(tmp_path, replace_mode):
+    out = tmp_path / "out"
+    write_set(out, {"x.txt": "old"})
+    os.chmod(out, 0o2750)
+    write_set(out, {"x.txt": "new"}, overwrite=True)
+    assert stat.S_IMODE(out.stat().st_mode) == 0o2750
+
+
+@pytest.mark.parametrize("intruder", ["file", "folder", "symlink to a file", "symlink to a folder",
+                                      "listed name that is a symlink"])
+def test_overwrite_refuses_what_hyperlf_did_not_write(tmp_path, intruder):
+    out = tmp_path / "out"
+    write_set(out, {"x.txt": "old"})
+    precious = tmp_path / "precious"
+    precious.mkdir()
+    (precious / "p.txt").write_text("mine")
+    if intruder == "file":
+        (out / "notes.txt").write_text("mine")
+    elif intruder == "folder":
+        (out / "mine").mkdir()
+    elif intruder == "symlink to a file":
+        (out / "link.txt").symlink_to(precious / "p.txt")
+    elif intruder == "symlink to a folder":
+        (out / "link").symlink_to(precious, target_is_directory=True)
+    else:
+        (out / "x.txt").unlink()
+        (out / "x.txt").symlink_to(precious / "p.txt")
+    before = snapshot(out)
+    with pytest.raises(InvalidInputError, match="did not write"):
+        write_set(out, {"x.txt": "new"}, overwrite=True)
+    assert snapshot(out) == before
+    assert (precious / "p.txt").read_text() == "mine"
+    assert temporaries(tmp_path) == []
+
+
+def test_a_manifest_naming_outside_files_does_not_reach_them(tmp_path, replace_mode):
+    victim = tmp_path / "victim.txt"
+    victim.write_text("mine")
+    out = tmp_path / "out"
+    write_set(out, {"x.txt": "old"})
+    (out / MANIFEST).write_text('{"files": ["x.txt", "../victim.txt", "%s"]}' % victim)
+    write_set(out, {"x.txt": "new"}, overwrite=True)
+    assert victim.read_text() == "mine"
+    assert (out / "x.txt").read_text() == "new"
+
+
+def test_folder_without_manifest_is_never_replaced(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "x.txt").write_text("an older tool's output")
+    with pytest.raises(InvalidInputError, match="did not write"):
+        write_set(out, {"x.txt": "new"}, overwrite=True)
+
+
+def test_symlink_as_output_is_refused(tmp_path):
+    real = tmp_path / "real"
+    real.mkdir()
+    (tmp_path / "out").symlink_to(real, target_is_directory=True)
+    with pytest.raises(InvalidInputError, match="symlink"):
+        write_set(tmp_path / "out", {"x.txt": "1"})
+    assert os.listdir(real) == []
+
+
+@pytest.mark.parametrize("existing", [False, True])
+def test_failure_leaves_the_previous_set_and_no_trace(tmp_path, existing):
+    out = tmp_path / "new" / "deeper" / "out"
+    if existing:
+        write_set(out, {"x.txt": "old"})
+    before = snapshot(tmp_path)
+    with pytest.raises(RuntimeError):
+        write_set(out, {"x.txt": "new", "y.txt": "new"}, overwrite=True, fail=True)
+    assert snapshot(tmp_path) == before
+    if not existing:  # the folders this run created are gone too
+        assert os.listdir(tmp_path) == []
+
+
+def test_keyboard_interrupt_and_terminated_abort_alike(tmp_path):
+    out = tmp_path / "out"
+    write_set(out, {"x.txt": "old"})
+    for exc in (KeyboardInterrupt(), Terminated(signal.SIGTERM)):
+        with pytest.raises(KeyboardInterrupt):
+            with result_folder(out, overwrite=True) as stage:
+                (stage / "x.txt").write_text("new")
+                raise exc
+        assert snapshot(out)["x.txt"] == b"old"
+        assert temporaries(tmp_path) == []
+
+
+def test_outputs_respect_the_umask(tmp_path):
+    old = os.umask(0o027)
+    try:
+        write_set(tmp_path / "out", {"sub/x.txt": "1"})
+        from hyperlf.formats import write_pfm
+
+        with result_folder(tmp_path / "pfm") as stage:
+            write_pfm(stage / "d.pfm", np.zeros((2, 2), np.float32))
+    finally:
+        os.umask(old)
+    modes = {p: stat.S_IMODE(p.stat().st_mode) for p in
+             (tmp_path / "out", tmp_path / "out" / "sub", tmp_path / "pfm")}
+    assert set(modes.values()) == {0o750}, modes
+    for f in (tmp_path / "out" / "sub" / "x.txt", tmp_path / "pfm" / "d.pfm",
+              tmp_path / "out" / MANIFEST):
+        assert stat.S_IMODE(f.stat().st_mode) == 0o640, f
+
+
+def test_in_place_mode_for_a_mount_point(tmp_path, monkeypatch):
+    out = tmp_path / "mnt"
+    write_set(out, {"x.txt": "old", "old_only.txt": "o"})
+    (tmp_path / "sibling").write_text("not ours")
+    monkeypatch.setattr(os.path, "ismount", lambda p: os.fspath(p) == os.fspath(out))
+    inode = out.stat().st_ino
+    write_set(out, {"x.txt": "new", "sub/n.txt": "n"}, overwrite=True)
+    assert out.stat().st_ino == inode  # the mount point itself stays
+    assert snapshot(out).keys() == {"x.txt", "sub/n.txt", MANIFEST}
+    assert (out / "x.txt").read_text() == "new"
+    assert sorted(os.listdir(tmp_path)) == ["mnt", "sibling"]
+    with pytest.raises(RuntimeError):
+        write_set(out, {"x.txt": "newer"}, overwrite=True, fail=True)
+    assert (out / "x.txt").read_text() == "new" and temporaries(out) == []
+
+
+def test_the_working_folder_is_filled_in_place(tmp_path, monkeypatch):
+    out = tmp_path / "here"
+    out.mkdir()
+    monkeypatch.chdir(out)
+    inode = out.stat().st_ino
+    write_set(out, {"x.txt": "1"})
+    write_set(out, {"x.txt": "2"}, overwrite=True)
+    assert out.stat().st_ino == inode and os.getcwd() == str(out)
+    assert (out / "x.txt").read_text() == "2" and temporaries(out) == []
+
+
+# ----------------------------------------------------------------------------- single files
+def test_result_files_move_a_file_and_its_sidecar_together(tmp_path):
+    png, csv = tmp_path / "s.png", tmp_path / "s.csv"
+    with result_files([png, csv]) as (p, c):
+        p.write_text("png")
+        c.write_text("csv")
+        assert not png.exists() and not csv.exists()
+    assert png.read_text() == "png" and csv.read_text() == "csv"
+    with pytest.raises(InvalidInputError, match="--overwrite"):
+        with result_files([png, csv]) as (p, c):
+            pass
+    with pytest.raises(RuntimeError):
+        with result_files([png, csv], overwrite=True) as (p, c):
+            p.write_text("new")
+            raise RuntimeError
+    assert png.read_text() == "png"
+    assert sorted(os.listdir(tmp_path)) == ["s.csv", "s.png"]
+
+
+def test_result_files_refuse_names_that_collide(tmp_path):
+    with pytest.raises(InvalidInputError, match="distinct"):
+        with result_files([tmp_path / "a.csv", tmp_path / "a.csv"]):
+            pass
+
+
+def test_check_replaceable_rules(tmp_path):
+    f = tmp_path / "f.txt"
+    check_replaceable(f, overwrite=False)  # missing: fine
+    f.write_text("x")
+    with pytest.raises(InvalidInputError, match="--overwrite"):
+        check_replaceable(f, overwrite=False)
+    check_replaceable(f, overwrite=True)
+    (tmp_path / "l.txt").symlink_to(f)
+    with pytest.raises(InvalidInputError, match="symlink"):
+        check_replaceable(tmp_path / "l.txt", overwrite=True)
+
+
+# ----------------------------------------------------------------------------- killed runs
+def fake_dead_run(home, token="123-dead"):
+    """What a run killed with SIGKILL leaves: an unlocked lock file and its staging folder."""
+    (home / f".hyperlf-{token}.lock").write_text("")
+    stage = home / f".hyperlf-{token}.new" / "out"
+    stage.mkdir(parents=True)
+    (stage / "half.txt").write_text("half")
+    return home / f".hyperlf-{token}.new"
+
+
+def test_stale_staging_of_a_dead_run_is_removed(tmp_path):
+    fake_dead_run(tmp_path)
+    (tmp_path / "user.txt").write_text("mine")
+    write_set(tmp_path / "out", {"x.txt": "1"})
+    assert sorted(os.listdir(tmp_path)) == ["out", "user.txt"]
+
+
+def test_a_live_run_is_left_alone(tmp_path):
+    stage = fake_dead_run(tmp_path, "1-live")
+    lock = outputs._try_lock(tmp_path / ".hyperlf-1-live.lock", create=False)  # held: alive
+    try:
+        assert clean_stale(tmp_path) == []
+        assert stage.is_dir()
+    finally:
+        lock.close()
+    clean_stale(tmp_path)
+    assert temporaries(tmp_path) == []
+
+
+def test_a_run_killed_between_two_renames_gets_its_old_set_back(tmp_path):
+    out = tmp_path / "out"
+    write_set(out, {"x.txt": "old"})
+    before = snapshot(out)
+    aside = tmp_path / ".hyperlf-9-dead.old"
+    aside.mkdir()
+    os.rename(out, aside / "out")  # the first rename happened, the second did not
+    (tmp_path / ".hyperlf-9-dead.lock").write_text("")
+    fake_dead_run(tmp_path, "9-dead")
+    restored = clean_stale(tmp_path)
+    assert out in restored
+    assert snapshot(out) == before
+    assert temporaries(tmp_path) == []
+
+
+# ----------------------------------------------------------------------------- signals
+def test_signals_are_held_back_while_a_set_moves():
+    with pytest.raises(KeyboardInterrupt):
+        reached = False
+        with deferred_signals():
+            os.kill(os.getpid(), signal.SIGINT)
+            reached = True  # the interrupt waits for the block's end
+        pytest.fail("the held-back SIGINT was not delivered")
+    assert reached
+
+
+@pytest.mark.parametrize("name,code", [("SIGTERM", 143), ("SIGHUP", 129)])
+def test_sigterm_and_sighup_become_terminated(name, code):
+    sig = getattr(signal, name)
+    before = signal.getsignal(sig)
+    with pytest.raises(Terminated) as info:
+        with signals_as_exceptions():
+            os.kill(os.getpid(), sig)
+            for _ in range(2000):  # the handler runs in the main thread at its next check
+                time.sleep(0.001)
+    assert info.value.exit_code == code
+    assert signal.getsignal(sig) is before
+
+
+def test_an_ignored_signal_stays_ignored():
+    before = signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    try:
+        with signals_as_exceptions():
+            assert signal.getsignal(signal.SIGHUP) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGHUP, before)
+
+
+# ----------------------------------------------------------------------------- the CLI
+@pytest.fixture(scope="module")
+def capture(tmp_path_factory):
+    out = tmp_path_factory.mktemp("cap") / "cap"
+    assert main(["-q", "synth", "procedural", "--scene", "planes", "--size", "24,32",
+                 "--grid", "2,2", "--no-pictures", "-o", str(out)]) == 0
+    return out
+
+
+def test_every_cli_output_folder_is_a_result_set(capture, tmp_path):
+    out = tmp_path / "d"
+    assert main(["-q", "depth", str(capture), "--labels", "8", "-o", str(out)]) == 0
+    assert foreign_entries(out) == [] and "disparity.pfm" in manifest_files(out)
+    assert main(["-q", "depth", str(capture), "--labels", "8", "-o", str(out)]) == 2
+    (out / "notes.txt").write_text("mine")
+    assert main(["-q", "depth", str(capture), "--labels", "8", "-o", str(out),
+                 "--overwrite"]) == 2
+    (out / "notes.txt").unlink()
+    assert main(["-q", "depth", str(capture), "--labels", "8", "-o", str(out),
+                 "--overwrite"]) == 0
+    assert temporaries(tmp_path) == []
+
+
+def test_a_failing_command_leaves_no_output(capture, tmp_path, capsys):
+    out = tmp_path / "sub" / "d"
+    assert main(["-q", "depth", str(capture), "--disparity-range=5,1", "-o", str(out)]) == 2
+    assert os.listdir(tmp_path) == []
+    assert "error" in capsys.readouterr().err
+
+
+def test_synth_h5_writes_file_and_pictures_folder_as_one_set(tmp_path, capsys):
+    out = tmp_path / "lf.h5"
+    argv = ["synth", "procedural", "--size", "16,20", "--grid", "2,2", "-o", str(out)]
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert f"wrote {out}" in err and ".hyperlf-" not in err
+    assert out.is_file() and foreign_entries(tmp_path / "lf") == []
+    assert main(argv) == 2
+    assert main(argv + ["--overwrite"]) == 0
+    assert sorted(os.listdir(tmp_path)) == ["lf", "lf.h5"]

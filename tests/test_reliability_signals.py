@@ -1,0 +1,109 @@
+"""Real signals sent to real ``hyperlf`` processes at random moments (issue 10).
+
+A ``depth`` run replaces a previous result set A in ``out`` with a new one, B (different
+settings, so different bytes). SIGINT, SIGTERM or SIGKILL arrives at a random moment of the run,
+hyperlf's start-up included. Afterwards ``out`` must hold exactly A or exactly B, byte for byte; the exit
+status must be the documented one (0 when the run had already finished, else 130 / 143, or -9 for
+SIGKILL); nothing but ``out`` may remain beside it after SIGINT / SIGTERM, and what a SIGKILL
+leaves (the hidden staging folder) must be cleaned up by the next run.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from hyperlf.cli import main
+
+SIGNALS = {"SIGINT": (signal.SIGINT, 130), "SIGTERM": (signal.SIGTERM, 143),
+           "SIGKILL": (signal.SIGKILL, -signal.SIGKILL)}
+
+
+def snapshot(folder):
+    out = {}
+    for root, _, files in os.walk(folder):
+        for f in files:
+            p = os.path.join(root, f)
+            out[os.path.relpath(p, folder)] = open(p, "rb").read()
+    return out
+
+
+def depth_argv(capture, out, labels):
+    return [sys.executable, "-m", "hyperlf", "-q", "depth", str(capture), "--labels",
+            str(labels), "-o", str(out), "--overwrite"]
+
+
+@pytest.fixture(scope="module")
+def rig(tmp_path_factory):
+    """A small capture, result sets A (8 labels) and B (12 labels), and B's run time."""
+    root = tmp_path_factory.mktemp("signals")
+    cap = root / "cap"
+    assert main(["-q", "synth", "procedural", "--scene", "planes", "--size", "48,64",
+                 "--grid", "3,3", "--no-pictures", "-o", str(cap)]) == 0
+    subprocess.run(depth_argv(cap, root / "A", 8), check=True)  # also warms numba's cache
+    t0 = time.perf_counter()
+    subprocess.run(depth_argv(cap, root / "B", 12), check=True)
+    seconds = time.perf_counter() - t0
+    A, B = snapshot(root / "A"), snapshot(root / "B")
+    assert A.keys() == B.keys() and A != B
+    return dict(cap=cap, A=root / "A", snapA=A, snapB=B, seconds=seconds)
+
+
+def interrupted_run(rig, tmp_path, sig, delay):
+    out = tmp_path / "out"
+    shutil.copytree(rig["A"], out)
+    proc = subprocess.Popen(depth_argv(rig["cap"], out, 12), stderr=subprocess.PIPE, text=True)
+    time.sleep(delay)
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=300)
+    return out, proc.returncode, err
+
+
+def check_after_signal(rig, tmp_path, name, delay):
+    sig, code = SIGNALS[name]
+    out, rc, err = interrupted_run(rig, tmp_path, sig, delay)
+    after = snapshot(out)
+    assert after in (rig["snapA"], rig["snapB"]), (name, delay, sorted(after))
+    if rc == 0:  # the run had finished before the signal came
+        assert after == rig["snapB"]
+    else:
+        assert rc == code, (name, delay, rc, err)
+        assert "Traceback" not in err and len(err.strip().splitlines()) <= 1, err
+    left = sorted(os.listdir(tmp_path))
+    if name != "SIGKILL":
+        assert left == ["out"], left
+        return
+    assert all(n == "out" or n.startswith(".hyperlf-") for n in left), left
+    subprocess.run(depth_argv(rig["cap"], out, 12), check=True)  # the next run cleans up
+    assert sorted(os.listdir(tmp_path)) == ["out"]
+    assert snapshot(out) == rig["snapB"]
+
+
+def delays(seed, n, seconds):
+    """Moments spread over the whole run, start-up included (hyperlf's imports). Not the
+    interpreter's own first ~0.1 s, before any hyperlf code runs: a signal then gets Python's
+    default behaviour (nothing has been written yet)."""
+    rng = np.random.default_rng(seed)
+    return [0.2, *rng.uniform(0.3, 1.1 * seconds, n - 1)]
+
+
+@pytest.mark.parametrize("name", list(SIGNALS))
+@pytest.mark.parametrize("k", range(3))
+def test_signal_leaves_old_or_new_result_set(rig, tmp_path, name, k):
+    seed = sorted(SIGNALS).index(name)
+    check_after_signal(rig, tmp_path, name, delays(seed, 3, rig["seconds"])[k])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(SIGNALS))
+@pytest.mark.parametrize("k", range(20))
+def test_signal_many_moments(rig, tmp_path, name, k):
+    check_after_signal(rig, tmp_path, name, delays(100 + k, 1, rig["seconds"])[0] if k
+                       else rig["seconds"] * 0.9)
