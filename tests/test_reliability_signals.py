@@ -107,3 +107,52 @@ def test_signal_leaves_old_or_new_result_set(rig, tmp_path, name, k):
 def test_signal_many_moments(rig, tmp_path, name, k):
     check_after_signal(rig, tmp_path, name, delays(100 + k, 1, rig["seconds"])[0] if k
                        else rig["seconds"] * 0.9)
+
+
+# ----------------------------------------------------------------------------- every command
+def command_argvs(rig, cube, root):
+    """One small run of every writing command (into ``root``)."""
+    cap, cube = str(rig["cap"]), str(cube)
+    return {
+        "synth": ["synth", "procedural", "--size", "64,80", "--grid", "3,3"],
+        "synth-h5": ["synth", "procedural", "--size", "64,80", "--grid", "3,3", "-o",
+                     str(root / "lf.h5")],
+        "convert": ["convert", cap],
+        "complete": ["complete", cap, "--stereo", "none", "--use-ground-truth"],
+        "render": ["render", cube, "--all-views"],
+        "refocus": ["refocus", cube, "--sweep=-1,1,5"],
+        "spectrum": ["spectrum", cube, "--at", "10,10", "-o", str(root / "s.png")],
+        "demo": ["demo", "--grid", "2,3", "--size", "32,40", "--labels", "8"],
+    }
+
+
+@pytest.fixture(scope="module")
+def cube(rig):
+    out = rig["cap"].parent / "cube"
+    assert main(["-q", "complete", str(rig["cap"]), "--stereo", "none", "--use-ground-truth",
+                 "-o", str(out)]) == 0
+    return out / "cube.h5"
+
+
+@pytest.mark.parametrize("name", ["synth", "synth-h5", "convert", "complete", "render",
+                                  "refocus", "spectrum", "demo"])
+def test_sigterm_mid_run_of_every_command(rig, cube, tmp_path, name):
+    argv = command_argvs(rig, cube, tmp_path)[name]
+    if "-o" not in argv:
+        argv = argv + ["-o", str(tmp_path / "out")]
+    full = [sys.executable, "-m", "hyperlf", "-q", *argv, "--overwrite"]
+    t0 = time.perf_counter()
+    first = subprocess.run(full, capture_output=True, text=True)
+    assert first.returncode == 0, first.stderr
+    seconds = time.perf_counter() - t0
+    before = snapshot(tmp_path)
+    proc = subprocess.Popen(full, stderr=subprocess.PIPE, text=True)
+    time.sleep(0.3 + 0.5 * max(seconds - 0.3, 0.0))
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=300)
+    after = snapshot(tmp_path)
+    assert proc.returncode in (0, 143), (proc.returncode, err)
+    if proc.returncode == 143:
+        assert after == before  # the previous complete set, byte for byte
+    assert after.keys() == before.keys()  # never a mix, never a stray temporary
+    assert "Traceback" not in err
