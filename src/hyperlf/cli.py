@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import inspect
 import os
 import sys
@@ -121,19 +122,25 @@ _labels_arg = _int_at_least(2, "the number of disparity labels")
 _seed_arg = _int_at_least(0, "the seed")
 
 
-def _nonneg_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not np.isfinite(v) or v < 0:
-        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text!r}")
-    return v
+def _float_within(low: float, high: float, what: str):
+    """An argparse type: a finite number in ``[low, high]``."""
+    def parse(text: str) -> float:
+        v = _finite_float(text)
+        if v < low or v > high:
+            raise argparse.ArgumentTypeError(f"{what} must be in [{low:g}, {high:g}], "
+                                             f"got {text!r}")
+        return v
+    return parse
 
 
 def _say(args, msg: str) -> None:
     if not getattr(args, "quiet", False):
-        print(msg, file=sys.stderr)
+        print(_one_line(msg), file=sys.stderr)
+
+
+def _one_line(text: str) -> str:
+    """``text`` with control characters (a newline in a file name) shown escaped."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
 def _report(args, written, dest) -> None:
@@ -192,6 +199,7 @@ def _check_output(path, kind: str) -> None:
                                 "choose another output location")
 
 
+_FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
 _FILE_OUTPUTS = {".h5", ".hdf5", ".pfm", ".png", ".tif", ".tiff", ".hdr", ".img"}
 
 
@@ -324,7 +332,8 @@ def _add_spectral_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--layout", type=_layout_arg, default="raster",
                    help="filter layout: raster (paper: view (r,c) gets band r*C+c), "
                         "serpentine, random, or a comma-separated list of band indices")
-    g.add_argument("--noise", type=_nonneg_float, default=0.0, metavar="SIGMA",
+    g.add_argument("--noise", type=_float_within(0.0, 1.0, "the noise std"), default=0.0,
+                   metavar="SIGMA",
                    help="Gaussian noise std on [0,1] intensities (default 0)")
     g.add_argument("--bit-depth", type=int, choices=(8, 16), default=16,
                    help="bit depth of the written view images (default 16)")
@@ -706,11 +715,14 @@ def _cmd_refocus(args, dest) -> list[Path]:
     """
     from . import render
     from .formats import write_image
+    from .lightfield import check_disparity_reach
 
+    profile = _profile_arg(args.profile)
     cf, offsets, reference = _open_cube(args.cube)
     out = dest
-    profile = _profile_arg(args.profile)
     with cf:
+        focus = args.sweep[:2] if args.sweep is not None else [args.disparity]
+        check_disparity_reach(focus, offsets, cf.cube.shape[-2:])
         if args.sweep is not None:
             lo, hi, n = args.sweep
             res = render.focal_sweep(cf, offsets, np.linspace(lo, hi, int(n)), profile,
@@ -976,7 +988,8 @@ def _add_refocus_parser(sub) -> None:
                    help="camera name or CSV, band:NM for one band, weights:FILE (one weight "
                         "per band, comma-separated); default CIE 1931 -> sRGB")
     p.add_argument("--white", default=None, help="illuminant to render neutral (e.g. D65)")
-    p.add_argument("--fps", type=float, default=8.0, help="frames per second of the sweep")
+    p.add_argument("--fps", type=_float_within(0.01, 1000.0, "--fps"),
+                   default=8.0, help="frames per second of the sweep (default 8)")
     _add_output_folder(p)
 
 
@@ -1023,9 +1036,10 @@ def _check_arguments(args) -> None:
     if kind is not None:
         _check_output(args.output, kind)
     out = Path(getattr(args, "output", None) or ".")
-    if args.command == "spectrum" and out.suffix.lower() == ".csv":
+    if args.command == "spectrum" and out.suffix.lower() not in _FIGURE_SUFFIXES:
         raise InvalidInputError(f"-o {out}: give the picture's name, e.g. "
-                                f"{out.with_suffix('.png')}; the CSV is written beside it")
+                                f"{out.with_suffix('.png')} (.png, .pdf or .svg); the CSV is "
+                                "written beside it")
     if hasattr(args, "overwrite"):
         _check_overwrite(args)
 
@@ -1050,7 +1064,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     from .outputs import signals_as_exceptions
 
     parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else [os.fspath(a) for a in argv]
+    if any("\0" in a for a in argv):
+        print("hyperlf: error: an argument contains a NUL character, which no file name or "
+              "option value may hold; remove it",
+              file=sys.stderr)
+        return 2
+    odd = [a for a in argv if a.startswith("-") and a.endswith("=--")]
+    if odd:  # argparse (3.11) silently drops such a value
+        print(f"hyperlf: error: {_one_line(odd[0])}: '--' is not a value; see 'hyperlf --help'",
+              file=sys.stderr)
+        return 2
+    try:
+        args = parser.parse_args(argv)
+    except ValueError as exc:  # argparse's own failures on odd values (e.g. '--opt=--')
+        print(f"hyperlf: error: {_one_line(str(exc))}; see 'hyperlf --help'", file=sys.stderr)
+        return 2
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
@@ -1058,7 +1087,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         try:
             return _run(args)
         except HyperLFError as exc:
-            print(f"hyperlf {args.command}: error: {exc}", file=sys.stderr)
+            print(f"hyperlf {args.command}: error: {_one_line(str(exc))}", file=sys.stderr)
             return exc.exit_code
         except MemoryError:
             print(f"hyperlf {args.command}: error: out of memory; reduce the size of the work "
@@ -1069,9 +1098,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 141
         except OSError as exc:  # the output checks come first; this is the last resort
             where = f": {exc.filename}" if exc.filename else ""
-            print(f"hyperlf {args.command}: error: {exc.strerror or exc}{where}",
-                  file=sys.stderr)
-            return 4 if isinstance(exc, FileNotFoundError) else 1
+            print(f"hyperlf {args.command}: error: {_one_line(str(exc.strerror or exc))}"
+                  f"{_one_line(where)}", file=sys.stderr)
+            if isinstance(exc, FileNotFoundError):
+                return 4
+            return 2 if exc.errno in (errno.ENAMETOOLONG, errno.ELOOP) else 1
         except KeyboardInterrupt as exc:  # Ctrl-C, or Terminated (SIGTERM, SIGHUP)
             what = "terminated" if isinstance(exc, Terminated) else "interrupted"
             print(f"hyperlf {args.command}: {what}; the output holds its previous results "

@@ -21,7 +21,27 @@ from pathlib import Path
 
 from .errors import DataNotFoundError
 
-__all__ = ["ENV_VAR", "DATASETS", "data_root", "dataset_path", "has_data"]
+__all__ = ["ENV_VAR", "DATASETS", "data_root", "dataset_path", "has_data", "expand_user"]
+
+
+def expand_user(path: str | os.PathLike) -> Path:
+    """``path`` with a leading ``~`` or ``~user`` expanded, as a Path.
+
+    Raises
+    ------
+    DataNotFoundError
+        ``~user`` names no user (or the home folder cannot be found).
+
+    Examples
+    --------
+    >>> expand_user("data/x.csv")
+    PosixPath('data/x.csv')
+    """
+    try:
+        return Path(path).expanduser()
+    except RuntimeError:
+        raise DataNotFoundError(f"cannot find the home folder in {str(path)!r}: no such user; "
+                                "give the full path") from None
 
 ENV_VAR = "HYPERLF_DATA"
 
@@ -62,7 +82,7 @@ def data_root(root: str | os.PathLike | None = None) -> Path:
             f"the benchmark data location is unknown: set {ENV_VAR} to the folder holding "
             "hci4d/, middlebury/ and spectral/ (e.g. export HYPERLF_DATA=../shared/data)"
         )
-    path = Path(value).expanduser()
+    path = expand_user(value)
     if not path.is_dir():
         raise DataNotFoundError(f"{ENV_VAR} points to {path}, which is not a folder")
     return path

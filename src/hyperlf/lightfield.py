@@ -25,7 +25,8 @@ import numpy as np
 from .errors import InvalidInputError
 
 __all__ = ["LightField", "raster_wavelengths", "filter_layout", "view_offsets",
-           "grid_positions", "centre_view", "check_disparity_range", "resolve_disparity_range"]
+           "grid_positions", "centre_view", "check_disparity_range", "resolve_disparity_range",
+           "check_disparity_reach"]
 
 
 def _finite(name: str, arr: np.ndarray) -> None:
@@ -226,13 +227,48 @@ def resolve_disparity_range(lf: "LightField", disparity_range=None) -> tuple[flo
     Raises
     ------
     InvalidInputError
-        Neither is set, or the range is not two finite numbers with ``dmin < dmax``.
+        Neither is set, the range is not two finite numbers with ``dmin < dmax``, or it reaches
+        disparities at which even the nearest view is shifted entirely out of the image (such
+        labels can match nothing; a typo such as ``1e30`` is the usual cause).
     """
     rng = disparity_range if disparity_range is not None else lf.disparity_range
     if rng is None:
         raise InvalidInputError(
             "no disparity range: pass disparity_range=(dmin, dmax) or set lf.disparity_range")
-    return check_disparity_range(rng)
+    dmin, dmax = check_disparity_range(rng)
+    offsets = view_offsets(np.asarray(lf.positions), lf.reference)
+    check_disparity_reach((dmin, dmax), offsets, lf.image_shape)
+    return dmin, dmax
+
+
+def check_disparity_reach(disparities, offsets: np.ndarray, image_shape) -> None:
+    """Refuse disparities at which even the nearest view is shifted entirely out of the image.
+
+    Such a disparity can match or refocus nothing; a typo such as ``1e30`` is the usual cause.
+
+    Parameters
+    ----------
+    disparities : array_like
+        Disparities (px per baseline), e.g. a range's two ends.
+    offsets : ndarray, shape (R, C, 2)
+        View offsets from the reference, baselines (:func:`view_offsets`).
+    image_shape : (int, int)
+        ``(H, W)`` of the views.
+
+    Raises
+    ------
+    InvalidInputError
+        A disparity reaches beyond ``max(H, W) / (nearest view's distance)``.
+    """
+    off = np.hypot(*np.moveaxis(np.asarray(offsets, dtype=np.float64), -1, 0))
+    nearest = float(off[off > 0].min()) if (off > 0).any() else 1.0
+    limit = max(image_shape) / nearest
+    worst = float(np.max(np.abs(np.asarray(disparities, dtype=np.float64))))
+    if not worst <= limit:
+        raise InvalidInputError(
+            f"a disparity of {worst:g} px per baseline shifts every view out of the "
+            f"{image_shape[1]} x {image_shape[0]} px image (the limit is +-{limit:g}); use a "
+            "smaller one")
 
 
 @dataclass

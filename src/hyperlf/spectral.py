@@ -263,7 +263,9 @@ def _data_file(path, dataset: str, what: str, hint: str) -> Path:
 
         p = dataset_path(dataset)
     else:
-        p = Path(path).expanduser()
+        from .datasets import expand_user
+
+        p = expand_user(path)
     if not p.is_file():
         raise DataNotFoundError(f"{what} {p} does not exist; pass {hint} or set HYPERLF_DATA")
     return p
@@ -400,7 +402,9 @@ def load_sensitivities_csv(path: str | os.PathLike) -> tuple[np.ndarray, np.ndar
     FormatError
         Any malformed content, with the line number.
     """
-    p = Path(path).expanduser()
+    from .datasets import expand_user
+
+    p = expand_user(path)
     if not p.is_file():
         raise DataNotFoundError(f"sensitivity file {p} does not exist; check the path")
     try:
@@ -523,7 +527,8 @@ def _looks_like_path(name_or_path) -> bool:
         return True
     s = str(name_or_path)
     return (s.lower().endswith((".csv", ".txt", ".tsv", ".dat")) or os.sep in s
-            or (os.altsep is not None and os.altsep in s) or Path(s).expanduser().is_file())
+            or (os.altsep is not None and os.altsep in s) or s.startswith("~")
+            or Path(s).is_file())
 
 
 def camera_sensitivities(name_or_path, wavelengths) -> np.ndarray:

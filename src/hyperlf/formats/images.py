@@ -381,8 +381,12 @@ def write_image(path: str | os.PathLike, array, bit_depth: int = 16) -> Path:
             import cv2
 
             bgr = np.ascontiguousarray(out[..., ::-1]) if out.ndim == 3 else out
-            if not cv2.imwrite(str(tmp), bgr):
-                raise FormatError(f"OpenCV failed to write {p}")
+            # encode in memory, write with Python: cv2.imwrite crashes on names that are not
+            # UTF-8 (a lone surrogate in the str)
+            ok, buf = cv2.imencode(tmp.suffix or ".png", bgr)
+            if not ok:
+                raise FormatError(f"OpenCV failed to encode {p}")
+            tmp.write_bytes(buf.tobytes())
     return p
 
 

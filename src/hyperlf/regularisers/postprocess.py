@@ -277,6 +277,9 @@ def _wmf_args(disp, guide, radius, sigma):
         raise InvalidInputError(f"guide must be a finite image of shape {d.shape}, got {g.shape}")
     if isinstance(radius, bool) or not isinstance(radius, (int, np.integer)) or radius < 0:
         raise InvalidInputError(f"radius must be an integer >= 0, got {radius!r}")
+    if radius > max(d.shape):
+        raise InvalidInputError(f"radius {radius} is larger than the {d.shape[1]} x "
+                                f"{d.shape[0]} px image; use at most {max(d.shape)}")
     sigma = check_positive(sigma, "sigma", allow_zero=False)
     m = float(np.mean(np.abs(g)))
     return d, (g / m if m > 0 else g), int(radius), float(sigma)
