@@ -138,6 +138,22 @@ def test_output_in_a_read_only_folder(capture, tmp_path):
         ro.chmod(0o755)
 
 
+def test_output_in_a_folder_the_user_cannot_write(capture, tmp_path, monkeypatch, capsys):
+    """The same case as the root-skipped one above, with the permission answer simulated (so
+    it runs as root too): refused before any work, nothing created."""
+    from hyperlf.cli import main
+
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode, **kw: False if os.fspath(p) == str(ro)
+                        else real_access(p, mode, **kw))
+    assert main(["-q", "depth", str(capture), "--labels", "8", "-o", str(ro / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "not writable" in err and len(err.splitlines()) == 1
+    assert listing(ro) == []
+
+
 # ------------------------------------------------------------------ option values (item 6, 7)
 @pytest.mark.parametrize("rng", ["nan,5", "0,inf", "-inf,3", "0,1e400"])
 def test_stereo_disparity_range_not_finite(rng, pair, tmp_path):
