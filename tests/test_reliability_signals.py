@@ -73,8 +73,8 @@ def check_after_signal(rig, tmp_path, name, delay):
     assert after in (rig["snapA"], rig["snapB"]), (name, delay, sorted(after))
     if rc == 0:  # the run had finished before the signal came
         assert after == rig["snapB"]
-    else:
-        assert rc == code, (name, delay, rc, err)
+    else:  # -signum: Python's own exit on SIGINT in its start-up; a shell shows 128 + n too
+        assert rc in (code, -sig), (name, delay, rc, err)
         assert "Traceback" not in err and len(err.strip().splitlines()) <= 1, err
     left = sorted(os.listdir(tmp_path))
     if name != "SIGKILL":

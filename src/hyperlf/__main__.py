@@ -23,6 +23,16 @@ def main() -> int:
         what = "terminated" if hasattr(exc, "signum") else "interrupted"
         print(f"hyperlf: {what} while starting; nothing was written", file=sys.stderr)
         return getattr(exc, "exit_code", 130)
+    finally:  # the work is done (or refused): a late signal must not change the exit status
+        _ignore_signals()
+
+
+def _ignore_signals() -> None:
+    import signal
+
+    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+        if hasattr(signal, name):
+            signal.signal(getattr(signal, name), signal.SIG_IGN)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -35,6 +35,11 @@ examples:
 
 Inputs may be a capture folder (capture.toml + one image per view), an HDF5 light field
 (.h5) or an HCI 4D light field scene folder. Run 'hyperlf COMMAND --help' for details.
+
+Outputs appear whole at the end of a run (an interrupted or failed run leaves the output as it
+was); an existing output is replaced only with --overwrite, and a folder only when it holds
+nothing but results hyperlf wrote. Exit status: 0 done, 1 other error, 2 bad usage or input,
+3 unreadable file, 4 missing file, 130 interrupted, 143 terminated.
 """
 
 
