@@ -55,8 +55,10 @@ def detect_poses(shots: Mapping, board: BoardSpec, *, names=None, min_poses: int
     return found
 
 
-def intrinsics(corners: Mapping, board: BoardSpec, size) -> tuple[np.ndarray, np.ndarray, float]:
-    """Zhang calibration of one camera from ``{pose: corners}``: ``(K, dist(5), rms px)``."""
+def intrinsics(corners: Mapping, board: BoardSpec, size) -> tuple:
+    """Zhang calibration of one camera from ``{pose: corners}``.
+
+    Returns ``(K, dist(5), rms px, {pose: (rvec, tvec)})`` (board to camera)."""
     import cv2
 
     obj = board.object_points().astype(np.float32)
@@ -64,9 +66,10 @@ def intrinsics(corners: Mapping, board: BoardSpec, size) -> tuple[np.ndarray, np
     img = [corners[p].astype(np.float32).reshape(-1, 1, 2) for p in poses]
     flags = cv2.CALIB_FIX_K3
     crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-12)
-    rms, K, dist, _, _ = cv2.calibrateCamera([obj] * len(poses), img, tuple(size), None, None,
-                                             flags=flags, criteria=crit)
-    return K, dist.ravel()[:5].astype(np.float64), float(rms)
+    rms, K, dist, rv, tv = cv2.calibrateCamera([obj] * len(poses), img, tuple(size), None, None,
+                                               flags=flags, criteria=crit)
+    board_poses = {p: (r.ravel(), t.ravel()) for p, r, t in zip(poses, rv, tv)}
+    return K, dist.ravel()[:5].astype(np.float64), float(rms), board_poses
 
 
 def extrinsics(ref_corners: Mapping, corners: Mapping, board: BoardSpec, K_ref, d_ref, K, d,
@@ -128,8 +131,38 @@ def rectification(Ks: Mapping, Rs: Mapping, ts: Mapping, reference, size) -> dic
             "planarity": float(np.max(np.abs(rel[:, 2])) / base)}
 
 
+def _refine(corners, board, Ks, ds, Rs, ts, bposes, ref) -> dict:
+    """Bundle-adjust all cameras and board poses together; updates ``Ks, ds, Rs, ts`` in place
+    and returns each camera's RMS reprojection error."""
+    import cv2
+
+    from .bundle import bundle_adjust
+
+    keys = list(Ks)
+    poses = sorted({p for k in keys for p in corners[k]})
+    pidx = {p: i for i, p in enumerate(poses)}
+    pr, pt = np.zeros((len(poses), 3)), np.zeros((len(poses), 3))
+    for p in poses:       # board -> reference, from the reference or any camera that saw it
+        k = ref if p in bposes[ref] else next(k for k in keys if p in bposes[k])
+        Rb = cv2.Rodrigues(bposes[k][p][0])[0]
+        R0, t0 = Rs[k].T @ Rb, Rs[k].T @ (bposes[k][p][1] - ts[k])
+        pr[pidx[p]], pt[pidx[p]] = cv2.Rodrigues(R0)[0].ravel(), t0
+    intr = np.array([[Ks[k][0, 0], Ks[k][1, 1], Ks[k][0, 2], Ks[k][1, 2], *ds[k][:4]]
+                     for k in keys])
+    rv = np.array([cv2.Rodrigues(Rs[k])[0].ravel() for k in keys])
+    tv = np.array([ts[k] for k in keys])
+    obs = [(i, pidx[p], corners[k][p]) for i, k in enumerate(keys) for p in corners[k]]
+    res = bundle_adjust(obs, board.object_points(), intr, rv, tv, pr, pt, keys.index(ref))
+    for i, k in enumerate(keys):
+        fx, fy, cx, cy, k1, k2, p1, p2 = res.intr[i]
+        Ks[k] = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]])
+        ds[k] = np.array([k1, k2, p1, p2, 0.0])
+        Rs[k], ts[k] = cv2.Rodrigues(res.rvec[i])[0], res.tvec[i].copy()
+    return {k: float(res.rms[i]) for i, k in enumerate(keys)}
+
+
 def calibrate_full(shots: Mapping, board: BoardSpec, *, reference=None, names=None,
-                   min_poses: int = 3) -> Calibration:
+                   min_poses: int = 3, refine: bool = True) -> Calibration:
     """Calibrate and rectify a planar array from several board poses.
 
     Parameters
@@ -144,6 +177,10 @@ def calibrate_full(shots: Mapping, board: BoardSpec, *, reference=None, names=No
         Camera names for messages.
     min_poses : int
         Fewest poses in which each camera must see the whole board.
+    refine : bool
+        Bundle-adjust all cameras and board poses together after the per-camera and pairwise
+        calibrations (:mod:`~hyperlf.calibration.bundle`); the reported reprojection errors
+        are then those of the joint model.
 
     Returns
     -------
@@ -164,15 +201,17 @@ def calibrate_full(shots: Mapping, board: BoardSpec, *, reference=None, names=No
     flat = {(k, i): img for k, imgs in shots.items() for i, img in enumerate(imgs)}
     size = check_images(flat, None, what="board shot")
     corners = detect_poses(shots, board, names=names, min_poses=min_poses)
-    Ks, ds, errs = {}, {}, {}
+    Ks, ds, errs, bposes = {}, {}, {}, {}
     for k in shots:
-        Ks[k], ds[k], errs[k] = intrinsics(corners[k], board, size)
+        Ks[k], ds[k], errs[k], bposes[k] = intrinsics(corners[k], board, size)
     Rs, ts, stereo = {ref: np.eye(3)}, {ref: np.zeros(3)}, {}
     for k in shots:
         if k != ref:
             Rs[k], ts[k], stereo[k] = extrinsics(corners[ref], corners[k], board, Ks[ref],
                                                  ds[ref], Ks[k], ds[k], size,
                                                  label=camera_label(k, names))
+    if refine:
+        errs = _refine(corners, board, Ks, ds, Rs, ts, bposes, ref)
     rect = rectification(Ks, Rs, ts, ref, size)
     base = np.array([ref[1], ref[0]], np.float64)
     cams = {k: CameraCalibration(name=camera_label(k, names), position=base + rect["positions"][k],

@@ -129,14 +129,45 @@ def _als(F: np.ndarray, w: np.ndarray, d: np.ndarray, iters: int = 30):
     return o, d
 
 
+def _fit_d(F: np.ndarray, w: np.ndarray, o: np.ndarray) -> np.ndarray:
+    """Least-squares ``d`` per point given the offsets (0 where a point has no entry)."""
+    num = -(np.where(w[..., None], F, 0.0) * o[:, None, :]).sum(-1)
+    den = (w * (o ** 2).sum(1)[:, None]).sum(0)
+    return (w * num).sum(0) / np.maximum(den, 1e-12)
+
+
+def _ransac_offsets(F: np.ndarray, w: np.ndarray, tol: float, trials: int,
+                    seed: int) -> np.ndarray | None:
+    """Offsets from the one point whose flows explain the most entries (a hypothesis is one
+    point measured in every view: its flow vector is ``-d o``); None if no point qualifies."""
+    full = np.flatnonzero(w.all(0) & (np.linalg.norm(np.nan_to_num(F), axis=-1).min(0) > 0))
+    if full.size == 0:
+        return None
+    mags = np.linalg.norm(F[:, full], axis=-1).mean(0)
+    cands = full[mags >= np.median(mags)] if full.size > 4 else full
+    rng = np.random.default_rng(seed)
+    pick = rng.choice(cands, size=min(trials, cands.size), replace=False)
+    best, score = None, -1.0
+    for i in pick:
+        o = -F[:, i]
+        d = _fit_d(F, w, o)
+        res = np.linalg.norm(np.nan_to_num(F) + d[None, :, None] * o[:, None, :], axis=-1)
+        sc = float(np.sum(w & (res <= tol + 0.05 * np.abs(d)[None] * np.linalg.norm(o, axis=1)
+                               [:, None])))
+        if sc > score:
+            best, score = o, sc
+    return best
+
+
 def factor_rank1(flows: np.ndarray, *, min_views: int = 2, floor: float = 0.25,
-                 rounds: int = 4) -> Rank1:
+                 rounds: int = 5, tol: float = 1.0, trials: int = 200, seed: int = 0) -> Rank1:
     """Robust rank-1 factorisation of measured flows ``(V, N, 2)`` (NaN = not measured).
 
-    Alternating least squares, started from the view with most measurements; after each round
-    entries whose residual exceeds ``max(floor, 3 * 1.4826 * MAD)`` px are dropped, and points
-    left with fewer than ``min_views`` views are dropped. The common scale and sign stay free:
-    the caller fixes them.
+    A RANSAC start (the flows of one point seen in every view, the one that explains most
+    entries within ``tol`` px plus 5 % of the flow) picks the inliers; then alternating least
+    squares, after each round dropping entries whose residual exceeds
+    ``max(floor, median + 3 * 1.4826 * MAD)`` px, and points left with fewer than ``min_views``
+    views. The common scale and sign stay free: the caller fixes them.
 
     Examples
     --------
@@ -148,23 +179,21 @@ def factor_rank1(flows: np.ndarray, *, min_views: int = 2, floor: float = 0.25,
     """
     F = np.asarray(flows, np.float64)
     w = np.all(np.isfinite(F), axis=-1)
-    start = int(np.argmax(w.sum(1)))
-    sub = F[start][w[start]]
-    if sub.shape[0] < 2:
-        return Rank1(np.full((F.shape[0], 2), np.nan), np.full(F.shape[1], np.nan), w, np.nan)
-    axis = np.linalg.svd(sub - 0 * sub.mean(0), full_matrices=False)[2][0]
-    d = np.where(w[start], np.nan_to_num(F[start]) @ axis, 0.0)
+    V, N = w.shape
+    o = _ransac_offsets(F, w, tol, trials, seed)
+    if o is None:
+        return Rank1(np.full((V, 2), np.nan), np.full(N, np.nan), np.zeros_like(w), np.nan)
+    d = _fit_d(F, w, o)
     for _ in range(rounds):
-        w &= (w.sum(0) >= min_views)[None]
-        o, d = _als(F, w, d)
         res = np.linalg.norm(np.nan_to_num(F) + d[None, :, None] * o[:, None, :], axis=-1)
         r = res[w]
         if r.size == 0:
             break
-        tau = max(floor, 3 * 1.4826 * float(np.median(np.abs(r - np.median(r)))) + np.median(r))
+        med = float(np.median(r))
+        tau = max(floor, med + 3 * 1.4826 * float(np.median(np.abs(r - med))))
         w &= res <= tau
-    w &= (w.sum(0) >= min_views)[None]
-    o, d = _als(F, w, d)
+        w &= (w.sum(0) >= min_views)[None]
+        o, d = _als(F, w, d)
     res = np.linalg.norm(np.nan_to_num(F) + d[None, :, None] * o[:, None, :], axis=-1)
     rms = float(np.sqrt(np.mean(res[w] ** 2))) if w.any() else np.nan
     d = np.where(w.any(0), d, np.nan)
