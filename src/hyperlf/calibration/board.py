@@ -148,13 +148,19 @@ def _detect_classic(img8: np.ndarray, size) -> np.ndarray | None:
     return c.reshape(-1, 2)
 
 
-def _inside(corners: np.ndarray, shape) -> bool:
+def _inside(corners: np.ndarray, shape, cols: int, rows: int) -> bool:
+    """All corners at least 0.9 corner spacings inside the image: the board's outer squares
+    must be whole, else the outer corners cannot be located (the board is partly out of
+    view)."""
     H, W = shape
-    return bool(np.all((corners[:, 0] >= 0) & (corners[:, 0] <= W - 1)
-                       & (corners[:, 1] >= 0) & (corners[:, 1] <= H - 1)))
+    g = corners.reshape(rows, cols, 2)
+    m = 0.9 * float(np.median(np.linalg.norm(np.diff(g, axis=1), axis=-1)))
+    return bool(np.all((corners[:, 0] >= m) & (corners[:, 0] <= W - 1 - m)
+                       & (corners[:, 1] >= m) & (corners[:, 1] <= H - 1 - m)))
 
 
-def detect_board(image: np.ndarray, board: BoardSpec) -> np.ndarray | None:
+def detect_board(image: np.ndarray, board: BoardSpec, *,
+                 detect_size: int = 800) -> np.ndarray | None:
     """Inner corners of ``board`` in ``image``, canonical order, or None when not found.
 
     Parameters
@@ -162,6 +168,10 @@ def detect_board(image: np.ndarray, board: BoardSpec) -> np.ndarray | None:
     image : ndarray, shape (H, W)
         A raw grey board shot (any dtype, any contrast sign).
     board : BoardSpec
+    detect_size : int
+        Larger images are searched at a scale whose larger side is this many px (the
+        detectors' cost grows fast with size); the corners are then refined at full
+        resolution.
 
     Returns
     -------
@@ -176,13 +186,19 @@ def detect_board(image: np.ndarray, board: BoardSpec) -> np.ndarray | None:
     >>> detect_board(shots[(0, 0)], rig.board).shape
     (48, 2)
     """
+    import cv2
+
     img8 = normalise_for_detection(image)
     size = (int(board.cols), int(board.rows))
+    scale = min(1.0, detect_size / max(img8.shape))
+    small = img8 if scale == 1.0 else cv2.resize(img8, None, fx=scale, fy=scale,
+                                                 interpolation=cv2.INTER_AREA)
     for detector in (_detect_sb, _detect_classic):
-        for candidate in (img8, 255 - img8):
+        for candidate in (small, 255 - small):
             c = detector(candidate, size)
-            if c is not None and c.shape[0] == board.n_corners and _inside(c, img8.shape):
-                c = canonical_order(c, board.cols, board.rows)
+            if (c is not None and c.shape[0] == board.n_corners
+                    and _inside(c, small.shape, board.cols, board.rows)):
+                c = canonical_order((c + 0.5) / scale - 0.5, board.cols, board.rows)
                 return refine_corners(image, c, board)
     return None
 

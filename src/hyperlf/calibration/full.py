@@ -98,9 +98,9 @@ def _array_axes(centres: np.ndarray) -> np.ndarray:
     cen = centres - centres.mean(0)
     s = np.linalg.svd(cen, full_matrices=False)
     sv, vt = s[1], s[2]
-    if len(sv) >= 2 and sv[1] > 1e-6 * sv[0]:
+    if len(sv) >= 2 and sv[1] > 0.1 * sv[0]:  # a 2-D spread of cameras fixes the plane
         n = vt[2] if vt.shape[0] > 2 else np.cross(vt[0], vt[1])
-    else:  # one row of cameras: the plane through the line closest to the image plane
+    else:  # (nearly) one row of cameras: the plane through the line nearest the image plane
         line = vt[0]
         n = z_ref - (z_ref @ line) * line
     n = n / np.linalg.norm(n)

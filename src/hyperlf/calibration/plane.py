@@ -43,7 +43,7 @@ def board_homographies(corners: Mapping, reference) -> tuple[dict, dict]:
     dst = corners[reference]
     Hs, errs = {}, {}
     for key, pts in corners.items():
-        H, _ = cv2.findHomography(pts, dst, 0)
+        H = np.eye(3) if key == reference else cv2.findHomography(pts, dst, 0)[0]
         if H is None:
             raise InvalidInputError(
                 f"no homography from camera {camera_label(key)} onto the reference: the board's "

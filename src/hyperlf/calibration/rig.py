@@ -361,7 +361,7 @@ class SyntheticRig:
             a = 2 * np.pi * (i - 1 if shared else i - n_shared) / m + (0.0 if shared else 0.4)
             tilt = (20 * np.sin(a + 1.3) + rng.uniform(-3, 3),
                     20 * np.cos(a + 1.3) + rng.uniform(-3, 3), rng.uniform(-6, 6))
-            dist = distance * rng.uniform(0.9, 1.1)
+            dist = distance * (0.8 + 0.5 * ((i * 0.618) % 1.0))  # near and far poses
             reach = 0.0 if i == 0 else 0.6 * dist / f
             keys = None if shared else [self.reference]
             for _ in range(40):
@@ -369,14 +369,15 @@ class SyntheticRig:
                                        centre_offset=(reach * W * np.cos(a), reach * H * np.sin(a)))
                 if self.in_view(pose, keys):
                     break
-                reach *= 0.92
+                reach, dist = reach * 0.92, dist * 1.02
             else:
                 raise InvalidInputError(f"board pose {i} does not fit the cameras' view")
             poses.append(pose)
         return poses
 
 
-def _camera(rng, key, ref, baseline, focal, image_size, n_bands, index, inverted, imperfect):
+def _camera(rng, key, ref, baseline, focal, image_size, n_bands, index, inverted, imperfect,
+            distortion):
     W, H = image_size
     r, c = key
     j = rng.uniform(-0.03, 0.03, 2) * baseline * imperfect
@@ -387,7 +388,7 @@ def _camera(rng, key, ref, baseline, focal, image_size, n_bands, index, inverted
     cy = (H - 1) / 2 + rng.uniform(-5, 5) * imperfect
     K = np.array([[f, 0, cx], [0, f * (1 + rng.uniform(-0.002, 0.002) * imperfect), cy],
                   [0, 0, 1.0]])
-    dist = np.array([rng.uniform(-0.12, -0.04), rng.uniform(0.0, 0.05), 0, 0, 0]) * imperfect
+    dist = np.array([rng.uniform(-0.12, -0.04), rng.uniform(0.0, 0.05), 0, 0, 0]) * distortion
     return RigCamera(K=K, dist=dist, R=rotation_matrix(*ang), centre=centre,
                      gain=float(1 + rng.uniform(-0.25, 0.1) * imperfect),
                      offset=float(rng.uniform(0, 0.05) * imperfect),
@@ -400,7 +401,7 @@ def make_rig(rows: int = 3, cols: int = 3, *, seed: int = 0,
              focal: float = 300.0, board: BoardSpec | None = None,
              inverted: Sequence[int] = (2, 6), imperfect: float = 1.0,
              scene_depths: tuple[float, float] = (700.0, 1000.0),
-             noise: float = 0.004) -> SyntheticRig:
+             noise: float = 0.004, distortion: float | None = None) -> SyntheticRig:
     """A deliberately imperfect ``rows x cols`` array and its scene.
 
     Parameters
@@ -427,6 +428,8 @@ def make_rig(rows: int = 3, cols: int = 3, *, seed: int = 0,
         Depths of the middle textured plane (left part of the view) and of the back wall.
     noise : float
         Sensor noise standard deviation.
+    distortion : float, optional
+        Scales the lens distortion alone (default: ``imperfect``).
 
     Returns
     -------
@@ -444,8 +447,9 @@ def make_rig(rows: int = 3, cols: int = 3, *, seed: int = 0,
     rng = np.random.default_rng(seed)
     ref = ((rows - 1) // 2, (cols - 1) // 2)
     keys = [(r, c) for r in range(rows) for c in range(cols)]
+    dist = imperfect if distortion is None else distortion
     cams = {k: _camera(rng, k, ref, baseline, focal, image_size, len(keys), i, set(inverted),
-                       imperfect) for i, k in enumerate(keys)}
+                       imperfect, dist) for i, k in enumerate(keys)}
     zmid, zfar = scene_depths
     big = 4.0 * zfar
     ex, ey = np.eye(3)[0], np.eye(3)[1]
