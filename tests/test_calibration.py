@@ -354,6 +354,8 @@ def _check_full(rig, cal, poses=None):
     ref = np.array(cal.reference[::-1], float)
     for key, cam in cal.cameras.items():
         assert cam.reprojection_error < 0.2, key
+        v = cal.residuals[key][1]
+        assert np.sqrt(np.mean(np.sum(v ** 2, 1))) == pytest.approx(cam.reprojection_error)
         if key != rig.reference:
             t = truth[key]
             assert np.linalg.norm(cam.position - ref - t) < 0.01 * np.linalg.norm(t), key
@@ -415,3 +417,26 @@ def test_lab_capture_plane_registration():
     for r in range(3):
         for c in range(2):
             assert np.abs(grid[r, c + 1] - grid[r, c]).sum() == 1
+
+
+# ----------------------------------------------------------------------------- pictures
+def test_pictures_are_written(tmp_path, rig, plane_shots, plane_cal):
+    from hyperlf.calibration import (save_corner_pictures, save_registration_picture,
+                                     save_residual_picture)
+
+    corners = {k: detect_board(v, rig.board) for k, v in plane_shots.items()}
+    corners[(0, 0)] = None
+    views, valid = apply_calibration(plane_cal, plane_shots)
+    paths = [save_corner_pictures(tmp_path / "corners.png", plane_shots, corners),
+             save_registration_picture(tmp_path / "registered.png", views, valid),
+             save_residual_picture(tmp_path / "residuals.png", plane_cal)]
+    for p in paths:
+        assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert set(plane_cal.residuals) == set(plane_cal.cameras)
+    assert np.allclose(plane_cal.residuals[plane_cal.reference][1], 0)
+    rms = {k: float(np.sqrt(np.mean(np.sum(v ** 2, 1)))) for k, (_, v) in
+           plane_cal.residuals.items()}
+    assert rms == pytest.approx(plane_cal.reprojection_errors())
+    back = read_calibration(write_calibration(plane_cal, tmp_path / "c.toml"))
+    with pytest.raises(InvalidInputError, match="no corner residuals"):
+        save_residual_picture(tmp_path / "r2.png", back)

@@ -53,7 +53,9 @@ def project(points_cam: np.ndarray, intr: np.ndarray) -> np.ndarray:
 @dataclass
 class BundleResult:
     """Refined parameters: ``intr`` (V, 8), ``rvec``/``tvec`` (V, 3) camera from reference,
-    ``pose_rvec``/``pose_tvec`` (P, 3) board to reference, ``rms`` (V,) px per camera."""
+    ``pose_rvec``/``pose_tvec`` (P, 3) board to reference, ``rms`` (V,) px per camera,
+    ``residuals`` (M, 2) reprojected minus detected for the observed corners ``uv`` (M, 2) of
+    cameras ``cam`` (M,)."""
 
     intr: np.ndarray
     rvec: np.ndarray
@@ -61,6 +63,9 @@ class BundleResult:
     pose_rvec: np.ndarray
     pose_tvec: np.ndarray
     rms: np.ndarray
+    residuals: np.ndarray
+    uv: np.ndarray
+    cam: np.ndarray
 
 
 class _Problem:
@@ -137,4 +142,5 @@ def bundle_adjust(obs, obj, intr0, rvec0, tvec0, pose_r0, pose_t0, ref: int) -> 
     res = prob.residuals(theta).reshape(-1, 2)
     rms = np.array([np.sqrt(np.mean(np.sum(res[prob.cam == c] ** 2, 1)))
                     for c in range(prob.V)])
-    return BundleResult(intr, ext[:, :3], ext[:, 3:], pose[:, :3], pose[:, 3:], rms)
+    return BundleResult(intr, ext[:, :3], ext[:, 3:], pose[:, :3], pose[:, 3:], rms, res,
+                        prob.uv, prob.cam)

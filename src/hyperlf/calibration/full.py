@@ -133,7 +133,7 @@ def rectification(Ks: Mapping, Rs: Mapping, ts: Mapping, reference, size) -> dic
 
 def _refine(corners, board, Ks, ds, Rs, ts, bposes, ref) -> dict:
     """Bundle-adjust all cameras and board poses together; updates ``Ks, ds, Rs, ts`` in place
-    and returns each camera's RMS reprojection error."""
+    and returns each camera's RMS reprojection error and its corner residuals."""
     import cv2
 
     from .bundle import bundle_adjust
@@ -158,7 +158,9 @@ def _refine(corners, board, Ks, ds, Rs, ts, bposes, ref) -> dict:
         Ks[k] = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]])
         ds[k] = np.array([k1, k2, p1, p2, 0.0])
         Rs[k], ts[k] = cv2.Rodrigues(res.rvec[i])[0], res.tvec[i].copy()
-    return {k: float(res.rms[i]) for i, k in enumerate(keys)}
+    errs = {k: float(res.rms[i]) for i, k in enumerate(keys)}
+    resid = {k: (res.uv[res.cam == i], res.residuals[res.cam == i]) for i, k in enumerate(keys)}
+    return errs, resid
 
 
 def calibrate_full(shots: Mapping, board: BoardSpec, *, reference=None, names=None,
@@ -210,8 +212,9 @@ def calibrate_full(shots: Mapping, board: BoardSpec, *, reference=None, names=No
             Rs[k], ts[k], stereo[k] = extrinsics(corners[ref], corners[k], board, Ks[ref],
                                                  ds[ref], Ks[k], ds[k], size,
                                                  label=camera_label(k, names))
+    resid = {}
     if refine:
-        errs = _refine(corners, board, Ks, ds, Rs, ts, bposes, ref)
+        errs, resid = _refine(corners, board, Ks, ds, Rs, ts, bposes, ref)
     rect = rectification(Ks, Rs, ts, ref, size)
     base = np.array([ref[1], ref[0]], np.float64)
     cams = {k: CameraCalibration(name=camera_label(k, names), position=base + rect["positions"][k],
@@ -221,4 +224,4 @@ def calibrate_full(shots: Mapping, board: BoardSpec, *, reference=None, names=No
             "planarity": rect["planarity"], "poses": int(counts.pop())}
     return Calibration(mode="full", grid=grid, reference=ref, image_size=size, output_size=size,
                        camera_matrix=rect["K"], cameras=cams, board=board,
-                       baseline=rect["baseline"], info=info)
+                       baseline=rect["baseline"], info=info, residuals=resid)

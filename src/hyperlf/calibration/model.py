@@ -89,6 +89,9 @@ class Calibration:
         (``n . X = dist``), board units; gives ``Z_board`` per pixel for metric depth.
     info : dict
         Diagnostics (where positions came from, parallax statistics, ...).
+    residuals : dict (row, col) -> (points (N, 2), vectors (N, 2))
+        Corner residuals in px of the calibration run (not stored in the file): plane mode,
+        the mapped corners minus the reference's; full mode, reprojected minus detected.
     """
 
     mode: str
@@ -102,6 +105,7 @@ class Calibration:
     baseline: float
     board_plane: np.ndarray | None = None
     info: dict[str, Any] = field(default_factory=dict)
+    residuals: dict = field(default_factory=dict, repr=False)
 
     @property
     def focal_px(self) -> float:

@@ -36,12 +36,13 @@ __all__ = ["register_plane", "board_homographies", "board_geometry", "parallax_o
            "resolve_positions", "board_outline"]
 
 
-def board_homographies(corners: Mapping, reference) -> tuple[dict, dict]:
-    """Homography (raw -> reference) and RMS corner residual (px) of every camera."""
+def board_homographies(corners: Mapping, reference) -> tuple[dict, dict, dict]:
+    """Homography (raw -> reference), RMS corner residual (px) and the residual vectors
+    (reference corners, mapped minus reference) of every camera."""
     import cv2
 
     dst = corners[reference]
-    Hs, errs = {}, {}
+    Hs, errs, resid = {}, {}, {}
     for key, pts in corners.items():
         H = np.eye(3) if key == reference else cv2.findHomography(pts, dst, 0)[0]
         if H is None:
@@ -52,7 +53,8 @@ def board_homographies(corners: Mapping, reference) -> tuple[dict, dict]:
         proj = cv2.perspectiveTransform(pts.reshape(-1, 1, 2), H).reshape(-1, 2)
         Hs[key] = H
         errs[key] = float(np.sqrt(np.mean(np.sum((proj - dst) ** 2, axis=1))))
-    return Hs, errs
+        resid[key] = (dst.copy(), proj - dst)
+    return Hs, errs, resid
 
 
 def board_geometry(corners: Mapping, board: BoardSpec, image_size, reference, *,
@@ -247,7 +249,7 @@ def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=No
     grid, ref = check_grid(shots.keys(), reference)
     size = check_images(shots, names, what="board shot")
     corners = detect_boards(shots, board, names=names)
-    Hs, errs = board_homographies(corners, ref)
+    Hs, errs, resid = board_homographies(corners, ref)
     geo = board_geometry(corners, board, size, ref, focal_px=focal_px)
     info = {"board_pose_rms": geo["rms"], "positions_from": "board"}
     offsets = {k: np.asarray(v[:2]) for k, v in geo["centres"].items()}
@@ -266,7 +268,9 @@ def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=No
                 "other depths, or use positions from the board poses")
     pos, agree = resolve_positions(offsets, geo["centres"], ref)
     info["sign_agreement"] = agree
-    return _plane_calibration(grid, ref, size, Hs, errs, pos, geo, board, names, info)
+    cal = _plane_calibration(grid, ref, size, Hs, errs, pos, geo, board, names, info)
+    cal.residuals = resid
+    return cal
 
 
 def _plane_calibration(grid, ref, size, Hs, errs, pos, geo, board, names, info) -> Calibration:
