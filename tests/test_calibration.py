@@ -373,13 +373,22 @@ def _check_full(rig, cal, poses=None):
     assert np.abs(d / d_true - 1).max() < 0.01
 
 
-def test_full_calibration_of_a_row_of_cameras():
+def test_full_calibration_of_a_row_of_cameras(tmp_path):
     rig = make_rig(1, 3, seed=SEED + 1)
     poses = rig.calibration_poses(9, n_shared=5)
     shots = [rig.render(p, salt=i, scene=False) for i, p in enumerate(poses)]
     cal = calibrate({k: [s[k] for s in shots] for k in rig.cameras}, rig.board)
     assert cal.mode == "full"
     _check_full(rig, cal, poses)  # a row has less data: only where the boards were
+    back = read_calibration(write_calibration(cal, tmp_path / "full.toml"))
+    assert back.mode == "full" and np.allclose(back.positions(), cal.positions())
+    for k, cam in cal.cameras.items():
+        for name in ("K", "dist", "R", "t", "rectify"):
+            assert np.allclose(getattr(back.cameras[k], name), getattr(cam, name)), (k, name)
+    # rectified views: the maps of a file-read calibration equal the fresh one's
+    v1, m1 = apply_calibration(cal, shots[0])
+    v2, m2 = apply_calibration(back, shots[0])
+    assert np.array_equal(m1, m2) and np.allclose(v1, v2, atol=1e-5)
 
 
 @pytest.mark.slow
