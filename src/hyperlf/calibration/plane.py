@@ -198,7 +198,8 @@ def resolve_positions(offsets: Mapping, pose_centres: Mapping, reference) -> tup
 
 def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=None,
                    focal_px: float | None = None, positions_from: str = "auto",
-                   work_size: int = 800, min_parallax_px: float = 0.5) -> Calibration:
+                   work_size: int = 800, max_parallax: float = 0.08,
+                   min_parallax_px: float = 0.5) -> Calibration:
     """Register every camera onto the reference view at the board plane (one board pose).
 
     Parameters
@@ -219,6 +220,9 @@ def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=No
         ``auto``: parallax when at least a few points give a flow of ``min_parallax_px``.
     work_size : int
         Largest image side for the parallax search.
+    max_parallax : float
+        Largest parallax searched, as a fraction of the larger image side (the scene's
+        largest shift from the board plane between the reference and the farthest camera).
     min_parallax_px : float
         Median flow below which parallax cannot tell the directions (``auto`` then uses the
         board poses).
@@ -254,7 +258,8 @@ def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=No
     info = {"board_pose_rms": geo["rms"], "positions_from": "board"}
     offsets = {k: np.asarray(v[:2]) for k, v in geo["centres"].items()}
     if positions_from != "board":
-        par = parallax_offsets(shots, Hs, corners[ref], board, ref, work_size=work_size)
+        par = parallax_offsets(shots, Hs, corners[ref], board, ref, work_size=work_size,
+                               max_parallax=max_parallax)
         info.update(parallax_points=par["n_points"], parallax_rms=par["rms"],
                     parallax_median_flow=par["median_flow"])
         usable = (par["n_points"] >= 8 and par["median_flow"] >= min_parallax_px
