@@ -35,6 +35,7 @@ __version__ = "0.1.0"
 #: Submodules attached lazily (by module name: a flat module or a package both work).
 _SUBMODULES = [
     "baselines",
+    "calibration",
     "cli",
     "completion",
     "costs",

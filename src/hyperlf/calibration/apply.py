@@ -1,0 +1,112 @@
+"""Apply a calibration to raw images: registered/rectified views and per-view validity masks.
+
+A pixel of a registered view is valid when it samples the camera's image inside its borders
+(bilinear taps all inside) and, when a saturation level is given, no tap is saturated. Invalid
+pixels are set to 0 in the views, and the masks say which they are, so that every cost can
+leave them out instead of matching black (SPEC §11).
+"""
+
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+
+from ..errors import InvalidInputError
+from .board import camera_label
+from .model import Calibration
+
+__all__ = ["view_maps", "apply_calibration", "check_fits"]
+
+
+def view_maps(calibration: Calibration, key) -> tuple[np.ndarray, np.ndarray]:
+    """Raw-image coordinates ``(map_x, map_y)`` (float32, output size) sampled by view ``key``.
+
+    Plane mode: the inverse of the camera's homography; full mode: OpenCV's undistort-rectify
+    map with the camera's intrinsics, distortion and rectifying rotation and the shared
+    rectified camera matrix.
+    """
+    import cv2
+
+    cam = calibration.cameras[key]
+    W, H = calibration.output_size
+    if calibration.mode == "plane":
+        yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
+        pts = np.stack([xx, yy, np.ones_like(xx)], -1) @ np.linalg.inv(cam.homography).T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            mx, my = pts[..., 0] / pts[..., 2], pts[..., 1] / pts[..., 2]
+        bad = ~(np.isfinite(mx) & np.isfinite(my))
+        mx[bad], my[bad] = -1e6, -1e6
+        return mx.astype(np.float32), my.astype(np.float32)
+    return cv2.initUndistortRectifyMap(cam.K, cam.dist, cam.rectify, calibration.camera_matrix,
+                                       (W, H), cv2.CV_32FC1)
+
+
+def check_fits(calibration: Calibration, images: Mapping, names: Mapping | None = None) -> None:
+    """Raise InvalidInputError unless ``images`` has one grey image of the calibrated size for
+    every camera of the calibration's grid."""
+    want = set(calibration.cameras)
+    got = set(images)
+    if want != got:
+        extra = sorted(got - want, key=str)
+        miss = sorted(want - got)
+        raise InvalidInputError(
+            f"the images do not fit the calibration ({calibration.grid[0]} x "
+            f"{calibration.grid[1]} cameras): missing {[camera_label(k) for k in miss]}, "
+            f"unknown {[camera_label(k) for k in extra] if extra else []}")
+    W, H = calibration.image_size
+    for key, img in images.items():
+        a = np.asarray(img)
+        if a.shape != (H, W):
+            raise InvalidInputError(
+                f"camera {camera_label(key, names)}: image is {a.shape[::-1]} (W x H, channels "
+                f"last) but the calibration was made for {W} x {H} grey images; use the "
+                "calibration of this array and resolution")
+
+
+def apply_calibration(calibration: Calibration, images: Mapping, *, names=None,
+                      saturation: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Registered (plane mode) or rectified (full mode) views and their validity masks.
+
+    Parameters
+    ----------
+    calibration : Calibration
+    images : mapping (row, col) -> ndarray (H, W)
+        Raw grey images of every camera, the size the calibration was made for.
+    names : mapping, optional
+        Camera names for messages.
+    saturation : float, optional
+        Raw value at or above which a pixel is saturated (invalid).
+
+    Returns
+    -------
+    views : ndarray of float32, shape (R, C, H', W')
+        Resampled bilinearly, in the raw images' units; 0 where invalid.
+    valid : ndarray of bool, shape (R, C, H', W')
+
+    Raises
+    ------
+    InvalidInputError
+        The images do not fit the calibration (cameras or size).
+    """
+    import cv2
+
+    check_fits(calibration, images, names)
+    R, C = calibration.grid
+    W, H = calibration.output_size
+    views = np.zeros((R, C, H, W), np.float32)
+    valid = np.zeros((R, C, H, W), bool)
+    for (r, c) in calibration.cameras:
+        src = np.asarray(images[(r, c)], np.float32)
+        mx, my = view_maps(calibration, (r, c))
+        Hs, Ws = src.shape
+        inside = (mx >= 0) & (mx <= Ws - 1) & (my >= 0) & (my <= Hs - 1)
+        out = cv2.remap(src, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        if saturation is not None:
+            sat = cv2.remap((src >= saturation).astype(np.float32), mx, my, cv2.INTER_LINEAR,
+                            borderMode=cv2.BORDER_REPLICATE)
+            inside &= sat <= 0
+        inside &= np.isfinite(out)
+        views[r, c] = np.where(inside, out, 0.0)
+        valid[r, c] = inside
+    return views, valid

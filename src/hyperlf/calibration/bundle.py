@@ -1,0 +1,146 @@
+"""Joint refinement of a whole array's calibration over shared board poses (bundle adjustment).
+
+Per-camera Zhang calibration sees each board pose through one camera only; but every pose is
+one physical placement seen by many cameras at once. Refining all intrinsics, all poses
+relative to the reference camera and all board poses together, on every detected corner,
+makes the cameras agree with each other (what rectification needs) instead of each fitting its
+own noise. The model is OpenCV's: pinhole, radial ``k1, k2`` and tangential ``p1, p2``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["rodrigues", "project", "bundle_adjust", "BundleResult"]
+
+
+def rodrigues(rvec: np.ndarray) -> np.ndarray:
+    """Rotation matrices ``(..., 3, 3)`` of rotation vectors ``(..., 3)`` (vectorised).
+
+    Examples
+    --------
+    >>> np.allclose(rodrigues(np.array([0.0, 0.0, np.pi / 2])) @ [1, 0, 0], [0, 1, 0])
+    True
+    """
+    r = np.asarray(rvec, np.float64)
+    theta = np.linalg.norm(r, axis=-1)[..., None, None]
+    small = theta < 1e-6
+    t = np.where(small, 1.0, theta)
+    a = np.where(small, 1.0 - theta ** 2 / 6, np.sin(t) / t)
+    b = np.where(small, 0.5 - theta ** 2 / 24, (1 - np.cos(t)) / (t * t))
+    rx, ry, rz = r[..., 0], r[..., 1], r[..., 2]
+    z = np.zeros_like(rx)
+    S = np.stack([np.stack([z, -rz, ry], -1), np.stack([rz, z, -rx], -1),
+                  np.stack([-ry, rx, z], -1)], -2)
+    return np.eye(3) + a * S + b * (S @ S)
+
+
+def project(points_cam: np.ndarray, intr: np.ndarray) -> np.ndarray:
+    """Pixels ``(N, 2)`` of camera-frame points ``(N, 3)`` with per-point intrinsics
+    ``(N, 8)``: ``fx, fy, cx, cy, k1, k2, p1, p2`` (OpenCV's model)."""
+    x = points_cam[:, 0] / points_cam[:, 2]
+    y = points_cam[:, 1] / points_cam[:, 2]
+    fx, fy, cx, cy, k1, k2, p1, p2 = intr.T
+    r2 = x * x + y * y
+    radial = 1 + k1 * r2 + k2 * r2 * r2
+    xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
+    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+    return np.stack([fx * xd + cx, fy * yd + cy], axis=1)
+
+
+@dataclass
+class BundleResult:
+    """Refined parameters: ``intr`` (V, 8), ``rvec``/``tvec`` (V, 3) camera from reference,
+    ``pose_rvec``/``pose_tvec`` (P, 3) board to reference, ``rms`` (V,) px per camera,
+    ``residuals`` (M, 2) reprojected minus detected for the observed corners ``uv`` (M, 2) of
+    cameras ``cam`` (M,)."""
+
+    intr: np.ndarray
+    rvec: np.ndarray
+    tvec: np.ndarray
+    pose_rvec: np.ndarray
+    pose_tvec: np.ndarray
+    rms: np.ndarray
+    residuals: np.ndarray
+    uv: np.ndarray
+    cam: np.ndarray
+
+
+class _Problem:
+    """Observations and the parameter vector layout."""
+
+    def __init__(self, obs, obj, n_cams, n_poses, ref):
+        self.cam = np.concatenate([np.full(len(obj), c) for c, _, _ in obs])
+        self.pose = np.concatenate([np.full(len(obj), p) for _, p, _ in obs])
+        self.uv = np.concatenate([uv for _, _, uv in obs])
+        self.X = np.tile(obj, (len(obs), 1))
+        self.V, self.P, self.ref = n_cams, n_poses, ref
+
+    def split(self, theta):
+        V, P = self.V, self.P
+        intr = theta[:8 * V].reshape(V, 8)
+        ext = theta[8 * V:8 * V + 6 * V].reshape(V, 6)
+        pose = theta[14 * V:].reshape(P, 6)
+        return intr, ext, pose
+
+    def residuals(self, theta):
+        intr, ext, pose = self.split(theta)
+        Rp = rodrigues(pose[:, :3])[self.pose]
+        Xr = np.einsum("nij,nj->ni", Rp, self.X) + pose[self.pose, 3:]
+        Rc = rodrigues(ext[:, :3])[self.cam]
+        Xc = np.einsum("nij,nj->ni", Rc, Xr) + ext[self.cam, 3:]
+        return (project(Xc, intr[self.cam]) - self.uv).ravel()
+
+    def sparsity(self):
+        from scipy.sparse import lil_matrix
+
+        n = len(self.cam)
+        J = lil_matrix((2 * n, 14 * self.V + 6 * self.P), dtype=np.int8)
+        rows = np.arange(2 * n)
+        c = np.repeat(self.cam, 2)
+        p = np.repeat(self.pose, 2)
+        for j in range(8):
+            J[rows, 8 * c + j] = 1
+        for j in range(6):
+            J[rows, 8 * self.V + 6 * c + j] = 1
+            J[rows, 14 * self.V + 6 * p + j] = 1
+        return J
+
+
+def bundle_adjust(obs, obj, intr0, rvec0, tvec0, pose_r0, pose_t0, ref: int) -> BundleResult:
+    """Refine everything on every corner; the reference camera's pose stays the identity.
+
+    Parameters
+    ----------
+    obs : list of (camera index, pose index, (N, 2) corners)
+    obj : (N, 3) board points
+    intr0 : (V, 8); rvec0, tvec0 : (V, 3); pose_r0, pose_t0 : (P, 3)
+    ref : index of the reference camera
+    """
+    from scipy.optimize import least_squares
+
+    prob = _Problem(obs, np.asarray(obj, np.float64), len(intr0), len(pose_r0), ref)
+    ext0 = np.concatenate([rvec0, tvec0], axis=1)
+    theta0 = np.concatenate([np.asarray(intr0, np.float64).ravel(), ext0.ravel(),
+                             np.concatenate([pose_r0, pose_t0], axis=1).ravel()])
+    fixed = np.zeros(theta0.size, bool)
+    fixed[8 * prob.V + 6 * ref: 8 * prob.V + 6 * ref + 6] = True
+    free = ~fixed
+
+    def fun(x):
+        th = theta0.copy()
+        th[free] = x
+        return prob.residuals(th)
+
+    sol = least_squares(fun, theta0[free], jac_sparsity=prob.sparsity()[:, free],
+                        method="trf", x_scale="jac", xtol=1e-10, ftol=1e-10, max_nfev=60)
+    theta = theta0.copy()
+    theta[free] = sol.x
+    intr, ext, pose = prob.split(theta)
+    res = prob.residuals(theta).reshape(-1, 2)
+    rms = np.array([np.sqrt(np.mean(np.sum(res[prob.cam == c] ** 2, 1)))
+                    for c in range(prob.V)])
+    return BundleResult(intr, ext[:, :3], ext[:, 3:], pose[:, :3], pose[:, 3:], rms, res,
+                        prob.uv, prob.cam)

@@ -1,0 +1,227 @@
+"""Full calibration of a planar camera array from several board poses (SPEC §11, paper §7.1).
+
+Stages:
+
+1. :func:`detect_poses`: the board's corners in every camera and pose (a pose in which a camera
+   misses the board is left out for that camera).
+2. :func:`intrinsics`: Zhang's method per camera (OpenCV ``calibrateCamera``; radial ``k1``,
+   ``k2`` and tangential ``p1``, ``p2``; ``k3`` fixed at 0, which a few poses cannot pin down).
+3. :func:`extrinsics`: every camera's pose relative to the reference camera (OpenCV
+   ``stereoCalibrate`` with the intrinsics fixed, over the poses both cameras saw).
+4. :func:`rectification`: one image plane parallel to the array plane (its normal from the
+   camera centres, facing the scene), ``x`` along the reference camera's ``x`` axis projected
+   onto that plane, one focal length (the cameras' mean) and principal point for all views.
+   Positions are the camera centres in that frame in units of one baseline (the median
+   distance from a camera to its nearest neighbour), so that a point at depth ``Z`` has
+   disparity ``d = f B / Z`` and appears in view ``v`` at ``x_ref - d (p_v - p_ref)``.
+"""
+
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+
+from ..errors import InvalidInputError
+from .board import BoardSpec, camera_label, detect_board
+from .grid import check_grid, check_images
+from .model import Calibration, CameraCalibration
+
+__all__ = ["calibrate_full", "detect_poses", "intrinsics", "extrinsics", "rectification"]
+
+
+def detect_poses(shots: Mapping, board: BoardSpec, *, names=None, min_poses: int = 3) -> dict:
+    """Corners per camera and pose: ``{key: {pose_index: (N, 2)}}``.
+
+    Raises
+    ------
+    InvalidInputError
+        Cameras with fewer than ``min_poses`` detections (all named, with their counts).
+    """
+    found, short = {}, []
+    for key, imgs in shots.items():
+        found[key] = {}
+        for i, img in enumerate(imgs):
+            c = detect_board(img, board)
+            if c is not None:
+                found[key][i] = c
+        if len(found[key]) < min_poses:
+            short.append(f"{camera_label(key, names)} ({len(found[key])} of {len(imgs)})")
+    if short:
+        raise InvalidInputError(
+            f"checkerboard ({board.cols} x {board.rows} inner corners) found in fewer than "
+            f"{min_poses} poses for camera(s) {', '.join(short)}; add board shots those cameras "
+            "see whole, or use one pose (plane registration)")
+    return found
+
+
+def intrinsics(corners: Mapping, board: BoardSpec, size) -> tuple:
+    """Zhang calibration of one camera from ``{pose: corners}``.
+
+    Returns ``(K, dist(5), rms px, {pose: (rvec, tvec)})`` (board to camera)."""
+    import cv2
+
+    obj = board.object_points().astype(np.float32)
+    poses = sorted(corners)
+    img = [corners[p].astype(np.float32).reshape(-1, 1, 2) for p in poses]
+    flags = cv2.CALIB_FIX_K3
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-12)
+    rms, K, dist, rv, tv = cv2.calibrateCamera([obj] * len(poses), img, tuple(size), None, None,
+                                               flags=flags, criteria=crit)
+    board_poses = {p: (r.ravel(), t.ravel()) for p, r, t in zip(poses, rv, tv)}
+    return K, dist.ravel()[:5].astype(np.float64), float(rms), board_poses
+
+
+def extrinsics(ref_corners: Mapping, corners: Mapping, board: BoardSpec, K_ref, d_ref, K, d,
+               size, *, label: str = "") -> tuple[np.ndarray, np.ndarray, float]:
+    """Pose ``(R, t, rms)`` of a camera relative to the reference: ``X = R X_ref + t``."""
+    import cv2
+
+    shared = sorted(set(ref_corners) & set(corners))
+    if not shared:
+        raise InvalidInputError(
+            f"camera {label} and the reference never saw the board in the same pose; add a pose "
+            "both see")
+    obj = board.object_points().astype(np.float32)
+    a = [ref_corners[p].astype(np.float32).reshape(-1, 1, 2) for p in shared]
+    b = [corners[p].astype(np.float32).reshape(-1, 1, 2) for p in shared]
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-12)
+    out = cv2.stereoCalibrate([obj] * len(shared), a, b, K_ref, d_ref, K, d, tuple(size),
+                              flags=cv2.CALIB_FIX_INTRINSIC, criteria=crit)
+    return out[5], out[6].ravel(), float(out[0])
+
+
+def _array_axes(centres: np.ndarray) -> np.ndarray:
+    """Rows ``x, y, z`` of the rectified frame in reference-camera coordinates."""
+    z_ref = np.array([0.0, 0.0, 1.0])
+    x_ref = np.array([1.0, 0.0, 0.0])
+    cen = centres - centres.mean(0)
+    s = np.linalg.svd(cen, full_matrices=False)
+    sv, vt = s[1], s[2]
+    if len(sv) >= 2 and sv[1] > 0.1 * sv[0]:  # a 2-D spread of cameras fixes the plane
+        n = vt[2] if vt.shape[0] > 2 else np.cross(vt[0], vt[1])
+    else:  # (nearly) one row of cameras: the plane through the line nearest the image plane
+        line = vt[0]
+        n = z_ref - (z_ref @ line) * line
+    n = n / np.linalg.norm(n)
+    if n @ z_ref < 0:
+        n = -n
+    x = x_ref - (x_ref @ n) * n
+    x /= np.linalg.norm(x)
+    return np.stack([x, np.cross(n, x), n])
+
+
+def rectification(Ks: Mapping, Rs: Mapping, ts: Mapping, reference, size) -> dict:
+    """Rectifying rotations, shared camera matrix, positions (baselines) and baseline."""
+    keys = list(Ks)
+    W, H = size
+    centres = {k: -Rs[k].T @ ts[k] for k in keys}        # in the reference camera's frame
+    C = np.stack([centres[k] for k in keys])
+    A = _array_axes(C)
+    f = float(np.mean([0.5 * (Ks[k][0, 0] + Ks[k][1, 1]) for k in keys]))
+    axis = A @ np.array([0.0, 0.0, 1.0])                  # reference optical axis, rectified
+    K_new = np.array([[f, 0, (W - 1) / 2 - f * axis[0] / axis[2]],
+                      [0, f, (H - 1) / 2 - f * axis[1] / axis[2]], [0, 0, 1.0]])
+    rel = (C - centres[reference]) @ A.T
+    dd = np.linalg.norm(rel[:, None] - rel[None], axis=-1)
+    np.fill_diagonal(dd, np.inf)
+    base = float(np.median(dd.min(axis=1)))
+    return {"K": K_new, "rectify": {k: A @ Rs[k].T for k in keys}, "baseline": base,
+            "positions": {k: rel[i, :2] / base for i, k in enumerate(keys)},
+            "planarity": float(np.max(np.abs(rel[:, 2])) / base)}
+
+
+def _refine(corners, board, Ks, ds, Rs, ts, bposes, ref) -> dict:
+    """Bundle-adjust all cameras and board poses together; updates ``Ks, ds, Rs, ts`` in place
+    and returns each camera's RMS reprojection error and its corner residuals."""
+    import cv2
+
+    from .bundle import bundle_adjust
+
+    keys = list(Ks)
+    poses = sorted({p for k in keys for p in corners[k]})
+    pidx = {p: i for i, p in enumerate(poses)}
+    pr, pt = np.zeros((len(poses), 3)), np.zeros((len(poses), 3))
+    for p in poses:       # board -> reference, from the reference or any camera that saw it
+        k = ref if p in bposes[ref] else next(k for k in keys if p in bposes[k])
+        Rb = cv2.Rodrigues(bposes[k][p][0])[0]
+        R0, t0 = Rs[k].T @ Rb, Rs[k].T @ (bposes[k][p][1] - ts[k])
+        pr[pidx[p]], pt[pidx[p]] = cv2.Rodrigues(R0)[0].ravel(), t0
+    intr = np.array([[Ks[k][0, 0], Ks[k][1, 1], Ks[k][0, 2], Ks[k][1, 2], *ds[k][:4]]
+                     for k in keys])
+    rv = np.array([cv2.Rodrigues(Rs[k])[0].ravel() for k in keys])
+    tv = np.array([ts[k] for k in keys])
+    obs = [(i, pidx[p], corners[k][p]) for i, k in enumerate(keys) for p in corners[k]]
+    res = bundle_adjust(obs, board.object_points(), intr, rv, tv, pr, pt, keys.index(ref))
+    for i, k in enumerate(keys):
+        fx, fy, cx, cy, k1, k2, p1, p2 = res.intr[i]
+        Ks[k] = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]])
+        ds[k] = np.array([k1, k2, p1, p2, 0.0])
+        Rs[k], ts[k] = cv2.Rodrigues(res.rvec[i])[0], res.tvec[i].copy()
+    errs = {k: float(res.rms[i]) for i, k in enumerate(keys)}
+    resid = {k: (res.uv[res.cam == i], res.residuals[res.cam == i]) for i, k in enumerate(keys)}
+    return errs, resid
+
+
+def calibrate_full(shots: Mapping, board: BoardSpec, *, reference=None, names=None,
+                   min_poses: int = 3, refine: bool = True) -> Calibration:
+    """Calibrate and rectify a planar array from several board poses.
+
+    Parameters
+    ----------
+    shots : mapping (row, col) -> sequence of ndarray (H, W)
+        Board shots per camera, the same poses in the same order for every camera.
+    board : BoardSpec
+        Its ``square`` sets the unit of the baseline (e.g. mm).
+    reference : (int, int), optional
+        Default: the centre camera.
+    names : mapping, optional
+        Camera names for messages.
+    min_poses : int
+        Fewest poses in which each camera must see the whole board.
+    refine : bool
+        Bundle-adjust all cameras and board poses together after the per-camera and pairwise
+        calibrations (:mod:`~hyperlf.calibration.bundle`); the reported reprojection errors
+        are then those of the joint model.
+
+    Returns
+    -------
+    Calibration
+        ``mode="full"``.
+
+    Raises
+    ------
+    InvalidInputError
+        Different numbers of poses per camera, images of different sizes, a grid with holes, or
+        a camera with too few detections (named).
+    """
+    grid, ref = check_grid(shots.keys(), reference)
+    counts = {len(v) for v in shots.values()}
+    if len(counts) != 1:
+        per = ", ".join(f"{camera_label(k, names)}: {len(v)}" for k, v in shots.items())
+        raise InvalidInputError(f"every camera needs the same number of board shots ({per})")
+    flat = {(k, i): img for k, imgs in shots.items() for i, img in enumerate(imgs)}
+    size = check_images(flat, None, what="board shot")
+    corners = detect_poses(shots, board, names=names, min_poses=min_poses)
+    Ks, ds, errs, bposes = {}, {}, {}, {}
+    for k in shots:
+        Ks[k], ds[k], errs[k], bposes[k] = intrinsics(corners[k], board, size)
+    Rs, ts, stereo = {ref: np.eye(3)}, {ref: np.zeros(3)}, {}
+    for k in shots:
+        if k != ref:
+            Rs[k], ts[k], stereo[k] = extrinsics(corners[ref], corners[k], board, Ks[ref],
+                                                 ds[ref], Ks[k], ds[k], size,
+                                                 label=camera_label(k, names))
+    resid = {}
+    if refine:
+        errs, resid = _refine(corners, board, Ks, ds, Rs, ts, bposes, ref)
+    rect = rectification(Ks, Rs, ts, ref, size)
+    base = np.array([ref[1], ref[0]], np.float64)
+    cams = {k: CameraCalibration(name=camera_label(k, names), position=base + rect["positions"][k],
+                                 reprojection_error=errs[k], K=Ks[k], dist=ds[k], R=Rs[k], t=ts[k],
+                                 rectify=rect["rectify"][k]) for k in shots}
+    info = {"stereo_rms": {f"{k[0]},{k[1]}": v for k, v in stereo.items()},
+            "planarity": rect["planarity"], "poses": int(counts.pop())}
+    return Calibration(mode="full", grid=grid, reference=ref, image_size=size, output_size=size,
+                       camera_matrix=rect["K"], cameras=cams, board=board,
+                       baseline=rect["baseline"], info=info, residuals=resid)

@@ -1,0 +1,64 @@
+"""Checks of the images a user hands to calibration: a full grid of cameras, one size."""
+
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+
+from ..errors import InvalidInputError
+from .board import camera_label
+
+__all__ = ["check_grid", "check_images", "grid_keys"]
+
+
+def grid_keys(rows: int, cols: int) -> list:
+    """``(row, col)`` of every camera of an ``rows x cols`` grid, raster order."""
+    return [(r, c) for r in range(rows) for c in range(cols)]
+
+
+def check_grid(keys, reference=None) -> tuple[tuple[int, int], tuple[int, int]]:
+    """The grid ``(R, C)`` the keys fill, and the reference (default: the centre camera).
+
+    Raises
+    ------
+    InvalidInputError
+        Keys that are not ``(row, col)`` pairs of non-negative ints, a grid with holes, fewer
+        than two cameras, or a reference outside the grid.
+    """
+    keys = list(keys)
+    if not all(isinstance(k, tuple) and len(k) == 2 and all(isinstance(i, (int, np.integer))
+                                                           and i >= 0 for i in k) for k in keys):
+        raise InvalidInputError("cameras must be keyed by (row, col) pairs of non-negative ints")
+    if len(keys) < 2:
+        raise InvalidInputError(f"an array needs at least two cameras, got {len(keys)}")
+    R = max(k[0] for k in keys) + 1
+    C = max(k[1] for k in keys) + 1
+    missing = sorted(set(grid_keys(R, C)) - set(keys))
+    if missing:
+        raise InvalidInputError(
+            f"the cameras do not fill a {R} x {C} grid: no image for "
+            f"{', '.join(camera_label(k) for k in missing)}; give every camera of the grid")
+    ref = ((R - 1) // 2, (C - 1) // 2) if reference is None else tuple(int(i) for i in reference)
+    if ref not in set(keys):
+        raise InvalidInputError(f"reference camera {ref} is not in the {R} x {C} grid")
+    return (R, C), ref
+
+
+def check_images(images: Mapping, names: Mapping | None = None, *,
+                 what: str = "image") -> tuple[int, int]:
+    """Every image is a finite 2-D grey array and all have one size; returns ``(W, H)``."""
+    sizes = {}
+    for key, img in images.items():
+        a = np.asarray(img)
+        if a.ndim != 2 or a.size == 0 or not np.issubdtype(a.dtype, np.number):
+            raise InvalidInputError(
+                f"the {what} of camera {camera_label(key, names)} must be a grey (H, W) image, "
+                f"got shape {a.shape}; convert colour images to grey first")
+        sizes.setdefault(a.shape, []).append(camera_label(key, names))
+    if len(sizes) > 1:
+        parts = "; ".join(f"{w} x {h}: {', '.join(v)}" for (h, w), v in sizes.items())
+        raise InvalidInputError(f"the {what}s differ in size ({parts}); every camera must give "
+                                "images of one size")
+    (H, W), = sizes.keys()
+    return W, H

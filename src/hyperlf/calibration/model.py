@@ -1,0 +1,138 @@
+"""The calibration of a camera array: what :mod:`hyperlf.calibration` computes and stores.
+
+Two modes (SPEC §11):
+
+* ``"plane"`` (one board pose): every camera has a homography that maps its raw image onto the
+  reference view's image at the board plane. Disparity is relative to the board:
+  ``d_rel = f B (1/Z - 1/Z_board)`` px per baseline, positive for points nearer than the board.
+* ``"full"`` (several poses): every camera has intrinsics, distortion and a pose relative to the
+  reference camera, and a rotation onto one rectified image plane parallel to the array, shared
+  by all cameras with the camera matrix ``camera_matrix``; ``d = f B / Z``.
+
+In both, a reference pixel ``(x, y)`` with disparity ``d`` appears in the registered/rectified
+view ``v`` at ``(x - d (px_v - px_ref), y - d (py_v - py_ref))`` (SPEC §1): positions are the
+camera centres in the registered frame's axes (``x`` right, ``y`` down) in baselines, offset so
+that the reference sits at its grid place ``(col, row)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .board import BoardSpec
+
+__all__ = ["CameraCalibration", "Calibration", "MODES"]
+
+MODES = ("plane", "full")
+
+
+@dataclass
+class CameraCalibration:
+    """One camera of a calibrated array.
+
+    Attributes
+    ----------
+    name : str
+        The user's name of the camera (a file name, say).
+    position : ndarray, shape (2,)
+        ``(px, py)`` in baselines, derived from the images.
+    reprojection_error : float
+        RMS corner residual in px (plane mode: board corners mapped by the homography onto the
+        reference's corners; full mode: Zhang's reprojection error).
+    homography : ndarray (3, 3) or None
+        Plane mode: raw pixel -> registered pixel.
+    K, dist : ndarray or None
+        Full mode: intrinsic matrix and OpenCV distortion ``(k1, k2, p1, p2, k3)``.
+    R, t : ndarray or None
+        Full mode: ``X_cam = R X_ref + t`` (the reference camera's frame, board units).
+    rectify : ndarray (3, 3) or None
+        Full mode: rotation from this camera's frame onto the rectified frame.
+    """
+
+    name: str
+    position: np.ndarray
+    reprojection_error: float
+    homography: np.ndarray | None = None
+    K: np.ndarray | None = None
+    dist: np.ndarray | None = None
+    R: np.ndarray | None = None
+    t: np.ndarray | None = None
+    rectify: np.ndarray | None = None
+
+
+@dataclass
+class Calibration:
+    """A calibrated (or plane-registered) camera array; see the module notes.
+
+    Attributes
+    ----------
+    mode : {"plane", "full"}
+    grid : (int, int)
+        ``(R, C)`` of the user's grid of camera names.
+    reference : (int, int)
+    image_size : (int, int)
+        ``(W, H)`` of the raw images.
+    output_size : (int, int)
+        ``(W, H)`` of the registered/rectified views.
+    camera_matrix : ndarray (3, 3)
+        Intrinsics of the registered/rectified frame (plane mode: an estimate of the reference
+        camera's, principal point at the image centre).
+    cameras : dict (row, col) -> CameraCalibration
+    board : BoardSpec
+    baseline : float
+        One baseline in the board's units (plane mode: estimated from the board pose).
+    board_plane : ndarray (4,) or None
+        Plane mode: ``(nx, ny, nz, dist)`` of the board in the reference camera's frame
+        (``n . X = dist``), board units; gives ``Z_board`` per pixel for metric depth.
+    info : dict
+        Diagnostics (where positions came from, parallax statistics, ...).
+    residuals : dict (row, col) -> (points (N, 2), vectors (N, 2))
+        Corner residuals in px of the calibration run (not stored in the file): plane mode,
+        the mapped corners minus the reference's; full mode, reprojected minus detected.
+    """
+
+    mode: str
+    grid: tuple[int, int]
+    reference: tuple[int, int]
+    image_size: tuple[int, int]
+    output_size: tuple[int, int]
+    camera_matrix: np.ndarray
+    cameras: dict
+    board: BoardSpec
+    baseline: float
+    board_plane: np.ndarray | None = None
+    info: dict[str, Any] = field(default_factory=dict)
+    residuals: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def focal_px(self) -> float:
+        """Focal length of the registered/rectified frame in px."""
+        return float(self.camera_matrix[0, 0])
+
+    def positions(self) -> np.ndarray:
+        """Positions ``(R, C, 2)`` in baselines (SPEC §1 ``positions``)."""
+        R, C = self.grid
+        out = np.zeros((R, C, 2))
+        for (r, c), cam in self.cameras.items():
+            out[r, c] = cam.position
+        return out
+
+    def reprojection_errors(self) -> dict:
+        """RMS corner residual in px of every camera, keyed ``(row, col)``."""
+        return {k: cam.reprojection_error for k, cam in self.cameras.items()}
+
+    def board_depth(self) -> np.ndarray | None:
+        """Plane mode: the board's depth ``Z_board`` (board units) along every reference
+        pixel's ray, ``(H, W)``; None in full mode."""
+        if self.board_plane is None:
+            return None
+        W, H = self.output_size
+        yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
+        Kinv = np.linalg.inv(self.camera_matrix)
+        rays = np.stack([xx, yy, np.ones_like(xx)], -1) @ Kinv.T
+        n, dist = self.board_plane[:3], self.board_plane[3]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return dist / (rays @ n)

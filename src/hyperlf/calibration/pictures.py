@@ -1,0 +1,191 @@
+"""Pictures of a calibration for users: detected corners, registered views, residual vectors.
+
+Matplotlib is imported inside the functions (Agg backend); files are written atomically. Every
+view is stretched on its own (0.5-99.5 percentiles): the cameras see different bands with
+different exposures, and a shared scale would hide the dim ones.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from .._atomic import atomic_path
+from ..errors import InvalidInputError
+from .board import camera_label
+from .model import Calibration
+
+__all__ = ["save_corner_pictures", "save_registration_picture", "save_residual_picture"]
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig, path) -> Path:
+    plt = _plt()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110, bbox_inches="tight", format="png")
+    plt.close(fig)
+    return Path(path)
+
+
+def _stretch(img: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
+    a = np.asarray(img, np.float64)
+    sel = a[valid] if valid is not None and valid.any() else a
+    lo, hi = np.percentile(sel, [0.5, 99.5]) if sel.size else (0.0, 1.0)
+    return np.clip((a - lo) / max(hi - lo, 1e-12), 0, 1)
+
+
+def _grid_axes(keys, size, title):
+    plt = _plt()
+    R = max(k[0] for k in keys) + 1
+    C = max(k[1] for k in keys) + 1
+    W, H = size
+    fig, axes = plt.subplots(R, C, figsize=(2.6 * C, 2.6 * R * H / W + 0.4), squeeze=False)
+    for ax in axes.ravel():
+        ax.set_axis_off()
+    if title:
+        fig.suptitle(title)
+    return fig, axes
+
+
+def save_corner_pictures(path: str | os.PathLike, shots: Mapping, corners: Mapping, *,
+                         names: Mapping | None = None, title: str = "detected board corners"
+                         ) -> Path:
+    """One picture of every camera's shot with its detected corners.
+
+    Corners are coloured by their canonical index (the first one circled in red), so the same
+    colour is the same physical corner in every camera; a camera without a detection is
+    labelled "not found".
+
+    Parameters
+    ----------
+    path : path-like
+        Output PNG.
+    shots : mapping (row, col) -> ndarray (H, W)
+    corners : mapping (row, col) -> ndarray (N, 2) or None
+    names : mapping, optional
+    title : str
+
+    Returns
+    -------
+    Path
+    """
+    keys = list(shots)
+    if not keys:
+        raise InvalidInputError("no shots to draw")
+    H, W = np.asarray(shots[keys[0]]).shape[:2]
+    fig, axes = _grid_axes(keys, (W, H), title)
+    for key in keys:
+        ax = axes[key[0], key[1]]
+        ax.imshow(_stretch(shots[key]), cmap="gray", interpolation="nearest")
+        c = corners.get(key)
+        if c is None:
+            ax.set_title(f"{camera_label(key, names)}: not found", fontsize=7, color="red")
+            continue
+        ax.scatter(c[:, 0], c[:, 1], c=np.arange(len(c)), cmap="viridis", s=4)
+        ax.scatter(c[:1, 0], c[:1, 1], s=40, facecolors="none", edgecolors="red")
+        ax.set_title(camera_label(key, names), fontsize=7)
+    return _save(fig, path)
+
+
+def save_registration_picture(path: str | os.PathLike, views: np.ndarray, valid: np.ndarray, *,
+                              names: Mapping | None = None, lines: int = 6,
+                              title: str = "registered views") -> Path:
+    """Registered/rectified views side by side, with the same guide lines drawn on each.
+
+    A scene point on the board (plane mode) or at infinity (full mode) sits at the same pixel
+    in every view; the guide lines make misalignment visible. Invalid pixels (outside a
+    camera's image) are tinted red.
+
+    Parameters
+    ----------
+    path : path-like
+    views, valid : ndarray, shape (R, C, H, W)
+        From :func:`~hyperlf.calibration.apply.apply_calibration`.
+    names : mapping, optional
+    lines : int
+        Guide lines per direction.
+    title : str
+
+    Returns
+    -------
+    Path
+    """
+    v = np.asarray(views)
+    m = np.asarray(valid, bool)
+    if v.ndim != 4 or m.shape != v.shape:
+        raise InvalidInputError(f"views and valid must both be (R, C, H, W), got {v.shape} and "
+                                f"{m.shape}")
+    R, C, H, W = v.shape
+    keys = [(r, c) for r in range(R) for c in range(C)]
+    fig, axes = _grid_axes(keys, (W, H), title)
+    for r, c in keys:
+        g = _stretch(v[r, c], m[r, c])
+        rgb = np.stack([g, g, g], -1)
+        rgb[~m[r, c]] = 0.5 * rgb[~m[r, c]] + [0.5, 0.0, 0.0]
+        ax = axes[r, c]
+        ax.imshow(rgb, interpolation="nearest")
+        for x in np.linspace(0, W - 1, lines + 2)[1:-1]:
+            ax.axvline(x, color="cyan", lw=0.4)
+        for y in np.linspace(0, H - 1, lines + 2)[1:-1]:
+            ax.axhline(y, color="cyan", lw=0.4)
+        ax.set_title(camera_label((r, c), names), fontsize=7)
+    return _save(fig, path)
+
+
+def save_residual_picture(path: str | os.PathLike, calibration: Calibration, *,
+                          scale: float | None = None, title: str | None = None) -> Path:
+    """Corner residual vectors of every camera, magnified, with each camera's RMS.
+
+    Parameters
+    ----------
+    path : path-like
+    calibration : Calibration
+        Fresh from :func:`~hyperlf.calibration.calibrate` (the residuals are not stored in
+        the calibration file).
+    scale : float, optional
+        Arrow magnification; default: the largest residual is drawn 1/20 of the image wide.
+    title : str, optional
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    InvalidInputError
+        The calibration has no residuals (it was read from a file).
+    """
+    res = calibration.residuals
+    if not res:
+        raise InvalidInputError("this calibration carries no corner residuals (they are not "
+                                "stored in the file); draw them right after calibrating")
+    W, H = calibration.image_size
+    peak = max((float(np.abs(v).max()) for _, v in res.values() if len(v)), default=0.0)
+    k = scale if scale is not None else (0.05 * W / peak if peak > 0 else 1.0)
+    fig, axes = _grid_axes(list(calibration.cameras), (W, H),
+                           title or f"corner residuals ({calibration.mode} mode, arrows x{k:.0f})")
+    for key, cam in calibration.cameras.items():
+        ax = axes[key[0], key[1]]
+        ax.set_axis_on()
+        ax.set_xlim(0, W - 1)
+        ax.set_ylim(H - 1, 0)
+        ax.set_xticks([])
+        ax.set_yticks([])
+        ax.set_aspect("equal")
+        if key in res and len(res[key][0]):
+            p, v = res[key]
+            ax.quiver(p[:, 0], p[:, 1], k * v[:, 0], k * v[:, 1], angles="xy",
+                      scale_units="xy", scale=1, width=0.004, color="crimson")
+        ax.set_title(f"{cam.name}: {cam.reprojection_error:.3f} px", fontsize=7)
+    return _save(fig, path)

@@ -1,0 +1,294 @@
+"""Plane registration of a camera array from one board pose (SPEC §11).
+
+Stages (each a function):
+
+1. :func:`~hyperlf.calibration.board.detect_boards`: the board's corners in every camera.
+2. :func:`board_homographies`: each camera's homography onto the reference view at the board
+   plane, and its RMS corner residual.
+3. :func:`board_geometry`: one pinhole model fitted to all shots (shared focal length, principal
+   point at the image centre) gives every camera's pose relative to the board; the camera
+   centres, expressed in the reference camera's axes, are a first, rough estimate of the
+   positions (rotations and an assumed principal point blur it) and fix the physical sign.
+4. :func:`parallax_offsets`: the parallax of off-board scene content in the registered views,
+   factored into ``-d(x) (p_v - p_ref)`` (:mod:`~hyperlf.calibration.parallax`): the offsets'
+   directions and relative lengths, free of the rotations that confound the board's raw shift.
+5. :func:`resolve_positions`: scale (median nearest-neighbour distance = one baseline) and sign
+   (the one that agrees with the board-pose centres, so that ``d_rel = f B (1/Z - 1/Z_board)``
+   is positive for points nearer than the board).
+
+The user's description of the array (which name is where) is never used for geometry: a
+mirrored or rotated naming gives the same physical positions under the other names.
+"""
+
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+
+from ..errors import InvalidInputError
+from .board import BoardSpec, camera_label, detect_boards
+from .grid import check_grid, check_images
+from .model import Calibration, CameraCalibration
+from .parallax import factor_rank1, feature_image, match_flows, select_points
+
+__all__ = ["register_plane", "board_homographies", "board_geometry", "parallax_offsets",
+           "resolve_positions", "board_outline"]
+
+
+def board_homographies(corners: Mapping, reference) -> tuple[dict, dict, dict]:
+    """Homography (raw -> reference), RMS corner residual (px) and the residual vectors
+    (reference corners, mapped minus reference) of every camera."""
+    import cv2
+
+    dst = corners[reference]
+    Hs, errs, resid = {}, {}, {}
+    for key, pts in corners.items():
+        H = np.eye(3) if key == reference else cv2.findHomography(pts, dst, 0)[0]
+        if H is None:
+            raise InvalidInputError(
+                f"no homography from camera {camera_label(key)} onto the reference: the board's "
+                "corners are degenerate there")
+        H = H / H[2, 2]
+        proj = cv2.perspectiveTransform(pts.reshape(-1, 1, 2), H).reshape(-1, 2)
+        Hs[key] = H
+        errs[key] = float(np.sqrt(np.mean(np.sum((proj - dst) ** 2, axis=1))))
+        resid[key] = (dst.copy(), proj - dst)
+    return Hs, errs, resid
+
+
+def board_geometry(corners: Mapping, board: BoardSpec, image_size, reference, *,
+                   focal_px: float | None = None) -> dict:
+    """Board poses from one shared pinhole model (principal point at the image centre).
+
+    Returns a dict with ``focal`` (px), ``centres`` (camera centres in the reference camera's
+    axes, board units, keyed like ``corners``), ``plane`` (the board plane ``(n, dist)`` in
+    the reference frame) and ``rms`` (px).
+    """
+    import cv2
+
+    W, H = image_size
+    keys = list(corners)
+    f0 = float(focal_px) if focal_px else float(max(W, H))
+    K0 = np.array([[f0, 0, (W - 1) / 2], [0, f0, (H - 1) / 2], [0, 0, 1.0]])
+    flags = (cv2.CALIB_USE_INTRINSIC_GUESS | cv2.CALIB_FIX_PRINCIPAL_POINT
+             | cv2.CALIB_FIX_ASPECT_RATIO | cv2.CALIB_ZERO_TANGENT_DIST | cv2.CALIB_FIX_K1
+             | cv2.CALIB_FIX_K2 | cv2.CALIB_FIX_K3)
+    if focal_px:
+        flags |= cv2.CALIB_FIX_FOCAL_LENGTH
+    obj = board.object_points().astype(np.float32)
+    rms, K, _, rvecs, tvecs = cv2.calibrateCamera(
+        [obj] * len(keys), [corners[k].astype(np.float32).reshape(-1, 1, 2) for k in keys],
+        (W, H), K0, np.zeros(5), flags=flags)
+    rot = {k: cv2.Rodrigues(rv)[0] for k, rv in zip(keys, rvecs)}
+    trans = {k: tv.ravel() for k, tv in zip(keys, tvecs)}
+    world = {k: -rot[k].T @ trans[k] for k in keys}          # centres in board coordinates
+    Rref = rot[reference]
+    centres = {k: Rref @ (world[k] - world[reference]) for k in keys}
+    n = Rref[:, 2]                                            # board normal in the ref frame
+    dist = float(n @ trans[reference])
+    if dist < 0:
+        n, dist = -n, -dist
+    return {"focal": float(K[0, 0]), "centres": centres, "plane": np.append(n, dist),
+            "rms": float(rms)}
+
+
+def board_outline(corners: np.ndarray, board: BoardSpec, *, margin: float = 1.6) -> np.ndarray:
+    """Image polygon ``(4, 2)`` of the board including ``margin`` squares around its corners."""
+    import cv2
+
+    obj = board.object_points()[:, :2] / board.square
+    Hb, _ = cv2.findHomography(obj, corners, 0)
+    quad = np.array([[-margin, -margin], [board.cols - 1 + margin, -margin],
+                     [board.cols - 1 + margin, board.rows - 1 + margin],
+                     [-margin, board.rows - 1 + margin]], np.float64)
+    return cv2.perspectiveTransform(quad.reshape(-1, 1, 2), Hb).reshape(-1, 2)
+
+
+def _registered(images: Mapping, Hs: Mapping, scale: float, size) -> tuple[dict, dict]:
+    """Feature images and validity of every view registered onto the reference, at ``scale``."""
+    import cv2
+
+    W, H = size
+    S = np.diag([scale, scale, 1.0])
+    out_size = (max(1, int(round(W * scale))), max(1, int(round(H * scale))))
+    feats, valid = {}, {}
+    for key, img in images.items():
+        M = S @ Hs[key]
+        src = np.asarray(img, np.float32)
+        warped = cv2.warpPerspective(src, M, out_size, flags=cv2.INTER_LINEAR,
+                                     borderMode=cv2.BORDER_REPLICATE)
+        inside = cv2.warpPerspective(np.ones(src.shape, np.uint8), M, out_size,
+                                     flags=cv2.INTER_NEAREST, borderValue=0)
+        feats[key] = feature_image(warped)
+        valid[key] = cv2.erode(inside, np.ones((5, 5), np.uint8)) > 0
+    return feats, valid
+
+
+def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, board: BoardSpec,
+                     reference, *, work_size: int = 800, max_parallax: float = 0.08) -> dict:
+    """Offsets ``p_v - p_ref`` (px per unit ``d``, common scale and sign free) from parallax.
+
+    Parameters
+    ----------
+    images : mapping key -> (H, W) raw shots (the board shot itself works: the scene around
+        the board is off the plane).
+    Hs : mapping key -> homography raw -> reference.
+    corners_ref : the board's corners in the reference view (to leave the board out).
+    board : BoardSpec
+    reference : key of the reference camera.
+    work_size : int
+        Images are matched at a scale whose larger side is at most this many px.
+    max_parallax : float
+        Search radius as a fraction of the larger image side.
+
+    Returns
+    -------
+    dict with ``offsets`` (key -> (2,) in full-resolution px per unit d, NaN if unknown),
+    ``n_points``, ``rms`` (px), ``median_flow`` (px) and ``d`` (per point).
+    """
+    import cv2
+
+    W, H = np.asarray(images[reference]).shape[::-1]
+    scale = min(1.0, work_size / max(W, H))
+    feats, valid = _registered(images, Hs, scale, (W, H))
+    h, w = feats[reference].shape
+    allowed = np.ones((h, w), np.uint8)
+    cv2.fillConvexPoly(allowed, np.round(board_outline(corners_ref, board) * scale)
+                       .astype(np.int32), 0)
+    allowed &= valid[reference].astype(np.uint8)
+    half = max(5, int(round(max(h, w) / 60)))
+    radius = max(6, int(round(max_parallax * max(h, w))))
+    pts = select_points(feats[reference], allowed > 0, spacing=half)
+    others = [k for k in images if k != reference]
+    flows = np.stack([match_flows(feats[reference], feats[k], pts, valid[k], half=half,
+                                  radius=radius)[0] for k in others]) if len(pts) else \
+        np.zeros((len(others), 0, 2))
+    fac = factor_rank1(flows)
+    offsets = {reference: np.zeros(2)}
+    for k, o in zip(others, fac.offsets):
+        offsets[k] = o / scale
+    used = fac.inliers.any(0)
+    med = float(np.median(np.abs(flows[fac.inliers]))) / scale if fac.inliers.any() else 0.0
+    return {"offsets": offsets, "n_points": int(used.sum()), "rms": fac.rms / scale
+            if np.isfinite(fac.rms) else np.nan, "median_flow": med, "d": fac.d}
+
+
+def resolve_positions(offsets: Mapping, pose_centres: Mapping, reference) -> tuple[dict, float]:
+    """Positions (baselines, reference at ``(0, 0)``) and the sign-consistency score.
+
+    ``offsets`` (any common scale and sign) are scaled so that the median distance from a
+    camera to its nearest neighbour is 1, and signed to agree with the board-pose centres'
+    ``(x, y)`` (the physical direction). The score is the cosine between the two sets of
+    offsets: near 1 when they agree, near 0 when the pose centres cannot tell the sign.
+    """
+    keys = list(offsets)
+    o = np.stack([offsets[k] for k in keys])
+    c = np.stack([np.asarray(pose_centres[k])[:2] for k in keys])
+    dd = np.linalg.norm(o[:, None] - o[None], axis=-1)
+    np.fill_diagonal(dd, np.inf)
+    b = float(np.median(dd.min(axis=1)))
+    if not np.isfinite(b) or b <= 0:
+        raise InvalidInputError("the cameras' offsets are degenerate (all at one place)")
+    dot = float(np.sum(o * c))
+    cos = dot / max(np.linalg.norm(o) * np.linalg.norm(c), 1e-12)
+    sign = 1.0 if dot >= 0 else -1.0
+    return {k: sign * o[i] / b for i, k in enumerate(keys)}, abs(cos)
+
+
+def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=None,
+                   focal_px: float | None = None, positions_from: str = "auto",
+                   work_size: int = 800, max_parallax: float = 0.08,
+                   min_parallax_px: float = 0.5) -> Calibration:
+    """Register every camera onto the reference view at the board plane (one board pose).
+
+    Parameters
+    ----------
+    shots : mapping (row, col) -> ndarray (H, W)
+        One board shot per camera, keyed by the user's grid place (a naming only: positions
+        come from the images).
+    board : BoardSpec
+    reference : (int, int), optional
+        Default: the centre camera of the grid.
+    names : mapping (row, col) -> str, optional
+        Names for messages (file names).
+    focal_px : float, optional
+        Known focal length in px (else estimated from the board's perspective).
+    positions_from : {"auto", "parallax", "board"}
+        ``parallax``: from the off-board scene content (needs scene texture at depths other
+        than the board's); ``board``: from the board poses only (blurred by camera rotations);
+        ``auto``: parallax when at least a few points give a flow of ``min_parallax_px``.
+    work_size : int
+        Largest image side for the parallax search.
+    max_parallax : float
+        Largest parallax searched, as a fraction of the larger image side (the scene's
+        largest shift from the board plane between the reference and the farthest camera).
+    min_parallax_px : float
+        Median flow below which parallax cannot tell the directions (``auto`` then uses the
+        board poses).
+
+    Returns
+    -------
+    Calibration
+        ``mode="plane"``; positions in baselines with the SPEC §1 sign: a point nearer than the
+        board (``d_rel > 0``) moves by ``-d_rel (p_v - p_ref)`` from the reference.
+
+    Raises
+    ------
+    InvalidInputError
+        The board is missing in some cameras (named), images differ in size, the grid has
+        holes, or ``positions_from="parallax"`` found no usable parallax.
+
+    Examples
+    --------
+    >>> from hyperlf.calibration.rig import make_rig
+    >>> rig = make_rig(seed=0, imperfect=0.3)
+    >>> cal = register_plane(rig.render(rig.board_pose(450.0), supersample=2), rig.board)
+    >>> cal.mode, cal.grid
+    ('plane', (3, 3))
+    """
+    if positions_from not in ("auto", "parallax", "board"):
+        raise InvalidInputError(
+            f"positions_from must be 'auto', 'parallax' or 'board', got {positions_from!r}")
+    grid, ref = check_grid(shots.keys(), reference)
+    size = check_images(shots, names, what="board shot")
+    corners = detect_boards(shots, board, names=names)
+    Hs, errs, resid = board_homographies(corners, ref)
+    geo = board_geometry(corners, board, size, ref, focal_px=focal_px)
+    info = {"board_pose_rms": geo["rms"], "positions_from": "board"}
+    offsets = {k: np.asarray(v[:2]) for k, v in geo["centres"].items()}
+    if positions_from != "board":
+        par = parallax_offsets(shots, Hs, corners[ref], board, ref, work_size=work_size,
+                               max_parallax=max_parallax)
+        info.update(parallax_points=par["n_points"], parallax_rms=par["rms"],
+                    parallax_median_flow=par["median_flow"])
+        usable = (par["n_points"] >= 8 and par["median_flow"] >= min_parallax_px
+                  and all(np.all(np.isfinite(o)) for o in par["offsets"].values()))
+        if usable:
+            offsets, info["positions_from"] = par["offsets"], "parallax"
+        elif positions_from == "parallax":
+            raise InvalidInputError(
+                f"no usable parallax around the board ({par['n_points']} points, median flow "
+                f"{par['median_flow']:.2f} px); the scene beside the board needs texture at "
+                "other depths, or use positions from the board poses")
+    pos, agree = resolve_positions(offsets, geo["centres"], ref)
+    info["sign_agreement"] = agree
+    cal = _plane_calibration(grid, ref, size, Hs, errs, pos, geo, board, names, info)
+    cal.residuals = resid
+    return cal
+
+
+def _plane_calibration(grid, ref, size, Hs, errs, pos, geo, board, names, info) -> Calibration:
+    W, H = size
+    base = np.array([ref[1], ref[0]], np.float64)
+    cams = {k: CameraCalibration(name=camera_label(k, names), position=base + pos[k],
+                                 reprojection_error=errs[k], homography=Hs[k]) for k in Hs}
+    f = geo["focal"]
+    K = np.array([[f, 0, (W - 1) / 2], [0, f, (H - 1) / 2], [0, 0, 1.0]])
+    cen = np.stack([geo["centres"][k][:2] for k in Hs])
+    p = np.stack([pos[k] for k in Hs])
+    baseline = float(np.sum(cen * p) / max(np.sum(p * p), 1e-12))
+    info["pose_position_rms"] = float(np.sqrt(np.mean(np.sum((cen / baseline - p) ** 2, 1))))
+    return Calibration(mode="plane", grid=grid, reference=ref, image_size=(W, H),
+                       output_size=(W, H), camera_matrix=K, cameras=cams, board=board,
+                       baseline=abs(baseline), board_plane=geo["plane"], info=info)

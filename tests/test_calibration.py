@@ -1,0 +1,451 @@
+"""Calibration of camera arrays (SPEC §11) against a synthetic rig with exact ground truth.
+
+The rig (``hyperlf.calibration.rig``) renders raw images through a deliberately imperfect array
+(rotations up to 2 degrees, focal lengths differing by up to 4 %, principal point offsets,
+radial distortion, gain, offset, vignetting, bands with inverted board contrast); every
+expectation below comes from the rig's own geometry, never from the code under test.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import require_dataset
+from hyperlf.calibration import (BoardSpec, apply_calibration, calibrate, calibrate_full,
+                                 detect_board, detect_boards, read_calibration, register_plane,
+                                 write_calibration)
+from hyperlf.calibration.parallax import factor_rank1
+from hyperlf.calibration.rig import make_rig
+from hyperlf.errors import FormatError, InvalidInputError
+
+SEED = 5  # the development runs used other seeds
+
+
+@pytest.fixture(scope="module")
+def rig():
+    return make_rig(seed=SEED)
+
+
+@pytest.fixture(scope="module")
+def plane_pose(rig):
+    return rig.board_pose(450.0, tilt=(4.0, -3.0, 2.0), centre_offset=(8.0, -5.0))
+
+
+@pytest.fixture(scope="module")
+def plane_shots(rig, plane_pose):
+    return rig.render(plane_pose)
+
+
+@pytest.fixture(scope="module")
+def plane_cal(rig, plane_shots):
+    return register_plane(plane_shots, rig.board)
+
+
+def _angle_deg(a, b):
+    cos = np.dot(a, b) / (np.linalg.norm(a) * np.linalg.norm(b))
+    return float(np.degrees(np.arccos(np.clip(cos, -1, 1))))
+
+
+def _scene_points(rig, pose, n=400, seed=0):
+    """World points on the scene's surfaces seen by the reference camera (exact depths)."""
+    import cv2
+
+    ref = rig.cameras[rig.reference]
+    W, H = rig.image_size
+    rng = np.random.default_rng(seed)
+    px = np.c_[rng.uniform(20, W - 20, n), rng.uniform(20, H - 20, n)]
+    depth = rig.depth(rig.reference, pose)
+    z = depth[np.round(px[:, 1]).astype(int), np.round(px[:, 0]).astype(int)]
+    und = cv2.undistortPoints(px.reshape(-1, 1, 2), ref.K, ref.dist).reshape(-1, 2)
+    return (np.c_[und, np.ones(n)] * z[:, None]) @ ref.R + ref.centre
+
+
+# ----------------------------------------------------------------------------- the rig
+def test_rig_is_deterministic_and_imperfect():
+    a, b = make_rig(seed=2), make_rig(seed=2)
+    pose = a.board_pose(450.0)
+    ia, ib = a.render(pose, supersample=1), b.render(pose, supersample=1)
+    assert all(np.array_equal(ia[k], ib[k]) for k in ia)
+    rots = [np.degrees(np.arccos((np.trace(c.R) - 1) / 2)) for c in a.cameras.values()]
+    assert 0.5 < max(rots) <= 2.0 * np.sqrt(3) + 1e-9
+    f = [c.K[0, 0] for c in a.cameras.values()]
+    assert (max(f) - min(f)) / np.mean(f) > 0.01
+    assert sum(c.inverted for c in a.cameras.values()) == 2
+
+
+def test_rig_projection_agrees_with_rendering(rig, plane_pose, plane_shots):
+    """A dark square's centre renders dark in every normal band and light in inverted ones."""
+    sq = rig.board.square
+    centre = plane_pose.R @ np.array([-0.5 * sq, -0.5 * sq, 0]) + plane_pose.t  # square (0, 0)
+    for key, cam in rig.cameras.items():
+        x, y = np.round(rig.project(key, centre[None])[0]).astype(int)
+        img = plane_shots[key]
+        light = np.percentile(img, 90)
+        assert (img[y, x] > 0.5 * light) == cam.inverted, key
+
+
+# ----------------------------------------------------------------------------- detection
+def test_board_found_in_every_band_with_canonical_order(rig, plane_pose, plane_shots):
+    truth_world = plane_pose.corners_world(rig.board)
+    for key, img in plane_shots.items():
+        c = detect_board(img, rig.board)
+        assert c is not None, key
+        err = np.linalg.norm(c - rig.project(key, truth_world), axis=1)
+        assert err.max() < 0.35, (key, err.max())  # right corners, right order
+
+
+def test_board_found_in_a_raw_16_bit_shot_seen_upside_down(rig, plane_pose, plane_shots):
+    key = (0, 1)
+    raw = (plane_shots[key] * 4000 + 300).astype(np.uint16)  # dim 16-bit sensor values
+    c = detect_board(raw[::-1, ::-1], rig.board)
+    W, H = rig.image_size
+    truth = (W - 1, H - 1) - rig.project(key, plane_pose.corners_world(rig.board))
+    # canonical order starts at the image's top-left: the physical corner order is reversed
+    assert np.linalg.norm(c - truth[::-1], axis=1).max() < 0.35
+
+
+def test_board_partly_out_of_view_names_those_cameras(rig):
+    for shift in np.arange(-120.0, -200.0, -5.0):  # a pose that cuts no camera borderline
+        pose = rig.board_pose(450.0, centre_offset=(shift, 0.0))
+        world = pose.corners_world(rig.board)
+        lo = {k: rig.project(k, world)[:, 0].min() for k in rig.cameras}
+        cut = [k for k in rig.cameras if lo[k] < 0]
+        if 0 < len(cut) < len(rig.cameras) and all(v < -5 or v > 8 for v in lo.values()):
+            break
+    else:
+        pytest.fail("no board pose cuts some cameras cleanly")
+    shots = rig.render(pose, supersample=1, scene=False)
+    names = {k: f"cam{k[0]}{k[1]}.png" for k in shots}
+    with pytest.raises(InvalidInputError) as exc:
+        detect_boards(shots, rig.board, names=names)
+    msg = str(exc.value)
+    assert "\n" not in msg
+    for k in rig.cameras:
+        assert (names[k] in msg) == (k in cut), k
+
+
+# ----------------------------------------------------------------------------- factorisation
+def test_rank1_factorisation_survives_outliers():
+    rng = np.random.default_rng(0)
+    o = np.array([[1.0, 0.1], [0.0, 1.0], [-1.0, 0.9], [2.0, -0.2]])
+    d = rng.uniform(-6, 3, 200)
+    F = -d[None, :, None] * o[:, None, :] + rng.normal(0, 0.1, (4, 200, 2))
+    bad = rng.random((4, 200)) < 0.35
+    F[bad] = rng.uniform(-30, 30, (bad.sum(), 2))
+    F[rng.random((4, 200)) < 0.1] = np.nan
+    fac = factor_rank1(F)
+    scale = fac.offsets[1, 1] / o[1, 1]
+    assert np.abs(fac.offsets / scale - o).max() < 0.02
+
+
+# ----------------------------------------------------------------------------- plane mode
+def test_plane_registration_positions_and_residuals(rig, plane_cal):
+    truth = rig.true_positions("reference")
+    ref = np.array(plane_cal.reference[::-1], float)
+    for key, cam in plane_cal.cameras.items():
+        assert cam.reprojection_error < 0.3, key
+        est = cam.position - ref
+        if key == rig.reference:
+            assert np.allclose(est, 0)
+            continue
+        assert _angle_deg(est, truth[key]) < 3.0, key
+        assert abs(np.linalg.norm(est) / np.linalg.norm(truth[key]) - 1) < 0.06, key
+    assert plane_cal.info["positions_from"] == "parallax"
+
+
+def test_plane_disparity_sign_and_lines():
+    """Registered scene points follow x_ref - d (p_v - p_ref) with d = f B (1/Z - 1/Z_board):
+    positive in front of the board (SPEC §11), on the predicted lines. (A homography cannot
+    undo lens distortion, so this rig has none; everything else stays imperfect.)"""
+    import cv2
+
+    rig = make_rig(seed=SEED + 2, distortion=0.0)
+    plane_pose = rig.board_pose(450.0, tilt=(-3.0, 4.0, -2.0), centre_offset=(-6.0, 4.0))
+    plane_cal = register_plane(rig.render(plane_pose), rig.board)
+    X = _scene_points(rig, None, seed=1)  # the scene without the board
+    ref = rig.reference
+    reg = {k: cv2.perspectiveTransform(rig.project(k, X).reshape(-1, 1, 2),
+                                       cam.homography).reshape(-1, 2)
+           for k, cam in plane_cal.cameras.items()}
+    P = plane_cal.positions()
+    o = {k: P[k] - P[ref] for k in plane_cal.cameras if k != ref}
+    d = sum(((reg[ref] - reg[k]) * o[k]).sum(1) for k in o) / sum((o[k] ** 2).sum() for k in o)
+    # truth: depth along the reference axis, board depth along the same ray
+    cam = rig.cameras[ref]
+    Z = (X - cam.centre) @ cam.R[2]
+    rays = (X - cam.centre) @ cam.R.T
+    n_b = cam.R @ plane_pose.R[:, 2]
+    zb = (n_b @ (cam.R @ (plane_pose.t - cam.centre))) / (rays @ n_b) * Z
+    f_b = cam.K[0, 0] * plane_cal.baseline
+    d_true = f_b * (1 / Z - 1 / zb)
+    assert np.corrcoef(d, d_true)[0, 1] > 0.99
+    assert abs(np.median(d / d_true) - 1) < 0.2   # scale from the board pose estimate
+    for k in o:
+        e = reg[k] - (reg[ref] - d[:, None] * o[k])
+        # the reference camera is tilted by up to 2 degrees to the array plane: the parallax
+        # then has a small radial part the line model leaves (about 0.2 px at d = 12)
+        err = np.linalg.norm(e, axis=1)
+        assert np.median(err) < 0.35 and np.percentile(err, 95) < 0.8, k
+
+
+@pytest.mark.parametrize("description", ["mirrored", "rotated"])
+def test_plane_directions_ignore_the_users_array_description(rig, plane_shots, plane_cal,
+                                                             description):
+    """The user names the cameras through a mirrored / rotated description of the grid; the
+    positions still follow the physical cameras."""
+    R, C = rig.grid
+    if description == "mirrored":
+        rename = {(r, c): (r, C - 1 - c) for r in range(R) for c in range(C)}
+    else:  # rotated by 90 degrees
+        rename = {(r, c): (c, R - 1 - r) for r in range(R) for c in range(C)}
+    cal = register_plane({rename[k]: v for k, v in plane_shots.items()}, rig.board)
+    truth = rig.true_positions("reference")
+    ref_name = rename[rig.reference]
+    assert cal.reference == ref_name
+    for key in rig.cameras:
+        if key == rig.reference:
+            continue
+        est = cal.cameras[rename[key]].position - cal.cameras[ref_name].position
+        assert _angle_deg(est, truth[key]) < 3.0, (description, key)
+
+
+def test_plane_positions_from_board_poses_alone(rig, plane_shots):
+    cal = register_plane(plane_shots, rig.board, positions_from="board")
+    truth = rig.true_positions("reference")
+    ref = np.array(cal.reference[::-1], float)
+    for key, cam in cal.cameras.items():
+        if key != rig.reference:  # rotations blur it, but the directions hold
+            assert _angle_deg(cam.position - ref, truth[key]) < 15.0, key
+
+
+# ----------------------------------------------------------------------------- files
+def test_calibration_file_round_trip(tmp_path, plane_cal):
+    p = write_calibration(plane_cal, tmp_path / "cal.toml")
+    text = p.read_text()
+    assert 'mode = "plane"' in text and "[[camera]]" in text
+    back = read_calibration(p)
+    assert back.mode == plane_cal.mode and back.grid == plane_cal.grid
+    assert back.reference == plane_cal.reference
+    assert np.allclose(back.positions(), plane_cal.positions())
+    for k, cam in plane_cal.cameras.items():
+        assert np.allclose(back.cameras[k].homography, cam.homography)
+        assert back.cameras[k].reprojection_error == pytest.approx(cam.reprojection_error)
+
+
+@pytest.mark.parametrize("edit, words", [
+    (lambda t: t.replace('mode = "plane"', 'mode = "other"'), "mode"),
+    (lambda t: t.replace('format = "hyperlf-calibration"', 'format = "x"'), "format"),
+    (lambda t: t.replace("row = 0", "row = 7", 1), "outside"),
+    (lambda t: t.split("[[camera]]")[0] + "[[camera]]".join(t.split("[[camera]]")[1:-1]),
+     "camera"),
+    (lambda t: t.replace("homography = [", "homography = [[1.0], ", 1), "homography"),
+    (lambda t: t + "\n[[[broken", "TOML"),
+    (lambda t: t.replace("baseline = ", "baseline = -", 1), "baseline"),
+])
+def test_malformed_calibration_files_are_one_line_format_errors(tmp_path, plane_cal, edit,
+                                                                  words):
+    p = write_calibration(plane_cal, tmp_path / "cal.toml")
+    p.write_text(edit(p.read_text()))
+    with pytest.raises(FormatError) as exc:
+        read_calibration(p)
+    assert "\n" not in str(exc.value) and words in str(exc.value)
+    assert exc.value.exit_code == 3
+
+
+# ----------------------------------------------------------------------------- applying
+def test_registered_views_align_the_board_and_mask_the_outside(rig, plane_shots, plane_cal):
+    views, valid = apply_calibration(plane_cal, plane_shots)
+    R, C = rig.grid
+    W, H = rig.image_size
+    assert views.shape == (R, C, H, W) and valid.shape == views.shape
+    ref_c = detect_board(views[rig.reference], rig.board)
+    for key in rig.cameras:
+        c = detect_board(views[key], rig.board)
+        assert np.linalg.norm(c - ref_c, axis=1).max() < 0.5, key
+        # validity is exactly "the raw pixel sampled lies in the camera's image"
+        Hm = plane_cal.cameras[key].homography
+        yy, xx = np.mgrid[0:H, 0:W]
+        q = np.stack([xx, yy, np.ones_like(xx)], -1) @ np.linalg.inv(Hm).T
+        qx, qy = q[..., 0] / q[..., 2], q[..., 1] / q[..., 2]
+        e = 1e-3  # float32 maps
+        inside = (qx >= -e) & (qx <= W - 1 + e) & (qy >= -e) & (qy <= H - 1 + e)
+        assert np.mean(inside != valid[key]) < 1e-3, key
+        assert np.all(views[key][~valid[key]] == 0)
+    assert not valid.all()  # the views' borders do not all overlap
+
+
+def test_apply_refuses_images_that_do_not_fit(plane_shots, plane_cal):
+    small = {k: v[:-2] for k, v in plane_shots.items()}
+    with pytest.raises(InvalidInputError, match="calibration was made for"):
+        apply_calibration(plane_cal, small)
+    fewer = dict(list(plane_shots.items())[:-1])
+    with pytest.raises(InvalidInputError, match="do not fit"):
+        apply_calibration(plane_cal, fewer)
+
+
+def test_saturated_pixels_are_invalid(plane_shots, plane_cal):
+    shots = {k: v.copy() for k, v in plane_shots.items()}
+    shots[(0, 0)][100:110, 100:110] = 1.0
+    _, valid = apply_calibration(plane_cal, shots, saturation=1.0)
+    H = plane_cal.cameras[(0, 0)].homography
+    q = H @ np.array([105.0, 105.0, 1.0])
+    x, y = np.round(q[:2] / q[2]).astype(int)
+    assert not valid[0, 0, y, x]
+
+
+def test_inconsistent_inputs_are_clear_errors(rig, plane_shots):
+    holes = {k: v for k, v in plane_shots.items() if k != (0, 1)}
+    with pytest.raises(InvalidInputError, match=r"no image for \(0, 1\)"):
+        register_plane(holes, rig.board)
+    sizes = dict(plane_shots)
+    sizes[(2, 2)] = sizes[(2, 2)][:, :-4]
+    with pytest.raises(InvalidInputError, match="differ in size"):
+        register_plane(sizes, rig.board)
+    with pytest.raises(InvalidInputError, match="same number of board shots"):
+        calibrate_full({k: [v] * (3 if k != (0, 0) else 2) for k, v in plane_shots.items()},
+                       rig.board)
+
+
+# ----------------------------------------------------------------------------- full mode
+def _covered(rig, poses, key, q):
+    """Points ``q`` inside the convex hull of the board corners camera ``key`` saw whole (the
+    part of the image the calibration has data for; distortion beyond it is extrapolated)."""
+    import cv2
+
+    W, H = rig.image_size
+    pts = [rig.project(key, p.corners_world(rig.board)) for p in poses]
+    pts = np.concatenate([c for c in pts if c.min() > 0 and c[:, 0].max() < W - 1
+                          and c[:, 1].max() < H - 1])
+    hull = cv2.convexHull(pts.astype(np.float32))
+    return np.array([cv2.pointPolygonTest(hull, (float(x), float(y)), False) >= 0
+                     for x, y in q])
+
+
+def _rectified_line_errors(rig, cal, X, poses=None):
+    """Perpendicular distances of exact correspondences from the predicted lines, and the
+    per-point fitted disparity, after rectification with ``cal`` (points every camera sees;
+    with ``poses``, only where every camera's calibration had board corners)."""
+    import cv2
+
+    W, H = rig.image_size
+    seen = np.all([(lambda q: (q[:, 0] > 0) & (q[:, 0] < W - 1) & (q[:, 1] > 0)
+                    & (q[:, 1] < H - 1))(rig.project(k, X)) for k in rig.cameras], axis=0)
+    if poses is not None:
+        seen &= np.all([_covered(rig, poses, k, rig.project(k, X)) for k in rig.cameras], 0)
+    X = X[seen]
+    rect = {k: cv2.undistortPoints(rig.project(k, X).reshape(-1, 1, 2), c.K, c.dist, None,
+                                   c.rectify, cal.camera_matrix).reshape(-1, 2)
+            for k, c in cal.cameras.items()}
+    ref = cal.reference
+    P = cal.positions()
+    o = {k: P[k] - P[ref] for k in cal.cameras if k != ref}
+    d = sum(((rect[ref] - rect[k]) * o[k]).sum(1) for k in o) / sum((o[k] ** 2).sum() for k in o)
+    perp = []
+    for k in o:
+        u = o[k] / np.linalg.norm(o[k])
+        e = rect[k] - (rect[ref] - d[:, None] * o[k])
+        perp.append(np.abs(e @ np.array([-u[1], u[0]])))
+    return np.max(perp, axis=0), d, X
+
+
+def _check_full(rig, cal, poses=None):
+    truth = rig.true_positions("array")
+    ref = np.array(cal.reference[::-1], float)
+    for key, cam in cal.cameras.items():
+        assert cam.reprojection_error < 0.2, key
+        v = cal.residuals[key][1]
+        assert np.sqrt(np.mean(np.sum(v ** 2, 1))) == pytest.approx(cam.reprojection_error)
+        if key != rig.reference:
+            t = truth[key]
+            assert np.linalg.norm(cam.position - ref - t) < 0.01 * np.linalg.norm(t), key
+    rng = np.random.default_rng(3)
+    X = np.c_[rng.uniform(-300, 300, 3000), rng.uniform(-220, 220, 3000),
+              rng.uniform(400, 1500, 3000)]
+    perp, d, Xs = _rectified_line_errors(rig, cal, X, poses)
+    assert len(perp) > 500
+    assert perp.max() < 0.3
+    # d = f B / Z with Z the depth in the rectified frame (normal to the array plane)
+    ref_cam = rig.cameras[rig.reference]
+    A = cal.cameras[cal.reference].rectify           # reference camera -> rectified frame
+    Z = ((Xs - ref_cam.centre) @ ref_cam.R.T @ A.T)[:, 2]
+    d_true = cal.focal_px * cal.baseline / Z
+    assert np.abs(d / d_true - 1).max() < 0.01
+
+
+def test_full_calibration_of_a_row_of_cameras(tmp_path):
+    rig = make_rig(1, 3, seed=SEED + 1)
+    poses = rig.calibration_poses(9, n_shared=5)
+    shots = [rig.render(p, salt=i, scene=False) for i, p in enumerate(poses)]
+    cal = calibrate({k: [s[k] for s in shots] for k in rig.cameras}, rig.board)
+    assert cal.mode == "full"
+    _check_full(rig, cal, poses)  # a row has less data: only where the boards were
+    back = read_calibration(write_calibration(cal, tmp_path / "full.toml"))
+    assert back.mode == "full" and np.allclose(back.positions(), cal.positions())
+    for k, cam in cal.cameras.items():
+        for name in ("K", "dist", "R", "t", "rectify"):
+            assert np.allclose(getattr(back.cameras[k], name), getattr(cam, name)), (k, name)
+    # rectified views: the maps of a file-read calibration equal the fresh one's
+    v1, m1 = apply_calibration(cal, shots[0])
+    v2, m2 = apply_calibration(back, shots[0])
+    assert np.array_equal(m1, m2) and np.allclose(v1, v2, atol=1e-5)
+
+
+@pytest.mark.slow
+def test_full_calibration_of_a_3x3_array(tmp_path, rig):
+    poses = rig.calibration_poses()
+    shots = [rig.render(p, salt=i, scene=False) for i, p in enumerate(poses)]
+    cal = calibrate({k: [s[k] for s in shots] for k in rig.cameras}, rig.board)
+    assert cal.mode == "full"
+    _check_full(rig, cal)
+    back = read_calibration(write_calibration(cal, tmp_path / "full.toml"))
+    assert np.allclose(back.positions(), cal.positions())
+    assert np.allclose(back.cameras[(0, 0)].rectify, cal.cameras[(0, 0)].rectify)
+
+
+# ----------------------------------------------------------------------------- real data
+def test_lab_capture_plane_registration():
+    """The lab capture (3 x 3, one board shot): board in all 9 cameras, small residuals,
+    positions a 3 x 3 grid up to a symmetry of the square, consistent with the board poses."""
+    import cv2
+
+    root = require_dataset("real_arrays/msir_lab") / "calibration"
+    shots = {(i // 3, i % 3): cv2.imread(str(root / f"Cam-{i}.png"), cv2.IMREAD_UNCHANGED)
+             for i in range(9)}
+    cal = register_plane(shots, BoardSpec(11, 8, 1.0),
+                         names={(i // 3, i % 3): f"Cam-{i}.png" for i in range(9)})
+    assert max(cal.reprojection_errors().values()) < 0.5
+    assert cal.info["positions_from"] == "parallax"
+    assert cal.info["sign_agreement"] > 0.9
+    off = cal.positions() - cal.positions()[cal.reference]
+    grid = np.round(off)
+    assert np.abs(off - grid).max() < 0.1
+    assert sorted(map(tuple, grid.reshape(-1, 2).tolist())) == \
+        sorted((x, y) for x in (-1.0, 0.0, 1.0) for y in (-1.0, 0.0, 1.0))
+    # neighbours in the user's raster naming are neighbours in the array
+    for r in range(3):
+        for c in range(2):
+            assert np.abs(grid[r, c + 1] - grid[r, c]).sum() == 1
+
+
+# ----------------------------------------------------------------------------- pictures
+def test_pictures_are_written(tmp_path, rig, plane_shots, plane_cal):
+    from hyperlf.calibration import (save_corner_pictures, save_registration_picture,
+                                     save_residual_picture)
+
+    corners = {k: detect_board(v, rig.board) for k, v in plane_shots.items()}
+    corners[(0, 0)] = None
+    views, valid = apply_calibration(plane_cal, plane_shots)
+    paths = [save_corner_pictures(tmp_path / "corners.png", plane_shots, corners),
+             save_registration_picture(tmp_path / "registered.png", views, valid),
+             save_residual_picture(tmp_path / "residuals.png", plane_cal)]
+    for p in paths:
+        assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert set(plane_cal.residuals) == set(plane_cal.cameras)
+    assert np.allclose(plane_cal.residuals[plane_cal.reference][1], 0)
+    rms = {k: float(np.sqrt(np.mean(np.sum(v ** 2, 1)))) for k, (_, v) in
+           plane_cal.residuals.items()}
+    assert rms == pytest.approx(plane_cal.reprojection_errors())
+    back = read_calibration(write_calibration(plane_cal, tmp_path / "c.toml"))
+    with pytest.raises(InvalidInputError, match="no corner residuals"):
+        save_residual_picture(tmp_path / "r2.png", back)
