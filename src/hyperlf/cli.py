@@ -448,6 +448,33 @@ def _cmd_demo(args, dest) -> list[Path]:
     return [res.report]
 
 
+# --------------------------------------------------------------------------- real arrays
+def _cmd_calibrate(args, dest) -> list[Path]:
+    """Calibrate a camera array from checkerboard shots (SPEC §11). One shot per camera
+    (files named by --pattern in FOLDER) registers every view onto the reference at the board
+    plane, with the views' positions and shift directions measured from the parallax of the
+    scene around the board; one subfolder of shots per pose (three or more) runs a full
+    calibration with rectification. Writes calibration.toml and pictures: corners.png
+    (detected corners per camera), registered.png (registered views side by side),
+    residuals.png (corner residual vectors).
+
+    examples:
+      hyperlf calibrate lab/calibration --pattern 'Cam-{index}.png' --grid 3,3 --board 11,8 -o cal
+      hyperlf calibrate poses --pattern 'cam_{row}_{col}.tif' --grid 2,4 --board 9,6 --square 25 -o cal
+    """
+    from .pipeline import run_calibration
+
+    cal, written = run_calibration(args.shots, dest, pattern=args.pattern, grid=args.grid,
+                                   board=args.board, square=args.square, mode=args.mode,
+                                   reference=args.reference, log=lambda m: _say(args, m))
+    errs = cal.reprojection_errors()
+    worst = max(errs, key=errs.get)
+    _say(args, f"{cal.mode} calibration of {len(errs)} cameras: residual up to "
+               f"{errs[worst]:.3f} px (camera {worst[0]},{worst[1]}); positions from "
+               f"{cal.info.get('positions_from', 'the board poses')}")
+    return written
+
+
 # --------------------------------------------------------------------------- stereo
 def _read_stereo_image(path: str) -> np.ndarray:
     from .formats import read_image
@@ -900,6 +927,29 @@ def _add_convert_parser(sub) -> None:
     _add_overwrite_option(p)
 
 
+def _add_calibrate_parser(sub) -> None:
+    p = _subcommand(sub, "calibrate", _cmd_calibrate,
+                    help="calibrate a camera array from checkerboard shots")
+    p.add_argument("shots", help="folder of board shots (one per camera), or of one subfolder "
+                                 "per pose")
+    p.add_argument("--pattern", required=True,
+                   help="file name of each camera's image, with {index} (raster order) or "
+                        "{row} and {col}, e.g. 'Cam-{index}.png'")
+    p.add_argument("--grid", type=_pair_of_ints, required=True, metavar="R,C",
+                   help="rows and columns of cameras (names only: positions are measured)")
+    p.add_argument("--board", type=_pair_of_ints, required=True, metavar="COLS,ROWS",
+                   help="inner corners of the checkerboard (a 12 x 9 squares board has 11,8)")
+    p.add_argument("--square", type=_float_within(1e-9, 1e9, "--square"), default=1.0,
+                   help="side of a square, in the unit metric depth should use (e.g. mm); "
+                        "default 1")
+    p.add_argument("--mode", default="auto", choices=["auto", "plane", "full"],
+                   help="auto (default): plane registration with one pose, full calibration "
+                        "with three or more")
+    p.add_argument("--reference", type=_view_index, default=None, metavar="R,C",
+                   help="reference camera (default: the centre of the grid)")
+    _add_output_folder(p)
+
+
 def _add_stereo_parser(sub) -> None:
     p = _subcommand(sub, "stereo", _cmd_stereo, help="cross-spectral two-view stereo")
     p.add_argument("left")
@@ -1024,6 +1074,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_demo_parser(sub)
     _add_synth_parser(sub)
+    _add_calibrate_parser(sub)
     _add_info_parser(sub)
     _add_convert_parser(sub)
     _add_stereo_parser(sub)

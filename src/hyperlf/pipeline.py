@@ -22,6 +22,7 @@ import numpy as np
 __all__ = [
     "DemoResult",
     "run_demo",
+    "run_calibration",
     "write_lightfield_pictures",
     "save_disparity_outputs",
     "finite_range",
@@ -387,3 +388,63 @@ def run_demo(out_dir: str | os.PathLike, *, seed: int = 0, grid: tuple[int, int]
     log(f"done in {timings['total']:.1f} s; open {rep}")
     written.append(rep)
     return DemoResult(out_dir=out, report=rep, written=written, scores=scores, timings=timings)
+
+
+# ----------------------------------------------------------------------------- real arrays
+def run_calibration(shots: str | os.PathLike, out_dir: str | os.PathLike, *, pattern: str,
+                    grid: tuple[int, int], board: tuple[int, int], square: float = 1.0,
+                    mode: str = "auto", reference: tuple[int, int] | None = None,
+                    log: Callable[[str], None] | None = None):
+    """Calibrate a camera array from board shots; write the calibration file and pictures.
+
+    Reads one set of camera images per pose (:func:`hyperlf.calibration.raw.read_poses`),
+    calibrates (:func:`hyperlf.calibration.calibrate`: plane registration with one pose, full
+    calibration with three or more) and writes ``calibration.toml``, ``corners.png`` (detected
+    corners per camera), ``registered.png`` (the board shots registered, side by side) and
+    ``residuals.png`` (corner residual vectors).
+
+    Parameters
+    ----------
+    shots : path-like
+        Folder of board shots (one pose), or of one subfolder per pose.
+    out_dir : path-like
+        Output folder.
+    pattern : str
+        Camera file names, with ``{index}`` or ``{row}``/``{col}``.
+    grid : (int, int)
+        Rows and columns of cameras.
+    board : (int, int)
+        Inner corners of the checkerboard, ``(cols, rows)``.
+    square : float
+        Side of a square (any unit; metric outputs come out in it).
+    mode : {"auto", "plane", "full"}
+    reference : (int, int), optional
+        Reference camera (default: the centre).
+    log : callable, optional
+        Called with one line per stage.
+
+    Returns
+    -------
+    (Calibration, list of Path)
+        The calibration and every file written.
+    """
+    from . import calibration as cal_mod
+    from .calibration.raw import read_poses
+
+    log = log or _quiet
+    out = Path(out_dir)
+    per = read_poses(shots, pattern, grid)
+    n = len(next(iter(per.values())))
+    log(f"{len(per)} cameras, {n} pose(s): calibrating ...")
+    spec = cal_mod.BoardSpec(int(board[0]), int(board[1]), float(square))
+    names = {k: f"{k[0]},{k[1]}" for k in per}
+    cal = cal_mod.calibrate(per, spec, mode=mode, reference=reference, names=names)
+    written = [cal_mod.write_calibration(cal, out / "calibration.toml")]
+    first = {k: v[0] for k, v in per.items()}
+    corners = cal_mod.detect_boards(first, spec, names=names)
+    written.append(cal_mod.save_corner_pictures(out / "corners.png", first, corners, names=names))
+    views, valid = cal_mod.apply_calibration(cal, first)
+    written.append(cal_mod.save_registration_picture(out / "registered.png", views, valid,
+                                                     names=names))
+    written.append(cal_mod.save_residual_picture(out / "residuals.png", cal))
+    return cal, written

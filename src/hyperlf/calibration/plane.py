@@ -170,8 +170,19 @@ def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, boar
         offsets[k] = o / scale
     used = fac.inliers.any(0)
     med = float(np.median(np.abs(flows[fac.inliers]))) / scale if fac.inliers.any() else 0.0
+    spacing = nearest_spacing(np.stack(list(offsets.values())))
+    reach = float(np.percentile(np.abs(fac.d[used]), 99)) * spacing if used.any() else np.nan
     return {"offsets": offsets, "n_points": int(used.sum()), "rms": fac.rms / scale
-            if np.isfinite(fac.rms) else np.nan, "median_flow": med, "d": fac.d}
+            if np.isfinite(fac.rms) else np.nan, "median_flow": med, "d": fac.d,
+            "reach": reach}
+
+
+def nearest_spacing(offsets: np.ndarray) -> float:
+    """Median distance from a camera to its nearest neighbour, for offsets ``(N, 2)``."""
+    o = np.asarray(offsets, np.float64)
+    dd = np.linalg.norm(o[:, None] - o[None], axis=-1)
+    np.fill_diagonal(dd, np.inf)
+    return float(np.median(dd.min(axis=1)))
 
 
 def resolve_positions(offsets: Mapping, pose_centres: Mapping, reference) -> tuple[dict, float]:
@@ -185,9 +196,7 @@ def resolve_positions(offsets: Mapping, pose_centres: Mapping, reference) -> tup
     keys = list(offsets)
     o = np.stack([offsets[k] for k in keys])
     c = np.stack([np.asarray(pose_centres[k])[:2] for k in keys])
-    dd = np.linalg.norm(o[:, None] - o[None], axis=-1)
-    np.fill_diagonal(dd, np.inf)
-    b = float(np.median(dd.min(axis=1)))
+    b = nearest_spacing(o)
     if not np.isfinite(b) or b <= 0:
         raise InvalidInputError("the cameras' offsets are degenerate (all at one place)")
     dot = float(np.sum(o * c))
@@ -266,6 +275,9 @@ def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=No
                   and all(np.all(np.isfinite(o)) for o in par["offsets"].values()))
         if usable:
             offsets, info["positions_from"] = par["offsets"], "parallax"
+            if np.isfinite(par["reach"]):  # |d| of 99 % of the points, px per baseline
+                m = float(np.ceil(1.25 * par["reach"]))
+                info["disparity_range"] = [-m, m]
         elif positions_from == "parallax":
             raise InvalidInputError(
                 f"no usable parallax around the board ({par['n_points']} points, median flow "

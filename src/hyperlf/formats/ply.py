@@ -1,0 +1,138 @@
+"""Point clouds as PLY files (binary little-endian; float32 x, y, z and optional uchar colour).
+
+PLY is read by MeshLab, CloudCompare, Open3D and Blender. The writer is atomic like every
+hyperlf output; the reader reads back what the writer writes (and ASCII files of the same
+layout), for tests and scripts.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .._atomic import atomic_path
+from ..errors import FormatError, InvalidInputError
+
+__all__ = ["write_ply", "read_ply"]
+
+_XYZ = [("x", "<f4"), ("y", "<f4"), ("z", "<f4")]
+_RGB = [("red", "u1"), ("green", "u1"), ("blue", "u1")]
+_PLY_TYPES = {"float": "f4", "float32": "f4", "double": "f8", "float64": "f8", "uchar": "u1",
+              "uint8": "u1", "int": "i4", "int32": "i4", "uint": "u4", "short": "i2",
+              "ushort": "u2", "char": "i1"}
+
+
+def write_ply(path: str | os.PathLike, points: np.ndarray, colours: np.ndarray | None = None,
+              *, comment: str | None = None) -> Path:
+    """Write points (and colours) as a binary little-endian PLY file.
+
+    Parameters
+    ----------
+    path : path-like
+    points : ndarray, shape (N, 3)
+    colours : ndarray of uint8, shape (N, 3), optional
+    comment : str, optional
+        One line stored in the header (e.g. the unit).
+
+    Returns
+    -------
+    Path
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> p = write_ply(pathlib.Path(tempfile.mkdtemp()) / "a.ply", np.zeros((2, 3)))
+    >>> read_ply(p)[0].shape
+    (2, 3)
+    """
+    pts = np.asarray(points, dtype=np.float32)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise InvalidInputError(f"points must be (N, 3), got {pts.shape}")
+    fields = list(_XYZ)
+    if colours is not None:
+        col = np.asarray(colours)
+        if col.shape != pts.shape or col.dtype != np.uint8:
+            raise InvalidInputError(f"colours must be uint8 of shape {pts.shape}, got "
+                                    f"{col.dtype} {col.shape}")
+        fields += _RGB
+    rec = np.empty(len(pts), dtype=fields)
+    rec["x"], rec["y"], rec["z"] = pts.T
+    if colours is not None:
+        rec["red"], rec["green"], rec["blue"] = np.asarray(colours).T
+    lines = ["ply", "format binary_little_endian 1.0"]
+    if comment:
+        lines.append("comment " + " ".join(str(comment).split()))
+    lines.append(f"element vertex {len(pts)}")
+    lines += [f"property {'float' if t == '<f4' else 'uchar'} {n}" for n, t in fields]
+    lines.append("end_header")
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as f:
+            f.write(("\n".join(lines) + "\n").encode("ascii"))
+            f.write(rec.tobytes())
+    return Path(path)
+
+
+def _header(f, p: Path):
+    if f.readline().strip() != b"ply":
+        raise FormatError(f"{p} is not a PLY file (no 'ply' line)")
+    fmt, count, props = None, None, []
+    for _ in range(1000):
+        line = f.readline()
+        if not line:
+            break
+        words = line.decode("ascii", "replace").split()
+        if not words or words[0] == "comment":
+            continue
+        if words[0] == "end_header":
+            return fmt, count, props
+        if words[0] == "format" and len(words) >= 2:
+            fmt = words[1]
+        elif words[:2] == ["element", "vertex"] and len(words) == 3 and words[2].isdigit():
+            count = int(words[2])
+        elif words[0] == "property" and len(words) == 3 and words[1] in _PLY_TYPES:
+            props.append((words[2], _PLY_TYPES[words[1]]))
+        elif words[0] == "element" or words[0] == "property":
+            raise FormatError(f"{p}: hyperlf reads vertex-only PLY files; found {' '.join(words)}")
+    raise FormatError(f"{p}: PLY header without end_header")
+
+
+def read_ply(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
+    """Read a vertex PLY file: points ``(N, 3)`` float32 and colours ``(N, 3)`` uint8 or None.
+
+    Raises
+    ------
+    FormatError
+        Not a PLY file, other elements than vertices, or truncated data.
+    """
+    p = Path(path)
+    with open(p, "rb") as f:
+        fmt, count, props = _header(f, p)
+        names = [n for n, _ in props]
+        if count is None or not {"x", "y", "z"} <= set(names):
+            raise FormatError(f"{p}: PLY without a vertex element holding x, y, z")
+        left = p.stat().st_size - f.tell()
+        if fmt == "ascii":
+            try:
+                data = (np.loadtxt(f, ndmin=2, max_rows=count) if count
+                        else np.zeros((0, len(props))))
+            except ValueError as exc:
+                raise FormatError(f"{p}: unreadable ASCII PLY data ({exc})") from None
+            if data.shape != (count, len(props)):
+                raise FormatError(f"{p}: expected {count} rows of {len(props)} values")
+            rec = {n: data[:, i] for i, n in enumerate(names)}
+        elif fmt == "binary_little_endian":
+            dt = np.dtype([(n, "<" + t) for n, t in props])
+            if dt.itemsize * count > left:
+                raise FormatError(f"{p}: truncated PLY data")
+            buf = f.read(dt.itemsize * count)
+            if len(buf) != dt.itemsize * count:
+                raise FormatError(f"{p}: truncated PLY data")
+            rec = np.frombuffer(buf, dtype=dt)
+        else:
+            raise FormatError(f"{p}: PLY format {fmt!r} is not supported")
+    pts = np.stack([rec["x"], rec["y"], rec["z"]], axis=1).astype(np.float32)
+    if {"red", "green", "blue"} <= set(names):
+        return pts, np.stack([rec["red"], rec["green"], rec["blue"]], 1).astype(np.uint8)
+    return pts, None
