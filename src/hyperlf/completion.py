@@ -66,6 +66,14 @@ Stages
    exact geometry every band is seen by exactly one view, so propagation can only add what the
    direct check rejected for numerical reasons (e.g. a bilinear footprint at the image border,
    disparity interpolation across a slanted surface); its count is reported in ``stats``.
+   **Validity masks** (``lf.valid``, SPEC §11): a pixel without data is never a source.  A
+   view's own band is registered only at its valid pixels, a warped sample only where every
+   bilinear tap that carries weight is valid in the source view, and propagation only moves
+   registered entries; the rest stay missing and are inferred / filled like any missing
+   entry.  The images every stage reads (stereo, refinement guide, registration, inference
+   guide) are the views with their invalid pixels filled from the nearest valid pixel
+   (:func:`hyperlf.imageops.fill_masked`), so not even a tap below the weight threshold
+   carries an invalid pixel's value.
 5. **Inference and output**: an entry still missing is a point hidden in (or outside) the one
    view that records its band: no view observed it.  :func:`infer_missing` (``infer=True``,
    default) gives it the joint-bilateral mean of the same band at nearby pixels of the same
@@ -216,6 +224,19 @@ def band_order(lf) -> tuple[np.ndarray, np.ndarray]:
     idx = np.empty(flat.size, dtype=np.intp)
     idx[order] = np.arange(flat.size)
     return flat[order], idx.reshape(wl.shape)
+
+
+def _filled(lf):
+    """``lf`` with every view's invalid pixels filled from its nearest valid pixel (the mask
+    kept); ``lf`` itself when it has no mask."""
+    if lf.valid is None:
+        return lf
+    from .imageops import fill_masked
+
+    R, C = lf.grid_shape
+    views = np.stack([np.stack([fill_masked(lf.views[r, c], lf.valid[r, c]) for c in range(C)])
+                      for r in range(R)]).astype(np.float32)
+    return lf.replace(views=views)
 
 
 def _offset(lf, src, dst) -> tuple[float, float]:
@@ -527,6 +548,7 @@ def register_view(lf, disparities: np.ndarray, view, band_index: np.ndarray,
     Parameters
     ----------
     lf : LightField
+        With ``lf.valid``, invalid source pixels are never registered (module docstring).
     disparities : ndarray (R, C, H, W)
         Per-view maps (NaN = unknown -> invalid).
     view : (int, int)
@@ -554,8 +576,8 @@ def register_view(lf, disparities: np.ndarray, view, band_index: np.ndarray,
         for c in range(C):
             b = int(band_index[r, c])
             if (r, c) == v:
-                cube[b] = lf.views[v]
-                mask[b] = True
+                mask[b] = True if lf.valid is None else lf.valid[v]
+                cube[b] = np.where(mask[b], lf.views[v], np.nan)
                 continue
             ox, oy = _offset(lf, (r, c), v)
             qx = xx - dv * ox
@@ -566,6 +588,8 @@ def register_view(lf, disparities: np.ndarray, view, band_index: np.ndarray,
                 du = np.asarray(disparities[r, c], dtype=np.float64).ravel()
                 ok &= _footprint_ok(du, idx, wts, d=dv, scale=max(np.hypot(ox, oy), 1.0),
                                     tol=float(occlusion_tol))
+            if lf.valid is not None:
+                ok &= _footprint_ok(lf.valid[r, c].ravel(), idx, wts)
             val = gather_taps(lf.views[r, c].ravel(), idx, wts)
             cube[b] = np.where(ok, val, np.nan)
             mask[b] = ok
@@ -1033,7 +1057,7 @@ def complete(lf, disparity=None, out_path=None, *, metric: str = "rsncc",
     >>> res.cube.shape, res.mask.shape
     ((3, 3, 9, 24, 32), (3, 3, 9, 24, 32))
     """
-    lf = _check_lf(lf)
+    lf = _filled(_check_lf(lf))
     if fill not in ("spectral", "zero"):
         raise InvalidInputError(f"fill must be 'spectral' or 'zero', got {fill!r}")
     infer_kw = _check_infer(infer)
@@ -1084,7 +1108,7 @@ def naive_completion(lf, ref_disparity, out_path=None, fill: str = "spectral",
     >>> naive_completion(lf, lf.gt_disparity[lf.reference]).cube.shape
     (3, 3, 9, 24, 32)
     """
-    lf = _check_lf(lf)
+    lf = _filled(_check_lf(lf))
     t_all = time.perf_counter()
     wl, bidx = band_order(lf)
     t0 = time.perf_counter()

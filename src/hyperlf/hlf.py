@@ -15,6 +15,14 @@ the reference pixel ``p`` is compared with ``q_v = p - d o_v`` in view ``v``; th
 are sampled there **bilinearly** (sub-pixel); candidates with ``q_v`` outside the image are
 *masked* (excluded from every mean), never zero-filled.
 
+**Validity masks** (``lf.valid``, SPEC §11): a view pixel without data counts exactly like a
+sample outside the image, in every stage (rule: :mod:`hyperlf.costs.lightfield`; the views'
+invalid pixels are filled from their nearest valid pixel and ``In`` divides by the mean over
+valid pixels).  An invalid *reference* pixel, and a reference pixel that no valid sample of
+any other view sees at any label, carries no information: its correspondence cost is uniform
+over labels (the defocus cost too), so the MRF takes its label from the neighbours, and its
+confidence is 0.  The unary normaliser ``s_X`` is the median over the informative pixels.
+
 1. **Correspondence cost** ``C_v(p, d)`` per view ``v != ref``: the light-field form of a
    cost of the registry (:mod:`hyperlf.costs`, :func:`hyperlf.costs.view_costs`; how each is
    evaluated at sub-pixel shifts: :mod:`hyperlf.costs.lightfield`).  The default ``auto`` is
@@ -102,8 +110,8 @@ from typing import Any
 import numpy as np
 
 from ._progress import progress_bar
-from .costs import cost_names, get_cost, view_costs
-from .imageops import gradient_magnitude, normalise_intensity
+from .costs import cost_names, get_cost, tap_validity, view_costs
+from .imageops import fill_masked, gradient_magnitude, normalise_intensity
 from .warp import shift_map
 from .errors import InvalidInputError
 from . import regularisers as _reg
@@ -120,6 +128,7 @@ __all__ = [
     "regularise",
     "refine",
     "post_filter",
+    "seen_pixels",
     "make_labels",
     "view_costs",
     "shift_map",
@@ -553,11 +562,12 @@ def _lambda_r(P, valid, S, is_rgb, lo, hi, achromatic_radius):
 
 def defocus_volume(In_views, offsets, wl, labels, prior="gaussian", lambda_r="per_label",
                    f_c=None, camera="CIE 1931", sigma_d=96.5, achromatic_radius=0.01,
-                   p_eps=1e-6, impl="auto"):
+                   p_eps=1e-6, impl="auto", *, valid=None):
     """Defocus volume ``D[L, H, W]`` float32 and the ``lambda_r`` used ((H, W) or None).
 
     ``In_views`` (N, H, W) normalised views (including the reference), ``offsets`` (N, 2),
-    ``wl`` (N,).  ``lambda_r``: ``"per_label"`` (literal: from the profile at every label),
+    ``wl`` (N,); ``valid`` (N, H, W) bool, optional: the views' validity masks (a sample is
+    valid only where every bilinear tap it uses is, :func:`hyperlf.costs.tap_validity`).  ``lambda_r``: ``"per_label"`` (literal: from the profile at every label),
     ``"per_pixel"`` (from the profile at ``f_c``, a (H, W) disparity map) or a number (nm).
     Entries with no valid view get the pixel's worst valid value.
     """
@@ -577,6 +587,10 @@ def defocus_volume(In_views, offsets, wl, labels, prior="gaussian", lambda_r="pe
         V = np.empty((N, H, W), bool)
         for v in range(N):
             P[v], V[v] = warp_to_reference(In_views[v], f_c, tuple(offsets[v]), fill=0.0)
+            if valid is not None:
+                m, _ = warp_to_reference(np.asarray(valid[v], np.float64), f_c,
+                                         tuple(offsets[v]), fill=0.0)
+                V[v] &= m >= 1.0 - 1e-9
         lam_fixed = _lambda_r(P, V, S, is_rgb, lo, hi, achromatic_radius)
     elif prior == "gaussian" and lambda_r != "per_label":
         lam_fixed = np.full((H, W), float(lambda_r))
@@ -587,7 +601,10 @@ def defocus_volume(In_views, offsets, wl, labels, prior="gaussian", lambda_r="pe
         P = np.empty((N, H, W))
         V = np.empty((N, H, W), bool)
         for v in range(N):
-            P[v], V[v] = shift_map(In_views[v], -d * offsets[v][0], -d * offsets[v][1], 0)
+            sx, sy = -d * offsets[v][0], -d * offsets[v][1]
+            P[v], V[v] = shift_map(In_views[v], sx, sy, 0)
+            if valid is not None:
+                V[v] &= tap_validity(valid[v], sx, sy)
         if prior == "gaussian":
             lr = lam_fixed if lam_fixed is not None else _lambda_r(P, V, S, is_rgb, lo, hi,
                                                                    achromatic_radius)
@@ -604,9 +621,12 @@ def defocus_volume(In_views, offsets, wl, labels, prior="gaussian", lambda_r="pe
 # ============================================================================================
 
 
-def normalise_unary(X, enabled: bool = True):
+def normalise_unary(X, enabled: bool = True, *, mask=None):
     """``(X - min_d X) / s`` with ``s`` = median over pixels of ``max_d X - min_d X``
     (``s = 1`` when disabled or when that median is 0).  Returns (float32 volume, s).
+
+    ``mask`` (bool (H, W), optional): take the median over these pixels only (the
+    informative ones; pixels with a uniform cost would pull it towards 0).
 
     Examples
     --------
@@ -620,7 +640,10 @@ def normalise_unary(X, enabled: bool = True):
     Y = X - X.min(axis=0, keepdims=True)
     s = 1.0
     if enabled:
-        med = float(np.median(Y.max(axis=0)))
+        rng = Y.max(axis=0)
+        if mask is not None and np.any(mask):
+            rng = rng[np.asarray(mask, bool)]
+        med = float(np.median(rng))
         if med > 0:
             s = med
     return (Y / s).astype(np.float32), s
@@ -707,6 +730,10 @@ class DepthProblem:
         Flat indices of the edge pixels used by the occlusion split.
     sides : ndarray or None
         Half-plane side of every other view at every edge pixel.
+    valid : dict or None
+        ``lf.valid[v]`` per view (bool (H, W)), or None when the light field has no mask.
+        ``ref_img`` and the maps in ``In`` are then computed from the views with their
+        invalid pixels filled (:func:`hyperlf.imageops.fill_masked`).
     """
 
     lf: Any
@@ -730,6 +757,7 @@ class DepthProblem:
     edges: np.ndarray | None = None
     edge_idx: np.ndarray | None = None
     sides: np.ndarray | None = None
+    valid: dict | None = None
 
     @property
     def impl(self) -> str:
@@ -766,14 +794,16 @@ def _check_depth_options(lf, metric, view_selection, occlusion_split, defocus, o
     return mname, view_selection, occlusion_split, params
 
 
-def _selection_maps(In: dict, normalise: bool) -> dict:
-    """Gradient magnitude of every view, divided by its median when ``normalise``."""
+def _selection_maps(In: dict, normalise: bool, masks: dict | None = None) -> dict:
+    """Gradient magnitude of every view, divided by its median (over the view's valid pixels
+    when ``masks``) when ``normalise``."""
     Mn = {}
     for v, img in In.items():
         M = gradient_magnitude(img)
         if normalise:
-            med = float(np.median(M))
-            s = med if med > 0 else float(M.mean())
+            Mv = M if masks is None or not masks[v].any() else M[masks[v]]
+            med = float(np.median(Mv))
+            s = med if med > 0 else float(Mv.mean())
             M = M / s if s > 0 else M
         Mn[v] = M
     return Mn
@@ -792,6 +822,8 @@ def _mean_gradient(prob: DepthProblem) -> np.ndarray:
         o = prob.offsets[v]
         for k, d in enumerate(prob.labels):
             m, ok = shift_map(prob.Mn[v], -d * o[0], -d * o[1], 0)
+            if prob.valid is not None:
+                ok = ok & tap_validity(prob.valid[v], -d * o[0], -d * o[1])
             Msum[k] += np.where(ok, m, 0.0)
             Mcnt[k] += ok
     return (Msum / np.maximum(Mcnt, 1)).astype(np.float32)
@@ -810,6 +842,19 @@ def _prepare_edges(prob: DepthProblem) -> None:
         prob.edge_idx = np.flatnonzero(prob.edges).astype(np.int64)
         offs = np.array([prob.offsets[v] for v in prob.others])
         prob.sides = half_plane_sides(gx.ravel()[prob.edge_idx], gy.ravel()[prob.edge_idx], offs)
+
+
+def _view_masks(lf, views):
+    """``(masks, images)``: per view the validity mask (None without ``lf.valid``) and the
+    image, with its invalid pixels filled from the nearest valid one when masked."""
+    if lf.valid is None:
+        return None, {v: lf.views[v] for v in views}
+    if not lf.valid[lf.reference].any():
+        raise InvalidInputError(
+            f"the reference view {tuple(lf.reference)} has no valid pixel (lf.valid); choose "
+            "a reference view that holds data")
+    masks = {v: lf.valid[v] for v in views}
+    return masks, {v: fill_masked(lf.views[v], masks[v]) for v in views}
 
 
 def prepare(lf, *, disparity_range=None, n_labels: int = 64, metric: str = "auto",
@@ -833,18 +878,35 @@ def prepare(lf, *, disparity_range=None, n_labels: int = 64, metric: str = "auto
     R, Cc = lf.grid_shape
     ref = lf.reference
     views = [(r, c) for r in range(R) for c in range(Cc)]
+    masks, imgs = _view_masks(lf, views)
     prob = DepthProblem(
         lf=lf, metric=mname, view_selection=view_selection, occlusion_split=occlusion_split,
         defocus=defocus, optimizer=optimizer, params=params, labels=labels,
         disparity_range=(dmin, dmax), views=views, others=[v for v in views if v != ref],
-        reference=ref, offsets=lf.offsets, ref_img=lf.views[ref].astype(np.float64),
-        In={v: normalise_intensity(lf.views[v]) for v in views})
-    prob.Mn = _selection_maps(prob.In, params.selection_normalise)
+        reference=ref, offsets=lf.offsets, ref_img=imgs[ref].astype(np.float64),
+        In={v: normalise_intensity(imgs[v], valid=None if masks is None else masks[v])
+            for v in views}, valid=masks)
+    prob.Mn = _selection_maps(prob.In, params.selection_normalise, masks)
     prob.M_ref = prob.Mn[ref].astype(np.float32)
     if view_selection:
         prob.Mbar = _mean_gradient(prob)
     _prepare_edges(prob)
     return prob
+
+
+def _mask_args(prob: DepthProblem, v) -> dict:
+    """The ``ref_valid`` / ``view_valid`` keywords of :func:`view_costs` for view ``v``."""
+    if prob.valid is None:
+        return {}
+    return dict(ref_valid=prob.valid[prob.reference], view_valid=prob.valid[v])
+
+
+def seen_pixels(prob: DepthProblem, n_used: np.ndarray) -> np.ndarray | None:
+    """Reference pixels that carry information: valid, and seen by a valid sample of some
+    other view at some label (bool (H, W)); None when the light field has no mask."""
+    if prob.valid is None:
+        return None
+    return prob.valid[prob.reference] & (np.asarray(n_used) > 0).any(axis=0)
 
 
 def correspondence(prob: DepthProblem, *, progress: bool = False, timings=None):
@@ -867,7 +929,8 @@ def correspondence(prob: DepthProblem, *, progress: bool = False, timings=None):
                                        enabled=progress, unit="view")):
         t1 = time.perf_counter()
         Cv, valid = view_costs(prob.ref_img, prob.lf.views[v], prob.offsets[v], prob.labels,
-                               prob.metric, p.window, p.tau_rel, p.eps, int(p.block), cache)
+                               prob.metric, p.window, p.tau_rel, p.eps, int(p.block), cache,
+                               **_mask_args(prob, v))
         t2 = time.perf_counter()
         t_cost += t2 - t1
         Mq = None
@@ -916,12 +979,16 @@ def defocus_cue(prob: DepthProblem, f_c: np.ndarray):
     In_all = np.stack([prob.In[v] for v in prob.views])
     wl_all = np.array([prob.lf.wavelengths[v] for v in prob.views])
     off_all = np.array([prob.offsets[v] for v in prob.views])
+    valid = None if prob.valid is None else np.stack([prob.valid[v] for v in prob.views])
     return defocus_volume(In_all, off_all, wl_all, prob.labels, prior, lr_mode, f_c, p.camera,
-                          p.sigma_d, p.achromatic_radius, p.p_eps, prob.impl)
+                          p.sigma_d, p.achromatic_radius, p.p_eps, prob.impl, valid=valid)
 
 
-def unary(C: np.ndarray, D: np.ndarray | None, params: DepthParams):
+def unary(C: np.ndarray, D: np.ndarray | None, params: DepthParams, *, informative=None):
     """Stage 4a of :func:`depth`: ``U = gamma_c norm(C) + norm(D)`` (SPEC §5.4).
+
+    ``informative`` (bool (H, W), optional; :func:`seen_pixels`): the pixels the normalisers
+    are measured on; elsewhere ``U`` is 0 at every label (no information: the MRF decides).
 
     Returns
     -------
@@ -929,12 +996,14 @@ def unary(C: np.ndarray, D: np.ndarray | None, params: DepthParams):
     scale_C, scale_D : float, float or None
         The normalisers of :func:`normalise_unary`.
     """
-    Cn, sC = normalise_unary(C, params.normalise_costs)
+    Cn, sC = normalise_unary(C, params.normalise_costs, mask=informative)
     U = params.gamma_c * Cn
     sD = None
     if D is not None:
-        Dn, sD = normalise_unary(D, params.normalise_costs)
+        Dn, sD = normalise_unary(D, params.normalise_costs, mask=informative)
         U = U + Dn
+    if informative is not None:
+        U = np.where(np.asarray(informative, bool)[None], U, np.float32(0))
     return np.ascontiguousarray(U, np.float32), sC, sD
 
 
@@ -961,8 +1030,10 @@ def regularise(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray):
 
 
 def refine(volume: np.ndarray, labels_map: np.ndarray, labels: np.ndarray,
-           params: DepthParams):
+           params: DepthParams, *, informative=None):
     """Stage 5 of :func:`depth`: sub-pixel disparity and confidence.
+
+    ``informative`` (bool (H, W), optional; :func:`seen_pixels`): confidence is 0 elsewhere.
 
     Returns
     -------
@@ -976,7 +1047,10 @@ def refine(volume: np.ndarray, labels_map: np.ndarray, labels: np.ndarray,
         disp = subpixel_refine(volume, labels_map, labels)
     else:
         disp = labels[labels_map].astype(np.float32)
-    return disp, confidence(volume, labels_map)
+    conf = confidence(volume, labels_map)
+    if informative is not None:
+        conf = np.where(np.asarray(informative, bool), conf, np.float32(0)).astype(np.float32)
+    return disp, conf
 
 
 def post_filter(disparity: np.ndarray, guide: np.ndarray, params: DepthParams) -> np.ndarray:
@@ -1084,10 +1158,11 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
     D, lam_r = defocus_cue(prob, f_c)
     f_d = None if D is None else prob.labels[np.argmin(D, axis=0)].astype(np.float32)
     clock.lap("defocus_s")
-    U, sC, sD = unary(C, D, prob.params)
+    seen = seen_pixels(prob, n_used)
+    U, sC, sD = unary(C, D, prob.params, informative=seen)
     lab, vol = regularise(prob, U, f_c)
     clock.lap("mrf_s")
-    disp, conf = refine(vol, lab, prob.labels, prob.params)
+    disp, conf = refine(vol, lab, prob.labels, prob.params, informative=seen)
     clock.lap("refine_s")
     disp = post_filter(disp, prob.In[prob.reference].astype(np.float32), prob.params)
     clock.lap("median_s")

@@ -271,6 +271,28 @@ def check_disparity_reach(disparities, offsets: np.ndarray, image_shape) -> None
             "smaller one")
 
 
+def _check_valid(valid, shape) -> np.ndarray:
+    """The validity mask as a C-contiguous bool array of ``shape``, or InvalidInputError."""
+    try:
+        m = np.asarray(valid)
+    except (TypeError, ValueError) as exc:  # ragged lists
+        raise InvalidInputError(f"valid is not a regular array: {exc}") from None
+    if m.shape != tuple(shape):
+        raise InvalidInputError(
+            f"valid must be one bool per view pixel, shape {tuple(shape)}; got {m.shape}")
+    if m.dtype != np.bool_:
+        if not (np.issubdtype(m.dtype, np.number) or m.dtype == object) or np.iscomplexobj(m):
+            raise InvalidInputError(f"valid must be a bool array, got dtype {m.dtype}")
+        try:
+            mf = m.astype(np.float64)
+        except (TypeError, ValueError):
+            raise InvalidInputError(f"valid must be a bool array, got dtype {m.dtype}") from None
+        if not np.all(np.isfinite(mf)):
+            raise InvalidInputError("valid contains NaN or infinite values; use True / False")
+        m = mf != 0
+    return np.ascontiguousarray(m, dtype=bool)
+
+
 @dataclass
 class LightField:
     """A (hyperspectral) light field: ``R x C`` views with their filters and geometry.
@@ -297,6 +319,11 @@ class LightField:
         Wavelengths of the cube's bands; required with ``gt_cube``.
     metadata : dict
         Free-form provenance (source, licence, synthesis parameters, calibration, ...).
+    valid : array_like of bool, shape (R, C, H, W), optional
+        Per-view validity mask: True where a view's pixel holds real data, False where it was
+        warped in from outside the camera's image, is saturated, or the camera is dead
+        (SPEC §11). Matching, normalisation and completion ignore the False pixels. ``None``
+        (default) means every pixel is valid. Coerced to bool.
 
     Raises
     ------
@@ -314,6 +341,7 @@ class LightField:
     gt_cube: np.ndarray | None = None
     cube_wavelengths: np.ndarray | None = None
     metadata: dict[str, Any] = field(default_factory=dict)
+    valid: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         try:
@@ -410,6 +438,8 @@ class LightField:
             self.cube_wavelengths = cw
         if not isinstance(self.metadata, dict):
             raise InvalidInputError("metadata must be a dict")
+        if self.valid is not None:
+            self.valid = _check_valid(self.valid, (R, C, H, W))
 
     # ------------------------------------------------------------------ shape helpers
     @property
@@ -501,9 +531,20 @@ class LightField:
                 f"ground truth: cube with {self.gt_cube.shape[2]} bands per view "
                 f"({self.cube_wavelengths.min():g}..{self.cube_wavelengths.max():g} nm)"
             )
+        if self.valid is not None:
+            lines.append(_describe_valid(self.valid))
         vmin, vmax = float(self.views.min()), float(self.views.max())
         lines.append(f"intensity   : {vmin:.4g}..{vmax:.4g}")
         for k, v in self.metadata.items():
             if isinstance(v, (str, int, float, bool)):
                 lines.append(f"{k:<12}: {v}")
         return "\n".join(lines)
+
+
+def _describe_valid(valid: np.ndarray) -> str:
+    """One ``describe()`` line: the valid fraction over all views and its range per view."""
+    frac = valid.reshape(valid.shape[0], valid.shape[1], -1).mean(axis=2)
+    dead = int((frac == 0).sum())
+    return (f"valid mask  : {100 * float(valid.mean()):.1f} % of pixels valid "
+            f"(per view {100 * float(frac.min()):.1f}..{100 * float(frac.max()):.1f} %"
+            + (f", {dead} view(s) with none" if dead else "") + ")")

@@ -18,6 +18,18 @@ invalid (:func:`view_costs` returns the mask with the volume).
   channel block; the other view's channels are streamed in blocks of 68 (one histogram of one
   level) and the cross terms accumulated in float64, one kernel pass per (view, label, block).
 
+Validity masks (SPEC §11; ``ref_valid`` / ``view_valid`` of :func:`view_costs`): a pixel
+without data counts exactly like a sample outside the image.  A sample ``q`` of the view is
+valid only if it is in the image **and every bilinear tap it uses with a non-zero weight is a
+valid pixel** (the mask warped with the view's shift; an integer shift uses one tap), and only
+if the reference pixel ``p`` itself is valid; so an invalid reference pixel has no valid
+sample at any label.  Before the costs are evaluated, invalid pixels of both images take the
+value of the nearest valid pixel (:func:`hyperlf.imageops.fill_masked`): window pixels that
+reach into a region without data see its edge continued, as window pixels beyond the border
+see the replicated border, and validity is decided by the centre taps alone in both cases.
+Both images are first scaled by their mean over valid pixels
+(:func:`hyperlf.imageops.normalise_intensity` with ``valid``).
+
 Every evaluator takes ``shifts``, a list of ``(sx, sy)`` with ``sample = img(p + (sx, sy))``,
 and returns float32 ``(L, H, W)``; :func:`view_costs` picks the cost from the registry and
 applies the out-of-image rule.  At integer shifts the results equal the rectified-pair ones
@@ -28,7 +40,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..imageops import gradient_magnitude, normalise_intensity
+from ..imageops import fill_masked, gradient_magnitude, normalise_intensity
 from ..warp import axis_taps, axis_valid, shift_map
 from .pair import (bwncc_finish, census_transform, channel_stats, fill_invalid, inv_sigma,
                    pad_replicate, rho, window_stats)
@@ -37,6 +49,7 @@ __all__ = [
     "view_costs",
     "view_shifts",
     "view_validity",
+    "tap_validity",
     "ncc_view_volume",
     "rsncc_view_volume",
     "census_view_volume",
@@ -263,15 +276,71 @@ def view_shifts(offset, labels) -> list[tuple[float, float]]:
     return [(-d * dx, -d * dy) for d in lab]
 
 
-def view_validity(shape, shifts) -> np.ndarray:
-    """Boolean ``(L, H, W)``: True where the shifted sample ``p + (sx, sy)`` is in the image."""
+def view_validity(shape, shifts, *, mask=None) -> np.ndarray:
+    """Boolean ``(L, H, W)``: True where the shifted sample ``p + (sx, sy)`` is in the image.
+
+    Parameters
+    ----------
+    shape : (..., H, W)
+        The image shape.
+    shifts : sequence of (sx, sy)
+        As :func:`view_shifts`.
+    mask : array_like of bool, shape (H, W), optional
+        The view's validity mask (SPEC §11): a sample is then valid only if, besides lying in
+        the image, every bilinear tap it uses with a non-zero weight is a valid pixel
+        (:func:`tap_validity`).
+
+    Returns
+    -------
+    ndarray of bool, shape (L, H, W)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hyperlf.costs import view_validity
+    >>> m = np.ones((1, 4), bool); m[0, 2] = False
+    >>> view_validity((1, 4), [(0.5, 0.0)], mask=m)[0].tolist()
+    [[True, False, False, False]]
+    """
     H, W = int(shape[-2]), int(shape[-1])
-    return np.stack([axis_valid(H, sy)[:, None] & axis_valid(W, sx)[None, :]
-                     for sx, sy in shifts])
+    out = np.stack([axis_valid(H, sy)[:, None] & axis_valid(W, sx)[None, :]
+                    for sx, sy in shifts])
+    if mask is not None:
+        m = np.asarray(mask, bool)
+        if not m.all():
+            for k, (sx, sy) in enumerate(shifts):
+                out[k] &= tap_validity(m, sx, sy)
+    return out
+
+
+def tap_validity(mask, sx: float, sy: float) -> np.ndarray:
+    """True where every bilinear tap of the sample ``p + (sx, sy)`` with a non-zero weight is
+    a valid pixel of ``mask`` (taps clamped at the border, as :func:`hyperlf.warp.axis_taps`).
+
+    Separable and exact: along y, a row pair is valid where both rows it weights are valid;
+    along x, the same on that result.
+
+    Parameters
+    ----------
+    mask : ndarray of bool, shape (H, W)
+    sx, sy : float
+        The shift.
+
+    Returns
+    -------
+    ndarray of bool, shape (H, W)
+    """
+    m = np.asarray(mask, bool)
+    H, W = m.shape
+    y0, y1, fy = axis_taps(H, sy, 0)
+    x0, x1, fx = axis_taps(W, sx, 0)
+    my = (m[y0] | (fy == 1)[:, None]) & (m[y1] | (fy == 0)[:, None])
+    return (my[:, x0] | (fx == 1)[None]) & (my[:, x1] | (fx == 0)[None])
 
 
 def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | None = None,
-               tau_rel: float = 1e-5, eps: float = 1e-3, block: int = 68, _cache=None):
+               tau_rel: float = 1e-5, eps: float = 1e-3, block: int = 68, _cache=None, *,
+               ref_valid=None, view_valid=None):
     """Correspondence cost of one view against the reference, and its validity.
 
     Parameters
@@ -289,14 +358,18 @@ def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | 
         Cost window; None = the cost's own default.
     tau_rel, eps, block
         NCC flat-patch threshold, BWNCC floor, descriptor channels per block.
+    ref_valid, view_valid : array_like of bool, shape (H, W), optional
+        Validity masks of the reference and of the view (SPEC §11; module docstring): an
+        invalid pixel counts like a sample outside the image.  None = all valid (the
+        computation is then exactly the unmasked one).
 
     Returns
     -------
     cost : float32 (L, H, W)
         Lower is better; invalid entries carry the pixel's worst valid cost (for display; the
-        aggregation masks them anyway).
+        aggregation masks them anyway); a pixel with no valid entry gets 0 at every label.
     valid : bool (L, H, W)
-        ``q_v`` inside the image.
+        ``q_v`` inside the image (and, with masks, its taps and ``p`` valid).
 
     Raises
     ------
@@ -319,7 +392,12 @@ def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | 
     A = np.asarray(ref_img, dtype=np.float64)
     B = np.asarray(img, dtype=np.float64)
     shifts = view_shifts(offset, labels)
-    valid = view_validity(A.shape, shifts)
+    valid = view_validity(A.shape, shifts, mask=view_valid)
+    if ref_valid is not None:
+        valid &= np.asarray(ref_valid, bool)[None]
+        A = normalise_intensity(fill_masked(A, ref_valid), valid=ref_valid)
+    if view_valid is not None:
+        B = normalise_intensity(fill_masked(B, view_valid), valid=view_valid)
     cache = {} if _cache is None else _cache
     C = cost.view_volume(A, B, shifts, window=window, valid=valid, tau_rel=tau_rel, eps=eps,
                          block=block, cache=cache)

@@ -12,6 +12,7 @@ Example manifest::
     gt_disparity = "gt_disparity.pfm"          # optional: reference view, or a per-view pattern
                                                # with {row} and {col}, e.g. "gt_r{row}_c{col}.pfm"
     gt_cube = "gt_cube.h5"                     # optional: hyperlf cube file (write_cube_h5)
+    valid = "valid_r{row}_c{col}.png"          # optional: per-view validity masks (pattern)
 
     [[view]]                       # one table per view
     row = 0
@@ -31,6 +32,11 @@ Decisions
   accepted as grey; RGB with different channels is an error (a spectral view must not be
   silently mixed from colour channels): convert it with :func:`hyperlf.formats.to_grey` first
   or declare ``channels = 3``.
+* Validity masks (``valid``, SPEC §11): one 8-bit grey PNG per view, 255 where the view's
+  pixel holds real data and 0 where it does not (warped in from outside the camera's image,
+  saturated, dead camera). The entry must be a ``{row}``/``{col}`` pattern; each mask must
+  have the views' size and only values near 0 or near the maximum (within 10 % of the
+  range), anything else is refused. Written only when ``LightField.valid`` is set.
 * The manifest is written last, so a folder without ``capture.toml`` is an unfinished capture.
 * File names in the manifest are relative to the folder and may not leave it, on real paths
   too: a view file that is a symlink (or sits in a symlinked folder) pointing outside the
@@ -73,7 +79,8 @@ MANIFEST = "capture.toml"
 CAPTURE_FORMAT = "hyperlf-capture"
 VERSION = 1
 _KNOWN_KEYS = {"format", "version", "grid", "reference", "disparity_range", "bit_depth",
-               "channels", "gt_disparity", "gt_cube", "view", "calibration", "metadata"}
+               "channels", "gt_disparity", "gt_cube", "valid", "view", "calibration",
+               "metadata"}
 
 
 def is_capture(folder: str | os.PathLike) -> bool:
@@ -261,18 +268,20 @@ def _read_views(root: Path, files: dict, R: int, C: int, channels: int) -> np.nd
     return stack.reshape((R, C) + stack.shape[1:])
 
 
-def _gt_disparity_files(man: Path, root: Path, gspec, R: int, C: int):
-    """The checked file(s) named by ``gt_disparity``: None, one path, or {(row, col): path}."""
+def _gt_disparity_files(man: Path, root: Path, gspec, R: int, C: int,
+                        key: str = "gt_disparity"):
+    """The checked file(s) named by ``gt_disparity`` (or the manifest entry ``key``): None,
+    one path, or {(row, col): path}."""
     if gspec is None:
         return None
     if not isinstance(gspec, str):
-        raise _err(man, f"gt_disparity must be a file name or pattern, got {gspec!r}")
-    if not _is_gt_pattern(man, gspec):
-        return _safe_file(man, root, _short_name(man, gspec), "gt_disparity")
+        raise _err(man, f"{key} must be a file name or pattern, got {gspec!r}")
+    if not _is_gt_pattern(man, gspec, key):
+        return _safe_file(man, root, _short_name(man, gspec, key), key)
     files = {}
     for r, c in [(r, c) for r in range(R) for c in range(C)]:
-        name = _short_name(man, gspec.format(row=r, col=c))
-        files[(r, c)] = _safe_file(man, root, name, "gt_disparity")
+        name = _short_name(man, gspec.format(row=r, col=c), key)
+        files[(r, c)] = _safe_file(man, root, name, key)
     return files
 
 
@@ -280,10 +289,10 @@ def _gt_disparity_files(man: Path, root: Path, gspec, R: int, C: int):
 _GT_FIELD_SPEC = re.compile(r"0?\d{0,2}d?")
 
 
-def _is_gt_pattern(man: Path, gspec: str) -> bool:
+def _is_gt_pattern(man: Path, gspec: str, key: str = "gt_disparity") -> bool:
     """Whether ``gspec`` has ``{row}``/``{col}`` fields; any other field (attributes, indices,
     conversions, wide or odd format specs, stray braces) is a FormatError."""
-    bad = _err(man, f"gt_disparity pattern {gspec!r} may only use {{row}} and {{col}}, "
+    bad = _err(man, f"{key} pattern {gspec!r} may only use {{row}} and {{col}}, "
                     "optionally with a width below 100 such as {row:02d}")
     try:
         fields = [f for f in string.Formatter().parse(gspec) if f[1] is not None]
@@ -295,10 +304,10 @@ def _is_gt_pattern(man: Path, gspec: str) -> bool:
     return bool(fields)
 
 
-def _short_name(man: Path, name: str) -> str:
+def _short_name(man: Path, name: str, key: str = "gt_disparity") -> str:
     """``name``, refused when one of its parts is longer than a file name can be (255 bytes)."""
     if any(len(os.fsencode(part)) > 255 for part in name.replace("\\", "/").split("/")):
-        raise _err(man, f"gt_disparity names a file over 255 bytes long ({name[:40]}...); "
+        raise _err(man, f"{key} names a file over 255 bytes long ({name[:40]}...); "
                         "use a shorter name")
     return name
 
@@ -321,6 +330,43 @@ def _read_gt_disparity(man: Path, root: Path, gfiles, R: int, C: int, H: int, W:
                             f"views are {(H, W)}")
         gt[r, c] = g
     return gt
+
+
+def _valid_files(man: Path, root: Path, vspec, R: int, C: int):
+    """The checked mask files named by the ``valid`` pattern: None or {(row, col): path}."""
+    files = _gt_disparity_files(man, root, vspec, R, C, key="valid")
+    if isinstance(files, Path):
+        raise _err(man, f"valid must be a pattern with {{row}} and {{col}} (one mask per view), "
+                        f"got {vspec!r}; e.g. valid = \"valid_r{{row}}_c{{col}}.png\"")
+    return files
+
+
+def _read_mask(man: Path, root: Path, path: Path, H: int, W: int) -> np.ndarray:
+    """One validity mask file as bool (H, W): near-0 = invalid, near-maximum = valid."""
+    name = path.relative_to(root).as_posix()
+    im = read_image(path, as_float=False)
+    if im.ndim == 3:
+        if not all(np.array_equal(im[..., 0], im[..., k]) for k in range(1, im.shape[2])):
+            raise _err(man, f"mask {name} is a colour image; save it as 8-bit grey (0 / 255)")
+        im = im[..., 0]
+    if im.shape != (H, W):
+        raise _err(man, f"mask {name} is {im.shape}, views are {(H, W)}")
+    top = float(np.iinfo(im.dtype).max) if np.issubdtype(im.dtype, np.integer) else 1.0
+    x = im.astype(np.float64) / top
+    if not np.all(np.isfinite(x)) or np.any((x > 0.1) & (x < 0.9)) or np.any((x < 0) | (x > 1)):
+        raise _err(man, f"mask {name} holds values that are neither ~0 (invalid) nor ~{top:g} "
+                        "(valid); save it as 0 / 255")
+    return x >= 0.5
+
+
+def _read_valid(man: Path, root: Path, vfiles, R: int, C: int, H: int, W: int):
+    """The validity masks (R, C, H, W) bool from :func:`_valid_files`' answer, or None."""
+    if vfiles is None:
+        return None
+    valid = np.empty((R, C, H, W), dtype=bool)
+    for (r, c), path in vfiles.items():
+        valid[r, c] = _read_mask(man, root, path, H, W)
+    return valid
 
 
 def _read_gt_cube(man: Path, cfile: Path | None, cspec, R: int, C: int, H: int, W: int):
@@ -356,8 +402,8 @@ def read_capture(folder: str | os.PathLike) -> LightField:
     -------
     LightField
         ``views`` float32 ``(R, C, H, W)`` (or ``(R, C, H, W, 3)`` with ``channels = 3``) in
-        [0, 1]; wavelengths (nm), positions, reference, disparity range and ground truth from
-        the manifest; ``metadata`` holds the ``[metadata]`` table, ``calibration`` and
+        [0, 1]; wavelengths (nm), positions, reference, disparity range, ground truth and
+        validity masks (``valid``) from the manifest; ``metadata`` holds the ``[metadata]`` table, ``calibration`` and
         ``capture_folder``.
 
     Raises
@@ -385,18 +431,20 @@ def read_capture(folder: str | os.PathLike) -> LightField:
     R, C = hd["R"], hd["C"]
     files, wl, pos, n_wl = _view_table(man, root, doc, R, C)
     gfiles = _gt_disparity_files(man, root, doc.get("gt_disparity"), R, C)
+    vfiles = _valid_files(man, root, doc.get("valid"), R, C)
     cspec = doc.get("gt_cube")
     cfile = None if cspec is None else _safe_file(man, root, cspec, "gt_cube")
     views = _read_views(root, files, R, C, hd["channels"])
     H, W = views.shape[2:4]
     gt = _read_gt_disparity(man, root, gfiles, R, C, H, W)
+    valid = _read_valid(man, root, vfiles, R, C, H, W)
     cube, cube_wl = _read_gt_cube(man, cfile, cspec, R, C, H, W)
     metadata = _manifest_metadata(doc, root, hd["bit_depth"])
     try:
         return LightField(
             views=views, wavelengths=wl if n_wl else None, positions=pos,
             reference=hd["reference"], disparity_range=hd["drange"], gt_disparity=gt,
-            gt_cube=cube, cube_wavelengths=cube_wl, metadata=metadata,
+            gt_cube=cube, cube_wavelengths=cube_wl, metadata=metadata, valid=valid,
         )
     except InvalidInputError as exc:
         raise _err(man, f"describes an invalid light field: {exc}") from None
@@ -526,7 +574,8 @@ def _write_views(lf: LightField, root: Path, ext: str, bit_depth: int, progress:
 
 
 def _write_ground_truth(lf: LightField, root: Path, doc: dict, new_files: set[str]) -> None:
-    """Write the ground-truth disparity and cube (if any) and name them in ``doc``."""
+    """Write the ground-truth disparity, the validity masks and the cube (if any) and name
+    them in ``doc``."""
     R, C = lf.grid_shape
     if lf.gt_disparity is not None:
         if lf.gt_disparity.ndim == 2:
@@ -540,6 +589,13 @@ def _write_ground_truth(lf: LightField, root: Path, doc: dict, new_files: set[st
                     name = f"gt_disparity_r{r}_c{c}.pfm"
                     write_pfm(root / name, lf.gt_disparity[r, c])
                     new_files.add(name)
+    if lf.valid is not None:
+        doc["valid"] = "valid_r{row}_c{col}.png"
+        for r in range(R):
+            for c in range(C):
+                name = f"valid_r{r}_c{c}.png"
+                write_image(root / name, lf.valid[r, c].astype(np.uint8) * np.uint8(255))
+                new_files.add(name)
     if lf.gt_cube is not None:
         doc["gt_cube"] = "gt_cube.h5"
         write_cube_h5(root / "gt_cube.h5", lf.gt_cube, lf.cube_wavelengths)
@@ -616,7 +672,8 @@ def _remove_stale(root: Path, old_names: set[str], keep: set[str]) -> None:
 def write_capture(lightfield: LightField, folder: str | os.PathLike, bit_depth: int = 16,
                   overwrite: bool = False, image_format: str = "png",
                   progress: bool = False) -> Path:
-    """Write a light field as a capture folder (views, ground truth, then ``capture.toml``).
+    """Write a light field as a capture folder (views, ground truth, validity masks, then
+    ``capture.toml``).
 
     Parameters
     ----------

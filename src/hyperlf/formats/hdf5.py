@@ -5,8 +5,9 @@ Light field file (``format = "hyperlf-lightfield"``)
 ``/views`` (R, C, H, W[, K]) float32, one view per chunk; ``/positions`` (R, C, 2);
 ``/wavelengths`` (R, C) nm (optional); ``/gt_disparity`` (H, W) or (R, C, H, W) (optional);
 ``/gt_cube`` (R, C, B, H, W), one band of one view per chunk, with ``/cube_wavelengths`` (B,)
-(optional). Root attributes: ``format``, ``version``, ``reference`` (2,), ``disparity_range``
-(2,) when known, ``metadata`` (a JSON string).
+(optional); ``/valid`` (R, C, H, W) uint8 0/1, the per-view validity mask (optional, written
+only when ``lf.valid`` is set). Root attributes: ``format``, ``version``, ``reference`` (2,),
+``disparity_range`` (2,) when known, ``metadata`` (a JSON string).
 
 Cube file (``format = "hyperlf-cube"``)
 ---------------------------------------
@@ -245,6 +246,9 @@ def write_lightfield_h5(path: str | os.PathLike, lf: LightField,
                 f.create_dataset("gt_cube", data=cube, chunks=(1, 1, 1) + cube.shape[3:], **comp)
             if lf.cube_wavelengths is not None:
                 f.create_dataset("cube_wavelengths", data=lf.cube_wavelengths)
+            if lf.valid is not None:
+                f.create_dataset("valid", data=lf.valid.astype(np.uint8),
+                                 chunks=(1, 1) + lf.valid.shape[2:], **comp)
     return Path(path)
 
 
@@ -274,6 +278,7 @@ def read_lightfield_h5(path: str | os.PathLike) -> LightField:
         gt = _get(p, f, "gt_disparity", required=False)
         cube = _get(p, f, "gt_cube", required=False)
         cw = _get(p, f, "cube_wavelengths", required=False)
+        valid = _valid_mask(p, _get(p, f, "valid", required=False), views.shape[:4])
         ref = _pair_attr(p, f, "reference", integral=True)
         dr = _pair_attr(p, f, "disparity_range", integral=False)
         meta = _metadata(p, f, strict=True)
@@ -281,10 +286,23 @@ def read_lightfield_h5(path: str | os.PathLike) -> LightField:
         return LightField(
             views=views, wavelengths=wl, positions=positions, reference=ref,
             disparity_range=dr, gt_disparity=gt, gt_cube=cube, cube_wavelengths=cw,
-            metadata=meta,
+            metadata=meta, valid=valid,
         )
     except InvalidInputError as exc:
         raise FormatError(f"{p} holds an invalid light field: {exc}") from None
+
+
+def _valid_mask(p: Path, raw, shape):
+    """The ``/valid`` dataset as bool (None when absent); only 0/1 values of the views' shape."""
+    if raw is None:
+        return None
+    if raw.shape != tuple(shape):
+        raise FormatError(f"{p}: '/valid' has shape {raw.shape}, the views {tuple(shape)}; "
+                          "the file is corrupt, re-create it with hyperlf")
+    if raw.dtype != np.bool_ and not np.all((raw == 0) | (raw == 1)):
+        raise FormatError(f"{p}: '/valid' holds values other than 0 and 1; "
+                          "the file is corrupt, re-create it with hyperlf")
+    return raw.astype(bool)
 
 
 def _check_cube_args(shape, wavelengths):
