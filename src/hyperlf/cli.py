@@ -466,13 +466,43 @@ def _cmd_calibrate(args, dest) -> list[Path]:
 
     cal, written = run_calibration(args.shots, dest, pattern=args.pattern, grid=args.grid,
                                    board=args.board, square=args.square, mode=args.mode,
-                                   reference=args.reference, log=lambda m: _say(args, m))
+                                   reference=args.reference, focal_px=args.focal_px,
+                                   log=lambda m: _say(args, m))
+    if cal.info.get("focal_determined") is False:
+        _say(args, "note: the board faces the cameras too squarely to fix the focal length; "
+                   "registration and positions are fine, but for metric depth give "
+                   "--focal-px (focal length / pixel pitch)")
     errs = cal.reprojection_errors()
     worst = max(errs, key=errs.get)
     _say(args, f"{cal.mode} calibration of {len(errs)} cameras: residual up to "
                f"{errs[worst]:.3f} px (camera {worst[0]},{worst[1]}); positions from "
                f"{cal.info.get('positions_from', 'the board poses')}")
     return written
+
+
+def _cmd_ingest(args, dest) -> list[Path]:
+    """Turn raw images of a calibrated array into a capture (SPEC §11): dark frame and flat
+    field (optional), the calibration's registration or rectification, per-view validity masks
+    (outside the camera's image, saturated, dead cameras), the views' positions from the
+    calibration, and the geometry 'hyperlf depth' needs for metric depth and a point cloud.
+
+    examples:
+      hyperlf ingest lab/scene --calibration cal --pattern 'Cam-{index}.png' -o lab-capture
+      hyperlf depth lab-capture -o lab-depth   # disparity, depth (board units), points.ply
+    """
+    from .pipeline import run_ingest
+
+    lf, written = run_ingest(args.raw, dest, calibration=args.calibration,
+                             pattern=args.pattern, wavelengths=args.wavelengths,
+                             dark=args.dark, flat=args.flat, dead=args.dead or (),
+                             saturation=None if args.saturation >= 1 else args.saturation,
+                             disparity_range=args.disparity_range,
+                             log=lambda m: _say(args, m))
+    R, C = lf.grid_shape
+    _say(args, f"{R} x {C} views of {lf.image_shape[1]} x {lf.image_shape[0]} px, "
+               f"{100 * lf.valid.mean():.1f} % of pixels valid; disparity range "
+               f"{lf.disparity_range}")
+    return written[:1]
 
 
 # --------------------------------------------------------------------------- stereo
@@ -518,7 +548,9 @@ def _cmd_depth(args, dest) -> list[Path]:
     a baseline light-field method on the views as plain intensities. Writes disparity.pfm,
     disparity_16bit.png, a colour-mapped disparity.png, confidence.png, and an error map when
     the input has ground truth; the scores against it skip a 15 px border, so views of 30 px or
-    less are written but not scored.
+    less are written but not scored. A capture made by 'hyperlf ingest' also gets depth.pfm /
+    depth.png (in the unit of the calibration's --square) and points.ply, a point cloud
+    coloured by the reference view.
 
     examples:
       hyperlf depth scene3 -o depth3
@@ -526,7 +558,7 @@ def _cmd_depth(args, dest) -> list[Path]:
       hyperlf depth antinous-hlf --method wang2015 -o d-wang
     """
     from .formats import load_lightfield
-    from .pipeline import save_disparity_outputs
+    from .pipeline import save_disparity_outputs, save_metric_outputs
 
     lf = load_lightfield(args.input)
     out = dest
@@ -560,6 +592,7 @@ def _cmd_depth(args, dest) -> list[Path]:
     gt = lf.reference_gt_disparity
     written = save_disparity_outputs(out, res.disparity, f"{args.method} disparity", truth=gt,
                                       confidence=res.confidence)
+    written += save_metric_outputs(out, res.disparity, lf)
     if args.save_intermediate:
         from . import visualise
         from .formats import write_pfm
@@ -947,6 +980,33 @@ def _add_calibrate_parser(sub) -> None:
                         "with three or more")
     p.add_argument("--reference", type=_view_index, default=None, metavar="R,C",
                    help="reference camera (default: the centre of the grid)")
+    p.add_argument("--focal-px", type=_float_within(1.0, 1e7, "--focal-px"), default=None,
+                   help="focal length in px (lens focal length / pixel pitch), when known; "
+                        "default: estimated from the board pose (plane mode)")
+    _add_output_folder(p)
+
+
+def _add_ingest_parser(sub) -> None:
+    p = _subcommand(sub, "ingest", _cmd_ingest,
+                    help="raw images of a calibrated array -> a capture with validity masks")
+    p.add_argument("raw", help="folder of the raw images, one per camera")
+    p.add_argument("--calibration", required=True,
+                   help="calibration.toml from 'hyperlf calibrate' (or its folder)")
+    p.add_argument("--pattern", required=True,
+                   help="file name of each camera's image, with {index} or {row} and {col}")
+    p.add_argument("--wavelengths", default=None,
+                   help="filter centre wavelengths in nm, raster order: comma-separated or a "
+                        "file (default: unknown)")
+    p.add_argument("--dark", default=None, help="dark frame: one image, or a pattern path "
+                                                "such as darks/Cam-{index}.png")
+    p.add_argument("--flat", default=None, help="flat field: one image, or a pattern path")
+    p.add_argument("--dead", type=_view_index, action="append", metavar="R,C",
+                   help="a camera to leave out (repeat for several)")
+    p.add_argument("--saturation", type=_float_within(0.0, 1.0, "--saturation"), default=0.98,
+                   help="raw level (0..1 of the file's range) at or above which a pixel is "
+                        "invalid; 1 turns the check off (default 0.98)")
+    p.add_argument("--disparity-range", type=_pair_of_floats, default=None, metavar="MIN,MAX",
+                   help="px per baseline (default: estimated by the calibration)")
     _add_output_folder(p)
 
 
@@ -1075,6 +1135,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_demo_parser(sub)
     _add_synth_parser(sub)
     _add_calibrate_parser(sub)
+    _add_ingest_parser(sub)
     _add_info_parser(sub)
     _add_convert_parser(sub)
     _add_stereo_parser(sub)

@@ -23,6 +23,8 @@ __all__ = [
     "DemoResult",
     "run_demo",
     "run_calibration",
+    "run_ingest",
+    "save_metric_outputs",
     "write_lightfield_pictures",
     "save_disparity_outputs",
     "finite_range",
@@ -394,7 +396,7 @@ def run_demo(out_dir: str | os.PathLike, *, seed: int = 0, grid: tuple[int, int]
 def run_calibration(shots: str | os.PathLike, out_dir: str | os.PathLike, *, pattern: str,
                     grid: tuple[int, int], board: tuple[int, int], square: float = 1.0,
                     mode: str = "auto", reference: tuple[int, int] | None = None,
-                    log: Callable[[str], None] | None = None):
+                    focal_px: float | None = None, log: Callable[[str], None] | None = None):
     """Calibrate a camera array from board shots; write the calibration file and pictures.
 
     Reads one set of camera images per pose (:func:`hyperlf.calibration.raw.read_poses`),
@@ -420,6 +422,8 @@ def run_calibration(shots: str | os.PathLike, out_dir: str | os.PathLike, *, pat
     mode : {"auto", "plane", "full"}
     reference : (int, int), optional
         Reference camera (default: the centre).
+    focal_px : float, optional
+        Known focal length in px (plane mode; default: estimated from the board pose).
     log : callable, optional
         Called with one line per stage.
 
@@ -438,7 +442,8 @@ def run_calibration(shots: str | os.PathLike, out_dir: str | os.PathLike, *, pat
     log(f"{len(per)} cameras, {n} pose(s): calibrating ...")
     spec = cal_mod.BoardSpec(int(board[0]), int(board[1]), float(square))
     names = {k: f"{k[0]},{k[1]}" for k in per}
-    cal = cal_mod.calibrate(per, spec, mode=mode, reference=reference, names=names)
+    opts = {"focal_px": focal_px} if focal_px is not None else {}
+    cal = cal_mod.calibrate(per, spec, mode=mode, reference=reference, names=names, **opts)
     written = [cal_mod.write_calibration(cal, out / "calibration.toml")]
     first = {k: v[0] for k, v in per.items()}
     corners = cal_mod.detect_boards(first, spec, names=names)
@@ -448,3 +453,125 @@ def run_calibration(shots: str | os.PathLike, out_dir: str | os.PathLike, *, pat
                                                      names=names))
     written.append(cal_mod.save_residual_picture(out / "residuals.png", cal))
     return cal, written
+
+
+def _camera_frames(spec, grid, what: str):
+    """A dark frame or flat field: one image for all cameras, or a pattern with ``{index}`` /
+    ``{row}``/``{col}`` giving one per camera (``None`` stays None)."""
+    if spec is None:
+        return None
+    from .calibration.raw import camera_files, read_camera_images
+    from .formats import read_image
+
+    if "{" in str(spec):
+        p = Path(spec)
+        return read_camera_images(camera_files(p.parent, p.name, grid), where=what)
+    return read_image(spec, as_float=True, channels="grey")
+
+
+def _wavelength_table(spec, grid) -> np.ndarray | None:
+    """Filter wavelengths (nm) in raster order: a comma list, or a text/CSV file of numbers."""
+    if spec is None:
+        return None
+    from .errors import InvalidInputError
+
+    text = Path(spec).read_text(encoding="utf-8") if Path(spec).is_file() else str(spec)
+    try:
+        wl = np.array([float(v) for v in text.replace(",", " ").split()], dtype=np.float64)
+    except ValueError:
+        raise InvalidInputError(f"--wavelengths {spec!r}: give {grid[0] * grid[1]} numbers in "
+                                "nm (raster order), comma-separated or in a file") from None
+    if wl.size != grid[0] * grid[1] or not (np.isfinite(wl).all() and (wl > 0).all()):
+        raise InvalidInputError(f"--wavelengths: need {grid[0] * grid[1]} positive numbers in "
+                                f"nm (one per camera, raster order), got {wl.size}")
+    return wl.reshape(grid)
+
+
+def run_ingest(raw: str | os.PathLike, out_dir: str | os.PathLike, *, calibration,
+               pattern: str, wavelengths=None, dark=None, flat=None, dead=(),
+               saturation: float | None = 0.98, disparity_range=None,
+               log: Callable[[str], None] | None = None):
+    """Raw images of a calibrated array -> a capture folder with validity masks and pictures.
+
+    Reads one image per camera (``pattern`` in ``raw``), applies dark frame, flat field and the
+    calibration (:func:`hyperlf.calibration.ingest.ingest`) and writes the capture (views,
+    ``valid`` masks, positions, the geometry for metric depth) with ``preview/views.png`` and
+    ``preview/registered.png`` (registered views with their invalid pixels tinted).
+
+    Parameters
+    ----------
+    raw : path-like
+        Folder of the raw images.
+    out_dir : path-like
+        The capture folder to write.
+    calibration : path-like
+        ``calibration.toml`` from ``hyperlf calibrate`` (or its folder).
+    pattern : str
+        Camera file names, with ``{index}`` or ``{row}``/``{col}``.
+    wavelengths : str, optional
+        Filter wavelengths in nm, raster order: comma-separated or a file.
+    dark, flat : path-like, optional
+        One image for all cameras, or a pattern path (``darks/Cam-{index}.png``).
+    dead : sequence of (int, int)
+        Cameras to leave out (their views are entirely invalid).
+    saturation : float or None
+        Raw level in [0, 1] at or above which a pixel is invalid.
+    disparity_range : (float, float), optional
+        Default: the calibration's estimate.
+    log : callable, optional
+
+    Returns
+    -------
+    (LightField, list of Path)
+    """
+    from .calibration import read_calibration, save_registration_picture
+    from .calibration.ingest import ingest
+    from .calibration.raw import camera_files, read_camera_images
+    from .formats import save_lightfield
+
+    log = log or _quiet
+    cal_path = Path(calibration)
+    cal = read_calibration(cal_path / "calibration.toml" if cal_path.is_dir() else cal_path)
+    images = read_camera_images(camera_files(raw, pattern, cal.grid), where=str(raw))
+    log(f"{len(images)} raw images -> {cal.mode}-{'registered' if cal.mode == 'plane' else 'rectified'} views ...")
+    lf = ingest(images, cal, wavelengths=_wavelength_table(wavelengths, cal.grid),
+                dark=_camera_frames(dark, cal.grid, "dark frames"),
+                flat=_camera_frames(flat, cal.grid, "flat fields"), dead=dead,
+                saturation=saturation, disparity_range=disparity_range)
+    out = Path(out_dir)
+    written = [save_lightfield(lf, out)]
+    written += write_lightfield_pictures(lf, out / "preview")
+    written.append(save_registration_picture(out / "preview" / "registered.png", lf.views,
+                                             lf.valid))
+    return lf, written
+
+
+def save_metric_outputs(out: str | os.PathLike, disparity: np.ndarray, lf) -> list[Path]:
+    """Depth in the calibration's unit and a coloured point cloud, for a capture that carries
+    its geometry (``lf.metadata["calibration"]``, written by ``hyperlf ingest``).
+
+    Writes ``depth.pfm`` (exact), ``depth.png`` (colour-mapped) and ``points.ply`` (reference
+    pixels with a finite depth, coloured by the reference view). Nothing without geometry.
+    """
+    from . import visualise
+    from .calibration.metric import depth_from_disparity, point_cloud
+    from .formats import write_pfm
+    from .formats.ply import write_ply
+
+    geo = lf.metadata.get("calibration")
+    if not isinstance(geo, dict) or "camera_matrix" not in geo \
+            or geo.get("focal_determined") is False:
+        return []
+    out = Path(out)
+    Z = depth_from_disparity(disparity, geo)
+    if lf.valid is not None:
+        Z = np.where(lf.valid[lf.reference], Z, np.nan).astype(np.float32)
+    ref = lf.reference_view
+    lo, hi = np.percentile(ref, [1, 99.5])
+    colours = np.clip((ref - lo) / max(hi - lo, 1e-9), 0, 1)
+    pts, rgb = point_cloud(Z, geo, colours)
+    unit = geo.get("unit", "board square units")
+    return [write_pfm(out / "depth.pfm", Z),
+            visualise.save_disparity_png(out / "depth.png", Z, title=f"depth ({unit})",
+                                         label=unit, cmap="viridis"),
+            write_ply(out / "points.ply", pts, rgb, comment=f"unit: {unit}")]

@@ -79,6 +79,7 @@ def calibrate(shots: Mapping, board: BoardSpec, *, mode: str = "auto", reference
            for k, v in shots.items()}
     n = min((len(v) for v in per.values()), default=0)
     if mode == "full" or (mode == "auto" and n >= 3):
+        options.pop("focal_px", None)  # a full calibration measures every camera's own
         return calibrate_full(per, board, reference=reference, names=names, **options)
     return register_plane({k: v[0] for k, v in per.items()}, board, reference=reference,
                           names=names, **options)

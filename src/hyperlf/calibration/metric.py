@@ -35,7 +35,9 @@ def capture_geometry(calibration) -> dict:
     dict
         ``mode``, ``camera_matrix`` (3 x 3 list), ``baseline`` (board units), ``unit`` (always
         ``"board square units"`` unless the calibration says otherwise) and, in plane mode,
-        ``board_plane`` (``nx, ny, nz, dist``).
+        ``board_plane`` (``nx, ny, nz, dist``); ``focal_determined`` is False when the board pose
+    did not fix the focal length (then no metric figure can be trusted: calibrate with
+    ``--focal-px``).
     """
     table = {"mode": calibration.mode,
              "camera_matrix": np.asarray(calibration.camera_matrix, float).tolist(),
@@ -43,6 +45,7 @@ def capture_geometry(calibration) -> dict:
              "unit": str(calibration.info.get("unit", "board square units"))}
     if calibration.board_plane is not None:
         table["board_plane"] = np.asarray(calibration.board_plane, float).tolist()
+    table["focal_determined"] = bool(calibration.info.get("focal_determined", True))
     return table
 
 

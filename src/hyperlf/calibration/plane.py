@@ -57,6 +57,10 @@ def board_homographies(corners: Mapping, reference) -> tuple[dict, dict, dict]:
     return Hs, errs, resid
 
 
+#: Relative standard deviation above which a board pose does not determine the focal length.
+FOCAL_TOLERANCE = 0.05
+
+
 def board_geometry(corners: Mapping, board: BoardSpec, image_size, reference, *,
                    focal_px: float | None = None) -> dict:
     """Board poses from one shared pinhole model (principal point at the image centre).
@@ -77,7 +81,7 @@ def board_geometry(corners: Mapping, board: BoardSpec, image_size, reference, *,
     if focal_px:
         flags |= cv2.CALIB_FIX_FOCAL_LENGTH
     obj = board.object_points().astype(np.float32)
-    rms, K, _, rvecs, tvecs = cv2.calibrateCamera(
+    rms, K, _, rvecs, tvecs, std, _, _ = cv2.calibrateCameraExtended(
         [obj] * len(keys), [corners[k].astype(np.float32).reshape(-1, 1, 2) for k in keys],
         (W, H), K0, np.zeros(5), flags=flags)
     rot = {k: cv2.Rodrigues(rv)[0] for k, rv in zip(keys, rvecs)}
@@ -89,8 +93,10 @@ def board_geometry(corners: Mapping, board: BoardSpec, image_size, reference, *,
     dist = float(n @ trans[reference])
     if dist < 0:
         n, dist = -n, -dist
+    # with a fixed aspect ratio OpenCV reports the focal length's deviation at fy
+    focal_std = 0.0 if focal_px else float(np.max(np.ravel(std)[:2]))
     return {"focal": float(K[0, 0]), "centres": centres, "plane": np.append(n, dist),
-            "rms": float(rms)}
+            "rms": float(rms), "focal_std": focal_std}
 
 
 def board_outline(corners: np.ndarray, board: BoardSpec, *, margin: float = 1.6) -> np.ndarray:
@@ -264,7 +270,13 @@ def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=No
     corners = detect_boards(shots, board, names=names)
     Hs, errs, resid = board_homographies(corners, ref)
     geo = board_geometry(corners, board, size, ref, focal_px=focal_px)
-    info = {"board_pose_rms": geo["rms"], "positions_from": "board"}
+    info = {"board_pose_rms": geo["rms"], "positions_from": "board",
+            "focal_given": bool(focal_px), "focal_std_px": geo["focal_std"]}
+    # a board facing the cameras squarely leaves the focal length (and so every metric
+    # figure) undetermined: its standard deviation says so (OpenCV reports 0 when the
+    # problem is singular)
+    info["focal_determined"] = bool(focal_px) or bool(
+        np.isfinite(geo["focal_std"]) and 0 < geo["focal_std"] < FOCAL_TOLERANCE * geo["focal"])
     offsets = {k: np.asarray(v[:2]) for k, v in geo["centres"].items()}
     if positions_from != "board":
         par = parallax_offsets(shots, Hs, corners[ref], board, ref, work_size=work_size,
