@@ -94,3 +94,32 @@ def test_calibrate_the_lab_capture(tmp_path):
     # a 3 x 3 grid up to the mirroring the images show: every neighbour one baseline away
     assert np.allclose(np.abs(pos), [[[1, 1], [0, 1], [1, 1]], [[1, 0], [0, 0], [1, 0]],
                                      [[1, 1], [0, 1], [1, 1]]], atol=0.1)
+
+
+@pytest.mark.parametrize("case,code,words", [
+    ("other size", 2, ["calibration"]),
+    ("missing camera", 4, ["camera 4"]),
+    ("no calibration", 4, ["calibration"]),
+])
+def test_ingest_refuses_images_the_calibration_does_not_fit(shots, tmp_path, capsys, case,
+                                                            code, words):
+    folder, rig = shots
+    cal = tmp_path / "cal"
+    assert run(folder, "--pattern", "Cam-{index}.png", "--grid", "2,3", "--board",
+               f"{rig.board.cols},{rig.board.rows}", "--focal-px", "300", "-o", cal) == 0
+    raw = tmp_path / "raw"
+    raw.mkdir()
+    for i in range(6):
+        img = np.full((24, 32) if case == "other size" else rig.image_size[::-1], 0.5)
+        if not (case == "missing camera" and i == 4):
+            write_image(raw / f"Cam-{i}.png", img, bit_depth=16)
+    capsys.readouterr()
+    argv = ["-q", "ingest", str(raw), "--calibration",
+            str(tmp_path / "nope" if case == "no calibration" else cal),
+            "--pattern", "Cam-{index}.png", "-o", str(tmp_path / "cap")]
+    assert main(argv) == code
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    for w in words:
+        assert w in err, (w, err)
+    assert not (tmp_path / "cap").exists()

@@ -142,6 +142,8 @@ class World:
     right: Path
     weights: Path  # a good weights file for --profile weights:
     outputs: Path
+    shots: Path    # board shots of a 1 x 3 synthetic array, Cam-{index}.png, 160 x 120 px
+    cal: Path      # its calibration folder (calibration.toml)
 
     def fresh(self) -> Path:
         """A new, empty folder for one example."""
@@ -172,9 +174,19 @@ def world(tmp_path_factory) -> World:
     write_pfm(root / "d.pfm", np.zeros((32, 40), np.float32))
     n_bands = len(lf.cube_wavelengths)
     (root / "w.csv").write_text(",".join(["1"] * n_bands))
+    from hyperlf.calibration.rig import make_rig
+
+    rig = make_rig(1, 3, seed=3, imperfect=0.5, image_size=(160, 120), focal=150.0)
+    (root / "shots").mkdir()
+    for (r, c), img in rig.render(rig.board_pose(300.0), supersample=1).items():
+        write_image(root / "shots" / f"Cam-{c}.png", np.clip(img, 0, 1), bit_depth=16)
+    assert main(["-q", "calibrate", str(root / "shots"), "--pattern=Cam-{index}.png",
+                 "--grid=1,3", f"--board={rig.board.cols},{rig.board.rows}",
+                 "--focal-px=150", "-o", str(root / "cal")]) == 0
     return World(cap=root / "cap", h5=root / "lf.h5", cube=root / "cap" / "gt_cube.h5",
                  pfm=root / "d.pfm", left=root / "l.png", right=root / "r.png",
-                 weights=root / "w.csv", outputs=tmp_path_factory.mktemp("fuzz-out"))
+                 weights=root / "w.csv", outputs=tmp_path_factory.mktemp("fuzz-out"),
+                 shots=root / "shots", cal=root / "cal")
 
 
 # ----------------------------------------------------------------------------- running
@@ -406,6 +418,39 @@ CASES = {
     "spectrum-output": (PICTURE_NAMES,
                         lambda w, v, o: ["spectrum", w.cap, "--at=3,4", f"--output={o}/{v}"],
                         None),
+    # --- calibrate (a 1 x 3 synthetic array's board shots) and ingest (its calibration)
+    "calibrate-pattern": (st.one_of(st.sampled_from(["Cam-{index}.png", "Cam-{index:02d}.png",
+                                                     "Cam-{row}{col}.png", "Cam-{col}.png"]),
+                                    HOSTILE_TEXT),
+                          lambda w, v, o: ["calibrate", w.shots, f"--pattern={v}", "--grid=1,3",
+                                           "--board=6,4", "-o", o / "c"], None),
+    "calibrate-grid": (lists_of(numbers(small=(-2, 4), huge=10**6)),
+                       lambda w, v, o: ["calibrate", w.shots, "--pattern=Cam-{index}.png",
+                                        f"--grid={v}", "--board=6,4", "-o", o / "c"], None),
+    "calibrate-board": (lists_of(numbers(small=(-2, 12), huge=10**6)),
+                        lambda w, v, o: ["calibrate", w.shots, "--pattern=Cam-{index}.png",
+                                         "--grid=1,3", f"--board={v}", "-o", o / "c"], None),
+    "calibrate-focal": (numbers(small=(-2, 400), huge=10**8),
+                        lambda w, v, o: ["calibrate", w.shots, "--pattern=Cam-{index}.png",
+                                         "--grid=1,3", "--board=6,4", f"--focal-px={v}",
+                                         f"--square={v}", "-o", o / "c"], None),
+    "ingest-calibration": (INPUT_TEXT,
+                           lambda w, v, o: ["ingest", w.shots, "--pattern=Cam-{index}.png",
+                                            f"--calibration={_input(w, v)}", "-o", o / "i"],
+                           None),
+    "ingest-wavelengths": (lists_of(numbers(small=(-5, 900)), max_size=5),
+                           lambda w, v, o: ["ingest", w.shots, "--pattern=Cam-{index}.png",
+                                            f"--calibration={w.cal}", f"--wavelengths={v}",
+                                            "-o", o / "i"], None),
+    "ingest-dead-saturation": (lists_of(numbers(small=(-2, 3), huge=10**9)),
+                               lambda w, v, o: ["ingest", w.shots, "--pattern=Cam-{index}.png",
+                                                f"--calibration={w.cal}", f"--dead={v}",
+                                                f"--saturation={v.split(',')[0]}",
+                                                "-o", o / "i"], None),
+    "ingest-frames": (INPUT_TEXT,
+                      lambda w, v, o: ["ingest", w.shots, "--pattern=Cam-{index}.png",
+                                       f"--calibration={w.cal}", f"--dark={_input(w, v)}",
+                                       f"--flat={_input(w, v)}", "-o", o / "i"], None),
     # --- info
     "info-input": (INPUT_TEXT, lambda w, v, o: ["info", "--", _input(w, v)], None),
 }
@@ -420,6 +465,8 @@ WRITTEN = {
     "render": lambda out: _any_file(out, "rgb_*.png"),
     "refocus": lambda out: _any_file(out, "refocus*"),
     "spectrum": lambda out: out.is_file() and out.with_suffix(".csv").is_file(),
+    "calibrate": lambda out: _has(out, "calibration.toml", "corners.png"),
+    "ingest": lambda out: _has(out, "capture.toml", "valid_r0_c0.png"),
 }
 
 

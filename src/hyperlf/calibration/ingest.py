@@ -44,17 +44,20 @@ def correct_raw(image: np.ndarray, *, dark=None, flat=None) -> np.ndarray:
 
     Examples
     --------
-    >>> float(correct_raw(np.full((2, 2), 0.5), dark=0.1, flat=np.full((2, 2), 0.9))[0, 0])
+    >>> round(float(correct_raw(np.full((2, 2), 0.5), dark=0.1,
+    ...                          flat=np.full((2, 2), 0.9))[0, 0]), 6)
     0.4
     """
     out = np.asarray(image, np.float32)
+    for frame, what in ((dark, "dark frame"), (flat, "flat field")):
+        if frame is not None and np.ndim(frame) and np.shape(frame) != out.shape:
+            raise InvalidInputError(f"the {what} is {np.shape(frame)[::-1]} px (W x H), the "
+                                    f"raw images {out.shape[::-1]}; take it with the same "
+                                    "camera settings")
     if dark is not None:
         out = out - np.asarray(dark, np.float32)
     if flat is not None:
         f = np.asarray(flat, np.float32) - (0.0 if dark is None else np.asarray(dark, np.float32))
-        if f.shape != out.shape:
-            raise InvalidInputError(f"flat field is {f.shape[::-1]} px, the image "
-                                    f"{out.shape[::-1]}")
         m = float(np.mean(f))
         if not m > 0:
             raise InvalidInputError("the flat field has no positive signal")

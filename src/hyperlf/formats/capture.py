@@ -50,9 +50,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
-import re
 import stat
-import string
 import sys
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path, PurePosixPath
@@ -285,23 +283,16 @@ def _gt_disparity_files(man: Path, root: Path, gspec, R: int, C: int,
     return files
 
 
-#: The format spec a ``gt_disparity`` field may carry: a zero-padded width below 100 (``02d``).
-_GT_FIELD_SPEC = re.compile(r"0?\d{0,2}d?")
-
-
 def _is_gt_pattern(man: Path, gspec: str, key: str = "gt_disparity") -> bool:
     """Whether ``gspec`` has ``{row}``/``{col}`` fields; any other field (attributes, indices,
-    conversions, wide or odd format specs, stray braces) is a FormatError."""
-    bad = _err(man, f"{key} pattern {gspec!r} may only use {{row}} and {{col}}, "
-                    "optionally with a width below 100 such as {row:02d}")
+    conversions, wide or odd format specs, stray braces) is a FormatError
+    (:func:`hyperlf.formats.patterns.pattern_fields` decides)."""
+    from .patterns import pattern_fields
+
     try:
-        fields = [f for f in string.Formatter().parse(gspec) if f[1] is not None]
-    except ValueError:
-        raise bad from None
-    for _, name, spec, conversion in fields:
-        if name not in ("row", "col") or conversion or not _GT_FIELD_SPEC.fullmatch(spec or ""):
-            raise bad
-    return bool(fields)
+        return bool(pattern_fields(gspec, ("row", "col"), what=f"{key} pattern"))
+    except InvalidInputError as exc:
+        raise _err(man, str(exc)) from None
 
 
 def _short_name(man: Path, name: str, key: str = "gt_disparity") -> str:

@@ -49,7 +49,8 @@ def pattern_fields(pattern: str, allowed: Sequence[str], *, what: str = "pattern
     >>> pattern_fields("Cam-{index:02d}.png", ["row", "col", "index"])
     ['index']
     """
-    names = ", ".join("{" + a + "}" for a in allowed)
+    names = [f"{{{a}}}" for a in allowed]
+    names = names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
     bad = InvalidInputError(f"{what} {pattern!r} may only use {names}, optionally with a width "
                             "below 100 such as {" + allowed[0] + ":02d}")
     try:
