@@ -1,0 +1,104 @@
+"""The real-array benchmark of issue 11 on ``real_arrays/msir_lab`` (or any capture of the kind).
+
+    python benchmarks/real_array.py WORK [--data FOLDER] [--labels 41]
+
+Runs, with the documented commands only, ``hyperlf calibrate`` on the board shots, ``hyperlf
+ingest`` of the scene shot *and* of the board shot, ``hyperlf depth`` of both, then prints the
+figures BENCHMARKS.md reports: pixels at a range limit, and the consistency of the two depth maps
+on the pixels valid in both and off the board (the array did not move between the shots).
+Steps whose output folder already exists in WORK are not run again. Full resolution takes about
+10 minutes per depth map on 2 cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+
+def hyperlf(*argv) -> None:
+    subprocess.run([sys.executable, "-m", "hyperlf", *map(str, argv)], check=True)
+
+
+def run_steps(data: Path, work: Path, labels: int) -> None:
+    pattern = "Cam-{index}.png"
+    steps = [
+        ("cal", ["calibrate", data / "calibration", "--pattern", pattern, "--grid", "3,3",
+                 "--board", "11,8"]),
+        ("scene", ["ingest", data / "scene", "--calibration", work / "cal", "--pattern",
+                   pattern]),
+        ("board", ["ingest", data / "calibration", "--calibration", work / "cal", "--pattern",
+                   pattern]),
+        ("scene-depth", ["depth", work / "scene", "--labels", labels]),
+        ("board-depth", ["depth", work / "board", "--labels", labels]),
+    ]
+    for name, argv in steps:
+        if not (work / name).exists():
+            hyperlf(*argv, "-o", work / name)
+
+
+def board_footprint(data: Path, work: Path, shape) -> np.ndarray:
+    """The board in the board shot's reference view: its inner-corner hull grown by 1.5
+    squares (the outer squares and the frame)."""
+    import cv2
+
+    from hyperlf.calibration import BoardSpec, detect_boards, read_calibration
+    from hyperlf.calibration.raw import camera_files, read_camera_images
+
+    cal = read_calibration(work / "cal" / "calibration.toml")
+    ref = cal.reference
+    files = camera_files(data / "calibration", "Cam-{index}.png", cal.grid)
+    img = read_camera_images({ref: files[ref]})[ref]
+    c = detect_boards({ref: img}, BoardSpec(11, 8, 1.0))[ref].reshape(8, 11, 2)
+    square = float(np.median(np.linalg.norm(np.diff(c, axis=1), axis=-1)))
+    hull = cv2.convexHull(c.reshape(-1, 2).astype(np.float32)).reshape(-1, 2)
+    centre = hull.mean(0)
+    r = np.linalg.norm(hull - centre, axis=1, keepdims=True)
+    grown = centre + (hull - centre) * (1 + 1.5 * square / r)
+    mask = np.zeros(shape, np.uint8)
+    cv2.fillConvexPoly(mask, np.round(grown).astype(np.int32), 1)
+    return mask.astype(bool)
+
+
+def figures(data: Path, work: Path) -> None:
+    from hyperlf.formats import load_lightfield, read_pfm
+
+    lf = {k: load_lightfield(work / k) for k in ("scene", "board")}
+    d = {k: read_pfm(work / f"{k}-depth" / "disparity.pfm") for k in lf}
+    ref = lf["scene"].reference
+    lo, hi = lf["scene"].disparity_range
+    at_limit = {k: (np.abs(d[k] - lo) < 1e-3) | (np.abs(d[k] - hi) < 1e-3) for k in d}
+    for k in d:
+        v = lf[k].valid[ref]
+        print(f"{k}: {100 * at_limit[k][v].mean():.2f} % of the valid reference pixels at a "
+              f"range limit ({lo:g}, {hi:g})")
+    both = lf["scene"].valid[ref] & lf["board"].valid[ref]
+    off = both & ~board_footprint(data, work, both.shape)
+    for name, m in (("valid in both, off the board", off),
+                    ("... and at no range limit", off & ~at_limit["scene"] & ~at_limit["board"])):
+        diff = np.abs(d["scene"] - d["board"])[m]
+        print(f"{name}: {100 * m.mean():.1f} % of the pixels; |difference| median "
+              f"{np.median(diff):.3f} px, 90th percentile {np.percentile(diff, 90):.3f} px")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("work", type=Path, help="working folder (outputs are kept and reused)")
+    ap.add_argument("--data", type=Path, default=None,
+                    help="the capture folder (default $HYPERLF_DATA/real_arrays/msir_lab)")
+    ap.add_argument("--labels", type=int, default=41)
+    a = ap.parse_args()
+    data = a.data or Path(os.environ.get("HYPERLF_DATA", "../shared/data")) / "real_arrays" \
+        / "msir_lab"
+    a.work.mkdir(parents=True, exist_ok=True)
+    run_steps(data, a.work, a.labels)
+    figures(data, a.work)
+
+
+if __name__ == "__main__":
+    main()
