@@ -960,14 +960,20 @@ def _add_convert_parser(sub) -> None:
     _add_overwrite_option(p)
 
 
+def _add_pattern_option(p: argparse.ArgumentParser) -> None:
+    """``--pattern``: how a real array's files are named (see :mod:`hyperlf.formats.patterns`)."""
+    p.add_argument("--pattern", required=True,
+                   help="file name of each camera's image, with {index} (raster order) or "
+                        "{row} and {col} (0-based), e.g. 'Cam-{index}.png' or "
+                        "'cam_{row}_{col:02d}.tif'")
+
+
 def _add_calibrate_parser(sub) -> None:
     p = _subcommand(sub, "calibrate", _cmd_calibrate,
                     help="calibrate a camera array from checkerboard shots")
     p.add_argument("shots", help="folder of board shots (one per camera), or of one subfolder "
                                  "per pose")
-    p.add_argument("--pattern", required=True,
-                   help="file name of each camera's image, with {index} (raster order) or "
-                        "{row} and {col}, e.g. 'Cam-{index}.png'")
+    _add_pattern_option(p)
     p.add_argument("--grid", type=_pair_of_ints, required=True, metavar="R,C",
                    help="rows and columns of cameras (names only: positions are measured)")
     p.add_argument("--board", type=_pair_of_ints, required=True, metavar="COLS,ROWS",
@@ -992,8 +998,7 @@ def _add_ingest_parser(sub) -> None:
     p.add_argument("raw", help="folder of the raw images, one per camera")
     p.add_argument("--calibration", required=True,
                    help="calibration.toml from 'hyperlf calibrate' (or its folder)")
-    p.add_argument("--pattern", required=True,
-                   help="file name of each camera's image, with {index} or {row} and {col}")
+    _add_pattern_option(p)
     p.add_argument("--wavelengths", default=None,
                    help="filter centre wavelengths in nm, raster order: comma-separated or a "
                         "file (default: unknown)")

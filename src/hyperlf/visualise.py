@@ -17,6 +17,8 @@ from ._atomic import atomic_path
 from .errors import InvalidInputError
 
 __all__ = [
+    "pyplot",
+    "save_figure",
     "save_disparity_png",
     "save_error_png",
     "save_mosaic_png",
@@ -26,7 +28,8 @@ __all__ = [
 ]
 
 
-def _plt():
+def pyplot():
+    """matplotlib's ``pyplot`` on the non-interactive Agg backend (imported on first use)."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -35,8 +38,10 @@ def _plt():
     return plt
 
 
-def _savefig(fig, path) -> Path:
-    plt = _plt()
+def save_figure(fig, path) -> Path:
+    """Write a matplotlib figure atomically (format from the suffix, PNG by default), close it
+    and return the path: every picture hyperlf draws is written here."""
+    plt = pyplot()
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=110, bbox_inches="tight", format=Path(path).suffix.lstrip(".") or "png")
     plt.close(fig)
@@ -87,7 +92,7 @@ def save_disparity_png(path: str | os.PathLike, disparity: np.ndarray, title: st
     d = np.asarray(disparity, dtype=np.float64)
     if d.ndim != 2:
         raise InvalidInputError(f"disparity must be 2-D, got shape {d.shape}")
-    plt = _plt()
+    plt = pyplot()
     lo, hi = _robust_range(d, vmin, vmax)
     H, W = d.shape
     fig, ax = plt.subplots(figsize=(min(10, 2 + 6 * W / max(H, W)), 6 * H / max(H, W) + 0.6))
@@ -96,7 +101,7 @@ def save_disparity_png(path: str | os.PathLike, disparity: np.ndarray, title: st
     ax.set_title(title)
     ax.set_axis_off()
     fig.colorbar(im, ax=ax, fraction=0.046, pad=0.03, label=label)
-    return _savefig(fig, path)
+    return save_figure(fig, path)
 
 
 def save_error_png(path: str | os.PathLike, estimate: np.ndarray, truth: np.ndarray,
@@ -209,7 +214,7 @@ def save_mosaic_png(path: str | os.PathLike, views: np.ndarray,
             np.clip(v, 0, 1)[..., None], 3, axis=-1)
     else:
         rgb = np.clip(v, 0, 1)
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(R, C, figsize=(1.8 * C, 1.8 * R * H / W + 0.3 * bool(title)),
                              squeeze=False)
     for r in range(R):
@@ -222,7 +227,7 @@ def save_mosaic_png(path: str | os.PathLike, views: np.ndarray,
     if title:
         fig.suptitle(title)
     fig.subplots_adjust(wspace=0.05, hspace=0.25)
-    return _savefig(fig, path)
+    return save_figure(fig, path)
 
 
 def save_spectrum_plot(path: str | os.PathLike, wavelengths: np.ndarray,
@@ -255,7 +260,7 @@ def save_spectrum_plot(path: str | os.PathLike, wavelengths: np.ndarray,
         raise InvalidInputError(
             f"spectra have {sp.shape[-1]} samples but there are {wl.size} wavelengths"
         )
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6, 3.5))
     order = np.argsort(wl)
     for i, s in enumerate(sp):
@@ -270,4 +275,4 @@ def save_spectrum_plot(path: str | os.PathLike, wavelengths: np.ndarray,
     if labels is not None:
         ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
-    return _savefig(fig, path)
+    return save_figure(fig, path)

@@ -13,29 +13,12 @@ from typing import Mapping
 
 import numpy as np
 
-from .._atomic import atomic_path
 from ..errors import InvalidInputError
+from ..visualise import pyplot, save_figure
 from .board import camera_label
 from .model import Calibration
 
 __all__ = ["save_corner_pictures", "save_registration_picture", "save_residual_picture"]
-
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(fig, path) -> Path:
-    plt = _plt()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=110, bbox_inches="tight", format="png")
-    plt.close(fig)
-    return Path(path)
 
 
 def _stretch(img: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
@@ -46,7 +29,7 @@ def _stretch(img: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
 
 
 def _grid_axes(keys, size, title):
-    plt = _plt()
+    plt = pyplot()
     R = max(k[0] for k in keys) + 1
     C = max(k[1] for k in keys) + 1
     W, H = size
@@ -95,7 +78,7 @@ def save_corner_pictures(path: str | os.PathLike, shots: Mapping, corners: Mappi
         ax.scatter(c[:, 0], c[:, 1], c=np.arange(len(c)), cmap="viridis", s=4)
         ax.scatter(c[:1, 0], c[:1, 1], s=40, facecolors="none", edgecolors="red")
         ax.set_title(camera_label(key, names), fontsize=7)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def save_registration_picture(path: str | os.PathLike, views: np.ndarray, valid: np.ndarray, *,
@@ -140,7 +123,7 @@ def save_registration_picture(path: str | os.PathLike, views: np.ndarray, valid:
         for y in np.linspace(0, H - 1, lines + 2)[1:-1]:
             ax.axhline(y, color="cyan", lw=0.4)
         ax.set_title(camera_label((r, c), names), fontsize=7)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def save_residual_picture(path: str | os.PathLike, calibration: Calibration, *,
@@ -188,4 +171,4 @@ def save_residual_picture(path: str | os.PathLike, calibration: Calibration, *,
             ax.quiver(p[:, 0], p[:, 1], k * v[:, 0], k * v[:, 1], angles="xy",
                       scale_units="xy", scale=1, width=0.004, color="crimson")
         ax.set_title(f"{cam.name}: {cam.reprojection_error:.3f} px", fontsize=7)
-    return _save(fig, path)
+    return save_figure(fig, path)
