@@ -124,6 +124,7 @@ __all__ = [
     "prepare",
     "correspondence",
     "defocus_cue",
+    "neutral_missing_views",
     "unary",
     "regularise",
     "refine",
@@ -171,6 +172,10 @@ class DepthParams:
     Occlusion split: ``canny_sigma``, ``canny_low`` / ``canny_high`` (absolute 8-bit Canny
     thresholds; None = automatic, 0.4 x / 1 x the 90th percentile of the Sobel magnitude),
     ``edge_dilate``, ``min_half_views``.
+    Views that cannot see a sample: ``missing_views`` (``"average"``, the default: average
+    over the views that see it; ``"neutral"``: they count the pixel's median cost, see
+    :func:`neutral_missing_views`, which removes the pull of textureless border regions to the
+    range limits).
     Defocus: ``camera``, ``sigma_d`` (96.5 nm), ``achromatic_radius`` (0.01), ``lambda_r``
     (None = by mode; ``"per_label"``, ``"per_pixel"`` or nm), ``p_eps`` (1e-6).
     MRF: ``gamma_c``, ``normalise_costs``, ``smoothness`` (lambda, per disparity unit on the
@@ -196,6 +201,7 @@ class DepthParams:
     canny_high: float | None = None
     edge_dilate: int = 1
     min_half_views: int = 2
+    missing_views: str = "average"
     camera: str = "CIE 1931"
     sigma_d: float = 96.5
     achromatic_radius: float = 0.01
@@ -241,6 +247,9 @@ class DepthParams:
             raise InvalidInputError(f"params.min_selected must be >= 1, got {self.min_selected!r}")
         if int(self.min_half_views) < 1:
             raise InvalidInputError(f"params.min_half_views must be >= 1, got {self.min_half_views!r}")
+        if self.missing_views not in ("average", "neutral"):
+            raise InvalidInputError("params.missing_views must be 'average' or 'neutral', got "
+                                    f"{self.missing_views!r}")
         if int(self.edge_dilate) < 0:
             raise InvalidInputError(f"params.edge_dilate must be >= 0, got {self.edge_dilate!r}")
         if self.impl not in ("auto", "numba", "numpy"):
@@ -390,6 +399,39 @@ def aggregate_view(acc: dict, Cv, valid, Mq, Mbar, M_ref, use_selection: bool,
                            np.ascontiguousarray(edge_idx, np.int64),
                            np.ascontiguousarray(edge_side, np.int8),
                            acc["E_S_sel"], acc["E_N_sel"], acc["E_S_all"], acc["E_N_all"])
+
+
+def neutral_missing_views(C: np.ndarray, n_used: np.ndarray) -> np.ndarray:
+    """Count a view that cannot see a label's sample as a neutral vote, not as absent.
+
+    The plain aggregate averages over the views that see each sample, so a label seen by few
+    views (near the image border, where large shifts leave the other views' images) averages
+    fewer, noisier costs, and in textureless regions its minimum wins by chance: a bias
+    towards the range limits. Here every label is averaged over as many views as the best
+    label of the pixel has, the missing ones counting the pixel's median cost:
+    ``C' = (C n + (n_max - n) median_d C) / n_max``.
+
+    Parameters
+    ----------
+    C : ndarray (L, H, W)
+        Aggregated cost, NaN where no view sees the sample.
+    n_used : ndarray (L, H, W)
+        Number of views averaged per entry.
+
+    Returns
+    -------
+    ndarray (L, H, W), float32
+    """
+    import warnings
+
+    n = np.asarray(n_used, np.float32)
+    n_max = n.max(axis=0, keepdims=True)
+    with warnings.catch_warnings():  # pixels no view sees: all-NaN, stay NaN
+        warnings.simplefilter("ignore", RuntimeWarning)
+        med = np.nanmedian(np.where(n > 0, C, np.nan), axis=0, keepdims=True)
+    out = np.where(n > 0, (np.nan_to_num(C) * n + (n_max - n) * med) / np.maximum(n_max, 1),
+                   np.nan)
+    return out.astype(np.float32)
 
 
 def _finish_aggregation(acc, min_selected, min_half_views, edge_idx, split: bool):
@@ -951,6 +993,8 @@ def correspondence(prob: DepthProblem, *, progress: bool = False, timings=None):
         raise InvalidInputError(
             f"no view overlaps the reference at any disparity in ({dmin:g}, {dmax:g}): "
             "narrow the disparity range")
+    if p.missing_views == "neutral":
+        C = neutral_missing_views(C, n_used)
     C = _reg.fill_invalid(C)
     t_agg += time.perf_counter() - t1
     if timings is not None:

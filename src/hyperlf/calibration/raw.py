@@ -19,6 +19,9 @@ __all__ = ["camera_files", "pose_folders", "read_camera_images", "read_poses"]
 
 _FIELDS = ("index", "row", "col")
 
+#: The most cameras an array may have (the paper's has 30; a grid of millions is a typo).
+MAX_CAMERAS = 4096
+
 
 def _check_pattern(pattern: str) -> None:
     from ..formats.patterns import pattern_fields
@@ -67,6 +70,9 @@ def camera_files(folder: str | os.PathLike, pattern: str, grid: tuple[int, int],
     R, C = (int(v) for v in grid)
     if R < 1 or C < 1 or R * C < 2:
         raise InvalidInputError(f"--grid {R},{C}: an array needs at least two cameras")
+    if R * C > MAX_CAMERAS:
+        raise InvalidInputError(f"--grid {R},{C}: {R * C} cameras is more than the "
+                                f"{MAX_CAMERAS} hyperlf handles; check --grid")
     root = Path(folder)
     real_root = os.path.realpath(root)
     files = {}
