@@ -23,6 +23,10 @@ __all__ = ["BoardSpec", "normalise_for_detection", "detect_board", "detect_board
            "canonical_order", "refine_corners", "camera_label"]
 
 
+#: The most inner corners along one side of a checkerboard (OpenCV needs at least 3).
+MAX_CORNERS = 200
+
+
 @dataclass(frozen=True)
 class BoardSpec:
     """A checkerboard: ``cols x rows`` inner corners, squares of side ``square`` (any unit:
@@ -39,9 +43,10 @@ class BoardSpec:
     square: float = 1.0
 
     def __post_init__(self):
-        if int(self.cols) < 2 or int(self.rows) < 2:
+        if not (3 <= int(self.cols) <= MAX_CORNERS and 3 <= int(self.rows) <= MAX_CORNERS):
             raise InvalidInputError(
-                f"a board needs at least 2 x 2 inner corners, got {self.cols} x {self.rows}")
+                f"a board has 3 to {MAX_CORNERS} inner corners per side (a board of 12 x 9 "
+                f"squares has 11 x 8), got {self.cols} x {self.rows}")
         if not (np.isfinite(self.square) and self.square > 0):
             raise InvalidInputError(f"board square size must be > 0, got {self.square}")
 
