@@ -151,8 +151,9 @@ def test_sigterm_mid_run_of_every_command(rig, cube, tmp_path, name):
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=300)
     after = snapshot(tmp_path)
-    assert proc.returncode in (0, 143), (proc.returncode, err)
-    if proc.returncode == 143:
+    # -15: the signal came in the interpreter's own start-up (a loaded machine), a shell shows 143
+    assert proc.returncode in (0, 143, -signal.SIGTERM), (proc.returncode, err)
+    if proc.returncode != 0:
         assert after == before  # the previous complete set, byte for byte
     assert after.keys() == before.keys()  # never a mix, never a stray temporary
     assert "Traceback" not in err

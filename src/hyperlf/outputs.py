@@ -445,9 +445,9 @@ class _ResultSet:
                     p.rmdir()
 
     def close(self) -> None:
-        for tmp in (self.home / f"{self.stem}.new", self.home / f"{self.stem}.old"):
-            if os.path.lexists(tmp):
-                _remove_tree(tmp)
+        """Remove this run's temporaries; a previous set still set aside (a move that failed
+        half-way) is put back first."""
+        _recover_run(self.home, self.stem)
         if self.lock is not None:
             (self.home / f"{self.stem}.lock").unlink(missing_ok=True)
             self.lock.close()
@@ -465,10 +465,10 @@ def _staged(rs: _ResultSet) -> Iterator[Path]:
     stage = rs.open()
     try:
         yield stage
+        rs.commit()
     except BaseException:
         rs.abort()
         raise
-    rs.commit()
 
 
 @contextlib.contextmanager
