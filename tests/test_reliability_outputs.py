@@ -377,3 +377,24 @@ def test_synth_h5_writes_file_and_pictures_folder_as_one_set(tmp_path, capsys):
     assert main(argv) == 2
     assert main(argv + ["--overwrite"]) == 0
     assert sorted(os.listdir(tmp_path)) == ["lf", "lf.h5"]
+
+
+def test_an_interrupt_lost_in_a_finaliser_is_raised_again(capfd):
+    """Python drops an exception raised inside ``__del__`` or a weakref callback ("Exception
+    ignored in ..."); a signal handled there must still stop the command before it publishes
+    its results, and print nothing."""
+    from hyperlf.outputs import raise_if_interrupted
+
+    class Finalised:
+        def __del__(self):
+            os.kill(os.getpid(), signal.SIGTERM)
+            for _ in range(200):  # the handler runs here, inside the finaliser
+                time.sleep(0.001)
+
+    with signals_as_exceptions():
+        obj = Finalised()
+        del obj  # the Terminated raised in __del__ is lost ...
+        with pytest.raises(Terminated):  # ... and comes back before anything is published
+            raise_if_interrupted()
+    raise_if_interrupted()  # outside the block: forgotten
+    assert "Terminated" not in capfd.readouterr().err

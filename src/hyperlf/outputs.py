@@ -36,6 +36,7 @@ import json
 import os
 import secrets
 import signal
+import sys
 import threading
 from pathlib import Path
 from typing import Iterable, Iterator, Sequence
@@ -52,6 +53,7 @@ __all__ = [
     "clean_stale",
     "deferred_signals",
     "signals_as_exceptions",
+    "raise_if_interrupted",
 ]
 
 MANIFEST = ".hyperlf-result.json"
@@ -90,30 +92,62 @@ def deferred_signals() -> Iterator[None]:
             signal.raise_signal(pending[0])
 
 
-def _raise_terminated(signum, frame):  # noqa: ARG001 - the signal module's signature
-    raise Terminated(signum)
+#: Signals received inside :func:`signals_as_exceptions`, kept because the exception a handler
+#: raises is lost when Python happens to run the handler inside a ``__del__`` or a weakref
+#: callback ("Exception ignored in ..."): :func:`raise_if_interrupted` raises it again.
+_RECEIVED: list[int] = []
+
+
+def _raise_interrupt(signum, frame):  # noqa: ARG001 - the signal module's signature
+    _RECEIVED.append(signum)
+    raise KeyboardInterrupt if signum == signal.SIGINT else Terminated(signum)
+
+
+def raise_if_interrupted() -> None:
+    """Raise the interrupt of a signal whose exception was swallowed (see :data:`_RECEIVED`).
+
+    Called before a result set is moved into place, so that a run whose interrupt was lost
+    never publishes its results as if nothing had happened.
+    """
+    if _RECEIVED:
+        signum = _RECEIVED[0]
+        raise KeyboardInterrupt if signum == signal.SIGINT else Terminated(signum)
+
+
+def _quiet_unraisable(previous):
+    """An ``unraisablehook`` that keeps interrupts lost in callbacks silent (they are raised
+    again by :func:`raise_if_interrupted`) and passes everything else on."""
+    def hook(args):
+        if not isinstance(args.exc_value, KeyboardInterrupt):
+            previous(args)
+    return hook
 
 
 @contextlib.contextmanager
 def signals_as_exceptions() -> Iterator[None]:
-    """Turn SIGTERM and SIGHUP into :class:`~hyperlf.errors.Terminated` (SIGINT already raises
-    ``KeyboardInterrupt``) for the block, so that clean-up code runs as on Ctrl-C.
+    """Turn SIGINT into ``KeyboardInterrupt`` and SIGTERM / SIGHUP into
+    :class:`~hyperlf.errors.Terminated` for the block, so that clean-up code runs alike.
 
-    A signal the process ignores (``nohup``, a background job) stays ignored. The previous
-    handlers are restored at the end. Outside the main thread this does nothing.
+    A signal the process ignores (``nohup``, a background job) stays ignored. An interrupt that
+    Python loses (raised inside a ``__del__`` or weakref callback) is remembered and raised
+    again by :func:`raise_if_interrupted`. The previous handlers are restored at the end.
+    Outside the main thread this does nothing.
     """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     previous = {}
     for sig in _HELD_SIGNALS:
-        if sig != signal.SIGINT and signal.getsignal(sig) not in (signal.SIG_IGN, None):
-            previous[sig] = signal.signal(sig, _raise_terminated)
+        if signal.getsignal(sig) not in (signal.SIG_IGN, None):
+            previous[sig] = signal.signal(sig, _raise_interrupt)
+    hook, _RECEIVED[:] = sys.unraisablehook, []
+    sys.unraisablehook = _quiet_unraisable(hook)
     try:
         yield
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+        sys.unraisablehook, _RECEIVED[:] = hook, []
 
 
 # ----------------------------------------------------------------------------- manifests
@@ -417,6 +451,7 @@ class _ResultSet:
 
     def commit(self) -> None:
         """Move the staged outputs into place (signals held back meanwhile)."""
+        raise_if_interrupted()
         with deferred_signals():
             self.check()
             if self.inplace:
