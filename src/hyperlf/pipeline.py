@@ -446,8 +446,8 @@ def run_calibration(shots: str | os.PathLike, out_dir: str | os.PathLike, *, pat
     cal = cal_mod.calibrate(per, spec, mode=mode, reference=reference, names=names, **opts)
     written = [cal_mod.write_calibration(cal, out / "calibration.toml")]
     first = {k: v[0] for k, v in per.items()}
-    corners = cal_mod.detect_boards(first, spec, names=names)
-    written.append(cal_mod.save_corner_pictures(out / "corners.png", first, corners, names=names))
+    written.append(cal_mod.save_corner_pictures(out / "corners.png", first, cal.corners,
+                                                names=names))
     views, valid = cal_mod.apply_calibration(cal, first)
     written.append(cal_mod.save_registration_picture(out / "registered.png", views, valid,
                                                      names=names))

@@ -224,4 +224,5 @@ def calibrate_full(shots: Mapping, board: BoardSpec, *, reference=None, names=No
             "planarity": rect["planarity"], "poses": int(counts.pop())}
     return Calibration(mode="full", grid=grid, reference=ref, image_size=size, output_size=size,
                        camera_matrix=rect["K"], cameras=cams, board=board,
-                       baseline=rect["baseline"], info=info, residuals=resid)
+                       baseline=rect["baseline"], info=info, residuals=resid,
+                       corners={k: corners[k].get(0) for k in shots})

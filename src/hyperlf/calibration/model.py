@@ -92,6 +92,9 @@ class Calibration:
     residuals : dict (row, col) -> (points (N, 2), vectors (N, 2))
         Corner residuals in px of the calibration run (not stored in the file): plane mode,
         the mapped corners minus the reference's; full mode, reprojected minus detected.
+    corners : dict (row, col) -> ndarray (N, 2) or None
+        The board corners detected in each camera's first shot (None where the board was not
+        found in it), for pictures; not stored in the file.
     """
 
     mode: str
@@ -106,6 +109,7 @@ class Calibration:
     board_plane: np.ndarray | None = None
     info: dict[str, Any] = field(default_factory=dict)
     residuals: dict = field(default_factory=dict, repr=False)
+    corners: dict = field(default_factory=dict, repr=False)
 
     @property
     def focal_px(self) -> float:

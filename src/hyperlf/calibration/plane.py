@@ -298,7 +298,7 @@ def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=No
     pos, agree = resolve_positions(offsets, geo["centres"], ref)
     info["sign_agreement"] = agree
     cal = _plane_calibration(grid, ref, size, Hs, errs, pos, geo, board, names, info)
-    cal.residuals = resid
+    cal.residuals, cal.corners = resid, corners
     return cal
 
 
