@@ -88,7 +88,6 @@ def run_chains(tmp_path_factory, **kw):
         rig = make_rig(2, 3, seed=21, imperfect=imperfect)
         tmp = tmp_path_factory.mktemp(name)
         Z = chain(tmp, rig, **kw)
-        ref = rig.reference
         out[name] = dict(tmp=tmp, rig=rig, Z=Z, truth=truth_in_output_frame(tmp, rig),
                          lf=load_lightfield(tmp / "cap"))
     return out
