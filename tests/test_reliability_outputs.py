@@ -398,3 +398,38 @@ def test_an_interrupt_lost_in_a_finaliser_is_raised_again(capfd):
             raise_if_interrupted()
     raise_if_interrupted()  # outside the block: forgotten
     assert "Terminated" not in capfd.readouterr().err
+
+
+def test_an_extension_module_initialises_whole_under_an_interrupt(monkeypatch):
+    """An interrupt raised inside a compiled extension's initialisation used to leave it half
+    made ("ImportError: initialization failed" from matplotlib's ft2font, then SIGABRT when the
+    interpreter exited, seen in CI): the interrupt now waits for the initialisation to end."""
+    import importlib.machinery
+    import importlib.util
+    import sys
+
+    def extension(n):
+        spec = n not in sys.modules and importlib.util.find_spec(n)
+        return bool(spec) and isinstance(spec.loader, importlib.machinery.ExtensionFileLoader)
+
+    real, events = importlib.machinery.ExtensionFileLoader.create_module, []
+
+    def interrupted_create(self, spec):  # the signal lands in the middle of the C init
+        os.kill(os.getpid(), signal.SIGINT)
+        for _ in range(100):
+            time.sleep(0.001)
+        module = real(self, spec)
+        events.append(spec.name)
+        return module
+
+    monkeypatch.setattr(importlib.machinery.ExtensionFileLoader, "create_module",
+                        interrupted_create)
+    for name in [n for n in ("_testmultiphase", "_testbuffer", "xxlimited") if extension(n)]:
+        try:
+            with pytest.raises(KeyboardInterrupt):
+                with signals_as_exceptions():
+                    __import__(name)
+        finally:
+            sys.modules.pop(name, None)
+        assert events[-1] == name
+    assert events and outputs._AtomicExtensionImports not in sys.meta_path

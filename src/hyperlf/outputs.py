@@ -32,6 +32,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import errno
+import importlib.machinery
 import json
 import os
 import secrets
@@ -123,6 +124,37 @@ def _quiet_unraisable(previous):
     return hook
 
 
+class _ExtensionLoader(importlib.machinery.ExtensionFileLoader):
+    """Loads a compiled extension module with the signals deferred in each phase of its C
+    initialisation (see below)."""
+
+    def create_module(self, spec):
+        with deferred_signals():
+            return super().create_module(spec)
+
+    def exec_module(self, module):
+        with deferred_signals():
+            super().exec_module(module)
+
+
+class _AtomicExtensionImports:
+    """A meta-path finder that makes the initialisation of compiled extension modules atomic.
+
+    An interrupt raised while an extension initialises (matplotlib's ``ft2font`` calls back into
+    Python there) is turned by it into ``ImportError: initialization failed`` and leaves the
+    extension half made; the interpreter then aborts when it exits (SIGABRT, "Fatal Python
+    error ... finalizing"). Pure-Python modules are left alone: an interrupt there is clean.
+    """
+
+    @staticmethod
+    def find_spec(name, path=None, target=None):
+        spec = importlib.machinery.PathFinder.find_spec(name, path, target)
+        if spec is None or type(spec.loader) is not importlib.machinery.ExtensionFileLoader:
+            return None  # the finders after this one do the usual work
+        spec.loader = _ExtensionLoader(spec.loader.name, spec.loader.path)
+        return spec
+
+
 @contextlib.contextmanager
 def signals_as_exceptions() -> Iterator[None]:
     """Turn SIGINT into ``KeyboardInterrupt`` and SIGTERM / SIGHUP into
@@ -130,8 +162,9 @@ def signals_as_exceptions() -> Iterator[None]:
 
     A signal the process ignores (``nohup``, a background job) stays ignored. An interrupt that
     Python loses (raised inside a ``__del__`` or weakref callback) is remembered and raised
-    again by :func:`raise_if_interrupted`. The previous handlers are restored at the end.
-    Outside the main thread this does nothing.
+    again by :func:`raise_if_interrupted`. Compiled extension modules imported in the block
+    initialise with the signals deferred (:class:`_AtomicExtensionImports`). The previous
+    handlers are restored at the end. Outside the main thread this does nothing.
     """
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -142,9 +175,11 @@ def signals_as_exceptions() -> Iterator[None]:
             previous[sig] = signal.signal(sig, _raise_interrupt)
     hook, _RECEIVED[:] = sys.unraisablehook, []
     sys.unraisablehook = _quiet_unraisable(hook)
+    sys.meta_path.insert(0, _AtomicExtensionImports)
     try:
         yield
     finally:
+        sys.meta_path.remove(_AtomicExtensionImports)
         for sig, handler in previous.items():
             signal.signal(sig, handler)
         sys.unraisablehook, _RECEIVED[:] = hook, []
