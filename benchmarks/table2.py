@@ -103,6 +103,8 @@ ABLATIONS = {
     "sgm": ({"optimizer": "sgm"}, "SGM instead of graph cuts"),
     "bwncc_paper": ({"metric": "bwncc-paper"}, "cost bwncc-paper"),
     "no_median": ({"params": DepthParams(median_radius=0)}, "without the weighted-median post-filter"),
+    "no_texture": ({"params": DepthParams(texture_snr=0)},
+                   "without the textureless-region weight"),
     # not a single toggle: the two cues that helped most with the stand-in costs, together
     "selection_split": ({"view_selection": True, "occlusion_split": True},
                         "+ view selection + occlusion split"),

@@ -571,8 +571,9 @@ def _cmd_depth(args, dest) -> list[Path]:
     if args.method == "hlf":
         from .hlf import DepthParams, depth
 
-        params = (None if args.median_radius is None
-                  else DepthParams(median_radius=args.median_radius))
+        options = {k: v for k, v in (("median_radius", args.median_radius),
+                                     ("texture_snr", args.texture_snr)) if v is not None}
+        params = DepthParams(**options) if options else None
         if lf.views.ndim != 4:
             raise InvalidInputError("the hlf method needs monochrome spectral views; use "
                                     "--method tao2013|wang2015|lin2015 for colour light fields "
@@ -1058,6 +1059,15 @@ def _add_depth_parser(sub) -> None:
     p.add_argument("--median-radius", type=int, default=None, metavar="PX",
                    help="radius of the guided weighted-median post-filter that snaps depth "
                         "edges to image edges (default 4; 0 turns it off)")
+    p.add_argument("--texture-snr", type=_float_within(0.0, 1e6, "--texture-snr"),
+                   default=None, metavar="T",
+                   help="pixels whose matching window holds less texture than T times the "
+                        "sensor noise (estimated from the reference view) count less, so that "
+                        "textureless regions (a white table, a wall) take their depth from "
+                        "their surroundings instead of a chance cost minimum (> 1, or 0 for "
+                        "off; default: 2 for captures made by 'hyperlf ingest' from camera "
+                        "images, off for rendered and synthetic light fields, whose "
+                        "pixel-scale texture one image cannot tell from noise)")
     p.add_argument("--save-intermediate", action="store_true",
                    help="also write correspondence-only and defocus-only maps")
     _add_output_folder(p)

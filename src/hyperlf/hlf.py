@@ -86,6 +86,16 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
    (``U``; the SGM-aggregated volume for SGM) around the winning label.  Confidence:
    :func:`hyperlf.regularisers.confidence` of that volume.
 
+   **Textureless regions** (:func:`texture_weight`, ``params.texture_snr``): a reference pixel
+   whose matching window holds less texture than ``texture_snr`` times the sensor noise
+   (estimated on the reference view) has ``U`` scaled down (to 0 where the window's texture
+   variance is below the noise variance), and its confidence too.  There every cost is
+   noise, and a large such region (a white table) would otherwise take whichever label
+   chance favours, often a range limit (fewer views see the extreme shifts); with its data
+   term gone it takes its label from its surroundings through the pairwise term.  On by
+   default for captures made from camera images (``hyperlf ingest``), off for rendered and
+   synthetic light fields (see :class:`DepthParams`) and under ``"wta"``.
+
 Defaults
 --------
 Every cue of 2-4 has an on/off switch, and a cue that did not lower the error on the tuning
@@ -125,6 +135,7 @@ __all__ = [
     "correspondence",
     "defocus_cue",
     "neutral_missing_views",
+    "texture_weight",
     "unary",
     "regularise",
     "refine",
@@ -153,6 +164,8 @@ OPTIMIZERS = tuple(_reg.OPTIMISERS)
 #: :func:`hyperlf.costs.cost_names` with ``light_field=True`` is the live list).
 CORR_METRICS = cost_names(light_field=True)
 _PRIOR_CODE = {"gaussian": 0, "flat": 1, "tv": 2}
+#: ``DepthParams.texture_snr`` used by default for captures made from camera images.
+CAMERA_TEXTURE_SNR = 2.0
 
 
 # ============================================================================================
@@ -176,6 +189,18 @@ class DepthParams:
     over the views that see it; ``"neutral"``: they count the pixel's median cost, see
     :func:`neutral_missing_views`, which removes the pull of textureless border regions to the
     range limits).
+    Textureless regions: ``texture_snr`` (None, the default: 2 for a capture made from camera
+    images by ``hyperlf ingest``, i.e. with ``"calibration"`` metadata, else off; 0 = off;
+    else > 1) and ``texture_window`` (5 px):
+    a reference pixel whose window holds texture ``t`` (:func:`hyperlf.imageops.texture_snr`,
+    in units of the estimated sensor noise) below ``texture_snr`` has its data term scaled
+    down, to 0 at ``t <= 1`` (:func:`texture_weight`), so that a white table or wall, where every
+    cost is noise, follows its surroundings through the MRF instead of a cost minimum that
+    chance put at a range limit.  Off by default for rendered and synthetic light fields: a
+    single image cannot tell pixel-scale texture from noise (:func:`hyperlf.imageops.noise_sigma`
+    separates only texture that does not halve under binning), and the benchmark scenes have
+    such texture; a camera's optics blur the scene below the pixel, so there the finest
+    variation is the sensor's noise.
     Defocus: ``camera``, ``sigma_d`` (96.5 nm), ``achromatic_radius`` (0.01), ``lambda_r``
     (None = by mode; ``"per_label"``, ``"per_pixel"`` or nm), ``p_eps`` (1e-6).
     MRF: ``gamma_c``, ``normalise_costs``, ``smoothness`` (lambda, per disparity unit on the
@@ -202,6 +227,8 @@ class DepthParams:
     edge_dilate: int = 1
     min_half_views: int = 2
     missing_views: str = "average"
+    texture_snr: float | None = None
+    texture_window: int = 5
     camera: str = "CIE 1931"
     sigma_d: float = 96.5
     achromatic_radius: float = 0.01
@@ -233,6 +260,15 @@ class DepthParams:
                                         or self.window % 2 == 0):
             raise InvalidInputError(f"params.window must be None or an odd int >= 1, got {self.window!r}")
         pos("tau_rel", self.tau_rel, True)
+        if self.texture_snr is not None:
+            pos("texture_snr", self.texture_snr, True)
+        if self.texture_snr is not None and 0 < self.texture_snr <= 1:
+            raise InvalidInputError("params.texture_snr must be 0 (off) or > 1, got "
+                                    f"{self.texture_snr!r}")
+        if isinstance(self.texture_window, bool) or int(self.texture_window) != \
+                self.texture_window or self.texture_window < 3 or self.texture_window % 2 == 0:
+            raise InvalidInputError("params.texture_window must be an odd integer >= 3, got "
+                                    f"{self.texture_window!r}")
         pos("eps", self.eps)
         pos("block", self.block)
         pos("canny_sigma", self.canny_sigma, True)
@@ -278,7 +314,8 @@ class DepthResult:
     timings : seconds per stage.
     config : every setting used (JSON-friendly).
     intermediate : with ``save_intermediate``: ``C``, ``D`` (or None), ``unary``, ``edges``,
-        ``lambda_r`` (or None), ``n_selected`` (views used per (d, p) before the split).
+        ``lambda_r`` (or None), ``n_selected`` (views used per (d, p) before the split),
+        ``texture_weight`` (or None).
     """
 
     disparity: np.ndarray
@@ -1028,11 +1065,44 @@ def defocus_cue(prob: DepthProblem, f_c: np.ndarray):
                           p.sigma_d, p.achromatic_radius, p.p_eps, prob.impl, valid=valid)
 
 
-def unary(C: np.ndarray, D: np.ndarray | None, params: DepthParams, *, informative=None):
-    """Stage 4a of :func:`depth`: ``U = gamma_c norm(C) + norm(D)`` (SPEC §5.4).
+def texture_weight(prob: DepthProblem) -> np.ndarray | None:
+    """Stage 4a of :func:`depth`: how much each reference pixel's data term counts.
+
+    ``clip((t^2 - 1) / (texture_snr^2 - 1), 0, 1)`` with ``t`` the texture-to-noise ratio of
+    the pixel's ``texture_window`` (:func:`hyperlf.imageops.texture_snr`; noise estimated on
+    the valid pixels of the reference view): 0 while the window's texture variance is below
+    one noise variance (a window of pure noise has ``t`` < 1 nineteen times out of twenty),
+    rising linearly in texture variance to 1 at ``texture_snr^2`` noise variances.
+
+    Returns
+    -------
+    ndarray, float32 (H, W) in [0, 1], or None
+        None when the weight is off (``params.texture_snr`` 0, or None for a light field that
+        does not come from cameras), every weight is 1 (a noise-free image), or the
+        optimiser is ``"wta"`` (no neighbours to take a label from: the costs decide alone).
+    """
+    from .imageops import texture_snr
+
+    p = prob.params
+    t0 = p.texture_snr
+    if t0 is None:
+        t0 = CAMERA_TEXTURE_SNR if "calibration" in prob.lf.metadata else 0.0
+    if t0 == 0 or prob.optimizer == "wta":
+        return None
+    ref = prob.reference
+    t = texture_snr(prob.In[ref], int(p.texture_window),
+                    valid=None if prob.valid is None else prob.valid[ref])
+    w = np.clip((t * t - 1.0) / (t0 ** 2 - 1.0), 0.0, 1.0).astype(np.float32)
+    return None if bool((w >= 1).all()) else w
+
+
+def unary(C: np.ndarray, D: np.ndarray | None, params: DepthParams, *, informative=None,
+          weight=None):
+    """Stage 4b of :func:`depth`: ``U = w (gamma_c norm(C) + norm(D))`` (SPEC §5.4).
 
     ``informative`` (bool (H, W), optional; :func:`seen_pixels`): the pixels the normalisers
     are measured on; elsewhere ``U`` is 0 at every label (no information: the MRF decides).
+    ``weight`` (float (H, W) in [0, 1], optional; :func:`texture_weight`): ``w``, 1 if None.
 
     Returns
     -------
@@ -1048,11 +1118,13 @@ def unary(C: np.ndarray, D: np.ndarray | None, params: DepthParams, *, informati
         U = U + Dn
     if informative is not None:
         U = np.where(np.asarray(informative, bool)[None], U, np.float32(0))
+    if weight is not None:
+        U = U * np.asarray(weight, np.float32)[None]
     return np.ascontiguousarray(U, np.float32), sC, sD
 
 
 def regularise(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray):
-    """Stage 4b of :func:`depth`: optimise the MRF on ``U`` (SPEC §5.4).
+    """Stage 4c of :func:`depth`: optimise the MRF on ``U`` (SPEC §5.4).
 
     Returns
     -------
@@ -1074,10 +1146,12 @@ def regularise(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray):
 
 
 def refine(volume: np.ndarray, labels_map: np.ndarray, labels: np.ndarray,
-           params: DepthParams, *, informative=None):
+           params: DepthParams, *, informative=None, weight=None):
     """Stage 5 of :func:`depth`: sub-pixel disparity and confidence.
 
     ``informative`` (bool (H, W), optional; :func:`seen_pixels`): confidence is 0 elsewhere.
+    ``weight`` (optional; :func:`texture_weight`): the confidence is scaled by it (a pixel
+    whose data term was discounted is as trustworthy as its neighbours' labels, no more).
 
     Returns
     -------
@@ -1094,6 +1168,8 @@ def refine(volume: np.ndarray, labels_map: np.ndarray, labels: np.ndarray,
     conf = confidence(volume, labels_map)
     if informative is not None:
         conf = np.where(np.asarray(informative, bool), conf, np.float32(0)).astype(np.float32)
+    if weight is not None:
+        conf = (conf * np.asarray(weight, np.float32)).astype(np.float32)
     return disp, conf
 
 
@@ -1137,8 +1213,9 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
     """Disparity of the reference view of an H-LF (SPEC §5).
 
     A list of stages, each a public function that can be run and tested alone:
-    :func:`prepare` -> :func:`correspondence` -> :func:`defocus_cue` -> :func:`unary` ->
-    :func:`regularise` -> :func:`refine` -> :func:`post_filter`.
+    :func:`prepare` -> :func:`correspondence` -> :func:`defocus_cue` ->
+    :func:`texture_weight` -> :func:`unary` -> :func:`regularise` -> :func:`refine` ->
+    :func:`post_filter`.
 
     Parameters
     ----------
@@ -1203,17 +1280,19 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
     f_d = None if D is None else prob.labels[np.argmin(D, axis=0)].astype(np.float32)
     clock.lap("defocus_s")
     seen = seen_pixels(prob, n_used)
-    U, sC, sD = unary(C, D, prob.params, informative=seen)
+    w = texture_weight(prob)
+    U, sC, sD = unary(C, D, prob.params, informative=seen, weight=w)
     lab, vol = regularise(prob, U, f_c)
     clock.lap("mrf_s")
-    disp, conf = refine(vol, lab, prob.labels, prob.params, informative=seen)
+    disp, conf = refine(vol, lab, prob.labels, prob.params, informative=seen, weight=w)
     clock.lap("refine_s")
     disp = post_filter(disp, prob.In[prob.reference].astype(np.float32), prob.params)
     clock.lap("median_s")
     timings["total_s"] = time.perf_counter() - t0
     inter = None
     if save_intermediate:
-        inter = dict(C=C, D=D, unary=U, edges=prob.edges, lambda_r=lam_r, n_selected=n_used)
+        inter = dict(C=C, D=D, unary=U, edges=prob.edges, lambda_r=lam_r, n_selected=n_used,
+                     texture_weight=w)
     return DepthResult(disparity=np.asarray(disp, np.float32), confidence=conf, f_c=f_c,
                        f_d=f_d, labels=prob.labels, timings=timings,
                        config=_config(prob, sC, sD), intermediate=inter)

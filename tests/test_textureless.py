@@ -1,0 +1,158 @@
+"""Textureless regions (issue 11 item 3): the noise estimate, the texture-to-noise ratio, and
+the data-term weight that lets a region no cost can match follow its surroundings."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+from scipy.ndimage import gaussian_filter
+
+from hyperlf.errors import InvalidInputError
+from hyperlf.hlf import DepthParams, depth, prepare, texture_weight
+from hyperlf.imageops import noise_sigma, texture_snr
+from hyperlf.lightfield import LightField
+
+
+def _fractal(rng, shape):
+    """Texture with about the 1/f amplitude spectrum of natural images, unit std."""
+    out = np.zeros(shape)
+    for scale in (0.7, 1.5, 3, 6, 12):
+        g = gaussian_filter(rng.standard_normal(shape), scale)
+        out += scale * g / g.std()
+    return out / out.std()
+
+
+# ----------------------------------------------------------------------------- noise
+@pytest.mark.parametrize("sigma", [0.002, 0.01, 0.05])
+def test_noise_sigma_recovers_white_noise_on_shading_and_edges(sigma):
+    rng = np.random.default_rng(1)
+    yy, xx = np.mgrid[0:200, 0:240]
+    clean = 0.3 + 0.002 * xx + 0.1 * ((xx - 120) ** 2 + (yy - 100) ** 2) / 3e4
+    clean[60:140, 80:160] += 0.4  # a bright square: edges are a minority of pixels
+    img = clean + sigma * rng.standard_normal(clean.shape)
+    assert noise_sigma(img) == pytest.approx(sigma, rel=0.06)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_noise_sigma_tells_texture_from_noise(seed):
+    """Pixel-scale texture (natural or rendered, about scale invariant) does not halve when the
+    image is binned 2 x 2, white noise does: texture alone is not taken for noise."""
+    rng = np.random.default_rng(seed)
+    texture = 0.5 + 0.1 * _fractal(rng, (160, 200))
+    assert noise_sigma(texture) < 0.001
+    assert noise_sigma(texture + 0.01 * rng.standard_normal(texture.shape)) == \
+        pytest.approx(0.01, rel=0.1)
+    half = texture.copy()
+    half[80:] = 0.5
+    assert noise_sigma(half + 0.01 * rng.standard_normal(half.shape)) == \
+        pytest.approx(0.01, rel=0.1)
+
+
+def test_noise_sigma_of_clean_images_and_masks():
+    yy, xx = np.mgrid[0:50, 0:60]
+    assert noise_sigma(0.5 + 0.01 * xx + 0.02 * yy) == pytest.approx(0.0, abs=1e-12)
+    assert noise_sigma(np.ones((2, 9))) == 0.0
+    rng = np.random.default_rng(2)
+    img = 0.5 + 0.01 * rng.standard_normal((100, 100))
+    img[:, 50:] += 0.2 * rng.standard_normal((100, 50))  # heavy noise, masked out
+    valid = np.zeros(img.shape, bool)
+    valid[:, :48] = True
+    assert noise_sigma(img, valid=valid) == pytest.approx(0.01, rel=0.08)
+    assert noise_sigma(img, valid=np.zeros(img.shape, bool)) == 0.0
+
+
+@pytest.mark.parametrize("amplitude", [1.0, 4.0, 10.0])
+def test_texture_snr_measures_texture_in_noise_units(amplitude):
+    rng = np.random.default_rng(3)
+    sigma = 0.01
+    noise = sigma * rng.standard_normal((120, 240))
+    texture = amplitude * sigma * rng.standard_normal((120, 240))
+    img = 0.5 + noise
+    img[:, 120:] += texture[:, 120:]
+    t = texture_snr(img, 5, sigma=sigma)
+    assert np.median(t[:, :115]) < 0.5  # noise alone
+    # E[var_5x5] = (1 - 1/25)(a^2 + 1) sigma^2 for white texture of std a sigma
+    expected = np.sqrt(0.96 * (amplitude ** 2 + 1) - 1)
+    assert np.median(t[:, 125:]) == pytest.approx(expected, rel=0.15)
+
+
+def test_texture_snr_of_a_noise_free_image_is_infinite():
+    assert np.isinf(texture_snr(np.full((10, 10), 0.5), 3)).all()
+
+
+@given(window=st.one_of(st.integers(-3, 2), st.integers(3, 40).filter(lambda w: w % 2 == 0),
+                        st.floats(3.1, 9.9), st.booleans()))
+@settings(max_examples=30, deadline=None, derandomize=True)
+def test_texture_snr_refuses_bad_windows(window):
+    with pytest.raises(InvalidInputError, match="odd integer >= 3"):
+        texture_snr(np.zeros((8, 8)), window)
+
+
+@pytest.mark.parametrize("bad", [{"texture_snr": -1}, {"texture_snr": float("nan")},
+                                 {"texture_snr": 1}, {"texture_snr": 0.5},
+                                 {"texture_window": 4}, {"texture_window": 1},
+                                 {"texture_window": True}, {"texture_window": 5.5}])
+def test_depth_params_check_the_texture_options(bad):
+    with pytest.raises(InvalidInputError, match="texture_"):
+        DepthParams(**bad)
+
+
+# ----------------------------------------------------------------------------- matching
+H, W, D0, BORDER = 96, 128, 1.0, 12
+
+
+def _table_scene(seed):
+    """A fronto-parallel plane at disparity ``D0``: textured above, a uniform (white-table-like)
+    band over the bottom half; per-view gain (the filters), vignetting centred on each
+    camera, white noise, and the outer views' borders invalid (what registration leaves)."""
+    rng = np.random.default_rng(seed)
+    pad = 8
+    canvas = 0.5 + 0.15 * _fractal(rng, (H + 2 * pad, W + 2 * pad))
+    canvas[pad + H // 2:, :] = 0.5
+    yy, xx = np.mgrid[0:H, 0:W]
+    vignetting = 1 - 1.4 * (((yy - H / 2) / H) ** 2 + ((xx - W / 2) / W) ** 2)
+    views = np.empty((3, 3, H, W))
+    for r in range(3):
+        for c in range(3):
+            y0, x0 = pad + int(D0 * (r - 1)), pad + int(D0 * (c - 1))
+            views[r, c] = rng.uniform(0.7, 1.3) * vignetting * canvas[y0:y0 + H, x0:x0 + W]
+    views += 0.005 * rng.standard_normal(views.shape)
+    valid = np.ones(views.shape, bool)
+    valid[:, 0, :, :BORDER] = valid[:, 2, :, -BORDER:] = False
+    valid[0, :, :BORDER, :] = valid[2, :, -BORDER:, :] = False
+    return LightField(np.where(valid, views, 0).astype(np.float32),
+                      np.linspace(420, 680, 9).reshape(3, 3), disparity_range=(-6.0, 6.0),
+                      valid=valid)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_textureless_region_follows_its_surroundings(seed):
+    lf = _table_scene(seed)
+    on = depth(lf, n_labels=25, params=DepthParams(texture_snr=2))
+    off = depth(lf, n_labels=25, params=DepthParams(texture_snr=0))
+    inner = np.s_[H // 2 + 8:, :]
+    err_on = np.abs(on.disparity[inner] - D0)
+    assert np.percentile(err_on, 95) < 0.1
+    assert np.median(np.abs(off.disparity[inner] - D0)) >= 0.4  # the scene needs the weight
+    textured = np.s_[BORDER:H // 2 - 8, BORDER:-BORDER]
+    err_tex = [np.percentile(np.abs(r.disparity[textured] - D0), 95) for r in (on, off)]
+    assert err_tex[0] < 0.1 and err_tex[0] <= err_tex[1] + 0.02  # the texture is not lost
+    assert on.confidence[inner].mean() < 0.5 * on.confidence[textured].mean()
+
+
+def test_texture_weight_is_on_by_default_for_camera_captures_only():
+    lf = _table_scene(0)
+    camera = lf.replace(metadata={"calibration": {"mode": "plane"}})
+    assert texture_weight(prepare(lf, n_labels=8)) is None  # synthetic: off
+    w = texture_weight(prepare(camera, n_labels=8))
+    on = depth(camera, n_labels=25)
+    assert np.percentile(np.abs(on.disparity[H // 2 + 8:] - D0), 95) < 0.1
+    assert np.array_equal(w, texture_weight(prepare(lf, n_labels=8,
+                                                    params=DepthParams(texture_snr=2))))
+    assert w.dtype == np.float32 and w.shape == (H, W)
+    assert np.percentile(w[H // 2 + 8:], 90) < 0.05
+    assert np.percentile(w[BORDER:H // 2 - 8, BORDER:-BORDER], 90) == 1.0
+    for kw in (dict(params=DepthParams(texture_snr=0)), dict(optimizer="wta")):
+        assert texture_weight(prepare(camera, n_labels=8, **kw)) is None
+    clean = camera.replace(views=np.full(lf.views.shape, 0.5, np.float32)
+                           + np.linspace(0, 0.1, W, dtype=np.float32))
+    assert texture_weight(prepare(clean, n_labels=8)) is None  # no noise: every weight 1
