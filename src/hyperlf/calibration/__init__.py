@@ -23,7 +23,8 @@ the centre of that grid.
 
 from __future__ import annotations
 
-from typing import Mapping
+import contextlib
+from typing import Iterator, Mapping
 
 import numpy as np
 
@@ -78,8 +79,25 @@ def calibrate(shots: Mapping, board: BoardSpec, *, mode: str = "auto", reference
     per = {k: ([v] if isinstance(v, np.ndarray) and np.ndim(v) == 2 else list(v))
            for k, v in shots.items()}
     n = min((len(v) for v in per.values()), default=0)
-    if mode == "full" or (mode == "auto" and n >= 3):
-        options.pop("focal_px", None)  # a full calibration measures every camera's own
-        return calibrate_full(per, board, reference=reference, names=names, **options)
-    return register_plane({k: v[0] for k, v in per.items()}, board, reference=reference,
-                          names=names, **options)
+    with _reproducible_opencv():
+        if mode == "full" or (mode == "auto" and n >= 3):
+            options.pop("focal_px", None)  # a full calibration measures every camera's own
+            return calibrate_full(per, board, reference=reference, names=names, **options)
+        return register_plane({k: v[0] for k, v in per.items()}, board, reference=reference,
+                              names=names, **options)
+
+
+@contextlib.contextmanager
+def _reproducible_opencv() -> Iterator[None]:
+    """Run OpenCV on one thread in the block.  With its parallel loops, the same board shots
+    gave focal lengths differing in the fifth digit from run to run (and depth maps that
+    differed by a few percent downstream); one thread makes a calibration reproducible bit
+    for bit."""
+    import cv2
+
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        yield
+    finally:
+        cv2.setNumThreads(before)
