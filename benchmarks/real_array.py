@@ -1,13 +1,15 @@
 """The real-array benchmark of issue 11 on ``real_arrays/msir_lab`` (or any capture of the kind).
 
-    python benchmarks/real_array.py WORK [--data FOLDER] [--labels 41]
+    python benchmarks/real_array.py WORK [--data FOLDER] [--labels 41] [--half-resolution]
 
 Runs, with the documented commands only, ``hyperlf calibrate`` on the board shots, ``hyperlf
 ingest`` of the scene shot *and* of the board shot, ``hyperlf depth`` of both, then prints the
 figures BENCHMARKS.md reports: pixels at a range limit, and the consistency of the two depth maps
 on the pixels valid in both and off the board (the array did not move between the shots).
 Steps whose output folder already exists in WORK are not run again. Full resolution takes about
-10 minutes per depth map on 2 cores.
+10 minutes per depth map on 2 cores. ``--half-resolution`` also runs ``hlf.depth`` on a 2 x 2
+area-downscaled copy of the scene capture (35 labels, half the range), with and without the
+textureless-region weight, and prints the range-limit share and the timings of each (~2 min each).
 """
 
 from __future__ import annotations
@@ -65,6 +67,16 @@ def board_footprint(data: Path, work: Path, shape) -> np.ndarray:
     return mask.astype(bool)
 
 
+def textured_pixels(lf) -> np.ndarray:
+    """Reference pixels whose data term ``hyperlf depth`` kept whole (texture weight 1)."""
+    from hyperlf.hlf import CAMERA_TEXTURE_SNR
+    from hyperlf.imageops import normalise_intensity, texture_snr
+
+    valid = lf.valid[lf.reference]
+    ref = normalise_intensity(lf.views[lf.reference], valid=valid)
+    return texture_snr(ref, 5, valid=valid) >= CAMERA_TEXTURE_SNR
+
+
 def figures(data: Path, work: Path) -> None:
     from hyperlf.formats import load_lightfield, read_pfm
 
@@ -79,11 +91,42 @@ def figures(data: Path, work: Path) -> None:
               f"range limit ({lo:g}, {hi:g})")
     both = lf["scene"].valid[ref] & lf["board"].valid[ref]
     off = both & ~board_footprint(data, work, both.shape)
+    textured = {k: textured_pixels(lf[k]) for k in lf}
     for name, m in (("valid in both, off the board", off),
-                    ("... and at no range limit", off & ~at_limit["scene"] & ~at_limit["board"])):
+                    ("... and at no range limit", off & ~at_limit["scene"] & ~at_limit["board"]),
+                    ("... and textured in both (full data-term weight)",
+                     off & textured["scene"] & textured["board"])):
         diff = np.abs(d["scene"] - d["board"])[m]
         print(f"{name}: {100 * m.mean():.1f} % of the pixels; |difference| median "
               f"{np.median(diff):.3f} px, 90th percentile {np.percentile(diff, 90):.3f} px")
+
+
+def half_resolution(work: Path) -> None:
+    """Range-limit pixels and timings of ``hlf.depth`` on the scene capture downscaled 2 x 2,
+    with the textureless-region weight off and at its default for cameras."""
+    import cv2
+
+    from hyperlf.formats import load_lightfield
+    from hyperlf.hlf import CAMERA_TEXTURE_SNR, DepthParams, depth
+
+    lf = load_lightfield(work / "scene")
+    R, C, H, W = lf.views.shape
+    size = (W // 2, H // 2)
+    views = np.array([[cv2.resize(lf.views[r, c], size, interpolation=cv2.INTER_AREA)
+                       for c in range(C)] for r in range(R)])
+    valid = np.array([[cv2.resize(lf.valid[r, c].astype(np.float32), size,
+                                  interpolation=cv2.INTER_AREA) > 0.999
+                       for c in range(C)] for r in range(R)])
+    lo, hi = (v / 2 for v in lf.disparity_range)
+    half = lf.replace(views=views, valid=valid, disparity_range=(lo, hi))
+    for snr in (0.0, CAMERA_TEXTURE_SNR):
+        res = depth(half, n_labels=35, params=DepthParams(texture_snr=snr))
+        d = res.disparity
+        at = ((np.abs(d - lo) < 1e-3) | (np.abs(d - hi) < 1e-3))[valid[lf.reference]]
+        t = res.timings
+        print(f"half resolution, texture_snr={snr:g}: {100 * at.mean():.2f} % at a range limit; "
+              f"total {t['total_s']:.1f} s (correspondence {t['correspondence_s']:.1f} s, "
+              f"MRF {t['mrf_s']:.1f} s)")
 
 
 def main() -> None:
@@ -92,12 +135,16 @@ def main() -> None:
     ap.add_argument("--data", type=Path, default=None,
                     help="the capture folder (default $HYPERLF_DATA/real_arrays/msir_lab)")
     ap.add_argument("--labels", type=int, default=41)
+    ap.add_argument("--half-resolution", action="store_true",
+                    help="also measure the textureless-region weight at half resolution")
     a = ap.parse_args()
     data = a.data or Path(os.environ.get("HYPERLF_DATA", "../shared/data")) / "real_arrays" \
         / "msir_lab"
     a.work.mkdir(parents=True, exist_ok=True)
     run_steps(data, a.work, a.labels)
     figures(data, a.work)
+    if a.half_resolution:
+        half_resolution(a.work)
 
 
 if __name__ == "__main__":

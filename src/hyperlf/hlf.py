@@ -1071,7 +1071,7 @@ def texture_weight(prob: DepthProblem) -> np.ndarray | None:
     ``clip((t^2 - 1) / (texture_snr^2 - 1), 0, 1)`` with ``t`` the texture-to-noise ratio of
     the pixel's ``texture_window`` (:func:`hyperlf.imageops.texture_snr`; noise estimated on
     the valid pixels of the reference view): 0 while the window's texture variance is below
-    one noise variance (a window of pure noise has ``t`` < 1 nineteen times out of twenty),
+    one noise variance (a 5 x 5 window of pure noise has ``t`` < 1 with probability 0.996),
     rising linearly in texture variance to 1 at ``texture_snr^2`` noise variances.
 
     Returns
