@@ -156,3 +156,27 @@ def test_texture_weight_is_on_by_default_for_camera_captures_only():
     clean = camera.replace(views=np.full(lf.views.shape, 0.5, np.float32)
                            + np.linspace(0, 0.1, W, dtype=np.float32))
     assert texture_weight(prepare(clean, n_labels=8)) is None  # no noise: every weight 1
+
+
+def test_depth_command_takes_the_texture_option(tmp_path, capsys):
+    from hyperlf.cli import main
+    from hyperlf.formats import read_pfm, save_lightfield
+
+    lf = _table_scene(1).replace(metadata={"calibration": {"mode": "plane"}})
+    cap = tmp_path / "cap"
+    save_lightfield(lf, cap)
+    maps = {}
+    for value in ("0", "2", None):
+        out = tmp_path / f"d{value}"
+        extra = [] if value is None else ["--texture-snr", value]
+        assert main(["-q", "depth", str(cap), "--labels", "25", *extra, "-o", str(out)]) == 0
+        maps[value] = read_pfm(out / "disparity.pfm")
+    assert np.array_equal(maps["2"], maps[None])  # ingest-like capture: on by default
+    flat = np.abs(maps["2"][H // 2 + 8:] - D0)
+    assert np.percentile(flat, 95) < 0.1 < np.median(np.abs(maps["0"][H // 2 + 8:] - D0))
+    capsys.readouterr()
+    for bad in ("1", "0.5", "-2", "inf"):
+        with pytest.raises(SystemExit) as info:  # refused while parsing, exit 2
+            main(["-q", "depth", str(cap), "--texture-snr", bad, "-o", str(tmp_path / "bad")])
+        assert info.value.code == 2 and "--texture-snr" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()

@@ -138,6 +138,14 @@ def _float_within(low: float, high: float, what: str):
     return parse
 
 
+def _texture_snr_arg(text: str) -> float:
+    """``--texture-snr``: 0 (off) or a number in (1, 1e6]."""
+    v = _float_within(0.0, 1e6, "--texture-snr")(text)
+    if 0 < v <= 1:
+        raise argparse.ArgumentTypeError(f"--texture-snr must be 0 (off) or > 1, got {text!r}")
+    return v
+
+
 def _say(args, msg: str) -> None:
     if not getattr(args, "quiet", False):
         print(_one_line(msg), file=sys.stderr)
@@ -1059,7 +1067,7 @@ def _add_depth_parser(sub) -> None:
     p.add_argument("--median-radius", type=int, default=None, metavar="PX",
                    help="radius of the guided weighted-median post-filter that snaps depth "
                         "edges to image edges (default 4; 0 turns it off)")
-    p.add_argument("--texture-snr", type=_float_within(0.0, 1e6, "--texture-snr"),
+    p.add_argument("--texture-snr", type=_texture_snr_arg,
                    default=None, metavar="T",
                    help="pixels whose matching window holds less texture than T times the "
                         "sensor noise (estimated from the reference view) count less, so that "
