@@ -458,3 +458,22 @@ def test_pictures_are_written(tmp_path, rig, plane_shots, plane_cal):
     back = read_calibration(write_calibration(plane_cal, tmp_path / "c.toml"))
     with pytest.raises(InvalidInputError, match="no corner residuals"):
         save_residual_picture(tmp_path / "r2.png", back)
+
+
+@pytest.mark.parametrize("seed,true_range", [(0, (-3.0, 2.0)), (1, (1.0, 4.0))])
+def test_measured_disparity_range_covers_the_scene(seed, true_range):
+    """The range ingest measures when the calibration has none (full calibration): it holds
+    the scene's disparities, with a margin, not much more."""
+    from hyperlf.calibration.parallax import measured_disparity_range
+    from hyperlf.synthesis import procedural_scene
+
+    lf = procedural_scene(seed=seed, rows=3, cols=3, height=120, width=160,
+                          disparity_range=true_range)
+    gt = lf.reference_gt_disparity
+    valid = np.ones(lf.views.shape, bool)
+    lo, hi = measured_disparity_range(lf.views, valid, lf.positions, lf.reference)
+    assert lo <= min(0.0, gt.min()) and hi >= max(0.0, gt.max())
+    width = max(0.0, gt.max()) - min(0.0, gt.min())
+    assert hi - lo <= 1.25 * width + 2.0
+    blank = np.zeros_like(lf.views)
+    assert measured_disparity_range(blank, valid, lf.positions, lf.reference) is None

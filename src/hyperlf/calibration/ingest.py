@@ -87,7 +87,10 @@ def ingest(images: Mapping, calibration, *, wavelengths=None, dark=None, flat=No
     saturation : float or None
         Raw value (in [0, 1]) at or above which a pixel is saturated and invalid.
     disparity_range : (float, float), optional
-        Stored in the capture; default the calibration's estimate when it has one.
+        Stored in the capture; default the calibration's estimate when it has one (plane
+        registration with positions from parallax), else measured on these images
+        (:func:`hyperlf.calibration.parallax.measured_disparity_range`; none when too few
+        points match: ``hyperlf depth`` then asks for one).
 
     Returns
     -------
@@ -99,6 +102,7 @@ def ingest(images: Mapping, calibration, *, wavelengths=None, dark=None, flat=No
     from ..lightfield import LightField
     from . import apply_calibration
     from .metric import capture_geometry
+    from .parallax import measured_disparity_range
 
     R, C = calibration.grid
     dead = {tuple(int(v) for v in k) for k in dead}
@@ -119,6 +123,9 @@ def ingest(images: Mapping, calibration, *, wavelengths=None, dark=None, flat=No
     wl = None if wavelengths is None else np.asarray(wavelengths, np.float64).reshape(R, C)
     rng = disparity_range if disparity_range is not None else \
         calibration.info.get("disparity_range")
+    if rng is None:  # a full calibration (or positions from the board): measure the scene
+        rng = measured_disparity_range(views, valid, calibration.positions(),
+                                       calibration.reference)
     return LightField(views=views, wavelengths=wl, positions=calibration.positions(),
                       reference=tuple(calibration.reference),
                       disparity_range=None if rng is None else tuple(float(v) for v in rng),

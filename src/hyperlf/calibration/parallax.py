@@ -19,7 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["feature_image", "select_points", "match_flows", "factor_rank1", "Rank1"]
+__all__ = ["feature_image", "select_points", "match_flows", "factor_rank1", "Rank1",
+           "measured_disparity_range"]
 
 
 def feature_image(image: np.ndarray, *, sigma: float = 1.0) -> np.ndarray:
@@ -198,3 +199,94 @@ def factor_rank1(flows: np.ndarray, *, min_views: int = 2, floor: float = 0.25,
     rms = float(np.sqrt(np.mean(res[w] ** 2))) if w.any() else np.nan
     d = np.where(w.any(0), d, np.nan)
     return Rank1(o, d, w, rms)
+
+
+def _grid_points(image: np.ndarray, allowed: np.ndarray, *, cell: int) -> np.ndarray:
+    """The most corner-like pixel (Shi-Tomasi response) of every ``cell`` x ``cell`` block
+    inside ``allowed``, ``(N, 2)`` as ``x, y``: every textured region gets points, also where
+    the strongest corners of the image lie elsewhere (the matching judges them)."""
+    import cv2
+
+    ev = cv2.cornerMinEigenVal(np.asarray(image, np.float32), 5)
+    ev = np.where(allowed, ev, 0.0)
+    H, W = ev.shape
+    pts = []
+    for y0 in range(0, H - cell + 1, cell):
+        for x0 in range(0, W - cell + 1, cell):
+            block = ev[y0:y0 + cell, x0:x0 + cell]
+            iy, ix = np.unravel_index(int(np.argmax(block)), block.shape)
+            if block[iy, ix] > 0:
+                pts.append((x0 + ix, y0 + iy))
+    return np.asarray(pts, np.float64).reshape(-1, 2)
+
+
+def measured_disparity_range(views: np.ndarray, valid: np.ndarray, positions: np.ndarray,
+                             reference, *, work_size: int = 800, max_parallax: float = 0.08,
+                             margin: float = 1.25, min_points: int = 8,
+                             max_residual: float = 1.0):
+    """A disparity range for registered or rectified views, measured from the scene.
+
+    The most textured point of every block of the reference is matched in every other view
+    (gradient images, NCC: cross-spectral, :func:`match_flows`); each point's disparity is the least-squares
+    ``d`` of ``flow_v = -d (p_v - p_ref)`` over the views that matched it (two at least;
+    points the fit leaves more than ``max_residual`` px off on average are mismatches). The
+    range is ``margin`` times the 1st and 99th percentiles, widened to include 0 and rounded
+    outwards to whole px per baseline.
+
+    Parameters
+    ----------
+    views, valid : ndarray (R, C, H, W)
+    positions : ndarray (R, C, 2)
+        ``(px, py)`` in baselines.
+    reference : (int, int)
+    work_size : int
+        Matching runs at a scale whose larger side is at most this many px.
+    max_parallax : float
+        Search radius as a fraction of the larger image side.
+    margin : float
+    min_points : int
+        Fewer matched points: no range (None).
+    max_residual : float
+        Mean distance (px, at the matching scale) of a point's flows from its fit.
+
+    Returns
+    -------
+    (float, float) or None
+    """
+    import cv2
+
+    R, C, H, W = views.shape
+    scale = min(1.0, work_size / max(W, H))
+    size = (max(1, int(round(W * scale))), max(1, int(round(H * scale))))
+
+    def small(img, interp=cv2.INTER_AREA):
+        return cv2.resize(np.asarray(img, np.float32), size, interpolation=interp)
+
+    ref = tuple(reference)
+    feat_ref = feature_image(small(views[ref]))
+    allowed = small(valid[ref].astype(np.float32)) > 0.999
+    half = max(5, int(round(max(size) / 60)))
+    radius = max(6, int(round(max_parallax * max(size))))
+    pts = _grid_points(feat_ref, allowed, cell=2 * half)
+    flows, offsets = [], []
+    for k in [(r, c) for r in range(R) for c in range(C) if (r, c) != ref]:
+        o = (np.asarray(positions[k], np.float64) - np.asarray(positions[ref])) * scale
+        if np.any(o) and len(pts):
+            ok = small(valid[k].astype(np.float32)) > 0.999
+            flows.append(match_flows(feat_ref, feature_image(small(views[k])), pts, ok,
+                                     half=half, radius=radius)[0])
+            offsets.append(o)
+    if not flows:
+        return None
+    F, O = np.stack(flows), np.stack(offsets)            # (V, N, 2), (V, 2)
+    hit = np.all(np.isfinite(F), axis=2)                 # (V, N)
+    Fz = np.where(hit[..., None], F, 0.0)
+    den = (hit * (O * O).sum(1)[:, None]).sum(0)
+    d = -np.einsum("vnk,vk->n", Fz, O) / np.maximum(den, 1e-12)
+    resid = np.where(hit, np.linalg.norm(Fz + d[None, :, None] * O[:, None], axis=2), 0.0)
+    mean_resid = resid.sum(0) / np.maximum(hit.sum(0), 1)
+    use = (hit.sum(0) >= 2) & (mean_resid <= max_residual)  # consistent across the views
+    if use.sum() < min_points:
+        return None
+    lo, hi = np.percentile(d[use], [1, 99]) * margin
+    return float(np.floor(min(lo, 0.0))), float(np.ceil(max(hi, 0.0)))
