@@ -1020,7 +1020,8 @@ def _add_ingest_parser(sub) -> None:
                    help="raw level (0..1 of the file's range) at or above which a pixel is "
                         "invalid; 1 turns the check off (default 0.98)")
     p.add_argument("--disparity-range", type=_pair_of_floats, default=None, metavar="MIN,MAX",
-                   help="px per baseline (default: estimated by the calibration)")
+                   help="px per baseline (default: the plane registration's estimate, or "
+                        "measured on the rectified images after a full calibration)")
     _add_output_folder(p)
 
 

@@ -517,7 +517,8 @@ def run_ingest(raw: str | os.PathLike, out_dir: str | os.PathLike, *, calibratio
     saturation : float or None
         Raw level in [0, 1] at or above which a pixel is invalid.
     disparity_range : (float, float), optional
-        Default: the calibration's estimate.
+        Default: the calibration's estimate, else measured on the images
+        (:func:`hyperlf.calibration.ingest`).
     log : callable, optional
 
     Returns
