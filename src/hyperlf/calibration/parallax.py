@@ -227,9 +227,10 @@ def measured_disparity_range(views: np.ndarray, valid: np.ndarray, positions: np
     """A disparity range for registered or rectified views, measured from the scene.
 
     The most textured point of every block of the reference is matched in every other view
-    (gradient images, NCC: cross-spectral, :func:`match_flows`); each point's disparity is the least-squares
-    ``d`` of ``flow_v = -d (p_v - p_ref)`` over the views that matched it (two at least;
-    points the fit leaves more than ``max_residual`` px off on average are mismatches). The
+    (gradient images, NCC: cross-spectral, :func:`match_flows`); each point's disparity is the
+    least-squares ``d`` of ``flow_v = -d (p_v - p_ref)`` over the views that matched it (two
+    at least; points the fit leaves more than ``max_residual`` px off on average are
+    mismatches). The
     range is ``margin`` times the 1st and 99th percentiles, widened to include 0 and rounded
     outwards to whole px per baseline.
 
@@ -242,7 +243,8 @@ def measured_disparity_range(views: np.ndarray, valid: np.ndarray, positions: np
     work_size : int
         Matching runs at a scale whose larger side is at most this many px.
     max_parallax : float
-        Search radius as a fraction of the larger image side.
+        Search radius as a fraction of the larger image side: with neighbours one baseline
+        apart, disparities up to ``max_parallax`` times that side (px per baseline) are seen.
     margin : float
     min_points : int
         Fewer matched points: no range (None).
@@ -259,8 +261,8 @@ def measured_disparity_range(views: np.ndarray, valid: np.ndarray, positions: np
     scale = min(1.0, work_size / max(W, H))
     size = (max(1, int(round(W * scale))), max(1, int(round(H * scale))))
 
-    def small(img, interp=cv2.INTER_AREA):
-        return cv2.resize(np.asarray(img, np.float32), size, interpolation=interp)
+    def small(img):
+        return cv2.resize(np.asarray(img, np.float32), size, interpolation=cv2.INTER_AREA)
 
     ref = tuple(reference)
     feat_ref = feature_image(small(views[ref]))
