@@ -166,12 +166,16 @@ def test_depth_command_takes_the_texture_option(tmp_path, capsys):
     cap = tmp_path / "cap"
     save_lightfield(lf, cap)
     maps = {}
-    for value in ("0", "2", None):
+    for value in ("0", "2", None):  # None: the default
         out = tmp_path / f"d{value}"
-        extra = [] if value is None else ["--texture-snr", value]
+        extra = ["--save-intermediate"] + ([] if value is None else ["--texture-snr", value])
         assert main(["-q", "depth", str(cap), "--labels", "25", *extra, "-o", str(out)]) == 0
         maps[value] = read_pfm(out / "disparity.pfm")
     assert np.array_equal(maps["2"], maps[None])  # ingest-like capture: on by default
+    weight = read_pfm(tmp_path / "dNone" / "texture_weight.pfm")
+    assert (tmp_path / "dNone" / "texture_weight.png").is_file()
+    assert np.percentile(weight[H // 2 + 8:], 90) < 0.05 < np.median(weight[:H // 2 - 8])
+    assert not (tmp_path / "d0" / "texture_weight.pfm").exists()
     flat = np.abs(maps["2"][H // 2 + 8:] - D0)
     assert np.percentile(flat, 95) < 0.1 < np.median(np.abs(maps["0"][H // 2 + 8:] - D0))
     capsys.readouterr()

@@ -558,7 +558,9 @@ def _cmd_depth(args, dest) -> list[Path]:
     the input has ground truth; the scores against it skip a 15 px border, so views of 30 px or
     less are written but not scored. A capture made by 'hyperlf ingest' also gets depth.pfm /
     depth.png (in the unit of the calibration's --square) and points.ply, a point cloud
-    coloured by the reference view.
+    coloured by the reference view. --save-intermediate adds the correspondence-only and
+    defocus-only maps and, when the textureless-region weight was used, texture_weight.pfm/png
+    (1: the pixel's own costs decided; 0: its depth came from its surroundings).
 
     examples:
       hyperlf depth scene3 -o depth3
@@ -591,6 +593,7 @@ def _cmd_depth(args, dest) -> list[Path]:
                     defocus=args.defocus, optimizer=args.optimizer, params=params,
                     save_intermediate=args.save_intermediate, progress=not args.quiet)
         extra = {"correspondence_only": res.f_c, "defocus_only": res.f_d}
+        weight = res.intermediate["texture_weight"] if res.intermediate else None
     else:
         from .baselines import METHODS
 
@@ -598,6 +601,7 @@ def _cmd_depth(args, dest) -> list[Path]:
                                    progress=not args.quiet)
         extra = {k: v for k, v in res.maps.items()
                  if isinstance(v, np.ndarray) and v.shape == res.disparity.shape}
+        weight = None
     gt = lf.reference_gt_disparity
     written = save_disparity_outputs(out, res.disparity, f"{args.method} disparity", truth=gt,
                                       confidence=res.confidence)
@@ -611,6 +615,11 @@ def _cmd_depth(args, dest) -> list[Path]:
                 continue
             written.append(write_pfm(out / f"{name}.pfm", arr))
             written.append(visualise.save_disparity_png(out / f"{name}.png", arr, title=name))
+        if weight is not None:
+            written.append(write_pfm(out / "texture_weight.pfm", weight))
+            written.append(visualise.save_disparity_png(
+                out / "texture_weight.png", weight, title="weight of each pixel's own costs",
+                vmin=0, vmax=1, cmap="viridis", label="0: depth from the surroundings"))
     _say(args, f"{args.method}: {time.perf_counter() - t0:.1f} s "
                + ", ".join(f"{k} {v:.1f} s" for k, v in res.timings.items()))
     if gt is not None:
@@ -1078,7 +1087,8 @@ def _add_depth_parser(sub) -> None:
                         "images, off for rendered and synthetic light fields, whose "
                         "pixel-scale texture one image cannot tell from noise)")
     p.add_argument("--save-intermediate", action="store_true",
-                   help="also write correspondence-only and defocus-only maps")
+                   help="also write correspondence-only and defocus-only maps, and the "
+                        "textureless-region weight when it was used")
     _add_output_folder(p)
 
 
