@@ -69,12 +69,13 @@ def board_footprint(data: Path, work: Path, shape) -> np.ndarray:
 
 def textured_pixels(lf) -> np.ndarray:
     """Reference pixels whose data term ``hyperlf depth`` kept whole (texture weight 1)."""
-    from hyperlf.hlf import CAMERA_TEXTURE_SNR
+    from hyperlf.hlf import CAMERA_TEXTURE_SNR, DepthParams
     from hyperlf.imageops import normalise_intensity, texture_snr
 
     valid = lf.valid[lf.reference]
     ref = normalise_intensity(lf.views[lf.reference], valid=valid)
-    return texture_snr(ref, 5, valid=valid) >= CAMERA_TEXTURE_SNR
+    window = DepthParams().texture_window  # the window depth uses
+    return texture_snr(ref, window, valid=valid) >= CAMERA_TEXTURE_SNR
 
 
 def figures(data: Path, work: Path) -> None:

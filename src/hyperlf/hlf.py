@@ -262,9 +262,9 @@ class DepthParams:
         pos("tau_rel", self.tau_rel, True)
         if self.texture_snr is not None:
             pos("texture_snr", self.texture_snr, True)
-        if self.texture_snr is not None and 0 < self.texture_snr <= 1:
-            raise InvalidInputError("params.texture_snr must be 0 (off) or > 1, got "
-                                    f"{self.texture_snr!r}")
+            if 0 < self.texture_snr <= 1:
+                raise InvalidInputError("params.texture_snr must be 0 (off) or > 1, got "
+                                        f"{self.texture_snr!r}")
         if isinstance(self.texture_window, bool) or int(self.texture_window) != \
                 self.texture_window or self.texture_window < 3 or self.texture_window % 2 == 0:
             raise InvalidInputError("params.texture_window must be an odd integer >= 3, got "
