@@ -375,3 +375,30 @@ def test_ncc_gain_and_ssd_mean_normalisation(rng):
                                costs.cost_volume(left, right, 0, 4, "ncc"), atol=1e-5)
     np.testing.assert_allclose(costs.cost_volume(left, 3 * right, 0, 4, "ssd"),
                                costs.cost_volume(left, right, 0, 4, "ssd"), atol=1e-5)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("masked", [False, True])
+def test_normalise_volume_numba_matches_numpy(rng, dtype, masked):
+    """The fusion normaliser's kernels give the reference's result; a pixel with no valid
+    entry is 0, a constant volume is only min-subtracted."""
+    cost = (5 * rng.random((9, 13, 17))).astype(dtype)
+    valid = rng.random(cost.shape) > 0.4 if masked else None
+    if masked:
+        valid[:, 2, 3] = False  # no valid entry at this pixel
+    ref = costs.normalise_volume(cost, -3, valid, impl="numpy")
+    fast = costs.normalise_volume(cost, -3, valid, impl="numba")
+    assert fast.dtype == np.float32
+    np.testing.assert_allclose(fast, ref, rtol=1e-6, atol=1e-7)
+    if masked:
+        assert (fast[:, 2, 3] == 0).all()
+        v = np.broadcast_to(valid, cost.shape)
+        worst = np.where(v, cost, -np.inf).max(axis=0)
+        lo = np.where(v, cost, np.inf).min(axis=0)
+        sd = cost[v].std()
+        y, x = 5, 6
+        expect = (np.where(v[:, y, x], cost[:, y, x], worst[y, x]) - lo[y, x]) / sd
+        np.testing.assert_allclose(fast[:, y, x], expect, rtol=1e-5)
+    flat = np.full((4, 3, 5), 2.5, dtype)
+    np.testing.assert_array_equal(costs.normalise_volume(flat, 0, impl="numba"),
+                                  costs.normalise_volume(flat, 0, impl="numpy"))

@@ -7,7 +7,9 @@ Each kernel has a readable numpy reference in :mod:`hyperlf.costs.pair` or
 Rectified pair (integer disparities): :func:`xcorr_accum` (NCC cross terms), :func:`hamming_volume`
 (census), and the BWNCC pipeline :func:`bw_channel_stats`, :func:`bw_inv_sigma`, :func:`bw_pad`,
 :func:`bw_den_add`, :func:`bw_accum`, :func:`bw_finish`.  Light field (sub-pixel shifts):
-:func:`xi_shift` (NCC with the bilinearly shifted view) and :func:`census_shift`.
+:func:`xi_shift` (NCC with the bilinearly shifted view) and :func:`census_shift`.  Fusion:
+:func:`valid_std` and :func:`normalise_fill` (``norm(C)`` of
+:func:`hyperlf.costs.pair.normalise_volume`).
 """
 
 from __future__ import annotations
@@ -590,3 +592,59 @@ def census_shift(img, cref, y0, y1, fy, x0, x1, fx, r, buf, out):  # pragma: no 
                         d += 1
                     k += np.uint64(1)
             out[y, x] = d
+
+
+@numba.njit(parallel=True, cache=True)
+def valid_std(C, valid):  # pragma: no cover
+    """Standard deviation of the entries of ``C`` (L, H, W) where ``valid``, two passes in
+    float64 (row partial sums); ``(0.0, 0)`` when none is valid.  Reference:
+    ``C[valid].std()`` in :func:`hyperlf.costs.pair.normalise_volume`."""
+    L, H, W = C.shape
+    s = np.zeros(H)
+    n = np.zeros(H, np.int64)
+    for y in prange(H):
+        for k in range(L):
+            for x in range(W):
+                if valid[k, y, x]:
+                    s[y] += C[k, y, x]
+                    n[y] += 1
+    count = n.sum()
+    if count == 0:
+        return 0.0, 0
+    mean = s.sum() / count
+    q = np.zeros(H)
+    for y in prange(H):
+        for k in range(L):
+            for x in range(W):
+                if valid[k, y, x]:
+                    e = C[k, y, x] - mean
+                    q[y] += e * e
+    return math.sqrt(q.sum() / count), count
+
+
+@numba.njit(parallel=True, cache=True)
+def normalise_fill(C, valid, sd, out):  # pragma: no cover
+    """``out = (fill(C) - min_l fill(C)) / sd`` per pixel, float64 arithmetic: invalid entries
+    take the pixel's worst valid cost, a pixel with none is 0; ``sd <= 0`` divides by 1.
+    Rows in parallel, each swept label by label (contiguous).  Reference:
+    :func:`hyperlf.costs.pair.normalise_volume`."""
+    L, H, W = C.shape
+    scale = sd if sd > 0 else 1.0
+    for y in prange(H):
+        worst = np.full(W, -np.inf)
+        lo = np.full(W, np.inf)
+        for k in range(L):
+            for x in range(W):
+                if valid[k, y, x]:
+                    v = C[k, y, x]
+                    if v > worst[x]:
+                        worst[x] = v
+                    if v < lo[x]:
+                        lo[x] = v
+        for k in range(L):
+            for x in range(W):
+                if worst[x] == -np.inf:
+                    out[k, y, x] = 0.0
+                else:
+                    v = C[k, y, x] if valid[k, y, x] else worst[x]
+                    out[k, y, x] = (v - lo[x]) / scale

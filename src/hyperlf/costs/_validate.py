@@ -10,7 +10,8 @@ __all__ = ["IMPLS", "AUTO_IMPL", "check_pair", "check_disp", "check_window", "ch
 
 IMPLS = ("auto", "numpy", "numba")
 #: ``impl="auto"`` per evaluator: numba wherever a kernel exists (measured faster, BENCHMARKS.md).
-AUTO_IMPL = {"ncc": "numba", "rsncc": "numba", "census": "numba", "bwncc": "numba"}
+AUTO_IMPL = {"ncc": "numba", "rsncc": "numba", "census": "numba", "bwncc": "numba",
+             "normalise": "numba"}
 
 
 def check_pair(left, right) -> tuple[np.ndarray, np.ndarray]:
