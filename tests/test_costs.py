@@ -402,3 +402,20 @@ def test_normalise_volume_numba_matches_numpy(rng, dtype, masked):
     flat = np.full((4, 3, 5), 2.5, dtype)
     np.testing.assert_array_equal(costs.normalise_volume(flat, 0, impl="numba"),
                                   costs.normalise_volume(flat, 0, impl="numpy"))
+
+
+@pytest.mark.parametrize("weights", [None, [3, 1], [0, 2]])
+@pytest.mark.parametrize("masked", [False, True])
+def test_fuse_numba_matches_numpy(rng, weights, masked):
+    """The fused kernel (weighted sum + worst fill) gives the reference's result bit for bit."""
+    a = rng.random((7, 11, 13)).astype(np.float32)
+    b = (10 * rng.random((7, 11, 13))).astype(np.float32)
+    valid = rng.random(a.shape) > 0.3 if masked else None
+    if masked:
+        valid[:, 4, 5] = False
+    ref = costs.fuse([a, b], weights, -2, valid, impl="numpy")
+    fast = costs.fuse([a, b], weights, -2, valid, impl="numba")
+    assert fast.dtype == np.float32
+    np.testing.assert_array_equal(fast, ref)
+    if masked:
+        assert (fast[:, 4, 5] == 0).all()

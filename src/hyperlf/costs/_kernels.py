@@ -9,7 +9,7 @@ Rectified pair (integer disparities): :func:`xcorr_accum` (NCC cross terms), :fu
 :func:`bw_den_add`, :func:`bw_accum`, :func:`bw_finish`.  Light field (sub-pixel shifts):
 :func:`xi_shift` (NCC with the bilinearly shifted view) and :func:`census_shift`.  Fusion:
 :func:`valid_std` and :func:`normalise_fill` (``norm(C)`` of
-:func:`hyperlf.costs.pair.normalise_volume`).
+:func:`hyperlf.costs.pair.normalise_volume`), :func:`fuse_fill` (:func:`hyperlf.costs.pair.fuse`).
 """
 
 from __future__ import annotations
@@ -648,3 +648,32 @@ def normalise_fill(C, valid, sd, out):  # pragma: no cover
                 else:
                     v = C[k, y, x] if valid[k, y, x] else worst[x]
                     out[k, y, x] = (v - lo[x]) / scale
+
+
+@numba.njit(parallel=True, cache=True)
+def fuse_fill(parts, weights, valid, out):  # pragma: no cover
+    """``out = float32(sum_i weights[i] parts[i] / sum(weights))`` (float64 sums, in the order
+    of ``parts``), then its invalid entries set to the pixel's worst valid value (0 where none
+    is valid).  Reference: :func:`hyperlf.costs.pair.fuse`."""
+    L, H, W = out.shape
+    wsum = 0.0
+    for i in range(len(weights)):
+        wsum += weights[i]
+    for y in prange(H):
+        worst = np.full(W, -np.inf, np.float32)
+        for k in range(L):
+            for x in range(W):
+                acc = 0.0
+                for i in range(len(parts)):
+                    acc += weights[i] * parts[i][k, y, x]
+                v = np.float32(acc / wsum)
+                out[k, y, x] = v
+                if valid[k, y, x] and v > worst[x]:
+                    worst[x] = v
+        for x in range(W):
+            if worst[x] == -np.inf:
+                worst[x] = 0.0
+        for k in range(L):
+            for x in range(W):
+                if not valid[k, y, x]:
+                    out[k, y, x] = worst[x]

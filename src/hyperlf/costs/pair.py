@@ -761,10 +761,12 @@ def normalise_volume(cost, dmin: int, valid=None, *, impl: str = "auto") -> np.n
 
 
 def fuse(volumes: Sequence[np.ndarray], weights: Sequence[float] | None = None, dmin: int = 0,
-         valid=None) -> np.ndarray:
+         valid=None, *, impl: str = "auto") -> np.ndarray:
     """Weighted mean of normalised volumes: ``sum_i w_i norm(C_i) / sum_i w_i``; then the
     out-of-image rule again (the fused worst valid cost).  ``dmin`` is needed only to know
-    which entries are invalid (the volumes must share ``dmin..dmax``)."""
+    which entries are invalid (the volumes must share ``dmin..dmax``).  ``impl`` as
+    :func:`normalise_volume` (``"numba"``: the sum and the fill in one kernel, same float64
+    arithmetic)."""
     vols = list(volumes)
     if not vols:
         raise InvalidInputError("fuse needs at least one volume")
@@ -774,10 +776,22 @@ def fuse(volumes: Sequence[np.ndarray], weights: Sequence[float] | None = None, 
     w = np.ones(len(vols)) if weights is None else np.asarray(weights, np.float64)
     if w.shape != (len(vols),) or not np.all(np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
         raise InvalidInputError(f"weights must be {len(vols)} non-negative numbers with a positive sum, got {weights!r}")
+    if check_impl(impl, "normalise") == "numba":
+        from ._kernels import fuse_fill
+
+        Lc, H, W = shape
+        if valid is None:
+            valid = candidate_validity((H, W), dmin, dmin + Lc - 1)
+        ok = np.ascontiguousarray(np.broadcast_to(np.asarray(valid, bool), shape))
+        keep = [i for i in range(len(vols)) if w[i]]
+        parts = tuple(normalise_volume(vols[i], dmin, ok, impl="numba") for i in keep)
+        out = np.empty(shape, np.float32)
+        fuse_fill(parts, np.ascontiguousarray(w[keep]), ok, out)
+        return out
     out = np.zeros(shape, np.float64)
     for wi, v in zip(w, vols):
         if wi:
-            out += wi * normalise_volume(v, dmin, valid)
+            out += wi * normalise_volume(v, dmin, valid, impl="numpy")
     out /= w.sum()
     return fill_invalid(out.astype(np.float32), dmin, valid)
 
