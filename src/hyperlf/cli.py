@@ -127,6 +127,15 @@ _labels_arg = _int_at_least(2, "the number of disparity labels")
 _seed_arg = _int_at_least(0, "the seed")
 
 
+def _workers_arg(text: str) -> int:
+    """``--workers``: 1..256 worker processes (more on one machine only thrash)."""
+    v = _int_at_least(1, "the number of workers")(text)
+    if v > 256:
+        raise argparse.ArgumentTypeError(f"the number of workers must be at most 256, got {v}; "
+                                         "use --scheduler for a larger cluster")
+    return v
+
+
 def _float_within(low: float, high: float, what: str):
     """An argparse type: a finite number in ``[low, high]``."""
     def parse(text: str) -> float:
@@ -222,6 +231,8 @@ def _output_kind(args) -> str | None:
         return None
     if args.command == "spectrum":
         return "file"
+    if args.command == "batch":
+        return None  # a folder of result sets, one per capture (hyperlf.batch)
     if args.command in ("synth", "convert"):
         return "file" if Path(args.output).suffix.lower() in _FILE_OUTPUTS else "folder"
     return "folder"
@@ -625,6 +636,53 @@ def _cmd_depth(args, dest) -> list[Path]:
     if gt is not None:
         _say_depth_scores(args, res.disparity, gt)
     return written
+
+
+def _cmd_batch(args, dest) -> list[Path]:  # noqa: ARG001 - batch writes its own result sets
+    """Run 'hyperlf depth' on many captures in parallel with dask.distributed (pip install
+    'hyperlf[batch]'): capture folders, .h5 light fields, a folder of them (e.g. the frames of
+    an H-LF video) or a glob pattern. Each capture's results appear whole in OUTPUT/NAME (NAME:
+    the capture's file or folder name); OUTPUT/summary.csv and summary.html list every capture
+    with its time, its scores against the ground truth where there is one, the share of
+    pixels at a range limit, and any failure. A re-run computes only the captures that have no
+    complete results yet (a worker that died loses only the capture it was running, which is
+    run again on another worker); with other depth options it is refused unless --overwrite,
+    which recomputes every capture. Exit status 1 when a capture failed (see the summary).
+    Warm start from the previous video frame is not implemented: every frame is matched
+    alone.
+
+    examples:
+      hyperlf batch frames/ -o depths                      # every capture in frames/
+      hyperlf batch 'scenes/*.h5' --labels 32 --workers 4 -o depths
+      hyperlf batch frames/ --scheduler tcp://scheduler-host:8786 -o depths   # an existing cluster
+    """
+    from .batch import plan_batch, run_batch, write_summary
+
+    depth_args = []
+    if args.disparity_range is not None:
+        depth_args.append("--disparity-range={:g},{:g}".format(*args.disparity_range))
+    for flag, value in (("--labels", args.labels), ("--metric", args.metric),
+                        ("--optimizer", args.optimizer), ("--median-radius", args.median_radius),
+                        ("--texture-snr", args.texture_snr)):
+        if value is not None:
+            depth_args += [flag, f"{value:g}" if isinstance(value, float) else str(value)]
+    tasks = plan_batch(args.inputs, args.output, depth_args=depth_args,
+                       overwrite=args.overwrite)
+    _say(args, f"{len(tasks)} captures -> {args.output}")
+    rows = run_batch(tasks, workers=args.workers, scheduler=args.scheduler,
+                     progress=not args.quiet)
+    write_summary(args.output, rows)
+    counts = {k: sum(r.status == k for r in rows) for k in ("done", "done before", "failed")}
+    _say(args, f"{counts['done']} computed, {counts['done before']} done before, "
+               f"{counts['failed']} failed; summary in {Path(args.output) / 'summary.html'}")
+    for r in rows:
+        if r.status == "failed":
+            _say(args, f"{r.capture}: {r.message}")
+    print(args.output)
+    if counts["failed"]:
+        raise HyperLFError(f"{counts['failed']} of {len(rows)} captures failed; see "
+                           f"{Path(args.output) / 'summary.csv'}")
+    return []
 
 
 def _say_depth_scores(args, disparity: np.ndarray, gt: np.ndarray) -> None:
@@ -1092,6 +1150,36 @@ def _add_depth_parser(sub) -> None:
     _add_output_folder(p)
 
 
+def _add_batch_parser(sub) -> None:
+    p = _subcommand(sub, "batch", _cmd_batch,
+                    help="depth of many captures in parallel (dask.distributed)")
+    p.add_argument("inputs", nargs="+", metavar="INPUT",
+                   help="capture folder, .h5 light field, a folder of them, or a glob pattern "
+                        "(quote it)")
+    p.add_argument("--workers", type=_workers_arg, default=2,
+                   help="worker processes of the local cluster (default 2; each runs one "
+                        "capture at a time, using every core numba is given)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="use an existing dask scheduler instead of a local cluster, e.g. "
+                        "tcp://scheduler-host:8786 (its workers need hyperlf installed and must see "
+                        "the input and output paths)")
+    p.add_argument("--disparity-range", type=_pair_of_floats, default=None, metavar="MIN,MAX",
+                   help="as for depth (default: each capture's metadata)")
+    p.add_argument("--labels", type=_labels_arg, default=None,
+                   help="number of disparity labels (depth's default, 64)")
+    _add_metric_option(p, light_field=True, help="correspondence cost (depth's default, auto)")
+    _add_optimizer_option(p)
+    p.add_argument("--median-radius", type=int, default=None, metavar="PX",
+                   help="as for depth")
+    p.add_argument("--texture-snr", type=_texture_snr_arg, default=None, metavar="T",
+                   help="as for depth")
+    p.add_argument("-o", "--output", required=True,
+                   help="output folder: one result set per capture and the summary")
+    p.add_argument("--overwrite", action="store_true",
+                   help="recompute every capture, also those with results (needed to change "
+                        "the depth options of an existing batch folder)")
+
+
 def _add_complete_parser(sub) -> None:
     p = _subcommand(sub, "complete", _cmd_complete,
                     help="complete the plenoptic cube: every view gets every band")
@@ -1178,6 +1266,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_render_parser(sub)
     _add_refocus_parser(sub)
     _add_spectrum_parser(sub)
+    _add_batch_parser(sub)
     return parser
 
 

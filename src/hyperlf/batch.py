@@ -1,0 +1,353 @@
+"""Many captures at once (SPEC §12): ``hyperlf batch`` on dask.distributed.
+
+A batch runs ``hyperlf depth`` on every capture it is given (capture folders, ``.h5`` light
+fields, a folder of them such as the frames of an H-LF video, or a glob pattern) and collects
+one result set per capture under one output folder, plus a summary (``summary.csv`` and
+``summary.html``, written whole together).
+
+How the work is made safe to lose:
+
+* every capture runs as its own ``hyperlf depth`` process, so its outputs are a whole result
+  set (:mod:`hyperlf.outputs`) and its memory is returned when it ends; on Linux the process is
+  killed with the worker that started it, so a dead worker leaves no writer behind;
+* a capture whose result set exists is finished and never recomputed (a re-run submits only
+  the missing ones); the depth options of the batch are recorded in the folder
+  (:data:`BATCH_FILE`), and a re-run with other options is refused unless ``overwrite``;
+* a worker that dies loses only the capture it was running: the scheduler gives that task to
+  another worker (dask's ``allowed-failures``), and the stale staging folder of the killed run
+  is removed by the next run that writes beside it.
+
+The scheduler is a :class:`dask.distributed.LocalCluster` of ``workers`` processes with one
+thread each unless ``scheduler`` names an existing one.  dask.distributed is an optional
+dependency (``pip install "hyperlf[batch]"``); nothing else of hyperlf needs it.
+"""
+
+from __future__ import annotations
+
+import csv
+import glob
+import html
+import io
+import json
+import os
+import subprocess
+import sys
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from .errors import DataNotFoundError, HyperLFError, InvalidInputError
+
+__all__ = ["BATCH_FILE", "CaptureTask", "find_captures", "plan_batch", "run_capture",
+           "run_batch", "write_summary"]
+
+#: The file that marks a batch output folder and records its depth options.
+BATCH_FILE = ".hyperlf-batch.json"
+#: The columns of ``summary.csv``.
+SUMMARY_COLUMNS = ("capture", "input", "status", "seconds", "rmse_px", "badpix_007_pct",
+                   "range_limit_pct", "exit_code", "message")
+
+
+@dataclass(frozen=True)
+class CaptureTask:
+    """One capture of a batch: where it is read, where its result set goes, what runs."""
+
+    name: str
+    capture: str
+    output: str
+    depth_args: tuple = ()
+    overwrite: bool = False
+
+
+@dataclass
+class CaptureResult:
+    """What became of one capture (a row of the summary)."""
+
+    capture: str
+    input: str
+    status: str  # "done", "done before" or "failed"
+    seconds: float = 0.0
+    rmse_px: float | None = None
+    badpix_007_pct: float | None = None
+    range_limit_pct: float | None = None
+    exit_code: int = 0
+    message: str = ""
+
+
+# ----------------------------------------------------------------------------- inputs
+def _is_capture(path: Path) -> bool:
+    """A capture folder, an HDF5 light field or an HCI scene folder."""
+    if path.is_file():
+        return path.suffix.lower() in (".h5", ".hdf5")
+    return path.is_dir() and ((path / "capture.toml").is_file()
+                              or (path / "parameters.cfg").is_file())
+
+
+def find_captures(inputs: Sequence[str | os.PathLike]) -> list[Path]:
+    """Every capture named by ``inputs``, in order, each once.
+
+    An input is a capture (folder with ``capture.toml``, ``.h5`` file or HCI scene folder), a
+    folder of captures (its captures in name order: the frames of a video), or a glob pattern
+    (``frames/*.h5``; its matches in name order).
+
+    Raises
+    ------
+    DataNotFoundError
+        An input that does not exist, or inputs that hold no capture.
+    """
+    found: list[Path] = []
+    for raw in inputs:
+        text = os.fspath(raw)
+        if any(ch in text for ch in "*?["):
+            paths = [Path(p) for p in sorted(glob.glob(text))]
+            found += [p for p in paths if _is_capture(p)]
+            continue
+        p = Path(text)
+        if not p.exists():
+            raise DataNotFoundError(f"{p}: no such capture, folder or pattern")
+        if _is_capture(p):
+            found.append(p)
+        elif p.is_dir():
+            found += [c for c in sorted(p.iterdir()) if not c.name.startswith(".")
+                      and not c.is_symlink() and _is_capture(c)]
+    unique = list(dict.fromkeys(p.resolve() for p in found))
+    if not unique:
+        raise DataNotFoundError(f"no capture in {', '.join(map(os.fspath, inputs))}: give "
+                                "capture folders, .h5 files, a folder of them or a pattern")
+    return unique
+
+
+def _names(captures: Sequence[Path]) -> list[str]:
+    """One output name per capture: its file or folder name without suffix, made unique."""
+    names, seen = [], {}
+    for p in captures:
+        stem = p.stem if p.suffix.lower() in (".h5", ".hdf5") else p.name
+        stem = stem if stem and not stem.startswith(".") else "capture"
+        k = seen.get(stem, 0)
+        seen[stem] = k + 1
+        names.append(stem if k == 0 else f"{stem}-{k + 1}")
+    return names
+
+
+def _record_options(out: Path, depth_args: Sequence[str], overwrite: bool) -> None:
+    """Make ``out`` a batch folder recording ``depth_args``; refuse another batch's folder
+    with other options (unless ``overwrite``) and a folder that is not a batch's."""
+    marker = out / BATCH_FILE
+    if out.is_symlink() or (out.exists() and not out.is_dir()):
+        raise InvalidInputError(f"-o {out}: not a folder; give a folder for the batch results")
+    if out.exists() and not marker.is_file():
+        if any(out.iterdir()):
+            raise InvalidInputError(f"-o {out}: a folder that is not a hyperlf batch output "
+                                    "and not empty; give a new or empty folder")
+    elif marker.is_file():
+        try:
+            before = json.loads(marker.read_text(encoding="utf-8")).get("depth_args")
+        except (OSError, ValueError, AttributeError):
+            before = None
+        if before != list(depth_args) and not overwrite:
+            raise InvalidInputError(
+                f"-o {out}: made with other depth options ({' '.join(before or []) or 'none'}); "
+                "give another folder, the same options, or --overwrite to recompute")
+    from ._atomic import atomic_write_bytes
+
+    out.mkdir(parents=True, exist_ok=True)
+    text = json.dumps({"depth_args": list(depth_args)}, indent=1) + "\n"
+    atomic_write_bytes(marker, text.encode("utf-8"))
+
+
+def plan_batch(inputs, out: str | os.PathLike, *, depth_args: Sequence[str] = (),
+               overwrite: bool = False) -> list[CaptureTask]:
+    """The tasks of a batch: one per capture of ``inputs`` (:func:`find_captures`), its
+    result set at ``out / name``.  Checks and marks ``out`` first (nothing is computed)."""
+    captures = find_captures(inputs)
+    out = Path(out)
+    _record_options(out, depth_args, overwrite)
+    return [CaptureTask(name=n, capture=os.fspath(c), output=os.fspath(out / n),
+                        depth_args=tuple(depth_args), overwrite=overwrite)
+            for n, c in zip(_names(captures), captures)]
+
+
+def is_finished(task: CaptureTask) -> bool:
+    """Whether the capture's result set is in place (result sets appear whole)."""
+    from .outputs import MANIFEST
+
+    return (Path(task.output) / MANIFEST).is_file()
+
+
+# ----------------------------------------------------------------------------- one capture
+def _die_with_parent() -> None:  # pragma: no cover - runs in the child before exec
+    """Linux: the child gets SIGKILL when the worker thread that started it dies."""
+    try:
+        import ctypes
+        import signal
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
+def run_capture(task: CaptureTask) -> CaptureResult:
+    """Run ``hyperlf depth`` on one capture (unless finished) and measure its result.
+
+    Runs in a dask worker; the depth command is its own process, so the result set is whole
+    whatever happens to the worker.  A failure of the command is reported, not raised.
+    """
+    if is_finished(task) and not task.overwrite:
+        return _measure(task, CaptureResult(task.name, task.capture, "done before"))
+    argv = [sys.executable, "-m", "hyperlf", "-q", "depth", task.capture, "-o", task.output,
+            *task.depth_args] + (["--overwrite"] if task.overwrite else [])
+    t0 = time.perf_counter()
+    proc = subprocess.run(argv, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                          stderr=subprocess.PIPE, text=True, errors="replace",
+                          preexec_fn=_die_with_parent if sys.platform == "linux" else None)
+    seconds = time.perf_counter() - t0
+    if proc.returncode != 0:
+        lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+        msg = lines[-1] if lines else f"exited with status {proc.returncode}"
+        if proc.returncode < 0:
+            msg = f"killed by signal {-proc.returncode}"
+        return CaptureResult(task.name, task.capture, "failed", seconds,
+                             exit_code=proc.returncode, message=msg)
+    return _measure(task, CaptureResult(task.name, task.capture, "done", seconds))
+
+
+def _measure(task: CaptureTask, row: CaptureResult) -> CaptureResult:
+    """Scores of a finished capture: range-limit share, and RMSE / BadPix(0.07) without the
+    HCI border where the capture has ground truth."""
+    from . import metrics
+    from .formats import load_lightfield, read_pfm
+
+    try:
+        d = read_pfm(Path(task.output) / "disparity.pfm")
+        lf = load_lightfield(task.capture)
+    except (HyperLFError, OSError) as exc:
+        row.message = f"result not measured: {exc}"
+        return row
+    ok = np.isfinite(d)
+    if lf.valid is not None:
+        ok &= lf.valid[lf.reference]
+    rng = _disparity_range(task, lf)
+    if rng is not None and ok.any():
+        at = (np.abs(d - rng[0]) < 1e-3) | (np.abs(d - rng[1]) < 1e-3)
+        row.range_limit_pct = round(100.0 * float(at[ok].mean()), 3)
+    gt = lf.reference_gt_disparity
+    b = metrics.HCI_BORDER
+    if gt is not None and min(gt.shape) > 2 * b:
+        sc = metrics.disparity_scores(d, gt, border=b, mask_name="all-15px-border")
+        row.rmse_px = round(float(sc.rmse), 5)
+        row.badpix_007_pct = round(float(sc.badpix_007), 3)
+    return row
+
+
+def _disparity_range(task: CaptureTask, lf):
+    """The range depth used: ``--disparity-range`` of the batch, else the capture's."""
+    args = list(task.depth_args)
+    for i, a in enumerate(args):
+        text = a.split("=", 1)[1] if a.startswith("--disparity-range=") else (
+            args[i + 1] if a == "--disparity-range" and i + 1 < len(args) else None)
+        if text is not None:
+            lo, hi = (float(v) for v in text.split(","))
+            return lo, hi
+    return lf.disparity_range
+
+
+# ----------------------------------------------------------------------------- the batch
+def _client(workers: int, scheduler: str | None):
+    """A dask client of an existing scheduler or of a new LocalCluster (one thread a worker:
+    numba parallelises inside each capture)."""
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError:
+        raise InvalidInputError("hyperlf batch needs dask.distributed: pip install "
+                                "'hyperlf[batch]'") from None
+    import logging
+
+    if scheduler:
+        try:
+            return Client(scheduler, timeout="20s"), None
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise InvalidInputError(f"--scheduler {scheduler}: cannot connect ({exc}); give "
+                                    "the address a dask scheduler prints, e.g. "
+                                    "tcp://scheduler-host:8786") from None
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                           dashboard_address=None, silence_logs=logging.ERROR)
+    return Client(cluster), cluster
+
+
+def run_batch(tasks: Sequence[CaptureTask], *, workers: int = 2, scheduler: str | None = None,
+              progress: bool = True) -> list[CaptureResult]:
+    """Run every unfinished task on dask and return one :class:`CaptureResult` per task, in
+    the order of ``tasks`` (finished ones are measured here, not resubmitted)."""
+    from ._progress import progress_bar
+
+    results: dict[int, CaptureResult] = {}
+    todo = []
+    for i, t in enumerate(tasks):
+        if is_finished(t) and not t.overwrite:
+            results[i] = _measure(t, CaptureResult(t.name, t.capture, "done before"))
+        else:
+            todo.append(i)
+    if todo:
+        from dask.distributed import as_completed
+
+        client, cluster = _client(workers, scheduler)
+        try:
+            futures = {client.submit(run_capture, tasks[i], key=f"hyperlf-depth-{i}-"
+                                     f"{tasks[i].name}", pure=False): i for i in todo}
+            for fut in progress_bar(as_completed(futures), "captures", total=len(futures),
+                                    enabled=progress, unit="capture"):
+                i = futures[fut]
+                try:
+                    results[i] = fut.result()
+                except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker after retries
+                    results[i] = CaptureResult(tasks[i].name, tasks[i].capture, "failed",
+                                               message=" ".join(str(exc).split())[:300])
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    return [results[i] for i in range(len(tasks))]
+
+
+def write_summary(out: str | os.PathLike, rows: Sequence[CaptureResult]) -> list[Path]:
+    """``summary.csv`` and ``summary.html`` (a table with each capture's disparity picture)
+    in ``out``, replaced together as one result set."""
+    from .outputs import result_files
+
+    out = Path(out)
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(SUMMARY_COLUMNS)
+    for r in rows:
+        d = asdict(r)
+        w.writerow(["" if d[c] is None else d[c] for c in SUMMARY_COLUMNS])
+    targets = [out / "summary.csv", out / "summary.html"]
+    with result_files(targets, overwrite=True, command="batch") as (csv_path, html_path):
+        csv_path.write_text(buf.getvalue(), encoding="utf-8")
+        html_path.write_text(_summary_html(rows), encoding="utf-8")
+    return targets
+
+
+def _summary_html(rows: Sequence[CaptureResult]) -> str:
+    def cell(v):
+        return "" if v is None else html.escape(str(v))
+
+    head = "".join(f"<th>{c}</th>" for c in SUMMARY_COLUMNS) + "<th>disparity</th>"
+    body = []
+    for r in rows:
+        d = asdict(r)
+        pic = "" if r.status == "failed" else (
+            f'<a href="{html.escape(r.capture)}/disparity.png"><img src="'
+            f'{html.escape(r.capture)}/disparity.png" height="96"></a>')
+        cls = ' class="failed"' if r.status == "failed" else ""
+        body.append(f"<tr{cls}>" + "".join(f"<td>{cell(d[c])}</td>" for c in SUMMARY_COLUMNS)
+                    + f"<td>{pic}</td></tr>")
+    n_failed = sum(r.status == "failed" for r in rows)
+    return ("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>hyperlf batch</title>"
+            "<style>body{font-family:sans-serif}td,th{padding:2px 8px;border-bottom:1px solid "
+            "#ddd;text-align:left}tr.failed{background:#fdd}</style></head><body>"
+            f"<h1>hyperlf batch: {len(rows)} captures, {n_failed} failed</h1>"
+            f"<table><tr>{head}</tr>{''.join(body)}</table></body></html>\n")

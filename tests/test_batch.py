@@ -1,0 +1,209 @@
+"""``hyperlf batch`` (issue 13 item 4): many captures on a dask LocalCluster, whole result sets,
+a worker killed mid-run, re-runs that recompute nothing, failures in the summary."""
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+pytest.importorskip("distributed", reason="hyperlf batch needs the optional dask.distributed "
+                                          "(pip install 'hyperlf[batch]')")
+
+from hyperlf import batch  # noqa: E402
+from hyperlf.errors import DataNotFoundError, InvalidInputError  # noqa: E402
+from hyperlf.formats import load_lightfield, read_pfm, save_lightfield  # noqa: E402
+from hyperlf.outputs import MANIFEST  # noqa: E402
+
+LABELS = 12
+
+
+@pytest.fixture(scope="module")
+def captures(tmp_path_factory):
+    from hyperlf import synthesis
+
+    root = tmp_path_factory.mktemp("frames")
+    for seed in range(4):
+        lf = synthesis.procedural_scene(seed=seed, rows=3, cols=3, height=40, width=56,
+                                        texture_scale=2.5)
+        save_lightfield(lf, root / f"frame{seed}")
+    return root
+
+
+def _hyperlf(*argv, **kw):
+    return subprocess.Popen([sys.executable, "-m", "hyperlf", *map(str, argv)],
+                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, **kw)
+
+
+def _children() -> dict[int, list[int]]:
+    """Parent pid -> child pids of every process (Linux /proc)."""
+    kids: dict[int, list[int]] = {}
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            stat = Path(f"/proc/{entry}/stat").read_text()
+        except OSError:
+            continue
+        ppid = int(stat.rsplit(")", 1)[1].split()[1])
+        kids.setdefault(ppid, []).append(int(entry))
+    return kids
+
+
+def _descendants(pid: int) -> list[int]:
+    kids, out, todo = _children(), [], [pid]
+    while todo:
+        for c in kids.get(todo.pop(), []):
+            out.append(c)
+            todo.append(c)
+    return out
+
+
+def _cmdline(pid: int) -> list[str]:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().decode(errors="replace").split("\0")
+    except OSError:
+        return []
+
+
+def _running_depth(batch_pid: int, timeout: float = 120.0):
+    """``(depth pid, its worker's pid, capture)`` of a capture the batch is running."""
+    t_end = time.monotonic() + timeout
+    while time.monotonic() < t_end:
+        for pid in _descendants(batch_pid):
+            cmd = _cmdline(pid)
+            if "hyperlf" in cmd and "depth" in cmd:
+                stat = Path(f"/proc/{pid}/stat").read_text()
+                worker = int(stat.rsplit(")", 1)[1].split()[1])
+                return pid, worker, cmd[cmd.index("depth") + 1]
+        time.sleep(0.02)
+    raise AssertionError("the batch never started a depth process")
+
+
+def _summary(out: Path) -> list[dict]:
+    with open(out / "summary.csv", newline="", encoding="utf-8") as f:
+        return list(csv.DictReader(f))
+
+
+def _assert_whole(folder: Path) -> None:
+    listed = set(json.loads((folder / MANIFEST).read_text())["files"])
+    present = {p.name for p in folder.iterdir()} - {MANIFEST}
+    assert listed == present and "disparity.pfm" in present
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="finds workers in /proc")
+def test_a_killed_worker_loses_no_capture_and_a_rerun_recomputes_nothing(captures, tmp_path):
+    from hyperlf.hlf import depth
+
+    out = tmp_path / "out"
+    proc = _hyperlf("batch", captures, "--labels", LABELS, "--workers", 2, "-o", out)
+    try:
+        depth_pid, worker, capture = _running_depth(proc.pid)
+        os.kill(worker, signal.SIGKILL)  # mid-run: its capture is being matched
+        _, err = proc.communicate(timeout=300)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0, err
+    time.sleep(0.2)
+    assert not Path(f"/proc/{depth_pid}").exists() or \
+        "Z" in Path(f"/proc/{depth_pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    rows = _summary(out)
+    assert [r["capture"] for r in rows] == [f"frame{s}" for s in range(4)]
+    assert all(r["status"] == "done" for r in rows), rows
+    assert not [p for p in out.iterdir() if p.name.endswith(".new")]  # no staging left
+    for s in range(4):
+        folder = out / f"frame{s}"
+        _assert_whole(folder)
+        expected = depth(load_lightfield(captures / f"frame{s}"), n_labels=LABELS).disparity
+        assert np.array_equal(read_pfm(folder / "disparity.pfm"), expected), folder
+        assert float(rows[s]["rmse_px"]) >= 0
+    assert Path(capture).name in {f"frame{s}" for s in range(4)}
+    assert (out / "summary.html").read_text().count("<tr") == 5
+
+    stamps = {p: p.stat().st_mtime_ns for p in out.glob("frame*/disparity.pfm")}
+    again = _hyperlf("-q", "batch", captures, "--labels", LABELS, "--workers", 2, "-o", out)
+    _, err = again.communicate(timeout=120)
+    assert again.returncode == 0, err
+    assert {p: p.stat().st_mtime_ns for p in stamps} == stamps  # nothing recomputed
+    assert all(r["status"] == "done before" for r in _summary(out))
+
+
+def test_a_failed_capture_is_reported_and_the_others_finish(captures, tmp_path):
+    import shutil
+
+    frames = tmp_path / "frames"
+    for s in (0, 1):
+        shutil.copytree(captures / f"frame{s}", frames / f"frame{s}")
+    view = frames / "frame1" / "view_r0_c0.png"
+    view.write_bytes(view.read_bytes()[:200])  # a truncated image
+    out = tmp_path / "out"
+    proc = _hyperlf("batch", frames, "--labels", LABELS, "--workers", 1, "-o", out)
+    _, err = proc.communicate(timeout=300)
+    assert proc.returncode == 1
+    assert "1 of 2 captures failed" in err.splitlines()[-1]
+    rows = {r["capture"]: r for r in _summary(out)}
+    assert rows["frame0"]["status"] == "done" and rows["frame1"]["status"] == "failed"
+    assert rows["frame1"]["exit_code"] == "3" and "view_r0_c0.png" in rows["frame1"]["message"]
+    assert not (out / "frame1").exists()
+    _assert_whole(out / "frame0")
+
+
+# ----------------------------------------------------------------------------- planning
+def test_find_captures_takes_folders_patterns_and_files(captures, tmp_path):
+    found = batch.find_captures([captures])
+    assert [p.name for p in found] == [f"frame{s}" for s in range(4)]
+    assert batch.find_captures([str(captures / "frame[12]")]) == found[1:3]
+    assert batch.find_captures([captures / "frame2", captures]) == [found[2], *found[:2],
+                                                                     found[3]]
+    h5 = tmp_path / "one.h5"
+    save_lightfield(load_lightfield(captures / "frame0"), h5)
+    assert batch.find_captures([h5]) == [h5.resolve()]
+    with pytest.raises(DataNotFoundError, match="no such"):
+        batch.find_captures([tmp_path / "missing"])
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(DataNotFoundError, match="no capture"):
+        batch.find_captures([tmp_path / "empty"])
+
+
+def test_output_names_are_unique():
+    paths = [Path("a/x"), Path("b/x"), Path("c/x.h5"), Path("d/y.h5"), Path("e/.h5")]
+    assert batch._names(paths) == ["x", "x-2", "x-3", "y", "capture"]
+
+
+def test_a_batch_folder_records_its_options(captures, tmp_path):
+    out = tmp_path / "out"
+    tasks = batch.plan_batch([captures], out, depth_args=["--labels", "8"])
+    assert [t.name for t in tasks] == [f"frame{s}" for s in range(4)]
+    assert all(Path(t.output).parent == out for t in tasks)
+    batch.plan_batch([captures], out, depth_args=["--labels", "8"])  # same options: fine
+    with pytest.raises(InvalidInputError, match="other depth options"):
+        batch.plan_batch([captures], out, depth_args=["--labels", "9"])
+    batch.plan_batch([captures], out, depth_args=["--labels", "9"], overwrite=True)
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("keep")
+    with pytest.raises(InvalidInputError, match="not a hyperlf batch"):
+        batch.plan_batch([captures], tmp_path / "mine")
+    assert (tmp_path / "mine" / "notes.txt").read_text() == "keep"
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st.text(max_size=12))
+def test_workers_option_takes_small_positive_integers_only(text):
+    import argparse
+
+    from hyperlf.cli import _workers_arg
+
+    try:
+        v = _workers_arg(text)
+    except argparse.ArgumentTypeError as exc:
+        assert "\n" not in str(exc)
+        return
+    assert 1 <= v <= 256 and v == int(text)
