@@ -103,6 +103,10 @@ ABLATIONS = {
     "sgm": ({"optimizer": "sgm"}, "SGM instead of graph cuts"),
     "bwncc_paper": ({"metric": "bwncc-paper"}, "cost bwncc-paper"),
     "no_median": ({"params": DepthParams(median_radius=0)}, "without the weighted-median post-filter"),
+    "visibility": ({"params": DepthParams(visibility_rounds=1)},
+                   "+ visibility-aware re-matching, 1 round (§5.6)"),
+    "visibility2": ({"params": DepthParams(visibility_rounds=2)},
+                    "+ visibility-aware re-matching, 2 rounds (§5.6)"),
     "no_texture": ({"params": DepthParams(texture_snr=0)},
                    "without the textureless-region weight"),
     # not a single toggle: the two cues that helped most with the stand-in costs, together

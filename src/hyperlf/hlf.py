@@ -96,6 +96,14 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
    default for captures made from camera images (``hyperlf ingest``), off for rendered and
    synthetic light fields (see :class:`DepthParams`) and under ``"wta"``.
 
+6. **Post-filter**: the guided weighted median (:func:`post_filter`).
+
+7. **Visibility-aware re-matching** (SPEC §5.6, ``params.visibility_rounds``; default 0 =
+   off): the disparity so far is forward-warped into every view (z-buffer,
+   :func:`hyperlf.warp.visible_in_view`), each view counts only at the reference pixels it
+   sees (:func:`visible_views`), and stages 2 and 4-6 run again on that volume; the defocus
+   volume and the texture weight are kept.
+
 Defaults
 --------
 Every cue of 2-4 has an on/off switch, and a cue that did not lower the error on the tuning
@@ -141,6 +149,7 @@ __all__ = [
     "refine",
     "post_filter",
     "seen_pixels",
+    "visible_views",
     "make_labels",
     "view_costs",
     "shift_map",
@@ -189,6 +198,10 @@ class DepthParams:
     over the views that see it; ``"neutral"``: they count the pixel's median cost, see
     :func:`neutral_missing_views`, which removes the pull of textureless border regions to the
     range limits).
+    Visibility (SPEC §5.6): ``visibility_rounds`` (0 = off) re-matchings, each over only the
+    views that see each reference pixel under the current estimate (:func:`visible_views`:
+    z-test with ``visibility_margin`` px per baseline; a pixel seen by fewer than
+    ``min_visible_views`` other views keeps them all).
     Textureless regions: ``texture_snr`` (None, the default: 2 for a capture made from camera
     images by ``hyperlf ingest``, i.e. with ``"calibration"`` metadata, else off; 0 = off;
     else > 1) and ``texture_window`` (5 px):
@@ -227,6 +240,9 @@ class DepthParams:
     edge_dilate: int = 1
     min_half_views: int = 2
     missing_views: str = "average"
+    visibility_rounds: int = 0
+    visibility_margin: float = 0.5
+    min_visible_views: int = 2
     texture_snr: float | None = None
     texture_window: int = 5
     camera: str = "CIE 1931"
@@ -281,6 +297,12 @@ class DepthParams:
         pos("occlusion_weight", self.occlusion_weight, True)
         if int(self.min_selected) < 1:
             raise InvalidInputError(f"params.min_selected must be >= 1, got {self.min_selected!r}")
+        for name in ("visibility_rounds", "min_visible_views"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or int(v) != v or v < (1 if name == "min_visible_views" else 0):
+                raise InvalidInputError(f"params.{name} must be an integer >= "
+                                        f"{1 if name == 'min_visible_views' else 0}, got {v!r}")
+        pos("visibility_margin", self.visibility_margin, True)
         if int(self.min_half_views) < 1:
             raise InvalidInputError(f"params.min_half_views must be >= 1, got {self.min_half_views!r}")
         if self.missing_views not in ("average", "neutral"):
@@ -988,8 +1010,36 @@ def seen_pixels(prob: DepthProblem, n_used: np.ndarray) -> np.ndarray | None:
     return prob.valid[prob.reference] & (np.asarray(n_used) > 0).any(axis=0)
 
 
-def correspondence(prob: DepthProblem, *, progress: bool = False, timings=None):
+def visible_views(prob: DepthProblem, disparity: np.ndarray) -> dict:
+    """Stage 7 of :func:`depth` (SPEC §5.6 a): which other views see each reference pixel.
+
+    :func:`hyperlf.warp.visible_in_view` of ``disparity`` for every other view (z-test,
+    ``params.visibility_margin``), and the view's validity mask at the pixel's landing point
+    when the light field has masks.  A pixel seen by fewer than ``params.min_visible_views``
+    views keeps every view (too few votes are worse than an occluded one).
+
+    Returns
+    -------
+    dict
+        ``(r, c)`` -> bool (H, W) for every view but the reference.
+    """
+    from .warp import visible_in_view
+
+    p = prob.params
+    d = np.asarray(disparity, np.float64)
+    sees = {v: visible_in_view(d, tuple(prob.offsets[v]), margin=float(p.visibility_margin))
+            for v in prob.others}
+    count = np.sum([m for m in sees.values()], axis=0)
+    few = count < int(p.min_visible_views)
+    return {v: m | few for v, m in sees.items()}
+
+
+def correspondence(prob: DepthProblem, *, progress: bool = False, timings=None,
+                   sees: dict | None = None):
     """Stage 2 of :func:`depth`: per-view costs streamed into the aggregation (SPEC §5.1-5.2).
+
+    ``sees`` (optional; :func:`visible_views`): per other view, the reference pixels it sees;
+    a view counts only there (SPEC §5.6).
 
     Returns
     -------
@@ -1010,6 +1060,8 @@ def correspondence(prob: DepthProblem, *, progress: bool = False, timings=None):
         Cv, valid = view_costs(prob.ref_img, prob.lf.views[v], prob.offsets[v], prob.labels,
                                prob.metric, p.window, p.tau_rel, p.eps, int(p.block), cache,
                                **_mask_args(prob, v))
+        if sees is not None:
+            valid &= sees[v][None]
         t2 = time.perf_counter()
         t_cost += t2 - t1
         Mq = None
@@ -1206,6 +1258,20 @@ class _Clock:
         self.t = now
 
 
+def _solve(prob: DepthProblem, C, D, n_used, f_c, w, clock, suffix: str = ""):
+    """Stages 4-6 of :func:`depth` on one correspondence volume: unary, MRF, refinement and
+    the post-filter.  Returns ``(seen, U, scale_C, scale_D, disparity, confidence)``."""
+    seen = seen_pixels(prob, n_used)
+    U, sC, sD = unary(C, D, prob.params, informative=seen, weight=w)
+    lab, vol = regularise(prob, U, f_c)
+    clock.lap("mrf_s" + suffix)
+    disp, conf = refine(vol, lab, prob.labels, prob.params, informative=seen, weight=w)
+    clock.lap("refine_s" + suffix)
+    disp = post_filter(disp, prob.In[prob.reference].astype(np.float32), prob.params)
+    clock.lap("median_s" + suffix)
+    return seen, U, sC, sD, disp, conf
+
+
 def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
           view_selection: bool = False, occlusion_split: bool = False, defocus: str = "off",
           optimizer: str = "graphcut", params: DepthParams | None = None,
@@ -1244,7 +1310,8 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
     DepthResult
         With ``timings`` in seconds per stage (``prepare_s``, ``correspondence_s``,
         ``selection_split_s``, ``defocus_s``, ``mrf_s``, ``refine_s``, ``median_s``,
-        ``total_s``).
+        ``total_s``; per visibility round ``k``: ``visibility_round{k}_correspondence_s``,
+        ``mrf_s_round{k}``, ``refine_s_round{k}``, ``median_s_round{k}``).
 
     Raises
     ------
@@ -1279,15 +1346,15 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
     D, lam_r = defocus_cue(prob, f_c)
     f_d = None if D is None else prob.labels[np.argmin(D, axis=0)].astype(np.float32)
     clock.lap("defocus_s")
-    seen = seen_pixels(prob, n_used)
     w = texture_weight(prob)
-    U, sC, sD = unary(C, D, prob.params, informative=seen, weight=w)
-    lab, vol = regularise(prob, U, f_c)
-    clock.lap("mrf_s")
-    disp, conf = refine(vol, lab, prob.labels, prob.params, informative=seen, weight=w)
-    clock.lap("refine_s")
-    disp = post_filter(disp, prob.In[prob.reference].astype(np.float32), prob.params)
-    clock.lap("median_s")
+    seen, U, sC, sD, disp, conf = _solve(prob, C, D, n_used, f_c, w, clock)
+    for k in range(int(prob.params.visibility_rounds)):
+        sees = visible_views(prob, disp)
+        C, n_used = correspondence(prob, progress=progress, sees=sees)
+        f_c = prob.labels[np.argmin(C, axis=0)].astype(np.float32)
+        clock.lap(f"visibility_round{k + 1}_correspondence_s")
+        seen, U, sC, sD, disp, conf = _solve(prob, C, D, n_used, f_c, w, clock,
+                                             suffix=f"_round{k + 1}")
     timings["total_s"] = time.perf_counter() - t0
     inter = None
     if save_intermediate:

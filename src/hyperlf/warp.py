@@ -47,6 +47,7 @@ __all__ = [
     "shift_image",
     "warp_to_reference",
     "forward_warp_disparity",
+    "visible_in_view",
 ]
 
 #: Tolerance (px) within which a sample just outside ``[0, n - 1]`` still counts as inside.
@@ -439,14 +440,72 @@ def forward_warp_disparity(disparity: np.ndarray, offset: tuple[float, float]) -
     """
     d = np.asarray(disparity, dtype=np.float64)
     H, W = d.shape
+    ok, idx = _forward_targets(d, offset)
+    out = np.full(H * W, -np.inf)
+    np.maximum.at(out, idx[ok], d[ok])
+    out[~np.isfinite(out)] = np.nan
+    return out.reshape(H, W).astype(np.float32)
+
+
+def _forward_targets(d: np.ndarray, offset, rounding=(np.rint, np.rint)):
+    """``(ok, idx)``: where each reference pixel lands in the view (flat index of the pixel
+    ``rounding`` (x, y) gives, the nearest by default; ``ok`` False for unknown disparities and
+    landings outside the image)."""
+    H, W = d.shape
     yy, xx = np.mgrid[0:H, 0:W]
     dx, dy = offset
     ok = np.isfinite(d)
-    tx = np.rint(xx - d * dx)
-    ty = np.rint(yy - d * dy)
-    ok &= (tx >= 0) & (tx < W) & (ty >= 0) & (ty < H)
-    out = np.full(H * W, -np.inf)
-    idx = (ty[ok].astype(np.intp) * W + tx[ok].astype(np.intp))
-    np.maximum.at(out, idx, d[ok])
-    out[~np.isfinite(out)] = np.nan
-    return out.reshape(H, W).astype(np.float32)
+    with np.errstate(invalid="ignore"):
+        tx = rounding[0](xx - d * dx)
+        ty = rounding[1](yy - d * dy)
+        ok &= (tx >= 0) & (tx < W) & (ty >= 0) & (ty < H)
+    idx = np.where(ok, ty, 0).astype(np.intp) * W + np.where(ok, tx, 0).astype(np.intp)
+    return ok, idx
+
+
+def visible_in_view(disparity: np.ndarray, offset: tuple[float, float], *,
+                    margin: float = 0.5) -> np.ndarray:
+    """Which reference pixels another view sees (SPEC §5.6 a): the z-test of
+    :func:`forward_warp_disparity`.
+
+    Reference pixel ``p`` lands at the nearest pixel ``t`` of ``p - d(p) (dx, dy)``; the view
+    sees it when no reference pixel whose landing point touches ``t`` (lies within one pixel
+    of it along each axis: the z-buffer is splatted onto the 2 x 2 pixels around every landing
+    point, so that an occluder's edge, which pixel centres sample only to half a pixel, is not
+    missed) is nearer by more than ``margin`` (px per baseline): ``d(p) >= max d(t) - margin``.
+    The test errs on the side of "hidden": a view dropped near an edge costs one vote, a view
+    that cannot see the pixel would cast a wrong one.  A pixel landing outside the image, or with an
+    unknown disparity, is not seen.  Surfaces the reference does not see cannot occlude here.
+
+    Parameters
+    ----------
+    disparity : ndarray, shape (H, W)
+        Reference disparity; NaN = unknown.
+    offset : (dx, dy)
+        View position minus reference position, in baselines.
+    margin : float
+        Disparity difference below which two surfaces count as one (>= 0).
+
+    Returns
+    -------
+    ndarray of bool, shape (H, W)
+
+    Examples
+    --------
+    >>> d = np.array([[0.0, 0.0, 1.0, 1.0]])  # a nearer surface on the right
+    >>> visible_in_view(d, (1.0, 0.0)).tolist()   # the view 1 baseline right: x - d
+    [[True, False, True, True]]
+    """
+    d = np.asarray(disparity, dtype=np.float64)
+    H, W = d.shape
+    z = np.full(H * W, -np.inf)
+    for rounding in ((np.floor, np.floor), (np.floor, np.ceil), (np.ceil, np.floor),
+                     (np.ceil, np.ceil)):  # every pixel the landing point touches
+        ok, idx = _forward_targets(d, offset, rounding)
+        np.maximum.at(z, idx[ok], d[ok])
+    ok, idx = _forward_targets(d, offset)
+    seen = np.zeros(H * W, bool)
+    flat = d.ravel()
+    sel = ok.ravel()
+    seen[sel] = flat[sel] >= z[idx.ravel()[sel]] - float(margin)
+    return seen.reshape(H, W)
