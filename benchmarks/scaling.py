@@ -44,10 +44,24 @@ def synthesise(work: Path, size, grid) -> Path:
     return path
 
 
-def run_one(capture: str, labels: int) -> dict:
-    """One depth run in this process (called in a child process by :func:`main`)."""
+def _peak_gb() -> float:
+    """This process's peak resident memory: ``VmHWM`` (Linux; reset by exec, unlike
+    ``ru_maxrss``, which a child started by fork + exec inherits from its parent), else
+    ``ru_maxrss``."""
     import resource
 
+    try:
+        with open("/proc/self/status", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 2**20
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
+
+
+def run_one(capture: str, labels: int) -> dict:
+    """One depth run in this process (called in a child process by :func:`main`)."""
     import numpy as np
 
     from hyperlf import metrics
@@ -63,7 +77,7 @@ def run_one(capture: str, labels: int) -> dict:
     if gt is not None and min(gt.shape) > 2 * metrics.HCI_BORDER:
         rmse = float(metrics.disparity_scores(res.disparity, gt, border=metrics.HCI_BORDER,
                                               mask_name="all-15px-border").rmse)
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20  # kB -> GB (Linux)
+    peak = _peak_gb()
     R, C = lf.grid_shape
     H, W = lf.image_shape
     t = res.timings
