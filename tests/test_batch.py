@@ -12,7 +12,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
 
 pytest.importorskip("distributed", reason="hyperlf batch needs the optional dask.distributed "
                                           "(pip install 'hyperlf[batch]')")
@@ -192,18 +191,3 @@ def test_a_batch_folder_records_its_options(captures, tmp_path):
     with pytest.raises(InvalidInputError, match="not a hyperlf batch"):
         batch.plan_batch([captures], tmp_path / "mine")
     assert (tmp_path / "mine" / "notes.txt").read_text() == "keep"
-
-
-@settings(max_examples=60, deadline=None, derandomize=True)
-@given(st.text(max_size=12))
-def test_workers_option_takes_small_positive_integers_only(text):
-    import argparse
-
-    from hyperlf.cli import _workers_arg
-
-    try:
-        v = _workers_arg(text)
-    except argparse.ArgumentTypeError as exc:
-        assert "\n" not in str(exc)
-        return
-    assert 1 <= v <= 256 and v == int(text)

@@ -370,6 +370,10 @@ CASES = {
                           lambda w, v, o: ["depth", w.cap, "--labels=4", "--metric=ncc",
                                            "--optimizer=wta", f"--texture-snr={v}",
                                            "-o", o / "d"], None),
+    "depth-visibility-rounds": (numbers(small=(-2, 7), huge=10**9),
+                                lambda w, v, o: ["depth", w.cap, "--labels=4", "--metric=ncc",
+                                                 "--optimizer=wta", f"--visibility-rounds={v}",
+                                                 "-o", o / "d"], None),
     "depth-defocus": (names_or(["off", "paper", "gaussian", "flat", "tv"]),
                       lambda w, v, o: ["depth", w.cap, "--labels=4", "--metric=ncc",
                                        "--optimizer=wta", f"--defocus={v}", "-o", o / "d"],
@@ -457,6 +461,10 @@ CASES = {
                       lambda w, v, o: ["ingest", w.shots, "--pattern=Cam-{index}.png",
                                        f"--calibration={w.cal}", f"--dark={_input(w, v)}",
                                        f"--flat={_input(w, v)}", "-o", o / "i"], None),
+    # --- batch: the option is parsed before the missing input is found (exit 4)
+    "batch-workers": (numbers(small=(-2, 300), huge=10**12),
+                      lambda w, v, o: ["batch", o / "no-such-capture", f"--workers={v}",
+                                       "-o", o / "b"], None),
     # --- info
     "info-input": (INPUT_TEXT, lambda w, v, o: ["info", "--", _input(w, v)], None),
 }

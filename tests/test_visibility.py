@@ -122,3 +122,25 @@ def test_rematching_lowers_the_error_at_depth_edges(scene):
         if rounds:
             assert "visibility_round1_correspondence_s" in res.timings
     assert err[1] < 0.97 * err[0], err
+
+
+def test_depth_command_takes_the_visibility_option(tmp_path, capsys):
+    from hyperlf.cli import main
+    from hyperlf.formats import load_lightfield, read_pfm, save_lightfield
+
+    save_lightfield(synthesis.procedural_scene(seed=1, rows=3, cols=3, height=40, width=48),
+                    tmp_path / "cap")
+    lf = load_lightfield(tmp_path / "cap")  # the views as written (16-bit)
+    maps = {}
+    for rounds in ("0", "1"):
+        out = tmp_path / f"d{rounds}"
+        assert main(["-q", "depth", str(tmp_path / "cap"), "--labels", "12",
+                     "--visibility-rounds", rounds, "-o", str(out)]) == 0
+        maps[rounds] = read_pfm(out / "disparity.pfm")
+    expected = depth(lf, n_labels=12, params=DepthParams(visibility_rounds=1)).disparity
+    assert np.array_equal(maps["1"], expected)
+    assert np.array_equal(maps["0"], depth(lf, n_labels=12).disparity)
+    with pytest.raises(SystemExit) as info:
+        main(["-q", "depth", str(tmp_path / "cap"), "--visibility-rounds", "9",
+              "-o", str(tmp_path / "bad")])
+    assert info.value.code == 2 and "--visibility-rounds" in capsys.readouterr().err

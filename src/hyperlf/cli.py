@@ -127,6 +127,15 @@ _labels_arg = _int_at_least(2, "the number of disparity labels")
 _seed_arg = _int_at_least(0, "the seed")
 
 
+def _visibility_rounds_arg(text: str) -> int:
+    """``--visibility-rounds``: 0..5 re-matching rounds (each one more correspondence pass)."""
+    v = _int_at_least(0, "the number of visibility rounds")(text)
+    if v > 5:
+        raise argparse.ArgumentTypeError(f"the number of visibility rounds must be at most 5, "
+                                         f"got {v} (each round costs a correspondence pass)")
+    return v
+
+
 def _workers_arg(text: str) -> int:
     """``--workers``: 1..256 worker processes (more on one machine only thrash)."""
     v = _int_at_least(1, "the number of workers")(text)
@@ -593,7 +602,9 @@ def _cmd_depth(args, dest) -> list[Path]:
         from .hlf import DepthParams, depth
 
         options = {k: v for k, v in (("median_radius", args.median_radius),
-                                     ("texture_snr", args.texture_snr)) if v is not None}
+                                     ("texture_snr", args.texture_snr),
+                                     ("visibility_rounds", args.visibility_rounds))
+                   if v is not None}
         params = DepthParams(**options) if options else None
         if lf.views.ndim != 4:
             raise InvalidInputError("the hlf method needs monochrome spectral views; use "
@@ -1144,6 +1155,11 @@ def _add_depth_parser(sub) -> None:
                         "off; default: 2 for captures made by 'hyperlf ingest' from camera "
                         "images, off for rendered and synthetic light fields, whose "
                         "pixel-scale texture one image cannot tell from noise)")
+    p.add_argument("--visibility-rounds", type=_visibility_rounds_arg, default=None,
+                   metavar="N",
+                   help="re-match N times over only the views that see each pixel under the "
+                        "previous estimate (sharper depth edges; each round costs about one "
+                        "more correspondence pass; default 0)")
     p.add_argument("--save-intermediate", action="store_true",
                    help="also write correspondence-only and defocus-only maps, and the "
                         "textureless-region weight when it was used")
