@@ -73,7 +73,7 @@ def run_one(capture: str, labels: int) -> dict:
     from hyperlf.synthesis import procedural_scene
 
     depth(procedural_scene(seed=0, rows=3, cols=3, height=32, width=40), n_labels=8)  # warm-up
-    lf = load_lightfield(capture)
+    lf = load_lightfield(capture, cube=False)
     res = depth(lf, n_labels=labels)
     gt = lf.reference_gt_disparity
     rmse = None

@@ -255,3 +255,19 @@ def test_formats_package_exports_every_module_api():
             assert name in formats.__all__
             assert getattr(formats, name) is getattr(module, name)
     assert {"load_lightfield", "save_lightfield"} <= set(formats.__all__)
+
+
+def test_a_light_field_loads_without_its_cube(tmp_path):
+    """``cube=False`` (what ``hyperlf depth`` uses) leaves the ground-truth cube on disk and
+    keeps everything else, for capture folders and HDF5 files alike."""
+    from hyperlf.formats import load_lightfield, save_lightfield
+    from hyperlf.synthesis import procedural_scene
+
+    lf = procedural_scene(seed=1, rows=2, cols=3, height=12, width=16)
+    for target in (tmp_path / "cap", tmp_path / "lf.h5"):
+        save_lightfield(lf, target)
+        full, lean = load_lightfield(target), load_lightfield(target, cube=False)
+        assert full.gt_cube is not None and lean.gt_cube is None
+        assert lean.cube_wavelengths is None
+        np.testing.assert_array_equal(lean.views, full.views)
+        np.testing.assert_array_equal(lean.gt_disparity, full.gt_disparity)

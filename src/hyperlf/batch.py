@@ -222,7 +222,7 @@ def _measure(task: CaptureTask, row: CaptureResult) -> CaptureResult:
 
     try:
         d = read_pfm(Path(task.output) / "disparity.pfm")
-        lf = load_lightfield(task.capture)
+        lf = load_lightfield(task.capture, cube=False)
     except (HyperLFError, OSError) as exc:
         row.message = f"result not measured: {exc}"
         return row

@@ -590,7 +590,7 @@ def _cmd_depth(args, dest) -> list[Path]:
     from .formats import load_lightfield
     from .pipeline import save_disparity_outputs, save_metric_outputs
 
-    lf = load_lightfield(args.input)
+    lf = load_lightfield(args.input, cube=False)  # a ground-truth cube is not needed here
     out = dest
     rng = args.disparity_range
     if rng is None and lf.disparity_range is None:

@@ -40,8 +40,9 @@ _SUPPORTED = ("a capture folder with capture.toml, an HCI scene folder with inpu
               "or an HDF5 file (.h5/.hdf5) written by hyperlf")
 
 
-def load_lightfield(path: str | os.PathLike, **kwargs) -> LightField:
-    """Load a light field, picking the reader from what ``path`` is.
+def load_lightfield(path: str | os.PathLike, *, cube: bool = True, **kwargs) -> LightField:
+    """Load a light field, picking the reader from what ``path`` is (``cube=False`` leaves a
+    ground-truth cube on disk: depth needs only the views).
 
     * folder with ``capture.toml`` -> :func:`read_capture`;
     * folder with ``input_Cam000.png`` -> :func:`read_hci_scene` (``kwargs``: grid, rows, cols);
@@ -82,7 +83,7 @@ def load_lightfield(path: str | os.PathLike, **kwargs) -> LightField:
         raise DataNotFoundError(f"{p} does not exist; expected {_SUPPORTED}")
     if p.is_dir():
         if is_capture(p):
-            return read_capture(p, **kwargs)
+            return read_capture(p, cube=cube, **kwargs)
         if is_hci_scene(p):
             return read_hci_scene(p, **kwargs)
         if any(f.suffix.lower() in (".png", ".tif", ".tiff") for f in p.iterdir()):
@@ -92,7 +93,7 @@ def load_lightfield(path: str | os.PathLike, **kwargs) -> LightField:
             )
         raise FormatError(f"{p} is not a light field: hyperlf loads {_SUPPORTED}")
     if p.suffix.lower() in _H5:
-        return read_lightfield_h5(p, **kwargs)
+        return read_lightfield_h5(p, cube=cube, **kwargs)
     raise FormatError(f"cannot load {p} (suffix {p.suffix or 'none'!r}): hyperlf loads {_SUPPORTED}")
 
 

@@ -381,8 +381,9 @@ def _manifest_metadata(doc: dict, root: Path, bit_depth: int) -> dict[str, Any]:
     return metadata
 
 
-def read_capture(folder: str | os.PathLike) -> LightField:
-    """Read a capture folder.
+def read_capture(folder: str | os.PathLike, *, cube: bool = True) -> LightField:
+    """Read a capture folder (``cube=False``: without the ground-truth cube, which can be many
+    times the size of the views; its file is still checked to stay inside the folder).
 
     Parameters
     ----------
@@ -429,13 +430,13 @@ def read_capture(folder: str | os.PathLike) -> LightField:
     H, W = views.shape[2:4]
     gt = _read_gt_disparity(man, root, gfiles, R, C, H, W)
     valid = _read_valid(man, root, vfiles, R, C, H, W)
-    cube, cube_wl = _read_gt_cube(man, cfile, cspec, R, C, H, W)
+    gt_cube, cube_wl = _read_gt_cube(man, cfile, cspec, R, C, H, W) if cube else (None, None)
     metadata = _manifest_metadata(doc, root, hd["bit_depth"])
     try:
         return LightField(
             views=views, wavelengths=wl if n_wl else None, positions=pos,
             reference=hd["reference"], disparity_range=hd["drange"], gt_disparity=gt,
-            gt_cube=cube, cube_wavelengths=cube_wl, metadata=metadata, valid=valid,
+            gt_cube=gt_cube, cube_wavelengths=cube_wl, metadata=metadata, valid=valid,
         )
     except InvalidInputError as exc:
         raise _err(man, f"describes an invalid light field: {exc}") from None

@@ -252,8 +252,9 @@ def write_lightfield_h5(path: str | os.PathLike, lf: LightField,
     return Path(path)
 
 
-def read_lightfield_h5(path: str | os.PathLike) -> LightField:
-    """Read a whole light field file into memory.
+def read_lightfield_h5(path: str | os.PathLike, *, cube: bool = True) -> LightField:
+    """Read a whole light field file into memory (``cube=False``: without the ground-truth
+    cube, which can be many times the size of the views).
 
     Parameters
     ----------
@@ -276,8 +277,8 @@ def read_lightfield_h5(path: str | os.PathLike) -> LightField:
         positions = _get(p, f, "positions")
         wl = _get(p, f, "wavelengths", required=False)
         gt = _get(p, f, "gt_disparity", required=False)
-        cube = _get(p, f, "gt_cube", required=False)
-        cw = _get(p, f, "cube_wavelengths", required=False)
+        gt_cube = _get(p, f, "gt_cube", required=False) if cube else None
+        cw = _get(p, f, "cube_wavelengths", required=False) if cube else None
         valid = _valid_mask(p, _get(p, f, "valid", required=False), views.shape[:4])
         ref = _pair_attr(p, f, "reference", integral=True)
         dr = _pair_attr(p, f, "disparity_range", integral=False)
@@ -285,7 +286,7 @@ def read_lightfield_h5(path: str | os.PathLike) -> LightField:
     try:
         return LightField(
             views=views, wavelengths=wl, positions=positions, reference=ref,
-            disparity_range=dr, gt_disparity=gt, gt_cube=cube, cube_wavelengths=cw,
+            disparity_range=dr, gt_disparity=gt, gt_cube=gt_cube, cube_wavelengths=cw,
             metadata=meta, valid=valid,
         )
     except InvalidInputError as exc:
