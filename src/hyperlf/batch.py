@@ -33,6 +33,7 @@ import os
 import subprocess
 import sys
 import time
+import uuid
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Sequence
@@ -295,8 +296,9 @@ def run_batch(tasks: Sequence[CaptureTask], *, workers: int = 2, scheduler: str 
 
         client, cluster = _client(workers, scheduler)
         try:
-            futures = {client.submit(run_capture, tasks[i], key=f"hyperlf-depth-{i}-"
-                                     f"{tasks[i].name}", pure=False): i for i in todo}
+            token = uuid.uuid4().hex[:12]  # keys unique on a shared scheduler
+            futures = {client.submit(run_capture, tasks[i], key=f"hyperlf-depth-{token}-{i}",
+                                     pure=False): i for i in todo}
             for fut in progress_bar(as_completed(futures), "captures", total=len(futures),
                                     enabled=progress, unit="capture"):
                 i = futures[fut]
