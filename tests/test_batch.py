@@ -185,7 +185,16 @@ def test_a_batch_folder_records_its_options(captures, tmp_path):
     batch.plan_batch([captures], out, depth_args=["--labels", "8"])  # same options: fine
     with pytest.raises(InvalidInputError, match="other depth options"):
         batch.plan_batch([captures], out, depth_args=["--labels", "9"])
-    batch.plan_batch([captures], out, depth_args=["--labels", "9"], overwrite=True)
+    tasks = batch.plan_batch([captures], out, depth_args=["--labels", "9"], overwrite=True)
+    assert all(t.overwrite for t in tasks)
+    with pytest.raises(InvalidInputError, match="did not finish"):  # old results may remain
+        batch.plan_batch([captures], out, depth_args=["--labels", "9"])
+    done = [batch.CaptureResult(t.name, t.capture, "done") for t in tasks]
+    batch.finish_batch(out, done[:1] + [batch.CaptureResult("x", "x", "failed")])
+    with pytest.raises(InvalidInputError, match="did not finish"):
+        batch.plan_batch([captures], out, depth_args=["--labels", "9"])
+    batch.finish_batch(out, done)
+    batch.plan_batch([captures], out, depth_args=["--labels", "9"])  # now whole again
     (tmp_path / "mine").mkdir()
     (tmp_path / "mine" / "notes.txt").write_text("keep")
     with pytest.raises(InvalidInputError, match="not a hyperlf batch"):

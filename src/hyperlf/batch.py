@@ -43,7 +43,7 @@ import numpy as np
 from .errors import DataNotFoundError, HyperLFError, InvalidInputError
 
 __all__ = ["BATCH_FILE", "CaptureTask", "find_captures", "plan_batch", "run_capture",
-           "run_batch", "write_summary"]
+           "run_batch", "write_summary", "finish_batch"]
 
 #: The file that marks a batch output folder and records its depth options.
 BATCH_FILE = ".hyperlf-batch.json"
@@ -135,7 +135,9 @@ def _names(captures: Sequence[Path]) -> list[str]:
 
 def _record_options(out: Path, depth_args: Sequence[str], overwrite: bool) -> None:
     """Make ``out`` a batch folder recording ``depth_args``; refuse another batch's folder
-    with other options (unless ``overwrite``) and a folder that is not a batch's."""
+    with other options (unless ``overwrite``), a folder that is not a batch's, and, without
+    ``overwrite``, a folder whose last ``overwrite`` run did not finish (some of its result
+    sets may still come from the old options)."""
     marker = out / BATCH_FILE
     if out.is_symlink() or (out.exists() and not out.is_dir()):
         raise InvalidInputError(f"-o {out}: not a folder; give a folder for the batch results")
@@ -143,20 +145,42 @@ def _record_options(out: Path, depth_args: Sequence[str], overwrite: bool) -> No
         if any(out.iterdir()):
             raise InvalidInputError(f"-o {out}: a folder that is not a hyperlf batch output "
                                     "and not empty; give a new or empty folder")
-    elif marker.is_file():
-        try:
-            before = json.loads(marker.read_text(encoding="utf-8")).get("depth_args")
-        except (OSError, ValueError, AttributeError):
-            before = None
-        if before != list(depth_args) and not overwrite:
+    elif marker.is_file() and not overwrite:
+        before = _read_marker(marker)
+        if before.get("overwrite_unfinished"):
+            raise InvalidInputError(f"-o {out}: an --overwrite run into it did not finish, so "
+                                    "some results may have other options; run it again with "
+                                    "--overwrite")
+        if before.get("depth_args") != list(depth_args):
+            old = " ".join(before.get("depth_args") or []) or "none"
             raise InvalidInputError(
-                f"-o {out}: made with other depth options ({' '.join(before or []) or 'none'}); "
-                "give another folder, the same options, or --overwrite to recompute")
+                f"-o {out}: made with other depth options ({old}); give another folder, the "
+                "same options, or --overwrite to recompute")
+    out.mkdir(parents=True, exist_ok=True)
+    _write_marker(marker, {"depth_args": list(depth_args), "overwrite_unfinished": overwrite})
+
+
+def _read_marker(marker: Path) -> dict:
+    try:
+        doc = json.loads(marker.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return doc if isinstance(doc, dict) else {}
+
+
+def _write_marker(marker: Path, doc: dict) -> None:
     from ._atomic import atomic_write_bytes
 
-    out.mkdir(parents=True, exist_ok=True)
-    text = json.dumps({"depth_args": list(depth_args)}, indent=1) + "\n"
-    atomic_write_bytes(marker, text.encode("utf-8"))
+    atomic_write_bytes(marker, (json.dumps(doc, indent=1) + "\n").encode("utf-8"))
+
+
+def finish_batch(out: str | os.PathLike, rows: Sequence["CaptureResult"]) -> None:
+    """After a run: the folder's results all have its recorded options once every capture
+    is done (clears the mark an ``overwrite`` run leaves until then)."""
+    marker = Path(out) / BATCH_FILE
+    doc = _read_marker(marker)
+    if doc.get("overwrite_unfinished") and all(r.status != "failed" for r in rows):
+        _write_marker(marker, {**doc, "overwrite_unfinished": False})
 
 
 def plan_batch(inputs, out: str | os.PathLike, *, depth_args: Sequence[str] = (),

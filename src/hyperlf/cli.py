@@ -667,7 +667,7 @@ def _cmd_batch(args, dest) -> list[Path]:  # noqa: ARG001 - batch writes its own
       hyperlf batch 'scenes/*.h5' --labels 32 --workers 4 -o depths
       hyperlf batch frames/ --scheduler tcp://scheduler-host:8786 -o depths   # an existing cluster
     """
-    from .batch import plan_batch, run_batch, write_summary
+    from .batch import finish_batch, plan_batch, run_batch, write_summary
 
     depth_args = []
     if args.disparity_range is not None:
@@ -683,6 +683,7 @@ def _cmd_batch(args, dest) -> list[Path]:  # noqa: ARG001 - batch writes its own
     rows = run_batch(tasks, workers=args.workers, scheduler=args.scheduler,
                      progress=not args.quiet)
     write_summary(args.output, rows)
+    finish_batch(args.output, rows)
     counts = {k: sum(r.status == k for r in rows) for k in ("done", "done before", "failed")}
     _say(args, f"{counts['done']} computed, {counts['done before']} done before, "
                f"{counts['failed']} failed; summary in {Path(args.output) / 'summary.html'}")

@@ -1014,9 +1014,9 @@ def visible_views(prob: DepthProblem, disparity: np.ndarray) -> dict:
     """Stage 7 of :func:`depth` (SPEC §5.6 a): which other views see each reference pixel.
 
     :func:`hyperlf.warp.visible_in_view` of ``disparity`` for every other view (z-test,
-    ``params.visibility_margin``), and the view's validity mask at the pixel's landing point
-    when the light field has masks.  A pixel seen by fewer than ``params.min_visible_views``
-    views keeps every view (too few votes are worse than an occluded one).
+    ``params.visibility_margin``; validity masks need nothing here, the correspondence stage
+    applies them per sample).  A pixel seen by fewer than ``params.min_visible_views`` views
+    keeps every view (too few votes are worse than an occluded one).
 
     Returns
     -------
@@ -1260,7 +1260,7 @@ class _Clock:
 
 def _solve(prob: DepthProblem, C, D, n_used, f_c, w, clock, suffix: str = ""):
     """Stages 4-6 of :func:`depth` on one correspondence volume: unary, MRF, refinement and
-    the post-filter.  Returns ``(seen, U, scale_C, scale_D, disparity, confidence)``."""
+    the post-filter.  Returns ``(U, scale_C, scale_D, disparity, confidence)``."""
     seen = seen_pixels(prob, n_used)
     U, sC, sD = unary(C, D, prob.params, informative=seen, weight=w)
     lab, vol = regularise(prob, U, f_c)
@@ -1269,7 +1269,7 @@ def _solve(prob: DepthProblem, C, D, n_used, f_c, w, clock, suffix: str = ""):
     clock.lap("refine_s" + suffix)
     disp = post_filter(disp, prob.In[prob.reference].astype(np.float32), prob.params)
     clock.lap("median_s" + suffix)
-    return seen, U, sC, sD, disp, conf
+    return U, sC, sD, disp, conf
 
 
 def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
@@ -1347,14 +1347,14 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
     f_d = None if D is None else prob.labels[np.argmin(D, axis=0)].astype(np.float32)
     clock.lap("defocus_s")
     w = texture_weight(prob)
-    seen, U, sC, sD, disp, conf = _solve(prob, C, D, n_used, f_c, w, clock)
+    U, sC, sD, disp, conf = _solve(prob, C, D, n_used, f_c, w, clock)
     for k in range(int(prob.params.visibility_rounds)):
         sees = visible_views(prob, disp)
         C, n_used = correspondence(prob, progress=progress, sees=sees)
         f_c = prob.labels[np.argmin(C, axis=0)].astype(np.float32)
         clock.lap(f"visibility_round{k + 1}_correspondence_s")
-        seen, U, sC, sD, disp, conf = _solve(prob, C, D, n_used, f_c, w, clock,
-                                             suffix=f"_round{k + 1}")
+        U, sC, sD, disp, conf = _solve(prob, C, D, n_used, f_c, w, clock,
+                                       suffix=f"_round{k + 1}")
     timings["total_s"] = time.perf_counter() - t0
     inter = None
     if save_intermediate:
