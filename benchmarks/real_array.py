@@ -80,12 +80,13 @@ def textured_pixels(lf) -> np.ndarray:
 
 def figures(data: Path, work: Path) -> None:
     from hyperlf.formats import load_lightfield, read_pfm
+    from hyperlf.metrics import at_range_limit
 
     lf = {k: load_lightfield(work / k) for k in ("scene", "board")}
     d = {k: read_pfm(work / f"{k}-depth" / "disparity.pfm") for k in lf}
     ref = lf["scene"].reference
     lo, hi = lf["scene"].disparity_range
-    at_limit = {k: (np.abs(d[k] - lo) < 1e-3) | (np.abs(d[k] - hi) < 1e-3) for k in d}
+    at_limit = {k: at_range_limit(d[k], (lo, hi)) for k in d}
     for k in d:
         v = lf[k].valid[ref]
         print(f"{k}: {100 * at_limit[k][v].mean():.2f} % of the valid reference pixels at a "
@@ -109,6 +110,7 @@ def half_resolution(work: Path) -> None:
 
     from hyperlf.formats import load_lightfield
     from hyperlf.hlf import CAMERA_TEXTURE_SNR, DepthParams, depth
+    from hyperlf.metrics import at_range_limit
 
     lf = load_lightfield(work / "scene")
     R, C, H, W = lf.views.shape
@@ -123,7 +125,7 @@ def half_resolution(work: Path) -> None:
     for snr in (0.0, CAMERA_TEXTURE_SNR):
         res = depth(half, n_labels=35, params=DepthParams(texture_snr=snr))
         d = res.disparity
-        at = ((np.abs(d - lo) < 1e-3) | (np.abs(d - hi) < 1e-3))[valid[lf.reference]]
+        at = at_range_limit(d, (lo, hi))[valid[lf.reference]]
         t = res.timings
         print(f"half resolution, texture_snr={snr:g}: {100 * at.mean():.2f} % at a range limit; "
               f"total {t['total_s']:.1f} s (correspondence {t['correspondence_s']:.1f} s, "

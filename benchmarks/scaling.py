@@ -76,10 +76,8 @@ def run_one(capture: str, labels: int) -> dict:
     lf = load_lightfield(capture, cube=False)
     res = depth(lf, n_labels=labels)
     gt = lf.reference_gt_disparity
-    rmse = None
-    if gt is not None and min(gt.shape) > 2 * metrics.HCI_BORDER:
-        rmse = float(metrics.disparity_scores(res.disparity, gt, border=metrics.HCI_BORDER,
-                                              mask_name="all-15px-border").rmse)
+    sc = None if gt is None else metrics.hci_scores(res.disparity, gt)
+    rmse = None if sc is None else sc.rmse
     peak = _peak_gb()
     R, C = lf.grid_shape
     H, W = lf.image_shape

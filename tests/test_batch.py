@@ -200,3 +200,10 @@ def test_a_batch_folder_records_its_options(captures, tmp_path):
     with pytest.raises(InvalidInputError, match="not a hyperlf batch"):
         batch.plan_batch([captures], tmp_path / "mine")
     assert (tmp_path / "mine" / "notes.txt").read_text() == "keep"
+
+
+def test_a_batch_disparity_range_reaches_every_depth_run(captures, tmp_path):
+    tasks = batch.plan_batch([captures], tmp_path / "out", depth_args=["--labels", "8"],
+                             disparity_range=(-1.5, 2.0))
+    assert all(t.depth_args == ("--disparity-range=-1.5,2", "--labels", "8") for t in tasks)
+    assert all(t.disparity_range == (-1.5, 2.0) for t in tasks)

@@ -59,3 +59,14 @@ def test_psnr_and_sam():
     b = np.zeros((2, 1, 1)); b[1] = 1
     assert m.sam(a, b) == pytest.approx(90.0)
     assert m.completion_ratio(np.array([True, False, True, True])) == 75.0
+
+
+def test_hci_scores_skip_maps_inside_the_border():
+    from hyperlf import metrics
+
+    gt = np.zeros((40, 50))
+    est = gt + 0.1
+    sc = metrics.hci_scores(est, gt)
+    assert sc.border == metrics.HCI_BORDER and sc.n_pixels == 10 * 20
+    assert abs(sc.rmse - 0.1) < 1e-12
+    assert metrics.hci_scores(est[:30], gt[:30]) is None

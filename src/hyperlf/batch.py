@@ -61,6 +61,7 @@ class CaptureTask:
     output: str
     depth_args: tuple = ()
     overwrite: bool = False
+    disparity_range: tuple | None = None  # the batch's --disparity-range, if given
 
 
 @dataclass
@@ -184,14 +185,22 @@ def finish_batch(out: str | os.PathLike, rows: Sequence["CaptureResult"]) -> Non
 
 
 def plan_batch(inputs, out: str | os.PathLike, *, depth_args: Sequence[str] = (),
+               disparity_range: tuple[float, float] | None = None,
                overwrite: bool = False) -> list[CaptureTask]:
     """The tasks of a batch: one per capture of ``inputs`` (:func:`find_captures`), its
-    result set at ``out / name``.  Checks and marks ``out`` first (nothing is computed)."""
+    result set at ``out / name``; ``disparity_range`` (optional) is passed to every depth run
+    and used for its range-limit figure.  Checks and marks ``out`` first (nothing is
+    computed)."""
     captures = find_captures(inputs)
     out = Path(out)
-    _record_options(out, depth_args, overwrite)
+    args = list(depth_args)
+    if disparity_range is not None:
+        args.insert(0, "--disparity-range={:g},{:g}".format(*disparity_range))
+    _record_options(out, args, overwrite)
     return [CaptureTask(name=n, capture=os.fspath(c), output=os.fspath(out / n),
-                        depth_args=tuple(depth_args), overwrite=overwrite)
+                        depth_args=tuple(args), overwrite=overwrite,
+                        disparity_range=None if disparity_range is None
+                        else tuple(disparity_range))
             for n, c in zip(_names(captures), captures)]
 
 
@@ -200,6 +209,13 @@ def is_finished(task: CaptureTask) -> bool:
     from .outputs import MANIFEST
 
     return (Path(task.output) / MANIFEST).is_file()
+
+
+def _done_before(task: CaptureTask) -> CaptureResult | None:
+    """The row of a capture finished by an earlier run (None: it is to be computed)."""
+    if task.overwrite or not is_finished(task):
+        return None
+    return _measure(task, CaptureResult(task.name, task.capture, "done before"))
 
 
 # ----------------------------------------------------------------------------- one capture
@@ -220,8 +236,9 @@ def run_capture(task: CaptureTask) -> CaptureResult:
     Runs in a dask worker; the depth command is its own process, so the result set is whole
     whatever happens to the worker.  A failure of the command is reported, not raised.
     """
-    if is_finished(task) and not task.overwrite:
-        return _measure(task, CaptureResult(task.name, task.capture, "done before"))
+    done = _done_before(task)  # a retried task whose first run had finished
+    if done is not None:
+        return done
     argv = [sys.executable, "-m", "hyperlf", "-q", "depth", task.capture, "-o", task.output,
             *task.depth_args] + (["--overwrite"] if task.overwrite else [])
     t0 = time.perf_counter()
@@ -254,29 +271,16 @@ def _measure(task: CaptureTask, row: CaptureResult) -> CaptureResult:
     ok = np.isfinite(d)
     if lf.valid is not None:
         ok &= lf.valid[lf.reference]
-    rng = _disparity_range(task, lf)
+    rng = task.disparity_range or lf.disparity_range  # the range depth used
     if rng is not None and ok.any():
-        at = (np.abs(d - rng[0]) < 1e-3) | (np.abs(d - rng[1]) < 1e-3)
+        at = metrics.at_range_limit(d, rng)
         row.range_limit_pct = round(100.0 * float(at[ok].mean()), 3)
     gt = lf.reference_gt_disparity
-    b = metrics.HCI_BORDER
-    if gt is not None and min(gt.shape) > 2 * b:
-        sc = metrics.disparity_scores(d, gt, border=b, mask_name="all-15px-border")
+    sc = None if gt is None else metrics.hci_scores(d, gt)
+    if sc is not None:
         row.rmse_px = round(float(sc.rmse), 5)
         row.badpix_007_pct = round(float(sc.badpix_007), 3)
     return row
-
-
-def _disparity_range(task: CaptureTask, lf):
-    """The range depth used: ``--disparity-range`` of the batch, else the capture's."""
-    args = list(task.depth_args)
-    for i, a in enumerate(args):
-        text = a.split("=", 1)[1] if a.startswith("--disparity-range=") else (
-            args[i + 1] if a == "--disparity-range" and i + 1 < len(args) else None)
-        if text is not None:
-            lo, hi = (float(v) for v in text.split(","))
-            return lo, hi
-    return lf.disparity_range
 
 
 # ----------------------------------------------------------------------------- the batch
@@ -311,10 +315,11 @@ def run_batch(tasks: Sequence[CaptureTask], *, workers: int = 2, scheduler: str 
     results: dict[int, CaptureResult] = {}
     todo = []
     for i, t in enumerate(tasks):
-        if is_finished(t) and not t.overwrite:
-            results[i] = _measure(t, CaptureResult(t.name, t.capture, "done before"))
-        else:
+        done = _done_before(t)
+        if done is None:
             todo.append(i)
+        else:
+            results[i] = done
     if todo:
         from dask.distributed import as_completed
 

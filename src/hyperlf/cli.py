@@ -110,8 +110,9 @@ def _finite_float(text: str) -> float:
     return v
 
 
-def _int_at_least(low: int, what: str):
-    """An argparse type: an integer >= ``low`` (``what`` names it in the message)."""
+def _int_at_least(low: int, what: str, high: int | None = None, why: str = ""):
+    """An argparse type: an integer >= ``low`` (and <= ``high``, ``why`` saying why), ``what``
+    naming it in the message."""
     def parse(text: str) -> int:
         try:
             v = int(text)
@@ -119,6 +120,8 @@ def _int_at_least(low: int, what: str):
             raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
         if v < low:
             raise argparse.ArgumentTypeError(f"{what} must be at least {low}, got {v}")
+        if high is not None and v > high:
+            raise argparse.ArgumentTypeError(f"{what} must be at most {high}, got {v}{why}")
         return v
     return parse
 
@@ -127,22 +130,12 @@ _labels_arg = _int_at_least(2, "the number of disparity labels")
 _seed_arg = _int_at_least(0, "the seed")
 
 
-def _visibility_rounds_arg(text: str) -> int:
-    """``--visibility-rounds``: 0..5 re-matching rounds (each one more correspondence pass)."""
-    v = _int_at_least(0, "the number of visibility rounds")(text)
-    if v > 5:
-        raise argparse.ArgumentTypeError(f"the number of visibility rounds must be at most 5, "
-                                         f"got {v} (each round costs a correspondence pass)")
-    return v
-
-
-def _workers_arg(text: str) -> int:
-    """``--workers``: 1..256 worker processes (more on one machine only thrash)."""
-    v = _int_at_least(1, "the number of workers")(text)
-    if v > 256:
-        raise argparse.ArgumentTypeError(f"the number of workers must be at most 256, got {v}; "
-                                         "use --scheduler for a larger cluster")
-    return v
+#: ``--visibility-rounds``: each round costs one more correspondence pass.
+_visibility_rounds_arg = _int_at_least(0, "the number of visibility rounds", 5,
+                                       " (each round costs a correspondence pass)")
+#: ``--workers`` of a local cluster: more on one machine only thrash.
+_workers_arg = _int_at_least(1, "the number of workers", 256,
+                             "; use --scheduler for a larger cluster")
 
 
 def _float_within(low: float, high: float, what: str):
@@ -670,15 +663,13 @@ def _cmd_batch(args, dest) -> list[Path]:  # noqa: ARG001 - batch writes its own
     from .batch import finish_batch, plan_batch, run_batch, write_summary
 
     depth_args = []
-    if args.disparity_range is not None:
-        depth_args.append("--disparity-range={:g},{:g}".format(*args.disparity_range))
     for flag, value in (("--labels", args.labels), ("--metric", args.metric),
                         ("--optimizer", args.optimizer), ("--median-radius", args.median_radius),
                         ("--texture-snr", args.texture_snr)):
         if value is not None:
             depth_args += [flag, f"{value:g}" if isinstance(value, float) else str(value)]
     tasks = plan_batch(args.inputs, args.output, depth_args=depth_args,
-                       overwrite=args.overwrite)
+                       disparity_range=args.disparity_range, overwrite=args.overwrite)
     _say(args, f"{len(tasks)} captures -> {args.output}")
     rows = run_batch(tasks, workers=args.workers, scheduler=args.scheduler,
                      progress=not args.quiet)
@@ -702,12 +693,11 @@ def _say_depth_scores(args, disparity: np.ndarray, gt: np.ndarray) -> None:
     any pixel inside it are not scored (the result is still valid: exit 0)."""
     from . import metrics
 
-    b = metrics.HCI_BORDER
-    if min(gt.shape) <= 2 * b:
+    sc = metrics.hci_scores(disparity, gt)
+    if sc is None:
         _say(args, f"views of {gt.shape[1]} x {gt.shape[0]} px are too small to score inside "
-                   f"the {b} px border; no scores against the ground truth")
+                   f"the {metrics.HCI_BORDER} px border; no scores against the ground truth")
         return
-    sc = metrics.disparity_scores(disparity, gt, border=b, mask_name="all-15px-border")
     _say(args, f"against the ground truth: RMSE {sc.rmse:.4f} px, MSE x 100 "
                f"{sc.mse_x100:.3f}, BadPix(0.07) {sc.badpix_007:.2f} %")
 

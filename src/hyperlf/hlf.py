@@ -297,11 +297,10 @@ class DepthParams:
         pos("occlusion_weight", self.occlusion_weight, True)
         if int(self.min_selected) < 1:
             raise InvalidInputError(f"params.min_selected must be >= 1, got {self.min_selected!r}")
-        for name in ("visibility_rounds", "min_visible_views"):
+        for name, low in (("visibility_rounds", 0), ("min_visible_views", 1)):
             v = getattr(self, name)
-            if isinstance(v, bool) or int(v) != v or v < (1 if name == "min_visible_views" else 0):
-                raise InvalidInputError(f"params.{name} must be an integer >= "
-                                        f"{1 if name == 'min_visible_views' else 0}, got {v!r}")
+            if isinstance(v, bool) or int(v) != v or v < low:
+                raise InvalidInputError(f"params.{name} must be an integer >= {low}, got {v!r}")
         pos("visibility_margin", self.visibility_margin, True)
         if int(self.min_half_views) < 1:
             raise InvalidInputError(f"params.min_half_views must be >= 1, got {self.min_half_views!r}")

@@ -24,6 +24,8 @@ __all__ = [
     "badpix",
     "DisparityScores",
     "disparity_scores",
+    "hci_scores",
+    "at_range_limit",
     "psnr",
     "psnr_per_band",
     "sam",
@@ -267,6 +269,28 @@ def disparity_scores(estimate, truth, mask=None, mask_name: str = "all",
         mask=mask_name,
         border=border,
     )
+
+
+def hci_scores(estimate, truth) -> DisparityScores | None:
+    """:func:`disparity_scores` with the HCI protocol's border (:data:`HCI_BORDER`), or None
+    when the maps are too small to keep a pixel inside it."""
+    if min(np.shape(truth)) <= 2 * HCI_BORDER:
+        return None
+    return disparity_scores(estimate, truth, border=HCI_BORDER, mask_name="all-15px-border")
+
+
+def at_range_limit(disparity, disparity_range, tol: float = 1e-3) -> np.ndarray:
+    """Pixels whose disparity sits at either end of ``disparity_range`` (within ``tol``): the
+    labels a cost minimum lands on by chance where nothing can be matched.
+
+    Examples
+    --------
+    >>> at_range_limit([[-2.0, 0.3, 2.0]], (-2, 2)).tolist()
+    [[True, False, True]]
+    """
+    d = np.asarray(disparity, np.float64)
+    lo, hi = disparity_range
+    return (np.abs(d - lo) < tol) | (np.abs(d - hi) < tol)
 
 
 def psnr(estimate, truth, data_range: float = 1.0, mask=None) -> float:
