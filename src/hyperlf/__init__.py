@@ -54,6 +54,7 @@ _SUBMODULES = [
     "report",
     "spectral",
     "synthesis",
+    "tiling",
     "twoview",
     "visualise",
     "warp",

@@ -130,6 +130,15 @@ _labels_arg = _int_at_least(2, "the number of disparity labels")
 _seed_arg = _int_at_least(0, "the seed")
 
 
+def _memory_arg(text: str) -> int:
+    from .tiling import parse_memory
+
+    try:
+        return parse_memory(text)
+    except InvalidInputError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
 #: ``--visibility-rounds``: each round costs one more correspondence pass.
 _visibility_rounds_arg = _int_at_least(0, "the number of visibility rounds", 5,
                                        " (each round costs a correspondence pass)")
@@ -594,15 +603,23 @@ def _cmd_depth(args, dest) -> list[Path]:
     if args.method == "hlf":
         from .hlf import DepthParams, depth
 
+        from .tiling import plan
+
         options = {k: v for k, v in (("median_radius", args.median_radius),
                                      ("texture_snr", args.texture_snr),
-                                     ("visibility_rounds", args.visibility_rounds))
+                                     ("visibility_rounds", args.visibility_rounds),
+                                     ("max_memory", args.max_memory))
                    if v is not None}
         params = DepthParams(**options) if options else None
         if lf.views.ndim != 4:
             raise InvalidInputError("the hlf method needs monochrome spectral views; use "
                                     "--method tao2013|wang2015|lin2015 for colour light fields "
                                     "or 'hyperlf synth hci' to make an H-LF")
+        strips = plan(lf.image_shape, args.labels, lf.n_views, args.max_memory,
+                      selection=args.view_selection)  # refuses a budget too small, now
+        if len(strips) > 1:
+            _say(args, f"correspondence in {len(strips)} strips of {strips[0][1]} rows "
+                       "(--max-memory)")
         res = depth(lf, disparity_range=rng, n_labels=args.labels, metric=args.metric,
                     view_selection=args.view_selection, occlusion_split=args.occlusion_split,
                     defocus=args.defocus, optimizer=args.optimizer, params=params,
@@ -1151,6 +1168,12 @@ def _add_depth_parser(sub) -> None:
                    help="re-match N times over only the views that see each pixel under the "
                         "previous estimate (sharper depth edges; each round costs about one "
                         "more correspondence pass; default 0)")
+    p.add_argument("--max-memory", type=_memory_arg, default=None, metavar="SIZE",
+                   help="memory budget of the hlf method, e.g. 6G or 512M (default 16G, which "
+                        "leaves room on a 24 GB machine): above it the correspondence stage "
+                        "runs in strips of rows, with results identical to one pass and about "
+                        "twice its time for the default fused cost; a budget that even the "
+                        "thinnest strips exceed is refused before any work")
     p.add_argument("--save-intermediate", action="store_true",
                    help="also write correspondence-only and defocus-only maps, and the "
                         "textureless-region weight when it was used")

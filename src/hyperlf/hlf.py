@@ -225,6 +225,10 @@ class DepthParams:
     (5 scenes at 128 x 128 and antinous at 512 x 512: -1 to -15 %), by moving the depth edges
     that window costs fatten back onto the image edges.
     ``impl``: ``"auto"``/``"numba"``/``"numpy"`` for the selection and defocus kernels.
+    Memory (SPEC §12; results do not depend on them): ``max_memory`` (bytes; None =
+    :data:`hyperlf.tiling.DEFAULT_MAX_MEMORY`), the budget by which the correspondence stage is
+    cut into strips of rows (:func:`hyperlf.tiling.plan`); ``tile_rows`` forces the strips'
+    height (a multiple of :data:`hyperlf.costs.ROW_BLOCK`; None = chosen by the budget).
     """
 
     window: int | None = None
@@ -262,6 +266,8 @@ class DepthParams:
     median_radius: int = 4
     median_sigma: float = 0.05
     impl: str = "auto"
+    max_memory: float | None = None
+    tile_rows: int | None = None
 
     def __post_init__(self):
         def pos(name, v, zero=False):
@@ -321,6 +327,14 @@ class DepthParams:
             raise InvalidInputError(
                 f"params.median_radius must be an integer >= 0, got {self.median_radius!r}")
         pos("median_sigma", self.median_sigma)
+        if self.max_memory is not None:
+            pos("max_memory", self.max_memory)
+        if self.tile_rows is not None:
+            from .tiling import row_strips
+
+            if isinstance(self.tile_rows, bool) or int(self.tile_rows) != self.tile_rows:
+                raise InvalidInputError(f"params.tile_rows must be an integer, got {self.tile_rows!r}")
+            row_strips(1, self.tile_rows)
 
 
 @dataclass
@@ -746,7 +760,9 @@ def normalise_unary(X, enabled: bool = True, *, mask=None):
         med = float(np.median(rng))
         if med > 0:
             s = med
-    return (Y / s).astype(np.float32), s
+    if s != 1.0:
+        Y /= s  # in place: one volume fewer at the peak of the MRF stage
+    return Y, s
 
 
 def _occlusion_edge_weights(edges, f_c, threshold, factor):
@@ -1033,12 +1049,105 @@ def visible_views(prob: DepthProblem, disparity: np.ndarray) -> dict:
     return {v: m | few for v, m in sees.items()}
 
 
+def _strip_edges(prob: DepthProblem, rows, i: int):
+    """The occlusion-split edge pixels inside the strip ``rows`` (strip-flat indices) and
+    their half-plane sides for other view ``i``."""
+    W = prob.lf.image_shape[1]
+    a, b = rows
+    idx = prob.edge_idx
+    inside = (idx >= a * W) & (idx < b * W)
+    sides = None if prob.sides is None else prob.sides[i][inside]
+    return idx[inside] - a * W, sides
+
+
+def _strip_selection(prob: DepthProblem, v, rows):
+    """``Mq`` (L, h, W): the gradient magnitude of view ``v`` at ``q_v`` for the strip's
+    reference pixels (SPEC §5.1), or None without view selection."""
+    if not prob.view_selection:
+        return None
+    o = prob.offsets[v]
+    a, b = rows
+    return np.stack([shift_map(prob.Mn[v], -d * o[0], -d * o[1], 0)[0][a:b]
+                     for d in prob.labels])
+
+
+def view_scales(prob: DepthProblem, strips) -> dict | None:
+    """The whole-view scales of the correspondence cost (a fusion's normalisers), measured
+    strip by strip (:func:`hyperlf.costs.view_moments`): what a strip of a view cannot
+    measure alone.  None for a cost without them (or a single strip, which measures them
+    itself).
+
+    Returns
+    -------
+    dict or None
+        ``(r, c)`` -> one standard deviation per part of the cost, for every other view.
+    """
+    from .costs import moments_std, view_moments
+
+    p = prob.params
+    if len(strips) == 1 or not get_cost(prob.metric, light_field=True).global_scales:
+        return None
+    out = {}
+    cache: dict = {}
+    for v in prob.others:
+        parts = [view_moments(prob.ref_img, prob.lf.views[v], prob.offsets[v], prob.labels,
+                              prob.metric, p.window, p.tau_rel, p.eps, int(p.block), cache,
+                              rows=rows, **_mask_args(prob, v)) for rows in strips]
+        out[v] = [moments_std(*(np.concatenate([m[k][j] for m in parts]) for j in range(3)))
+                  for k in range(len(parts[0]))]
+    return out
+
+
+def _strip_correspondence(prob: DepthProblem, rows, scales, sees, cache, bar, clock):
+    """Aggregate every other view's costs over the strip ``rows``: ``(C, n_used)`` of the
+    strip, (L, h, W), before the whole-volume fill."""
+    p = prob.params
+    a, b = rows
+    W = prob.lf.image_shape[1]
+    edge_idx = prob.edge_idx if prob.occlusion_split else np.zeros(0, np.int64)
+    if len(edge_idx):
+        edge_idx = _strip_edges(prob, rows, 0)[0]
+    acc = _new_accumulators(prob.labels.size, b - a, W, len(edge_idx))
+    whole = (a, b) == (0, prob.lf.image_shape[0])
+    M_ref = prob.M_ref if whole else np.ascontiguousarray(prob.M_ref[a:b])
+    Mbar = None if prob.Mbar is None else (prob.Mbar if whole else prob.Mbar[:, a:b])
+    for i, v in enumerate(prob.others):
+        next(bar, None)
+        clock.lap()
+        Cv, valid = view_costs(prob.ref_img, prob.lf.views[v], prob.offsets[v], prob.labels,
+                               prob.metric, p.window, p.tau_rel, p.eps, int(p.block), cache,
+                               rows=None if whole else rows,
+                               scales=None if scales is None else scales[v],
+                               **_mask_args(prob, v))
+        if sees is not None:
+            valid &= sees[v][None, a:b]
+        clock.lap("correspondence_s")
+        sides = None
+        if len(edge_idx):
+            sides = _strip_edges(prob, rows, i)[1]
+        aggregate_view(acc, Cv, valid, _strip_selection(prob, v, rows), Mbar, M_ref,
+                       prob.view_selection, edge_idx, sides, prob.impl)
+        del Cv, valid
+        clock.lap("selection_split_s")
+    C, n_used = _finish_aggregation(acc, int(p.min_selected), int(p.min_half_views),
+                                    edge_idx, prob.occlusion_split)
+    del acc
+    if p.missing_views == "neutral":
+        C = neutral_missing_views(C, n_used)
+    clock.lap("selection_split_s")
+    return C, n_used
+
+
 def correspondence(prob: DepthProblem, *, progress: bool = False, timings=None,
-                   sees: dict | None = None):
+                   sees: dict | None = None, strips=None):
     """Stage 2 of :func:`depth`: per-view costs streamed into the aggregation (SPEC §5.1-5.2).
 
     ``sees`` (optional; :func:`visible_views`): per other view, the reference pixels it sees;
-    a view counts only there (SPEC §5.6).
+    a view counts only there (SPEC §5.6).  ``strips`` (optional; :func:`hyperlf.tiling.plan`):
+    full-width strips of rows ``[(a, b), ...]`` covering the image in order, each aggregated
+    alone (memory for its rows only; SPEC §12 tiles); bit for bit the result of one strip.
+    A cost with whole-view scales (the fusions) then takes one more pass over the views to
+    measure them (:func:`view_scales`).
 
     Returns
     -------
@@ -1047,47 +1156,39 @@ def correspondence(prob: DepthProblem, *, progress: bool = False, timings=None,
     n_used : ndarray
         Views used per ``(d, p)`` before the occlusion split.
     """
-    p = prob.params
+    from .tiling import check_strips
+
     L = prob.labels.size
     H, W = prob.lf.image_shape
-    acc = _new_accumulators(L, H, W, len(prob.edge_idx))
+    strips = check_strips(strips, H)
+    clock = _Clock({"correspondence_s": 0.0, "selection_split_s": 0.0})
+    scales = view_scales(prob, strips)
+    clock.lap("scales_s")
     cache: dict = {}
-    t_cost = t_agg = 0.0
-    for i, v in enumerate(progress_bar(prob.others, "views", total=len(prob.others),
-                                       enabled=progress, unit="view")):
-        t1 = time.perf_counter()
-        Cv, valid = view_costs(prob.ref_img, prob.lf.views[v], prob.offsets[v], prob.labels,
-                               prob.metric, p.window, p.tau_rel, p.eps, int(p.block), cache,
-                               **_mask_args(prob, v))
-        if sees is not None:
-            valid &= sees[v][None]
-        t2 = time.perf_counter()
-        t_cost += t2 - t1
-        Mq = None
-        if prob.view_selection:
-            o = prob.offsets[v]
-            Mq = np.stack([shift_map(prob.Mn[v], -d * o[0], -d * o[1], 0)[0]
-                           for d in prob.labels])
-        aggregate_view(acc, Cv, valid, Mq, prob.Mbar, prob.M_ref, prob.view_selection,
-                       prob.edge_idx, prob.sides[i] if prob.sides is not None else None,
-                       prob.impl)
-        t_agg += time.perf_counter() - t2
-        del Cv, valid
-    t1 = time.perf_counter()
-    C, n_used = _finish_aggregation(acc, int(p.min_selected), int(p.min_half_views),
-                                    prob.edge_idx, prob.occlusion_split)
+    n = len(prob.others) * len(strips)
+    bar = progress_bar(range(n), "views", total=n, enabled=progress, unit="view")
+    if len(strips) == 1:
+        C, n_used = _strip_correspondence(prob, strips[0], scales, sees, cache, bar, clock)
+    else:
+        C = np.empty((L, H, W), np.float32)
+        n_used = np.empty((L, H, W), np.float32)
+        for a, b in strips:
+            C[:, a:b], n_used[:, a:b] = _strip_correspondence(prob, (a, b), scales, sees,
+                                                              cache, bar, clock)
+    next(bar, None)  # closes the bar
     if not np.isfinite(C).any():
         dmin, dmax = prob.disparity_range
         raise InvalidInputError(
             f"no view overlaps the reference at any disparity in ({dmin:g}, {dmax:g}): "
             "narrow the disparity range")
-    if p.missing_views == "neutral":
-        C = neutral_missing_views(C, n_used)
     C = _reg.fill_invalid(C)
-    t_agg += time.perf_counter() - t1
+    clock.lap("selection_split_s")
     if timings is not None:
-        timings["correspondence_s"] = t_cost
-        timings["selection_split_s"] = t_agg
+        timings.update(clock.timings)
+        if len(strips) > 1:
+            timings["strips"] = len(strips)
+        else:
+            timings.pop("scales_s", None)
     return C, n_used
 
 
@@ -1161,16 +1262,17 @@ def unary(C: np.ndarray, D: np.ndarray | None, params: DepthParams, *, informati
     scale_C, scale_D : float, float or None
         The normalisers of :func:`normalise_unary`.
     """
-    Cn, sC = normalise_unary(C, params.normalise_costs, mask=informative)
-    U = params.gamma_c * Cn
+    U, sC = normalise_unary(C, params.normalise_costs, mask=informative)  # a new volume
+    U *= params.gamma_c  # in place from here: the MRF stage holds as few volumes as it can
     sD = None
     if D is not None:
         Dn, sD = normalise_unary(D, params.normalise_costs, mask=informative)
-        U = U + Dn
+        U += Dn
+        del Dn
     if informative is not None:
-        U = np.where(np.asarray(informative, bool)[None], U, np.float32(0))
+        U[:, ~np.asarray(informative, bool)] = 0
     if weight is not None:
-        U = U * np.asarray(weight, np.float32)[None]
+        U *= np.asarray(weight, np.float32)[None]
     return np.ascontiguousarray(U, np.float32), sC, sD
 
 
@@ -1235,6 +1337,16 @@ def post_filter(disparity: np.ndarray, guide: np.ndarray, params: DepthParams) -
                            impl="numpy" if params.impl == "numpy" else "numba")
 
 
+def strips_for(prob: DepthProblem) -> list:
+    """The strips of the correspondence stage under ``params.max_memory`` /
+    ``params.tile_rows`` (:func:`hyperlf.tiling.plan`)."""
+    from .tiling import plan
+
+    p = prob.params
+    return plan(prob.lf.image_shape, prob.labels.size, len(prob.views), p.max_memory,
+                selection=prob.view_selection, tile_rows=p.tile_rows)
+
+
 def _config(prob: DepthProblem, sC, sD) -> dict:
     return dict(metric=prob.metric, n_labels=prob.labels.size,
                 disparity_range=prob.disparity_range, view_selection=prob.view_selection,
@@ -1244,7 +1356,7 @@ def _config(prob: DepthProblem, sC, sD) -> dict:
 
 
 class _Clock:
-    """Records the seconds of each stage into a dict."""
+    """Records the seconds of each stage into a dict (a key lapped again adds up)."""
 
     def __init__(self, timings: dict):
         self.timings = timings
@@ -1253,14 +1365,13 @@ class _Clock:
     def lap(self, key: str | None = None) -> None:
         now = time.perf_counter()
         if key is not None:
-            self.timings[key] = now - self.t
+            self.timings[key] = self.timings.get(key, 0.0) + now - self.t
         self.t = now
 
 
-def _solve(prob: DepthProblem, C, D, n_used, f_c, w, clock, suffix: str = ""):
+def _solve(prob: DepthProblem, C, D, seen, f_c, w, clock, suffix: str = ""):
     """Stages 4-6 of :func:`depth` on one correspondence volume: unary, MRF, refinement and
     the post-filter.  Returns ``(U, scale_C, scale_D, disparity, confidence)``."""
-    seen = seen_pixels(prob, n_used)
     U, sC, sD = unary(C, D, prob.params, informative=seen, weight=w)
     lab, vol = regularise(prob, U, f_c)
     clock.lap("mrf_s" + suffix)
@@ -1339,20 +1450,24 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
                    view_selection=view_selection, occlusion_split=occlusion_split,
                    defocus=defocus, optimizer=optimizer, params=params)
     clock.lap("prepare_s")
-    C, n_used = correspondence(prob, progress=progress, timings=timings)
+    strips = strips_for(prob)
+    C, n_used = correspondence(prob, progress=progress, timings=timings, strips=strips)
+    seen, n_used = seen_pixels(prob, n_used), (n_used if save_intermediate else None)
     f_c = prob.labels[np.argmin(C, axis=0)].astype(np.float32)
     clock.lap()
     D, lam_r = defocus_cue(prob, f_c)
     f_d = None if D is None else prob.labels[np.argmin(D, axis=0)].astype(np.float32)
     clock.lap("defocus_s")
     w = texture_weight(prob)
-    U, sC, sD, disp, conf = _solve(prob, C, D, n_used, f_c, w, clock)
+    U, sC, sD, disp, conf = _solve(prob, C, D, seen, f_c, w, clock)
     for k in range(int(prob.params.visibility_rounds)):
         sees = visible_views(prob, disp)
-        C, n_used = correspondence(prob, progress=progress, sees=sees)
+        C = U = None  # the new round's volumes replace them: not both at once
+        C, n_used = correspondence(prob, progress=progress, sees=sees, strips=strips)
+        seen, n_used = seen_pixels(prob, n_used), (n_used if save_intermediate else None)
         f_c = prob.labels[np.argmin(C, axis=0)].astype(np.float32)
         clock.lap(f"visibility_round{k + 1}_correspondence_s")
-        U, sC, sD, disp, conf = _solve(prob, C, D, n_used, f_c, w, clock,
+        U, sC, sD, disp, conf = _solve(prob, C, D, seen, f_c, w, clock,
                                        suffix=f"_round{k + 1}")
     timings["total_s"] = time.perf_counter() - t0
     inter = None

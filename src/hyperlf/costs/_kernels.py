@@ -463,8 +463,8 @@ def bw_finish(accF, accB, denL, denR, ds, eps, cost):
 
 
 @numba.njit(parallel=True, cache=True)
-def xi_shift(Apad, muA, isA, ca, B, cb, y0, y1, fy, x0, x1, fx, r, tauB, weighted,
-                     outF, outB, outM):  # pragma: no cover - numba
+def xi_shift(Apad, muA, isA, ca, B, cb, y0, y1, fy, x0, x1, fx, r, tauB, weighted, restart,
+             outF, outB, outM):  # pragma: no cover - numba
     """Per-channel NCC of the reference patches with the bilinearly shifted other view.
 
     Apad (nc, H+2r, W+2r) reference channels padded (replicate); muA, isA (nc, H, W) their
@@ -475,6 +475,11 @@ def xi_shift(Apad, muA, isA, ca, B, cb, y0, y1, fy, x0, x1, fx, r, tauB, weighte
     ``sum_c xi_c muA_c``, ``sum_c xi_c muB_c`` and ``sum_c muB_c`` (muB = exact patch mean of
     the shifted map) to its own slice (no write races; the caller sums over ``g``).
     With ``weighted=False`` outF gets ``sum_c xi_c``.
+
+    The rows may be a strip of the image (``muA``, ``isA``, the outputs and ``Apad`` cut to
+    it, ``y0, y1, fy`` to its padded rows; ``B`` whole): the running column sums start afresh
+    every ``restart`` rows of the strip, so a strip that starts at a multiple of ``restart``
+    gets exactly the rows the whole image gets (:data:`ROW_BLOCK`).
     """
     nc, H, W = muA.shape
     G = outF.shape[0]
@@ -504,20 +509,23 @@ def xi_shift(Apad, muA, isA, ca, B, cb, y0, y1, fy, x0, x1, fx, r, tauB, weighte
                 s1 = 0.0
                 s2 = 0.0
                 s3 = 0.0
-                for Y in range(n):
-                    b = bs[Y, X]
-                    s1 += b
-                    s2 += b * b
-                    s3 += (Apad[c, Y, X] - cac) * b
-                v1[0, X] = s1
-                v2[0, X] = s2
-                v3[0, X] = s3
-                for y in range(1, H):
-                    bo = bs[y - 1, X]
-                    bn = bs[y + n - 1, X]
-                    s1 += bn - bo
-                    s2 += bn * bn - bo * bo
-                    s3 += (Apad[c, y + n - 1, X] - cac) * bn - (Apad[c, y - 1, X] - cac) * bo
+                for y in range(H):
+                    if y % restart == 0:
+                        s1 = 0.0
+                        s2 = 0.0
+                        s3 = 0.0
+                        for Y in range(y, y + n):
+                            b = bs[Y, X]
+                            s1 += b
+                            s2 += b * b
+                            s3 += (Apad[c, Y, X] - cac) * b
+                    else:
+                        bo = bs[y - 1, X]
+                        bn = bs[y + n - 1, X]
+                        s1 += bn - bo
+                        s2 += bn * bn - bo * bo
+                        s3 += ((Apad[c, y + n - 1, X] - cac) * bn
+                               - (Apad[c, y - 1, X] - cac) * bo)
                     v1[y, X] = s1
                     v2[y, X] = s2
                     v3[y, X] = s3
@@ -556,14 +564,19 @@ def xi_shift(Apad, muA, isA, ca, B, cb, y0, y1, fy, x0, x1, fx, r, tauB, weighte
 
 
 @numba.njit(parallel=True, cache=True)
-def census_shift(img, cref, y0, y1, fy, x0, x1, fx, r, buf, out):  # pragma: no cover
+def census_shift(img, cref, y0, y1, fy, x0, x1, fx, r, row0, buf, out):  # pragma: no cover
     """Hamming distance between the reference census codes ``cref`` and the census codes of
     ``img`` bilinearly shifted (sampling arrays as :func:`hyperlf.warp.shift_map` with ``r = 0``), without
     building the shifted codes: bit ``k`` of a code is ``neighbour_k < centre`` (row-major
     window, centre skipped, replicated border), as :func:`hyperlf.costs.census_transform`.
-    ``buf`` (H, W) float64 receives the shifted image; ``out`` (H, W) float32 the distances."""
+    ``buf`` (H, W) float64 receives the shifted image; ``out`` (h, W) float32 the distances of
+    the rows ``row0 .. row0 + h - 1`` (``cref`` of those rows; the shifted image is built on
+    them and ``r`` rows around them)."""
     H, W = img.shape
-    for y in prange(H):
+    h = out.shape[0]
+    lo = max(row0 - r, 0)
+    hi = min(row0 + h + r, H)
+    for y in prange(lo, hi):
         wy = fy[y]
         for x in range(W):
             wx = fx[x]
@@ -574,10 +587,11 @@ def census_shift(img, cref, y0, y1, fy, x0, x1, fx, r, buf, out):  # pragma: no 
             a0 = top0 * (1 - wy) + bot0 * wy
             a1 = top1 * (1 - wy) + bot1 * wy
             buf[y, x] = a0 * (1 - wx) + a1 * wx
-    for y in prange(H):
+    for i in prange(h):
+        y = row0 + i
         for x in range(W):
             c = buf[y, x]
-            code = cref[y, x]
+            code = cref[i, x]
             k = np.uint64(0)
             d = 0
             for dy in range(-r, r + 1):
@@ -591,35 +605,56 @@ def census_shift(img, cref, y0, y1, fy, x0, x1, fx, r, buf, out):  # pragma: no 
                     if bit_s != bit_r:
                         d += 1
                     k += np.uint64(1)
-            out[y, x] = d
+            out[i, x] = d
 
 
 @numba.njit(parallel=True, cache=True)
-def valid_std(C, valid):  # pragma: no cover
-    """Standard deviation of the entries of ``C`` (L, H, W) where ``valid``, two passes in
-    float64 (row partial sums); ``(0.0, 0)`` when none is valid.  Reference:
-    ``C[valid].std()`` in :func:`hyperlf.costs.pair.normalise_volume`."""
+def row_moments(C, valid, n, mean, m2):  # pragma: no cover
+    """Moments of the entries of ``C`` (L, h, W) where ``valid``, per image row: ``n``,
+    ``mean`` and ``m2`` (h,) receive the count, the mean and the sum of squared deviations of
+    row ``y``'s valid entries over every label (two passes in float64; an empty row gets
+    zeros).  A row's moments depend on that row alone, so a strip of rows gets exactly what
+    the whole volume gets there (:func:`combine_moments` joins them)."""
     L, H, W = C.shape
-    s = np.zeros(H)
-    n = np.zeros(H, np.int64)
     for y in prange(H):
+        s = 0.0
+        c = 0
         for k in range(L):
             for x in range(W):
                 if valid[k, y, x]:
-                    s[y] += C[k, y, x]
-                    n[y] += 1
-    count = n.sum()
+                    s += C[k, y, x]
+                    c += 1
+        mu = s / c if c > 0 else 0.0
+        q = 0.0
+        for k in range(L):
+            for x in range(W):
+                if valid[k, y, x]:
+                    e = C[k, y, x] - mu
+                    q += e * e
+        n[y] = c
+        mean[y] = mu
+        m2[y] = q
+
+
+@numba.njit(cache=True)
+def combine_moments(n, mean, m2):  # pragma: no cover
+    """Standard deviation and count of the union of rows with moments ``n, mean, m2``
+    (:func:`row_moments`), summed in row order: ``(0.0, 0)`` when no entry is valid.
+    Reference: ``C[valid].std()`` in :func:`hyperlf.costs.pair.normalise_volume`."""
+    count = 0
+    s = 0.0
+    for y in range(n.size):
+        count += n[y]
+        s += n[y] * mean[y]
     if count == 0:
         return 0.0, 0
-    mean = s.sum() / count
-    q = np.zeros(H)
-    for y in prange(H):
-        for k in range(L):
-            for x in range(W):
-                if valid[k, y, x]:
-                    e = C[k, y, x] - mean
-                    q[y] += e * e
-    return math.sqrt(q.sum() / count), count
+    mu = s / count
+    q = 0.0
+    for y in range(n.size):
+        if n[y] > 0:
+            d = mean[y] - mu
+            q += m2[y] + n[y] * d * d
+    return math.sqrt(q / count), count
 
 
 @numba.njit(parallel=True, cache=True)

@@ -63,8 +63,9 @@ class NCC(_FunctionCost):
     pair_function = _pair.ncc_volume
 
     def view_volume(self, ref_img, img, shifts, *, window=None, valid=None, tau_rel=1e-5,
-                    **options):
-        return _lf.ncc_view_volume(ref_img, img, shifts, self.window_for(window), tau_rel)
+                    rows=None, **options):
+        return _lf.ncc_view_volume(ref_img, img, shifts, self.window_for(window), tau_rel,
+                                   rows=rows)
 
 
 class RSNCC(_FunctionCost):
@@ -90,9 +91,9 @@ class RSNCC(_FunctionCost):
         return super().pair_volume(left, right, dmin, dmax, window=window, impl=impl, **options)
 
     def view_volume(self, ref_img, img, shifts, *, window=None, valid=None, tau_rel=1e-5,
-                    rs_tau=1.0, **options):
+                    rs_tau=1.0, rows=None, **options):
         return _lf.rsncc_view_volume(ref_img, img, shifts, self.window_for(window), tau_rel,
-                                     rs_tau)
+                                     rs_tau, rows=rows)
 
 
 class Census(_FunctionCost):
@@ -108,8 +109,9 @@ class Census(_FunctionCost):
     params = {"graphcut": _graphcut(4.0, 8.0), "sgm": _sgm(2.0, 16.0)}
     pair_function = _pair.census_volume
 
-    def view_volume(self, ref_img, img, shifts, *, window=None, valid=None, **options):
-        return _lf.census_view_volume(ref_img, img, shifts, self.window_for(window))
+    def view_volume(self, ref_img, img, shifts, *, window=None, valid=None, rows=None,
+                    **options):
+        return _lf.census_view_volume(ref_img, img, shifts, self.window_for(window), rows=rows)
 
 
 class BWNCC(Cost):
@@ -137,9 +139,10 @@ class BWNCC(Cost):
                                   window=window, impl=impl, **options)
 
     def view_volume(self, ref_img, img, shifts, *, window=None, valid=None, tau_rel=1e-5,
-                    eps=1e-3, block=68, cache=None, **options):
+                    eps=1e-3, block=68, cache=None, rows=None, **options):
         return _lf.bwncc_view_volume(ref_img, img, shifts, paper=self.paper, window=window,
-                                     tau_rel=tau_rel, eps=eps, block=block, cache=cache)
+                                     tau_rel=tau_rel, eps=eps, block=block, cache=cache,
+                                     rows=rows)
 
 
 def _register_builtin() -> None:

@@ -47,6 +47,8 @@ from .pair import (bwncc_finish, census_transform, channel_stats, fill_invalid, 
 
 __all__ = [
     "view_costs",
+    "view_moments",
+    "check_rows",
     "view_shifts",
     "view_validity",
     "tap_validity",
@@ -55,11 +57,17 @@ __all__ = [
     "census_view_volume",
     "bwncc_view_volume",
     "REF_CACHE_BYTES",
+    "ROW_BLOCK",
 ]
 
 #: The reference descriptor blocks with their float64 statistics (~20 bytes per channel and
 #: pixel) are cached across views when they fit in this many bytes, else recomputed per view.
 REF_CACHE_BYTES = 512 * 1024 ** 2
+
+#: A strip of rows (``rows`` of :func:`view_costs`) starts at a multiple of this: the window
+#: sums of the NCC kernels run down the columns afresh every ``ROW_BLOCK`` rows, so a strip
+#: that starts on the grid gets bit for bit what the whole image gets there.
+ROW_BLOCK = 32
 
 
 class _RefBlock:
@@ -91,32 +99,39 @@ def _view_tau(B: np.ndarray, n: int, tau_rel: float, per_channel: bool = False):
 
 
 def _xi_terms(ref: _RefBlock, B: np.ndarray, centre_b, tauB, sx, sy, weighted=True,
-              per_channel: bool = False):
-    """Sums over channels of ``xi muA``, ``xi muB`` and ``muB`` for one shift: 3 x (H, W).
+              per_channel: bool = False, rows=None):
+    """Sums over channels of ``xi muA``, ``xi muB`` and ``muB`` for one shift: 3 x (h, W).
 
     ``per_channel=True`` returns ``xi`` (or ``xi muA``) of every channel instead, as
-    ``(nc, H, W)`` (one channel per parallel group), and the other two as None."""
+    ``(nc, h, W)`` (one channel per parallel group), and the other two as None.  ``rows``
+    ``(a, b)``: only the reference rows ``a .. b - 1`` (``h = b - a``; ``a`` a multiple of
+    :data:`ROW_BLOCK`, see :func:`view_costs`), else every row."""
     import numba
 
     from . import _kernels
     nc, H, W = ref.mu.shape
     r = ref.r
+    a, b = (0, H) if rows is None else rows
     y0, y1, fy = axis_taps(H, sy, r)
     x0, x1, fx = axis_taps(W, sx, r)
     G = nc if per_channel else max(1, min(nc, numba.get_num_threads()))
-    oF = np.zeros((G, H, W))
-    oB = np.zeros((G, H, W))
-    oM = np.zeros((G, H, W))
+    oF = np.zeros((G, b - a, W))
+    oB = np.zeros((G, b - a, W))
+    oM = np.zeros((G, b - a, W))
     tau = np.broadcast_to(np.asarray(tauB, np.float64), (nc,)).copy()
-    _kernels.xi_shift(ref.pad, ref.mu, ref.isig, ref.centre, np.ascontiguousarray(B, np.float32),
-                      np.asarray(centre_b, np.float64), y0, y1, fy, x0, x1, fx, r, tau,
-                      bool(weighted), oF, oB, oM)
+    band = slice(a, b + 2 * r)
+    cut = (lambda x: x) if rows is None else np.ascontiguousarray  # noqa: E731
+    _kernels.xi_shift(cut(ref.pad[:, band]), cut(ref.mu[:, a:b]), cut(ref.isig[:, a:b]),
+                      ref.centre, np.ascontiguousarray(B, np.float32),
+                      np.asarray(centre_b, np.float64), cut(y0[band]), cut(y1[band]),
+                      cut(fy[band]), x0, x1, fx, r, tau, bool(weighted), ROW_BLOCK, oF, oB, oM)
     if per_channel:
         return oF, None, None
     return oF.sum(axis=0), oB.sum(axis=0), oM.sum(axis=0)
 
 
-def ncc_view_volume(ref_img, img, shifts, window: int = 5, tau_rel: float = 1e-5) -> np.ndarray:
+def ncc_view_volume(ref_img, img, shifts, window: int = 5, tau_rel: float = 1e-5, *,
+                    rows=None) -> np.ndarray:
     """``1 - NCC`` of the intensities ``I / mean(I)`` at each shift, float32 ``(L, H, W)``.
 
     Parameters
@@ -129,23 +144,26 @@ def ncc_view_volume(ref_img, img, shifts, window: int = 5, tau_rel: float = 1e-5
         Odd NCC patch size.
     tau_rel : float
         Flat-patch threshold relative to the view's mean patch variance (NCC 0 below it).
+    rows : (int, int), optional
+        Only the reference rows ``a .. b - 1`` (``(L, b - a, W)``; :func:`view_costs`).
     """
     L = len(shifts)
     H, W = ref_img.shape
+    a, b = (0, H) if rows is None else rows
     A = normalise_intensity(ref_img)[None].astype(np.float32)
     B = normalise_intensity(img)[None].astype(np.float32)
     ref = _RefBlock(A, window, tau_rel)
     tauB = _view_tau(B, window, tau_rel)
     cb = np.array([float(B.mean())])
-    out = np.empty((L, H, W), np.float32)
+    out = np.empty((L, b - a, W), np.float32)
     for k, (sx, sy) in enumerate(shifts):
-        F, _, _ = _xi_terms(ref, B, cb, tauB, sx, sy, weighted=False)
+        F, _, _ = _xi_terms(ref, B, cb, tauB, sx, sy, weighted=False, rows=rows)
         out[k] = 1.0 - F
     return out
 
 
 def rsncc_view_volume(ref_img, img, shifts, window: int = 5, tau_rel: float = 1e-5,
-                      rs_tau: float = 1.0) -> np.ndarray:
+                      rs_tau: float = 1.0, *, rows=None) -> np.ndarray:
     """RSNCC (Shen et al. 2014) at each shift:
     ``rho(1 - NCC(In)) + rs_tau * rho(1 - NCC(|grad In|))``.
 
@@ -156,34 +174,38 @@ def rsncc_view_volume(ref_img, img, shifts, window: int = 5, tau_rel: float = 1e
     """
     L = len(shifts)
     H, W = ref_img.shape
+    a_, b_ = (0, H) if rows is None else rows
     a, b = normalise_intensity(ref_img), normalise_intensity(img)
     A = np.stack([a, gradient_magnitude(a)]).astype(np.float32)
     B = np.stack([b, gradient_magnitude(b)]).astype(np.float32)
     ref = _RefBlock(A, window, tau_rel, per_channel=True)
     tauB = _view_tau(B, window, tau_rel, per_channel=True)
     cb = B.reshape(2, -1).astype(np.float64).mean(axis=1)
-    out = np.empty((L, H, W), np.float32)
+    out = np.empty((L, b_ - a_, W), np.float32)
     for k, (sx, sy) in enumerate(shifts):
-        xi, _, _ = _xi_terms(ref, B, cb, tauB, sx, sy, weighted=False, per_channel=True)
+        xi, _, _ = _xi_terms(ref, B, cb, tauB, sx, sy, weighted=False, per_channel=True,
+                             rows=rows)
         out[k] = rho(1.0 - xi[0]) + float(rs_tau) * rho(1.0 - xi[1])
     return out
 
 
-def census_view_volume(ref_img, img, shifts, window: int = 7, impl: str = "numba") -> np.ndarray:
+def census_view_volume(ref_img, img, shifts, window: int = 7, impl: str = "numba", *,
+                       rows=None) -> np.ndarray:
     """Census (Zabih & Woodfill 1994) Hamming costs of the reference against ``img`` shifted by each ``(sx, sy)``.
 
     ``impl="numpy"``: the reference (shift with :func:`hyperlf.warp.shift_map`, then
     :func:`hyperlf.costs.census_transform` and a popcount); ``"numba"``: one fused kernel,
-    identical results.
+    identical results.  ``rows`` ``(a, b)``: only the reference rows ``a .. b - 1``.
     """
     L = len(shifts)
     H, W = ref_img.shape
-    cref = census_transform(ref_img, window)
-    out = np.empty((L, H, W), np.float32)
+    a_, b_ = (0, H) if rows is None else rows
+    cref = census_transform(ref_img, window)[a_:b_]
+    out = np.empty((L, b_ - a_, W), np.float32)
     if impl == "numpy":
         for k, (sx, sy) in enumerate(shifts):
             s, _ = shift_map(img, sx, sy, 0)
-            out[k] = np.bitwise_count(cref ^ census_transform(s, window)).astype(np.float32)
+            out[k] = np.bitwise_count(cref ^ census_transform(s, window)[a_:b_])
         return out
     from . import _kernels
     a = np.ascontiguousarray(img, dtype=np.float64)
@@ -191,7 +213,8 @@ def census_view_volume(ref_img, img, shifts, window: int = 7, impl: str = "numba
     for k, (sx, sy) in enumerate(shifts):
         y0, y1, fy = axis_taps(H, sy, 0)
         x0, x1, fx = axis_taps(W, sx, 0)
-        _kernels.census_shift(a, cref, y0, y1, fy, x0, x1, fx, int(window) // 2, buf, out[k])
+        _kernels.census_shift(a, np.ascontiguousarray(cref), y0, y1, fy, x0, x1, fx,
+                              int(window) // 2, a_, buf, out[k])
     return out
 
 
@@ -210,7 +233,7 @@ def _reference_blocks(pA, slB, n_all, tau_rel):
 
 def bwncc_view_volume(ref_img, img, shifts, *, paper: bool = False, window=None,
                       tau_rel: float = 1e-5, eps: float = 1e-3, block: int = 68,
-                      cache: dict | None = None) -> np.ndarray:
+                      cache: dict | None = None, rows=None) -> np.ndarray:
     """BWNCC (SPEC §3) on the descriptor of :mod:`hyperlf.descriptor` at each shift.
 
     Parameters
@@ -225,6 +248,8 @@ def bwncc_view_volume(ref_img, img, shifts, *, paper: bool = False, window=None,
     cache : dict, optional
         Shared across the views of one light field: holds the reference's prepared inputs and,
         if they fit in :data:`REF_CACHE_BYTES`, its channel statistics.
+    rows : (int, int), optional
+        Only the reference rows ``a .. b - 1`` (:func:`view_costs`).
     """
     from ..descriptor import DescriptorParams, iter_descriptor_blocks, prepare
     params = DescriptorParams.paper() if paper else DescriptorParams.default()
@@ -238,10 +263,11 @@ def bwncc_view_volume(ref_img, img, shifts, *, paper: bool = False, window=None,
     ref_cache = {} if cache is None else cache
     L = len(shifts)
     H, W = ref_img.shape
-    accF = np.zeros((L, H, W))
-    accB = np.zeros((L, H, W))
-    denB = np.zeros((L, H, W))
-    denF = np.zeros((H, W))
+    a, b = (0, H) if rows is None else rows
+    accF = np.zeros((L, b - a, W))
+    accB = np.zeros((L, b - a, W))
+    denB = np.zeros((L, b - a, W))
+    denF = np.zeros((b - a, W))
     key = ("prep", variant)
     if key not in ref_cache:
         ref_cache[key] = prepare(ref_img, params)
@@ -259,9 +285,9 @@ def bwncc_view_volume(ref_img, img, shifts, *, paper: bool = False, window=None,
             Bs = np.ascontiguousarray(Bblk[sel])
             tauB = _view_tau(Bs, nn, tau_rel)
             cb = Bs.reshape(Bs.shape[0], -1).astype(np.float64).mean(axis=1)
-            denF += rb.den
+            denF += rb.den[a:b]
             for k, (sx, sy) in enumerate(shifts):
-                F, Bw, M = _xi_terms(rb, Bs, cb, tauB, sx, sy)
+                F, Bw, M = _xi_terms(rb, Bs, cb, tauB, sx, sy, rows=rows)
                 accF[k] += F
                 accB[k] += Bw
                 denB[k] += M
@@ -276,7 +302,7 @@ def view_shifts(offset, labels) -> list[tuple[float, float]]:
     return [(-d * dx, -d * dy) for d in lab]
 
 
-def view_validity(shape, shifts, *, mask=None) -> np.ndarray:
+def view_validity(shape, shifts, *, mask=None, rows=None) -> np.ndarray:
     """Boolean ``(L, H, W)``: True where the shifted sample ``p + (sx, sy)`` is in the image.
 
     Parameters
@@ -289,6 +315,8 @@ def view_validity(shape, shifts, *, mask=None) -> np.ndarray:
         The view's validity mask (SPEC §11): a sample is then valid only if, besides lying in
         the image, every bilinear tap it uses with a non-zero weight is a valid pixel
         (:func:`tap_validity`).
+    rows : (int, int), optional
+        Only the rows ``a .. b - 1`` (shape ``(L, b - a, W)``).
 
     Returns
     -------
@@ -303,13 +331,14 @@ def view_validity(shape, shifts, *, mask=None) -> np.ndarray:
     [[True, False, False, False]]
     """
     H, W = int(shape[-2]), int(shape[-1])
-    out = np.stack([axis_valid(H, sy)[:, None] & axis_valid(W, sx)[None, :]
+    a, b = (0, H) if rows is None else rows
+    out = np.stack([axis_valid(H, sy)[a:b, None] & axis_valid(W, sx)[None, :]
                     for sx, sy in shifts])
     if mask is not None:
         m = np.asarray(mask, bool)
         if not m.all():
             for k, (sx, sy) in enumerate(shifts):
-                out[k] &= tap_validity(m, sx, sy)
+                out[k] &= tap_validity(m, sx, sy)[a:b]
     return out
 
 
@@ -338,9 +367,44 @@ def tap_validity(mask, sx: float, sy: float) -> np.ndarray:
     return (my[:, x0] | (fx == 1)[None]) & (my[:, x1] | (fx == 0)[None])
 
 
+def check_rows(rows, height: int):
+    """``rows`` as ``(a, b)`` ints with ``0 <= a < b <= height`` and ``a`` a multiple of
+    :data:`ROW_BLOCK`, or None; else :class:`~hyperlf.errors.InvalidInputError`."""
+    from ..errors import InvalidInputError
+
+    if rows is None:
+        return None
+    try:
+        a, b = (int(x) for x in rows)
+        ok = (a, b) == tuple(rows)
+    except (TypeError, ValueError):
+        ok = False
+    if not ok or not 0 <= a < b <= height or a % ROW_BLOCK:
+        raise InvalidInputError(
+            f"rows must be (a, b) with 0 <= a < b <= {height} and a a multiple of {ROW_BLOCK}, "
+            f"got {rows!r}")
+    return a, b
+
+
+def _view_inputs(ref_img, img, offset, labels, ref_valid, view_valid, rows):
+    """The two images as the evaluators take them, the shifts and the samples' validity."""
+    A = np.asarray(ref_img, dtype=np.float64)
+    B = np.asarray(img, dtype=np.float64)
+    rows = check_rows(rows, A.shape[0])
+    shifts = view_shifts(offset, labels)
+    valid = view_validity(A.shape, shifts, mask=view_valid, rows=rows)
+    if ref_valid is not None:
+        m = np.asarray(ref_valid, bool)
+        valid &= (m if rows is None else m[rows[0]:rows[1]])[None]
+        A = normalise_intensity(fill_masked(A, ref_valid), valid=ref_valid)
+    if view_valid is not None:
+        B = normalise_intensity(fill_masked(B, view_valid), valid=view_valid)
+    return A, B, shifts, valid, rows
+
+
 def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | None = None,
                tau_rel: float = 1e-5, eps: float = 1e-3, block: int = 68, _cache=None, *,
-               ref_valid=None, view_valid=None):
+               ref_valid=None, view_valid=None, rows=None, scales=None):
     """Correspondence cost of one view against the reference, and its validity.
 
     Parameters
@@ -362,6 +426,16 @@ def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | 
         Validity masks of the reference and of the view (SPEC §11; module docstring): an
         invalid pixel counts like a sample outside the image.  None = all valid (the
         computation is then exactly the unmasked one).
+    rows : (int, int), optional
+        A strip of reference rows ``a .. b - 1`` (``a`` a multiple of :data:`ROW_BLOCK`):
+        the volume of those rows only, bit for bit what the whole image gives there (the
+        images stay whole: every sample and window reads the rows it needs, and the per-view
+        statistics are the whole view's).  SPEC §12 tiles.
+    scales : sequence of float, optional
+        For a cost with whole-volume scales (:attr:`hyperlf.costs.Cost.global_scales`: a
+        fusion's normalisers), the scales of the whole view (:func:`view_moments` over every
+        strip, then :func:`hyperlf.costs.moments_std`); needed with ``rows``, since a strip
+        alone would give its own.
 
     Returns
     -------
@@ -374,7 +448,8 @@ def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | 
     Raises
     ------
     InvalidInputError
-        Unknown metric, or one without a light-field evaluator (``ssd``).
+        Unknown metric, or one without a light-field evaluator (``ssd``); bad ``rows``; a
+        strip of a cost with whole-volume scales without ``scales``.
 
     Examples
     --------
@@ -387,19 +462,43 @@ def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | 
     >>> float(labels[C[:, 8, 10].argmin()])
     1.0
     """
+    from ..errors import InvalidInputError
     from .registry import get_cost
     cost = get_cost(metric, light_field=True)
-    A = np.asarray(ref_img, dtype=np.float64)
-    B = np.asarray(img, dtype=np.float64)
-    shifts = view_shifts(offset, labels)
-    valid = view_validity(A.shape, shifts, mask=view_valid)
-    if ref_valid is not None:
-        valid &= np.asarray(ref_valid, bool)[None]
-        A = normalise_intensity(fill_masked(A, ref_valid), valid=ref_valid)
-    if view_valid is not None:
-        B = normalise_intensity(fill_masked(B, view_valid), valid=view_valid)
+    A, B, shifts, valid, rows = _view_inputs(ref_img, img, offset, labels, ref_valid,
+                                             view_valid, rows)
+    if rows is not None and cost.global_scales and scales is None:
+        raise InvalidInputError(
+            f"a strip of rows of {cost.name!r} needs the whole view's scales (view_moments)")
     cache = {} if _cache is None else _cache
+    extra = {} if scales is None else {"scales": scales}
     C = cost.view_volume(A, B, shifts, window=window, valid=valid, tau_rel=tau_rel, eps=eps,
-                         block=block, cache=cache)
+                         block=block, cache=cache, rows=rows, **extra)
     C = fill_invalid(np.ascontiguousarray(C, dtype=np.float32), 0, valid)
     return C, valid
+
+
+def view_moments(ref_img, img, offset, labels, metric: str = "ncc", window: int | None = None,
+                 tau_rel: float = 1e-5, eps: float = 1e-3, block: int = 68, _cache=None, *,
+                 ref_valid=None, view_valid=None, rows=None):
+    """The pieces of a cost's whole-volume scales that a strip of rows holds.
+
+    Arguments as :func:`view_costs`.  Strips that cover the image, taken in row order, give
+    the whole view's scales: per part, ``moments_std(*concatenated moments)``
+    (:func:`hyperlf.costs.moments_std`), bit for bit what the untiled volume measures.
+
+    Returns
+    -------
+    list of (n, mean, m2) or None
+        Per part of the cost, its :func:`hyperlf.costs.row_moments` on the strip; None for a
+        cost without whole-volume scales.
+    """
+    from .registry import get_cost
+    cost = get_cost(metric, light_field=True)
+    if not cost.global_scales:
+        return None
+    A, B, shifts, valid, rows = _view_inputs(ref_img, img, offset, labels, ref_valid,
+                                             view_valid, rows)
+    return cost.view_moments(A, B, shifts, window=window, valid=valid, tau_rel=tau_rel,
+                             eps=eps, block=block, cache={} if _cache is None else _cache,
+                             rows=rows)

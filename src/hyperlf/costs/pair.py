@@ -39,6 +39,8 @@ __all__ = [
     "bwncc_finish",
     "bwncc_from_descriptors",
     "bwncc_volume",
+    "row_moments",
+    "moments_std",
     "normalise_volume",
     "fuse",
     "fused_volume",
@@ -724,35 +726,79 @@ def bwncc_volume(left, right, dmin, dmax, variant="default", window=None, tau_re
 # --------------------------------------------------------------------------------------------
 
 
-def normalise_volume(cost, dmin: int, valid=None, *, impl: str = "auto") -> np.ndarray:
+def row_moments(cost, valid) -> tuple:
+    """Per-row moments of the valid entries of a cost volume: the pieces of its global
+    standard deviation that a strip of rows can compute alone.
+
+    Parameters
+    ----------
+    cost : ndarray, shape (L, h, W)
+    valid : array_like of bool, broadcastable to ``cost``
+
+    Returns
+    -------
+    n, mean, m2 : ndarray, shape (h,)
+        Count (int64), mean and sum of squared deviations (float64) of row ``y``'s valid
+        entries over every label.  Rows of strips concatenated in row order give exactly the
+        whole volume's moments (the kernel works row by row); :func:`moments_std` joins them.
+    """
+    from ._kernels import row_moments as kernel
+
+    C = np.ascontiguousarray(cost)
+    if C.dtype not in (np.float32, np.float64):
+        C = C.astype(np.float64)
+    ok = np.ascontiguousarray(np.broadcast_to(np.asarray(valid, bool), C.shape))
+    h = C.shape[1]
+    n, mean, m2 = np.zeros(h, np.int64), np.zeros(h), np.zeros(h)
+    kernel(C, ok, n, mean, m2)
+    return n, mean, m2
+
+
+def moments_std(n, mean, m2) -> float:
+    """The standard deviation of every entry that :func:`row_moments` counted (rows joined in
+    order, float64); 0 when none was valid."""
+    from ._kernels import combine_moments
+
+    return float(combine_moments(np.ascontiguousarray(n, np.int64),
+                                 np.ascontiguousarray(mean, np.float64),
+                                 np.ascontiguousarray(m2, np.float64))[0])
+
+
+def normalise_volume(cost, dmin: int, valid=None, *, sd: float | None = None,
+                     impl: str = "auto") -> np.ndarray:
     """``norm(C)`` of SPEC §3 fusion, float32.
 
     Invalid entries -> the pixel's worst valid cost (:func:`fill_invalid`), minus the per-pixel
     minimum, divided by the **global** standard deviation of the valid raw entries of ``C``.
     (Global, not per-pixel: that is what the prototype measured — "divided by the std of the
     valid raw entries" — and a per-pixel std would inflate flat, uninformative pixels.)  A
-    constant volume (std 0) is only min-subtracted.  ``impl="numba"`` (the ``"auto"`` choice)
-    runs the same arithmetic in two kernels without the float64 copies; its standard deviation
-    is summed in another order, so it agrees with ``"numpy"`` to rounding (``rtol`` 1e-12).
+    constant volume (std 0) is only min-subtracted.  ``sd``: that standard deviation when it
+    was measured elsewhere (a strip of rows of a larger volume: :func:`row_moments`), else
+    measured on ``cost``.  ``impl="numba"`` (the ``"auto"`` choice) runs the same arithmetic
+    in kernels without the float64 copies; its standard deviation is summed row by row
+    (:func:`row_moments`, :func:`moments_std`), so it agrees with ``"numpy"`` to rounding
+    (``rtol`` 1e-12).
     """
     impl = check_impl(impl, "normalise")
     Lc, H, W = np.shape(cost)
     if valid is None:
         valid = candidate_validity((H, W), dmin, dmin + Lc - 1)
     if impl == "numba":
-        from ._kernels import normalise_fill, valid_std
+        from ._kernels import normalise_fill
 
         C = np.ascontiguousarray(cost)
         if C.dtype not in (np.float32, np.float64):
             C = C.astype(np.float64)
         ok = np.ascontiguousarray(np.broadcast_to(np.asarray(valid, bool), C.shape))
-        sd, _ = valid_std(C, ok)
+        if sd is None:
+            sd = moments_std(*row_moments(C, ok))
         out = np.empty(C.shape, np.float32)
-        normalise_fill(C, ok, sd, out)
+        normalise_fill(C, ok, float(sd), out)
         return out
     C = np.array(cost, dtype=np.float64)
-    vals = C[np.broadcast_to(valid, C.shape)]
-    sd = float(vals.std()) if vals.size else 0.0
+    if sd is None:
+        vals = C[np.broadcast_to(valid, C.shape)]
+        sd = float(vals.std()) if vals.size else 0.0
     fill_invalid(C, dmin, valid)
     C -= C.min(axis=0, keepdims=True)
     if sd > 0:
@@ -761,12 +807,13 @@ def normalise_volume(cost, dmin: int, valid=None, *, impl: str = "auto") -> np.n
 
 
 def fuse(volumes: Sequence[np.ndarray], weights: Sequence[float] | None = None, dmin: int = 0,
-         valid=None, *, impl: str = "auto") -> np.ndarray:
+         valid=None, *, scales: Sequence[float] | None = None, impl: str = "auto") -> np.ndarray:
     """Weighted mean of normalised volumes: ``sum_i w_i norm(C_i) / sum_i w_i``; then the
     out-of-image rule again (the fused worst valid cost).  ``dmin`` is needed only to know
-    which entries are invalid (the volumes must share ``dmin..dmax``).  ``impl`` as
-    :func:`normalise_volume` (``"numba"``: the sum and the fill in one kernel, same float64
-    arithmetic)."""
+    which entries are invalid (the volumes must share ``dmin..dmax``).  ``scales``: the
+    standard deviation of each volume's normaliser when measured elsewhere (``sd`` of
+    :func:`normalise_volume`).  ``impl`` as :func:`normalise_volume` (``"numba"``: the sum
+    and the fill in one kernel, same float64 arithmetic)."""
     vols = list(volumes)
     if not vols:
         raise InvalidInputError("fuse needs at least one volume")
@@ -776,6 +823,9 @@ def fuse(volumes: Sequence[np.ndarray], weights: Sequence[float] | None = None, 
     w = np.ones(len(vols)) if weights is None else np.asarray(weights, np.float64)
     if w.shape != (len(vols),) or not np.all(np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
         raise InvalidInputError(f"weights must be {len(vols)} non-negative numbers with a positive sum, got {weights!r}")
+    sds = [None] * len(vols) if scales is None else [float(x) for x in scales]
+    if len(sds) != len(vols):
+        raise InvalidInputError(f"scales must give one number per volume ({len(vols)}), got {scales!r}")
     if check_impl(impl, "normalise") == "numba":
         from ._kernels import fuse_fill
 
@@ -784,14 +834,14 @@ def fuse(volumes: Sequence[np.ndarray], weights: Sequence[float] | None = None, 
             valid = candidate_validity((H, W), dmin, dmin + Lc - 1)
         ok = np.ascontiguousarray(np.broadcast_to(np.asarray(valid, bool), shape))
         keep = [i for i in range(len(vols)) if w[i]]
-        parts = tuple(normalise_volume(vols[i], dmin, ok, impl="numba") for i in keep)
+        parts = tuple(normalise_volume(vols[i], dmin, ok, sd=sds[i], impl="numba") for i in keep)
         out = np.empty(shape, np.float32)
         fuse_fill(parts, np.ascontiguousarray(w[keep]), ok, out)
         return out
     out = np.zeros(shape, np.float64)
-    for wi, v in zip(w, vols):
+    for wi, v, sd in zip(w, vols, sds):
         if wi:
-            out += wi * normalise_volume(v, dmin, valid, impl="numpy")
+            out += wi * normalise_volume(v, dmin, valid, sd=sd, impl="numpy")
     out /= w.sum()
     return fill_invalid(out.astype(np.float32), dmin, valid)
 

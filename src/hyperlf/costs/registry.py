@@ -31,7 +31,7 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from ._validate import IMPLS, check_window
-from .pair import fuse, right_validity
+from .pair import fuse, right_validity, row_moments
 
 __all__ = [
     "Cost",
@@ -114,17 +114,30 @@ class Cost:
         """
         raise NotImplementedError
 
+    #: True for a cost whose light-field volume is scaled by statistics of the whole volume
+    #: (a fusion's normalisers): a strip of rows then needs them from :meth:`view_moments`.
+    global_scales = False
+
     def view_volume(self, ref_img, img, shifts, *, window: int | None = None, valid=None,
-                    **options) -> np.ndarray:
+                    rows=None, **options) -> np.ndarray:
         """Light-field volume of one view, float32 ``(len(shifts), H, W)``.
 
         ``img`` is sampled bilinearly at ``p + (sx, sy)`` for each shift and compared with
         ``ref_img`` at ``p``.  ``valid`` is the in-image mask of the samples; ``options``
         (``tau_rel``, ``eps``, ``block``, ``cache`` from :func:`hyperlf.costs.view_costs`) may
-        be ignored.  Invalid entries may hold anything: the caller fills them.
+        be ignored.  Invalid entries may hold anything: the caller fills them.  ``rows``
+        ``(a, b)``: only those reference rows, ``(len(shifts), b - a, W)``, exactly as the
+        whole image has them (``valid`` is then the strip's).
         """
         raise InvalidInputError(f"cost {self.name!r} is not available for light fields; "
                                 f"choose one of {', '.join(cost_names(light_field=True))}")
+
+    def view_moments(self, ref_img, img, shifts, *, window: int | None = None, valid=None,
+                     rows=None, **options):
+        """For a cost with :attr:`global_scales`: per part, the
+        :func:`hyperlf.costs.row_moments` of the strip ``rows`` (arguments as
+        :meth:`view_volume`); None otherwise."""
+        return None
 
     def pair_volumes(self, left, right, dmin: int, dmax: int, *, window: int | None = None,
                      impl: str = "auto", need_right: bool = True, **options):
@@ -216,13 +229,24 @@ class FusedCost(Cost):
         cr = fuse([_right_from_left(v, dmin) for v in vols], weights, dmin, valid=vr)
         return cl, cr
 
-    def view_volume(self, ref_img, img, shifts, *, window=None, valid=None, **options):
-        vols = []
+    global_scales = True
+
+    def _view_parts(self, ref_img, img, shifts, window, valid, options):
         for i, p in enumerate(self.parts):
             w = window if i == self.view_window_part else None
-            vols.append(get_cost(p).view_volume(ref_img, img, shifts, window=w, valid=valid,
-                                                **options))
-        return fuse(vols, self.weights, dmin=0, valid=valid)
+            yield get_cost(p).view_volume(ref_img, img, shifts, window=w, valid=valid, **options)
+
+    def view_volume(self, ref_img, img, shifts, *, window=None, valid=None, scales=None,
+                    **options):
+        """The fused volume; ``scales`` (one per part): the normalisers' standard deviations
+        when measured on the whole view (a strip of ``rows``), else measured here."""
+        vols = list(self._view_parts(ref_img, img, shifts, window, valid, options))
+        return fuse(vols, self.weights, dmin=0, valid=valid, scales=scales)
+
+    def view_moments(self, ref_img, img, shifts, *, window=None, valid=None, **options):
+        """Per part, :func:`hyperlf.costs.row_moments` of its raw volume on the strip."""
+        return [row_moments(v, valid)
+                for v in self._view_parts(ref_img, img, shifts, window, valid, options)]
 
 
 # --------------------------------------------------------------------------------------------

@@ -253,9 +253,10 @@ def confidence(cost, labels_map=None) -> np.ndarray:
                                                                           "labels_map")
     if L < 2:
         return np.zeros((H, W), dtype=np.float32)
-    lab = np.arange(L)[:, None, None]
-    far = np.abs(lab - f[None]) > 1
-    c2 = np.where(far, c, np.inf).min(axis=0).astype(np.float64)
+    c2 = np.full((H, W), np.inf, np.float32)
+    for k in range(L):  # label by label: no temporary volume
+        np.minimum(c2, np.where(np.abs(k - f) > 1, c[k], np.float32(np.inf)), out=c2)
+    c2 = c2.astype(np.float64)
     cf = gather(c, f)
     rng = c.max(axis=0).astype(np.float64) - c.min(axis=0)
     c2 = np.where(np.isfinite(c2), c2, c.max(axis=0))  # L <= 3: no far label

@@ -1,0 +1,198 @@
+"""Strips of the correspondence stage and the memory budget that sizes them (SPEC §12).
+
+The depth of a capture holds a few volumes of ``L x H x W`` float32 (``L`` labels): the
+aggregated correspondence volume that the MRF optimises, its view counts, the unary and the
+MRF's own.  The correspondence stage needs far more: per pixel and label it adds four float32
+accumulators (the selection and its fallback, sums and counts) and the volumes of the view being
+matched.  :func:`hyperlf.hlf.correspondence` can aggregate full-width strips of rows one at a
+time, so that this part of the memory is held for one strip only; the result is bit for bit the
+untiled one (the strips start on the :data:`hyperlf.costs.ROW_BLOCK` grid, the views stay whole,
+so every sample and window reads the rows it needs, however far the largest shift reaches: the
+halo is implicit; a cost with whole-view scales, the fusions, measures them in one more pass).
+
+:func:`plan` picks the tallest strips whose estimated peak (:func:`depth_memory`) fits a budget
+(``DepthParams.max_memory``, ``hyperlf depth --max-memory``); :func:`parse_memory` reads a
+budget such as ``"6G"``.  The estimate's coefficients were measured (BENCHMARKS.md, "Tiles").
+
+Examples
+--------
+>>> from hyperlf.tiling import parse_memory, plan
+>>> parse_memory("1.5G") == 1.5 * 2**30
+True
+>>> plan((384, 512), 64, 30, max_memory=None)        # fits: one strip
+[(0, 384)]
+>>> plan((384, 512), 64, 30, max_memory=parse_memory("700M"))
+[(0, 128), (128, 256), (256, 384)]
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+from .errors import InvalidInputError
+
+__all__ = [
+    "DEFAULT_MAX_MEMORY",
+    "parse_memory",
+    "format_memory",
+    "check_strips",
+    "row_strips",
+    "depth_memory",
+    "plan",
+]
+
+#: The budget when none is given: 16 GiB, which leaves 8 GiB to the system and other work on a
+#: 24 GB machine.
+DEFAULT_MAX_MEMORY = 16 * 2 ** 30
+
+#: Bytes of the interpreter with numpy, numba, OpenCV and SciPy loaded (measured 0.25 GiB).
+_PROCESS_BYTES = 0.3 * 2 ** 30
+#: Bytes per pixel of every view that depth holds whatever the strips: the view (float32), its
+#: normalised copy and gradient magnitude (float64 each); measured 20.
+_IMAGE_BYTES = 20.0
+#: Bytes per pixel and label of the MRF stage: the correspondence volume, the unary and the
+#: graph's own (measured 16.7 with the view counts still held; planned with a margin).
+_VOLUME_BYTES = 18.0
+#: Bytes per pixel and label of a strip being aggregated: four accumulators, one view's cost,
+#: validity and fusion parts, and the finishing temporaries (measured 40; with a margin).
+_STRIP_BYTES = 44.0
+#: Bytes per pixel and label of the whole volume and its view counts that the strips fill.
+_GATHER_BYTES = 8.0
+#: Bytes per pixel and label of the view-selection means ``Mbar`` and one view's ``M(q_v)``.
+_SELECTION_BYTES = 8.0
+
+_UNITS = {"": 1, "B": 1, "K": 2 ** 10, "KB": 2 ** 10, "KIB": 2 ** 10, "M": 2 ** 20,
+          "MB": 2 ** 20, "MIB": 2 ** 20, "G": 2 ** 30, "GB": 2 ** 30, "GIB": 2 ** 30,
+          "T": 2 ** 40, "TB": 2 ** 40, "TIB": 2 ** 40}
+_MEMORY = re.compile(r"\s*([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*([A-Za-z]*)\s*")
+
+
+def parse_memory(text) -> int:
+    """Bytes of a memory size: a number with an optional binary unit.
+
+    ``"512M"``, ``"6G"``, ``"1.5GiB"``, ``"16GB"`` (K, M, G, T are powers of 1024, with or
+    without ``B`` / ``iB``; case does not matter); a plain number is bytes.
+
+    Raises
+    ------
+    InvalidInputError
+        Not such a size, or not positive.
+
+    Examples
+    --------
+    >>> parse_memory("512M"), parse_memory("2gb"), parse_memory(4096)
+    (536870912, 2147483648, 4096)
+    """
+    if isinstance(text, bool):
+        raise InvalidInputError(f"a memory size must be a number with a unit (e.g. 6G), got {text!r}")
+    if isinstance(text, (int, float)):
+        value, unit = float(text), ""
+    else:
+        m = _MEMORY.fullmatch(str(text))
+        if m is None or m.group(2).upper() not in _UNITS:
+            raise InvalidInputError(
+                f"a memory size must be a number with an optional unit K, M, G or T (e.g. 6G), "
+                f"got {text!r}")
+        value, unit = float(m.group(1)), m.group(2).upper()
+    nbytes = value * _UNITS[unit]
+    if not math.isfinite(nbytes) or nbytes < 1:
+        raise InvalidInputError(f"a memory size must be at least 1 byte, got {text!r}")
+    return int(nbytes)
+
+
+def format_memory(nbytes: float) -> str:
+    """``"1.5 GiB"``-style text of a byte count (for messages)."""
+    for unit, scale in (("GiB", 2 ** 30), ("MiB", 2 ** 20), ("KiB", 2 ** 10)):
+        if nbytes >= scale:
+            return f"{nbytes / scale:.3g} {unit}"
+    return f"{int(nbytes)} B"
+
+
+def row_strips(height: int, rows: int) -> list[tuple[int, int]]:
+    """Full-width strips of ``rows`` rows (a multiple of :data:`hyperlf.costs.ROW_BLOCK`; the
+    last one shorter) covering ``height`` rows in order."""
+    from .costs import ROW_BLOCK
+
+    rows = int(rows)
+    if rows < ROW_BLOCK or rows % ROW_BLOCK:
+        raise InvalidInputError(f"strips must be a positive multiple of {ROW_BLOCK} rows, got {rows}")
+    return [(a, min(a + rows, height)) for a in range(0, height, rows)]
+
+
+def check_strips(strips, height: int) -> list[tuple[int, int]]:
+    """``strips`` as a list of ``(a, b)`` covering rows ``0 .. height - 1`` in order, each
+    starting on the :data:`hyperlf.costs.ROW_BLOCK` grid; None = one strip of every row."""
+    from .costs import check_rows
+
+    if strips is None:
+        return [(0, int(height))]
+    out = [check_rows(s, height) for s in strips]
+    starts = [a for a, _ in out]
+    stops = [b for _, b in out]
+    if not out or starts[0] != 0 or stops[-1] != height or starts[1:] != stops[:-1]:
+        raise InvalidInputError(f"strips must cover rows 0 .. {height - 1} in order without gaps, "
+                                f"got {strips!r}")
+    return out
+
+
+def depth_memory(shape, n_labels: int, n_views: int, *, strip_rows: int | None = None,
+                 selection: bool = False) -> float:
+    """Estimated peak bytes of :func:`hyperlf.hlf.depth` (coefficients measured: module
+    docstring).
+
+    Parameters
+    ----------
+    shape : (H, W)
+        Image size.
+    n_labels, n_views : int
+        Labels, and views in the grid.
+    strip_rows : int, optional
+        Rows per strip of the correspondence stage; None = one strip.
+    selection : bool
+        View selection on (its per-label maps).
+    """
+    H, W = (int(x) for x in shape)
+    px = float(H * W)
+    lw = float(n_labels) * W
+    rows = H if strip_rows is None else min(int(strip_rows), H)
+    fixed = _PROCESS_BYTES + _IMAGE_BYTES * n_views * px
+    if selection:
+        fixed += _SELECTION_BYTES * n_labels * px
+    strip = _STRIP_BYTES * lw * rows
+    if rows < H:  # the strips are gathered into the whole volume and its counts
+        strip += _GATHER_BYTES * n_labels * px
+    return fixed + max(_VOLUME_BYTES * n_labels * px, strip)
+
+
+def plan(shape, n_labels: int, n_views: int, max_memory: float | None, *,
+         selection: bool = False, tile_rows: int | None = None) -> list[tuple[int, int]]:
+    """The strips of the correspondence stage: one when the estimated peak fits
+    ``max_memory`` (None = :data:`DEFAULT_MAX_MEMORY`), else the tallest strips that fit;
+    ``tile_rows`` forces their height (a multiple of :data:`hyperlf.costs.ROW_BLOCK`).
+
+    Raises
+    ------
+    InvalidInputError
+        Even strips of :data:`hyperlf.costs.ROW_BLOCK` rows would not fit: the message says
+        how much is needed.
+    """
+    from .costs import ROW_BLOCK
+
+    H = int(shape[0])
+    if tile_rows is not None:
+        return row_strips(H, tile_rows)
+    budget = DEFAULT_MAX_MEMORY if max_memory is None else float(max_memory)
+    est = lambda rows: depth_memory(shape, n_labels, n_views, strip_rows=rows,  # noqa: E731
+                                    selection=selection)
+    if est(None) <= budget:
+        return [(0, H)]
+    rows = (H // ROW_BLOCK) * ROW_BLOCK
+    while rows >= ROW_BLOCK and est(rows) > budget:
+        rows -= ROW_BLOCK
+    if rows < ROW_BLOCK:
+        raise InvalidInputError(
+            f"depth of {shape[1]} x {H} px with {n_labels} labels needs about "
+            f"{format_memory(est(ROW_BLOCK))} even in strips of {ROW_BLOCK} rows, more than the "
+            f"{format_memory(budget)} allowed; raise --max-memory or use fewer --labels")
+    return row_strips(H, rows)
