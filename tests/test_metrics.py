@@ -70,3 +70,33 @@ def test_hci_scores_skip_maps_inside_the_border():
     assert sc.border == metrics.HCI_BORDER and sc.n_pixels == 10 * 20
     assert abs(sc.rmse - 0.1) < 1e-12
     assert metrics.hci_scores(est[:30], gt[:30]) is None
+
+
+def test_cube_scores_stream_the_whole_cube_values(tmp_path):
+    from hyperlf import synthesis
+    from hyperlf.formats import open_gt_cube, save_lightfield
+
+    rng = np.random.default_rng(7)
+    gt = rng.random((2, 3, 6, 5, 4))
+    est = np.clip(gt + 0.05 * rng.standard_normal(gt.shape), 0, None)
+    psnr, sam = m.cube_scores(est, gt)
+    assert psnr == pytest.approx(m.psnr(est, gt), rel=1e-12)
+    assert sam == pytest.approx(m.sam(est, gt, band_axis=2), rel=1e-12)
+    assert m.cube_scores(gt, gt)[0] == float("inf")
+    with pytest.raises(InvalidInputError, match="one shape"):
+        m.cube_scores(est[:, :2], gt)
+    # lazily from disk: a capture folder and an HDF5 light field, each read view by view
+    lf = synthesis.procedural_scene(seed=2, rows=2, cols=2, height=10, width=12)
+    cap = save_lightfield(lf, tmp_path / "cap").parent
+    h5 = save_lightfield(lf, tmp_path / "lf.h5")
+    for path in (cap, h5):
+        with open_gt_cube(path) as cube:
+            assert cube.shape == lf.gt_cube.shape
+            np.testing.assert_array_equal(cube[1, 0], lf.gt_cube[1, 0])
+            assert m.cube_scores(lf.gt_cube * 0.5, cube)[0] == pytest.approx(
+                m.psnr(lf.gt_cube * 0.5, lf.gt_cube), rel=1e-9)
+    plain = save_lightfield(lf.replace(gt_cube=None, cube_wavelengths=None), tmp_path / "p")
+    with open_gt_cube(plain.parent) as cube:
+        assert cube is None
+    with open_gt_cube(tmp_path / "nothing-here") as cube:
+        assert cube is None

@@ -682,7 +682,7 @@ def _cmd_batch(args, dest) -> list[Path]:  # noqa: ARG001 - batch writes its own
     depth_args = []
     for flag, value in (("--labels", args.labels), ("--metric", args.metric),
                         ("--optimizer", args.optimizer), ("--median-radius", args.median_radius),
-                        ("--texture-snr", args.texture_snr)):
+                        ("--texture-snr", args.texture_snr), ("--max-memory", args.max_memory)):
         if value is not None:
             depth_args += [flag, f"{value:g}" if isinstance(value, float) else str(value)]
     tasks = plan_batch(args.inputs, args.output, depth_args=depth_args,
@@ -733,9 +733,9 @@ def _cmd_complete(args, dest) -> list[Path]:
     """
     from . import metrics, render, visualise
     from .completion import complete, read_band_mask
-    from .formats import load_lightfield, read_pfm, write_image
+    from .formats import load_lightfield, open_gt_cube, read_pfm, write_image
 
-    lf = load_lightfield(args.input)
+    lf = load_lightfield(args.input, cube=False)  # a ground-truth cube is scored from disk
     out = dest
     disparity = None
     if args.disparity is not None:
@@ -754,23 +754,25 @@ def _cmd_complete(args, dest) -> list[Path]:
     res = complete(lf, disparity, out_path=out / "cube.h5", metric=args.metric,
                    optimizer=None if args.stereo == "none" else args.stereo,
                    infer=not args.no_infer, progress=not args.quiet)
-    mask = read_band_mask(res.path)
-    if not args.no_infer:
-        mask |= read_band_mask(res.path, name="inferred_mask")
-    missing = 1.0 - mask.mean(axis=2)  # (R, C, H, W) fraction of bands missing per pixel
+    completed = np.empty(lf.views.shape[:4], np.float32)  # share of bands per view pixel
+    for v in np.ndindex(*lf.grid_shape):  # view by view: the masks are the cube's size
+        mask = read_band_mask(res.path, view=v)
+        if not args.no_infer:
+            mask |= read_band_mask(res.path, view=v, name="inferred_mask")
+        completed[v] = mask.mean(axis=0)
     written = [res.path,
-               visualise.save_mosaic_png(out / "missing_bands.png", 1.0 - missing,
+               visualise.save_mosaic_png(out / "missing_bands.png", completed,
                                          title="fraction of bands completed per pixel")]
     from .formats import open_cube_h5
 
     with open_cube_h5(res.path) as cf:
         srgb = render.emulate_camera(cf, camera="CIE 1931", output="srgb",
                                      exposure="percentile", views=lf.reference)
-        if lf.gt_cube is not None:
-            cube = np.asarray(cf.cube)
-            _say(args, f"against the ground-truth cube: PSNR "
-                       f"{metrics.psnr(cube, lf.gt_cube):.2f} dB, SAM "
-                       f"{metrics.sam(cube, lf.gt_cube, band_axis=2):.2f} deg")
+        with open_gt_cube(args.input) as gt_cube:
+            if gt_cube is not None:
+                psnr, sam = metrics.cube_scores(cf.cube, gt_cube)
+                _say(args, f"against the ground-truth cube: PSNR {psnr:.2f} dB, SAM "
+                           f"{sam:.2f} deg")
     written.append(write_image(out / "reference_srgb.png", srgb, bit_depth=8))
     _say(args, f"{res.stats['completed_pct']:.1f} % of (view, band, pixel) entries completed "
                f"({res.stats['registered_pct']:.1f} % registered, "
@@ -786,7 +788,7 @@ def _open_cube(path):
     Positions and reference come from the cube's metadata (``positions``, ``reference``) or,
     for a capture folder, from its manifest; otherwise the regular grid ``(c, r)``.
     """
-    from .formats import is_capture, open_cube_h5, read_capture
+    from .formats import gt_cube_file, is_capture, open_cube_h5, read_capture
     from .lightfield import centre_view, grid_positions, view_offsets
 
     p = Path(path)
@@ -794,11 +796,12 @@ def _open_cube(path):
     if p.is_dir():
         if not is_capture(p):
             raise InvalidInputError(f"{p} is a folder but not a capture (no capture.toml)")
-        lf = read_capture(p)
-        if lf.gt_cube is None:
+        cfile = gt_cube_file(p)
+        if cfile is None:
             raise InvalidInputError(f"capture {p} has no cube; run 'hyperlf complete {p}' first")
+        lf = read_capture(p, cube=False)  # the geometry; the cube is read lazily below
         positions, reference = lf.positions, lf.reference
-        p = p / "gt_cube.h5"
+        p = cfile
     cf = open_cube_h5(p)
     R, C = cf.cube.shape[:2]
     if positions is None and "positions" in cf.metadata:
@@ -1203,6 +1206,9 @@ def _add_batch_parser(sub) -> None:
                    help="as for depth")
     p.add_argument("--texture-snr", type=_texture_snr_arg, default=None, metavar="T",
                    help="as for depth")
+    p.add_argument("--max-memory", type=_memory_arg, default=None, metavar="SIZE",
+                   help="as for depth, for each capture: with N workers on one machine give "
+                        "each at most 1/N of its memory")
     p.add_argument("-o", "--output", required=True,
                    help="output folder: one result set per capture and the summary")
     p.add_argument("--overwrite", action="store_true",

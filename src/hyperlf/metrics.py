@@ -29,6 +29,7 @@ __all__ = [
     "psnr",
     "psnr_per_band",
     "sam",
+    "cube_scores",
     "completion_ratio",
     "HCI_BORDER",
 ]
@@ -323,7 +324,10 @@ def psnr(estimate, truth, data_range: float = 1.0, mask=None) -> float:
         if not m.any():
             raise InvalidInputError("psnr: the mask excludes every entry")
         est, gt = est[m], gt[m]
-    mse = float(np.mean((est - gt) ** 2))
+    return _psnr_of_mse(float(np.mean((est - gt) ** 2)), data_range)
+
+
+def _psnr_of_mse(mse: float, data_range: float) -> float:
     if mse == 0:
         return float("inf")
     return float(10.0 * np.log10(data_range ** 2 / mse))
@@ -387,6 +391,14 @@ def sam(estimate, truth, band_axis: int = -3, mask=None, eps: float = 1e-12) -> 
     >>> round(sam(np.array([1.0, 0.0]), np.array([1.0, 1.0]), band_axis=-1), 6)
     45.0
     """
+    angles = _spectral_angles(estimate, truth, band_axis, mask, eps)
+    if not angles.size:
+        raise InvalidInputError("sam: no spectrum to evaluate (all masked or all zero)")
+    return float(np.degrees(np.mean(angles)))
+
+
+def _spectral_angles(estimate, truth, band_axis: int, mask=None, eps: float = 1e-12):
+    """Angles (radians) of the spectra :func:`sam` averages (zero-norm spectra skipped)."""
     est, gt = _pair(estimate, truth)
     est = np.moveaxis(est, band_axis, -1)
     gt = np.moveaxis(gt, band_axis, -1)
@@ -398,10 +410,50 @@ def sam(estimate, truth, band_axis: int = -3, mask=None, eps: float = 1e-12) -> 
         if mk.shape != ok.shape:
             raise InvalidInputError(f"sam: mask has shape {mk.shape}, expected {ok.shape}")
         ok &= mk
-    if not ok.any():
-        raise InvalidInputError("sam: no spectrum to evaluate (all masked or all zero)")
-    cos = np.clip(num[ok] / den[ok], -1.0, 1.0)
-    return float(np.degrees(np.mean(np.arccos(cos))))
+    return np.arccos(np.clip(num[ok] / den[ok], -1.0, 1.0))
+
+
+def cube_scores(estimate, truth, data_range: float = 1.0) -> tuple[float, float]:
+    """PSNR (dB) and mean spectral angle (degrees) of two plenoptic cubes, read one view at a
+    time.
+
+    The values :func:`psnr` and :func:`sam` (``band_axis=2``) give on the whole cubes (to
+    rounding), without holding either: ``estimate`` and ``truth`` may be lazy h5py datasets
+    (:func:`hyperlf.formats.open_gt_cube`, :func:`hyperlf.formats.open_cube_h5`).
+
+    Parameters
+    ----------
+    estimate, truth : array_like, shape (R, C, B, H, W)
+    data_range : float
+        As :func:`psnr`.
+
+    Returns
+    -------
+    psnr_db, sam_deg : float
+
+    Examples
+    --------
+    >>> est = np.ones((1, 2, 3, 4, 5)); gt = est.copy(); gt[0, 1] *= 0.9
+    >>> [round(v, 4) for v in cube_scores(est, gt)]
+    [23.0103, 0.0]
+    """
+    if np.shape(estimate) != np.shape(truth) or len(np.shape(truth)) != 5:
+        raise InvalidInputError(f"cube_scores needs two (R, C, B, H, W) cubes of one shape, got "
+                                f"{np.shape(estimate)} and {np.shape(truth)}")
+    R, C = np.shape(truth)[:2]
+    sse = angle = 0.0
+    n = m = 0
+    for r in range(R):
+        for c in range(C):
+            est, gt = _pair(estimate[r, c], truth[r, c])
+            sse += float(np.sum((est - gt) ** 2))
+            n += est.size
+            a = _spectral_angles(est, gt, 0)
+            angle += float(a.sum())
+            m += a.size
+    if m == 0:
+        raise InvalidInputError("cube_scores: no spectrum to evaluate (all zero)")
+    return _psnr_of_mse(sse / n, data_range), float(np.degrees(angle / m))
 
 
 def completion_ratio(valid) -> float:

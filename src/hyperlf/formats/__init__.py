@@ -15,13 +15,16 @@ atomically (temporary file beside the target, then rename).
 
 from __future__ import annotations
 
+import contextlib
+
 import os
 from pathlib import Path
 
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
 from ..lightfield import LightField
 from . import capture, envi, hci, hdf5, images, middlebury, pfm
-from .capture import CAPTURE_FORMAT, MANIFEST, is_capture, read_capture, write_capture
+from .capture import (CAPTURE_FORMAT, MANIFEST, gt_cube_file, is_capture, read_capture,
+                      write_capture)
 from .envi import ENVI_DTYPES, read_envi, write_envi
 from .hci import HCI_LICENCE, is_hci_scene, read_hci_scene
 from .hdf5 import (CubeFile, CubeWriter, open_cube_h5, read_cube_h5, read_lightfield_h5,
@@ -31,13 +34,49 @@ from .middlebury import MASK_NAMES, StereoPair, read_middlebury, write_middlebur
 from .pfm import read_pfm, write_pfm
 
 # the package's public API: its own two functions and every format module's
-__all__ = ["load_lightfield", "save_lightfield"] + [
+__all__ = ["load_lightfield", "save_lightfield", "open_gt_cube"] + [
     name for module in (pfm, images, hci, middlebury, capture, hdf5, envi)
     for name in module.__all__]
 
 _H5 = (".h5", ".hdf5")
 _SUPPORTED = ("a capture folder with capture.toml, an HCI scene folder with input_Cam000.png, "
               "or an HDF5 file (.h5/.hdf5) written by hyperlf")
+
+
+@contextlib.contextmanager
+def open_gt_cube(path: str | os.PathLike):
+    """The ground-truth cube of a capture folder or light-field HDF5 file, read lazily.
+
+    A context manager that yields the ``(R, C, B, H, W)`` cube as an h5py dataset (index one
+    view, ``cube[r, c]``, to read just that view), or None when the input has none (an HCI
+    scene folder, a capture without ``gt_cube``).  At the paper's size the cube is 3.9 GB:
+    scoring a completion against it view by view keeps it on disk
+    (:func:`hyperlf.metrics.cube_scores`).
+
+    Raises
+    ------
+    DataNotFoundError, FormatError
+        As :func:`load_lightfield`, for a missing or malformed file.
+    """
+    import h5py
+
+    p = Path(path)
+    if is_capture(p):
+        cfile = gt_cube_file(p)
+        if cfile is None:
+            yield None
+            return
+        with open_cube_h5(cfile) as cf:
+            yield cf.cube
+    elif p.is_file() and p.suffix.lower() in _H5:
+        try:
+            f = h5py.File(p, "r")
+        except OSError as e:
+            raise FormatError(f"{p}: not a readable HDF5 file ({e})") from None
+        with f:
+            yield f["gt_cube"] if "gt_cube" in f else None
+    else:
+        yield None
 
 
 def load_lightfield(path: str | os.PathLike, *, cube: bool = True, **kwargs) -> LightField:

@@ -71,7 +71,8 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-__all__ = ["read_capture", "write_capture", "is_capture", "MANIFEST", "CAPTURE_FORMAT"]
+__all__ = ["read_capture", "write_capture", "is_capture", "gt_cube_file", "MANIFEST",
+           "CAPTURE_FORMAT"]
 
 MANIFEST = "capture.toml"
 CAPTURE_FORMAT = "hyperlf-capture"
@@ -379,6 +380,16 @@ def _manifest_metadata(doc: dict, root: Path, bit_depth: int) -> dict[str, Any]:
     metadata["capture_folder"] = str(root)
     metadata["bit_depth"] = bit_depth
     return metadata
+
+
+def gt_cube_file(folder: str | os.PathLike) -> Path | None:
+    """The ground-truth cube file a capture's manifest names (checked to stay inside the
+    folder, as :func:`read_capture` does), or None when it names none; for reading the cube
+    view by view (:func:`hyperlf.formats.open_gt_cube`)."""
+    root = Path(folder)
+    man, doc = _read_manifest(root)
+    cspec = doc.get("gt_cube")
+    return None if cspec is None else _safe_file(man, root, cspec, "gt_cube")
 
 
 def read_capture(folder: str | os.PathLike, *, cube: bool = True) -> LightField:
