@@ -1174,8 +1174,9 @@ def _add_depth_parser(sub) -> None:
     p.add_argument("--max-memory", type=_memory_arg, default=None, metavar="SIZE",
                    help="memory budget of the hlf method, e.g. 6G or 512M (default 16G, which "
                         "leaves room on a 24 GB machine): above it the correspondence stage "
-                        "runs in strips of rows, with results identical to one pass and about "
-                        "twice its time for the default fused cost; a budget that even the "
+                        "runs in strips of rows, with results identical to one pass; the "
+                        "default fused cost then needs one more matching pass for its "
+                        "normalisers (up to twice the matching time); a budget that even the "
                         "thinnest strips exceed is refused before any work")
     p.add_argument("--save-intermediate", action="store_true",
                    help="also write correspondence-only and defocus-only maps, and the "
