@@ -454,12 +454,13 @@ def _cmd_convert(args, dest) -> list[Path]:
     if dst.suffix.lower() in (".hdr", ".img"):
         if src.suffix.lower() not in (".h5", ".hdf5"):
             raise InvalidInputError("ENVI export needs a cube file (.h5) as input")
-        cube, wl, _ = formats.read_cube_h5(src)
-        R, C = cube.shape[:2]
-        r, c = args.view if args.view is not None else centre_view(R, C)
-        if not (r < R and c < C):
-            raise InvalidInputError(f"--view {r},{c} is outside the {R} x {C} grid of {src}")
-        formats.write_envi(dest[0], cube[r, c], wl)
+        with formats.open_cube_h5(src) as cf:  # one view is read, not the whole cube
+            R, C = cf.cube.shape[:2]
+            r, c = args.view if args.view is not None else centre_view(R, C)
+            if not (r < R and c < C):
+                raise InvalidInputError(f"--view {r},{c} is outside the {R} x {C} grid of {src}")
+            view, wl = np.asarray(cf.cube[r, c], np.float32), cf.wavelengths
+        formats.write_envi(dest[0], view, wl)
         return list(dest)
     lf = formats.load_lightfield(src)
     return [formats.save_lightfield(lf, dst, bit_depth=args.bit_depth)]
