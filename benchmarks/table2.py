@@ -107,6 +107,10 @@ ABLATIONS = {
                    "+ visibility-aware re-matching, 1 round (§5.6)"),
     "visibility2": ({"params": DepthParams(visibility_rounds=2)},
                     "+ visibility-aware re-matching, 2 rounds (§5.6)"),
+    "mrf_levels1": ({"params": DepthParams(mrf_levels=1)},
+                    "graph cuts coarse to fine, 1 halving"),
+    "mrf_levels2": ({"params": DepthParams(mrf_levels=2)},
+                    "graph cuts coarse to fine, 2 halvings"),
     "no_texture": ({"params": DepthParams(texture_snr=0)},
                    "without the textureless-region weight"),
     # not a single toggle: the two cues that helped most with the stand-in costs, together

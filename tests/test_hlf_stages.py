@@ -75,3 +75,30 @@ def test_post_filter_off_and_on():
     assert post_filter(d, g, DepthParams(median_radius=0)) is d
     out = post_filter(d, g, DepthParams(median_radius=2))
     assert out[5, 5] == 0.0
+
+
+def test_mrf_levels_run_graph_cuts_coarse_to_fine(monkeypatch):
+    from hyperlf.regularisers import dispatch
+
+    calls = []
+    real = dispatch.graphcut_multiscale
+    monkeypatch.setattr(dispatch, "graphcut_multiscale",
+                        lambda *a, **k: calls.append(k["levels"]) or real(*a, **k))
+    lf = synthesis.procedural_scene(seed=1, rows=3, cols=3, height=64, width=64)
+    gt = lf.reference_gt_disparity
+    plain = depth(lf, n_labels=24)
+    assert calls == []
+    c2f = depth(lf, n_labels=24, params=DepthParams(mrf_levels=2))
+    assert calls == [2] and c2f.config["params"]["mrf_levels"] == 2
+    err = lambda d: float(np.sqrt(np.mean((d - gt)[8:-8, 8:-8] ** 2)))  # noqa: E731
+    assert err(c2f.disparity) < 1.5 * err(plain.disparity) + 0.05
+    # occlusion edge weights need the plain moves: taken whatever mrf_levels says
+    calls.clear()
+    ow = DepthParams(occlusion_weight=0.5)
+    np.testing.assert_array_equal(
+        depth(lf, n_labels=24, params=DepthParams(occlusion_weight=0.5, mrf_levels=2)).disparity,
+        depth(lf, n_labels=24, params=ow).disparity)
+    assert calls == []
+    for bad in (-1, 5, 1.5, True):
+        with pytest.raises(InvalidInputError, match="mrf_levels"):
+            DepthParams(mrf_levels=bad)
