@@ -604,19 +604,22 @@ def _cmd_depth(args, dest) -> list[Path]:
     if args.method == "hlf":
         from .hlf import DepthParams, depth
 
-        from .tiling import plan
+        from .tiling import DEFAULT_MAX_MEMORY, plan
 
+        budget = args.max_memory  # default: 16 GiB, or less when less is available
+        if budget is None and _available_memory() < DEFAULT_MAX_MEMORY:
+            budget = _available_memory()
         options = {k: v for k, v in (("median_radius", args.median_radius),
                                      ("texture_snr", args.texture_snr),
                                      ("visibility_rounds", args.visibility_rounds),
-                                     ("max_memory", args.max_memory))
+                                     ("max_memory", budget))
                    if v is not None}
         params = DepthParams(**options) if options else None
         if lf.views.ndim != 4:
             raise InvalidInputError("the hlf method needs monochrome spectral views; use "
                                     "--method tao2013|wang2015|lin2015 for colour light fields "
                                     "or 'hyperlf synth hci' to make an H-LF")
-        strips = plan(lf.image_shape, args.labels, lf.n_views, args.max_memory,
+        strips = plan(lf.image_shape, args.labels, lf.n_views, budget,
                       selection=args.view_selection)  # refuses a budget too small, now
         if len(strips) > 1:
             _say(args, f"correspondence in {len(strips)} strips of {strips[0][1]} rows "
@@ -1174,7 +1177,8 @@ def _add_depth_parser(sub) -> None:
                         "more correspondence pass; default 0)")
     p.add_argument("--max-memory", type=_memory_arg, default=None, metavar="SIZE",
                    help="memory budget of the hlf method, e.g. 6G or 512M (default 16G, which "
-                        "leaves room on a 24 GB machine): above it the correspondence stage "
+                        "leaves room on a 24 GB machine, or the memory available now when that "
+                        "is less): above it the correspondence stage "
                         "runs in strips of rows, with results identical to one pass; the "
                         "default fused cost then needs one more matching pass for its "
                         "normalisers (up to twice the matching time); a budget that even the "
