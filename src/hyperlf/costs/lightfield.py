@@ -453,8 +453,9 @@ def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | 
     cost : float32 (L, H, W)
         Lower is better; invalid entries carry the pixel's worst valid cost (for display; the
         aggregation masks them anyway); a pixel with no valid entry gets 0 at every label.
+        ``(L, b - a, W)`` for a strip ``rows=(a, b)``.
     valid : bool (L, H, W)
-        ``q_v`` inside the image (and, with masks, its taps and ``p`` valid).
+        ``q_v`` inside the image (and, with masks, its taps and ``p`` valid); the strip's rows.
 
     Raises
     ------
