@@ -30,6 +30,13 @@ see the replicated border, and validity is decided by the centre taps alone in b
 Both images are first scaled by their mean over valid pixels
 (:func:`hyperlf.imageops.normalise_intensity` with ``valid``).
 
+Strips (SPEC §12): every evaluator takes ``rows=(a, b)`` and returns only those reference rows,
+bit for bit what the whole image gives there: the images stay whole (samples and windows read
+the rows they need), per-view statistics are the whole view's, the NCC kernels restart their
+running column sums every :data:`ROW_BLOCK` rows (a strip starts on that grid) and run over
+blocks of :data:`KERNEL_ROWS` rows for the caches; a fusion's normalisers come from
+:func:`view_moments` over every strip (``scales`` of :func:`view_costs`).
+
 Every evaluator takes ``shifts``, a list of ``(sx, sy)`` with ``sample = img(p + (sx, sy))``,
 and returns float32 ``(L, H, W)``; :func:`view_costs` picks the cost from the registry and
 applies the out-of-image rule.  At integer shifts the results equal the rectified-pair ones
