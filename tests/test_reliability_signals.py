@@ -157,3 +157,27 @@ def test_sigterm_mid_run_of_every_command(rig, cube, tmp_path, name):
         assert after == before  # the previous complete set, byte for byte
     assert after.keys() == before.keys()  # never a mix, never a stray temporary
     assert "Traceback" not in err
+
+
+def test_a_signal_wrapped_by_python_still_ends_as_the_signal(monkeypatch, capsys):
+    # Python 3.11 wraps an exception raised in a class's __set_name__ (a SIGTERM that lands
+    # while colour-science is being imported) into RuntimeError; it must still exit 143
+    from hyperlf import cli
+    from hyperlf.errors import Terminated
+
+    def wrapped(args):
+        try:
+            raise Terminated(signal.SIGTERM)
+        except Terminated as e:
+            raise RuntimeError("Error calling __set_name__ on 'Field' instance") from e
+
+    monkeypatch.setattr(cli, "_run", wrapped)
+    assert main(["info", "anything"]) == 143
+    assert "terminated" in capsys.readouterr().err
+
+    def plain(args):
+        raise RuntimeError("a bug")
+
+    monkeypatch.setattr(cli, "_run", plain)
+    with pytest.raises(RuntimeError, match="a bug"):
+        main(["info", "anything"])

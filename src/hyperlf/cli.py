@@ -1386,10 +1386,33 @@ def main(argv: Sequence[str] | None = None) -> int:
                 return 4
             return 2 if exc.errno in (errno.ENAMETOOLONG, errno.ELOOP) else 1
         except KeyboardInterrupt as exc:  # Ctrl-C, or Terminated (SIGTERM, SIGHUP)
-            what = "terminated" if isinstance(exc, Terminated) else "interrupted"
-            print(f"hyperlf {args.command}: {what}; the output holds its previous results "
-                  "(or the new ones, if they were complete)", file=sys.stderr)
-            return getattr(exc, "exit_code", 130)
+            return _interrupted(args, exc)
+        except RuntimeError as exc:
+            # a signal that came while Python ran code that wraps what it raises (Python 3.11
+            # turns an exception in a class's __set_name__, e.g. while colour-science is being
+            # imported, into "RuntimeError: Error calling __set_name__")
+            cause = _interrupt_cause(exc)
+            if cause is None:
+                raise
+            return _interrupted(args, cause)
+
+
+def _interrupt_cause(exc: BaseException) -> KeyboardInterrupt | None:
+    """The Ctrl-C or :class:`Terminated` behind ``exc`` (its chain of causes), if any."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
+def _interrupted(args, exc: KeyboardInterrupt) -> int:
+    what = "terminated" if isinstance(exc, Terminated) else "interrupted"
+    print(f"hyperlf {args.command}: {what}; the output holds its previous results "
+          "(or the new ones, if they were complete)", file=sys.stderr)
+    return getattr(exc, "exit_code", 130)
 
 
 if __name__ == "__main__":  # pragma: no cover
