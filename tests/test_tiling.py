@@ -121,7 +121,9 @@ def test_tiled_depth_is_the_untiled_depth_bit_for_bit(name):
     whole = depth(lf, n_labels=20, save_intermediate=True, params=DepthParams(**params), **kw)
     tiled = depth(lf, n_labels=20, save_intermediate=True,
                   params=DepthParams(tile_rows=ROW_BLOCK, **params), **kw)
-    assert tiled.timings["strips"] == 4 and "strips" not in whole.timings
+    assert len(tiled.config["strips"]) == 4 and len(whole.config["strips"]) == 1
+    assert "scales_s" in tiled.timings
+    assert "scales_s" not in whole.timings
     np.testing.assert_array_equal(tiled.disparity, whole.disparity)
     np.testing.assert_array_equal(tiled.confidence, whole.confidence)
     for key in ("C", "unary", "n_selected"):
@@ -134,7 +136,7 @@ def test_a_tiny_budget_picks_strips_and_changes_nothing():
     assert plan(lf.image_shape, 20, lf.n_views, budget) == [(0, 64), (64, 100)]
     whole = depth(lf, n_labels=20)
     tiled = depth(lf, n_labels=20, params=DepthParams(max_memory=budget))
-    assert tiled.timings["strips"] == 2
+    assert tiled.config["strips"] == [(0, 64), (64, 100)]
     np.testing.assert_array_equal(tiled.disparity, whole.disparity)
 
 

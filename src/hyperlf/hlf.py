@@ -1194,9 +1194,7 @@ def correspondence(prob: DepthProblem, *, progress: bool = False, timings=None,
     clock.lap("selection_split_s")
     if timings is not None:
         timings.update(clock.timings)
-        if len(strips) > 1:
-            timings["strips"] = len(strips)
-        else:
+        if len(strips) == 1:
             timings.pop("scales_s", None)
     return C, n_used
 
@@ -1486,4 +1484,4 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
                      texture_weight=w)
     return DepthResult(disparity=np.asarray(disp, np.float32), confidence=conf, f_c=f_c,
                        f_d=f_d, labels=prob.labels, timings=timings,
-                       config=_config(prob, sC, sD), intermediate=inter)
+                       config=dict(_config(prob, sC, sD), strips=strips), intermediate=inter)
