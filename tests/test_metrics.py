@@ -100,3 +100,8 @@ def test_cube_scores_stream_the_whole_cube_values(tmp_path):
         assert cube is None
     with open_gt_cube(tmp_path / "nothing-here") as cube:
         assert cube is None
+    (tmp_path / "junk.h5").write_bytes(b"not hdf5")
+    from hyperlf.errors import FormatError
+    with pytest.raises(FormatError, match="not a readable HDF5 file"):
+        with open_gt_cube(tmp_path / "junk.h5"):
+            pass

@@ -1058,15 +1058,14 @@ def visible_views(prob: DepthProblem, disparity: np.ndarray) -> dict:
     return {v: m | few for v, m in sees.items()}
 
 
-def _strip_edges(prob: DepthProblem, rows, i: int):
-    """The occlusion-split edge pixels inside the strip ``rows`` (strip-flat indices) and
-    their half-plane sides for other view ``i``."""
+def _strip_edges(prob: DepthProblem, rows):
+    """The occlusion-split edge pixels inside the strip ``rows``: their strip-flat indices,
+    and which of ``prob.edge_idx`` they are (to pick their half-plane sides)."""
     W = prob.lf.image_shape[1]
     a, b = rows
     idx = prob.edge_idx
     inside = (idx >= a * W) & (idx < b * W)
-    sides = None if prob.sides is None else prob.sides[i][inside]
-    return idx[inside] - a * W, sides
+    return idx[inside] - a * W, inside
 
 
 def _strip_selection(prob: DepthProblem, v, rows):
@@ -1113,9 +1112,7 @@ def _strip_correspondence(prob: DepthProblem, rows, scales, sees, cache, bar, cl
     p = prob.params
     a, b = rows
     W = prob.lf.image_shape[1]
-    edge_idx = prob.edge_idx if prob.occlusion_split else np.zeros(0, np.int64)
-    if len(edge_idx):
-        edge_idx = _strip_edges(prob, rows, 0)[0]
+    edge_idx, inside = _strip_edges(prob, rows)  # none unless the occlusion split is on
     acc = _new_accumulators(prob.labels.size, b - a, W, len(edge_idx))
     whole = (a, b) == (0, prob.lf.image_shape[0])
     M_ref = prob.M_ref if whole else np.ascontiguousarray(prob.M_ref[a:b])
@@ -1131,9 +1128,7 @@ def _strip_correspondence(prob: DepthProblem, rows, scales, sees, cache, bar, cl
         if sees is not None:
             valid &= sees[v][None, a:b]
         clock.lap("correspondence_s")
-        sides = None
-        if len(edge_idx):
-            sides = _strip_edges(prob, rows, i)[1]
+        sides = None if prob.sides is None else prob.sides[i][inside]
         aggregate_view(acc, Cv, valid, _strip_selection(prob, v, rows), Mbar, M_ref,
                        prob.view_selection, edge_idx, sides, prob.impl)
         del Cv, valid

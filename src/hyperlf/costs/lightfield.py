@@ -68,7 +68,8 @@ __all__ = [
 ]
 
 #: The reference descriptor blocks with their float64 statistics (~20 bytes per channel and
-#: pixel) are cached across views when they fit in this many bytes, else recomputed per view.
+#: pixel, twice that with the row blocks the kernels cut from them) are cached across views
+#: when they fit in this many bytes, else recomputed per view.
 REF_CACHE_BYTES = 512 * 1024 ** 2
 
 #: A strip of rows (``rows`` of :func:`view_costs`) starts at a multiple of this: the window
@@ -100,6 +101,16 @@ class _RefBlock:
         self.isig = np.ascontiguousarray(inv_sigma(st["var"], tau))
         self.pad = np.ascontiguousarray(pad_replicate(np.asarray(A, np.float32), self.r))
         self.den = self.mu.sum(axis=0)
+        self._rows: dict = {}
+
+    def rows(self, i: int, j: int):
+        """``(pad, mu, isig)`` of the rows ``i .. j - 1`` (the padded map with its ``2 r``
+        extra rows), contiguous, cut once and kept for every shift."""
+        if (i, j) not in self._rows:
+            c = np.ascontiguousarray
+            self._rows[i, j] = (c(self.pad[:, i:j + 2 * self.r]), c(self.mu[:, i:j]),
+                                c(self.isig[:, i:j]))
+        return self._rows[i, j]
 
 
 def _view_tau(B: np.ndarray, n: int, tau_rel: float, per_channel: bool = False):
@@ -136,10 +147,9 @@ def _xi_terms(ref: _RefBlock, B: np.ndarray, centre_b, tauB, sx, sy, weighted=Tr
     for i in range(a, b, KERNEL_ROWS):  # blocks on the ROW_BLOCK grid: the sums are the same
         j = min(i + KERNEL_ROWS, b)
         band = slice(i, j + 2 * r)
-        c = np.ascontiguousarray
-        _kernels.xi_shift(c(ref.pad[:, band]), c(ref.mu[:, i:j]), c(ref.isig[:, i:j]),
-                          ref.centre, Bc, cb, c(y0[band]), c(y1[band]), c(fy[band]), x0, x1,
-                          fx, r, tau, bool(weighted), ROW_BLOCK, oF[:, i - a:j - a],
+        pad, mu, isig = ref.rows(i, j)
+        _kernels.xi_shift(pad, mu, isig, ref.centre, Bc, cb, y0[band], y1[band], fy[band], x0,
+                          x1, fx, r, tau, bool(weighted), ROW_BLOCK, oF[:, i - a:j - a],
                           oB[:, i - a:j - a], oM[:, i - a:j - a])
     if per_channel:
         return oF, None, None
@@ -291,7 +301,7 @@ def bwncc_view_volume(ref_img, img, shifts, *, paper: bool = False, window=None,
         ref_cache[key] = prepare(ref_img, params)
     pA = ref_cache[key]
     pB = prepare(img, params)
-    keep = 20.0 * params.n_channels * H * W <= REF_CACHE_BYTES
+    keep = 40.0 * params.n_channels * H * W <= REF_CACHE_BYTES
     for (slB, Bblk) in iter_descriptor_blocks(pB, block=block):
         bkey = ("block", variant, slB.start, slB.stop)
         refs = ref_cache.get(bkey)

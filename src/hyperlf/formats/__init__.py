@@ -27,8 +27,8 @@ from .capture import (CAPTURE_FORMAT, MANIFEST, gt_cube_file, is_capture, read_c
                       write_capture)
 from .envi import ENVI_DTYPES, read_envi, write_envi
 from .hci import HCI_LICENCE, is_hci_scene, read_hci_scene
-from .hdf5 import (CubeFile, CubeWriter, open_cube_h5, read_cube_h5, read_lightfield_h5,
-                   write_cube_h5, write_lightfield_h5)
+from .hdf5 import (CubeFile, CubeWriter, open_cube_h5, open_lightfield_gt_cube, read_cube_h5,
+                   read_lightfield_h5, write_cube_h5, write_lightfield_h5)
 from .images import REC709_WEIGHTS, read_image, read_images_same_size, to_grey, write_image
 from .middlebury import MASK_NAMES, StereoPair, read_middlebury, write_middlebury
 from .pfm import read_pfm, write_pfm
@@ -58,8 +58,6 @@ def open_gt_cube(path: str | os.PathLike):
     DataNotFoundError, FormatError
         As :func:`load_lightfield`, for a missing or malformed file.
     """
-    import h5py
-
     p = Path(path)
     if is_capture(p):
         cfile = gt_cube_file(p)
@@ -69,12 +67,8 @@ def open_gt_cube(path: str | os.PathLike):
         with open_cube_h5(cfile) as cf:
             yield cf.cube
     elif p.is_file() and p.suffix.lower() in _H5:
-        try:
-            f = h5py.File(p, "r")
-        except OSError as e:
-            raise FormatError(f"{p}: not a readable HDF5 file ({e})") from None
-        with f:
-            yield f["gt_cube"] if "gt_cube" in f else None
+        with open_lightfield_gt_cube(p) as cube:
+            yield cube
     else:
         yield None
 

@@ -36,6 +36,7 @@ from ..lightfield import LightField
 __all__ = [
     "write_lightfield_h5",
     "read_lightfield_h5",
+    "open_lightfield_gt_cube",
     "write_cube_h5",
     "read_cube_h5",
     "CubeWriter",
@@ -250,6 +251,15 @@ def write_lightfield_h5(path: str | os.PathLike, lf: LightField,
                 f.create_dataset("valid", data=lf.valid.astype(np.uint8),
                                  chunks=(1, 1) + lf.valid.shape[2:], **comp)
     return Path(path)
+
+
+@contextlib.contextmanager
+def open_lightfield_gt_cube(path: str | os.PathLike):
+    """The ground-truth cube of a light-field file as a lazy ``(R, C, B, H, W)`` h5py dataset
+    (None when it has none), checked and its read errors reported as :func:`read_lightfield_h5`
+    does; a context manager."""
+    with _open_read(path, LF_FORMAT) as (_, f):
+        yield f["gt_cube"] if "gt_cube" in f else None
 
 
 def read_lightfield_h5(path: str | os.PathLike, *, cube: bool = True) -> LightField:
