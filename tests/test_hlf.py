@@ -305,3 +305,51 @@ def test_pipeline_wrong_sign_is_worse(small_lf):
     flipped = small_lf.replace(positions=-small_lf.positions)
     bad = depth(flipped, n_labels=16, metric="ncc", optimizer="wta")
     assert rmse(bad.f_c, gt) > 2 * rmse(good.f_c, gt)
+
+
+# ----------------------------------------------------------------------------- dense arrays
+
+
+def test_light_field_window_rule():
+    from hyperlf.costs import DENSE_VIEWS, light_field_window
+
+    assert DENSE_VIEWS == 12
+    # many views: RSNCC's small window, for RSNCC alone and for the fusion it is part 0 of
+    assert light_field_window("census-rsncc", 29) == 3
+    assert light_field_window("rsncc", 12) == 3
+    # few views, or a cost without a dense window: the cost's own (None)
+    assert light_field_window("census-rsncc", 11) is None
+    assert light_field_window("census-rsncc", 8) is None
+    for metric in ("census", "ncc", "fused", "bwncc"):
+        assert light_field_window(metric, 29) is None
+    # an explicit window always wins; the threshold is a parameter
+    assert light_field_window("census-rsncc", 29, window=7) == 7
+    assert light_field_window("census-rsncc", 29, dense_views=30) is None
+    assert light_field_window("census-rsncc", 2, dense_views=2) == 3
+
+
+@pytest.fixture(scope="module")
+def dense_lf():
+    """'occlusion' through a 4 x 4 array at 32 x 40 (15 other views: a dense array)."""
+    from hyperlf.synthesis import SCENES, procedural_scene
+    return procedural_scene(**dict(SCENES["occlusion"], rows=4, cols=4, height=32, width=40,
+                                   reflectance_source="colorchecker"))
+
+
+def test_dense_array_window_reaches_the_costs(dense_lf, small_lf):
+    res = depth(dense_lf, n_labels=8)
+    assert res.config["window"] == 3 and res.config["params"]["window"] is None
+    same = depth(dense_lf, n_labels=8, params=DepthParams(window=3))
+    assert np.array_equal(res.disparity, same.disparity)
+    five = depth(dense_lf, n_labels=8, params=DepthParams(dense_views=16))
+    assert five.config["window"] is None
+    assert np.array_equal(five.disparity,
+                          depth(dense_lf, n_labels=8, params=DepthParams(window=5)).disparity)
+    assert not np.array_equal(res.disparity, five.disparity)
+    assert depth(small_lf, n_labels=8).config["window"] is None  # 3 x 3: 8 other views
+
+
+@pytest.mark.parametrize("bad", [0, -1, 1.5, True, "3"])
+def test_dense_views_validation(bad):
+    with pytest.raises(InvalidInputError, match="dense_views"):
+        DepthParams(dense_views=bad)

@@ -26,7 +26,9 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
 1. **Correspondence cost** ``C_v(p, d)`` per view ``v != ref``: the light-field form of a
    cost of the registry (:mod:`hyperlf.costs`, :func:`hyperlf.costs.view_costs`; how each is
    evaluated at sub-pixel shifts: :mod:`hyperlf.costs.lightfield`).  The default ``auto`` is
-   ``census-rsncc``, ``(norm(rsncc 5x5) + norm(census 7x7)) / 2`` per view; ``fused``,
+   ``census-rsncc``, ``(norm(rsncc 5x5) + norm(census 7x7)) / 2`` per view (RSNCC 3 x 3 on
+   an array with at least ``params.dense_views`` other views:
+   :func:`hyperlf.costs.light_field_window`); ``fused``,
    ``bwncc`` and ``bwncc-paper`` use the 612-channel descriptor and are much slower; ``ncc``,
    ``census`` and ``rsncc`` alone serve tests, quick looks and ablations.
 
@@ -128,7 +130,7 @@ from typing import Any
 import numpy as np
 
 from ._progress import progress_bar
-from .costs import cost_names, get_cost, tap_validity, view_costs
+from .costs import cost_names, get_cost, light_field_window, tap_validity, view_costs
 from .imageops import fill_masked, gradient_magnitude, normalise_intensity
 from .warp import shift_map
 from .errors import InvalidInputError
@@ -186,8 +188,10 @@ CAMERA_TEXTURE_SNR = 2.0
 class DepthParams:
     """Every constant of :func:`depth` (module docstring explains each stage).
 
-    Correspondence: ``window`` (None = metric default: ncc 5, census 7, bwncc per level / 5),
-    ``tau_rel`` (1e-5), ``eps`` (1e-3, BWNCC ``-log`` floor), ``block`` (68 descriptor
+    Correspondence: ``window`` (None = the metric's default,
+    :func:`hyperlf.costs.light_field_window`: ncc 5, census 7, bwncc per level / 5, rsncc and
+    census-rsncc 5, or 3 with at least ``dense_views`` (12) other views), ``tau_rel`` (1e-5),
+    ``eps`` (1e-3, BWNCC ``-log`` floor), ``block`` (68 descriptor
     channels per block).
     Selection: ``selection_normalise`` (M / median M per view), ``selection_include_ref``,
     ``min_selected``.
@@ -237,6 +241,7 @@ class DepthParams:
     """
 
     window: int | None = None
+    dense_views: int = 12
     tau_rel: float = 1e-5
     eps: float = 1e-3
     block: int = 68
@@ -309,7 +314,7 @@ class DepthParams:
         pos("occlusion_weight", self.occlusion_weight, True)
         if int(self.min_selected) < 1:
             raise InvalidInputError(f"params.min_selected must be >= 1, got {self.min_selected!r}")
-        for name, low in (("visibility_rounds", 0), ("min_visible_views", 1)):
+        for name, low in (("visibility_rounds", 0), ("min_visible_views", 1), ("dense_views", 1)):
             v = getattr(self, name)
             if isinstance(v, bool) or int(v) != v or v < low:
                 raise InvalidInputError(f"params.{name} must be an integer >= {low}, got {v!r}")
@@ -859,6 +864,9 @@ class DepthProblem:
         ``lf.valid[v]`` per view (bool (H, W)), or None when the light field has no mask.
         ``ref_img`` and the maps in ``In`` are then computed from the views with their
         invalid pixels filled (:func:`hyperlf.imageops.fill_masked`).
+    window : int or None
+        The correspondence window (:func:`hyperlf.costs.light_field_window`; None: the
+        cost's own).
     """
 
     lf: Any
@@ -883,6 +891,7 @@ class DepthProblem:
     edge_idx: np.ndarray | None = None
     sides: np.ndarray | None = None
     valid: dict | None = None
+    window: int | None = None
 
     @property
     def impl(self) -> str:
@@ -1011,6 +1020,8 @@ def prepare(lf, *, disparity_range=None, n_labels: int = 64, metric: str = "auto
         reference=ref, offsets=lf.offsets, ref_img=imgs[ref].astype(np.float64),
         In={v: normalise_intensity(imgs[v], valid=None if masks is None else masks[v])
             for v in views}, valid=masks)
+    prob.window = light_field_window(mname, len(prob.others), window=params.window,
+                                     dense_views=params.dense_views)
     prob.Mn = _selection_maps(prob.In, params.selection_normalise, masks)
     prob.M_ref = prob.Mn[ref].astype(np.float32)
     if view_selection:
@@ -1099,7 +1110,7 @@ def view_scales(prob: DepthProblem, strips) -> dict | None:
     cache: dict = {}
     for v in prob.others:
         parts = [view_moments(prob.ref_img, prob.lf.views[v], prob.offsets[v], prob.labels,
-                              prob.metric, p.window, p.tau_rel, p.eps, int(p.block), cache,
+                              prob.metric, prob.window, p.tau_rel, p.eps, int(p.block), cache,
                               rows=rows, **_mask_args(prob, v)) for rows in strips]
         out[v] = [moments_std(*(np.concatenate([m[k][j] for m in parts]) for j in range(3)))
                   for k in range(len(parts[0]))]
@@ -1121,7 +1132,7 @@ def _strip_correspondence(prob: DepthProblem, rows, scales, sees, cache, bar, cl
         next(bar, None)
         clock.lap()
         Cv, valid = view_costs(prob.ref_img, prob.lf.views[v], prob.offsets[v], prob.labels,
-                               prob.metric, p.window, p.tau_rel, p.eps, int(p.block), cache,
+                               prob.metric, prob.window, p.tau_rel, p.eps, int(p.block), cache,
                                rows=None if whole else rows,
                                scales=None if scales is None else scales[v],
                                **_mask_args(prob, v))
@@ -1354,7 +1365,8 @@ def _config(prob: DepthProblem, sC, sD) -> dict:
     return dict(metric=prob.metric, n_labels=prob.labels.size,
                 disparity_range=prob.disparity_range, view_selection=prob.view_selection,
                 occlusion_split=prob.occlusion_split, defocus=prob.defocus,
-                optimizer=prob.optimizer, params=asdict(prob.params), scale_C=sC, scale_D=sD,
+                optimizer=prob.optimizer, params=asdict(prob.params), window=prob.window,
+                scale_C=sC, scale_D=sD,
                 n_edge_pixels=int(prob.edges.sum()), reference=tuple(prob.reference))
 
 

@@ -81,6 +81,7 @@ class RSNCC(_FunctionCost):
     description = "robust selective NCC of intensities and gradient magnitudes (Shen et al. 2014)"
     window = 5
     windows = {"graphcut": 5}
+    dense_window = 3
     params = {"graphcut": _graphcut(8.0, 4.0), "sgm": _sgm(2.0, 16.0)}
     pair_function = _pair.rsncc_volume
 

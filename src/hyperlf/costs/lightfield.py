@@ -54,6 +54,8 @@ from .pair import (bwncc_finish, census_transform, channel_stats, fill_invalid, 
 
 __all__ = [
     "view_costs",
+    "light_field_window",
+    "DENSE_VIEWS",
     "view_moments",
     "check_rows",
     "view_shifts",
@@ -428,6 +430,38 @@ def _view_inputs(ref_img, img, offset, labels, ref_valid, view_valid, rows):
     if view_valid is not None:
         B = normalise_intensity(fill_masked(B, view_valid), valid=view_valid)
     return A, B, shifts, valid, rows
+
+
+#: A reference with at least this many other views uses its cost's :attr:`Cost.dense_window`
+#: (:func:`light_field_window`).
+DENSE_VIEWS = 12
+
+
+def light_field_window(metric: str, n_other_views: int, *, window: int | None = None,
+                       dense_views: int = DENSE_VIEWS) -> int | None:
+    """The window of a light-field cost: ``window`` if given, else the cost's
+    :attr:`~hyperlf.costs.Cost.dense_window` when the reference has at least ``dense_views``
+    other views, else None (the cost's own :attr:`~hyperlf.costs.Cost.window`).
+
+    Why: the per-view costs are averaged over the other views, so the noise a window has to
+    average away shrinks with their number while the fattening of depth edges by the window
+    does not: with many views a smaller window resolves depth edges without more noise.  The
+    threshold lies between the 3 x 3 arrays (8 other views), where the larger window is the
+    better one, and the 4 x 4 ones (15), where the smaller one is (the measurements:
+    BENCHMARKS.md, "Dense arrays, small windows").
+
+    Examples
+    --------
+    >>> light_field_window("census-rsncc", 29), light_field_window("census-rsncc", 8)
+    (3, None)
+    """
+    from .registry import get_cost
+
+    if window is not None:
+        return int(window)
+    if int(n_other_views) >= int(dense_views):
+        return get_cost(metric).dense_window
+    return None
 
 
 def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | None = None,

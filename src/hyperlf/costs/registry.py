@@ -72,6 +72,9 @@ class Cost:
     windows : dict
         Default window per optimiser for two-view stereo, e.g. ``{"graphcut": 9}``; a missing
         optimiser (or None) means ``window``'s rule (the stereo result records None then).
+    dense_window : int or None
+        Window of the light-field form when the reference has many other views to average
+        over (:func:`light_field_window`); None: :attr:`window` whatever the array.
     params : dict
         Default optimiser parameters per optimiser for two-view stereo, e.g.
         ``{"graphcut": {"weight": 4.0}, "sgm": {"p1": 2.0, "p2": 16.0}}``, merged over the
@@ -82,6 +85,7 @@ class Cost:
     description: str = ""
     window: int | None = None
     windows: dict = {}
+    dense_window: int | None = None
     params: dict = {}
 
     # -- defaults ---------------------------------------------------------------------------
@@ -203,6 +207,13 @@ class FusedCost(Cost):
     @property
     def light_field(self) -> bool:
         return all(get_cost(p).light_field for p in self.parts)
+
+    @property
+    def dense_window(self) -> int | None:
+        """The dense-array window of part ``view_window_part`` (None without one)."""
+        if self.view_window_part is None:
+            return None
+        return get_cost(self.parts[self.view_window_part]).dense_window
 
     def _part_volumes(self, left, right, dmin, dmax, impl, options):
         opts = dict(options)
