@@ -142,3 +142,39 @@ def test_check_disparity_range_rejects_what_is_not_an_ordered_finite_pair(bad):
     with pytest.raises(InvalidInputError, match="disparity_range must be"):
         check_disparity_range(bad)
     assert check_disparity_range([-2, 2]) == (-2.0, 2.0)
+
+
+@settings(max_examples=30, deadline=None, derandomize=True)
+@given(st.integers(1, 9), st.integers(1, 9), st.integers(1, 3), st.integers(0, 2**31))
+def test_downscale_is_the_block_mean_with_edges_repeated(H, W, factor, seed):
+    from hyperlf.lightfield import downscale
+
+    rng = np.random.default_rng(seed)
+    views = rng.uniform(0, 1, (2, 3, H, W)).astype(np.float32)
+    valid = rng.uniform(size=views.shape) > 0.2
+    lf = LightField(views, wavelengths=np.full((2, 3), 500.0), disparity_range=(-3, 6),
+                    valid=valid, gt_disparity=np.zeros((H, W)))
+    small = downscale(lf, factor)
+    h, w = -(-H // factor), -(-W // factor)
+    assert small.image_shape == (h, w)
+    assert small.disparity_range == (-3 / factor, 6 / factor)
+    assert small.reference == lf.reference
+    assert small is lf if factor == 1 else small.gt_disparity is None
+    for y in range(h):
+        for x in range(w):
+            ys = np.minimum(np.arange(y * factor, (y + 1) * factor), H - 1)
+            xs = np.minimum(np.arange(x * factor, (x + 1) * factor), W - 1)
+            block = views[:, :, ys][:, :, :, xs]
+            np.testing.assert_allclose(small.views[:, :, y, x], block.mean(axis=(2, 3)),
+                                       rtol=1e-6)
+            assert np.array_equal(small.valid[:, :, y, x],
+                                  valid[:, :, ys][:, :, :, xs].all(axis=(2, 3)))
+
+
+@pytest.mark.parametrize("bad", [0, -2, 1.5, True, "2"])
+def test_downscale_rejects_a_bad_factor(bad):
+    from hyperlf.lightfield import downscale
+
+    lf = LightField(np.ones((1, 2, 4, 4), np.float32))
+    with pytest.raises(InvalidInputError, match="factor"):
+        downscale(lf, bad)

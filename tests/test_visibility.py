@@ -94,18 +94,22 @@ def test_visible_views_keeps_every_view_where_too_few_see():
 
 @pytest.mark.parametrize("bad", [{"visibility_rounds": -1}, {"visibility_rounds": 1.5},
                                  {"visibility_rounds": True}, {"min_visible_views": 0},
-                                 {"visibility_margin": -0.1},
+                                 {"visibility_margin": -0.1}, {"visibility_scale": 0},
+                                 {"visibility_scale": 1.5}, {"visibility_scale": True},
                                  {"visibility_margin": float("nan")}])
 def test_depth_params_check_the_visibility_options(bad):
     with pytest.raises(InvalidInputError, match="visibility|visible"):
         DepthParams(**bad)
 
 
-@pytest.mark.parametrize("scene", ["occlusion", "solids"])
-def test_rematching_lowers_the_error_at_depth_edges(scene):
+@pytest.mark.parametrize("scene, scale", [("occlusion", 1), ("solids", 1), ("occlusion", 2),
+                                          ("solids", 2)])
+def test_rematching_lowers_the_error_at_depth_edges(scene, scale):
     """Through the paper's 5 x 6 array, one re-matching round over the views that see each
     pixel lowers the error within 4 px of the depth edges, where views that cannot see a
-    pixel vote otherwise.  (Through a 3 x 3 array it does not always: BENCHMARKS.md.)"""
+    pixel vote otherwise, whether the round starts from a full-resolution pass (scale 1) or
+    from the quick half-resolution run (2, the default).  (Through a 3 x 3 array it does not
+    always: BENCHMARKS.md.)"""
     from scipy.ndimage import binary_dilation
 
     lf = synthesis.procedural_scene(**{k: v for k, v in synthesis.SCENES[scene].items()
@@ -117,10 +121,13 @@ def test_rematching_lowers_the_error_at_depth_edges(scene):
     near[:8] = near[-8:] = near[:, :8] = near[:, -8:] = False
     err = {}
     for rounds in (0, 1):
-        res = depth(lf, n_labels=32, params=DepthParams(visibility_rounds=rounds))
+        res = depth(lf, n_labels=32, params=DepthParams(visibility_rounds=rounds,
+                                                        visibility_scale=scale, window=5))
         err[rounds] = float(np.sqrt(np.mean((res.disparity - gt)[near] ** 2)))
         if rounds:
-            assert "visibility_round1_correspondence_s" in res.timings
+            key = "visibility_round1_correspondence_s" if scale == 1 else "visibility_estimate_s"
+            assert key in res.timings
+            assert res.config["visibility_estimate_scale"] == (None if scale == 1 else 2)
     assert err[1] < 0.97 * err[0], err
 
 
@@ -144,3 +151,38 @@ def test_depth_command_takes_the_visibility_option(tmp_path, capsys):
         main(["-q", "depth", str(tmp_path / "cap"), "--visibility-rounds", "9",
               "-o", str(tmp_path / "bad")])
     assert info.value.code == 2 and "--visibility-rounds" in capsys.readouterr().err
+
+
+def test_visibility_rounds_default_to_one_on_a_dense_array():
+    dense = synthesis.procedural_scene(seed=0, rows=4, cols=4, height=40, width=48)
+    sparse = synthesis.procedural_scene(seed=0, rows=3, cols=3, height=40, width=48)
+    assert prepare(dense, n_labels=8).visibility_rounds == 1
+    assert prepare(sparse, n_labels=8).visibility_rounds == 0
+    assert prepare(dense, n_labels=8, params=DepthParams(dense_views=16)).visibility_rounds == 0
+    assert prepare(sparse, n_labels=8, params=DepthParams(visibility_rounds=2)).visibility_rounds == 2
+    res = depth(dense, n_labels=8)
+    assert res.config["visibility_rounds"] == 1 and res.config["visibility_estimate_scale"] == 2
+    same = depth(dense, n_labels=8, params=DepthParams(visibility_rounds=1, visibility_scale=2))
+    assert np.array_equal(res.disparity, same.disparity)
+    assert "visibility_estimate_s" in res.timings
+    assert depth(sparse, n_labels=8).config["visibility_estimate_scale"] is None
+
+
+def test_coarse_disparity_is_the_half_resolution_run_blown_up():
+    from hyperlf.hlf import coarse_disparity
+    from hyperlf.lightfield import downscale
+
+    lf = synthesis.procedural_scene(seed=2, rows=4, cols=4, height=37, width=50)
+    prob = prepare(lf, n_labels=9)
+    start = coarse_disparity(prob)
+    small = depth(downscale(lf, 2), n_labels=5, params=DepthParams(visibility_rounds=0))
+    assert start.shape == (37, 50) and start.dtype == np.float32
+    assert np.array_equal(start[::2, ::2], 2 * small.disparity)
+    assert np.array_equal(start[1::2, 1::2], 2 * small.disparity[:18, :25])
+    lo, hi = prob.disparity_range
+    assert lo <= start.min() and start.max() <= hi
+    # too small to halve, or asked not to: the first estimate is the full-resolution pass
+    assert coarse_disparity(prepare(lf, n_labels=9, params=DepthParams(visibility_scale=1))) \
+        is None
+    tiny = synthesis.procedural_scene(seed=2, rows=4, cols=4, height=30, width=50)
+    assert coarse_disparity(prepare(tiny, n_labels=9)) is None

@@ -100,11 +100,13 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
 
 6. **Post-filter**: the guided weighted median (:func:`post_filter`).
 
-7. **Visibility-aware re-matching** (SPEC §5.6, ``params.visibility_rounds``; default 0 =
-   off): the disparity so far is forward-warped into every view (z-buffer,
-   :func:`hyperlf.warp.visible_in_view`), each view counts only at the reference pixels it
-   sees (:func:`visible_views`), and stages 2 and 4-6 run again on that volume; the defocus
-   volume and the texture weight are kept.
+7. **Visibility-aware re-matching** (SPEC §5.6, ``params.visibility_rounds``; default 1 round
+   on a dense array, none with fewer than ``params.dense_views`` other views): the disparity
+   so far is forward-warped into every view (z-buffer, :func:`hyperlf.warp.visible_in_view`),
+   each view counts only at the reference pixels it sees (:func:`visible_views`), and stages
+   2 and 4-6 run again on that volume; the defocus volume and the texture weight are kept.
+   The first round starts from a quick depth run at half resolution
+   (:func:`coarse_disparity`), so that one round costs about 1/8 of a pass more than none.
 
 Defaults
 --------
@@ -202,10 +204,15 @@ class DepthParams:
     over the views that see it; ``"neutral"``: they count the pixel's median cost, see
     :func:`neutral_missing_views`, which removes the pull of textureless border regions to the
     range limits).
-    Visibility (SPEC §5.6): ``visibility_rounds`` (0 = off) re-matchings, each over only the
-    views that see each reference pixel under the current estimate (:func:`visible_views`:
-    z-test with ``visibility_margin`` px per baseline; a pixel seen by fewer than
-    ``min_visible_views`` other views keeps them all).
+    Visibility (SPEC §5.6): ``visibility_rounds`` re-matchings, each over only the views that
+    see each reference pixel under the current estimate (:func:`visible_views`: z-test with
+    ``visibility_margin`` px per baseline; a pixel seen by fewer than ``min_visible_views``
+    other views keeps them all).  None (the default): 1 on a dense array (at least
+    ``dense_views`` other views), else 0 (with few views, dropping the hidden ones leaves too
+    few votes near edges); 0 = off.  ``visibility_scale`` (2): the estimate that the first
+    round starts from is a whole depth run on the light field downscaled by this factor
+    (:func:`coarse_disparity`, about 1/8 of the work at 2), instead of a full-resolution
+    pass (1); it is used where both downscaled sides keep at least 16 px.
     Textureless regions: ``texture_snr`` (None, the default: 2 for a capture made from camera
     images by ``hyperlf ingest``, i.e. with ``"calibration"`` metadata, else off; 0 = off;
     else > 1) and ``texture_window`` (5 px):
@@ -254,7 +261,8 @@ class DepthParams:
     edge_dilate: int = 1
     min_half_views: int = 2
     missing_views: str = "average"
-    visibility_rounds: int = 0
+    visibility_rounds: int | None = None
+    visibility_scale: int = 2
     visibility_margin: float = 0.5
     min_visible_views: int = 2
     texture_snr: float | None = None
@@ -314,8 +322,11 @@ class DepthParams:
         pos("occlusion_weight", self.occlusion_weight, True)
         if int(self.min_selected) < 1:
             raise InvalidInputError(f"params.min_selected must be >= 1, got {self.min_selected!r}")
-        for name, low in (("visibility_rounds", 0), ("min_visible_views", 1), ("dense_views", 1)):
+        for name, low in (("visibility_rounds", 0), ("min_visible_views", 1), ("dense_views", 1),
+                          ("visibility_scale", 1)):
             v = getattr(self, name)
+            if v is None and name == "visibility_rounds":
+                continue
             if isinstance(v, bool) or int(v) != v or v < low:
                 raise InvalidInputError(f"params.{name} must be an integer >= {low}, got {v!r}")
         pos("visibility_margin", self.visibility_margin, True)
@@ -867,6 +878,8 @@ class DepthProblem:
     window : int or None
         The correspondence window (:func:`hyperlf.costs.light_field_window`; None: the
         cost's own).
+    visibility_rounds : int
+        ``params.visibility_rounds`` resolved (None: 1 on a dense array, else 0).
     """
 
     lf: Any
@@ -892,6 +905,7 @@ class DepthProblem:
     sides: np.ndarray | None = None
     valid: dict | None = None
     window: int | None = None
+    visibility_rounds: int = 0
 
     @property
     def impl(self) -> str:
@@ -1020,8 +1034,11 @@ def prepare(lf, *, disparity_range=None, n_labels: int = 64, metric: str = "auto
         reference=ref, offsets=lf.offsets, ref_img=imgs[ref].astype(np.float64),
         In={v: normalise_intensity(imgs[v], valid=None if masks is None else masks[v])
             for v in views}, valid=masks)
+    dense = len(prob.others) >= int(params.dense_views)
     prob.window = light_field_window(mname, len(prob.others), window=params.window,
                                      dense_views=params.dense_views)
+    prob.visibility_rounds = int(dense if params.visibility_rounds is None
+                                 else params.visibility_rounds)
     prob.Mn = _selection_maps(prob.In, params.selection_normalise, masks)
     prob.M_ref = prob.Mn[ref].astype(np.float32)
     if view_selection:
@@ -1067,6 +1084,38 @@ def visible_views(prob: DepthProblem, disparity: np.ndarray) -> dict:
     count = np.sum([m for m in sees.values()], axis=0)
     few = count < int(p.min_visible_views)
     return {v: m | few for v, m in sees.items()}
+
+
+def coarse_disparity(prob: DepthProblem, *, progress: bool = False) -> np.ndarray | None:
+    """The estimate the first visibility round starts from (SPEC §5.6 a), made cheaply.
+
+    :func:`depth` with the same options and no visibility rounds on the light field
+    downscaled by ``s = params.visibility_scale`` (:func:`hyperlf.lightfield.downscale`;
+    ``ceil(L / s)`` labels over the range divided by ``s``), its disparity repeated over each
+    ``s x s`` block and multiplied by ``s``.  Visibility needs only which surface is in front
+    where; near depth edges the z-test's margin errs towards "hidden".
+
+    Returns
+    -------
+    ndarray, float32 (H, W) or None
+        Disparity in full-resolution px; None when ``s`` is 1 or a downscaled side would be
+        under 16 px (the first estimate is then the full-resolution pass).
+    """
+    from .lightfield import downscale
+
+    p = prob.params
+    s = int(p.visibility_scale)
+    H, W = prob.lf.image_shape
+    if s == 1 or min(H, W) // s < 16:
+        return None
+    dmin, dmax = prob.disparity_range
+    res = depth(downscale(prob.lf, s), disparity_range=(dmin / s, dmax / s),
+                n_labels=max(2, math.ceil(prob.labels.size / s)), metric=prob.metric,
+                view_selection=prob.view_selection, occlusion_split=prob.occlusion_split,
+                defocus=prob.defocus, optimizer=prob.optimizer,
+                params=replace(p, visibility_rounds=0, tile_rows=None), progress=progress)
+    up = np.repeat(np.repeat(res.disparity, s, axis=0), s, axis=1)[:H, :W]
+    return (up * s).astype(np.float32)
 
 
 def _strip_edges(prob: DepthProblem, rows):
@@ -1366,6 +1415,7 @@ def _config(prob: DepthProblem, sC, sD) -> dict:
                 disparity_range=prob.disparity_range, view_selection=prob.view_selection,
                 occlusion_split=prob.occlusion_split, defocus=prob.defocus,
                 optimizer=prob.optimizer, params=asdict(prob.params), window=prob.window,
+                visibility_rounds=prob.visibility_rounds,
                 scale_C=sC, scale_D=sD,
                 n_edge_pixels=int(prob.edges.sum()), reference=tuple(prob.reference))
 
@@ -1435,7 +1485,9 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
     DepthResult
         With ``timings`` in seconds per stage (``prepare_s``, ``correspondence_s``,
         ``selection_split_s``, ``defocus_s``, ``mrf_s``, ``refine_s``, ``median_s``,
-        ``total_s``; per visibility round ``k``: ``visibility_round{k}_correspondence_s``,
+        ``total_s``; ``visibility_estimate_s`` when the first visibility round starts from
+        :func:`coarse_disparity` (that round is then the main pass above); per further
+        visibility round ``k``: ``visibility_round{k}_correspondence_s``,
         ``mrf_s_round{k}``, ``refine_s_round{k}``, ``median_s_round{k}``).
 
     Raises
@@ -1466,7 +1518,13 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
                    defocus=defocus, optimizer=optimizer, params=params)
     clock.lap("prepare_s")
     strips = strips_for(prob)
-    C, n_used = correspondence(prob, progress=progress, timings=timings, strips=strips)
+    rounds, first = prob.visibility_rounds, 0
+    start = coarse_disparity(prob, progress=progress) if rounds else None
+    sees = None if start is None else visible_views(prob, start)
+    if start is not None:
+        rounds, first = rounds - 1, 1
+        clock.lap("visibility_estimate_s")
+    C, n_used = correspondence(prob, progress=progress, timings=timings, sees=sees, strips=strips)
     seen, n_used = seen_pixels(prob, n_used), (n_used if save_intermediate else None)
     f_c = prob.labels[np.argmin(C, axis=0)].astype(np.float32)
     clock.lap()
@@ -1475,15 +1533,14 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
     clock.lap("defocus_s")
     w = texture_weight(prob)
     U, sC, sD, disp, conf = _solve(prob, C, D, seen, f_c, w, clock)
-    for k in range(int(prob.params.visibility_rounds)):
+    for k in range(first + 1, first + rounds + 1):
         sees = visible_views(prob, disp)
         C = U = None  # the new round's volumes replace them: not both at once
         C, n_used = correspondence(prob, progress=progress, sees=sees, strips=strips)
         seen, n_used = seen_pixels(prob, n_used), (n_used if save_intermediate else None)
         f_c = prob.labels[np.argmin(C, axis=0)].astype(np.float32)
-        clock.lap(f"visibility_round{k + 1}_correspondence_s")
-        U, sC, sD, disp, conf = _solve(prob, C, D, seen, f_c, w, clock,
-                                       suffix=f"_round{k + 1}")
+        clock.lap(f"visibility_round{k}_correspondence_s")
+        U, sC, sD, disp, conf = _solve(prob, C, D, seen, f_c, w, clock, suffix=f"_round{k}")
     timings["total_s"] = time.perf_counter() - t0
     inter = None
     if save_intermediate:
@@ -1491,4 +1548,7 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
                      texture_weight=w)
     return DepthResult(disparity=np.asarray(disp, np.float32), confidence=conf, f_c=f_c,
                        f_d=f_d, labels=prob.labels, timings=timings,
-                       config=dict(_config(prob, sC, sD), strips=strips), intermediate=inter)
+                       config=dict(_config(prob, sC, sD), strips=strips,
+                                   visibility_estimate_scale=None if start is None
+                                   else int(prob.params.visibility_scale)),
+                       intermediate=inter)

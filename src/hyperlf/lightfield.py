@@ -26,7 +26,7 @@ from .errors import InvalidInputError
 
 __all__ = ["LightField", "raster_wavelengths", "filter_layout", "view_offsets",
            "grid_positions", "centre_view", "check_disparity_range", "resolve_disparity_range",
-           "check_disparity_reach"]
+           "check_disparity_reach", "downscale"]
 
 
 def _finite(name: str, arr: np.ndarray) -> None:
@@ -539,6 +539,57 @@ class LightField:
             if isinstance(v, (str, int, float, bool)):
                 lines.append(f"{k:<12}: {v}")
         return "\n".join(lines)
+
+
+def _block_reduce(a: np.ndarray, factor: int, how) -> np.ndarray:
+    """``how`` (``np.mean``, ``np.all``) over ``factor x factor`` blocks of axes 2-3 of
+    ``a``, its edges replicated to a multiple of ``factor``."""
+    H, W = a.shape[2:4]
+    ph, pw = -H % factor, -W % factor
+    if ph or pw:
+        a = np.pad(a, [(0, 0), (0, 0), (0, ph), (0, pw)] + [(0, 0)] * (a.ndim - 4), mode="edge")
+    h, w = a.shape[2] // factor, a.shape[3] // factor
+    blocks = a.reshape(a.shape[:2] + (h, factor, w, factor) + a.shape[4:])
+    return how(blocks, axis=(3, 5))
+
+
+def downscale(lf: LightField, factor: int = 2) -> LightField:
+    """The light field at ``1 / factor`` of its resolution, for a quick first estimate.
+
+    Each view becomes the means of its ``factor x factor`` pixel blocks (sizes rounded up: the
+    last row and column are repeated); a block is valid where all its pixels are; the
+    disparity range is divided by ``factor``; wavelengths, positions, reference and metadata
+    are kept, the ground truth and the cube are dropped.
+
+    Parameters
+    ----------
+    lf : LightField
+    factor : int
+        Integer >= 1 (1 returns ``lf``).
+
+    Returns
+    -------
+    LightField
+
+    Examples
+    --------
+    >>> lf = LightField(np.ones((1, 2, 5, 8), np.float32), disparity_range=(-2, 4))
+    >>> small = downscale(lf, 2)
+    >>> small.image_shape, small.disparity_range
+    ((3, 4), (-1.0, 2.0))
+    """
+    if isinstance(factor, bool) or not isinstance(factor, (int, np.integer)) or factor < 1:
+        raise InvalidInputError(f"factor must be an integer >= 1, got {factor!r}")
+    factor = int(factor)
+    if factor == 1:
+        return lf
+    rng = lf.disparity_range
+    return LightField(
+        views=_block_reduce(lf.views, factor, np.mean).astype(np.float32),
+        wavelengths=lf.wavelengths, positions=lf.positions, reference=lf.reference,
+        disparity_range=None if rng is None else (rng[0] / factor, rng[1] / factor),
+        metadata=dict(lf.metadata),
+        valid=None if lf.valid is None else _block_reduce(lf.valid, factor, np.all))
 
 
 def _describe_valid(valid: np.ndarray) -> str:
