@@ -112,6 +112,8 @@ ABLATIONS = {
     "visibility_full": ({"params": DepthParams(visibility_scale=1)},
                         "visibility round from a full-resolution first pass (§5.6)"),
     "window5": ({"params": DepthParams(window=5)}, "RSNCC 5 x 5 (the window before 2026-11-25)"),
+    "before_dense": ({"params": DepthParams(window=5, visibility_rounds=0)},
+                     "the default before 2026-11-25 (RSNCC 5 x 5, no visibility round)"),
     "mrf_levels1": ({"params": DepthParams(mrf_levels=1)},
                     "graph cuts coarse to fine, 1 halving"),
     "mrf_levels2": ({"params": DepthParams(mrf_levels=2)},

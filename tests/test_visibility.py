@@ -95,6 +95,7 @@ def test_visible_views_keeps_every_view_where_too_few_see():
 @pytest.mark.parametrize("bad", [{"visibility_rounds": -1}, {"visibility_rounds": 1.5},
                                  {"visibility_rounds": True}, {"min_visible_views": 0},
                                  {"visibility_margin": -0.1}, {"visibility_scale": 0},
+                                 {"visibility_min_size": 0},
                                  {"visibility_scale": 1.5}, {"visibility_scale": True},
                                  {"visibility_margin": float("nan")}])
 def test_depth_params_check_the_visibility_options(bad):
@@ -153,19 +154,23 @@ def test_depth_command_takes_the_visibility_option(tmp_path, capsys):
     assert info.value.code == 2 and "--visibility-rounds" in capsys.readouterr().err
 
 
-def test_visibility_rounds_default_to_one_on_a_dense_array():
+def test_visibility_rounds_default_to_one_on_a_dense_array_of_large_images():
     dense = synthesis.procedural_scene(seed=0, rows=4, cols=4, height=40, width=48)
     sparse = synthesis.procedural_scene(seed=0, rows=3, cols=3, height=40, width=48)
-    assert prepare(dense, n_labels=8).visibility_rounds == 1
-    assert prepare(sparse, n_labels=8).visibility_rounds == 0
-    assert prepare(dense, n_labels=8, params=DepthParams(dense_views=16)).visibility_rounds == 0
+    small = DepthParams(visibility_min_size=40)  # these images count as large enough
+    assert prepare(dense, n_labels=8, params=small).visibility_rounds == 1
+    assert prepare(dense, n_labels=8).visibility_rounds == 0  # 40 px < 256 px
+    assert prepare(sparse, n_labels=8, params=small).visibility_rounds == 0
+    assert prepare(dense, n_labels=8,
+                   params=DepthParams(dense_views=16, visibility_min_size=40)).visibility_rounds == 0
     assert prepare(sparse, n_labels=8, params=DepthParams(visibility_rounds=2)).visibility_rounds == 2
-    res = depth(dense, n_labels=8)
+    res = depth(dense, n_labels=8, params=small)
     assert res.config["visibility_rounds"] == 1 and res.config["visibility_estimate_scale"] == 2
     same = depth(dense, n_labels=8, params=DepthParams(visibility_rounds=1, visibility_scale=2))
     assert np.array_equal(res.disparity, same.disparity)
     assert "visibility_estimate_s" in res.timings
-    assert depth(sparse, n_labels=8).config["visibility_estimate_scale"] is None
+    assert depth(sparse, n_labels=8, params=small).config["visibility_estimate_scale"] is None
+    assert depth(dense, n_labels=8).config["visibility_rounds"] == 0
 
 
 def test_coarse_disparity_is_the_half_resolution_run_blown_up():

@@ -101,7 +101,8 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
 6. **Post-filter**: the guided weighted median (:func:`post_filter`).
 
 7. **Visibility-aware re-matching** (SPEC §5.6, ``params.visibility_rounds``; default 1 round
-   on a dense array, none with fewer than ``params.dense_views`` other views): the disparity
+   on a dense array of images at least ``params.visibility_min_size`` px on their shorter
+   side, none with fewer than ``params.dense_views`` other views or smaller images): the disparity
    so far is forward-warped into every view (z-buffer, :func:`hyperlf.warp.visible_in_view`),
    each view counts only at the reference pixels it sees (:func:`visible_views`), and stages
    2 and 4-6 run again on that volume; the defocus volume and the texture weight are kept.
@@ -208,8 +209,9 @@ class DepthParams:
     see each reference pixel under the current estimate (:func:`visible_views`: z-test with
     ``visibility_margin`` px per baseline; a pixel seen by fewer than ``min_visible_views``
     other views keeps them all).  None (the default): 1 on a dense array (at least
-    ``dense_views`` other views), else 0 (with few views, dropping the hidden ones leaves too
-    few votes near edges); 0 = off.  ``visibility_scale`` (2): the estimate that the first
+    ``dense_views`` other views) whose images are at least ``visibility_min_size`` (256) px on
+    their shorter side, else 0 (with few views, dropping the hidden ones leaves too few votes
+    near edges; on small images the first estimate is too rough near edges); 0 = off.  ``visibility_scale`` (2): the estimate that the first
     round starts from is a whole depth run on the light field downscaled by this factor
     (:func:`coarse_disparity`, about 1/8 of the work at 2), instead of a full-resolution
     pass (1); it is used where both downscaled sides keep at least 16 px.
@@ -263,6 +265,7 @@ class DepthParams:
     missing_views: str = "average"
     visibility_rounds: int | None = None
     visibility_scale: int = 2
+    visibility_min_size: int = 256
     visibility_margin: float = 0.5
     min_visible_views: int = 2
     texture_snr: float | None = None
@@ -323,7 +326,7 @@ class DepthParams:
         if int(self.min_selected) < 1:
             raise InvalidInputError(f"params.min_selected must be >= 1, got {self.min_selected!r}")
         for name, low in (("visibility_rounds", 0), ("min_visible_views", 1), ("dense_views", 1),
-                          ("visibility_scale", 1)):
+                          ("visibility_scale", 1), ("visibility_min_size", 1)):
             v = getattr(self, name)
             if v is None and name == "visibility_rounds":
                 continue
@@ -879,7 +882,8 @@ class DepthProblem:
         The correspondence window (:func:`hyperlf.costs.light_field_window`; None: the
         cost's own).
     visibility_rounds : int
-        ``params.visibility_rounds`` resolved (None: 1 on a dense array, else 0).
+        ``params.visibility_rounds`` resolved (None: 1 on a dense array of images at least
+        ``params.visibility_min_size`` px on their shorter side, else 0).
     """
 
     lf: Any
@@ -1037,7 +1041,8 @@ def prepare(lf, *, disparity_range=None, n_labels: int = 64, metric: str = "auto
     dense = len(prob.others) >= int(params.dense_views)
     prob.window = light_field_window(mname, len(prob.others), window=params.window,
                                      dense_views=params.dense_views)
-    prob.visibility_rounds = int(dense if params.visibility_rounds is None
+    big = min(lf.image_shape) >= int(params.visibility_min_size)
+    prob.visibility_rounds = int(dense and big if params.visibility_rounds is None
                                  else params.visibility_rounds)
     prob.Mn = _selection_maps(prob.In, params.selection_normalise, masks)
     prob.M_ref = prob.Mn[ref].astype(np.float32)
