@@ -58,6 +58,7 @@ import os
 import platform
 import shlex
 import sys
+import textwrap
 import time
 import traceback
 from pathlib import Path
@@ -113,7 +114,7 @@ ABLATIONS = {
                         "visibility round from a full-resolution first pass (§5.6)"),
     "window5": ({"params": DepthParams(window=5)}, "RSNCC 5 x 5 (the window before 2026-11-25)"),
     "before_dense": ({"params": DepthParams(window=5, visibility_rounds=0)},
-                     "the default before 2026-11-25 (RSNCC 5 x 5, no visibility round)"),
+                     "before 2026-11-25 (RSNCC 5 x 5, no visibility round)"),
     "mrf_levels1": ({"params": DepthParams(mrf_levels=1)},
                     "graph cuts coarse to fine, 1 halving"),
     "mrf_levels2": ({"params": DepthParams(mrf_levels=2)},
@@ -327,7 +328,7 @@ def figure(path, title, ref_view, gt, results, unit):
     for j, (label, est, s) in enumerate(results, start=1):
         e = np.asarray(est, np.float64) * unit
         axes[0, j].imshow(e, cmap="turbo", vmin=lo, vmax=hi)
-        axes[0, j].set_title(label, fontsize=8)
+        axes[0, j].set_title(textwrap.fill(label, 34), fontsize=7)
         err = np.abs(e - g)
         im1 = axes[1, j].imshow(err, cmap="magma", vmin=0, vmax=0.5 * unit if unit > 1 else 0.5)
         axes[1, j].add_patch(plt.Rectangle((BORDER - 0.5, BORDER - 0.5), W - 2 * BORDER,
