@@ -264,3 +264,23 @@ def test_completion_never_copies_invalid_pixels(run):
     assert not np.isclose(cube, sentinel).any()
     unmasked = go(planted)
     assert np.isclose(unmasked.cube, sentinel).any()
+
+
+def test_visibility_estimate_does_not_see_what_is_under_the_mask():
+    """The half-resolution first estimate of the visibility round (a block is valid only where
+    all its pixels are) leaves the result blind to the blanked content too."""
+    lf = synthesis.procedural_scene(seed=3, rows=4, cols=4, height=40, width=48,
+                                    disparity_range=(-1.5, 1.5),
+                                    reflectance_source="colorchecker")
+    valid = np.ones(lf.views.shape, bool)
+    valid[:, 0, :, :BAND] = False
+    valid[3, :, -BAND:, :] = False
+    valid[1, 1, 17:24, 19:28] = False  # odd offsets: blocks half in, half out of the mask
+    blank = np.where(valid, lf.views, 0.0)
+    params = DepthParams(visibility_min_size=32)
+    a = depth(lf.replace(views=blank, valid=valid), disparity_range=(-4, 4), n_labels=17,
+              params=params)
+    b = depth(lf.replace(valid=valid), disparity_range=(-4, 4), n_labels=17, params=params)
+    assert a.config["visibility_estimate_scale"] == 2
+    np.testing.assert_array_equal(a.disparity, b.disparity)
+    np.testing.assert_array_equal(a.confidence, b.confidence)
