@@ -191,3 +191,12 @@ def test_coarse_disparity_is_the_half_resolution_run_blown_up():
         is None
     tiny = synthesis.procedural_scene(seed=2, rows=4, cols=4, height=30, width=50)
     assert coarse_disparity(prepare(tiny, n_labels=9)) is None
+
+
+def test_progress_bars_name_the_half_resolution_pass(capsys):
+    lf = synthesis.procedural_scene(seed=0, rows=4, cols=4, height=40, width=48)
+    depth(lf, n_labels=8, params=DepthParams(visibility_min_size=32, visibility_rounds=2),
+          progress=True)
+    err = capsys.readouterr().err
+    assert "views, half resolution" in err and "views, visibility round 2" in err
+    assert "views:" in err  # the main pass

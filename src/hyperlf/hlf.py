@@ -1091,7 +1091,7 @@ def visible_views(prob: DepthProblem, disparity: np.ndarray) -> dict:
     return {v: m | few for v, m in sees.items()}
 
 
-def coarse_disparity(prob: DepthProblem, *, progress: bool = False) -> np.ndarray | None:
+def coarse_disparity(prob: DepthProblem, *, progress: bool | str = False) -> np.ndarray | None:
     """The estimate the first visibility round starts from (SPEC §5.6 a), made cheaply.
 
     :func:`depth` with the same options and no visibility rounds on the light field
@@ -1118,7 +1118,8 @@ def coarse_disparity(prob: DepthProblem, *, progress: bool = False) -> np.ndarra
                 n_labels=max(2, math.ceil(prob.labels.size / s)), metric=prob.metric,
                 view_selection=prob.view_selection, occlusion_split=prob.occlusion_split,
                 defocus=prob.defocus, optimizer=prob.optimizer,
-                params=replace(p, visibility_rounds=0, tile_rows=None), progress=progress)
+                params=replace(p, visibility_rounds=0, tile_rows=None),
+                progress="views, half resolution" if progress else False)
     up = np.repeat(np.repeat(res.disparity, s, axis=0), s, axis=1)[:H, :W]
     return (up * s).astype(np.float32)
 
@@ -1207,10 +1208,11 @@ def _strip_correspondence(prob: DepthProblem, rows, scales, sees, cache, bar, cl
     return C, n_used
 
 
-def correspondence(prob: DepthProblem, *, progress: bool = False, timings=None,
+def correspondence(prob: DepthProblem, *, progress: bool | str = False, timings=None,
                    sees: dict | None = None, strips=None):
     """Stage 2 of :func:`depth`: per-view costs streamed into the aggregation (SPEC §5.1-5.2).
 
+    ``progress``: a bar over the views on stderr (a string: the bar's label, else "views").
     ``sees`` (optional; :func:`visible_views`): per other view, the reference pixels it sees;
     a view counts only there (SPEC §5.6).  ``strips`` (optional; :func:`hyperlf.tiling.plan`):
     full-width strips of rows ``[(a, b), ...]`` covering the image in order, each aggregated
@@ -1235,7 +1237,8 @@ def correspondence(prob: DepthProblem, *, progress: bool = False, timings=None,
     clock.lap("scales_s")
     cache: dict = {}
     n = len(prob.others) * len(strips)
-    bar = progress_bar(range(n), "views", total=n, enabled=progress, unit="view")
+    desc = progress if isinstance(progress, str) else "views"
+    bar = progress_bar(range(n), desc, total=n, enabled=bool(progress), unit="view")
     if len(strips) == 1:
         C, n_used = _strip_correspondence(prob, strips[0], scales, sees, cache, bar, clock)
     else:
@@ -1455,7 +1458,7 @@ def _solve(prob: DepthProblem, C, D, seen, f_c, w, clock, suffix: str = ""):
 def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
           view_selection: bool = False, occlusion_split: bool = False, defocus: str = "off",
           optimizer: str = "graphcut", params: DepthParams | None = None,
-          save_intermediate: bool = False, progress: bool = False) -> DepthResult:
+          save_intermediate: bool = False, progress: bool | str = False) -> DepthResult:
     """Disparity of the reference view of an H-LF (SPEC §5).
 
     A list of stages, each a public function that can be run and tested alone:
@@ -1482,8 +1485,8 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
         Every constant.
     save_intermediate : bool
         Keep the volumes in ``result.intermediate``.
-    progress : bool
-        Progress bars on stderr.
+    progress : bool or str
+        Progress bars on stderr (a string: the label of the main pass's bar).
 
     Returns
     -------
@@ -1541,7 +1544,8 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
     for k in range(first + 1, first + rounds + 1):
         sees = visible_views(prob, disp)
         C = U = None  # the new round's volumes replace them: not both at once
-        C, n_used = correspondence(prob, progress=progress, sees=sees, strips=strips)
+        C, n_used = correspondence(prob, progress=f"views, visibility round {k}" if progress
+                                   else False, sees=sees, strips=strips)
         seen, n_used = seen_pixels(prob, n_used), (n_used if save_intermediate else None)
         f_c = prob.labels[np.argmin(C, axis=0)].astype(np.float32)
         clock.lap(f"visibility_round{k}_correspondence_s")
