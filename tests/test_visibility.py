@@ -161,9 +161,10 @@ def test_visibility_rounds_default_to_one_on_a_dense_array_of_large_images():
     assert prepare(dense, n_labels=8, params=small).visibility_rounds == 1
     assert prepare(dense, n_labels=8).visibility_rounds == 0  # 40 px < 256 px
     assert prepare(sparse, n_labels=8, params=small).visibility_rounds == 0
-    assert prepare(dense, n_labels=8,
-                   params=DepthParams(dense_views=16, visibility_min_size=40)).visibility_rounds == 0
-    assert prepare(sparse, n_labels=8, params=DepthParams(visibility_rounds=2)).visibility_rounds == 2
+    few = DepthParams(dense_views=16, visibility_min_size=40)
+    assert prepare(dense, n_labels=8, params=few).visibility_rounds == 0
+    two = DepthParams(visibility_rounds=2)
+    assert prepare(sparse, n_labels=8, params=two).visibility_rounds == 2
     res = depth(dense, n_labels=8, params=small)
     assert res.config["visibility_rounds"] == 1 and res.config["visibility_estimate_scale"] == 2
     same = depth(dense, n_labels=8, params=DepthParams(visibility_rounds=1, visibility_scale=2))

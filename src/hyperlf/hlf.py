@@ -102,10 +102,11 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
 
 7. **Visibility-aware re-matching** (SPEC §5.6, ``params.visibility_rounds``; default 1 round
    on a dense array of images at least ``params.visibility_min_size`` px on their shorter
-   side, none with fewer than ``params.dense_views`` other views or smaller images): the disparity
-   so far is forward-warped into every view (z-buffer, :func:`hyperlf.warp.visible_in_view`),
-   each view counts only at the reference pixels it sees (:func:`visible_views`), and stages
-   2 and 4-6 run again on that volume; the defocus volume and the texture weight are kept.
+   side, none with fewer than ``params.dense_views`` other views or smaller images): the
+   disparity so far is forward-warped into every view (z-buffer,
+   :func:`hyperlf.warp.visible_in_view`), each view counts only at the reference pixels it
+   sees (:func:`visible_views`), and stages 2 and 4-6 run again on that volume; the defocus
+   volume and the texture weight are kept.
    The first round starts from a quick depth run at half resolution
    (:func:`coarse_disparity`), so that one round costs about 1/8 of a pass more than none.
 
@@ -211,10 +212,11 @@ class DepthParams:
     other views keeps them all).  None (the default): 1 on a dense array (at least
     ``dense_views`` other views) whose images are at least ``visibility_min_size`` (256) px on
     their shorter side, else 0 (with few views, dropping the hidden ones leaves too few votes
-    near edges; on small images the first estimate is too rough near edges); 0 = off.  ``visibility_scale`` (2): the estimate that the first
-    round starts from is a whole depth run on the light field downscaled by this factor
-    (:func:`coarse_disparity`, about 1/8 of the work at 2), instead of a full-resolution
-    pass (1); it is used where both downscaled sides keep at least 16 px.
+    near edges; on small images the first estimate is too rough near edges); 0 = off.
+    ``visibility_scale`` (2): the estimate that the first round starts from is a whole depth
+    run on the light field downscaled by this factor (:func:`coarse_disparity`, about 1/8 of
+    the work at 2), instead of a full-resolution pass (1); it is used where both downscaled
+    sides keep at least 16 px.
     Textureless regions: ``texture_snr`` (None, the default: 2 for a capture made from camera
     images by ``hyperlf ingest``, i.e. with ``"calibration"`` metadata, else off; 0 = off;
     else > 1) and ``texture_window`` (5 px):
