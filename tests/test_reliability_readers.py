@@ -28,7 +28,11 @@ from hyperlf.formats import (open_cube_h5, read_cube_h5, read_envi, read_hci_sce
                              write_image, write_lightfield_h5)
 from hyperlf.formats import images
 
-FUZZ = settings(max_examples=60, deadline=None,
+# Derandomized: a mutated HDF5 file can send libhdf5 itself into an endless loop (seen once:
+# reading a variable-length string attribute through a corrupted global heap hangs inside
+# the C library, where no Python code can interrupt it), so CI runs a fixed set of mutations
+# rather than new ones every time.  Known open problem: docs/developers.md, "Known problems".
+FUZZ = settings(max_examples=60, deadline=None, derandomize=True,
                 suppress_health_check=[HealthCheck.function_scoped_fixture,
                                        HealthCheck.too_slow])
 
