@@ -134,7 +134,8 @@ from typing import Any
 import numpy as np
 
 from ._progress import progress_bar
-from .costs import cost_names, get_cost, light_field_window, tap_validity, view_costs
+from .costs import (DENSE_VIEWS, cost_names, get_cost, light_field_window, tap_validity,
+                    view_costs)
 from .imageops import fill_masked, gradient_magnitude, normalise_intensity
 from .warp import shift_map
 from .errors import InvalidInputError
@@ -252,7 +253,7 @@ class DepthParams:
     """
 
     window: int | None = None
-    dense_views: int = 12
+    dense_views: int = DENSE_VIEWS
     tau_rel: float = 1e-5
     eps: float = 1e-3
     block: int = 68

@@ -6,6 +6,8 @@
 * :func:`fill_masked`: every invalid pixel (validity mask, SPEC §11) takes the value of the
   nearest valid pixel, the masked analogue of the replicated border: window costs that reach
   into a region without data see its edge continued, not black.
+* :func:`block_reduce`: ``factor x factor`` block means (or any reduction) over the last two
+  axes, edges replicated: the coarse levels of the optimisers and of a light field.
 * :func:`noise_sigma` and :func:`texture_snr`: how much texture a matching window holds above
   the sensor noise, which tells textureless regions (a white table, a wall) that no cost can
   match from the rest.
@@ -18,7 +20,7 @@ import numpy as np
 from .errors import InvalidInputError
 
 __all__ = ["normalise_intensity", "gradient_magnitude", "fill_masked", "noise_sigma",
-           "texture_snr"]
+           "texture_snr", "block_reduce"]
 
 
 def normalise_intensity(image, dtype=np.float64, *, valid=None) -> np.ndarray:
@@ -243,3 +245,34 @@ def texture_snr(image, window: int = 5, *, sigma: float | None = None, valid=Non
         var = var - cov * cov / var_ramp
     ratio = np.maximum(var, 0.0) * n / ((n - 3) * s * s)
     return np.sqrt(np.maximum(ratio - 1.0, 0.0))
+
+
+def block_reduce(a, factor: int = 2, how=np.mean) -> np.ndarray:
+    """``how`` over the ``factor x factor`` blocks of the last two axes of ``a``.
+
+    Sizes are rounded up: the last row and column are repeated to a multiple of ``factor``.
+
+    Parameters
+    ----------
+    a : ndarray, (..., H, W)
+    factor : int
+        Block side (>= 1).
+    how : callable
+        A numpy reduction taking ``axis=`` (``np.mean``, ``np.all``, ``np.min``, ...).
+
+    Returns
+    -------
+    ndarray, (..., ceil(H / factor), ceil(W / factor))
+
+    Examples
+    --------
+    >>> block_reduce(np.arange(6.0).reshape(2, 3)).tolist()
+    [[2.0, 3.5]]
+    """
+    a = np.asarray(a)
+    H, W = a.shape[-2:]
+    ph, pw = -H % factor, -W % factor
+    if ph or pw:
+        a = np.pad(a, [(0, 0)] * (a.ndim - 2) + [(0, ph), (0, pw)], mode="edge")
+    h, w = a.shape[-2] // factor, a.shape[-1] // factor
+    return how(a.reshape(a.shape[:-2] + (h, factor, w, factor)), axis=(-3, -1))

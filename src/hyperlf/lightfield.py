@@ -23,6 +23,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from .errors import InvalidInputError
+from .imageops import block_reduce
 
 __all__ = ["LightField", "raster_wavelengths", "filter_layout", "view_offsets",
            "grid_positions", "centre_view", "check_disparity_range", "resolve_disparity_range",
@@ -541,18 +542,6 @@ class LightField:
         return "\n".join(lines)
 
 
-def _block_reduce(a: np.ndarray, factor: int, how) -> np.ndarray:
-    """``how`` (``np.mean``, ``np.all``) over ``factor x factor`` blocks of axes 2-3 of
-    ``a``, its edges replicated to a multiple of ``factor``."""
-    H, W = a.shape[2:4]
-    ph, pw = -H % factor, -W % factor
-    if ph or pw:
-        a = np.pad(a, [(0, 0), (0, 0), (0, ph), (0, pw)] + [(0, 0)] * (a.ndim - 4), mode="edge")
-    h, w = a.shape[2] // factor, a.shape[3] // factor
-    blocks = a.reshape(a.shape[:2] + (h, factor, w, factor) + a.shape[4:])
-    return how(blocks, axis=(3, 5))
-
-
 def downscale(lf: LightField, factor: int = 2) -> LightField:
     """The light field at ``1 / factor`` of its resolution, for a quick first estimate.
 
@@ -584,12 +573,14 @@ def downscale(lf: LightField, factor: int = 2) -> LightField:
     if factor == 1:
         return lf
     rng = lf.disparity_range
+    views = np.moveaxis(lf.views, (2, 3), (-2, -1))  # colour views: channels before H, W
+    views = np.moveaxis(block_reduce(views, factor), (-2, -1), (2, 3))
     return LightField(
-        views=_block_reduce(lf.views, factor, np.mean).astype(np.float32),
+        views=views.astype(np.float32),
         wavelengths=lf.wavelengths, positions=lf.positions, reference=lf.reference,
         disparity_range=None if rng is None else (rng[0] / factor, rng[1] / factor),
         metadata=dict(lf.metadata),
-        valid=None if lf.valid is None else _block_reduce(lf.valid, factor, np.all))
+        valid=None if lf.valid is None else block_reduce(lf.valid, factor, np.all))
 
 
 def _describe_valid(valid: np.ndarray) -> str:

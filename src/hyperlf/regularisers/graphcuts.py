@@ -15,6 +15,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import InvalidInputError
+from ..imageops import block_reduce
 from ._checks import (check_cost, check_count, check_guide, check_label_map, check_labels,
                       check_positive, gather)
 
@@ -468,25 +469,12 @@ def graphcut(cost, smoothness: str = "truncated_linear", weight: float = 1.0,
 # coarse to fine
 # ----------------------------------------------------------------------------------------------
 
-def _pad_even(a: np.ndarray) -> np.ndarray:
-    """Edge-replicate the last two axes of ``a`` to even sizes."""
-    H, W = a.shape[-2:]
-    pad = [(0, 0)] * (a.ndim - 2) + [(0, H % 2), (0, W % 2)]
-    return np.pad(a, pad, mode="edge") if (H % 2 or W % 2) else a
-
-
-def _halve(a: np.ndarray) -> np.ndarray:
-    """2x2 block mean over the last two axes (sizes already even)."""
-    H, W = a.shape[-2:]
-    return a.reshape(a.shape[:-2] + (H // 2, 2, W // 2, 2)).mean(axis=(-3, -1))
-
-
 def _coarse_problem(c, g):
     """Half-resolution data term (label ``j`` = min of fine ``2j``, ``2j+1``) and guide."""
     L = c.shape[0]
     cp = np.concatenate([c, c[-1:]], axis=0) if L % 2 else c
-    coarse = _halve(_pad_even(np.minimum(cp[0::2], cp[1::2]))).astype(np.float32)
-    g_c = None if g is None else _halve(_pad_even(np.moveaxis(g, -1, 0)))
+    coarse = block_reduce(np.minimum(cp[0::2], cp[1::2])).astype(np.float32)
+    g_c = None if g is None else block_reduce(np.moveaxis(g, -1, 0))
     g_c = None if g_c is None else np.moveaxis(g_c, 0, -1)
     return coarse, g_c
 
