@@ -16,6 +16,13 @@ Cube file (``format = "hyperlf-cube"``)
 view so that a full cube never has to sit in memory; :func:`open_cube_h5` reads it lazily.
 
 All writers write to a temporary file beside the target and rename it when complete.
+
+Text attributes (``format``, ``metadata``) are fixed-length UTF-8 strings since version 2
+(files need HDF5 1.8 or later to read): a variable-length string lives in the file's global
+heap, and a corrupted heap can send libhdf5 into an endless loop that no Python code can
+interrupt. Version 1 files, which stored them as variable-length strings, are still read: those
+attributes are read in a child process with a time limit (:data:`HEAP_READ_TIMEOUT_S`), so a
+corrupt one gives an error instead of a hang.
 """
 
 from __future__ import annotations
@@ -23,6 +30,8 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import subprocess
+import sys
 import tempfile
 from pathlib import Path
 from typing import Any
@@ -46,7 +55,11 @@ __all__ = [
 
 LF_FORMAT = "hyperlf-lightfield"
 CUBE_FORMAT = "hyperlf-cube"
-VERSION = 1
+VERSION = 2
+#: Seconds a child process may take to read a version-1 text attribute (see the module notes).
+HEAP_READ_TIMEOUT_S = 30.0
+#: HDF5 file-format versions the writers use: 1.8 and later (large fixed-length attributes).
+_LIBVER = ("v108", "latest")
 
 
 def _h5py():
@@ -81,6 +94,54 @@ def _dump_metadata(meta: dict) -> str:
     return json.dumps(meta, default=_json_default, allow_nan=True)
 
 
+def _write_header(f, fmt: str, metadata: dict) -> None:
+    """The root attributes every hyperlf HDF5 file carries, text as fixed-length strings."""
+    f.attrs["format"] = np.bytes_(fmt.encode())
+    f.attrs["version"] = VERSION
+    f.attrs["metadata"] = np.bytes_(_dump_metadata(metadata).encode())
+
+
+_CHILD_READ = (
+    "import sys, h5py\n"
+    "with h5py.File(sys.argv[1], 'r') as f:\n"
+    "    v = f.attrs[sys.argv[2]]\n"
+    "sys.stdout.buffer.write(v.encode() if isinstance(v, str) else bytes(v))\n"
+)
+
+
+def _uses_heap(f, name: str) -> bool:
+    """Whether root attribute ``name`` is stored in the global heap (variable-length data)."""
+    h5t = _h5py().h5t
+    t = f.attrs.get_id(name).get_type()
+    return bool(t.detect_class(h5t.VLEN)) or (
+        isinstance(t, h5t.TypeStringID) and bool(t.is_variable_str()))
+
+
+def _read_heap_attr(p: Path, name: str) -> bytes:
+    """Root attribute ``name`` read in a child process that may take HEAP_READ_TIMEOUT_S."""
+    try:
+        out = subprocess.run([sys.executable, "-c", _CHILD_READ, os.fspath(p), name],
+                             capture_output=True, timeout=HEAP_READ_TIMEOUT_S, check=False)
+    except subprocess.TimeoutExpired:
+        raise FormatError(f"{p}: reading the '{name}' attribute did not finish in "
+                          f"{HEAP_READ_TIMEOUT_S:g} s (its heap is corrupt); re-create the "
+                          "file with hyperlf") from None
+    if out.returncode != 0:
+        raise FormatError(f"{p}: cannot read the '{name}' attribute; the file is corrupt, "
+                          "re-create it with hyperlf")
+    return out.stdout
+
+
+def _text_attr(p: Path, f, name: str) -> str | None:
+    """Root text attribute ``name`` (None when absent), never read through the heap in-process."""
+    if name not in f.attrs:
+        return None
+    raw = _read_heap_attr(p, name) if _uses_heap(f, name) else f.attrs[name]
+    if isinstance(raw, bytes):
+        return raw.decode(errors="replace")
+    return raw if isinstance(raw, str) else str(raw)
+
+
 @contextlib.contextmanager
 def _open_read(path: str | os.PathLike, expected: str):
     h5py = _h5py()
@@ -95,10 +156,8 @@ def _open_read(path: str | os.PathLike, expected: str):
             "re-create it with hyperlf.save"
         ) from None
     try:
-        fmt = f.attrs.get("format")
-        if isinstance(fmt, bytes):
-            fmt = fmt.decode(errors="replace")
-        if not isinstance(fmt, str) or fmt != expected:
+        fmt = _text_attr(p, f, "format")
+        if fmt != expected:
             raise FormatError(
                 f"{p} is an HDF5 file but not a {expected} file (format attribute {str(fmt)[:40]!r}); "
                 f"write it with hyperlf's {'write_lightfield_h5' if expected == LF_FORMAT else 'write_cube_h5'}"
@@ -176,9 +235,9 @@ def _get(p: Path, f, name: str, required: bool = True):
 
 def _pair_attr(p: Path, f, name: str, integral: bool):
     """Root attribute ``name`` as a pair of finite numbers (integers when ``integral``)."""
-    raw = f.attrs.get(name)
-    if raw is None:
+    if name not in f.attrs:
         return None
+    raw = "variable-length data" if _uses_heap(f, name) else f.attrs[name]
     a = np.asarray(raw)
     ok = a.dtype.kind in "biuf" and a.size == 2 and a.ndim <= 1
     if ok:
@@ -194,9 +253,14 @@ def _pair_attr(p: Path, f, name: str, integral: bool):
 
 def _metadata(p: Path, f, strict: bool) -> dict:
     """The 'metadata' JSON attribute as a dict ({} when not ``strict`` and unreadable)."""
-    txt = f.attrs.get("metadata", "{}")
     try:
-        meta = json.loads(txt.decode() if isinstance(txt, bytes) else txt)
+        txt = _text_attr(p, f, "metadata")
+    except FormatError:
+        if strict:
+            raise
+        return {}
+    try:
+        meta = json.loads("{}" if txt is None else txt)
         if isinstance(meta, dict):
             return meta
     except (ValueError, TypeError):
@@ -227,13 +291,11 @@ def write_lightfield_h5(path: str | os.PathLike, lf: LightField,
     comp = _compression(compression)
     R, C = lf.grid_shape
     with atomic_path(path) as tmp:
-        with h5py.File(tmp, "w") as f:
-            f.attrs["format"] = LF_FORMAT
-            f.attrs["version"] = VERSION
+        with h5py.File(tmp, "w", libver=_LIBVER) as f:
+            _write_header(f, LF_FORMAT, lf.metadata)
             f.attrs["reference"] = np.asarray(lf.reference, dtype=np.int64)
             if lf.disparity_range is not None:
                 f.attrs["disparity_range"] = np.asarray(lf.disparity_range, dtype=np.float64)
-            f.attrs["metadata"] = _dump_metadata(lf.metadata)
             f.create_dataset("views", data=lf.views, chunks=(1, 1) + lf.views.shape[2:], **comp)
             f.create_dataset("positions", data=lf.positions)
             if lf.wavelengths is not None:
@@ -376,10 +438,8 @@ class CubeWriter:
         os.close(fd)
         self._tmp = Path(tmp)
         try:
-            f = h5py.File(self._tmp, "w")
-            f.attrs["format"] = CUBE_FORMAT
-            f.attrs["version"] = VERSION
-            f.attrs["metadata"] = _dump_metadata(self._metadata)
+            f = h5py.File(self._tmp, "w", libver=_LIBVER)
+            _write_header(f, CUBE_FORMAT, self._metadata)
             R, C, B, H, W = self.shape
             f.create_dataset("cube", shape=self.shape, dtype=np.float32,
                              chunks=(1, 1, 1, H, W), **self._comp)
