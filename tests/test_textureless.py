@@ -127,11 +127,16 @@ def _table_scene(seed):
 @pytest.mark.parametrize("seed", range(3))
 def test_a_textureless_region_follows_its_surroundings(seed):
     lf = _table_scene(seed)
-    on = depth(lf, n_labels=25, params=DepthParams(texture_snr=2))
+    on = depth(lf, n_labels=25, params=DepthParams(texture_snr=2, coarse_prior=False))
     off = depth(lf, n_labels=25, params=DepthParams(texture_snr=0))
     inner = np.s_[H // 2 + 8:, :]
     err_on = np.abs(on.disparity[inner] - D0)
     assert np.percentile(err_on, 95) < 0.1
+    # with the coarse prior (default): the half-resolution run sees the cameras' strong
+    # vignetting as texture in a few rows by the bottom border (outer views invalid there)
+    err_prior = np.abs(depth(lf, n_labels=25, params=DepthParams(texture_snr=2)).disparity[inner]
+                       - D0)
+    assert np.percentile(err_prior, 95) < 0.25 and err_prior.max() <= 0.55
     assert np.median(np.abs(off.disparity[inner] - D0)) >= 0.4  # the scene needs the weight
     textured = np.s_[BORDER:H // 2 - 8, BORDER:-BORDER]
     err_tex = [np.percentile(np.abs(r.disparity[textured] - D0), 95) for r in (on, off)]
@@ -144,7 +149,7 @@ def test_texture_weight_is_on_by_default_for_camera_captures_only():
     camera = lf.replace(metadata={"calibration": {"mode": "plane"}})
     assert texture_weight(prepare(lf, n_labels=8)) is None  # synthetic: off
     w = texture_weight(prepare(camera, n_labels=8))
-    on = depth(camera, n_labels=25)
+    on = depth(camera, n_labels=25, params=DepthParams(coarse_prior=False))
     assert np.percentile(np.abs(on.disparity[H // 2 + 8:] - D0), 95) < 0.1
     assert np.array_equal(w, texture_weight(prepare(lf, n_labels=8,
                                                     params=DepthParams(texture_snr=2))))
@@ -184,3 +189,105 @@ def test_depth_command_takes_the_texture_option(tmp_path, capsys):
             main(["-q", "depth", str(cap), "--texture-snr", bad, "-o", str(tmp_path / "bad")])
         assert info.value.code == 2 and "--texture-snr" in capsys.readouterr().err
     assert not (tmp_path / "bad").exists()
+
+
+# ----------------------------------------------------------------------------- coarse prior
+def _slanted_table_scene(seed, amplitude=0.01, zoom=1):
+    """A textured wall at disparity 1 above a table that comes closer row by row (disparity 1
+    to 4) and whose texture is faint blobs a few pixels wide, below the noise in any 5 x 5
+    window: a camera-made capture (texture weight on), exact disparity per pixel.  ``zoom``
+    scales the image and the blobs (not the disparities)."""
+    from scipy.ndimage import map_coordinates
+
+    rng = np.random.default_rng(seed)
+    h, w, pad = H * zoom, W * zoom, 16
+    canvas = 0.5 + 0.15 * _fractal(rng, (h + 2 * pad, w + 2 * pad))
+    blobs = gaussian_filter(rng.standard_normal(canvas.shape), 3.0 * zoom)
+    canvas[pad + h // 2:] = 0.5 + amplitude * (blobs / blobs.std())[pad + h // 2:]
+    yy, xx = np.mgrid[0:h, 0:w].astype(float)
+    truth = np.where(yy < h // 2, 1.0, 1.0 + 3.0 * (yy - h // 2) / (h // 2))
+    views = np.empty((3, 3, h, w))
+    for r in range(3):
+        for c in range(3):
+            views[r, c] = rng.uniform(0.8, 1.2) * map_coordinates(
+                canvas, [yy + pad + truth * (r - 1), xx + pad + truth * (c - 1)], order=3,
+                mode="nearest")
+    views += 0.005 * rng.standard_normal(views.shape)
+    lf = LightField(views.astype(np.float32), np.linspace(420, 680, 9).reshape(3, 3),
+                    disparity_range=(-2.0, 6.0), metadata={"calibration": {"mode": "plane"}})
+    return lf, truth
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_faint_slanted_table_follows_the_coarse_estimate(seed):
+    lf, truth = _slanted_table_scene(seed)
+    table, wall = np.s_[H // 2 + 6:H - 4, 6:-6], np.s_[6:H // 2 - 6, 6:-6]
+    w = texture_weight(prepare(lf, n_labels=33))
+    assert np.percentile(w[table], 90) < 0.1  # no data term on the table at full resolution
+    res = {cp: depth(lf, n_labels=33, params=DepthParams(coarse_prior=cp))
+           for cp in (False, True)}
+    rmse = {cp: {k: float(np.sqrt(np.mean((r.disparity - truth)[s] ** 2)))
+                 for k, s in (("table", table), ("wall", wall))} for cp, r in res.items()}
+    assert rmse[False]["table"] > 1.0  # filled with one constant from the wall
+    assert rmse[True]["table"] < 0.5  # the table's own slope, from the 1/2 and 1/4 runs
+    assert rmse[True]["wall"] <= rmse[False]["wall"] + 0.01
+    assert res[True].config["coarse_prior_scale"] == 2
+    assert res[False].config["coarse_prior_scale"] is None
+    assert "coarse_prior_s" in res[True].timings
+
+
+def test_coarse_prior_needs_the_texture_weight():
+    lf, _ = _slanted_table_scene(0)
+    synthetic = lf.replace(metadata={})  # texture weight off: nothing to give back
+    a, b = (depth(synthetic, n_labels=17, params=DepthParams(coarse_prior=cp)) for cp in
+            (True, False))
+    assert np.array_equal(a.disparity, b.disparity) and a.config["coarse_prior_scale"] is None
+
+
+@pytest.mark.parametrize("bad", [{"coarse_prior": "yes"}, {"coarse_prior": 1},
+                                 {"coarse_prior_scale": 1}, {"coarse_prior_scale": 2.5},
+                                 {"coarse_prior_width": 0}, {"coarse_prior_width": float("inf")},
+                                 {"coarse_prior_levels": 0}])
+def test_depth_params_check_the_coarse_prior_options(bad):
+    with pytest.raises(InvalidInputError, match="coarse_prior"):
+        DepthParams(**bad)
+
+
+def test_depth_command_turns_the_coarse_prior_off(tmp_path):
+    from hyperlf.cli import main
+    from hyperlf.formats import read_pfm, save_lightfield
+
+    lf, truth = _slanted_table_scene(1)
+    save_lightfield(lf, tmp_path / "cap")
+    table = np.s_[H // 2 + 6:H - 4, 6:-6]
+    rmse = {}
+    for extra in ((), ("--no-coarse-prior",)):
+        out = tmp_path / f"d{len(extra)}"
+        assert main(["-q", "depth", str(tmp_path / "cap"), "--labels", "33", *extra,
+                     "-o", str(out)]) == 0
+        d = read_pfm(out / "disparity.pfm")
+        rmse[extra] = float(np.sqrt(np.mean((d - truth)[table] ** 2)))
+    assert rmse[()] < 0.5 < 1.0 < rmse[("--no-coarse-prior",)]
+    assert main(["-q", "depth", str(tmp_path / "cap"), "--labels", "33", "--save-intermediate",
+                 "-o", str(tmp_path / "inter")]) == 0
+    strength = read_pfm(tmp_path / "inter" / "coarse_prior_strength.pfm")
+    assert np.median(strength[table]) > 0.5 and np.median(strength[:H // 2 - 8]) < 0.1
+    assert (tmp_path / "inter" / "coarse_disparity.png").is_file()
+
+
+def test_nested_coarse_levels_keep_eight_windows():
+    lf, _ = _slanted_table_scene(2)
+    one = depth(lf, n_labels=33)
+    assert one.config["coarse_prior_levels"] == 1
+    # a 96 x 128 image has room for one level (48 px >= 8 windows of 5; 24 px has not)
+    two = depth(lf, n_labels=33, params=DepthParams(coarse_prior_levels=2))
+    assert two.config["coarse_prior_levels"] == 1
+    assert np.array_equal(one.disparity, two.disparity)
+    big, truth2 = _slanted_table_scene(2, zoom=2)  # twice the size, blobs too: two levels fit
+    table = np.s_[H + 12:2 * H - 8, 12:-12]
+    rmse = {}
+    for levels in (1, 2):
+        res = depth(big, n_labels=33, params=DepthParams(coarse_prior_levels=levels))
+        assert res.config["coarse_prior_levels"] == levels
+        rmse[levels] = np.sqrt(np.mean((res.disparity - truth2)[table] ** 2))
+    assert rmse[2] < 0.5 < 1.0 < rmse[1]  # blobs 6 px wide: textured only at 1/4

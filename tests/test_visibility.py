@@ -199,5 +199,5 @@ def test_progress_bars_name_the_half_resolution_pass(capsys):
     depth(lf, n_labels=8, params=DepthParams(visibility_min_size=32, visibility_rounds=2),
           progress=True)
     err = capsys.readouterr().err
-    assert "views, half resolution" in err and "views, visibility round 2" in err
+    assert "views, 1/2 resolution" in err and "views, visibility round 2" in err
     assert "views:" in err  # the main pass

@@ -611,6 +611,7 @@ def _cmd_depth(args, dest) -> list[Path]:
             budget = _available_memory()
         options = {k: v for k, v in (("median_radius", args.median_radius),
                                      ("texture_snr", args.texture_snr),
+                                     ("coarse_prior", False if args.no_coarse_prior else None),
                                      ("visibility_rounds", args.visibility_rounds),
                                      ("max_memory", budget))
                    if v is not None}
@@ -628,8 +629,11 @@ def _cmd_depth(args, dest) -> list[Path]:
                     view_selection=args.view_selection, occlusion_split=args.occlusion_split,
                     defocus=args.defocus, optimizer=args.optimizer, params=params,
                     save_intermediate=args.save_intermediate, progress=not args.quiet)
-        extra = {"correspondence_only": res.f_c, "defocus_only": res.f_d}
+        extra = {"correspondence_only": res.f_c, "defocus_only": res.f_d,
+                 "coarse_disparity": res.intermediate.get("coarse_disparity")
+                 if res.intermediate else None}
         weight = res.intermediate["texture_weight"] if res.intermediate else None
+        strength = res.intermediate.get("coarse_prior_strength") if res.intermediate else None
     else:
         from .baselines import METHODS
 
@@ -637,7 +641,7 @@ def _cmd_depth(args, dest) -> list[Path]:
                                    progress=not args.quiet)
         extra = {k: v for k, v in res.maps.items()
                  if isinstance(v, np.ndarray) and v.shape == res.disparity.shape}
-        weight = None
+        weight = strength = None
     gt = lf.reference_gt_disparity
     written = save_disparity_outputs(out, res.disparity, f"{args.method} disparity", truth=gt,
                                       confidence=res.confidence)
@@ -656,6 +660,12 @@ def _cmd_depth(args, dest) -> list[Path]:
             written.append(visualise.save_disparity_png(
                 out / "texture_weight.png", weight, title="weight of each pixel's own costs",
                 vmin=0, vmax=1, cmap="viridis", label="0: depth from the surroundings"))
+        if strength is not None:
+            written.append(write_pfm(out / "coarse_prior_strength.pfm", strength))
+            written.append(visualise.save_disparity_png(
+                out / "coarse_prior_strength.png", strength,
+                title="pull towards the coarse estimate", vmin=0, vmax=1, cmap="viridis",
+                label="1: the data term comes from the coarse level"))
     _say(args, f"{args.method}: {time.perf_counter() - t0:.1f} s "
                + ", ".join(f"{k} {v:.1f} s" for k, v in res.timings.items()))
     if gt is not None:
@@ -689,6 +699,8 @@ def _cmd_batch(args, dest) -> list[Path]:  # noqa: ARG001 - batch writes its own
                         ("--texture-snr", args.texture_snr), ("--max-memory", args.max_memory)):
         if value is not None:
             depth_args += [flag, f"{value:g}" if isinstance(value, float) else str(value)]
+    if args.no_coarse_prior:
+        depth_args.append("--no-coarse-prior")
     tasks = plan_batch(args.inputs, args.output, depth_args=depth_args,
                        disparity_range=args.disparity_range, overwrite=args.overwrite)
     _say(args, f"{len(tasks)} captures -> {args.output}")
@@ -1170,6 +1182,11 @@ def _add_depth_parser(sub) -> None:
                         "off; default: 2 for captures made by 'hyperlf ingest' from camera "
                         "images, off for rendered and synthetic light fields, whose "
                         "pixel-scale texture one image cannot tell from noise)")
+    p.add_argument("--no-coarse-prior", action="store_true",
+                   help="where --texture-snr discounts a pixel's data term, do not pull it "
+                        "towards a half-resolution estimate instead (by default it is, where "
+                        "the half-resolution reference is textured: a faint table or wall then "
+                        "keeps its own slope rather than one depth from its surroundings)")
     p.add_argument("--visibility-rounds", type=_visibility_rounds_arg, default=None,
                    metavar="N",
                    help="re-match N times over only the views that see each pixel under the "
@@ -1214,6 +1231,7 @@ def _add_batch_parser(sub) -> None:
                    help="as for depth")
     p.add_argument("--texture-snr", type=_texture_snr_arg, default=None, metavar="T",
                    help="as for depth")
+    p.add_argument("--no-coarse-prior", action="store_true", help="as for depth")
     p.add_argument("--max-memory", type=_memory_arg, default=None, metavar="SIZE",
                    help="as for depth, for each capture: with N workers on one machine give "
                         "each at most 1/N of its memory")

@@ -97,6 +97,14 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
    term gone it takes its label from its surroundings through the pairwise term.  On by
    default for captures made from camera images (``hyperlf ingest``), off for rendered and
    synthetic light fields (see :class:`DepthParams`) and under ``"wta"``.
+   **Coarse prior** (:func:`add_coarse_prior`, ``params.coarse_prior``): what a weakly
+   textured pixel loses of its data term, ``1 - w``, it gets back as a pull towards the
+   disparity of the same depth run on the light field downscaled by
+   ``params.coarse_prior_scale`` (:func:`coarse_disparity`; ``params.coarse_prior_levels``
+   nested levels, default 1), where that level's reference is textured: block means lower
+   the noise, so a white table that holds no texture at the pixel holds some a few pixels
+   wide.  Without it such a region is filled
+   with one constant from whatever surrounds it, not with its own (often slanted) surface.
 
 6. **Post-filter**: the guided weighted median (:func:`post_filter`).
 
@@ -151,6 +159,8 @@ __all__ = [
     "defocus_cue",
     "neutral_missing_views",
     "texture_weight",
+    "coarse_prior",
+    "add_coarse_prior",
     "unary",
     "regularise",
     "refine",
@@ -230,6 +240,15 @@ class DepthParams:
     separates only texture that does not halve under binning), and the benchmark scenes have
     such texture; a camera's optics blur the scene below the pixel, so there the finest
     variation is the sensor's noise.
+    ``coarse_prior`` (True; acts only where the texture weight does) adds to each weakly
+    textured pixel ``(1 - w) g min(|d - d_coarse|, width) / width`` (:func:`coarse_prior`,
+    :func:`add_coarse_prior`), ``d_coarse`` from :func:`coarse_disparity` at
+    ``coarse_prior_scale`` (2); with ``coarse_prior_levels`` > 1 (default 1) that run has a
+    coarse prior of its own, and so on; a level must keep 8 texture windows on its shorter
+    side (shading that spans the image, such as each camera's vignetting, must not count as
+    texture); ``g`` how much of ``d_coarse`` comes from textured pixels at some level; ``width``
+    ``coarse_prior_width`` disparity px (None: the coarse run's label step, ``scale`` fine
+    label steps).
     Defocus: ``camera``, ``sigma_d`` (96.5 nm), ``achromatic_radius`` (0.01), ``lambda_r``
     (None = by mode; ``"per_label"``, ``"per_pixel"`` or nm), ``p_eps`` (1e-6).
     MRF: ``gamma_c``, ``normalise_costs``, ``smoothness`` (lambda, per disparity unit on the
@@ -273,6 +292,10 @@ class DepthParams:
     min_visible_views: int = 2
     texture_snr: float | None = None
     texture_window: int = 5
+    coarse_prior: bool = True
+    coarse_prior_scale: int = 2
+    coarse_prior_width: float | None = None
+    coarse_prior_levels: int = 1
     camera: str = "CIE 1931"
     sigma_d: float = 96.5
     achromatic_radius: float = 0.01
@@ -329,13 +352,19 @@ class DepthParams:
         if int(self.min_selected) < 1:
             raise InvalidInputError(f"params.min_selected must be >= 1, got {self.min_selected!r}")
         for name, low in (("visibility_rounds", 0), ("min_visible_views", 1), ("dense_views", 1),
-                          ("visibility_scale", 1), ("visibility_min_size", 1)):
+                          ("visibility_scale", 1), ("visibility_min_size", 1),
+                          ("coarse_prior_scale", 2), ("coarse_prior_levels", 1)):
             v = getattr(self, name)
             if v is None and name == "visibility_rounds":
                 continue
             if isinstance(v, bool) or int(v) != v or v < low:
                 raise InvalidInputError(f"params.{name} must be an integer >= {low}, got {v!r}")
         pos("visibility_margin", self.visibility_margin, True)
+        if not isinstance(self.coarse_prior, (bool, np.bool_)):
+            raise InvalidInputError(f"params.coarse_prior must be True or False, got "
+                                    f"{self.coarse_prior!r}")
+        if self.coarse_prior_width is not None:
+            pos("coarse_prior_width", self.coarse_prior_width)
         if int(self.min_half_views) < 1:
             raise InvalidInputError(f"params.min_half_views must be >= 1, got {self.min_half_views!r}")
         if self.missing_views not in ("average", "neutral"):
@@ -381,7 +410,7 @@ class DepthResult:
     config : every setting used (JSON-friendly).
     intermediate : with ``save_intermediate``: ``C``, ``D`` (or None), ``unary``, ``edges``,
         ``lambda_r`` (or None), ``n_selected`` (views used per (d, p) before the split),
-        ``texture_weight`` (or None).
+        ``texture_weight``, ``coarse_disparity`` and ``coarse_prior_strength`` (or None).
     """
 
     disparity: np.ndarray
@@ -1094,14 +1123,17 @@ def visible_views(prob: DepthProblem, disparity: np.ndarray) -> dict:
     return {v: m | few for v, m in sees.items()}
 
 
-def coarse_disparity(prob: DepthProblem, *, progress: bool | str = False) -> np.ndarray | None:
-    """The estimate the first visibility round starts from (SPEC §5.6 a), made cheaply.
+def coarse_disparity(prob: DepthProblem, *, scale: int | None = None,
+                     progress: bool | str = False) -> np.ndarray | None:
+    """A depth estimate made cheaply at a coarser scale: the start of the first visibility
+    round (SPEC §5.6 a) and the coarse prior of weakly textured pixels.
 
-    :func:`depth` with the same options and no visibility rounds on the light field
-    downscaled by ``s = params.visibility_scale`` (:func:`hyperlf.lightfield.downscale`;
-    ``ceil(L / s)`` labels over the range divided by ``s``), its disparity repeated over each
-    ``s x s`` block and multiplied by ``s``.  Visibility needs only which surface is in front
-    where; near depth edges the z-test's margin errs towards "hidden".
+    :func:`depth` with the same options (a coarse prior only with ``coarse_prior_levels`` > 1,
+    one level fewer) and no visibility rounds on the light field downscaled by ``s = scale`` (default ``params.visibility_scale``;
+    :func:`hyperlf.lightfield.downscale`; ``ceil(L / s)`` labels over the range divided by
+    ``s``), its disparity repeated over each ``s x s`` block and multiplied by ``s``.
+    Visibility needs only which surface is in front where; near depth edges the z-test's
+    margin errs towards "hidden".
 
     Returns
     -------
@@ -1109,22 +1141,39 @@ def coarse_disparity(prob: DepthProblem, *, progress: bool | str = False) -> np.
         Disparity in full-resolution px; None when ``s`` is 1 or a downscaled side would be
         under 16 px (the first estimate is then the full-resolution pass).
     """
+    s = int(prob.params.visibility_scale if scale is None else scale)
+    coarse = _coarse_problem(prob, s)
+    if coarse is None:
+        return None
+    lf_s, options = coarse
+    res = depth(lf_s, **options, progress=f"views, 1/{s} resolution" if progress else False)
+    return _blow_up(res.disparity * s, s, prob.lf.image_shape)
+
+
+def _coarse_problem(prob: DepthProblem, s: int):
+    """``(light field downscaled by s, depth's keyword arguments)`` for the runs of
+    :func:`coarse_disparity`, or None when ``s`` is 1 or a side would be under 16 px."""
     from .lightfield import downscale
 
-    p = prob.params
-    s = int(p.visibility_scale)
     H, W = prob.lf.image_shape
     if s == 1 or min(H, W) // s < 16:
         return None
     dmin, dmax = prob.disparity_range
-    res = depth(downscale(prob.lf, s), disparity_range=(dmin / s, dmax / s),
-                n_labels=max(2, math.ceil(prob.labels.size / s)), metric=prob.metric,
-                view_selection=prob.view_selection, occlusion_split=prob.occlusion_split,
-                defocus=prob.defocus, optimizer=prob.optimizer,
-                params=replace(p, visibility_rounds=0, tile_rows=None),
-                progress="views, half resolution" if progress else False)
-    up = np.repeat(np.repeat(res.disparity, s, axis=0), s, axis=1)[:H, :W]
-    return (up * s).astype(np.float32)
+    nested = int(prob.params.coarse_prior_levels) - 1
+    p = replace(prob.params, visibility_rounds=0, tile_rows=None,
+                coarse_prior=prob.params.coarse_prior and nested > 0,
+                coarse_prior_levels=max(nested, 1))
+    return downscale(prob.lf, s), dict(
+        disparity_range=(dmin / s, dmax / s), n_labels=max(2, math.ceil(prob.labels.size / s)),
+        metric=prob.metric, view_selection=prob.view_selection,
+        occlusion_split=prob.occlusion_split, defocus=prob.defocus, optimizer=prob.optimizer,
+        params=p)
+
+
+def _blow_up(a: np.ndarray, s: int, shape) -> np.ndarray:
+    """``a`` repeated over ``s x s`` blocks and cropped to ``shape``, float32."""
+    H, W = shape
+    return np.repeat(np.repeat(a, s, axis=0), s, axis=1)[:H, :W].astype(np.float32)
 
 
 def _strip_edges(prob: DepthProblem, rows):
@@ -1306,17 +1355,27 @@ def texture_weight(prob: DepthProblem) -> np.ndarray | None:
         does not come from cameras), every weight is 1 (a noise-free image), or the
         optimiser is ``"wta"`` (no neighbours to take a label from: the costs decide alone).
     """
-    from .imageops import texture_snr
-
-    p = prob.params
-    t0 = p.texture_snr
-    if t0 is None:
-        t0 = CAMERA_TEXTURE_SNR if "calibration" in prob.lf.metadata else 0.0
-    if t0 == 0 or prob.optimizer == "wta":
+    t0 = _texture_threshold(prob)
+    if t0 == 0:
         return None
     ref = prob.reference
-    t = texture_snr(prob.In[ref], int(p.texture_window),
-                    valid=None if prob.valid is None else prob.valid[ref])
+    return _weight_of(prob.In[ref], None if prob.valid is None else prob.valid[ref], t0,
+                      int(prob.params.texture_window))
+
+
+def _texture_threshold(prob: DepthProblem) -> float:
+    """``params.texture_snr`` resolved: 0 (off) or the threshold ``T`` of :func:`texture_weight`."""
+    t0 = prob.params.texture_snr
+    if t0 is None:
+        t0 = CAMERA_TEXTURE_SNR if "calibration" in prob.lf.metadata else 0.0
+    return 0.0 if prob.optimizer == "wta" else float(t0)
+
+
+def _weight_of(image: np.ndarray, valid, t0: float, window: int) -> np.ndarray | None:
+    """:func:`texture_weight`'s formula on one image (None when every weight is 1)."""
+    from .imageops import texture_snr
+
+    t = texture_snr(image, window, valid=valid)
     w = np.clip((t * t - 1.0) / (t0 ** 2 - 1.0), 0.0, 1.0).astype(np.float32)
     return None if bool((w >= 1).all()) else w
 
@@ -1347,6 +1406,89 @@ def unary(C: np.ndarray, D: np.ndarray | None, params: DepthParams, *, informati
     if weight is not None:
         U *= np.asarray(weight, np.float32)[None]
     return np.ascontiguousarray(U, np.float32), sC, sD
+
+
+def add_coarse_prior(U: np.ndarray, labels: np.ndarray, coarse: np.ndarray,
+                     strength: np.ndarray, width: float) -> np.ndarray:
+    """Stage 4b': ``U[l] += strength min(|labels[l] - coarse|, width) / width``, in place.
+
+    A truncated linear pull towards the coarse estimate (:func:`coarse_disparity`); at
+    ``strength`` 1 as strong as a typical normalised data term (whose median range is 1) at
+    ``width`` disparity px and beyond.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> U = np.zeros((3, 1, 2), np.float32)
+    >>> add_coarse_prior(U, np.array([0.0, 1.0, 2.0]), np.array([[0.0, 2.0]]),
+    ...                  np.array([[1.0, 0.0]]), width=1.0)[:, 0, :].tolist()
+    [[0.0, 0.0], [1.0, 0.0], [1.0, 0.0]]
+    """
+    pull = np.asarray(strength, np.float32)
+    c = np.asarray(coarse, np.float32)
+    for k, d in enumerate(np.asarray(labels, np.float32)):
+        U[k] += pull * np.minimum(np.abs(d - c), np.float32(width)) / np.float32(width)
+    return U
+
+
+def coarse_prior(prob: DepthProblem, weight, start=None, *, progress: bool | str = False):
+    """Stage 4b'' of :func:`depth`: ``(coarse disparity, strength, width)`` for
+    :func:`add_coarse_prior`, or None (``params.coarse_prior`` off, no texture weight, or an
+    image too small for a coarse level).
+
+    The coarse disparity is :func:`coarse_disparity` at ``s = params.coarse_prior_scale``
+    (with ``params.coarse_prior_levels`` > 1 itself made with a coarse prior from ``s^2``,
+    and so on), for the levels that keep 8 texture windows on their shorter side (shading
+    that spans the image, such as vignetting, must not count as texture).
+    ``strength = (1 - w) g``: what
+    the texture weight ``w`` took from a pixel's data term, given back where that estimate
+    comes from data, ``g = w_s + (1 - w_s) g_next`` over the levels (``w_s`` the texture
+    weight of the reference's block means at level ``s``), never where every level's MRF
+    only filled in.  ``start``: the visibility round's coarse estimate, reused when made at
+    the same scale.
+    """
+    p = prob.params
+    if weight is None or not p.coarse_prior:
+        return None
+    s = int(p.coarse_prior_scale)
+    levels = _prior_levels(prob)
+    if not levels:
+        return None
+    if start is not None and s == int(p.visibility_scale):
+        coarse = start
+    else:
+        coarse = coarse_disparity(prob, scale=s, progress=progress)
+    strength = (1.0 - np.clip(weight, 0.0, 1.0)) * _coverage(prob, levels)
+    step = float(prob.labels[1] - prob.labels[0]) if prob.labels.size > 1 else 1.0
+    width = s * step if p.coarse_prior_width is None else float(p.coarse_prior_width)
+    return coarse, strength.astype(np.float32), width
+
+
+def _prior_levels(prob: DepthProblem) -> list[int]:
+    """The downscaling factors of the coarse prior's levels, finest first."""
+    p = prob.params
+    s, H, W = int(p.coarse_prior_scale), *prob.lf.image_shape
+    levels, k = [], s
+    while len(levels) < int(p.coarse_prior_levels) and min(H, W) // k >= 8 * p.texture_window:
+        levels.append(k)
+        k *= s
+    return levels
+
+
+def _coverage(prob: DepthProblem, levels) -> np.ndarray:
+    """``g`` of :func:`coarse_prior` at full resolution: how much of the coarse estimate at
+    ``levels[0]`` comes from data, through all the levels."""
+    from .imageops import block_reduce
+
+    ref, shape = prob.reference, prob.lf.image_shape
+    t0, window = _texture_threshold(prob), int(prob.params.texture_window)
+    g = None
+    for k in reversed(levels):
+        valid = None if prob.valid is None else block_reduce(prob.valid[ref], k, np.all)
+        w = _weight_of(block_reduce(prob.In[ref], k), valid, t0, window)
+        w = np.ones(shape, np.float32) if w is None else _blow_up(w, k, shape)
+        g = w if g is None else w + (1.0 - w) * g
+    return g
 
 
 def regularise(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray):
@@ -1445,10 +1587,13 @@ class _Clock:
         self.t = now
 
 
-def _solve(prob: DepthProblem, C, D, seen, f_c, w, clock, suffix: str = ""):
-    """Stages 4-6 of :func:`depth` on one correspondence volume: unary, MRF, refinement and
-    the post-filter.  Returns ``(U, scale_C, scale_D, disparity, confidence)``."""
+def _solve(prob: DepthProblem, C, D, seen, f_c, w, prior, clock, suffix: str = ""):
+    """Stages 4-6 of :func:`depth` on one correspondence volume: unary (with the coarse
+    prior), MRF, refinement and the post-filter.  Returns ``(U, scale_C, scale_D, disparity,
+    confidence)``."""
     U, sC, sD = unary(C, D, prob.params, informative=seen, weight=w)
+    if prior is not None:
+        add_coarse_prior(U, prob.labels, *prior)
     lab, vol = regularise(prob, U, f_c)
     clock.lap("mrf_s" + suffix)
     disp, conf = refine(vol, lab, prob.labels, prob.params, informative=seen, weight=w)
@@ -1466,7 +1611,8 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
 
     A list of stages, each a public function that can be run and tested alone:
     :func:`prepare` -> :func:`correspondence` -> :func:`defocus_cue` ->
-    :func:`texture_weight` -> :func:`unary` -> :func:`regularise` -> :func:`refine` ->
+    :func:`texture_weight` -> :func:`coarse_prior` -> :func:`unary` ->
+    :func:`add_coarse_prior` -> :func:`regularise` -> :func:`refine` ->
     :func:`post_filter`.
 
     Parameters
@@ -1535,6 +1681,9 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
     if start is not None:
         rounds, first = rounds - 1, 1
         clock.lap("visibility_estimate_s")
+    w = texture_weight(prob)
+    prior = coarse_prior(prob, w, start, progress=progress)
+    clock.lap("coarse_prior_s")
     C, n_used = correspondence(prob, progress=progress, timings=timings, sees=sees, strips=strips)
     seen, n_used = seen_pixels(prob, n_used), (n_used if save_intermediate else None)
     f_c = prob.labels[np.argmin(C, axis=0)].astype(np.float32)
@@ -1542,8 +1691,7 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
     D, lam_r = defocus_cue(prob, f_c)
     f_d = None if D is None else prob.labels[np.argmin(D, axis=0)].astype(np.float32)
     clock.lap("defocus_s")
-    w = texture_weight(prob)
-    U, sC, sD, disp, conf = _solve(prob, C, D, seen, f_c, w, clock)
+    U, sC, sD, disp, conf = _solve(prob, C, D, seen, f_c, w, prior, clock)
     for k in range(first + 1, first + rounds + 1):
         sees = visible_views(prob, disp)
         C = U = None  # the new round's volumes replace them: not both at once
@@ -1552,15 +1700,21 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
         seen, n_used = seen_pixels(prob, n_used), (n_used if save_intermediate else None)
         f_c = prob.labels[np.argmin(C, axis=0)].astype(np.float32)
         clock.lap(f"visibility_round{k}_correspondence_s")
-        U, sC, sD, disp, conf = _solve(prob, C, D, seen, f_c, w, clock, suffix=f"_round{k}")
+        U, sC, sD, disp, conf = _solve(prob, C, D, seen, f_c, w, prior, clock,
+                                       suffix=f"_round{k}")
     timings["total_s"] = time.perf_counter() - t0
     inter = None
     if save_intermediate:
         inter = dict(C=C, D=D, unary=U, edges=prob.edges, lambda_r=lam_r, n_selected=n_used,
-                     texture_weight=w)
+                     texture_weight=w, coarse_disparity=None if prior is None else prior[0],
+                     coarse_prior_strength=None if prior is None else prior[1])
     return DepthResult(disparity=np.asarray(disp, np.float32), confidence=conf, f_c=f_c,
                        f_d=f_d, labels=prob.labels, timings=timings,
                        config=dict(_config(prob, sC, sD), strips=strips,
                                    visibility_estimate_scale=None if start is None
-                                   else int(prob.params.visibility_scale)),
+                                   else int(prob.params.visibility_scale),
+                                   coarse_prior_scale=None if prior is None
+                                   else int(prob.params.coarse_prior_scale),
+                                   coarse_prior_levels=0 if prior is None
+                                   else len(_prior_levels(prob))),
                        intermediate=inter)
