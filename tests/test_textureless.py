@@ -1,6 +1,8 @@
 """Textureless regions (issue 11 item 3): the noise estimate, the texture-to-noise ratio, and
 the data-term weight that lets a region no cost can match follow its surroundings."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
@@ -291,3 +293,21 @@ def test_nested_coarse_levels_keep_eight_windows():
         assert res.config["coarse_prior_levels"] == levels
         rmse[levels] = np.sqrt(np.mean((res.disparity - truth2)[table] ** 2))
     assert rmse[2] < 0.5 < 1.0 < rmse[1]  # blobs 6 px wide: textured only at 1/4
+
+
+def test_a_dense_camera_array_reuses_the_visibility_estimate(monkeypatch):
+    from hyperlf import hlf, synthesis
+
+    lf = synthesis.procedural_scene(seed=3, rows=4, cols=4, height=96, width=112,
+                                    noise_sigma=0.01)
+    lf = lf.replace(metadata={"calibration": {"mode": "plane"}})
+    calls = []
+    real = hlf.coarse_disparity
+    monkeypatch.setattr(hlf, "coarse_disparity",
+                        lambda prob, **kw: calls.append(kw.get("scale")) or real(prob, **kw))
+    params = DepthParams(visibility_min_size=32, visibility_rounds=1)
+    res = depth(lf, n_labels=17, params=params)
+    assert res.config["visibility_estimate_scale"] == res.config["coarse_prior_scale"] == 2
+    assert calls == [None]  # one coarse run (the visibility round's) serves both
+    noprior = depth(lf, n_labels=17, params=replace(params, coarse_prior=False))
+    assert noprior.config["coarse_prior_scale"] is None
