@@ -1440,12 +1440,11 @@ def coarse_prior(prob: DepthProblem, weight, start=None, *, progress: bool | str
     (with ``params.coarse_prior_levels`` > 1 itself made with a coarse prior from ``s^2``,
     and so on), for the levels that keep 8 texture windows on their shorter side (shading
     that spans the image, such as vignetting, must not count as texture).
-    ``strength = (1 - w) g``: what
-    the texture weight ``w`` took from a pixel's data term, given back where that estimate
-    comes from data, ``g = w_s + (1 - w_s) g_next`` over the levels (``w_s`` the texture
-    weight of the reference's block means at level ``s``), never where every level's MRF
-    only filled in.  ``start``: the visibility round's coarse estimate, reused when made at
-    the same scale.
+    ``strength = (1 - w) g``: what the texture weight ``w`` took from a pixel's data term,
+    given back where that estimate comes from data, ``g = w_s + (1 - w_s) g_next`` over the
+    levels (``w_s`` the texture weight of the reference's block means at level ``s``), never
+    where every level's MRF only filled in.  ``start``: the visibility round's coarse
+    estimate, reused when made at the same scale.
     """
     p = prob.params
     if weight is None or not p.coarse_prior:
