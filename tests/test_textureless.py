@@ -311,3 +311,19 @@ def test_a_dense_camera_array_reuses_the_visibility_estimate(monkeypatch):
     assert calls == [None]  # one coarse run (the visibility round's) serves both
     noprior = depth(lf, n_labels=17, params=replace(params, coarse_prior=False))
     assert noprior.config["coarse_prior_scale"] is None
+
+
+def test_batch_passes_no_coarse_prior_to_each_depth_run(tmp_path, monkeypatch):
+    from hyperlf import batch
+    from hyperlf.cli import main
+
+    seen = []
+
+    def plan(inputs, out, *, depth_args=(), **kw):
+        seen.append(list(depth_args))
+        raise InvalidInputError("stop here")
+
+    monkeypatch.setattr(batch, "plan_batch", plan)
+    for extra in ((), ("--no-coarse-prior",)):
+        assert main(["-q", "batch", str(tmp_path), *extra, "-o", str(tmp_path / "o")]) == 2
+    assert "--no-coarse-prior" not in seen[0] and seen[1][-1] == "--no-coarse-prior"
