@@ -299,7 +299,7 @@ def test_a_dense_camera_array_reuses_the_visibility_estimate(monkeypatch):
     from hyperlf import hlf, synthesis
 
     lf = synthesis.procedural_scene(seed=3, rows=4, cols=4, height=96, width=112,
-                                    noise_sigma=0.01)
+                                    noise_sigma=0.01, reflectance_source="colorchecker")
     lf = lf.replace(metadata={"calibration": {"mode": "plane"}})
     calls = []
     real = hlf.coarse_disparity
