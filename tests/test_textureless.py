@@ -255,7 +255,7 @@ def test_depth_params_check_the_coarse_prior_options(bad):
         DepthParams(**bad)
 
 
-def test_depth_command_turns_the_coarse_prior_off(tmp_path):
+def test_depth_command_turns_the_coarse_prior_off(tmp_path, capsys):
     from hyperlf.cli import main
     from hyperlf.formats import read_pfm, save_lightfield
 
@@ -270,8 +270,11 @@ def test_depth_command_turns_the_coarse_prior_off(tmp_path):
         d = read_pfm(out / "disparity.pfm")
         rmse[extra] = float(np.sqrt(np.mean((d - truth)[table] ** 2)))
     assert rmse[()] < 0.5 < 1.0 < rmse[("--no-coarse-prior",)]
-    assert main(["-q", "depth", str(tmp_path / "cap"), "--labels", "33", "--save-intermediate",
+    capsys.readouterr()
+    assert main(["depth", str(tmp_path / "cap"), "--labels", "33", "--save-intermediate",
                  "-o", str(tmp_path / "inter")]) == 0
+    said = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("weakly textured")]
+    assert len(said) == 1 and "% taken from the half-resolution estimate" in said[0]
     strength = read_pfm(tmp_path / "inter" / "coarse_prior_strength.pfm")
     assert np.median(strength[table]) > 0.5 and np.median(strength[:H // 2 - 8]) < 0.1
     assert (tmp_path / "inter" / "coarse_disparity.png").is_file()

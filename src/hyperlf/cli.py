@@ -668,6 +668,11 @@ def _cmd_depth(args, dest) -> list[Path]:
                 label="1: the data term comes from the coarse level"))
     _say(args, f"{args.method}: {time.perf_counter() - t0:.1f} s "
                + ", ".join(f"{k} {v:.1f} s" for k, v in res.timings.items()))
+    weak = getattr(res, "config", {}).get("weak_data_share", 0.0)
+    if weak > 0:
+        _say(args, f"weakly textured: {100 * weak:.1f} % of the data term dropped, "
+                   f"{100 * res.config['coarse_prior_share']:.1f} % taken from the "
+                   "half-resolution estimate instead (--save-intermediate shows where)")
     if gt is not None:
         _say_depth_scores(args, res.disparity, gt)
     return written

@@ -1715,5 +1715,9 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
                                    coarse_prior_scale=None if prior is None
                                    else int(prob.params.coarse_prior_scale),
                                    coarse_prior_levels=0 if prior is None
-                                   else len(_prior_levels(prob))),
+                                   else len(_prior_levels(prob)),
+                                   weak_data_share=0.0 if w is None
+                                   else float(np.mean(1.0 - w)),
+                                   coarse_prior_share=0.0 if prior is None
+                                   else float(np.mean(prior[1]))),
                        intermediate=inter)
