@@ -5,9 +5,10 @@
 Runs, with the documented commands only, ``hyperlf calibrate`` on the board shots, ``hyperlf
 ingest`` of the scene shot *and* of the board shot, ``hyperlf depth`` of both, then prints the
 figures BENCHMARKS.md reports: pixels at a range limit, and the consistency of the two depth maps
-on the pixels valid in both and off the board (the array did not move between the shots).
-Steps whose output folder already exists in WORK are not run again. Full resolution takes about
-10 minutes per depth map on 2 cores. ``--half-resolution`` also runs ``hlf.depth`` on a 2 x 2
+on the pixels valid in both and off the board (the array did not move between the shots),
+and writes WORK/consistency.png (both maps and their difference).
+Steps whose output folder already exists in WORK are not run again. Full resolution takes 3-4
+minutes per depth map on 2 cores. ``--half-resolution`` also runs ``hlf.depth`` on a 2 x 2
 area-downscaled copy of the scene capture (35 labels, half the range), with and without the
 textureless-region weight, and prints the range-limit share and the timings of each (~2 min each).
 """
@@ -92,7 +93,8 @@ def figures(data: Path, work: Path) -> None:
         print(f"{k}: {100 * at_limit[k][v].mean():.2f} % of the valid reference pixels at a "
               f"range limit ({lo:g}, {hi:g})")
     both = lf["scene"].valid[ref] & lf["board"].valid[ref]
-    off = both & ~board_footprint(data, work, both.shape)
+    foot = board_footprint(data, work, both.shape)
+    off = both & ~foot
     textured = {k: textured_pixels(lf[k]) for k in lf}
     for name, m in (("valid in both, off the board", off),
                     ("... and at no range limit", off & ~at_limit["scene"] & ~at_limit["board"]),
@@ -101,6 +103,42 @@ def figures(data: Path, work: Path) -> None:
         diff = np.abs(d["scene"] - d["board"])[m]
         print(f"{name}: {100 * m.mean():.1f} % of the pixels; |difference| median "
               f"{np.median(diff):.3f} px, 90th percentile {np.percentile(diff, 90):.3f} px")
+    consistency_picture(d, off, foot, work / "consistency.png")
+
+
+def consistency_picture(d: dict, compared: np.ndarray, foot: np.ndarray, path: Path) -> None:
+    """Both disparity maps and their |difference| where compared; prints how many pixels
+    disagree by more than 2 px and how many of those lie near the board footprint (its frame
+    and feet, which the footprint does not cover, are not visible in the scene shot)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from scipy.ndimage import distance_transform_edt
+
+    diff = np.abs(d["scene"] - d["board"])
+    bad = compared & (diff > 2)
+    near = bad & (distance_transform_edt(~foot) < 40)
+    lo = min(float(np.percentile(v, 1)) for v in d.values())
+    hi = max(float(np.percentile(v, 99)) for v in d.values())
+    fig, ax = plt.subplots(1, 3, figsize=(15, 4))
+    for a, (k, v) in zip(ax, d.items()):
+        im = a.imshow(v, cmap="turbo", vmin=lo, vmax=hi)
+        a.set_title(f"{k} shot: disparity (px)")
+        fig.colorbar(im, ax=a, fraction=0.035)
+    ax[2].set_facecolor("0.6")
+    im = ax[2].imshow(np.where(compared, diff, np.nan), cmap="magma", vmin=0, vmax=5)
+    ax[2].set_title(f"|difference| where compared (grey: not), 90th pct "
+                    f"{np.percentile(diff[compared], 90):.1f} px", fontsize=9)
+    fig.colorbar(im, ax=ax[2], fraction=0.035)
+    for a in ax:
+        a.set_xticks([]), a.set_yticks([])
+    fig.tight_layout()
+    fig.savefig(path, dpi=60)
+    plt.close(fig)
+    print(f"{100 * bad.sum() / max(compared.sum(), 1):.1f} % of the compared pixels disagree by "
+          f"more than 2 px, {100 * near.sum() / max(bad.sum(), 1):.0f} % of those within 40 px "
+          f"of the board footprint; picture: {path}")
 
 
 def half_resolution(work: Path) -> None:
