@@ -407,7 +407,9 @@ class DepthResult:
     f_d : float32 (H, W) defocus-only WTA disparity, or None when ``defocus="off"``.
     labels : float64 (L,) the disparity of every label.
     timings : seconds per stage.
-    config : every setting used (JSON-friendly).
+    config : every setting used (JSON-friendly), and two summaries: ``weak_data_share`` (the
+        mean share of the data term the texture weight dropped) and ``coarse_prior_share``
+        (the mean strength of the coarse prior that replaced it).
     intermediate : with ``save_intermediate``: ``C``, ``D`` (or None), ``unary``, ``edges``,
         ``lambda_r`` (or None), ``n_selected`` (views used per (d, p) before the split),
         ``texture_weight``, ``coarse_disparity`` and ``coarse_prior_strength`` (or None).
