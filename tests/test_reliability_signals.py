@@ -60,7 +60,7 @@ def interrupted_run(rig, tmp_path, sig, delay):
     out = tmp_path / "out"
     shutil.copytree(rig["A"], out)
     # faulthandler: a crash (once in CI: SIGSEGV, -11, after a SIGTERM at 0.82 s, not seen in
-    # 320 local runs) then leaves the Python stacks of every thread in the assertion message
+    # 680 local runs) then leaves the Python stacks of every thread in the assertion message
     env = {**os.environ, "PYTHONFAULTHANDLER": "1"}
     proc = subprocess.Popen(depth_argv(rig["cap"], out, 12), stderr=subprocess.PIPE, text=True,
                             env=env)
