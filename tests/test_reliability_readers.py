@@ -344,6 +344,12 @@ def test_corrupt_heap_of_a_version_1_file_is_an_error_not_a_hang(tmp_path, monke
     assert "did not finish in 3 s" in one_line_error(lambda: read_cube_h5(p), FormatError)
 
 
+def test_a_child_that_cannot_read_the_attribute_is_one_line(lf_file):
+    msg = one_line_error(lambda: hdf5._read_heap_attr(lf_file, "no such attribute"),
+                         FormatError)
+    assert "'no such attribute'" in msg and "corrupt" in msg
+
+
 def test_metadata_larger_than_an_object_header_message(tmp_path, rng):
     lf = small_lf(rng)
     lf.metadata["calibration"] = {"residuals": [float(v) for v in rng.random(20000)]}
