@@ -231,7 +231,7 @@ def test_a_faint_slanted_table_follows_the_coarse_estimate(seed):
     rmse = {cp: {k: float(np.sqrt(np.mean((r.disparity - truth)[s] ** 2)))
                  for k, s in (("table", table), ("wall", wall))} for cp, r in res.items()}
     assert rmse[False]["table"] > 1.0  # filled with one constant from the wall
-    assert rmse[True]["table"] < 0.5  # the table's own slope, from the 1/2 and 1/4 runs
+    assert rmse[True]["table"] < 0.5  # the table's own slope, from the half-resolution run
     assert rmse[True]["wall"] <= rmse[False]["wall"] + 0.01
     assert res[True].config["coarse_prior_scale"] == 2
     assert res[False].config["coarse_prior_scale"] is None

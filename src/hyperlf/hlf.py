@@ -103,8 +103,8 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
    ``params.coarse_prior_scale`` (:func:`coarse_disparity`; ``params.coarse_prior_levels``
    nested levels, default 1), where that level's reference is textured: block means lower
    the noise, so a white table that holds no texture at the pixel holds some a few pixels
-   wide.  Without it such a region is filled
-   with one constant from whatever surrounds it, not with its own (often slanted) surface.
+   wide.  Without it such a region is filled with one constant from whatever surrounds it,
+   not with its own (often slanted) surface.
 
 6. **Post-filter**: the guided weighted median (:func:`post_filter`).
 
@@ -1131,9 +1131,10 @@ def coarse_disparity(prob: DepthProblem, *, scale: int | None = None,
     round (SPEC §5.6 a) and the coarse prior of weakly textured pixels.
 
     :func:`depth` with the same options (a coarse prior only with ``coarse_prior_levels`` > 1,
-    one level fewer) and no visibility rounds on the light field downscaled by ``s = scale`` (default ``params.visibility_scale``;
-    :func:`hyperlf.lightfield.downscale`; ``ceil(L / s)`` labels over the range divided by
-    ``s``), its disparity repeated over each ``s x s`` block and multiplied by ``s``.
+    one level fewer) and no visibility rounds on the light field downscaled by ``s = scale``
+    (default ``params.visibility_scale``; :func:`hyperlf.lightfield.downscale`; ``ceil(L / s)``
+    labels over the range divided by ``s``), its disparity repeated over each ``s x s`` block
+    and multiplied by ``s``.
     Visibility needs only which surface is in front where; near depth edges the z-test's
     margin errs towards "hidden".
 
