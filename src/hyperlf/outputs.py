@@ -32,7 +32,6 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import errno
-import importlib.machinery
 import json
 import os
 import secrets
@@ -63,6 +62,9 @@ MANIFEST = ".hyperlf-result.json"
 _PREFIX = ".hyperlf-"
 _HELD_SIGNALS = tuple(s for s in (getattr(signal, n, None) for n in ("SIGINT", "SIGTERM",
                                                                      "SIGHUP")) if s)
+#: The signal that wakes the main thread to look again at a deferred interrupt (below): real,
+#: so that it ends a sleep or a wait, and ignored by default, so that a late one is harmless.
+_WAKE = getattr(signal, "SIGURG", None)
 
 
 # ----------------------------------------------------------------------------- signals
@@ -81,8 +83,8 @@ def deferred_signals() -> Iterator[None]:
         return
     pending: list[int] = []
     previous = {}
-    for sig in _HELD_SIGNALS:
-        if signal.getsignal(sig) not in (signal.SIG_IGN, None):
+    for sig in (*_HELD_SIGNALS, _WAKE):  # the wake-up of a deferred interrupt waits too
+        if sig is not None and signal.getsignal(sig) not in (signal.SIG_IGN, None):
             previous[sig] = signal.signal(sig, lambda signum, frame: pending.append(signum))
     try:
         yield
@@ -90,7 +92,7 @@ def deferred_signals() -> Iterator[None]:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
         if pending:
-            signal.raise_signal(pending[0])
+            signal.raise_signal(next((s for s in pending if s != _WAKE), pending[0]))
 
 
 #: Signals received inside :func:`signals_as_exceptions`, kept because the exception a handler
@@ -98,21 +100,83 @@ def deferred_signals() -> Iterator[None]:
 #: callback ("Exception ignored in ..."): :func:`raise_if_interrupted` raises it again.
 _RECEIVED: list[int] = []
 
+#: Top-level packages inside whose code an interrupt is never raised: numba's compiler and
+#: llvmlite hold LLVM objects whose destructors crash the interpreter (SIGSEGV) when their making
+#: was cut short, and an import cut short leaves a module (a compiled extension too) half made,
+#: which aborts the interpreter when it exits. Seen in CI, reproduced by :mod:`tests`.
+FRAGILE_PACKAGES = frozenset({"numba", "llvmlite", "importlib"})
 
-def _raise_interrupt(signum, frame):  # noqa: ARG001 - the signal module's signature
-    _RECEIVED.append(signum)
-    raise KeyboardInterrupt if signum == signal.SIGINT else Terminated(signum)
+#: Seconds between two looks at whether the main thread has left the fragile code.
+_RETRY_S = 0.05
+_retry_lock = threading.Lock()
+_deferred: dict[str, object] = {"signum": None, "timer": None, "wake": False}
+
+
+def _in_fragile_code(frame) -> bool:
+    """Whether ``frame`` or any frame that called it runs code of :data:`FRAGILE_PACKAGES`."""
+    while frame is not None:
+        if frame.f_globals.get("__name__", "").partition(".")[0] in FRAGILE_PACKAGES:
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _interrupt(signum: int) -> KeyboardInterrupt:
+    return KeyboardInterrupt() if signum == signal.SIGINT else Terminated(signum)
+
+
+def _retry() -> None:
+    """Run in a timer thread: make the main thread run its handler again."""
+    import _thread
+
+    with _retry_lock:
+        if _deferred["signum"] is None:
+            return
+        if _deferred["wake"]:
+            signal.pthread_kill(threading.main_thread().ident, _WAKE)
+        else:  # no wake signal of ours: simulated, so a sleep in C ends only when it ends
+            _thread.interrupt_main(_deferred["signum"])
+
+
+def _defer(signum: int) -> None:
+    with _retry_lock:
+        _deferred["signum"] = signum
+        timer = _deferred["timer"] = threading.Timer(_RETRY_S, _retry)
+        timer.daemon = True
+        timer.start()
+
+
+def _forget_deferred() -> None:
+    with _retry_lock:
+        if _deferred["timer"] is not None:
+            _deferred["timer"].cancel()
+        _deferred.update(signum=None, timer=None)
+
+
+def _raise_interrupt(signum, frame):
+    """The handler: raise the interrupt now, or as soon as the main thread has left code of
+    :data:`FRAGILE_PACKAGES` (looked at every :data:`_RETRY_S` seconds)."""
+    if signum != _WAKE and signum not in _RECEIVED:
+        _RECEIVED.append(signum)
+    if not _RECEIVED:  # a wake-up nobody asked for
+        return
+    if _in_fragile_code(frame):
+        _defer(_RECEIVED[0])
+        return
+    _forget_deferred()
+    raise _interrupt(_RECEIVED[0])  # the first signal names the interrupt
 
 
 def raise_if_interrupted() -> None:
-    """Raise the interrupt of a signal whose exception was swallowed (see :data:`_RECEIVED`).
+    """Raise the interrupt of a signal whose exception was swallowed (see :data:`_RECEIVED`)
+    or is still deferred.
 
     Called before a result set is moved into place, so that a run whose interrupt was lost
     never publishes its results as if nothing had happened.
     """
     if _RECEIVED:
-        signum = _RECEIVED[0]
-        raise KeyboardInterrupt if signum == signal.SIGINT else Terminated(signum)
+        _forget_deferred()
+        raise _interrupt(_RECEIVED[0])
 
 
 def _quiet_unraisable(previous):
@@ -124,47 +188,17 @@ def _quiet_unraisable(previous):
     return hook
 
 
-class _ExtensionLoader(importlib.machinery.ExtensionFileLoader):
-    """Loads a compiled extension module with the signals deferred in each phase of its C
-    initialisation (see below)."""
-
-    def create_module(self, spec):
-        with deferred_signals():
-            return super().create_module(spec)
-
-    def exec_module(self, module):
-        with deferred_signals():
-            super().exec_module(module)
-
-
-class _AtomicExtensionImports:
-    """A meta-path finder that makes the initialisation of compiled extension modules atomic.
-
-    An interrupt raised while an extension initialises (matplotlib's ``ft2font`` calls back into
-    Python there) is turned by it into ``ImportError: initialization failed`` and leaves the
-    extension half made; the interpreter then aborts when it exits (SIGABRT, "Fatal Python
-    error ... finalizing"). Pure-Python modules are left alone: an interrupt there is clean.
-    """
-
-    @staticmethod
-    def find_spec(name, path=None, target=None):
-        spec = importlib.machinery.PathFinder.find_spec(name, path, target)
-        if spec is None or type(spec.loader) is not importlib.machinery.ExtensionFileLoader:
-            return None  # the finders after this one do the usual work
-        spec.loader = _ExtensionLoader(spec.loader.name, spec.loader.path)
-        return spec
-
-
 @contextlib.contextmanager
 def signals_as_exceptions() -> Iterator[None]:
     """Turn SIGINT into ``KeyboardInterrupt`` and SIGTERM / SIGHUP into
     :class:`~hyperlf.errors.Terminated` for the block, so that clean-up code runs alike.
 
-    A signal the process ignores (``nohup``, a background job) stays ignored. An interrupt that
-    Python loses (raised inside a ``__del__`` or weakref callback) is remembered and raised
-    again by :func:`raise_if_interrupted`. Compiled extension modules imported in the block
-    initialise with the signals deferred (:class:`_AtomicExtensionImports`). The previous
-    handlers are restored at the end. Outside the main thread this does nothing.
+    A signal the process ignores (``nohup``, a background job) stays ignored. The interrupt is
+    never raised inside the code of :data:`FRAGILE_PACKAGES` (numba's compiler, llvmlite,
+    imports): it waits until the main thread has left it, at most a compilation or an import
+    later. An interrupt that Python loses (raised inside a ``__del__`` or weakref callback) is
+    remembered and raised again by :func:`raise_if_interrupted`. The previous handlers are
+    restored at the end. Outside the main thread this does nothing.
     """
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -173,16 +207,21 @@ def signals_as_exceptions() -> Iterator[None]:
     for sig in _HELD_SIGNALS:
         if signal.getsignal(sig) not in (signal.SIG_IGN, None):
             previous[sig] = signal.signal(sig, _raise_interrupt)
-    hook, _RECEIVED[:] = sys.unraisablehook, []
+    if _WAKE is not None and signal.getsignal(_WAKE) in (signal.SIG_DFL, _raise_interrupt):
+        previous[_WAKE] = signal.signal(_WAKE, _raise_interrupt)
+    wake, _deferred["wake"] = _deferred["wake"], _WAKE in previous
+    hook, received = sys.unraisablehook, list(_RECEIVED)  # nested: the outer block's signals
     sys.unraisablehook = _quiet_unraisable(hook)
-    sys.meta_path.insert(0, _AtomicExtensionImports)
     try:
         yield
+        late = _deferred["signum"]  # came in fragile code just before the block ended
     finally:
-        sys.meta_path.remove(_AtomicExtensionImports)
+        _forget_deferred()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-        sys.unraisablehook, _RECEIVED[:] = hook, []
+        sys.unraisablehook, _RECEIVED[:], _deferred["wake"] = hook, received, wake
+    if late is not None:
+        raise _interrupt(late)
 
 
 # ----------------------------------------------------------------------------- manifests
