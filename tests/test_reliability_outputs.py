@@ -520,3 +520,15 @@ def test_a_deferred_interrupt_carries_into_a_nested_block():
             with pytest.raises(Terminated):
                 time.sleep(30)
     assert len(done) == 1 and outputs._RECEIVED == []
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGURG"), reason="no SIGURG on this platform")
+def test_a_sigurg_nobody_asked_for_changes_nothing():
+    with signals_as_exceptions():
+        os.kill(os.getpid(), signal.SIGURG)
+        for _ in range(100):
+            time.sleep(0.001)
+        with pytest.raises(Terminated):  # and a real signal afterwards still works
+            os.kill(os.getpid(), signal.SIGTERM)
+            for _ in range(2000):
+                time.sleep(0.001)

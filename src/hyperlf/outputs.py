@@ -70,7 +70,8 @@ _WAKE = getattr(signal, "SIGURG", None)
 # ----------------------------------------------------------------------------- signals
 @contextlib.contextmanager
 def deferred_signals() -> Iterator[None]:
-    """Hold back SIGINT, SIGTERM and SIGHUP in the block; deliver them when it ends.
+    """Hold back SIGINT, SIGTERM and SIGHUP (and the wake-up of a deferred interrupt, see
+    :func:`signals_as_exceptions`) in the block; deliver them when it ends.
 
     Used around the few system calls that move a finished result set into place, so that an
     interrupt can never leave it half moved. The signals are recorded by a Python handler (which
@@ -115,7 +116,7 @@ _deferred: dict[str, object] = {"signum": None, "timer": None, "wake": False}
 def _in_fragile_code(frame) -> bool:
     """Whether ``frame`` or any frame that called it runs code of :data:`FRAGILE_PACKAGES`."""
     while frame is not None:
-        if frame.f_globals.get("__name__", "").partition(".")[0] in FRAGILE_PACKAGES:
+        if str(frame.f_globals.get("__name__") or "").partition(".")[0] in FRAGILE_PACKAGES:
             return True
         frame = frame.f_back
     return False
@@ -156,10 +157,11 @@ def _forget_deferred() -> None:
 def _raise_interrupt(signum, frame):
     """The handler: raise the interrupt now, or as soon as the main thread has left code of
     :data:`FRAGILE_PACKAGES` (looked at every :data:`_RETRY_S` seconds)."""
-    if signum != _WAKE and signum not in _RECEIVED:
+    if signum == _WAKE:
+        if _deferred["signum"] is None or not _RECEIVED:  # late, or somebody else's SIGURG
+            return
+    elif signum not in _RECEIVED:
         _RECEIVED.append(signum)
-    if not _RECEIVED:  # a wake-up nobody asked for
-        return
     if _in_fragile_code(frame):
         _defer(_RECEIVED[0])
         return
