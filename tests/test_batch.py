@@ -135,6 +135,31 @@ def test_a_killed_worker_loses_no_capture_and_a_rerun_recomputes_nothing(capture
     assert all(r["status"] == "done before" for r in _summary(out))
 
 
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="finds workers in /proc")
+def test_sigterm_to_a_batch_leaves_no_hidden_staging_folders(captures, tmp_path):
+    """The depth processes of a stopped batch get SIGTERM when their worker goes (they used to
+    get SIGKILL and leave their staging folders until the next run) and clean up themselves."""
+    out = tmp_path / "out"
+    proc = _hyperlf("batch", captures, "--labels", LABELS, "--workers", 2, "-o", out)
+    try:
+        depth_pid, _, _ = _running_depth(proc.pid)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        proc.kill()
+    assert proc.returncode == 143, err
+    assert "terminated" in err and "Traceback" not in err
+    t_end = time.monotonic() + 60  # the depth process cleans up after its worker has gone
+    while Path(f"/proc/{depth_pid}").exists() and time.monotonic() < t_end:
+        if "Z" in Path(f"/proc/{depth_pid}/stat").read_text().rsplit(")", 1)[1].split()[0]:
+            break
+        time.sleep(0.05)
+    hidden = [p.name for p in out.iterdir() if p.name.startswith(".hyperlf-")]
+    assert hidden in ([], [".hyperlf-batch.json"]), hidden
+    for folder in (p for p in out.iterdir() if p.is_dir()):
+        _assert_whole(folder)  # what finished before the signal is whole
+
+
 def test_a_failed_capture_is_reported_and_the_others_finish(captures, tmp_path):
     import shutil
 

@@ -8,14 +8,16 @@ one result set per capture under one output folder, plus a summary (``summary.cs
 How the work is made safe to lose:
 
 * every capture runs as its own ``hyperlf depth`` process, so its outputs are a whole result
-  set (:mod:`hyperlf.outputs`) and its memory is returned when it ends; on Linux the process is
-  killed with the worker that started it, so a dead worker leaves no writer behind;
+  set (:mod:`hyperlf.outputs`) and its memory is returned when it ends; on Linux the process
+  gets SIGTERM when the worker that started it goes, so a dead worker leaves no writer behind
+  and the process removes its own staging folder (a batch stopped by SIGTERM or Ctrl-C leaves
+  no hidden folders);
 * a capture whose result set exists is finished and never recomputed (a re-run submits only
   the missing ones); the depth options of the batch are recorded in the folder
   (:data:`BATCH_FILE`), and a re-run with other options is refused unless ``overwrite``;
 * a worker that dies loses only the capture it was running: the scheduler gives that task to
-  another worker (dask's ``allowed-failures``), and the stale staging folder of the killed run
-  is removed by the next run that writes beside it.
+  another worker (dask's ``allowed-failures``); a staging folder left all the same (a depth
+  process killed outright) is removed by the next run that writes beside it.
 
 The scheduler is a :class:`dask.distributed.LocalCluster` of ``workers`` processes with one
 thread each unless ``scheduler`` names an existing one.  dask.distributed is an optional
@@ -220,12 +222,14 @@ def _done_before(task: CaptureTask) -> CaptureResult | None:
 
 # ----------------------------------------------------------------------------- one capture
 def _die_with_parent() -> None:  # pragma: no cover - runs in the child before exec
-    """Linux: the child gets SIGKILL when the worker thread that started it dies."""
+    """Linux: the child gets SIGTERM when the worker thread that started it dies, and so
+    removes its staging folder itself, as after any SIGTERM (a batch stopped by SIGTERM or
+    Ctrl-C leaves no hidden folders behind)."""
     try:
         import ctypes
         import signal
 
-        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
     except (OSError, AttributeError):
         pass
 
