@@ -29,6 +29,7 @@ held with ``flock`` while the run lives) and removed by the next run that writes
 
 from __future__ import annotations
 
+import _thread
 import contextlib
 import ctypes
 import errno
@@ -128,8 +129,6 @@ def _interrupt(signum: int) -> KeyboardInterrupt:
 
 def _retry() -> None:
     """Run in a timer thread: make the main thread run its handler again."""
-    import _thread
-
     with _retry_lock:
         if _deferred["signum"] is None:
             return
