@@ -481,7 +481,7 @@ def test_a_deferred_interrupt_is_not_lost_when_the_block_ends():
     work, done = fragile_function("numba"), []
     with pytest.raises(Terminated):
         with signals_as_exceptions():
-            work(done)  # the block ends before the first retry
+            work(done)  # the block ends before the next retry (within _RETRY_S)
     assert len(done) == 1 and outputs._deferred["signum"] is None
 
 
@@ -509,6 +509,7 @@ def test_a_deferred_interrupt_ends_a_sleep_that_follows():
     assert signal.getsignal(signal.SIGURG) is signal.SIG_DFL
 
 
+@pytest.mark.skipif(not hasattr(signal, "SIGURG"), reason="no SIGURG on this platform")
 def test_a_deferred_interrupt_carries_into_a_nested_block():
     """``python -m hyperlf`` nests two blocks (``__main__`` around the imports, ``cli.main``
     around the command): a signal deferred during the imports must come inside the command,
