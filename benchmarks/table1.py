@@ -11,7 +11,8 @@ Protocol (SPEC §4)
   Teddy), else on every pixel with ground truth (Art): ``pair.eval_mask('all')``.  Scored on the
   *filled* map (every pixel has a disparity).
 * Every cost with the **same optimiser**: graph cuts (alpha-expansion, truncated linear,
-  contrast-sensitive) + left-right check + background fill; and the same with SGM.
+  contrast-sensitive) + left-right check + the library's occlusion fill (``--occlusion``:
+  ``lr-plane`` by default, ``lr-fill`` = the paper's background fill); and the same with SGM.
   Parameters and windows come from each cost of the registry (``params`` / ``windows`` of
   :class:`hyperlf.costs.Cost`, read by :func:`hyperlf.twoview.default_params` /
   ``default_window``), which are meant to be tuned on **Venus only** (``--tune``) and then
@@ -50,8 +51,8 @@ from hyperlf import regularisers as reg
 from hyperlf._atomic import atomic_write_text
 from hyperlf.formats.middlebury import read_middlebury
 from hyperlf.metrics import disparity_scores
-from hyperlf.twoview import (compute_volumes, default_params, default_window,
-                            stereo_from_volumes)
+from hyperlf.twoview import (DEFAULT_OCCLUSION, OCCLUSION_MODES, compute_volumes,
+                            default_params, default_window, stereo_from_volumes)
 
 SCENES = ("tsukuba", "art", "teddy")
 TUNING_SCENE = "venus"
@@ -130,10 +131,14 @@ def warm_up(metric: str) -> None:
     _WARM.add(metric)
 
 
+OCCLUSION = {"mode": DEFAULT_OCCLUSION}   # --occlusion
+
+
 def run_cell(volumes, drange, optimizer, params, guides):
     cl, cr, t_cost = volumes
-    res = stereo_from_volumes(cl, cr, drange[0], optimizer=optimizer, occlusion="lr-fill",
-                              params=params, guide_left=guides[0], guide_right=guides[1])
+    res = stereo_from_volumes(cl, cr, drange[0], optimizer=optimizer,
+                              occlusion=OCCLUSION["mode"], params=params,
+                              guide_left=guides[0], guide_right=guides[1])
     return res, t_cost + res.timings["optimiser"]
 
 
@@ -221,7 +226,8 @@ def markdown(results: dict, scenes, meta: dict) -> str:
     out = ["# Table 1 — two-view cross-spectral stereo (red of left vs blue of right)", "",
            f"Scores: bad5.0 / bad2.0 / bad1.0 (%) on the `all` mask where present, else all "
            f"pixels with ground truth; filled maps.  Runtime = cost + optimiser, seconds "
-           f"({meta['cores']} cores).  Parameters: {meta['param_source']}.  "
+           f"({meta['cores']} cores).  Occlusion fill: {meta['occlusion']}.  "
+           f"Parameters: {meta['param_source']}.  "
            f"Paper: the paper's bad5.0 (SPEC §4; 'Ours' = BWNCC).", ""]
     head = "| optimiser | cost | " + " | ".join(
         f"{s} bad5 | {s} bad2 | {s} bad1 | {s} paper bad5 | {s} s" for s in scenes) + " |"
@@ -254,12 +260,16 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default="benchmarks/results/table1")
     ap.add_argument("--tune", action="store_true", help="grid-search on Venus first (slow)")
     ap.add_argument("--params-json", help="tuned parameters written by an earlier --tune run")
+    ap.add_argument("--occlusion", default=DEFAULT_OCCLUSION, choices=OCCLUSION_MODES,
+                    help="step 6 of the pipeline for every cost (default: the library's, "
+                         f"{DEFAULT_OCCLUSION}; lr-fill is the paper's background fill)")
     ap.add_argument("--no-baselines", action="store_true",
                     help="skip the OpenCV SGBM and red-vs-red rows")
     ap.add_argument("--speed", action="store_true",
                     help="only time hyperlf.stereo end to end on Teddy (bwncc, census-rsncc, "
                          "fused) and exit")
     args = ap.parse_args(argv)
+    OCCLUSION["mode"] = args.occlusion
     if args.speed:
         md = speed_report()
         print(md)
@@ -365,7 +375,7 @@ def main(argv=None) -> int:
     mindex = {m: i for i, m in enumerate(metrics)}
     ordered = sorted(rows.values(), key=lambda r: (kinds[r["kind"]], order.get(r["optimizer"], 9),
                                                    mindex.get(r["metric"], 99)))
-    meta = {"cores": os.cpu_count(), "param_source": param_source, "scenes": scenes,
+    meta = {"cores": os.cpu_count(), "param_source": param_source, "occlusion": args.occlusion, "scenes": scenes,
             "metrics": metrics, "optimizers": optimizers, "tuning_scene": TUNING_SCENE,
             "protocol": "left red vs right blue; bad-tau on 'all' mask or all GT pixels; filled maps",
             "python": platform.python_version(), "default_metric": default_metric,

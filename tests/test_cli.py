@@ -116,6 +116,31 @@ def test_stereo_command_writes_disparity_products(tmp_path):
                  "-o", str(out)]) == 2  # no range given: usage error with a hint
 
 
+@pytest.mark.parametrize("extra", [["--occlusion", "lr-fill"], ["--occlusion", "none"],
+                                   ["--no-occlusion"], []])
+def test_stereo_command_occlusion_modes(tmp_path, extra, monkeypatch):
+    import hyperlf.twoview as tv
+    from hyperlf.formats import write_image
+
+    seen = {}
+    real = tv.stereo
+
+    def spy(*a, **k):
+        seen.update(k)
+        return real(*a, **k)
+
+    monkeypatch.setattr(tv, "stereo", spy)
+    tex = np.random.default_rng(4).random((30, 50)).astype(np.float32)
+    write_image(tmp_path / "l.png", tex[:, 3:43], bit_depth=16)
+    write_image(tmp_path / "r.png", tex[:, 6:46], bit_depth=16)
+    assert main(["-q", "stereo", str(tmp_path / "l.png"), str(tmp_path / "r.png"),
+                 "--disparity-range", "0,6", "--optimizer", "wta", *extra,
+                 "-o", str(tmp_path / "o")]) == 0
+    want = {(): "lr-plane", ("--no-occlusion",): "none"}.get(tuple(extra), extra[-1] if extra
+                                                              else None)
+    assert seen["occlusion"] == want
+
+
 def test_depth_command_on_a_synthetic_capture(tmp_path, capsys):
     from hyperlf.formats import read_pfm
 

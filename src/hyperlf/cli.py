@@ -565,7 +565,8 @@ def _cmd_stereo(args, dest) -> list[Path]:
         raise InvalidInputError(f"--disparity-range must be integers, got {lo:g},{hi:g}")
     channel = args.channel
     res = stereo(left, right, (int(lo), int(hi)), metric=args.metric, optimizer=args.optimizer,
-                 occlusion="none" if args.no_occlusion else "lr-fill", subpixel=args.subpixel,
+                 occlusion="none" if args.no_occlusion else args.occlusion,
+                 subpixel=args.subpixel,
                  channel=channel, progress=not args.quiet)
     written = save_disparity_outputs(dest, res.disparity,
                                       f"{res.metric} + {res.optimizer}", confidence=res.confidence)
@@ -1148,8 +1149,13 @@ def _add_stereo_parser(sub) -> None:
                    help="image channel(s) to match for colour inputs: 0 red, 1 green, 2 blue; "
                         "L,R picks one per image (default: mean of channels)")
     p.add_argument("--subpixel", action="store_true", help="parabola sub-pixel refinement")
+    p.add_argument("--occlusion", default="lr-plane", choices=["lr-plane", "lr-fill", "none"],
+                   help="pixels that fail the left-right check: lr-plane (default) gives those "
+                        "the right view sees the slanted plane of their image region and the "
+                        "hidden ones the background of their row; lr-fill gives all the "
+                        "background (the paper's protocol); none keeps the raw map")
     p.add_argument("--no-occlusion", action="store_true",
-                   help="skip the left-right check and background fill")
+                   help="the same as --occlusion none")
     _add_output_folder(p)
 
 

@@ -46,7 +46,12 @@ Pipeline
 6. **Occlusions** (``"lr-fill"``): :func:`~hyperlf.regularisers.left_right_check` (tolerance
    1 px) on the integer maps, then :func:`~hyperlf.regularisers.fill_occlusions` (each
    inconsistent pixel takes the lower of the nearest consistent disparities on its row, i.e.
-   the background).  ``"none"``: every pixel counts as valid.
+   the background).  ``"lr-plane"`` (the default) first splits the inconsistent pixels into
+   occlusions (no right pixel maps to them: :func:`~hyperlf.regularisers.left_occlusions`)
+   and mismatches; a mismatch in a planar region of the left image with enough consistent
+   pixels takes that region's plane (:func:`~hyperlf.regularisers.plane_fill`, constants
+   ``plane_params``), everything else the background fill.  ``"none"``: every pixel counts
+   as valid.
 7. **Sub-pixel** (optional): parabola through the optimised volume (SGM: the aggregated
    volume; WTA/graphcut: the data term) at the chosen label, before the fill.
 
@@ -69,18 +74,22 @@ from .errors import InvalidInputError
 __all__ = [
     "OPTIMIZERS",
     "OCCLUSION_MODES",
+    "DEFAULT_OCCLUSION",
     "StereoResult",
     "stereo",
     "select_channels",
     "compute_volumes",
     "stereo_from_volumes",
+    "fill_inconsistent",
     "default_params",
     "default_window",
 ]
 
 #: Optimiser names (:data:`hyperlf.regularisers.OPTIMISERS`).
 OPTIMIZERS = tuple(_reg.OPTIMISERS)
-OCCLUSION_MODES = ("lr-fill", "none")
+OCCLUSION_MODES = ("lr-plane", "lr-fill", "none")
+#: The occlusion handling of :func:`stereo` by default (chosen on Venus: BENCHMARKS.md).
+DEFAULT_OCCLUSION = "lr-plane"
 
 # Two-view's own fallback parameters per optimiser, in units of the normalised data term
 # (module doc, step 4); graph cuts run coarse to fine (``levels=2``).
@@ -148,7 +157,7 @@ class StereoResult:
         Cost window (None: the metric's default).
     disparity_range : (int, int)
     right_disparity : float32 (H, W) or None
-        Right-view disparity map (integer labels) when ``occlusion="lr-fill"``.
+        Right-view disparity map (integer labels) when the left-right check ran.
     """
 
     disparity: np.ndarray
@@ -339,10 +348,46 @@ def _optimise(D: np.ndarray, params, guide, labels, subpixel: bool, progress: bo
     return res.labels, disp, res.volume
 
 
+def fill_inconsistent(disp_l, disp_r, valid, occlusion: str, guide, plane_params=None,
+                      drange=(-np.inf, np.inf)):
+    """Step 6 after the left-right check (module docstring): the background fill, and for
+    ``occlusion="lr-plane"`` the plane of their region for the mismatches.
+
+    Parameters
+    ----------
+    disp_l, disp_r : ndarray (H, W)
+        Left disparity (before any fill) and the right view's disparity.
+    valid : ndarray of bool (H, W)
+        :func:`hyperlf.regularisers.left_right_check` of the two.
+    occlusion : {"lr-plane", "lr-fill"}
+    guide : ndarray (H, W)
+        The left image (its regions carry the planes).
+    plane_params : PlaneFillParams, optional
+    drange : (float, float)
+        Plane values are clipped to it.
+
+    Returns
+    -------
+    (ndarray, ndarray of bool)
+        The filled map, and the pixels that got a plane value.
+    """
+    replaced = np.zeros(valid.shape, dtype=bool)
+    if not valid.any():  # nothing consistent: keep the left map rather than fail
+        return disp_l.copy(), replaced
+    final = _reg.fill_occlusions(disp_l, valid)
+    if occlusion == "lr-plane":
+        mismatch = ~valid & ~_reg.left_occlusions(disp_r)
+        planes, replaced = _reg.plane_fill(disp_l, valid, guide, targets=mismatch,
+                                           params=plane_params)
+        final = np.where(replaced, np.clip(planes, *drange), final).astype(final.dtype)
+    return final, replaced
+
+
 def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "graphcut",
-                        occlusion: str = "lr-fill", params: dict | None = None,
+                        occlusion: str = DEFAULT_OCCLUSION, params: dict | None = None,
                         guide_left=None, guide_right=None, subpixel: bool = False,
-                        metric: str = "auto", progress: bool = False) -> StereoResult:
+                        metric: str = "auto", progress: bool = False,
+                        plane_params: _reg.PlaneFillParams | None = None) -> StereoResult:
     """Steps 4-7 of the pipeline on precomputed volumes (see :func:`compute_volumes`).
 
     Parameters
@@ -355,14 +400,18 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
     optimizer, occlusion, params, subpixel, progress
         As :func:`stereo`; ``params`` override :func:`default_params` of ``metric``.
     guide_left, guide_right : ndarray (H, W), optional
-        The input images, for the graph-cut edge weights.
+        The input images, for the graph-cut edge weights (``guide_left`` is required by
+        ``occlusion="lr-plane"``: its regions carry the planes).
     metric : str
         Recorded, and used to look up the default parameters.
+    plane_params : PlaneFillParams, optional
+        Constants of the ``"lr-plane"`` fill (:class:`hyperlf.regularisers.PlaneFillParams`).
 
     Returns
     -------
     StereoResult
-        ``timings`` holds only ``optimiser``.
+        ``timings`` holds only ``optimiser``; ``extra["plane_filled"]`` the share of pixels
+        the ``"lr-plane"`` fill gave a plane value.
     """
     optimizer = _check_optimizer(optimizer)
     occlusion = _check_occlusion(occlusion)
@@ -380,9 +429,12 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
     fl, disp_l, vol_l = _optimise(DL, opt, guide_left, labels, subpixel, progress)
     conf = _reg.confidence(vol_l, fl)
     disp_r = None
-    if occlusion == "lr-fill":
+    replaced = np.zeros(disp_l.shape, dtype=bool)
+    if occlusion != "none":
         if cost_right is None:
-            raise InvalidInputError("occlusion='lr-fill' needs the right-referenced volume")
+            raise InvalidInputError(f"occlusion={occlusion!r} needs the right-referenced volume")
+        if occlusion == "lr-plane" and guide_left is None:
+            raise InvalidInputError("occlusion='lr-plane' needs guide_left (the left image)")
         cr = np.asarray(cost_right, dtype=np.float32)
         if cr.shape != cl.shape:
             raise InvalidInputError(f"cost_right shape {cr.shape} != cost_left shape {cl.shape}")
@@ -390,10 +442,8 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
         fr, _, _ = _optimise(DR, opt, guide_right, labels, False, progress)
         disp_r = labels[fr].astype(np.float32)
         valid = _reg.left_right_check(labels[fl], disp_r, tol=1.0)
-        if valid.any():
-            final = _reg.fill_occlusions(disp_l, valid)
-        else:  # nothing consistent: keep the left map rather than fail
-            final = disp_l.copy()
+        final, replaced = fill_inconsistent(disp_l, disp_r, valid, occlusion, guide_left,
+                                             plane_params, (labels[0], labels[-1]))
         conf = np.where(valid, conf, 0.0).astype(np.float32)
     else:
         valid = np.ones(disp_l.shape, dtype=bool)
@@ -403,13 +453,14 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
                         valid=valid, confidence=conf, timings={"optimiser": t_opt}, metric=name,
                         optimizer=optimizer, params=p, occlusion=occlusion,
                         disparity_range=(int(dmin), int(dmin + Lc - 1)), right_disparity=disp_r,
-                        extra={"data_scale": s})
+                        extra={"data_scale": s, "plane_filled": float(replaced.mean())})
 
 
 def stereo(left, right, disparity_range, metric: str = "auto", optimizer: str = "graphcut",
-           occlusion: str = "lr-fill", subpixel: bool = False, params: dict | None = None,
+           occlusion: str = DEFAULT_OCCLUSION, subpixel: bool = False, params: dict | None = None,
            window: int | None = None, channel=None, progress: bool = False,
-           cost_params: dict | None = None) -> StereoResult:
+           cost_params: dict | None = None,
+           plane_params: _reg.PlaneFillParams | None = None) -> StereoResult:
     """Disparity of the left view of a rectified pair (SPEC §4; module docstring).
 
     Parameters
@@ -423,8 +474,10 @@ def stereo(left, right, disparity_range, metric: str = "auto", optimizer: str = 
         default).
     optimizer : {"graphcut", "sgm", "wta"}
         The names of :data:`hyperlf.regularisers.OPTIMISERS`.
-    occlusion : {"lr-fill", "none"}
-        Left-right check + background fill, or nothing.
+    occlusion : {"lr-plane", "lr-fill", "none"}
+        Left-right check, then the plane of their region for mismatches and the background
+        fill for the rest (``"lr-plane"``, default), the background fill for all
+        (``"lr-fill"``, the paper's protocol), or nothing (module docstring, step 6).
     subpixel : bool
         Parabola refinement of the chosen labels.
     params : dict, optional
@@ -440,6 +493,8 @@ def stereo(left, right, disparity_range, metric: str = "auto", optimizer: str = 
         A progress bar during graph cuts.
     cost_params : dict, optional
         Extra options of the cost (:func:`hyperlf.costs.cost_volume`).
+    plane_params : PlaneFillParams, optional
+        Constants of the ``"lr-plane"`` fill (:class:`hyperlf.regularisers.PlaneFillParams`).
 
     Returns
     -------
@@ -482,11 +537,12 @@ def stereo(left, right, disparity_range, metric: str = "auto", optimizer: str = 
     if L.mean() <= 0 or R.mean() <= 0:
         raise InvalidInputError("images must have a positive mean (linear intensities expected)")
     t0 = time.perf_counter()
-    cl, cr = compute_volumes(L, R, dmin, dmax, name, window, need_right=(occlusion == "lr-fill"),
+    cl, cr = compute_volumes(L, R, dmin, dmax, name, window, need_right=(occlusion != "none"),
                              cost_params=cost_params)
     t_cost = time.perf_counter() - t0
     res = stereo_from_volumes(cl, cr, dmin, optimizer, occlusion, p, guide_left=L, guide_right=R,
-                              subpixel=bool(subpixel), metric=name, progress=progress)
+                              subpixel=bool(subpixel), metric=name, progress=progress,
+                              plane_params=plane_params)
     res.window = window
     res.timings = {"cost": t_cost, "optimiser": res.timings["optimiser"],
                    "total": time.perf_counter() - t_all}

@@ -20,11 +20,13 @@ Modules
 ``make_params``), ``dispatch`` (``optimise``, the one entry that runs any of them),
 ``basic`` (``data_term``, ``wta``, ``fill_invalid``), ``semiglobal`` (``sgm``, ``sgm_labels``),
 ``graphcuts`` (``graphcut``, ``graphcut_multiscale``, ``mrf_energy``,
-``edge_weights_from_guide``, ``candidate_labels``) and ``postprocess`` (``left_right_check``,
-``fill_occlusions``, ``right_cost_from_left``, ``subpixel_refine``, ``confidence``,
-``weighted_median``).  Every public name is importable from :mod:`hyperlf.regularisers`; the
-numba kernels (``_kernels``) are compiled on first use, so importing the package does not
-import numba.
+``edge_weights_from_guide``, ``candidate_labels``), ``postprocess`` (``left_right_check``,
+``left_occlusions``, ``fill_occlusions``, ``right_cost_from_left``, ``subpixel_refine``,
+``confidence``, ``weighted_median``) and ``planes`` (``segment``, ``fit_plane``,
+``plane_fill``, ``PlaneFillParams``: the segment-wise slanted-plane fill).  Every public name
+is importable from :mod:`hyperlf.regularisers`; the numba kernels (``_kernels``) are compiled
+on first use, so importing the package does not import numba (nor scikit-image, which
+``segment`` imports when called).
 
 Choosing an optimiser::
 
@@ -49,8 +51,9 @@ from .dispatch import OptimiseResult, optimise
 from .graphcuts import (GRAPHCUT_SMOOTHNESS, candidate_labels, edge_weights_from_guide,
                         graphcut, graphcut_multiscale, mrf_energy)
 from .params import OPTIMISERS, GraphCutParams, SGMParams, WTAParams, make_params, params_dict
-from .postprocess import (confidence, fill_occlusions, left_right_check, right_cost_from_left,
-                          subpixel_refine, weighted_median)
+from .planes import PlaneFillParams, fit_plane, plane_fill, segment
+from .postprocess import (confidence, fill_occlusions, left_occlusions, left_right_check,
+                          right_cost_from_left, subpixel_refine, weighted_median)
 from .semiglobal import SGM_PATHS, SGM_SMOOTHNESS, sgm, sgm_labels
 
 __all__ = [
@@ -76,6 +79,11 @@ __all__ = [
     "graphcut_multiscale",
     "GRAPHCUT_SMOOTHNESS",
     "left_right_check",
+    "left_occlusions",
+    "PlaneFillParams",
+    "segment",
+    "fit_plane",
+    "plane_fill",
     "fill_occlusions",
     "right_cost_from_left",
     "subpixel_refine",

@@ -8,7 +8,7 @@ from ..errors import InvalidInputError
 from ..warp import coordinate_taps
 from ._checks import check_cost, check_label_map, check_labels, check_positive, gather
 
-__all__ = ["left_right_check", "fill_occlusions", "right_cost_from_left", "subpixel_refine",
+__all__ = ["left_right_check", "left_occlusions", "fill_occlusions", "right_cost_from_left", "subpixel_refine",
            "confidence", "weighted_median"]
 
 
@@ -66,6 +66,45 @@ def left_right_check(disp_left, disp_right, tol: float = 1.0) -> np.ndarray:
     with np.errstate(invalid="ignore"):
         ok = inside & np.isfinite(drv) & (np.abs(dl - drv) <= tol)
     return ok
+
+
+def left_occlusions(disp_right) -> np.ndarray:
+    """Left pixels that no right pixel maps to: occluded in the right view.
+
+    Right pixel ``x_r`` with disparity ``d_R`` sees left pixel ``round(x_r + d_R)``; a left
+    pixel that none of its row's right pixels sees is hidden from the right camera (or
+    outside its image).  Of the pixels that fail :func:`left_right_check`, these are the
+    occlusions and the others the mismatches (Hirschmüller 2008, section 3.4).
+
+    Parameters
+    ----------
+    disp_right : array_like, shape (H, W)
+        The right view's disparity map (NaN allowed: that pixel sees nothing).
+
+    Returns
+    -------
+    ndarray of bool, shape (H, W)
+
+    References
+    ----------
+    .. [1] H. Hirschmüller, "Stereo processing by semiglobal matching and mutual
+       information", IEEE TPAMI 30(2), 2008.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> left_occlusions(np.array([[0.0, 0.0, 1.0, 1.0]])).tolist()   # x = 2 is seen by nobody
+    [[False, False, True, False]]
+    """
+    dr = _check_disp(disp_right, "disp_right").astype(np.float64)
+    H, W = dr.shape
+    with np.errstate(invalid="ignore"):
+        xl = np.floor(np.arange(W)[None, :] + dr + 0.5)
+    ok = np.isfinite(xl) & (xl >= 0) & (xl <= W - 1)
+    seen = np.zeros((H, W), dtype=bool)
+    rows = np.broadcast_to(np.arange(H)[:, None], (H, W))
+    seen[rows[ok], xl[ok].astype(np.intp)] = True
+    return ~seen
 
 
 def fill_occlusions(disp, valid) -> np.ndarray:

@@ -1,0 +1,157 @@
+"""Segment-wise plane fill and the occlusion / mismatch split of two-view stereo (issue 12 item 3)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from hyperlf import regularisers as reg
+from hyperlf.errors import InvalidInputError
+from hyperlf.twoview import fill_inconsistent, stereo
+
+H, W = 60, 90
+
+
+def two_surfaces(seed=0):
+    """A guide with two regions (left: dark, right: bright, a little noise) and two slanted
+    planes on them, with their own slopes."""
+    rng = np.random.default_rng(seed)
+    y, x = np.mgrid[:H, :W].astype(np.float64)
+    right = x >= 45
+    guide = np.where(right, 0.8, 0.2) + 0.01 * rng.standard_normal((H, W))
+    truth = np.where(right, -0.05 * x - 0.1 * y + 26.0, -0.08 * x + 0.04 * y + 12.0)
+    return guide, truth, right
+
+
+def test_fit_plane_exact_and_robust_to_outliers():
+    rng = np.random.default_rng(1)
+    x, y = rng.uniform(0, 100, 400), rng.uniform(0, 80, 400)
+    d = 0.3 * x - 0.2 * y + 7.0 + 0.05 * rng.standard_normal(400)
+    bad = rng.random(400) < 0.25                       # a quarter gross outliers
+    d[bad] += rng.uniform(5, 40, bad.sum())
+    a, b, c = reg.fit_plane(x, y, d)
+    assert abs(a - 0.3) < 0.01 and abs(b + 0.2) < 0.01 and abs(c - 7.0) < 0.3
+
+
+def test_fit_plane_needs_three_points():
+    with pytest.raises(InvalidInputError):
+        reg.fit_plane([0, 1], [0, 1], [1, 2])
+
+
+def test_plane_fill_gives_each_hole_its_own_surface():
+    guide, truth, right = two_surfaces()
+    ok = np.ones((H, W), bool)
+    ok[20:35, 10:30] = False        # a hole in the left surface
+    ok[25:45, 55:80] = False        # one in the right surface
+    d = np.where(ok, truth, 99.0)   # what the hole held is never read
+    out, rep = reg.plane_fill(d, ok, guide)
+    assert rep.sum() == (~ok).sum()
+    assert np.abs(out - truth)[~ok].max() < 1e-3
+    assert np.array_equal(out[ok], d[ok].astype(np.float32))
+
+
+def test_plane_fill_refuses_a_region_that_is_not_one_plane():
+    guide, truth, right = two_surfaces()
+    flat_guide = np.full((H, W), 0.5)                 # one region spans both surfaces
+    ok = np.ones((H, W), bool)
+    ok[20:35, 40:50] = False
+    out, rep = reg.plane_fill(truth, ok, flat_guide)
+    assert not rep.any()                              # 4-6 px apart: no plane holds 80 %
+    assert np.array_equal(out, truth.astype(np.float32))
+
+
+def test_plane_fill_needs_support_and_respects_targets():
+    guide, truth, right = two_surfaces()
+    ok = np.ones((H, W), bool)
+    ok[:, :45] = False                                # the left surface has no trusted pixel
+    ok[10:20, 60:70] = False
+    targets = ~ok & right
+    targets[10:15] = False                            # only part of the hole may change
+    out, rep = reg.plane_fill(truth, ok, guide, targets=targets)
+    assert np.array_equal(rep, targets)
+    few = reg.PlaneFillParams(min_reliable=0.99)      # 100 of 2700 right pixels untrusted
+    _, rep = reg.plane_fill(truth, ok, guide, params=few)
+    assert not rep.any()
+
+
+def _or_nan(lo, hi):
+    return st.one_of(st.floats(lo, hi), st.just(float("nan")))
+
+
+@given(scale=_or_nan(-10, 2000), min_size=st.integers(-3, 300), share=_or_nan(-0.5, 1.5),
+       tol=_or_nan(-1, 5))
+@settings(max_examples=60, deadline=None)
+def test_plane_fill_params_accept_exactly_the_documented_ranges(scale, min_size, share, tol):
+    ok = (scale > 0 and np.isfinite(scale) and min_size >= 1 and 0 <= share <= 1
+          and tol > 0 and np.isfinite(tol))
+    kwargs = dict(scale=scale, min_size=min_size, min_reliable=share, inlier_tol=tol)
+    if ok:
+        assert reg.PlaneFillParams(**kwargs).min_size == min_size
+    else:
+        with pytest.raises(InvalidInputError):
+            reg.PlaneFillParams(**kwargs)
+
+
+def _layered_right_map(db, df, x0, x1, rows, shape):
+    """Right-view disparity of a background at ``db`` with a fronto-parallel square at ``df``
+    covering left columns ``x0..x1-1`` on ``rows`` (Middlebury: right ``x_r`` sees left
+    ``x_r + d``)."""
+    h, w = shape
+    dr = np.full(shape, float(db))
+    xs = np.arange(w)
+    front = (xs + df >= x0) & (xs + df < x1)
+    dr[rows, :] = np.where(front, df, db)
+    return dr
+
+
+def test_left_occlusions_match_the_geometry():
+    db, df, x0, x1, rows = 2, 9, 40, 70, slice(10, 30)
+    dr = _layered_right_map(db, df, x0, x1, rows, (H, W))
+    occ = reg.left_occlusions(dr)
+    expect = np.zeros((H, W), bool)
+    expect[:, :db] = True                            # outside the right image
+    expect[rows, x0 - (df - db):x0] = True          # hidden behind the square
+    assert np.array_equal(occ, expect)
+
+
+def test_left_occlusions_nan_sees_nothing():
+    dr = np.full((2, 5), 1.0)
+    dr[0, 2] = np.nan
+    occ = reg.left_occlusions(dr)
+    assert occ[0, 3] and not occ[1, 3] and occ[:, 0].all()
+
+
+def test_lr_plane_fills_mismatches_with_the_plane_and_occlusions_with_the_background():
+    guide, truth, right = two_surfaces()
+    disp_r = np.zeros((H, W))                        # right x_r sees left x_r + d ...
+    disp_r[:, :3] = 3.0                              # ... so nobody sees left x = 0, 1, 2
+    occluded = reg.left_occlusions(disp_r)
+    assert np.array_equal(np.flatnonzero(occluded.any(axis=0)), [0, 1, 2])
+    block = np.zeros((H, W), bool)
+    block[25:40, 55:75] = True                       # mismatches on the right surface
+    assert not (block & occluded).any()
+    valid = ~block & ~occluded                       # hidden pixels fail the check too
+    raw = np.where(valid, truth, 0.0)                # the raw map is wrong there
+    plane, rep = fill_inconsistent(raw, disp_r, valid, "lr-plane", guide)
+    fill, rep0 = fill_inconsistent(raw, disp_r, valid, "lr-fill", guide)
+    assert np.array_equal(rep, block) and not rep0.any()
+    assert np.abs(plane - truth)[block].max() < 1e-3
+    # the row fill copies a constant into a slanted surface: off by more than 1/2 px here
+    assert np.abs(fill - truth)[block].max() > 0.5
+    # the pixels the right view cannot see keep the background fill
+    assert np.array_equal(plane[occluded], fill[occluded])
+    assert np.array_equal(plane[valid], raw[valid])
+
+
+def test_stereo_lr_plane_is_the_default_and_records_its_share():
+    rng = np.random.default_rng(0)
+    scene = rng.random((40, 80)) + 0.1
+    left, right = scene[:, 2:62], scene[:, 6:66]     # left x matches right x - 4
+    res = stereo(left, right, (0, 8), optimizer="wta")
+    assert res.occlusion == "lr-plane"
+    assert 0.0 <= res.extra["plane_filled"] <= 1.0
+    assert np.median(res.disparity) == 4.0
+    with pytest.raises(InvalidInputError, match="occlusion must be one of"):
+        stereo(left, right, (0, 8), occlusion="plane")
