@@ -79,13 +79,14 @@ def error_picture(path: Path, pair, fills: dict) -> None:
     import matplotlib.pyplot as plt
 
     gt = pair.gt_disparity
-    fig, ax = plt.subplots(1, len(fills), figsize=(6 * len(fills), 4.2))
+    cmap = plt.get_cmap("magma").with_extremes(bad="0.6")   # grey: no ground truth
+    fig, ax = plt.subplots(1, len(fills), figsize=(6 * len(fills), 4.6), layout="constrained")
     for a, (name, (disp, s)) in zip(np.atleast_1d(ax), fills.items()):
-        im = a.imshow(np.abs(disp - gt), cmap="magma", vmin=0, vmax=5)
+        im = a.imshow(np.abs(disp - gt), cmap=cmap, vmin=0, vmax=5)
         a.set_title(f"{name}: |error| (bad5.0 {s['bad5']:.2f} %)")
         a.set_xticks([]), a.set_yticks([])
-    fig.colorbar(im, ax=ax, fraction=0.02)
-    fig.savefig(path, dpi=70)
+    fig.colorbar(im, ax=ax, fraction=0.02, label="|error| (px), clipped at 5")
+    fig.savefig(path, dpi=90)
     plt.close(fig)
 
 

@@ -552,6 +552,7 @@ def _cmd_stereo(args, dest) -> list[Path]:
     examples:
       hyperlf stereo imL.png imR.png --disparity-range 0,59 -o out
       hyperlf stereo imL.png imR.png --channel 0,2 --metric bwncc --disparity-range 0,15 -o out   # red vs blue
+      hyperlf stereo imL.png imR.png --disparity-range 0,59 --occlusion lr-fill -o out   # the paper's fill
     """
     from .pipeline import save_disparity_outputs
     from .twoview import stereo
@@ -1137,6 +1138,8 @@ def _add_ingest_parser(sub) -> None:
 
 
 def _add_stereo_parser(sub) -> None:
+    from .twoview import DEFAULT_OCCLUSION, OCCLUSION_MODES
+
     p = _subcommand(sub, "stereo", _cmd_stereo, help="cross-spectral two-view stereo")
     p.add_argument("left")
     p.add_argument("right")
@@ -1149,7 +1152,7 @@ def _add_stereo_parser(sub) -> None:
                    help="image channel(s) to match for colour inputs: 0 red, 1 green, 2 blue; "
                         "L,R picks one per image (default: mean of channels)")
     p.add_argument("--subpixel", action="store_true", help="parabola sub-pixel refinement")
-    p.add_argument("--occlusion", default="lr-plane", choices=["lr-plane", "lr-fill", "none"],
+    p.add_argument("--occlusion", default=DEFAULT_OCCLUSION, choices=OCCLUSION_MODES,
                    help="pixels that fail the left-right check: lr-plane (default) gives those "
                         "the right view sees the slanted plane of their image region and the "
                         "hidden ones the background of their row; lr-fill gives all the "

@@ -48,6 +48,14 @@ def _integer(obj, name: str, minimum: int = 0) -> None:
     object.__setattr__(obj, name, int(v))
 
 
+def _share(obj, name: str) -> None:
+    """Check ``obj.name`` is a finite real in ``[0, 1]``."""
+    _number(obj, name)
+    if getattr(obj, name) > 1:
+        raise InvalidInputError(f"{obj.name} {name} must be a share in [0, 1], "
+                                f"got {getattr(obj, name)!r}")
+
+
 def _flag(obj, name: str) -> None:
     v = getattr(obj, name)
     if not isinstance(v, (bool, np.bool_)):

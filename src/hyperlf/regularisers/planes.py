@@ -21,11 +21,12 @@ applies next.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
 from ..errors import InvalidInputError
-from ._checks import check_positive
+from .params import _integer, _number, _share
 
 __all__ = ["PlaneFillParams", "segment", "fit_plane", "plane_fill"]
 
@@ -53,6 +54,7 @@ class PlaneFillParams:
         Smallest share of inliers among the trusted pixels for the plane to be used.
     """
 
+    name: ClassVar[str] = "plane fill"
     scale: float = 300.0
     sigma: float = 0.8
     min_size: int = 50
@@ -63,16 +65,12 @@ class PlaneFillParams:
 
     def __post_init__(self):
         for name in ("scale", "inlier_tol"):
-            check_positive(getattr(self, name), name, allow_zero=False)
-        check_positive(self.sigma, "sigma")
+            _number(self, name, positive=True)
+        _number(self, "sigma")
         for name in ("min_size", "min_support"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
-                raise InvalidInputError(f"{name} must be an integer >= 1, got {v!r}")
+            _integer(self, name, 1)
         for name in ("min_reliable", "min_inliers"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float, np.floating)) and 0.0 <= float(v) <= 1.0):
-                raise InvalidInputError(f"{name} must be a share in [0, 1], got {v!r}")
+            _share(self, name)
 
 
 def _unit_range(guide: np.ndarray) -> np.ndarray:
