@@ -245,7 +245,7 @@ def markdown(results: dict, scenes, meta: dict) -> str:
                       fmt(c["seconds"], 1)]
         out.append("| " + " | ".join(cells) + " |")
     out.append("")
-    out.append("Rows: `cost` = red-vs-blue with our pipeline (LR check + background fill); "
+    out.append(f"Rows: `cost` = red-vs-blue with our pipeline (LR check + {meta['occlusion']} fill); "
                "`opencv-sgbm` = cv2.StereoSGBM on 8-bit red/blue, invalid pixels background-filled; "
                "`ncc red-red` = same-spectrum control.")
     return "\n".join(out) + "\n"
