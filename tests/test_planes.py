@@ -155,3 +155,14 @@ def test_stereo_lr_plane_is_the_default_and_records_its_share():
     assert np.median(res.disparity) == 4.0
     with pytest.raises(InvalidInputError, match="occlusion must be one of"):
         stereo(left, right, (0, 8), occlusion="plane")
+
+
+def test_plane_fill_rejects_mismatched_shapes():
+    guide, truth, _ = two_surfaces()
+    ok = np.ones((H, W), bool)
+    with pytest.raises(InvalidInputError, match="shape"):
+        reg.plane_fill(truth, ok, guide[:, :-1])
+    with pytest.raises(InvalidInputError, match="shape"):
+        reg.plane_fill(truth, ok[:-1], guide)
+    with pytest.raises(InvalidInputError, match="finite"):
+        reg.segment(np.full((4, 4), np.nan))

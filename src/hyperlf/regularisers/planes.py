@@ -206,8 +206,9 @@ def plane_fill(disparity, reliable, guide, *, targets=None, params: PlaneFillPar
         raise InvalidInputError(f"disparity must be a 2-D map, got shape {d.shape}")
     ok = np.asarray(reliable, dtype=bool)
     tg = ~ok if targets is None else np.asarray(targets, dtype=bool)
-    if ok.shape != d.shape or tg.shape != d.shape:
-        raise InvalidInputError(f"reliable and targets must have shape {d.shape}")
+    if ok.shape != d.shape or tg.shape != d.shape or np.shape(guide) != d.shape:
+        raise InvalidInputError(f"reliable, targets and guide must have the disparity's shape "
+                                f"{d.shape}")
     ok = ok & np.isfinite(d)
     out = d.copy()
     replaced = np.zeros(d.shape, dtype=bool)
