@@ -166,3 +166,15 @@ def test_plane_fill_rejects_mismatched_shapes():
         reg.plane_fill(truth, ok[:-1], guide)
     with pytest.raises(InvalidInputError, match="finite"):
         reg.segment(np.full((4, 4), np.nan))
+
+
+def test_stereo_from_volumes_lr_plane_needs_the_left_image():
+    from hyperlf.twoview import compute_volumes, stereo_from_volumes
+
+    rng = np.random.default_rng(2)
+    a = rng.random((20, 30)) + 0.1
+    cl, cr = compute_volumes(a, a, 0, 3, "census")
+    with pytest.raises(InvalidInputError, match="lr-fill"):
+        stereo_from_volumes(cl, cr, 0, "wta", "lr-plane")
+    res = stereo_from_volumes(cl, cr, 0, "wta", "lr-fill")
+    assert res.extra["plane_filled"] == 0.0

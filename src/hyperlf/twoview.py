@@ -434,7 +434,8 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
         if cost_right is None:
             raise InvalidInputError(f"occlusion={occlusion!r} needs the right-referenced volume")
         if occlusion == "lr-plane" and guide_left is None:
-            raise InvalidInputError("occlusion='lr-plane' needs guide_left (the left image)")
+            raise InvalidInputError("occlusion='lr-plane' needs guide_left (the left image): "
+                                    "pass it, or use occlusion='lr-fill'")
         cr = np.asarray(cost_right, dtype=np.float32)
         if cr.shape != cl.shape:
             raise InvalidInputError(f"cost_right shape {cr.shape} != cost_left shape {cl.shape}")
