@@ -16,6 +16,23 @@ import pytest
 
 from hyperlf.datasets import ENV_VAR, has_data, dataset_path
 
+def pytest_sessionstart(session):
+    """Give the test process the signal dispositions of a terminal.
+
+    A shell ignores SIGINT in its background jobs (``cmd &`` without job control) and
+    ``nohup`` ignores SIGHUP; both are inherited, and hyperlf rightly keeps an ignored signal
+    ignored, so the signal tests would see no interrupt at all (three of them failed when the
+    suite was started that way).  Tests that need an ignored signal set it themselves.
+    """
+    import signal
+
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    for name in ("SIGTERM", "SIGHUP"):
+        if signal.getsignal(getattr(signal, name)) is signal.SIG_IGN:
+            signal.signal(getattr(signal, name), signal.SIG_DFL)
+
+
 #: Calls that mean "this test reads the real data in HYPERLF_DATA".
 _DATA_CALLS = frozenset({"require_dataset", "has_data"})
 
