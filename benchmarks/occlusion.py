@@ -22,6 +22,7 @@ both fills side by side (``<scene>_fill_vs_plane.png``).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import itertools
 import json
 import sys
@@ -106,7 +107,7 @@ def main(argv=None) -> int:
              f"{fill_s['bad5']:.2f} / {fill_s['bad2']:.2f} (bad5.0 / bad2.0)", "",
              "| scene | lr-fill bad5 / bad2 | lr-plane bad5 / bad2 | LR-inconsistent | plane-filled |",
              "|---|---|---|---|---|"]
-    report = {"pick": pick.__dict__, "venus_grid": grid_log, "scenes": {}}
+    report = {"pick": dataclasses.asdict(pick), "venus_grid": grid_log, "scenes": {}}
     for name in [s.strip() for s in a.scenes.split(",") if s.strip()]:
         matched = venus if name == "venus" else match(name)
         pair, res = matched[0], matched[4]

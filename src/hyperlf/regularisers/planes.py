@@ -224,10 +224,9 @@ def plane_fill(disparity, reliable, guide, *, targets=None, params: PlaneFillPar
         s = idx[okv[idx]]
         if t.size == 0 or s.size < p.min_support or s.size < p.min_reliable * idx.size:
             continue
-        coef = fit_plane(xs[s], ys[s], dv[s])
-        fit = xs[s] * coef[0] + ys[s] * coef[1] + coef[2]
-        if np.mean(np.abs(fit - dv[s]) <= p.inlier_tol) < p.min_inliers:
+        a, b, c = fit_plane(xs[s], ys[s], dv[s])
+        if np.mean(np.abs(a * xs[s] + b * ys[s] + c - dv[s]) <= p.inlier_tol) < p.min_inliers:
             continue
-        out_v[t] = xs[t] * coef[0] + ys[t] * coef[1] + coef[2]
+        out_v[t] = a * xs[t] + b * ys[t] + c
         rep_v[t] = True
     return out.astype(np.float32), replaced

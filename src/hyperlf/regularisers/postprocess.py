@@ -8,7 +8,8 @@ from ..errors import InvalidInputError
 from ..warp import coordinate_taps
 from ._checks import check_cost, check_label_map, check_labels, check_positive, gather
 
-__all__ = ["left_right_check", "left_occlusions", "fill_occlusions", "right_cost_from_left", "subpixel_refine",
+__all__ = ["left_right_check", "left_occlusions", "fill_occlusions", "right_cost_from_left",
+           "subpixel_refine",
            "confidence", "weighted_median"]
 
 
