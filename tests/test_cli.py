@@ -183,3 +183,41 @@ def test_complete_command_writes_a_cube_that_render_reads(tmp_path, capsys):
     assert main(["-q", "render", str(out / "cube.h5"), "-o", str(tmp_path / "r")]) == 0
     assert main(["-q", "complete", str(cap), "--disparity", str(tmp_path / "nope.pfm"),
                  "-o", str(tmp_path / "c2")]) == 4
+
+
+def test_stereo_and_depth_commands_pass_the_aggregation(tmp_path, monkeypatch):
+    import hyperlf.hlf as hlf
+    import hyperlf.twoview as tv
+    from hyperlf.costs import AggregationParams
+    from hyperlf.formats import write_image
+
+    seen = {}
+    real_stereo, real_depth = tv.stereo, hlf.depth
+
+    def spy_stereo(*a, **k):
+        seen["stereo"] = k["aggregation"]
+        return real_stereo(*a, **k)
+
+    def spy_depth(*a, **k):
+        seen["depth"] = k["params"]
+        return real_depth(*a, **k)
+
+    monkeypatch.setattr(tv, "stereo", spy_stereo)
+    monkeypatch.setattr(hlf, "depth", spy_depth)
+    tex = np.random.default_rng(5).random((30, 50)).astype(np.float32)
+    write_image(tmp_path / "l.png", tex[:, 3:43], bit_depth=16)
+    write_image(tmp_path / "r.png", tex[:, 6:46], bit_depth=16)
+    assert main(["-q", "stereo", str(tmp_path / "l.png"), str(tmp_path / "r.png"),
+                 "--disparity-range", "0,6", "--optimizer", "wta", "--aggregation", "guided",
+                 "--aggregation-radius", "3", "--aggregation-eps", "0.01",
+                 "-o", str(tmp_path / "s")]) == 0
+    assert seen["stereo"] == AggregationParams("guided", 3, 0.01)
+    assert main(["-q", "synth", "procedural", "--scene", "planes", "--size", "24,32",
+                 "-o", str(tmp_path / "cap")]) == 0
+    assert main(["-q", "depth", str(tmp_path / "cap"), "--labels", "4", "--optimizer", "wta",
+                 "--aggregation", "guided", "-o", str(tmp_path / "d")]) == 0
+    p = seen["depth"]
+    assert (p.aggregation, p.aggregation_radius, p.aggregation_eps) == ("guided", 4, 1e-3)
+    assert main(["-q", "depth", str(tmp_path / "cap"), "--labels", "4", "--optimizer", "wta",
+                 "-o", str(tmp_path / "d0")]) == 0
+    assert seen["depth"] is None or seen["depth"].aggregation == "none"

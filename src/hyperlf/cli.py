@@ -147,6 +147,10 @@ _workers_arg = _int_at_least(1, "the number of workers", 256,
                              "; use --scheduler for a larger cluster")
 
 
+#: ``--aggregation-radius``: the guided filter's box half-size, px.
+_aggregation_radius_arg = _int_at_least(1, "--aggregation-radius", 64)
+
+
 def _float_within(low: float, high: float, what: str):
     """An argparse type: a finite number in ``[low, high]``."""
     def parse(text: str) -> float:
@@ -156,6 +160,38 @@ def _float_within(low: float, high: float, what: str):
                                              f"got {text!r}")
         return v
     return parse
+
+
+def _aggregation_eps_arg(text: str) -> float:
+    """``--aggregation-eps``: a number in (0, 100]."""
+    v = _float_within(0.0, 100.0, "--aggregation-eps")(text)
+    if v == 0:
+        raise argparse.ArgumentTypeError(f"--aggregation-eps must be > 0, got {text!r}")
+    return v
+
+
+def _add_aggregation_options(p: argparse.ArgumentParser) -> None:
+    """``--aggregation`` and its constants (:mod:`hyperlf.costs.aggregation`)."""
+    from .costs import AGGREGATION_METHODS, AggregationParams
+
+    d = AggregationParams()
+    p.add_argument("--aggregation", default=d.method, choices=tuple(AGGREGATION_METHODS),
+                   help="edge-aware aggregation of the cost volume before the optimiser: none "
+                        "(default: the cost's own window) or guided (every disparity slice "
+                        "smoothed by a guided filter of the reference image, Hosni et al.; "
+                        "measured worse on the benchmark scenes, see BENCHMARKS.md)")
+    p.add_argument("--aggregation-radius", type=_aggregation_radius_arg, default=d.radius,
+                   metavar="PX", help=f"half-size of the guided filter's box (default {d.radius})")
+    p.add_argument("--aggregation-eps", type=_aggregation_eps_arg, default=d.eps, metavar="E",
+                   help="the guided filter's regulariser, in squared units of the image scaled "
+                        f"to its 99th percentile: larger smooths across weaker edges "
+                        f"(default {d.eps:g})")
+
+
+def _aggregation_of(args):
+    from .costs import AggregationParams
+
+    return AggregationParams(args.aggregation, args.aggregation_radius, args.aggregation_eps)
 
 
 def _texture_snr_arg(text: str) -> float:
@@ -567,7 +603,7 @@ def _cmd_stereo(args, dest) -> list[Path]:
     channel = args.channel
     res = stereo(left, right, (int(lo), int(hi)), metric=args.metric, optimizer=args.optimizer,
                  occlusion="none" if args.no_occlusion else args.occlusion,
-                 subpixel=args.subpixel,
+                 subpixel=args.subpixel, aggregation=_aggregation_of(args),
                  channel=channel, progress=not args.quiet)
     written = save_disparity_outputs(dest, res.disparity,
                                       f"{res.metric} + {res.optimizer}", confidence=res.confidence)
@@ -617,6 +653,10 @@ def _cmd_depth(args, dest) -> list[Path]:
                                      ("visibility_rounds", args.visibility_rounds),
                                      ("max_memory", budget))
                    if v is not None}
+        agg = _aggregation_of(args)
+        if agg.method != "none":
+            options.update(aggregation=agg.method, aggregation_radius=agg.radius,
+                           aggregation_eps=agg.eps)
         params = DepthParams(**options) if options else None
         if lf.views.ndim != 4:
             raise InvalidInputError("the hlf method needs monochrome spectral views; use "
@@ -1159,6 +1199,7 @@ def _add_stereo_parser(sub) -> None:
                         "background (the paper's protocol); none keeps the raw map")
     p.add_argument("--no-occlusion", action="store_true",
                    help="the same as --occlusion none")
+    _add_aggregation_options(p)
     _add_output_folder(p)
 
 
@@ -1216,6 +1257,7 @@ def _add_depth_parser(sub) -> None:
                         "default fused cost then needs one more matching pass for its "
                         "normalisers (up to twice the matching time); a budget that even the "
                         "thinnest strips exceed is refused before any work")
+    _add_aggregation_options(p)
     p.add_argument("--save-intermediate", action="store_true",
                    help="also write correspondence-only and defocus-only maps, and the "
                         "textureless-region weight when it was used")

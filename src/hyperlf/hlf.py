@@ -142,8 +142,8 @@ from typing import Any
 import numpy as np
 
 from ._progress import progress_bar
-from .costs import (DENSE_VIEWS, cost_names, get_cost, light_field_window, tap_validity,
-                    view_costs)
+from .costs import (DENSE_VIEWS, AggregationParams, aggregate_volume, cost_names, get_cost,
+                    light_field_window, tap_validity, view_costs)
 from .imageops import fill_masked, gradient_magnitude, normalise_intensity
 from .warp import shift_map
 from .errors import InvalidInputError
@@ -249,6 +249,10 @@ class DepthParams:
     texture); ``g`` how much of ``d_coarse`` comes from textured pixels at some level; ``width``
     ``coarse_prior_width`` disparity px (None: the coarse run's label step, ``scale`` fine
     label steps).
+    Aggregation (issue 12 item 2): ``aggregation`` (``"none"``, the default, or ``"guided"``),
+    ``aggregation_radius`` (4 px), ``aggregation_eps`` (1e-3): the correspondence volume
+    filtered edge-aware with the reference view as the guide before the unary
+    (:mod:`hyperlf.costs.aggregation`; why not by default: BENCHMARKS.md).
     Defocus: ``camera``, ``sigma_d`` (96.5 nm), ``achromatic_radius`` (0.01), ``lambda_r``
     (None = by mode; ``"per_label"``, ``"per_pixel"`` or nm), ``p_eps`` (1e-6).
     MRF: ``gamma_c``, ``normalise_costs``, ``smoothness`` (lambda, per disparity unit on the
@@ -296,6 +300,9 @@ class DepthParams:
     coarse_prior_scale: int = 2
     coarse_prior_width: float | None = None
     coarse_prior_levels: int = 1
+    aggregation: str = "none"
+    aggregation_radius: int = 4
+    aggregation_eps: float = 1e-3
     camera: str = "CIE 1931"
     sigma_d: float = 96.5
     achromatic_radius: float = 0.01
@@ -360,6 +367,10 @@ class DepthParams:
             if isinstance(v, bool) or int(v) != v or v < low:
                 raise InvalidInputError(f"params.{name} must be an integer >= {low}, got {v!r}")
         pos("visibility_margin", self.visibility_margin, True)
+        try:
+            self.aggregation_params
+        except InvalidInputError as e:
+            raise InvalidInputError(f"params.{e}") from None
         if not isinstance(self.coarse_prior, (bool, np.bool_)):
             raise InvalidInputError(f"params.coarse_prior must be True or False, got "
                                     f"{self.coarse_prior!r}")
@@ -395,6 +406,11 @@ class DepthParams:
             if isinstance(self.tile_rows, bool) or int(self.tile_rows) != self.tile_rows:
                 raise InvalidInputError(f"params.tile_rows must be an integer, got {self.tile_rows!r}")
             row_strips(1, self.tile_rows)
+
+    @property
+    def aggregation_params(self) -> AggregationParams:
+        """``aggregation*`` as :class:`hyperlf.costs.AggregationParams`."""
+        return AggregationParams(self.aggregation, self.aggregation_radius, self.aggregation_eps)
 
 
 @dataclass
@@ -1310,6 +1326,9 @@ def correspondence(prob: DepthProblem, *, progress: bool | str = False, timings=
             "narrow the disparity range")
     C = _reg.fill_invalid(C)
     clock.lap("selection_split_s")
+    if prob.params.aggregation != "none":
+        C = aggregate_volume(C, prob.In[prob.reference], prob.params.aggregation_params)
+        clock.lap("aggregation_s")
     if timings is not None:
         timings.update(clock.timings)
         if len(strips) == 1:

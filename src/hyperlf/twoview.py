@@ -30,6 +30,9 @@ Pipeline
    subtracts a *per-pixel* minimum, which is referenced to the left pixel; so their raw parts
    are shifted separately and fused again with the right view's validity
    (:meth:`hyperlf.costs.FusedCost.pair_volumes`), which is exact as well.
+   *Aggregation* (optional, ``aggregation``; :mod:`hyperlf.costs.aggregation`): each volume
+   is then filtered edge-aware with its own image as the guide (``"guided"``), the
+   out-of-image rule applied again; the default ``"none"`` leaves both as they are.
 4. **Data term** ``D = (C - min_d C) / s`` per pixel (paper ``|C(f(p)) - C(f*(p))|``), with
    one global scale ``s`` per pair = the standard deviation of the valid raw entries of
    ``C_L`` (the same value for both references).  Dividing by ``s`` makes the smoothness
@@ -461,7 +464,8 @@ def stereo(left, right, disparity_range, metric: str = "auto", optimizer: str = 
            occlusion: str = DEFAULT_OCCLUSION, subpixel: bool = False, params: dict | None = None,
            window: int | None = None, channel=None, progress: bool = False,
            cost_params: dict | None = None,
-           plane_params: _reg.PlaneFillParams | None = None) -> StereoResult:
+           plane_params: _reg.PlaneFillParams | None = None,
+           aggregation: _costs.AggregationParams | str | None = None) -> StereoResult:
     """Disparity of the left view of a rectified pair (SPEC §4; module docstring).
 
     Parameters
@@ -496,6 +500,9 @@ def stereo(left, right, disparity_range, metric: str = "auto", optimizer: str = 
         Extra options of the cost (:func:`hyperlf.costs.cost_volume`).
     plane_params : PlaneFillParams, optional
         Constants of the ``"lr-plane"`` fill (:class:`hyperlf.regularisers.PlaneFillParams`).
+    aggregation : AggregationParams or str, optional
+        Edge-aware aggregation of both volumes (:class:`hyperlf.costs.AggregationParams`, or a
+        method name of :data:`hyperlf.costs.AGGREGATION_METHODS`); default ``"none"``.
 
     Returns
     -------
@@ -537,14 +544,17 @@ def stereo(left, right, disparity_range, metric: str = "auto", optimizer: str = 
         raise InvalidInputError(f"subpixel must be True or False, got {subpixel!r}")
     if L.mean() <= 0 or R.mean() <= 0:
         raise InvalidInputError("images must have a positive mean (linear intensities expected)")
+    agg = _costs.AggregationParams.of(aggregation)
     t0 = time.perf_counter()
     cl, cr = compute_volumes(L, R, dmin, dmax, name, window, need_right=(occlusion != "none"),
                              cost_params=cost_params)
+    cl, cr = _costs.aggregate_pair(cl, cr, L, R, dmin, agg)
     t_cost = time.perf_counter() - t0
     res = stereo_from_volumes(cl, cr, dmin, optimizer, occlusion, p, guide_left=L, guide_right=R,
                               subpixel=bool(subpixel), metric=name, progress=progress,
                               plane_params=plane_params)
     res.window = window
+    res.extra["aggregation"] = {"method": agg.method, "radius": agg.radius, "eps": agg.eps}
     res.timings = {"cost": t_cost, "optimiser": res.timings["optimiser"],
                    "total": time.perf_counter() - t_all}
     return res

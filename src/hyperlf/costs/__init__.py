@@ -59,6 +59,10 @@ Costs (names used by ``--metric``; :func:`cost_names`)
 for ssd/ncc/rsncc, 7 for census, per level / 5 for bwncc / bwncc-paper); an explicit ``window``
 applies to every windowed cost (a fused cost passes it to no part: use ``<part>_window``).
 
+Aggregation: any volume may be aggregated further before the optimiser, edge-aware
+(:mod:`hyperlf.costs.aggregation`: ``"none"``, the default, or ``"guided"`` cost-volume
+filtering), for two-view stereo and H-LF depth alike.
+
 Implementations (``impl``): ``"numpy"`` = readable reference (loop over disparities,
 ``cv2.boxFilter`` float64); ``"numba"`` = parallel kernels (:mod:`hyperlf.costs._kernels`:
 ncc/rsncc cross terms, census Hamming, and for bwncc a dedicated pipeline: per-block
@@ -92,14 +96,16 @@ False
 from __future__ import annotations
 
 from . import builtin as _builtin  # noqa: F401  (registers the built-in costs)
-from . import lightfield, pair, registry
+from . import aggregation, lightfield, pair, registry
+from .aggregation import *  # noqa: F401,F403
 from .lightfield import *  # noqa: F401,F403
 from .pair import *  # noqa: F401,F403
 from .registry import *  # noqa: F401,F403
 
 # The package's public names are those of its modules (each module's ``__all__`` is the one
 # list of its public names), plus the registry-driven METRIC_NAMES below.
-__all__ = [*registry.__all__, "METRIC_NAMES", *lightfield.__all__, *pair.__all__]
+__all__ = [*registry.__all__, "METRIC_NAMES", *lightfield.__all__, *pair.__all__,
+           *aggregation.__all__]
 
 
 def __getattr__(attr: str):

@@ -1,0 +1,189 @@
+"""Edge-aware aggregation of cost volumes: one home, a registry of named methods.
+
+Every window cost (:mod:`hyperlf.costs.registry`) can have its volume aggregated further
+before the optimiser, for two-view stereo (:func:`hyperlf.twoview.stereo`, both referenced
+volumes, each with its own image as the guide) and for H-LF depth
+(:class:`hyperlf.hlf.DepthParams` ``aggregation``, the reference view as the guide).
+
+Methods (:data:`AGGREGATION_METHODS`):
+
+* ``"none"``: the cost's own window only (the default everywhere; why: BENCHMARKS.md,
+  "Edge-aware aggregation").
+* ``"guided"``: cost-volume filtering (Hosni et al. [1]_): every label slice is smoothed by the
+  guided filter of He et al. [2]_, an edge-preserving local linear model of the guide, so that
+  support follows intensity edges of the reference rather than a square window.  The guide is
+  the image divided by its 99th percentile (``eps`` is in those units, squared); the out-of-
+  image rule of :mod:`hyperlf.costs` is applied again afterwards where a validity mask is given.
+
+References
+----------
+.. [1] A. Hosni, C. Rhemann, M. Bleyer, C. Rother, M. Gelautz, "Fast cost-volume filtering for
+   visual correspondence and beyond", IEEE TPAMI 35(2), 2013.
+.. [2] K. He, J. Sun, X. Tang, "Guided image filtering", IEEE TPAMI 35(6), 2013.
+
+Examples
+--------
+>>> import numpy as np
+>>> from hyperlf.costs.aggregation import AggregationParams, aggregate_volume
+>>> guide = np.zeros((8, 8)); guide[:, 4:] = 1.0            # two flat regions
+>>> cost = np.random.default_rng(0).random((3, 8, 8))
+>>> out = aggregate_volume(cost, guide, AggregationParams("guided", radius=1, eps=1e-4))
+>>> out.shape, out.dtype.name
+((3, 8, 8), 'float32')
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InvalidInputError
+from .pair import box_mean, candidate_validity, right_validity, worst_fill
+
+__all__ = ["AGGREGATION_METHODS", "AggregationParams", "guide_image", "guided_filter",
+           "aggregate_volume", "aggregate_pair"]
+
+#: Named aggregation methods and what they do (the registry the options are checked against).
+AGGREGATION_METHODS = {
+    "none": "the cost's own window only",
+    "guided": "guided-filter cost-volume filtering (Hosni et al. 2013, He et al. 2013)",
+}
+
+
+@dataclass(frozen=True)
+class AggregationParams:
+    """Which aggregation, and its constants.
+
+    Parameters
+    ----------
+    method : {"none", "guided"}
+        A name of :data:`AGGREGATION_METHODS`.
+    radius : int
+        Half-size of the guided filter's box (window ``2 radius + 1``), >= 1.
+    eps : float
+        The guided filter's regulariser (> 0), in squared units of the guide scaled to its
+        99th percentile: larger smooths across weaker edges.
+    """
+
+    method: str = "none"
+    radius: int = 4
+    eps: float = 1e-3
+
+    def __post_init__(self):
+        if self.method not in AGGREGATION_METHODS:
+            raise InvalidInputError(f"aggregation must be one of {tuple(AGGREGATION_METHODS)}, "
+                                    f"got {self.method!r}")
+        if isinstance(self.radius, bool) or not isinstance(self.radius, (int, np.integer)) \
+                or self.radius < 1:
+            raise InvalidInputError(f"aggregation_radius must be an integer >= 1, "
+                                    f"got {self.radius!r}")
+        if isinstance(self.eps, bool) or not isinstance(self.eps, (int, float, np.floating)) \
+                or not np.isfinite(self.eps) or self.eps <= 0:
+            raise InvalidInputError(f"aggregation_eps must be a finite number > 0, "
+                                    f"got {self.eps!r}")
+
+    @classmethod
+    def of(cls, value) -> "AggregationParams":
+        """``value`` as parameters: None (no aggregation), a method name, or parameters."""
+        if value is None:
+            return cls()
+        if isinstance(value, cls):
+            return value
+        if isinstance(value, str):
+            return cls(method=value)
+        raise InvalidInputError(f"aggregation must be a method name {tuple(AGGREGATION_METHODS)} "
+                                f"or AggregationParams, got {value!r}")
+
+
+def guide_image(image, valid=None) -> np.ndarray:
+    """The guide of a 2-D image: float64, divided by its 99th percentile (over ``valid``).
+
+    A non-positive percentile leaves the image as it is (a flat guide is fine: the guided filter
+    is then a box mean).
+    """
+    img = np.asarray(image, dtype=np.float64)
+    if img.ndim != 2:
+        raise InvalidInputError(f"the guide must be a 2-D image, got shape {img.shape}")
+    vals = img if valid is None else img[np.asarray(valid, dtype=bool)]
+    p = float(np.percentile(vals, 99)) if vals.size else 0.0
+    return img / p if p > 0 and np.isfinite(p) else img
+
+
+def _guide_stats(guide: np.ndarray, n: int):
+    mean = box_mean(guide, n)
+    return mean, box_mean(guide * guide, n) - mean * mean
+
+
+def guided_filter(guide, src, radius: int, eps: float, *, stats=None) -> np.ndarray:
+    """He et al.'s guided filter of one 2-D map ``src`` by ``guide`` (both ``(H, W)``), float64.
+
+    ``q = mean(a) I + mean(b)`` with ``a = cov(I, p) / (var(I) + eps)``, ``b = mean(p) -
+    a mean(I)`` over ``(2 radius + 1)``-square boxes, replicated borders
+    (:func:`hyperlf.costs.box_mean`).  ``stats``: the guide's box mean and variance, when
+    filtering many maps with one guide.
+    """
+    n = 2 * int(radius) + 1
+    guide = np.asarray(guide, dtype=np.float64)
+    mean_i, var_i = _guide_stats(guide, n) if stats is None else stats
+    mean_p = box_mean(src, n)
+    cov = box_mean(guide * src, n) - mean_i * mean_p
+    a = cov / (var_i + eps)
+    b = mean_p - a * mean_i
+    return box_mean(a, n) * guide + box_mean(b, n)
+
+
+def aggregate_volume(volume, guide, params: AggregationParams | str | None = None, *,
+                     valid=None) -> np.ndarray:
+    """Aggregate a cost volume ``(L, H, W)`` with the method of ``params``.
+
+    Parameters
+    ----------
+    volume : array_like, shape (L, H, W)
+        Lower is better.
+    guide : array_like, shape (H, W)
+        The image the volume is referenced to (scaled by :func:`guide_image`).
+    params : AggregationParams or str, optional
+        None or ``"none"``: the volume is returned as float32, unchanged.
+    valid : array_like of bool, broadcastable to the volume, optional
+        Valid candidates; the invalid ones get their pixel's worst valid cost again after
+        filtering (:func:`hyperlf.costs.worst_fill`), as before it.
+
+    Returns
+    -------
+    ndarray, float32, shape (L, H, W)
+    """
+    p = AggregationParams.of(params)
+    vol = np.asarray(volume, dtype=np.float32)
+    if p.method == "none":
+        return vol
+    if vol.ndim != 3 or np.shape(guide) != vol.shape[1:]:
+        raise InvalidInputError(f"volume (L, H, W) and guide (H, W) disagree: {vol.shape} vs "
+                                f"{np.shape(guide)}")
+    g = guide_image(guide)
+    stats = _guide_stats(g, 2 * p.radius + 1)
+    out = np.empty_like(vol)
+    for k in range(vol.shape[0]):
+        out[k] = guided_filter(g, vol[k], p.radius, p.eps, stats=stats)
+    if valid is not None:
+        worst_fill(out, ~np.broadcast_to(np.asarray(valid, dtype=bool), out.shape))
+    return out
+
+
+def aggregate_pair(cost_left, cost_right, left, right, dmin: int,
+                   params: AggregationParams | str | None = None):
+    """Both referenced volumes of a rectified pair (:func:`hyperlf.costs.cost_volumes`), each
+    aggregated with its own image as the guide, the out-of-image rule applied again.
+
+    ``cost_right`` may be None.  Returns ``(C_L, C_R)``.
+    """
+    p = AggregationParams.of(params)
+    if p.method == "none":
+        return cost_left, cost_right
+    Lc, H, W = np.shape(cost_left)
+    dmax = dmin + Lc - 1
+    cl = aggregate_volume(cost_left, left, p, valid=candidate_validity((H, W), dmin, dmax))
+    cr = None if cost_right is None else aggregate_volume(
+        cost_right, right, p, valid=right_validity((H, W), dmin, dmax))
+    return cl, cr
+
