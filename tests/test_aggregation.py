@@ -63,6 +63,17 @@ def test_a_constant_volume_and_the_none_method_are_unchanged():
     np.testing.assert_array_equal(aggregate_volume(vol, guide, "none"), vol)
 
 
+def test_in_place_aggregation_equals_the_copy():
+    rng = np.random.default_rng(6)
+    guide, vol = rng.random((12, 15)), rng.random((4, 12, 15)).astype(np.float32)
+    copy = aggregate_volume(vol, guide, "guided")
+    same = vol.copy()
+    assert aggregate_volume(same, guide, "guided", out=same) is same
+    np.testing.assert_array_equal(same, copy)
+    with pytest.raises(InvalidInputError, match="out must be"):
+        aggregate_volume(vol, guide, "guided", out=np.empty((4, 12, 15)))
+
+
 def test_pair_aggregation_keeps_the_out_of_image_rule():
     rng = np.random.default_rng(3)
     L, R = rng.random((10, 16)), rng.random((10, 16))

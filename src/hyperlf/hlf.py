@@ -1327,7 +1327,7 @@ def correspondence(prob: DepthProblem, *, progress: bool | str = False, timings=
     C = _reg.fill_invalid(C)
     clock.lap("selection_split_s")
     if prob.params.aggregation != "none":
-        C = aggregate_volume(C, prob.In[prob.reference], prob.params.aggregation_params)
+        C = aggregate_volume(C, prob.In[prob.reference], prob.params.aggregation_params, out=C)
         clock.lap("aggregation_s")
     if timings is not None:
         timings.update(clock.timings)

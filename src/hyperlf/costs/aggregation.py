@@ -134,7 +134,7 @@ def guided_filter(guide, src, radius: int, eps: float, *, stats=None) -> np.ndar
 
 
 def aggregate_volume(volume, guide, params: AggregationParams | str | None = None, *,
-                     valid=None) -> np.ndarray:
+                     valid=None, out: np.ndarray | None = None) -> np.ndarray:
     """Aggregate a cost volume ``(L, H, W)`` with the method of ``params``.
 
     Parameters
@@ -148,6 +148,9 @@ def aggregate_volume(volume, guide, params: AggregationParams | str | None = Non
     valid : array_like of bool, broadcastable to the volume, optional
         Valid candidates; the invalid ones get their pixel's worst valid cost again after
         filtering (:func:`hyperlf.costs.worst_fill`), as before it.
+    out : ndarray, float32, shape (L, H, W), optional
+        Where to write the result; it may be ``volume`` itself (slices are filtered one at a
+        time), which saves a second volume in memory.
 
     Returns
     -------
@@ -162,7 +165,10 @@ def aggregate_volume(volume, guide, params: AggregationParams | str | None = Non
                                 f"{np.shape(guide)}")
     g = guide_image(guide)
     stats = _guide_stats(g, 2 * p.radius + 1)
-    out = np.empty_like(vol)
+    if out is None:
+        out = np.empty_like(vol)
+    elif out.shape != vol.shape or out.dtype != np.float32:
+        raise InvalidInputError(f"out must be a float32 array of shape {vol.shape}")
     for k in range(vol.shape[0]):
         out[k] = guided_filter(g, vol[k], p.radius, p.eps, stats=stats)
     if valid is not None:
