@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -21,3 +22,12 @@ def data_path(name: str) -> Path:
         return dataset_path(name)
     except DataNotFoundError as exc:
         sys.exit(f"{Path(sys.argv[0]).name}: {exc}")
+
+
+def write_report(folder: Path, stem: str, markdown: str, report: dict) -> None:
+    """Print the markdown table and write ``stem.md`` and ``stem.json`` into ``folder``."""
+    from hyperlf._atomic import atomic_write_text
+
+    print(markdown)
+    atomic_write_text(folder / f"{stem}.md", markdown)
+    atomic_write_text(folder / f"{stem}.json", json.dumps(report, indent=2, default=float))

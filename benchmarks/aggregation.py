@@ -21,16 +21,14 @@ reported either way.  Writes ``aggregation.md`` and ``aggregation.json`` into ``
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from _common import log
+from _common import log, write_report
 from table1 import BLUE, RED, load_scene, score
-from hyperlf._atomic import atomic_write_text
 from hyperlf.costs import AggregationParams, aggregate_pair
 from hyperlf.hlf import DepthParams, depth
 from hyperlf.metrics import disparity_scores
@@ -118,10 +116,7 @@ def main(argv=None) -> int:
     if report["hlf"]:
         lines += ["H-LF depth, RMSE (px) / BadPix(0.07) (%):", ""]
         lines += table(report["hlf"], ("rmse", "badpix_007"), "{:.4f}")
-    md = "\n".join(lines) + "\n"
-    print(md)
-    atomic_write_text(a.out / "aggregation.md", md)
-    atomic_write_text(a.out / "aggregation.json", json.dumps(report, indent=2, default=float))
+    write_report(a.out, "aggregation", "\n".join(lines) + "\n", report)
     return 0
 
 

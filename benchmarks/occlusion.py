@@ -24,16 +24,14 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import itertools
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from _common import log
+from _common import log, write_report
 from table1 import BLUE, RED, load_scene, score
 from hyperlf import regularisers as reg
-from hyperlf._atomic import atomic_write_text
 from hyperlf.twoview import (fill_inconsistent, compute_volumes, default_window,
                             stereo_from_volumes)
 
@@ -122,10 +120,7 @@ def main(argv=None) -> int:
         error_picture(a.out / f"{name}_fill_vs_plane.png", pair,
                       {"lr-fill": (d_fill, s_fill), "lr-plane": (d_plane, s_plane)})
         log(lines[-1])
-    md = "\n".join(lines) + "\n"
-    print(md)
-    atomic_write_text(a.out / "occlusion.md", md)
-    atomic_write_text(a.out / "occlusion.json", json.dumps(report, indent=2, default=float))
+    write_report(a.out, "occlusion", "\n".join(lines) + "\n", report)
     return 0
 
 

@@ -96,8 +96,8 @@ class AggregationParams:
                                 f"or AggregationParams, got {value!r}")
 
 
-def guide_image(image, valid=None) -> np.ndarray:
-    """The guide of a 2-D image: float64, divided by its 99th percentile (over ``valid``).
+def guide_image(image) -> np.ndarray:
+    """The guide of a 2-D image: float64, divided by its 99th percentile.
 
     A non-positive percentile leaves the image as it is (a flat guide is fine: the guided filter
     is then a box mean).
@@ -105,8 +105,7 @@ def guide_image(image, valid=None) -> np.ndarray:
     img = np.asarray(image, dtype=np.float64)
     if img.ndim != 2:
         raise InvalidInputError(f"the guide must be a 2-D image, got shape {img.shape}")
-    vals = img if valid is None else img[np.asarray(valid, dtype=bool)]
-    p = float(np.percentile(vals, 99)) if vals.size else 0.0
+    p = float(np.percentile(img, 99)) if img.size else 0.0
     return img / p if p > 0 and np.isfinite(p) else img
 
 
