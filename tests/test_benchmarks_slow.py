@@ -91,3 +91,16 @@ def test_table2_antinous_downscaled(table2):
     s = table2.score(disparity, lf.reference_gt_disparity, unit)
     assert (round(s["rmse"], 4), round(s["mse_x100"], 3), round(s["badpix_007"], 2)) == \
         (0.3352, 11.234, 32.79)
+
+
+# ----------------------------------------------------------------------------- other channels
+def test_channels_tsukuba_red_green():
+    """BENCHMARKS.md, "auto on channel pairs it was not chosen on": Tsukuba, red of the left
+    image vs green of the right, auto and bwncc-paper under graph cuts."""
+    require_dataset("tsukuba")
+    ch = _script("channels")
+    pair, drange, mask, mask_name = _script("table1").load_scene("tsukuba")
+    row = ch.run_pair(pair, drange, mask, mask_name, 0, 1, ["auto", "bwncc-paper"])
+    assert round(row["auto"]["bad5"], 2) == 1.38
+    assert round(row["bwncc-paper"]["bad5"], 2) == 1.52
+    assert 0.5 < row["auto"]["consistent"] < 1.0

@@ -1,0 +1,87 @@
+#!/usr/bin/env python
+"""Is ``auto`` the lowest-error cost on cross-spectral pairs it was not chosen on?
+
+    HYPERLF_DATA=../shared/data python benchmarks/channels.py [--scenes venus,tsukuba,teddy]
+        [--pairs 02,01,12,20,10,21] [--out benchmarks/results/channels]
+
+Issue 12 judges ``auto`` on held-out cross-spectral pairs: it must have the lowest bad5.0 of all
+costs on every one.  The Table 1 protocol uses one channel pair (red of the left image, blue of
+the right one); the other five ordered pairs of distinct RGB channels of the same scenes are
+the nearest stand-in for held-out pairs that this data offers (different spectra, same
+geometry).  Every registered two-view cost is run with graph cuts and the default occlusion
+handling at its Venus-tuned parameters (nothing is tuned here).  Besides bad5.0 / bad2.0 the
+script records the share of left-right consistent pixels, to see whether that unsupervised
+figure would pick the best cost per pair.  Writes ``channels.md`` / ``channels.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from _common import log, write_report
+from table1 import load_scene, score
+from hyperlf.costs import cost_names, resolve_metric
+from hyperlf.twoview import stereo
+
+CHANNELS = "RGB"
+PAIRS = ("02", "01", "12", "20", "10", "21")
+
+
+def run_pair(pair, drange, mask, mask_name, a: int, b: int, metrics) -> dict:
+    """``{metric: {bad5, bad2, consistent, seconds}}`` for left channel ``a``, right ``b``."""
+    row = {}
+    for m in metrics:
+        t0 = time.perf_counter()
+        res = stereo(pair.left[:, :, a], pair.right[:, :, b], drange, metric=m,
+                     optimizer="graphcut")
+        s = score(res.disparity, pair, mask, mask_name)
+        row[m] = {"bad5": s["bad5"], "bad2": s["bad2"], "consistent": float(res.valid.mean()),
+                  "seconds": time.perf_counter() - t0}
+    return row
+
+
+def _table(scene: str, rows: dict, metrics) -> list[str]:
+    head = "| pair | " + " | ".join(metrics) + " | lowest | most consistent |"
+    out = [f"**{scene}** (bad5.0 %, graph cuts, default fill)", "", head,
+           "|" + "---|" * (len(metrics) + 3)]
+    for key, row in rows.items():
+        best = min(metrics, key=lambda m: (row[m]["bad5"], row[m]["bad2"]))
+        lr = max(metrics, key=lambda m: row[m]["consistent"])
+        cells = [f"**{row[m]['bad5']:.2f}**" if m == best else f"{row[m]['bad5']:.2f}"
+                 for m in metrics]
+        out.append(f"| {key} | " + " | ".join(cells) + f" | {best} | {lr} |")
+    return out + [""]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--scenes", default="venus,tsukuba,teddy")
+    ap.add_argument("--pairs", default=",".join(PAIRS),
+                    help="left/right channel indices, e.g. 02 = red left, blue right")
+    ap.add_argument("--out", default="benchmarks/results/channels")
+    args = ap.parse_args()
+    metrics = ["auto"] + [m for m in cost_names() if m != resolve_metric("auto")]
+    report, lines = {}, []
+    for scene in args.scenes.split(","):
+        pair, drange, mask, mask_name = load_scene(scene)
+        rows = {}
+        for p in args.pairs.split(","):
+            a, b = int(p[0]), int(p[1])
+            key = f"{CHANNELS[a]}-{CHANNELS[b]}"
+            log(f"{scene} {key}")
+            rows[key] = run_pair(pair, drange, mask, mask_name, a, b, metrics)
+        report[scene] = rows
+        lines += _table(scene, rows, metrics)
+    wins = [(s, k) for s, rows in report.items() for k, row in rows.items()
+            if min(metrics, key=lambda m: (row[m]["bad5"], row[m]["bad2"])) == "auto"]
+    total = sum(len(r) for r in report.values())
+    lines.append(f"`auto` lowest on {len(wins)} of {total} pairs.")
+    folder = Path(args.out)
+    folder.mkdir(parents=True, exist_ok=True)
+    write_report(folder, "channels", "\n".join(lines) + "\n", report)
+
+
+if __name__ == "__main__":
+    main()
