@@ -42,12 +42,17 @@ def run_pair(pair, drange, mask, mask_name, a: int, b: int, metrics) -> dict:
     return row
 
 
+def lowest(row: dict, metrics) -> str:
+    """The metric with the lowest bad5.0 of one pair (ties by bad2.0)."""
+    return min(metrics, key=lambda m: (row[m]["bad5"], row[m]["bad2"]))
+
+
 def _table(scene: str, rows: dict, metrics) -> list[str]:
     head = "| pair | " + " | ".join(metrics) + " | lowest | most consistent |"
     out = [f"**{scene}** (bad5.0 %, graph cuts, default fill)", "", head,
            "|" + "---|" * (len(metrics) + 3)]
     for key, row in rows.items():
-        best = min(metrics, key=lambda m: (row[m]["bad5"], row[m]["bad2"]))
+        best = lowest(row, metrics)
         lr = max(metrics, key=lambda m: row[m]["consistent"])
         cells = [f"**{row[m]['bad5']:.2f}**" if m == best else f"{row[m]['bad5']:.2f}"
                  for m in metrics]
@@ -75,7 +80,7 @@ def main() -> None:
         report[scene] = rows
         lines += _table(scene, rows, metrics)
     wins = [(s, k) for s, rows in report.items() for k, row in rows.items()
-            if min(metrics, key=lambda m: (row[m]["bad5"], row[m]["bad2"])) == "auto"]
+            if lowest(row, metrics) == "auto"]
     total = sum(len(r) for r in report.values())
     lines.append(f"`auto` lowest on {len(wins)} of {total} pairs.")
     folder = Path(args.out)
