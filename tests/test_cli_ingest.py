@@ -144,6 +144,41 @@ def test_depth_writes_metric_depth_and_a_point_cloud(runs):
     assert (tmp / "depth" / "depth.png").is_file()
 
 
+def test_depth_at_half_resolution_keeps_the_metric_depth(runs, capsys):
+    """``depth --downscale 2``: maps of half the size, disparities in their own px, and the
+    same metric depth as the full-resolution run (the camera matrix follows the blocks)."""
+    from hyperlf.imageops import block_reduce
+
+    run = runs["ideal"]
+    tmp, full = run["tmp"], run["Z"]
+    assert main(["depth", str(tmp / "cap"), "--labels", "32", "--downscale", "2",
+                 "-o", str(tmp / "half")]) == 0
+    assert "1/2 resolution" in capsys.readouterr().err
+    d_full, d_half = read_pfm(tmp / "depth" / "disparity.pfm"), read_pfm(tmp / "half" / "disparity.pfm")
+    Z = read_pfm(tmp / "half" / "depth.pfm")
+    H, W = full.shape
+    assert Z.shape == d_half.shape == (-(-H // 2), -(-W // 2))
+    keep = np.isfinite(Z) & np.isfinite(block_reduce(full, 2))
+    keep &= block_reduce(away_from_depth_edges(np.nan_to_num(run["truth"])).astype(float), 2) == 1
+    keep[:BORDER // 2], keep[-BORDER // 2:], keep[:, :BORDER // 2], keep[:, -BORDER // 2:] = (
+        False, False, False, False)
+    assert keep.mean() > 0.5
+    ratio = Z[keep] / block_reduce(full, 2)[keep]
+    assert abs(np.median(ratio) - 1) < 0.01 and np.percentile(np.abs(ratio - 1), 90) < 0.05
+    step = np.median(np.abs(d_half[keep] - block_reduce(d_full, 2)[keep] / 2))
+    assert step < 0.25, step  # half-resolution px
+
+
+def test_downscale_too_far_is_refused_before_any_work(runs, tmp_path, capsys):
+    tmp = runs["ideal"]["tmp"]
+    H, W = runs["ideal"]["Z"].shape
+    n = min(H, W) // 16 + 1
+    assert main(["depth", str(tmp / "cap"), "--downscale", str(n), "-o", str(tmp_path / "d")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"--downscale {n} leaves" in err[0] and "use at most" in err[0]
+    assert not (tmp_path / "d").exists()
+
+
 def depth_scores(runs):
     scores = {}
     for name, run in runs.items():

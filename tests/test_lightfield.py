@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from hyperlf import InvalidInputError, LightField, filter_layout, raster_wavelengths
+from hyperlf.imageops import block_reduce
 
 
 def _lf(**kw):
@@ -178,3 +179,38 @@ def test_downscale_rejects_a_bad_factor(bad):
     lf = LightField(np.ones((1, 2, 4, 4), np.float32))
     with pytest.raises(InvalidInputError, match="factor"):
         downscale(lf, bad)
+
+
+@settings(max_examples=25, deadline=None, derandomize=True)
+@given(st.integers(2, 4), st.integers(0, 2**31))
+def test_downscale_keeps_metric_depth_and_can_keep_the_truth(factor, seed):
+    """Disparities of the block grid (1/factor of the full-resolution ones) give the same metric
+    depth through the moved camera matrix: the depth of an affine disparity field at a block
+    centre, whatever the focal length, principal point and slant of the board plane."""
+    from hyperlf.calibration.metric import depth_from_disparity
+    from hyperlf.lightfield import downscale
+
+    rng = np.random.default_rng(seed)
+    H, W = 6 * factor, 8 * factor
+    f = rng.uniform(50, 500)
+    K = [[f, 0.0, rng.uniform(0, W)], [0.0, f, rng.uniform(0, H)], [0.0, 0.0, 1.0]]
+    n = rng.normal([0, 0, 1], [0.2, 0.2, 0.0])
+    geo = {"mode": "plane", "camera_matrix": K, "baseline": 1.5,
+           "board_plane": [*(n / np.linalg.norm(n)), rng.uniform(20, 60)]}
+    yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
+    disp = (rng.uniform(-2, 2) + rng.uniform(-0.05, 0.05) * xx
+            + rng.uniform(-0.05, 0.05) * yy).astype(np.float32)
+    lf = LightField(np.ones((1, 2, H, W), np.float32), gt_disparity=disp,
+                    metadata={"calibration": geo, "note": "kept"})
+    small = downscale(lf, factor, truth=True)
+    assert small.metadata["note"] == "kept" and lf.metadata["calibration"] is geo  # no side effect
+    np.testing.assert_allclose(small.gt_disparity, block_reduce(disp, factor) / factor,
+                               rtol=1e-5, atol=1e-6)
+    full = depth_from_disparity(disp, geo)
+    coarse = depth_from_disparity(small.gt_disparity, small.metadata["calibration"])
+    centre = slice((factor - 1) // 2, None, factor)  # the block centre's pixel (odd factors)
+    if factor % 2:
+        np.testing.assert_allclose(coarse, full[centre, centre], rtol=1e-4)
+    else:  # even factors: the centre lies between four pixels; their mean depth is close
+        np.testing.assert_allclose(coarse, block_reduce(full, factor), rtol=2e-3)
+    assert downscale(lf, factor).gt_disparity is None

@@ -147,6 +147,10 @@ _workers_arg = _int_at_least(1, "the number of workers", 256,
                              "; use --scheduler for a larger cluster")
 
 
+#: ``--downscale``: block side of the quick look (whether the image stays large enough is
+#: checked against the input, :func:`_downscaled`).
+_downscale_arg = _int_at_least(1, "--downscale", 64)
+
 #: ``--aggregation-radius``: the guided filter's box half-size, px.
 _aggregation_radius_arg = _int_at_least(1, "--aggregation-radius", 64)
 
@@ -612,6 +616,29 @@ def _cmd_stereo(args, dest) -> list[Path]:
     return written
 
 
+#: ``--downscale`` keeps at least this many pixels on the shorter side of the views.
+MIN_DOWNSCALED_SIDE = 16
+
+
+def _downscaled(args, lf, rng):
+    """``depth --downscale``: the light field at ``1 / N`` (ground truth kept) and the range
+    in its px, the range checked in the input's px first."""
+    from .lightfield import downscale, resolve_disparity_range
+
+    n = args.downscale
+    H, W = lf.image_shape
+    if min(H, W) // n < MIN_DOWNSCALED_SIDE:
+        raise InvalidInputError(
+            f"--downscale {n} leaves {W // n} x {H // n} px of these {W} x {H} px views; "
+            f"use at most {max(1, min(H, W) // MIN_DOWNSCALED_SIDE)}")
+    if rng is not None:
+        lf = lf.replace(disparity_range=resolve_disparity_range(lf, rng))
+    small = downscale(lf, n, truth=True)
+    _say(args, f"matching at 1/{n} resolution: {small.image_shape[1]} x "
+               f"{small.image_shape[0]} px, disparities in those px")
+    return small, None
+
+
 def _cmd_depth(args, dest) -> list[Path]:
     """Estimate the reference view's disparity of a hyperspectral light field (SPEC §5) or run
     a baseline light-field method on the views as plain intensities. Writes disparity.pfm,
@@ -627,6 +654,7 @@ def _cmd_depth(args, dest) -> list[Path]:
       hyperlf depth scene3 -o depth3
       hyperlf depth antinous-hlf --labels 64 --save-intermediate -o d
       hyperlf depth antinous-hlf --method wang2015 -o d-wang
+      hyperlf depth lab-capture --downscale 4 -o first-look   # 1/4 resolution, a quick look
     """
     from .formats import load_lightfield
     from .pipeline import save_disparity_outputs, save_metric_outputs
@@ -637,6 +665,8 @@ def _cmd_depth(args, dest) -> list[Path]:
     if rng is None and lf.disparity_range is None:
         raise InvalidInputError(f"{args.input} has no disparity range in its metadata; give "
                                 "--disparity-range MIN,MAX (px per baseline)")
+    if args.downscale > 1:
+        lf, rng = _downscaled(args, lf, rng)
     _check_labels_memory(args.labels, lf.image_shape)
     t0 = time.perf_counter()
     if args.method == "hlf":
@@ -1257,6 +1287,12 @@ def _add_depth_parser(sub) -> None:
                         "default fused cost then needs one more matching pass for its "
                         "normalisers (up to twice the matching time); a budget that even the "
                         "thinnest strips exceed is refused before any work")
+    p.add_argument("--downscale", type=_downscale_arg, default=1, metavar="N",
+                   help="match at 1/N of the resolution (means of N x N pixel blocks), "
+                        "about N^2 times faster, for a first look at a large capture: the maps "
+                        "are N times smaller and their disparities in their own px (1/N of "
+                        "the full-resolution values; --disparity-range stays in the input's "
+                        "px); metric depth and the point cloud keep their unit (default 1)")
     _add_aggregation_options(p)
     p.add_argument("--save-intermediate", action="store_true",
                    help="also write correspondence-only and defocus-only maps, and the "

@@ -542,19 +542,25 @@ class LightField:
         return "\n".join(lines)
 
 
-def downscale(lf: LightField, factor: int = 2) -> LightField:
+def downscale(lf: LightField, factor: int = 2, *, truth: bool = False) -> LightField:
     """The light field at ``1 / factor`` of its resolution, for a quick first estimate.
 
     Each view becomes the means of its ``factor x factor`` pixel blocks (sizes rounded up: the
     last row and column are repeated); a block is valid where all its pixels are; the
-    disparity range is divided by ``factor``; wavelengths, positions, reference and metadata
-    are kept, the ground truth and the cube are dropped.
+    disparity range is divided by ``factor``; wavelengths, positions and reference are kept.
+    The metadata are kept too, with the camera matrix of a calibrated capture
+    (``metadata["calibration"]["camera_matrix"]``) moved to the block grid, so that metric
+    depth from the small light field's disparities is the full-resolution one. The cube is
+    dropped, and so is the ground truth unless ``truth``.
 
     Parameters
     ----------
     lf : LightField
     factor : int
         Integer >= 1 (1 returns ``lf``).
+    truth : bool
+        Keep the ground-truth disparity as its block means divided by ``factor`` (a block
+        across a depth edge gets a value between the two sides).
 
     Returns
     -------
@@ -575,12 +581,48 @@ def downscale(lf: LightField, factor: int = 2) -> LightField:
     rng = lf.disparity_range
     views = np.moveaxis(lf.views, (2, 3), (-2, -1))  # colour views: channels before H, W
     views = np.moveaxis(block_reduce(views, factor), (-2, -1), (2, 3))
+    gt = None
+    if truth and lf.gt_disparity is not None:
+        gt = (block_reduce(lf.gt_disparity, factor) / factor).astype(np.float32)
     return LightField(
         views=views.astype(np.float32),
         wavelengths=lf.wavelengths, positions=lf.positions, reference=lf.reference,
         disparity_range=None if rng is None else (rng[0] / factor, rng[1] / factor),
-        metadata=dict(lf.metadata),
+        gt_disparity=gt, metadata=_downscaled_metadata(lf.metadata, factor),
         valid=None if lf.valid is None else block_reduce(lf.valid, factor, np.all))
+
+
+def _block_camera_matrix(K, factor: int) -> np.ndarray:
+    """The camera matrix of an image made of the means of ``factor x factor`` pixel blocks.
+
+    Block ``(x', y')`` is centred on full-resolution pixel ``factor x' + (factor - 1) / 2``,
+    so the focal lengths and the skew are divided by ``factor`` and the principal point
+    becomes ``(c - (factor - 1) / 2) / factor``.
+
+    Examples
+    --------
+    >>> _block_camera_matrix([[100, 0, 49.5], [0, 100, 29.5], [0, 0, 1]], 2)[:2].tolist()
+    [[50.0, 0.0, 24.5], [0.0, 50.0, 14.5]]
+    """
+    K = np.asarray(K, dtype=np.float64)
+    S = np.array([[1.0 / factor, 0.0, -(factor - 1) / (2.0 * factor)],
+                  [0.0, 1.0 / factor, -(factor - 1) / (2.0 * factor)],
+                  [0.0, 0.0, 1.0]])
+    return S @ K
+
+
+def _downscaled_metadata(metadata: dict, factor: int) -> dict:
+    """``metadata`` with a calibration's camera matrix on the block grid (a copy)."""
+    meta = dict(metadata)
+    cal = meta.get("calibration")
+    if isinstance(cal, dict) and "camera_matrix" in cal:
+        try:
+            K = _block_camera_matrix(cal["camera_matrix"], factor)
+        except (TypeError, ValueError):
+            return meta  # a malformed table stays as it is; metric depth reports it
+        if K.shape == (3, 3):
+            meta["calibration"] = {**cal, "camera_matrix": K.tolist()}
+    return meta
 
 
 def _describe_valid(valid: np.ndarray) -> str:
