@@ -232,3 +232,28 @@ def test_a_batch_disparity_range_reaches_every_depth_run(captures, tmp_path):
                              disparity_range=(-1.5, 2.0))
     assert all(t.depth_args == ("--disparity-range=-1.5,2", "--labels", "8") for t in tasks)
     assert all(t.disparity_range == (-1.5, 2.0) for t in tasks)
+
+
+def test_a_downscaled_batch_is_measured_at_its_own_resolution(tmp_path):
+    """``--downscale`` reaches every depth run and the measuring of its results: the scores
+    are those of the half-size map against the half-size truth, as depth itself prints."""
+    from hyperlf import metrics, synthesis
+    from hyperlf.lightfield import downscale
+
+    big = tmp_path / "big"  # large enough to be scored at half size (HCI's 15 px border)
+    save_lightfield(synthesis.procedural_scene(seed=7, rows=3, cols=3, height=76, width=84,
+                                               texture_scale=2.5), big / "frame")
+    out = tmp_path / "out"
+    tasks = batch.plan_batch([big], out, depth_args=["--labels", "8"], downscale=2)
+    assert tasks[0].depth_args == ("--downscale=2", "--labels", "8")
+    row = batch.run_capture(tasks[0])
+    assert row.status == "done", row.message
+    d = read_pfm(Path(tasks[0].output) / "disparity.pfm")
+    small = downscale(load_lightfield(tasks[0].capture, cube=False), 2, truth=True)
+    assert d.shape == small.image_shape == (38, 42)
+    want = metrics.hci_scores(d, small.reference_gt_disparity)
+    assert row.rmse_px == round(float(want.rmse), 5) and np.isfinite(row.rmse_px)
+    at = metrics.at_range_limit(d, small.disparity_range)
+    assert row.range_limit_pct == round(100.0 * float(at.mean()), 3)
+    with pytest.raises(InvalidInputError, match="other depth options"):
+        batch.plan_batch([big], out, depth_args=["--labels", "8"])  # not silently mixed

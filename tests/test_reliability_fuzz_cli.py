@@ -496,6 +496,9 @@ CASES = {
     "batch-workers": (numbers(small=(-2, 300), huge=10**12),
                       lambda w, v, o: ["batch", o / "no-such-capture", f"--workers={v}",
                                        "-o", o / "b"], None),
+    "batch-downscale": (numbers(small=(-2, 70), huge=10**12),
+                        lambda w, v, o: ["batch", o / "no-such-capture", f"--downscale={v}",
+                                         "-o", o / "b"], None),
     # --- info
     "info-input": (INPUT_TEXT, lambda w, v, o: ["info", "--", _input(w, v)], None),
 }

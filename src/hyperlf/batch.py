@@ -64,6 +64,7 @@ class CaptureTask:
     depth_args: tuple = ()
     overwrite: bool = False
     disparity_range: tuple | None = None  # the batch's --disparity-range, if given
+    downscale: int = 1  # the batch's --downscale: results at 1 / downscale of the capture
 
 
 @dataclass
@@ -188,21 +189,24 @@ def finish_batch(out: str | os.PathLike, rows: Sequence["CaptureResult"]) -> Non
 
 def plan_batch(inputs, out: str | os.PathLike, *, depth_args: Sequence[str] = (),
                disparity_range: tuple[float, float] | None = None,
-               overwrite: bool = False) -> list[CaptureTask]:
+               downscale: int = 1, overwrite: bool = False) -> list[CaptureTask]:
     """The tasks of a batch: one per capture of ``inputs`` (:func:`find_captures`), its
     result set at ``out / name``; ``disparity_range`` (optional) is passed to every depth run
-    and used for its range-limit figure.  Checks and marks ``out`` first (nothing is
+    and used for its range-limit figure, ``downscale`` (depth's ``--downscale``) to every run
+    and to the measuring of its results.  Checks and marks ``out`` first (nothing is
     computed)."""
     captures = find_captures(inputs)
     out = Path(out)
     args = list(depth_args)
+    if downscale != 1:
+        args.insert(0, f"--downscale={int(downscale)}")
     if disparity_range is not None:
         args.insert(0, "--disparity-range={:g},{:g}".format(*disparity_range))
     _record_options(out, args, overwrite)
     return [CaptureTask(name=n, capture=os.fspath(c), output=os.fspath(out / n),
                         depth_args=tuple(args), overwrite=overwrite,
                         disparity_range=None if disparity_range is None
-                        else tuple(disparity_range))
+                        else tuple(disparity_range), downscale=int(downscale))
             for n, c in zip(_names(captures), captures)]
 
 
@@ -265,6 +269,7 @@ def _measure(task: CaptureTask, row: CaptureResult) -> CaptureResult:
     HCI border where the capture has ground truth."""
     from . import metrics
     from .formats import load_lightfield, read_pfm
+    from .lightfield import downscale
 
     try:
         d = read_pfm(Path(task.output) / "disparity.pfm")
@@ -272,10 +277,14 @@ def _measure(task: CaptureTask, row: CaptureResult) -> CaptureResult:
     except (HyperLFError, OSError) as exc:
         row.message = f"result not measured: {exc}"
         return row
+    n = task.downscale
+    rng = task.disparity_range or lf.disparity_range  # the range depth used
+    if n > 1:  # what depth --downscale matched: block means, range and truth in their px
+        lf = downscale(lf, n, truth=True)
+        rng = None if rng is None else (rng[0] / n, rng[1] / n)
     ok = np.isfinite(d)
     if lf.valid is not None:
         ok &= lf.valid[lf.reference]
-    rng = task.disparity_range or lf.disparity_range  # the range depth used
     if rng is not None and ok.any():
         at = metrics.at_range_limit(d, rng)
         row.range_limit_pct = round(100.0 * float(at[ok].mean()), 3)

@@ -779,7 +779,8 @@ def _cmd_batch(args, dest) -> list[Path]:  # noqa: ARG001 - batch writes its own
     if args.no_coarse_prior:
         depth_args.append("--no-coarse-prior")
     tasks = plan_batch(args.inputs, args.output, depth_args=depth_args,
-                       disparity_range=args.disparity_range, overwrite=args.overwrite)
+                       disparity_range=args.disparity_range, downscale=args.downscale,
+                       overwrite=args.overwrite)
     _say(args, f"{len(tasks)} captures -> {args.output}")
     rows = run_batch(tasks, workers=args.workers, scheduler=args.scheduler,
                      progress=not args.quiet)
@@ -1324,6 +1325,9 @@ def _add_batch_parser(sub) -> None:
     p.add_argument("--texture-snr", type=_texture_snr_arg, default=None, metavar="T",
                    help="as for depth")
     p.add_argument("--no-coarse-prior", action="store_true", help="as for depth")
+    p.add_argument("--downscale", type=_downscale_arg, default=1, metavar="N",
+                   help="as for depth: every capture matched at 1/N resolution, and its "
+                        "scores taken at that resolution (default 1)")
     p.add_argument("--max-memory", type=_memory_arg, default=None, metavar="SIZE",
                    help="as for depth, for each capture: with N workers on one machine give "
                         "each at most 1/N of its memory")
