@@ -277,11 +277,11 @@ def _measure(task: CaptureTask, row: CaptureResult) -> CaptureResult:
     except (HyperLFError, OSError) as exc:
         row.message = f"result not measured: {exc}"
         return row
-    n = task.downscale
-    rng = task.disparity_range or lf.disparity_range  # the range depth used
-    if n > 1:  # what depth --downscale matched: block means, range and truth in their px
-        lf = downscale(lf, n, truth=True)
-        rng = None if rng is None else (rng[0] / n, rng[1] / n)
+    if task.disparity_range is not None:
+        lf = lf.replace(disparity_range=task.disparity_range)
+    if task.downscale > 1:  # what depth --downscale matched: block means, range and truth
+        lf = downscale(lf, task.downscale, truth=True)
+    rng = lf.disparity_range  # the range depth used, in the px of its map
     ok = np.isfinite(d)
     if lf.valid is not None:
         ok &= lf.valid[lf.reference]

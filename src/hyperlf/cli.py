@@ -621,8 +621,8 @@ MIN_DOWNSCALED_SIDE = 16
 
 
 def _downscaled(args, lf, rng):
-    """``depth --downscale``: the light field at ``1 / N`` (ground truth kept) and the range
-    in its px, the range checked in the input's px first."""
+    """``depth --downscale``: the light field at ``1 / N`` (ground truth kept), carrying the
+    range ``rng`` (checked in the input's px first; None: the input's) in its own px."""
     from .lightfield import downscale, resolve_disparity_range
 
     n = args.downscale
@@ -636,7 +636,7 @@ def _downscaled(args, lf, rng):
     small = downscale(lf, n, truth=True)
     _say(args, f"matching at 1/{n} resolution: {small.image_shape[1]} x "
                f"{small.image_shape[0]} px, disparities in those px")
-    return small, None
+    return small
 
 
 def _cmd_depth(args, dest) -> list[Path]:
@@ -666,7 +666,7 @@ def _cmd_depth(args, dest) -> list[Path]:
         raise InvalidInputError(f"{args.input} has no disparity range in its metadata; give "
                                 "--disparity-range MIN,MAX (px per baseline)")
     if args.downscale > 1:
-        lf, rng = _downscaled(args, lf, rng)
+        lf, rng = _downscaled(args, lf, rng), None  # the range now travels with lf
     _check_labels_memory(args.labels, lf.image_shape)
     t0 = time.perf_counter()
     if args.method == "hlf":
