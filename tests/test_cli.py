@@ -185,6 +185,50 @@ def test_complete_command_writes_a_cube_that_render_reads(tmp_path, capsys):
                  "-o", str(tmp_path / "c2")]) == 4
 
 
+def test_complete_at_1_over_n_scores_against_the_block_means(tmp_path, capsys):
+    """``complete --downscale 2``: a cube of half the size, close to the ground-truth cube's
+    block means; a full-resolution --disparity is made 1/2 (the same cube as from that map at
+    1/2), and a map of a third size is refused before any work."""
+    from hyperlf.formats import load_lightfield, open_cube_h5, open_gt_cube, write_pfm
+    from hyperlf.imageops import block_reduce
+    from hyperlf.metrics import psnr
+
+    cap = tmp_path / "planes"
+    assert main(["-q", "synth", "procedural", "--scene", "planes", "--size", "40,48",
+                 "--grid", "3,3", "-o", str(cap), "--no-pictures"]) == 0
+    gt = load_lightfield(cap, cube=False).gt_disparity[1, 1]
+    write_pfm(tmp_path / "full.pfm", gt)
+    write_pfm(tmp_path / "half.pfm", block_reduce(gt, 2) / 2)
+    cubes, printed = {}, {}
+    for name, how in (("truth", ["--use-ground-truth"]),
+                      ("full", ["--disparity", str(tmp_path / "full.pfm")]),
+                      ("half", ["--disparity", str(tmp_path / "half.pfm")])):
+        capsys.readouterr()
+        assert main(["complete", str(cap), *how, "--stereo", "none", "--downscale", "2",
+                     "-o", str(tmp_path / name)]) == 0
+        printed[name] = capsys.readouterr().err
+        assert "1/2 resolution: 24 x 20 px" in printed[name]
+        with open_cube_h5(tmp_path / name / "cube.h5") as cf:
+            cubes[name] = cf.cube[()]
+    assert cubes["truth"].shape == (3, 3, 9, 20, 24)
+    np.testing.assert_array_equal(cubes["full"], cubes["half"])
+    with open_gt_cube(cap) as truth:
+        small = block_reduce(truth[()], 2)
+    assert main(["-q", "complete", str(cap), "--use-ground-truth", "--stereo", "none",
+                 "-o", str(tmp_path / "whole")]) == 0
+    with open_cube_h5(tmp_path / "whole" / "cube.h5") as cf, open_gt_cube(cap) as truth:
+        whole = psnr(cf.cube[()], truth[()])
+    for name in cubes:  # as close to the truth's block means as the full run to the truth,
+        assert psnr(cubes[name], small) > whole - 1, name  # and scored against those
+        assert f"PSNR {psnr(cubes[name], small):.2f} dB" in printed[name], name
+    write_pfm(tmp_path / "third.pfm", gt[:30, :30])
+    assert main(["complete", str(cap), "--disparity", str(tmp_path / "third.pfm"),
+                 "--downscale", "2", "-o", str(tmp_path / "bad")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "24 x 20 (or 48 x 40 at full resolution)" in err[0]
+    assert not (tmp_path / "bad").exists()
+
+
 def test_stereo_and_depth_commands_pass_the_aggregation(tmp_path, monkeypatch):
     import hyperlf.hlf as hlf
     import hyperlf.twoview as tv

@@ -214,3 +214,17 @@ def test_downscale_keeps_metric_depth_and_can_keep_the_truth(factor, seed):
     else:  # even factors: the centre lies between four pixels; their mean depth is close
         np.testing.assert_allclose(coarse, block_reduce(full, factor), rtol=2e-3)
     assert downscale(lf, factor).gt_disparity is None
+
+
+def test_block_mean_cube_scores_like_the_block_means_of_the_whole_cube():
+    from hyperlf.imageops import block_reduce
+    from hyperlf.lightfield import BlockMeanCube
+    from hyperlf.metrics import cube_scores
+
+    rng = np.random.default_rng(3)
+    truth = rng.random((2, 3, 4, 9, 11))
+    small = block_reduce(truth, 3)
+    est = small * rng.uniform(0.9, 1.1, small.shape)
+    lazy = BlockMeanCube(truth, 3)
+    assert lazy.shape == small.shape == (2, 3, 4, 3, 4)
+    np.testing.assert_allclose(cube_scores(est, lazy), cube_scores(est, small), rtol=1e-12)

@@ -426,6 +426,10 @@ CASES = {
     "complete-stereo": (names_or(["none", "wta", "sgm", "graphcut"]),
                         lambda w, v, o: ["complete", w.cap, "--use-ground-truth",
                                          "--metric=ncc", f"--stereo={v}", "-o", o / "c"], None),
+    "complete-downscale": (numbers(small=(-2, 5), huge=10**9),
+                           lambda w, v, o: ["complete", w.cap, "--use-ground-truth",
+                                            "--stereo=none", f"--downscale={v}", "-o", o / "c"],
+                           None),
     # --- render
     "render-camera": (names_or(["CIE 1931", "cie 1931", "Nikon 5100", "Canon 1D Mark III"]),
                       lambda w, v, o: ["render", w.cap, f"--camera={v}", "-o", o / "r"], None),

@@ -621,8 +621,9 @@ MIN_DOWNSCALED_SIDE = 16
 
 
 def _downscaled(args, lf, rng):
-    """``depth --downscale``: the light field at ``1 / N`` (ground truth kept), carrying the
-    range ``rng`` (checked in the input's px first; None: the input's) in its own px."""
+    """``--downscale`` of depth and complete: the light field at ``1 / N`` (ground truth kept),
+    carrying the range ``rng`` (checked in the input's px first; None: the input's) in its own
+    px."""
     from .lightfield import downscale, resolve_disparity_range
 
     n = args.downscale
@@ -634,7 +635,7 @@ def _downscaled(args, lf, rng):
     if rng is not None:
         lf = lf.replace(disparity_range=resolve_disparity_range(lf, rng))
     small = downscale(lf, n, truth=True)
-    _say(args, f"matching at 1/{n} resolution: {small.image_shape[1]} x "
+    _say(args, f"working at 1/{n} resolution: {small.image_shape[1]} x "
                f"{small.image_shape[0]} px, disparities in those px")
     return small
 
@@ -813,6 +814,24 @@ def _say_depth_scores(args, disparity: np.ndarray, gt: np.ndarray) -> None:
                f"{sc.mse_x100:.3f}, BadPix(0.07) {sc.badpix_007:.2f} %")
 
 
+def _complete_disparity(args, disparity, full_shape):
+    """``complete --disparity`` at the working resolution: under ``--downscale N`` a map of
+    the input's size ``full_shape`` becomes its block means / N, and one of 1/N is taken as
+    it is."""
+    n = args.downscale
+    shape = (-(-full_shape[0] // n), -(-full_shape[1] // n))
+    if disparity.shape == shape:
+        return disparity
+    if disparity.shape == full_shape:
+        from .imageops import block_reduce
+
+        return (block_reduce(disparity, n) / n).astype(np.float32)
+    sizes = f"{shape[1]} x {shape[0]}" + (f" (or {full_shape[1]} x {full_shape[0]} at full "
+                                          "resolution)" if n > 1 else "")
+    raise InvalidInputError(f"--disparity {args.disparity} is {disparity.shape[1]} x "
+                            f"{disparity.shape[0]} px but the views are {sizes}")
+
+
 def _cmd_complete(args, dest) -> list[Path]:
     """Register every band into every view (SPEC §7): the reference disparity is warped to
     every view, refined (pairwise cross-spectral stereo + edge-aware WLS), then each band is
@@ -823,26 +842,29 @@ def _cmd_complete(args, dest) -> list[Path]:
     examples:
       hyperlf complete scene3 -o cube3
       hyperlf complete scene3 --disparity depth3/disparity.pfm -o cube3
+      hyperlf complete lab-capture --downscale 4 -o first-cube   # 1/4 resolution, a quick look
       hyperlf render cube3/cube.h5 --camera 'Nikon 5100' -o rgb3
     """
     from . import metrics, render, visualise
     from .completion import complete, read_band_mask
     from .formats import load_lightfield, open_gt_cube, read_pfm, write_image
+    from .lightfield import BlockMeanCube
 
     lf = load_lightfield(args.input, cube=False)  # a ground-truth cube is scored from disk
     out = dest
+    n = args.downscale
     disparity = None
-    if args.disparity is not None:
-        disparity = read_pfm(_check_input_file(args.disparity, "--disparity"))
-        if disparity.shape != lf.image_shape:
-            raise InvalidInputError(f"--disparity {args.disparity} is {disparity.shape[1]} x "
-                                    f"{disparity.shape[0]} px but the views are "
-                                    f"{lf.image_shape[1]} x {lf.image_shape[0]}")
-    elif args.use_ground_truth:
+    if args.disparity is not None:  # checked before the light field is made small
+        disparity = _complete_disparity(args, read_pfm(_check_input_file(args.disparity,
+                                                                         "--disparity")),
+                                        lf.image_shape)
+    if n > 1:
+        lf = _downscaled(args, lf, None)
+    if disparity is None and args.use_ground_truth:
         if lf.gt_disparity is None:
             raise InvalidInputError(f"{args.input} has no ground-truth disparity")
         disparity = lf.gt_disparity
-    else:
+    elif disparity is None:
         _say(args, "no --disparity given: estimating the reference disparity first "
                    "('hyperlf depth' with the default settings)")
     res = complete(lf, disparity, out_path=out / "cube.h5", metric=args.metric,
@@ -864,7 +886,8 @@ def _cmd_complete(args, dest) -> list[Path]:
                                      exposure="percentile", views=lf.reference)
         with open_gt_cube(args.input) as gt_cube:
             if gt_cube is not None:
-                psnr, sam = metrics.cube_scores(cf.cube, gt_cube)
+                psnr, sam = metrics.cube_scores(cf.cube, gt_cube if n == 1
+                                                else BlockMeanCube(gt_cube, n))
                 _say(args, f"against the ground-truth cube: PSNR {psnr:.2f} dB, SAM "
                            f"{sam:.2f} deg")
     written.append(write_image(out / "reference_srgb.png", srgb, bit_depth=8))
@@ -1353,6 +1376,10 @@ def _add_complete_parser(sub) -> None:
                    help="do not infer entries no view observed (points hidden in the view that "
                         "records the band) from the same band nearby; leave them to the "
                         "spectral fill and mark them missing")
+    p.add_argument("--downscale", type=_downscale_arg, default=1, metavar="N",
+                   help="complete the means of N x N pixel blocks: a cube at 1/N resolution "
+                        "in about 1/N^2 of the time; --disparity may then be the full-"
+                        "resolution map (made 1/N) or one made at 1/N (default 1)")
     _add_output_folder(p)
 
 

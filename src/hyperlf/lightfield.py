@@ -27,7 +27,7 @@ from .imageops import block_reduce
 
 __all__ = ["LightField", "raster_wavelengths", "filter_layout", "view_offsets",
            "grid_positions", "centre_view", "check_disparity_range", "resolve_disparity_range",
-           "check_disparity_reach", "downscale"]
+           "check_disparity_reach", "downscale", "BlockMeanCube"]
 
 
 def _finite(name: str, arr: np.ndarray) -> None:
@@ -590,6 +590,38 @@ def downscale(lf: LightField, factor: int = 2, *, truth: bool = False) -> LightF
         disparity_range=None if rng is None else (rng[0] / factor, rng[1] / factor),
         gt_disparity=gt, metadata=_downscaled_metadata(lf.metadata, factor),
         valid=None if lf.valid is None else block_reduce(lf.valid, factor, np.all))
+
+
+class BlockMeanCube:
+    """A plenoptic cube seen at ``1 / factor`` of its resolution, read one view at a time.
+
+    ``cube[r, c]`` is the block means (:func:`hyperlf.imageops.block_reduce`, as
+    :func:`downscale` makes the views) of view ``(r, c)`` of ``cube``, which may be a lazy
+    h5py dataset (:func:`hyperlf.formats.open_gt_cube`): a full-resolution ground truth can
+    score a completion made at ``1 / factor`` (:func:`hyperlf.metrics.cube_scores`) without
+    being read whole.
+
+    Parameters
+    ----------
+    cube : array_like, shape (R, C, B, H, W)
+    factor : int
+        Block side (>= 1).
+
+    Examples
+    --------
+    >>> small = BlockMeanCube(np.arange(24.0).reshape(1, 1, 1, 4, 6), 2)
+    >>> small.shape, small[0, 0].tolist()
+    ((1, 1, 1, 2, 3), [[[3.5, 5.5, 7.5], [15.5, 17.5, 19.5]]])
+    """
+
+    def __init__(self, cube, factor: int):
+        self.cube, self.factor = cube, int(factor)
+        R, C, B, H, W = np.shape(cube)
+        self.shape = (R, C, B, -(-H // self.factor), -(-W // self.factor))
+
+    def __getitem__(self, view) -> np.ndarray:
+        r, c = view
+        return block_reduce(np.asarray(self.cube[r, c], dtype=np.float64), self.factor)
 
 
 def _block_camera_matrix(K, factor: int) -> np.ndarray:
