@@ -823,9 +823,9 @@ def _complete_disparity(args, disparity, full_shape):
     if disparity.shape == shape:
         return disparity
     if disparity.shape == full_shape:
-        from .imageops import block_reduce
+        from .lightfield import downscale_disparity
 
-        return (block_reduce(disparity, n) / n).astype(np.float32)
+        return downscale_disparity(disparity, n)
     sizes = f"{shape[1]} x {shape[0]}" + (f" (or {full_shape[1]} x {full_shape[0]} at full "
                                           "resolution)" if n > 1 else "")
     raise InvalidInputError(f"--disparity {args.disparity} is {disparity.shape[1]} x "

@@ -27,7 +27,7 @@ from .imageops import block_reduce
 
 __all__ = ["LightField", "raster_wavelengths", "filter_layout", "view_offsets",
            "grid_positions", "centre_view", "check_disparity_range", "resolve_disparity_range",
-           "check_disparity_reach", "downscale", "BlockMeanCube"]
+           "check_disparity_reach", "downscale", "downscale_disparity", "BlockMeanCube"]
 
 
 def _finite(name: str, arr: np.ndarray) -> None:
@@ -583,13 +583,25 @@ def downscale(lf: LightField, factor: int = 2, *, truth: bool = False) -> LightF
     views = np.moveaxis(block_reduce(views, factor), (-2, -1), (2, 3))
     gt = None
     if truth and lf.gt_disparity is not None:
-        gt = (block_reduce(lf.gt_disparity, factor) / factor).astype(np.float32)
+        gt = downscale_disparity(lf.gt_disparity, factor)
     return LightField(
         views=views.astype(np.float32),
         wavelengths=lf.wavelengths, positions=lf.positions, reference=lf.reference,
         disparity_range=None if rng is None else (rng[0] / factor, rng[1] / factor),
         gt_disparity=gt, metadata=_downscaled_metadata(lf.metadata, factor),
         valid=None if lf.valid is None else block_reduce(lf.valid, factor, np.all))
+
+
+def downscale_disparity(disparity, factor: int) -> np.ndarray:
+    """A disparity map (``(..., H, W)``) on the block grid of :func:`downscale`: its block means
+    divided by ``factor`` (disparities in the small views' px), float32.
+
+    Examples
+    --------
+    >>> downscale_disparity(np.full((4, 6), 3.0), 2).tolist()
+    [[1.5, 1.5, 1.5], [1.5, 1.5, 1.5]]
+    """
+    return (block_reduce(np.asarray(disparity), factor) / factor).astype(np.float32)
 
 
 class BlockMeanCube:
