@@ -11,7 +11,7 @@ from hyperlf.calibration import read_calibration, view_maps
 from hyperlf.calibration.rig import make_rig
 from hyperlf.cli import main
 from hyperlf.formats import load_lightfield, read_pfm, write_image
-from hyperlf.formats.ply import read_ply
+from hyperlf.formats.ply import read_ply, read_ply_properties
 
 BORDER = 12
 
@@ -142,6 +142,31 @@ def test_depth_writes_metric_depth_and_a_point_cloud(runs):
     assert len(pts) == np.isfinite(Z).sum() and rgb.shape == pts.shape
     np.testing.assert_allclose(np.sort(pts[:, 2]), np.sort(Z[np.isfinite(Z)]), rtol=1e-5)
     assert (tmp / "depth" / "depth.png").is_file()
+
+
+def test_min_confidence_leaves_the_unsure_pixels_out_of_the_metric_outputs(runs, tmp_path):
+    """``depth --min-confidence C``: the same estimate; the metric outputs keep exactly the
+    pixels whose confidence (a PLY property of every point either way) is at least C."""
+    tmp = runs["imperfect"]["tmp"]
+    every = read_ply_properties(tmp / "depth" / "points.ply")
+    Z = read_pfm(tmp / "depth" / "depth.pfm")
+    conf = every["confidence"]
+    assert len(conf) == np.isfinite(Z).sum() and conf.min() >= 0 and conf.max() <= 1
+    c = float(np.median(conf))
+    assert 0 < c < 1
+    assert main(["-q", "depth", str(tmp / "cap"), "--labels", "32", "--min-confidence", str(c),
+                 "-o", str(tmp_path / "d")]) == 0
+    np.testing.assert_array_equal(read_pfm(tmp_path / "d" / "disparity.pfm"),
+                                  read_pfm(tmp / "depth" / "disparity.pfm"))
+    kept = read_ply_properties(tmp_path / "d" / "points.ply")
+    sure = conf >= np.float32(c)
+    assert 0.3 < sure.mean() < 0.95
+    for name in ("x", "y", "z", "red", "confidence"):
+        np.testing.assert_array_equal(kept[name], every[name][sure])
+    conf_map = np.full(Z.shape, np.nan, np.float32)
+    conf_map[np.isfinite(Z)] = conf
+    want = np.where(conf_map >= np.float32(c), Z, np.nan)
+    np.testing.assert_array_equal(read_pfm(tmp_path / "d" / "depth.pfm"), want)
 
 
 def test_depth_at_half_resolution_keeps_the_metric_depth(runs, capsys):

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from hyperlf.calibration.metric import depth_from_disparity, point_cloud
 from hyperlf.errors import FormatError, InvalidInputError
-from hyperlf.formats.ply import read_ply, write_ply
+from hyperlf.formats.ply import read_ply, read_ply_properties, write_ply
 
 K = [[800.0, 0.0, 20.0], [0.0, 800.0, 15.0], [0.0, 0.0, 1.0]]
 
@@ -71,6 +71,41 @@ def test_ply_round_trip(tmp_path_factory, n, colour, seed):
     assert (gcol is None) == (col is None)
     if col is not None:
         np.testing.assert_array_equal(gcol, col)
+
+
+@settings(max_examples=30, deadline=None)
+@given(n=st.integers(0, 50), names=st.lists(st.from_regex(r"[A-Za-z_][A-Za-z0-9_]{0,8}",
+                                                          fullmatch=True),
+                                            max_size=3, unique=True),
+       seed=st.integers(0, 2**16))
+def test_ply_scalars_round_trip(tmp_path_factory, n, names, seed):
+    names = [m for m in names if m not in ("x", "y", "z", "red", "green", "blue")]
+    rng = np.random.default_rng(seed)
+    pts = rng.normal(size=(n, 3))
+    scalars = {m: rng.random(n) for m in names}
+    p = write_ply(tmp_path_factory.mktemp("ply") / "a.ply", pts,
+                  rng.integers(0, 256, (n, 3)).astype(np.uint8), scalars=scalars)
+    got = read_ply_properties(p)
+    assert list(got) == ["x", "y", "z", "red", "green", "blue", *names]
+    for m in names:
+        np.testing.assert_array_equal(got[m], scalars[m].astype(np.float32))
+    np.testing.assert_array_equal(read_ply(p)[0], pts.astype(np.float32))
+
+
+@pytest.mark.parametrize("scalars", [{"x": [0.0]}, {"two words": [0.0]}, {"é": [0.0]},
+                                     {"1st": [0.0]}, {"c": [0.0, 1.0]}, {"c": [[0.0]]}])
+def test_ply_scalars_that_cannot_be_written_are_refused(tmp_path, scalars):
+    with pytest.raises(InvalidInputError):
+        write_ply(tmp_path / "a.ply", np.zeros((1, 3)), scalars=scalars)
+    assert not (tmp_path / "a.ply").exists()
+
+
+def test_ply_reader_refuses_a_property_named_twice(tmp_path):
+    p = tmp_path / "d.ply"
+    p.write_bytes(b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y"
+                  b"\nproperty float z\nproperty float x\nend_header\n1 2 3 4\n")
+    with pytest.raises(FormatError, match="twice"):
+        read_ply(p)
 
 
 @settings(max_examples=60, deadline=None)

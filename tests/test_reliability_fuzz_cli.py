@@ -398,6 +398,10 @@ CASES = {
                         lambda w, v, o: ["depth", w.cap, "--labels=4", "--metric=ncc",
                                          "--optimizer=wta", f"--downscale={v}", "-o", o / "d"],
                         None),
+    "depth-min-confidence": (numbers(small=(-2, 3), huge=10**9),
+                             lambda w, v, o: ["depth", w.cap, "--labels=4", "--metric=ncc",
+                                              "--optimizer=wta", f"--min-confidence={v}",
+                                              "-o", o / "d"], None),
     "depth-max-memory": (st.one_of(numbers(small=(-3, 10**6), huge=10**30),
                                    st.builds(lambda n, u: f"{n}{u}", numbers(small=(-2, 10**4)),
                                              st.sampled_from(["K", "M", "G", "T", "GB", "gib",
@@ -503,6 +507,9 @@ CASES = {
     "batch-downscale": (numbers(small=(-2, 70), huge=10**12),
                         lambda w, v, o: ["batch", o / "no-such-capture", f"--downscale={v}",
                                          "-o", o / "b"], None),
+    "batch-min-confidence": (numbers(small=(-2, 3), huge=10**12),
+                             lambda w, v, o: ["batch", o / "no-such-capture",
+                                              f"--min-confidence={v}", "-o", o / "b"], None),
     # --- info
     "info-input": (INPUT_TEXT, lambda w, v, o: ["info", "--", _input(w, v)], None),
 }

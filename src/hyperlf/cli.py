@@ -206,6 +206,10 @@ def _texture_snr_arg(text: str) -> float:
     return v
 
 
+#: ``--min-confidence``: a confidence in [0, 1].
+_min_confidence_arg = _float_within(0.0, 1.0, "--min-confidence")
+
+
 def _say(args, msg: str) -> None:
     if not getattr(args, "quiet", False):
         print(_one_line(msg), file=sys.stderr)
@@ -718,7 +722,8 @@ def _cmd_depth(args, dest) -> list[Path]:
     gt = lf.reference_gt_disparity
     written = save_disparity_outputs(out, res.disparity, f"{args.method} disparity", truth=gt,
                                       confidence=res.confidence)
-    written += save_metric_outputs(out, res.disparity, lf)
+    written += save_metric_outputs(out, res.disparity, lf, confidence=res.confidence,
+                                   min_confidence=args.min_confidence)
     if args.save_intermediate:
         from . import visualise
         from .formats import write_pfm
@@ -774,7 +779,8 @@ def _cmd_batch(args, dest) -> list[Path]:  # noqa: ARG001 - batch writes its own
     depth_args = []
     for flag, value in (("--labels", args.labels), ("--metric", args.metric),
                         ("--optimizer", args.optimizer), ("--median-radius", args.median_radius),
-                        ("--texture-snr", args.texture_snr), ("--max-memory", args.max_memory)):
+                        ("--texture-snr", args.texture_snr), ("--max-memory", args.max_memory),
+                        ("--min-confidence", args.min_confidence)):
         if value is not None:
             depth_args += [flag, f"{value:g}" if isinstance(value, float) else str(value)]
     if args.no_coarse_prior:
@@ -1317,6 +1323,13 @@ def _add_depth_parser(sub) -> None:
                         "are N times smaller and their disparities in their own px (1/N of "
                         "the full-resolution values; --disparity-range stays in the input's "
                         "px); metric depth and the point cloud keep their unit (default 1)")
+    p.add_argument("--min-confidence", type=_min_confidence_arg, default=0.0, metavar="C",
+                   help="leave pixels whose confidence (confidence.png) is below C out of "
+                        "the metric outputs: NaN in depth.pfm, no point in points.ply, whose "
+                        "points carry their confidence as a property either way. E.g. 0.05 "
+                        "drops the textureless pixels whose depth was filled in from their "
+                        "surroundings (confidence 0); disparity.pfm stays whole (default 0: "
+                        "keep every pixel)")
     _add_aggregation_options(p)
     p.add_argument("--save-intermediate", action="store_true",
                    help="also write correspondence-only and defocus-only maps, and the "
@@ -1348,6 +1361,8 @@ def _add_batch_parser(sub) -> None:
     p.add_argument("--texture-snr", type=_texture_snr_arg, default=None, metavar="T",
                    help="as for depth")
     p.add_argument("--no-coarse-prior", action="store_true", help="as for depth")
+    p.add_argument("--min-confidence", type=_min_confidence_arg, default=None, metavar="C",
+                   help="as for depth (captures with metric outputs)")
     p.add_argument("--downscale", type=_downscale_arg, default=1, metavar="N",
                    help="as for depth: every capture matched at 1/N resolution, and its "
                         "scores taken at that resolution (default 1)")

@@ -547,15 +547,38 @@ def run_ingest(raw: str | os.PathLike, out_dir: str | os.PathLike, *, calibratio
     return lf, written
 
 
-def save_metric_outputs(out: str | os.PathLike, disparity: np.ndarray, lf) -> list[Path]:
+def save_metric_outputs(out: str | os.PathLike, disparity: np.ndarray, lf, *,
+                        confidence: np.ndarray | None = None,
+                        min_confidence: float = 0.0) -> list[Path]:
     """Depth in the calibration's unit and a coloured point cloud, for a capture that carries
     its geometry (``lf.metadata["calibration"]``, written by ``hyperlf ingest``).
 
     Writes ``depth.pfm`` (exact), ``depth.png`` (colour-mapped) and ``points.ply`` (reference
     pixels with a finite depth, coloured by the reference view). Nothing without geometry.
+
+    Parameters
+    ----------
+    out : path-like
+        The result folder.
+    disparity : ndarray, shape (H, W)
+        The reference view's disparity, px per baseline.
+    lf : LightField
+        The capture the disparity was estimated from (its geometry, validity and reference).
+    confidence : ndarray, shape (H, W), optional
+        The estimate's confidence in [0, 1]; stored per vertex as the PLY property
+        ``confidence``.
+    min_confidence : float
+        Pixels whose confidence is below it are left out of the metric outputs (NaN in
+        ``depth.pfm``, no vertex in ``points.ply``): e.g. the textureless pixels whose depth
+        the regulariser filled in from their surroundings (confidence 0). 0 keeps every pixel.
+
+    Returns
+    -------
+    list of Path
     """
     from . import visualise
     from .calibration.metric import depth_from_disparity, point_cloud
+    from .errors import InvalidInputError
     from .formats import write_pfm
     from .formats.ply import write_ply
 
@@ -563,16 +586,23 @@ def save_metric_outputs(out: str | os.PathLike, disparity: np.ndarray, lf) -> li
     if not isinstance(geo, dict) or "camera_matrix" not in geo \
             or geo.get("focal_determined") is False:
         return []
+    if not 0.0 <= min_confidence <= 1.0:
+        raise InvalidInputError(f"min_confidence must be in [0, 1], got {min_confidence}")
+    if min_confidence > 0 and confidence is None:
+        raise InvalidInputError("min_confidence needs the estimate's confidence map")
     out = Path(out)
     Z = depth_from_disparity(disparity, geo)
-    if lf.valid is not None:
-        Z = np.where(lf.valid[lf.reference], Z, np.nan).astype(np.float32)
+    keep = np.ones(Z.shape, bool) if lf.valid is None else lf.valid[lf.reference]
+    if min_confidence > 0:
+        keep = keep & (confidence >= min_confidence)
+    Z = np.where(keep, Z, np.nan).astype(np.float32)
     ref = lf.reference_view
     lo, hi = np.percentile(ref, [1, 99.5])
     colours = np.clip((ref - lo) / max(hi - lo, 1e-9), 0, 1)
-    pts, rgb = point_cloud(Z, geo, colours)
+    pts, rgb = point_cloud(Z, geo, colours)  # the pixels of finite Z, in row-major order
+    scalars = None if confidence is None else {"confidence": confidence[np.isfinite(Z)]}
     unit = geo.get("unit", "board square units")
     return [write_pfm(out / "depth.pfm", Z),
             visualise.save_disparity_png(out / "depth.png", Z, title=f"depth ({unit})",
                                          label=unit, cmap="viridis"),
-            write_ply(out / "points.ply", pts, rgb, comment=f"unit: {unit}")]
+            write_ply(out / "points.ply", pts, rgb, scalars=scalars, comment=f"unit: {unit}")]

@@ -1,13 +1,16 @@
-"""Point clouds as PLY files (binary little-endian; float32 x, y, z and optional uchar colour).
+"""Point clouds as PLY files (binary little-endian; float32 x, y, z, optional uchar colour and
+optional float32 per-vertex scalars such as ``confidence``).
 
 PLY is read by MeshLab, CloudCompare, Open3D and Blender. The writer is atomic like every
 hyperlf output; the reader reads back what the writer writes (and ASCII files of the same
-layout), for tests and scripts.
+layout), for tests and scripts. CloudCompare shows a per-vertex scalar as a scalar field that
+can be filtered; MeshLab and Open3D read the points and colours and skip the rest.
 """
 
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +18,7 @@ import numpy as np
 from .._atomic import atomic_path
 from ..errors import FormatError, InvalidInputError
 
-__all__ = ["write_ply", "read_ply"]
+__all__ = ["write_ply", "read_ply", "read_ply_properties"]
 
 _XYZ = [("x", "<f4"), ("y", "<f4"), ("z", "<f4")]
 _RGB = [("red", "u1"), ("green", "u1"), ("blue", "u1")]
@@ -25,14 +28,19 @@ _PLY_TYPES = {"float": "f4", "float32": "f4", "double": "f8", "float64": "f8", "
 
 
 def write_ply(path: str | os.PathLike, points: np.ndarray, colours: np.ndarray | None = None,
-              *, comment: str | None = None) -> Path:
-    """Write points (and colours) as a binary little-endian PLY file.
+              *, scalars: Mapping[str, np.ndarray] | None = None,
+              comment: str | None = None) -> Path:
+    """Write points (and colours, and per-vertex scalars) as a binary little-endian PLY file.
 
     Parameters
     ----------
     path : path-like
     points : ndarray, shape (N, 3)
     colours : ndarray of uint8, shape (N, 3), optional
+    scalars : mapping of str to ndarray, shape (N,), optional
+        Further per-vertex properties, stored as float32 after the colours in the mapping's
+        order, e.g. ``{"confidence": c}``. Names are PLY words: letters, digits and ``_``,
+        not starting with a digit, other than the position and colour names.
     comment : str, optional
         One line stored in the header (e.g. the unit).
 
@@ -46,6 +54,9 @@ def write_ply(path: str | os.PathLike, points: np.ndarray, colours: np.ndarray |
     >>> p = write_ply(pathlib.Path(tempfile.mkdtemp()) / "a.ply", np.zeros((2, 3)))
     >>> read_ply(p)[0].shape
     (2, 3)
+    >>> p = write_ply(p, np.zeros((2, 3)), scalars={"confidence": np.array([0.5, 1.0])})
+    >>> read_ply_properties(p)["confidence"].tolist()
+    [0.5, 1.0]
     """
     pts = np.asarray(points, dtype=np.float32)
     if pts.ndim != 2 or pts.shape[1] != 3:
@@ -57,10 +68,14 @@ def write_ply(path: str | os.PathLike, points: np.ndarray, colours: np.ndarray |
             raise InvalidInputError(f"colours must be uint8 of shape {pts.shape}, got "
                                     f"{col.dtype} {col.shape}")
         fields += _RGB
+    extra = _checked_scalars(scalars, len(pts))
+    fields += [(name, "<f4") for name in extra]
     rec = np.empty(len(pts), dtype=fields)
     rec["x"], rec["y"], rec["z"] = pts.T
     if colours is not None:
         rec["red"], rec["green"], rec["blue"] = np.asarray(colours).T
+    for name, values in extra.items():
+        rec[name] = values
     lines = ["ply", "format binary_little_endian 1.0"]
     if comment:
         lines.append("comment " + " ".join(str(comment).split()))
@@ -72,6 +87,23 @@ def write_ply(path: str | os.PathLike, points: np.ndarray, colours: np.ndarray |
             f.write(("\n".join(lines) + "\n").encode("ascii"))
             f.write(rec.tobytes())
     return Path(path)
+
+
+def _checked_scalars(scalars, n: int) -> dict[str, np.ndarray]:
+    """``write_ply``'s ``scalars``, each a float32 array of ``n`` values, names checked."""
+    taken = {name for name, _ in _XYZ + _RGB}
+    out = {}
+    for name, values in (scalars or {}).items():
+        if not (isinstance(name, str) and name.isascii() and name.isidentifier()) \
+                or name in taken:
+            raise InvalidInputError(f"PLY property name {name!r} must be a word of letters, "
+                                    "digits and _ other than x, y, z, red, green, blue")
+        arr = np.asarray(values, dtype=np.float32)
+        if arr.shape != (n,):
+            raise InvalidInputError(f"PLY property {name!r} must have shape ({n},), got "
+                                    f"{arr.shape}")
+        out[name] = arr
+    return out
 
 
 def _header(f, p: Path):
@@ -92,6 +124,8 @@ def _header(f, p: Path):
         elif words[:2] == ["element", "vertex"] and len(words) == 3 and words[2].isdigit():
             count = int(words[2])
         elif words[0] == "property" and len(words) == 3 and words[1] in _PLY_TYPES:
+            if words[2] in {n for n, _ in props}:
+                raise FormatError(f"{p}: PLY property {words[2]!r} appears twice")
             props.append((words[2], _PLY_TYPES[words[1]]))
         elif words[0] == "element" or words[0] == "property":
             raise FormatError(f"{p}: hyperlf reads vertex-only PLY files; found {' '.join(words)}")
@@ -105,6 +139,21 @@ def read_ply(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
     ------
     FormatError
         Not a PLY file, other elements than vertices, or truncated data.
+    """
+    rec = read_ply_properties(path)
+    pts = np.stack([rec["x"], rec["y"], rec["z"]], axis=1).astype(np.float32)
+    if {"red", "green", "blue"} <= set(rec):
+        return pts, np.stack([rec["red"], rec["green"], rec["blue"]], 1).astype(np.uint8)
+    return pts, None
+
+
+def read_ply_properties(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """Every vertex property of a vertex PLY file, by name, as 1-D arrays in file order.
+
+    Raises
+    ------
+    FormatError
+        As :func:`read_ply`.
     """
     p = Path(path)
     with open(p, "rb") as f:
@@ -132,7 +181,4 @@ def read_ply(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
             rec = np.frombuffer(buf, dtype=dt)
         else:
             raise FormatError(f"{p}: PLY format {fmt!r} is not supported")
-    pts = np.stack([rec["x"], rec["y"], rec["z"]], axis=1).astype(np.float32)
-    if {"red", "green", "blue"} <= set(names):
-        return pts, np.stack([rec["red"], rec["green"], rec["blue"]], 1).astype(np.uint8)
-    return pts, None
+    return {n: np.asarray(rec[n]) for n in names}
