@@ -110,7 +110,8 @@ def test_stereo_command_writes_disparity_products(tmp_path):
                  "-o", str(out)]) == 0
     d = read_pfm(out / "disparity.pfm")
     assert np.mean(np.abs(d[5:-5, 12:-5] - 4) < 0.5) > 0.95
-    for name in ("disparity_16bit.png", "disparity_16bit.txt", "disparity.png", "confidence.png"):
+    for name in ("disparity_16bit.png", "disparity_16bit.txt", "disparity.png", "confidence.png",
+                 "confidence.pfm"):
         assert (out / name).is_file(), name
     assert main(["-q", "stereo", str(tmp_path / "l.png"), str(tmp_path / "r.png"),
                  "-o", str(out)]) == 2  # no range given: usage error with a hint

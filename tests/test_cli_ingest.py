@@ -152,6 +152,8 @@ def test_min_confidence_leaves_the_unsure_pixels_out_of_the_metric_outputs(runs,
     Z = read_pfm(tmp / "depth" / "depth.pfm")
     conf = every["confidence"]
     assert len(conf) == np.isfinite(Z).sum() and conf.min() >= 0 and conf.max() <= 1
+    conf_map = read_pfm(tmp / "depth" / "confidence.pfm")  # the exact map, beside the picture
+    np.testing.assert_array_equal(conf, conf_map[np.isfinite(Z)])
     c = float(np.median(conf))
     assert 0 < c < 1
     assert main(["-q", "depth", str(tmp / "cap"), "--labels", "32", "--min-confidence", str(c),
@@ -163,8 +165,6 @@ def test_min_confidence_leaves_the_unsure_pixels_out_of_the_metric_outputs(runs,
     assert 0.3 < sure.mean() < 0.95
     for name in ("x", "y", "z", "red", "confidence"):
         np.testing.assert_array_equal(kept[name], every[name][sure])
-    conf_map = np.full(Z.shape, np.nan, np.float32)
-    conf_map[np.isfinite(Z)] = conf
     want = np.where(conf_map >= np.float32(c), Z, np.nan)
     np.testing.assert_array_equal(read_pfm(tmp_path / "d" / "depth.pfm"), want)
 

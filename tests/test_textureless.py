@@ -136,9 +136,11 @@ def test_a_textureless_region_follows_its_surroundings(seed):
     assert np.percentile(err_on, 95) < 0.1
     # with the coarse prior (default): the half-resolution run sees the cameras' strong
     # vignetting as texture in a few rows by the bottom border (outer views invalid there)
-    err_prior = np.abs(depth(lf, n_labels=25, params=DepthParams(texture_snr=2)).disparity[inner]
-                       - D0)
+    prior = depth(lf, n_labels=25, params=DepthParams(texture_snr=2))
+    err_prior = np.abs(prior.disparity[inner] - D0)
     assert np.percentile(err_prior, 95) < 0.25 and err_prior.max() <= 0.55
+    # no level saw texture there: filled in from the surroundings, so (nearly) no confidence
+    assert np.mean(prior.confidence[inner] == 0) > 0.8 and prior.confidence[inner].mean() < 0.02
     assert np.median(np.abs(off.disparity[inner] - D0)) >= 0.4  # the scene needs the weight
     textured = np.s_[BORDER:H // 2 - 8, BORDER:-BORDER]
     err_tex = [np.percentile(np.abs(r.disparity[textured] - D0), 95) for r in (on, off)]
@@ -233,6 +235,11 @@ def test_a_faint_slanted_table_follows_the_coarse_estimate(seed):
     assert rmse[False]["table"] > 1.0  # filled with one constant from the wall
     assert rmse[True]["table"] < 0.5  # the table's own slope, from the half-resolution run
     assert rmse[True]["wall"] <= rmse[False]["wall"] + 0.01
+    # the confidence: none where the wall's depth was carried over the table, the coarse
+    # run's where the table's came from it (the coarse run is less sure than the wall)
+    conf = {cp: r.confidence for cp, r in res.items()}
+    assert np.mean(conf[False][table] == 0) > 0.9
+    assert 0.03 < np.median(conf[True][table]) < conf[True][wall].mean()
     assert res[True].config["coarse_prior_scale"] == 2
     assert res[False].config["coarse_prior_scale"] is None
     assert "coarse_prior_s" in res[True].timings

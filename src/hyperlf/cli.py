@@ -590,8 +590,8 @@ def _read_stereo_image(path: str) -> np.ndarray:
 def _cmd_stereo(args, dest) -> list[Path]:
     """Disparity of the left image of a rectified pair whose images may see different spectra
     (SPEC §4). Left x matches right x - d. Writes disparity.pfm (exact), disparity_16bit.png
-    (value/256 + offset, see the .txt beside it), a colour-mapped disparity.png and
-    confidence.png.
+    (value/256 + offset, see the .txt beside it), a colour-mapped disparity.png and the
+    confidence (confidence.pfm, exact, and confidence.png; 0 ambiguous to 1 unique).
 
     examples:
       hyperlf stereo imL.png imR.png --disparity-range 0,59 -o out
@@ -647,11 +647,13 @@ def _downscaled(args, lf, rng):
 def _cmd_depth(args, dest) -> list[Path]:
     """Estimate the reference view's disparity of a hyperspectral light field (SPEC §5) or run
     a baseline light-field method on the views as plain intensities. Writes disparity.pfm,
-    disparity_16bit.png, a colour-mapped disparity.png, confidence.png, and an error map when
+    disparity_16bit.png, a colour-mapped disparity.png, confidence.pfm/png (0: the depth
+    was filled in from the surroundings, up to 1: unique), and an error map when
     the input has ground truth; the scores against it skip a 15 px border, so views of 30 px or
     less are written but not scored. A capture made by 'hyperlf ingest' also gets depth.pfm /
     depth.png (in the unit of the calibration's --square) and points.ply, a point cloud
-    coloured by the reference view. --save-intermediate adds the correspondence-only and
+    coloured by the reference view whose points carry their confidence (--min-confidence
+    leaves the unsure ones out). --save-intermediate adds the correspondence-only and
     defocus-only maps and, when the textureless-region weight was used, texture_weight.pfm/png
     (1: the pixel's own costs decided; 0: its depth came from its surroundings).
 
@@ -660,6 +662,7 @@ def _cmd_depth(args, dest) -> list[Path]:
       hyperlf depth antinous-hlf --labels 64 --save-intermediate -o d
       hyperlf depth antinous-hlf --method wang2015 -o d-wang
       hyperlf depth lab-capture --downscale 4 -o first-look   # 1/4 resolution, a quick look
+      hyperlf depth lab-capture --min-confidence 0.05 -o lab-depth   # measured points only
     """
     from .formats import load_lightfield
     from .pipeline import save_disparity_outputs, save_metric_outputs
@@ -1324,7 +1327,7 @@ def _add_depth_parser(sub) -> None:
                         "the full-resolution values; --disparity-range stays in the input's "
                         "px); metric depth and the point cloud keep their unit (default 1)")
     p.add_argument("--min-confidence", type=_min_confidence_arg, default=0.0, metavar="C",
-                   help="leave pixels whose confidence (confidence.png) is below C out of "
+                   help="leave pixels whose confidence (confidence.pfm/png) is below C out of "
                         "the metric outputs: NaN in depth.pfm, no point in points.ply, whose "
                         "points carry their confidence as a property either way. E.g. 0.05 "
                         "drops the textureless pixels whose depth was filled in from their "

@@ -104,7 +104,11 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
    nested levels, default 1), where that level's reference is textured: block means lower
    the noise, so a white table that holds no texture at the pixel holds some a few pixels
    wide.  Without it such a region is filled with one constant from whatever surrounds it,
-   not with its own (often slanted) surface.
+   not with its own (often slanted) surface.  The confidence is then
+   ``w c + (1 - w) c_s``: the pixel's own cost margin ``c`` for the share of the data term
+   it kept, the coarse run's confidence ``c_s`` (itself scaled by that level's texture
+   weight) for the rest, so that it is 0 where every level filled the depth in from the
+   surroundings.
 
 6. **Post-filter**: the guided weighted median (:func:`post_filter`).
 
@@ -418,7 +422,9 @@ class DepthResult:
     """Output of :func:`depth`.
 
     disparity : float32 (H, W), sub-pixel (parabola) unless ``params.refine`` is False.
-    confidence : float32 (H, W) in [0, 1] (cost-margin of the optimised volume).
+    confidence : float32 (H, W) in [0, 1] (cost-margin of the optimised volume; where the
+        texture weight discounted a pixel's data term, that share is the coarse prior's
+        confidence instead, or 0 without one).
     f_c : float32 (H, W), correspondence-only WTA disparity (``argmin_d C``).
     f_d : float32 (H, W) defocus-only WTA disparity, or None when ``defocus="off"``.
     labels : float64 (L,) the disparity of every label.
@@ -1142,7 +1148,7 @@ def visible_views(prob: DepthProblem, disparity: np.ndarray) -> dict:
 
 
 def coarse_disparity(prob: DepthProblem, *, scale: int | None = None,
-                     progress: bool | str = False) -> np.ndarray | None:
+                     progress: bool | str = False, return_confidence: bool = False):
     """A depth estimate made cheaply at a coarser scale: the start of the first visibility
     round (SPEC §5.6 a) and the coarse prior of weakly textured pixels.
 
@@ -1159,6 +1165,9 @@ def coarse_disparity(prob: DepthProblem, *, scale: int | None = None,
     ndarray, float32 (H, W) or None
         Disparity in full-resolution px; None when ``s`` is 1 or a downscaled side would be
         under 16 px (the first estimate is then the full-resolution pass).
+    confidence : ndarray, float32 (H, W)
+        With ``return_confidence``: the coarse run's confidence, repeated over each block
+        (the pair is None where the disparity is).
     """
     s = int(prob.params.visibility_scale if scale is None else scale)
     coarse = _coarse_problem(prob, s)
@@ -1166,7 +1175,10 @@ def coarse_disparity(prob: DepthProblem, *, scale: int | None = None,
         return None
     lf_s, options = coarse
     res = depth(lf_s, **options, progress=f"views, 1/{s} resolution" if progress else False)
-    return _blow_up(res.disparity * s, s, prob.lf.image_shape)
+    disparity = _blow_up(res.disparity * s, s, prob.lf.image_shape)
+    if return_confidence:
+        return disparity, _blow_up(res.confidence, s, prob.lf.image_shape)
+    return disparity
 
 
 def _coarse_problem(prob: DepthProblem, s: int):
@@ -1454,9 +1466,10 @@ def add_coarse_prior(U: np.ndarray, labels: np.ndarray, coarse: np.ndarray,
 
 
 def coarse_prior(prob: DepthProblem, weight, start=None, *, progress: bool | str = False):
-    """Stage 4b'' of :func:`depth`: ``(coarse disparity, strength, width)`` for
-    :func:`add_coarse_prior`, or None (``params.coarse_prior`` off, no texture weight, or an
-    image too small for a coarse level).
+    """Stage 4b'' of :func:`depth`: ``(coarse disparity, strength, width, coarse
+    confidence)``, the first three for :func:`add_coarse_prior`, or None
+    (``params.coarse_prior`` off, no texture weight, or an image too small for a coarse
+    level).
 
     The coarse disparity is :func:`coarse_disparity` at ``s = params.coarse_prior_scale``
     (with ``params.coarse_prior_levels`` > 1 itself made with a coarse prior from ``s^2``,
@@ -1466,7 +1479,8 @@ def coarse_prior(prob: DepthProblem, weight, start=None, *, progress: bool | str
     given back where that estimate comes from data, ``g = w_s + (1 - w_s) g_next`` over the
     levels (``w_s`` the texture weight of the reference's block means at level ``s``), never
     where every level's MRF only filled in.  ``start``: the visibility round's coarse
-    estimate, reused when made at the same scale.
+    estimate, ``(disparity, confidence)`` from :func:`coarse_disparity` with
+    ``return_confidence``, reused when made at the same scale.
     """
     p = prob.params
     if weight is None or not p.coarse_prior:
@@ -1476,13 +1490,14 @@ def coarse_prior(prob: DepthProblem, weight, start=None, *, progress: bool | str
     if not levels:
         return None
     if start is not None and s == int(p.visibility_scale):
-        coarse = start
+        coarse, coarse_conf = start
     else:
-        coarse = coarse_disparity(prob, scale=s, progress=progress)
+        coarse, coarse_conf = coarse_disparity(prob, scale=s, progress=progress,
+                                               return_confidence=True)
     strength = (1.0 - np.clip(weight, 0.0, 1.0)) * _coverage(prob, levels)
     step = float(prob.labels[1] - prob.labels[0]) if prob.labels.size > 1 else 1.0
     width = s * step if p.coarse_prior_width is None else float(p.coarse_prior_width)
-    return coarse, strength.astype(np.float32), width
+    return coarse, strength.astype(np.float32), width, coarse_conf
 
 
 def _prior_levels(prob: DepthProblem) -> list[int]:
@@ -1541,7 +1556,8 @@ def refine(volume: np.ndarray, labels_map: np.ndarray, labels: np.ndarray,
 
     ``informative`` (bool (H, W), optional; :func:`seen_pixels`): confidence is 0 elsewhere.
     ``weight`` (optional; :func:`texture_weight`): the confidence is scaled by it (a pixel
-    whose data term was discounted is as trustworthy as its neighbours' labels, no more).
+    whose data term was discounted is as trustworthy as its neighbours' labels, no more;
+    :func:`depth` adds the coarse prior's share, module docstring).
 
     Returns
     -------
@@ -1614,10 +1630,13 @@ def _solve(prob: DepthProblem, C, D, seen, f_c, w, prior, clock, suffix: str = "
     confidence)``."""
     U, sC, sD = unary(C, D, prob.params, informative=seen, weight=w)
     if prior is not None:
-        add_coarse_prior(U, prob.labels, *prior)
+        add_coarse_prior(U, prob.labels, *prior[:3])
     lab, vol = regularise(prob, U, f_c)
     clock.lap("mrf_s" + suffix)
     disp, conf = refine(vol, lab, prob.labels, prob.params, informative=seen, weight=w)
+    if prior is not None:  # what the weight took from a pixel came from the coarse estimate
+        rest = (1.0 - np.clip(w, 0.0, 1.0)) * prior[3]
+        conf = np.where(True if seen is None else seen, conf + rest, 0.0).astype(np.float32)
     clock.lap("refine_s" + suffix)
     disp = post_filter(disp, prob.In[prob.reference].astype(np.float32), prob.params)
     clock.lap("median_s" + suffix)
@@ -1697,8 +1716,8 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
     clock.lap("prepare_s")
     strips = strips_for(prob)
     rounds, first = prob.visibility_rounds, 0
-    start = coarse_disparity(prob, progress=progress) if rounds else None
-    sees = None if start is None else visible_views(prob, start)
+    start = coarse_disparity(prob, progress=progress, return_confidence=True) if rounds else None
+    sees = None if start is None else visible_views(prob, start[0])
     if start is not None:
         rounds, first = rounds - 1, 1
         clock.lap("visibility_estimate_s")

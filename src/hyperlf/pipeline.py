@@ -149,15 +149,15 @@ def save_disparity_outputs(out: str | os.PathLike, disparity: np.ndarray, title:
     truth : ndarray, optional
         Ground truth; adds ``<stem>_error.png``.
     confidence : ndarray, optional
-        Confidence in [0, 1]; adds ``confidence.png``.
+        Confidence in [0, 1]; adds ``confidence.pfm`` (exact) and ``confidence.png``.
     stem : str
         File-name stem (default ``"disparity"``).
 
     Returns
     -------
     list of Path
-        ``.pfm``, ``_16bit.png``, ``_16bit.txt``, ``.png``, then the error and confidence
-        pictures when written.
+        ``.pfm``, ``_16bit.png``, ``_16bit.txt``, ``.png``, then the error picture and the
+        confidence map and picture when written.
     """
     from . import visualise
     from ._atomic import atomic_write_text
@@ -176,6 +176,7 @@ def save_disparity_outputs(out: str | os.PathLike, disparity: np.ndarray, title:
     if truth is not None:
         written.append(visualise.save_error_png(out / f"{stem}_error.png", disparity, truth))
     if confidence is not None:
+        written.append(write_pfm(out / "confidence.pfm", confidence))
         written.append(visualise.save_disparity_png(out / "confidence.png", confidence,
                                                     title="confidence", vmin=0, vmax=1,
                                                     cmap="viridis", label="confidence"))
