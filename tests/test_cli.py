@@ -164,6 +164,15 @@ def test_depth_command_on_a_synthetic_capture(tmp_path, capsys):
     assert not np.array_equal(read_pfm(tmp_path / "raw" / "disparity.pfm"), d)
     assert main(["-q", "depth", str(cap), "--metric", "ncc", "--labels", "16",
                  "--median-radius", "-1", "-o", str(tmp_path / "bad")]) == 2
+    # no calibration, so no metric outputs: --min-confidence says it has nothing to act on
+    capsys.readouterr()
+    assert main(["depth", str(cap), "--metric", "ncc", "--labels", "16", "--min-confidence",
+                 "0.2", "-o", str(tmp_path / "conf")]) == 0
+    assert "note: --min-confidence applies to metric depth" in capsys.readouterr().err
+    np.testing.assert_array_equal(read_pfm(tmp_path / "conf" / "disparity.pfm"), d)
+    conf = read_pfm(tmp_path / "conf" / "confidence.pfm")
+    assert conf.shape == d.shape and 0 <= conf.min() and conf.max() <= 1
+    assert not (tmp_path / "conf" / "points.ply").exists()
 
 
 def test_complete_command_writes_a_cube_that_render_reads(tmp_path, capsys):

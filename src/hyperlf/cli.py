@@ -647,8 +647,8 @@ def _downscaled(args, lf, rng):
 def _cmd_depth(args, dest) -> list[Path]:
     """Estimate the reference view's disparity of a hyperspectral light field (SPEC §5) or run
     a baseline light-field method on the views as plain intensities. Writes disparity.pfm,
-    disparity_16bit.png, a colour-mapped disparity.png, confidence.pfm/png (0: the depth
-    was filled in from the surroundings, up to 1: unique), and an error map when
+    disparity_16bit.png, a colour-mapped disparity.png, confidence.pfm/png (0: ambiguous, or
+    the depth was filled in from the surroundings; up to 1: unique), and an error map when
     the input has ground truth; the scores against it skip a 15 px border, so views of 30 px or
     less are written but not scored. A capture made by 'hyperlf ingest' also gets depth.pfm /
     depth.png (in the unit of the calibration's --square) and points.ply, a point cloud
@@ -725,8 +725,13 @@ def _cmd_depth(args, dest) -> list[Path]:
     gt = lf.reference_gt_disparity
     written = save_disparity_outputs(out, res.disparity, f"{args.method} disparity", truth=gt,
                                       confidence=res.confidence)
-    written += save_metric_outputs(out, res.disparity, lf, confidence=res.confidence,
-                                   min_confidence=args.min_confidence)
+    metric = save_metric_outputs(out, res.disparity, lf, confidence=res.confidence,
+                                 min_confidence=args.min_confidence)
+    if args.min_confidence > 0 and not metric:
+        _say(args, "note: --min-confidence applies to metric depth and points.ply, which "
+                   "need a capture with a calibrated focal length ('hyperlf ingest'); "
+                   "disparity.pfm and confidence.pfm are written whole")
+    written += metric
     if args.save_intermediate:
         from . import visualise
         from .formats import write_pfm
