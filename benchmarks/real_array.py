@@ -143,7 +143,12 @@ def confident_in_both(work: Path, d: dict, same: np.ndarray, levels=(0.01, 0.05,
     """The consistency on the pixels that ``depth --min-confidence C`` keeps in both shots."""
     from hyperlf.formats import read_pfm
 
-    conf = {k: read_pfm(work / f"{k}-depth" / "confidence.pfm") for k in d}
+    paths = {k: work / f"{k}-depth" / "confidence.pfm" for k in d}
+    if not all(p.is_file() for p in paths.values()):
+        print("no confidence.pfm in the depth folders (made before it was written): "
+              "delete them to measure the confident pixels")
+        return
+    conf = {k: read_pfm(p) for k, p in paths.items()}
     for c in levels:
         m = same & (conf["scene"] >= c) & (conf["board"] >= c)
         diff = np.abs(d["scene"] - d["board"])[m]

@@ -1635,8 +1635,9 @@ def _solve(prob: DepthProblem, C, D, seen, f_c, w, prior, clock, suffix: str = "
     clock.lap("mrf_s" + suffix)
     disp, conf = refine(vol, lab, prob.labels, prob.params, informative=seen, weight=w)
     if prior is not None:  # what the weight took from a pixel came from the coarse estimate
-        rest = (1.0 - np.clip(w, 0.0, 1.0)) * prior[3]
-        conf = np.where(True if seen is None else seen, conf + rest, 0.0).astype(np.float32)
+        conf = (conf + (1.0 - np.clip(w, 0.0, 1.0)) * prior[3]).astype(np.float32)
+        if seen is not None:
+            conf[~seen] = 0.0
     clock.lap("refine_s" + suffix)
     disp = post_filter(disp, prob.In[prob.reference].astype(np.float32), prob.params)
     clock.lap("median_s" + suffix)
