@@ -108,7 +108,12 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
    ``w c + (1 - w) c_s``: the pixel's own cost margin ``c`` for the share of the data term
    it kept, the coarse run's confidence ``c_s`` (itself scaled by that level's texture
    weight) for the rest, so that it is 0 where every level filled the depth in from the
-   surroundings.
+   surroundings.  Under graph cuts ``c`` is measured on ``U`` with the prior's pull taken
+   out (:func:`refine`'s ``prior``): the pull is the coarse run's evidence, counted once
+   through ``c_s``, and would otherwise give a weakly textured pixel a clear margin at the
+   coarse estimate's label however little its own window says.  (Under SGM the aggregated
+   volume holds the pull spread over the paths like every neighbour's vote; its margin is
+   kept as it is.)
 
 6. **Post-filter**: the guided weighted median (:func:`post_filter`).
 
@@ -168,6 +173,7 @@ __all__ = [
     "unary",
     "regularise",
     "refine",
+    "prior_free_confidence",
     "post_filter",
     "seen_pixels",
     "visible_views",
@@ -422,9 +428,10 @@ class DepthResult:
     """Output of :func:`depth`.
 
     disparity : float32 (H, W), sub-pixel (parabola) unless ``params.refine`` is False.
-    confidence : float32 (H, W) in [0, 1] (cost-margin of the optimised volume; where the
-        texture weight discounted a pixel's data term, that share is the coarse prior's
-        confidence instead, or 0 without one).
+    confidence : float32 (H, W) in [0, 1] (cost-margin of the optimised volume, without
+        the coarse prior's pull under graph cuts; where the texture weight discounted a
+        pixel's data term, that share is the coarse prior's confidence instead, or 0
+        without one).
     f_c : float32 (H, W), correspondence-only WTA disparity (``argmin_d C``).
     f_d : float32 (H, W) defocus-only WTA disparity, or None when ``defocus="off"``.
     labels : float64 (L,) the disparity of every label.
@@ -1551,13 +1558,17 @@ def regularise(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray):
 
 
 def refine(volume: np.ndarray, labels_map: np.ndarray, labels: np.ndarray,
-           params: DepthParams, *, informative=None, weight=None):
+           params: DepthParams, *, informative=None, weight=None, prior=None):
     """Stage 5 of :func:`depth`: sub-pixel disparity and confidence.
 
     ``informative`` (bool (H, W), optional; :func:`seen_pixels`): confidence is 0 elsewhere.
     ``weight`` (optional; :func:`texture_weight`): the confidence is scaled by it (a pixel
     whose data term was discounted is as trustworthy as its neighbours' labels, no more;
     :func:`depth` adds the coarse prior's share, module docstring).
+    ``prior`` (optional; :func:`coarse_prior`'s tuple): the coarse prior that ``volume``
+    holds (graph cuts optimise the unary itself).  The disparity is refined on ``volume``
+    as it is; the confidence is measured with the prior's pull taken out
+    (:func:`prior_free_confidence`), so that it counts the pixel's own data only.
 
     Returns
     -------
@@ -1571,12 +1582,44 @@ def refine(volume: np.ndarray, labels_map: np.ndarray, labels: np.ndarray,
         disp = subpixel_refine(volume, labels_map, labels)
     else:
         disp = labels[labels_map].astype(np.float32)
-    conf = confidence(volume, labels_map)
+    if prior is None:
+        conf = confidence(volume, labels_map)
+    else:
+        conf = prior_free_confidence(volume, labels_map, labels, prior)
     if informative is not None:
         conf = np.where(np.asarray(informative, bool), conf, np.float32(0)).astype(np.float32)
     if weight is not None:
         conf = (conf * np.asarray(weight, np.float32)).astype(np.float32)
     return disp, conf
+
+
+def prior_free_confidence(volume: np.ndarray, labels_map: np.ndarray, labels: np.ndarray,
+                          prior, *, rows: int = 64) -> np.ndarray:
+    """:func:`hyperlf.regularisers.confidence` of ``volume`` less the pull
+    :func:`add_coarse_prior` added to it, ``rows`` rows at a time (no second volume).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> labels = np.arange(5.0)
+    >>> U = np.zeros((5, 1, 1), np.float32)                   # no data at all
+    >>> prior = (np.full((1, 1), 2.0), np.ones((1, 1)), 1.0)
+    >>> U = add_coarse_prior(U, labels, *prior)
+    >>> lab = np.full((1, 1), 2)
+    >>> from hyperlf.regularisers import confidence
+    >>> float(confidence(U, lab)[0, 0]), float(prior_free_confidence(U, lab, labels, prior)[0, 0])
+    (1.0, 0.0)
+    """
+    from .regularisers import confidence
+
+    coarse, strength, width = (np.asarray(a, np.float32) for a in prior[:3])
+    out = np.empty(labels_map.shape, np.float32)
+    for r0 in range(0, labels_map.shape[0], int(rows)):
+        rs = slice(r0, r0 + int(rows))
+        strip = np.array(volume[:, rs], np.float32)  # a copy: the caller's volume stays
+        add_coarse_prior(strip, labels, coarse[rs], -strength[rs], float(width))
+        out[rs] = confidence(strip, labels_map[rs])
+    return out
 
 
 def post_filter(disparity: np.ndarray, guide: np.ndarray, params: DepthParams) -> np.ndarray:
@@ -1633,7 +1676,8 @@ def _solve(prob: DepthProblem, C, D, seen, f_c, w, prior, clock, suffix: str = "
         add_coarse_prior(U, prob.labels, *prior[:3])
     lab, vol = regularise(prob, U, f_c)
     clock.lap("mrf_s" + suffix)
-    disp, conf = refine(vol, lab, prob.labels, prob.params, informative=seen, weight=w)
+    disp, conf = refine(vol, lab, prob.labels, prob.params, informative=seen, weight=w,
+                        prior=prior if vol is U else None)  # graph cuts: vol is U
     if prior is not None:  # what the weight took from a pixel came from the coarse estimate
         conf = (conf + (1.0 - np.clip(w, 0.0, 1.0)) * prior[3]).astype(np.float32)
         if seen is not None:
