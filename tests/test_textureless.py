@@ -256,7 +256,7 @@ def test_a_faint_slanted_table_follows_the_coarse_estimate(seed):
 def test_refine_reads_the_confidence_without_the_coarse_prior(seed):
     """Graph cuts optimise the unary with the prior in it: the disparity is refined on that
     volume, the confidence is the margin of the data alone (the caller's volume untouched)."""
-    from hyperlf.hlf import add_coarse_prior, refine
+    from hyperlf.hlf import add_coarse_prior, prior_free_confidence, refine
     from hyperlf.regularisers import confidence
 
     rng = np.random.default_rng(seed)
@@ -274,6 +274,8 @@ def test_refine_reads_the_confidence_without_the_coarse_prior(seed):
     assert np.array_equal(U, kept)
     assert np.array_equal(d_prior, d_plain)  # the estimate itself is unchanged
     np.testing.assert_allclose(c_prior, confidence(data, lab), atol=1e-5)
+    assert np.array_equal(prior_free_confidence(U, lab, labels, prior, rows=5),
+                          prior_free_confidence(U, lab, labels, prior))  # strips: same
     assert not np.allclose(c_plain, c_prior)  # with the pull read in, the margin differs
 
 
