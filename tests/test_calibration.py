@@ -16,6 +16,7 @@ from conftest import require_dataset
 from hyperlf.calibration import (BoardSpec, apply_calibration, calibrate, calibrate_full,
                                  detect_board, detect_boards, read_calibration, register_plane,
                                  write_calibration)
+from hyperlf.calibration.board import place_partial_grid
 from hyperlf.calibration.parallax import factor_rank1
 from hyperlf.calibration.rig import make_rig
 from hyperlf.errors import FormatError, InvalidInputError
@@ -124,6 +125,101 @@ def test_board_partly_out_of_view_names_those_cameras(rig):
     assert "\n" not in msg
     for k in rig.cameras:
         assert (names[k] in msg) == (k in cut), k
+
+
+def _grid(board, origin=(-50.0, 50.0), step=40.0, tilt=0.05):
+    """An ideal (slightly sheared) corner grid ``(rows, cols, 2)`` of ``board``."""
+    j, i = np.mgrid[0:board.rows, 0:board.cols].astype(float)
+    return np.stack([origin[0] + step * i + tilt * step * j,
+                     origin[1] + step * j - tilt * step * i], -1)
+
+
+@pytest.mark.parametrize("cut, origin, expected", [
+    ((slice(None), slice(2, None)), (-50.0, 50.0), "placed"),      # left border cuts 2 columns
+    ((slice(1, None), slice(2, None)), (-50.0, -10.0), "placed"),  # top-left corner of the image
+    ((slice(None), slice(0, 3)), (190.0, 50.0), "placed"),         # right border cuts 2 columns
+    ((slice(None), slice(2, None)), (30.0, 50.0), None),  # unseen corners would be in view
+    ((slice(None), slice(1, None)), (-35.0, 50.0), "trimmed"),  # column 1 at the very border
+    ((slice(0, 2), slice(None)), (30.0, 50.0), None),     # two rows only
+])
+def test_place_partial_grid_only_where_the_border_explains_the_cut(cut, origin, expected):
+    board = BoardSpec(5, 4)
+    full = _grid(board, origin)
+    placed = place_partial_grid(full[cut], board, (300, 300))
+    if expected is None:
+        assert placed is None
+        return
+    seen = np.zeros(full.shape[:2], bool)
+    seen[cut] = True
+    if expected == "trimmed":  # too near the border for a refinement window: left unseen
+        seen[:, 1] = False
+    assert np.array_equal(np.isfinite(placed[:, 0]), seen.ravel())
+    assert np.allclose(placed[seen.ravel()], full[seen])
+
+
+def test_place_partial_grid_refuses_a_board_cut_on_both_sides():
+    """Columns at -20, 10, ..., 160 px in an image 130 px wide: the three seen columns could
+    be the board's 2-4 or 1-3, the unseen ones out of view either way."""
+    board = BoardSpec(7, 4)
+    full = _grid(board, (-20.0, 40.0), step=30.0, tilt=0.0)
+    assert place_partial_grid(full[:, 2:5], board, (200, 130)) is None
+
+
+def test_place_partial_grid_refuses_a_block_larger_than_the_board():
+    board = BoardSpec(5, 4)
+    assert place_partial_grid(_grid(BoardSpec(6, 4), (40.0, 50.0)), board, (300, 300)) is None
+
+
+def _locatable_edge(rig, corners):
+    """The largest x at which a detector locates a corner: 0.9 corner spacings in from the
+    right border."""
+    g = corners.reshape(rig.board.rows, rig.board.cols, 2)
+    spacing = np.median(np.linalg.norm(np.diff(g, axis=1), axis=-1))
+    return rig.image_size[0] - 1 - 0.9 * spacing
+
+
+def _cutting_pose(rig):
+    """A board pose that takes the last corner columns of some cameras but not of the
+    reference out of view (none borderline), its shots and the rig's corners per camera."""
+    for shift in np.arange(100.0, 200.0, 2.0):
+        pose = rig.board_pose(450.0, centre_offset=(shift, 0.0))
+        truth = {k: rig.project(k, pose.corners_world(rig.board)) for k in rig.cameras}
+        edge = {k: _locatable_edge(rig, v) for k, v in truth.items()}
+        cut = [k for k, v in truth.items() if v[:, 0].max() > edge[k]]
+        clear = all(np.abs(v[:, 0] - edge[k]).min() > 3 for k, v in truth.items())
+        if cut and rig.reference not in cut and clear:
+            return pose, rig.render(pose), truth, edge, cut
+    pytest.fail("no board pose cuts some cameras cleanly")
+
+
+def test_plane_registration_with_the_board_partly_out_of_view(rig):
+    pose, shots, truth, edge, cut = _cutting_pose(rig)
+    cal = register_plane(shots, rig.board)
+    for key, c in cal.corners.items():
+        seen = np.all(np.isfinite(c), axis=1)
+        assert (key in cut) == (not seen.all()), key
+        assert np.all(seen <= (truth[key][:, 0] < rig.image_size[0] - 1)), key  # all in view
+        locatable = (truth[key][:, 0] < edge[key]).sum()
+        assert seen.sum() >= locatable - rig.board.rows, key  # at most one column lost
+        assert np.linalg.norm(c[seen] - truth[key][seen], axis=1).max() < 0.35, key
+    truth_pos = rig.true_positions("reference")
+    ref = np.array(cal.reference[::-1], float)
+    for key, cam in cal.cameras.items():
+        assert cam.reprojection_error < 0.3, key
+        if key != rig.reference:
+            est = cam.position - ref
+            assert _angle_deg(est, truth_pos[key]) < 3.0, key
+            assert abs(np.linalg.norm(est) / np.linalg.norm(truth_pos[key]) - 1) < 0.06, key
+
+
+def test_board_seen_too_little_for_a_homography_is_named(rig, plane_pose, plane_shots):
+    from hyperlf.calibration.plane import MIN_SHARED_CORNERS, board_homographies
+
+    corners = detect_boards(plane_shots, rig.board)
+    few = corners[(0, 1)].copy()
+    few[MIN_SHARED_CORNERS - 1:] = np.nan
+    with pytest.raises(InvalidInputError, match=r"camera left-top sees only 8 of the board"):
+        board_homographies({**corners, (0, 1): few}, rig.reference, {(0, 1): "left-top"})
 
 
 # ----------------------------------------------------------------------------- factorisation
@@ -435,6 +531,30 @@ def test_lab_capture_plane_registration():
     for r in range(3):
         for c in range(2):
             assert np.abs(grid[r, c + 1] - grid[r, c]).sum() == 1
+
+
+def test_lab_board_pushed_partly_out_of_one_camera():
+    """The lab's Cam-0 board shot moved 420 px right (zeros shifted in): the board's last
+    corner column leaves the locatable part of the image. That camera's seen corners are the
+    unmoved detection moved by the same 420 px, and every position is as before."""
+    import cv2
+
+    root = require_dataset("real_arrays/msir_lab") / "calibration"
+    shots = {(i // 3, i % 3): cv2.imread(str(root / f"Cam-{i}.png"), cv2.IMREAD_UNCHANGED)
+             for i in range(9)}
+    board = BoardSpec(11, 8, 1.0)
+    before = register_plane(shots, board)
+    moved = np.zeros_like(shots[(0, 0)])
+    moved[:, 420:] = shots[(0, 0)][:, :-420]
+    assert detect_board(moved, board) is None          # the whole board is not in view
+    after = register_plane({**shots, (0, 0): moved}, board)
+    c = after.corners[(0, 0)]
+    seen = np.all(np.isfinite(c), axis=1)
+    assert 9 * 8 <= seen.sum() < 11 * 8
+    assert np.abs(c[seen] - before.corners[(0, 0)][seen] - (420, 0)).max() < 0.01
+    for key, cam in after.cameras.items():
+        assert np.abs(cam.position - before.cameras[key].position).max() < 0.01, key
+        assert cam.reprojection_error < 0.5, key
 
 
 # ----------------------------------------------------------------------------- pictures

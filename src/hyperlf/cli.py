@@ -528,8 +528,10 @@ def _cmd_calibrate(args, dest) -> list[Path]:
     """Calibrate a camera array from checkerboard shots (SPEC §11). One shot per camera
     (files named by --pattern in FOLDER) registers every view onto the reference at the board
     plane, with the views' positions and shift directions measured from the parallax of the
-    scene around the board; one subfolder of shots per pose (three or more) runs a full
-    calibration with rectification. Writes calibration.toml and pictures: corners.png
+    scene around the board (a board partly out of some views is fine: at least 3 x 3 inner
+    corners, cut by the image border); one subfolder of shots per pose (three or more) runs a
+    full calibration with rectification (poses a camera does not see whole are left out for
+    it). Writes calibration.toml and pictures: corners.png
     (detected corners per camera), registered.png (registered views side by side),
     residuals.png (corner residual vectors).
 

@@ -7,7 +7,11 @@ and the classic detector with sub-pixel refinement second, each on the image and
 inverse, and puts the corners in one canonical order so that corner ``i`` is the same physical
 corner in every camera: rows run top to bottom of the image and every row runs left to right
 (valid while the board is seen within 45 degrees of upright, as it is by every camera of an
-array). A board partly out of view is not detected (every inner corner is required).
+array). A board partly out of view (``detect_board(..., partial=True)``, used by the plane
+registration) is accepted when at least 3 x 3 of its inner corners are seen and the image
+border alone explains the missing ones: exactly one placement of the seen block within the
+board puts every unseen corner outside the image (:func:`place_partial_grid`); unseen corners
+are NaN.
 """
 
 from __future__ import annotations
@@ -20,11 +24,15 @@ import numpy as np
 from ..errors import InvalidInputError
 
 __all__ = ["BoardSpec", "normalise_for_detection", "detect_board", "detect_boards",
-           "canonical_order", "refine_corners", "camera_label"]
+           "canonical_order", "refine_corners", "camera_label", "place_partial_grid",
+           "MIN_PARTIAL_SIDE"]
 
 
 #: The most inner corners along one side of a checkerboard (OpenCV needs at least 3).
 MAX_CORNERS = 200
+
+#: Fewest inner corners along each side of the seen part of a board partly out of view.
+MIN_PARTIAL_SIDE = 3
 
 
 @dataclass(frozen=True)
@@ -153,19 +161,140 @@ def _detect_classic(img8: np.ndarray, size) -> np.ndarray | None:
     return c.reshape(-1, 2)
 
 
+def _spacing(grid: np.ndarray) -> float:
+    """Median distance of neighbouring corners along the rows of a grid ``(rows, cols, 2)``."""
+    return float(np.nanmedian(np.linalg.norm(np.diff(grid, axis=1), axis=-1)))
+
+
+def _in_image(points: np.ndarray, shape, margin: float) -> np.ndarray:
+    """Which points lie at least ``margin`` px inside an image of ``shape``: a corner nearer
+    the border than 0.9 corner spacings cannot be located (its squares are cut)."""
+    H, W = shape
+    return ((points[:, 0] >= margin) & (points[:, 0] <= W - 1 - margin)
+            & (points[:, 1] >= margin) & (points[:, 1] <= H - 1 - margin))
+
+
 def _inside(corners: np.ndarray, shape, cols: int, rows: int) -> bool:
     """All corners at least 0.9 corner spacings inside the image: the board's outer squares
     must be whole, else the outer corners cannot be located (the board is partly out of
     view)."""
+    m = 0.9 * _spacing(corners.reshape(rows, cols, 2))
+    return bool(np.all(_in_image(corners, shape, m)))
+
+
+def _orient_grid(grid: np.ndarray) -> np.ndarray:
+    """A corner grid ``(r, c, 2)`` turned so that its rows run right and its columns down."""
+    along = np.mean(grid[:, -1] - grid[:, 0], axis=0)
+    if abs(along[1]) > abs(along[0]):
+        grid = grid.transpose(1, 0, 2)
+    if np.mean(grid[:, -1, 0] - grid[:, 0, 0]) < 0:
+        grid = grid[:, ::-1]
+    if np.mean(grid[-1, :, 1] - grid[0, :, 1]) < 0:
+        grid = grid[::-1]
+    return np.ascontiguousarray(grid)
+
+
+def place_partial_grid(grid: np.ndarray, board: BoardSpec, shape) -> np.ndarray | None:
+    """Where a block of seen corners sits within the board, if the image border explains it.
+
+    Parameters
+    ----------
+    grid : ndarray, shape (r, c, 2)
+        Seen corners (``x, y`` px), rows running down the image and each row running right.
+    board : BoardSpec
+    shape : (H, W)
+        The image's shape.
+
+    Returns
+    -------
+    ndarray of float64, shape (board.n_corners, 2), or None
+        The board's corners in canonical order, NaN where unseen; None when the block is not
+        a part of this board cut by the image border: too small (fewer than
+        :data:`MIN_PARTIAL_SIDE` corners a side), larger than the board, or not exactly one
+        placement of the block that puts every unseen corner outside the image or nearer its
+        border than 0.9 corner spacings (where no detector locates a corner). The outer
+        columns (rows) of the block on a side where a corner lies nearer the border than half
+        a corner spacing count as unseen (the refinement window would leave the image).
+
+    Examples
+    --------
+    >>> b = BoardSpec(5, 4)
+    >>> j, i = np.mgrid[0:4, 0:5]
+    >>> full = np.stack([40.0 * i - 50, 40.0 * j + 50], -1)      # columns 0-1 left of x = 0
+    >>> placed = place_partial_grid(full[:, 2:], b, (300, 300))
+    >>> int(np.isnan(placed[:, 0]).sum()), placed[2].tolist()
+    (8, [30.0, 50.0])
+    """
+    import cv2
+
+    spacing = _spacing(grid)
+    grid = _trim_to_image(grid, shape, 0.5 * spacing)
+    if grid is None:
+        return None
+    r, c = grid.shape[:2]
+    if min(r, c) < MIN_PARTIAL_SIDE or r > board.rows or c > board.cols:
+        return None
+    seen = grid.reshape(-1, 2)
+    j, i = np.mgrid[0:r, 0:c]
+    block = np.stack([i.ravel(), j.ravel()], 1).astype(np.float64)
+    H, _ = cv2.findHomography(block, seen, 0)
+    if H is None:
+        return None
+    jb, ib = np.mgrid[0:board.rows, 0:board.cols]
+    places = []
+    for i0 in range(board.rows - r + 1):
+        for j0 in range(board.cols - c + 1):
+            idx = np.stack([ib.ravel() - j0, jb.ravel() - i0], 1).astype(np.float64)
+            unseen = ~((idx[:, 0] >= 0) & (idx[:, 0] < c) & (idx[:, 1] >= 0) & (idx[:, 1] < r))
+            pred = cv2.perspectiveTransform(idx[unseen].reshape(-1, 1, 2), H).reshape(-1, 2)
+            if not np.any(_in_image(pred, shape, 0.9 * spacing)):
+                places.append((i0, j0))
+    if len(places) != 1:
+        return None
+    i0, j0 = places[0]
+    out = np.full((board.rows, board.cols, 2), np.nan)
+    out[i0:i0 + r, j0:j0 + c] = grid
+    return out.reshape(-1, 2)
+
+
+def _trim_to_image(grid: np.ndarray, shape, margin: float) -> np.ndarray | None:
+    """The block less its outer columns (rows) on each side of the image where a corner lies
+    nearer that border than ``margin``; None if nothing is left. (A column dropped that was
+    not cut leaves a corner in view unseen, which :func:`place_partial_grid` refuses.)"""
     H, W = shape
-    g = corners.reshape(rows, cols, 2)
-    m = 0.9 * float(np.median(np.linalg.norm(np.diff(g, axis=1), axis=-1)))
-    return bool(np.all((corners[:, 0] >= m) & (corners[:, 0] <= W - 1 - m)
-                       & (corners[:, 1] >= m) & (corners[:, 1] <= H - 1 - m)))
+    while grid.size:
+        x, y = grid[..., 0], grid[..., 1]
+        if (x < margin).any():
+            grid = grid[:, 1:]
+        elif (x > W - 1 - margin).any():
+            grid = grid[:, :-1]
+        elif (y < margin).any():
+            grid = grid[1:]
+        elif (y > H - 1 - margin).any():
+            grid = grid[:-1]
+        else:
+            return grid
+    return None
 
 
-def detect_board(image: np.ndarray, board: BoardSpec, *,
-                 detect_size: int = 800) -> np.ndarray | None:
+def _detect_partial(img8: np.ndarray, board: BoardSpec) -> list:
+    """Candidate blocks of seen corners ``(r, c, 2)``, oriented, from the sector-based detector
+    allowed to return any grid of at least 4 x 4 (then 3 x 3) corners, on the image and on its
+    inverse."""
+    import cv2
+
+    flags = cv2.CALIB_CB_LARGER | cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE
+    out = []
+    for candidate in (img8, 255 - img8):
+        for side in (4, MIN_PARTIAL_SIDE):
+            ok, c, meta = cv2.findChessboardCornersSBWithMeta(candidate, (side, side), flags)
+            if ok and meta is not None and c is not None and c.size == 2 * meta.size:
+                out.append(_orient_grid(np.asarray(c, np.float64).reshape(*meta.shape, 2)))
+    return out
+
+
+def detect_board(image: np.ndarray, board: BoardSpec, *, detect_size: int = 800,
+                 partial: bool = False) -> np.ndarray | None:
     """Inner corners of ``board`` in ``image``, canonical order, or None when not found.
 
     Parameters
@@ -177,6 +306,9 @@ def detect_board(image: np.ndarray, board: BoardSpec, *,
         Larger images are searched at a scale whose larger side is this many px (the
         detectors' cost grows fast with size); the corners are then refined at full
         resolution.
+    partial : bool
+        If the whole board is not found, accept a part of it cut by the image border
+        (:func:`place_partial_grid`); its unseen corners are NaN.
 
     Returns
     -------
@@ -205,32 +337,44 @@ def detect_board(image: np.ndarray, board: BoardSpec, *,
                     and _inside(c, small.shape, board.cols, board.rows)):
                 c = canonical_order((c + 0.5) / scale - 0.5, board.cols, board.rows)
                 return refine_corners(image, c, board)
-    return None
+    return _partial_board(image, small, scale, board) if partial else None
+
+
+def _partial_board(image, small, scale: float, board: BoardSpec) -> np.ndarray | None:
+    """The placed candidate block with the most seen corners, refined, or None."""
+    best = None
+    for grid in _detect_partial(small, board):
+        placed = place_partial_grid((grid + 0.5) / scale - 0.5, board, np.shape(image))
+        if placed is not None and (best is None or np.isfinite(placed).sum()
+                                   > np.isfinite(best).sum()):
+            best = placed
+    return None if best is None else refine_corners(image, best, board)
 
 
 def refine_corners(image: np.ndarray, corners: np.ndarray, board: BoardSpec) -> np.ndarray:
     """Saddle-point refinement (OpenCV ``cornerSubPix``) on the linear, percentile-stretched
     image (not the equalised one the detector saw, whose local remapping can bias corners),
     with a window of 0.45 times the local corner spacing. A corner that would move by more
-    than a third of the spacing keeps its detected position."""
+    than a third of the spacing keeps its detected position; unseen (NaN) corners stay NaN."""
     import cv2
 
     img = np.asarray(image, np.float64)
     lo, hi = np.percentile(img, [0.5, 99.5])
     img = np.clip((img - lo) / max(hi - lo, 1e-12), 0, 1).astype(np.float32)
-    g = corners.reshape(board.rows, board.cols, 2)
-    spacing = float(np.median(np.linalg.norm(np.diff(g, axis=1), axis=-1)))
+    spacing = _spacing(corners.reshape(board.rows, board.cols, 2))
     win = max(2, int(round(0.45 * spacing)))
     crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_MAX_ITER, 100, 1e-4)
-    out = cv2.cornerSubPix(img, corners.astype(np.float32).reshape(-1, 1, 2).copy(), (win, win),
-                           (-1, -1), crit).reshape(-1, 2).astype(np.float64)
+    seen = np.all(np.isfinite(corners), axis=1)
+    out = corners.astype(np.float64).copy()
+    out[seen] = cv2.cornerSubPix(img, corners[seen].astype(np.float32).reshape(-1, 1, 2).copy(),
+                                 (win, win), (-1, -1), crit).reshape(-1, 2)
     moved = np.linalg.norm(out - corners, axis=1) > spacing / 3
     out[moved] = corners[moved]
     return out
 
 
 def detect_boards(images: Mapping, board: BoardSpec, *, names: Mapping | None = None,
-                  what: str = "board shot") -> dict:
+                  what: str = "board shot", partial: bool = False) -> dict:
     """Corners in every camera's shot; one error naming every camera where it failed.
 
     Parameters
@@ -242,6 +386,8 @@ def detect_boards(images: Mapping, board: BoardSpec, *, names: Mapping | None = 
         Names for messages (e.g. file names).
     what : str
         What the images are, for the message.
+    partial : bool
+        Accept a board partly out of view (:func:`detect_board`).
 
     Returns
     -------
@@ -254,14 +400,17 @@ def detect_boards(images: Mapping, board: BoardSpec, *, names: Mapping | None = 
     """
     found, missing = {}, []
     for key, img in images.items():
-        c = detect_board(img, board)
+        c = detect_board(img, board, partial=partial)
         if c is None:
             missing.append(camera_label(key, names))
         else:
             found[key] = c
     if missing:
+        seen = (f"at least {MIN_PARTIAL_SIDE} x {MIN_PARTIAL_SIDE} of its inner corners are in "
+                "view, the board cut by at most one side of the image in each direction,"
+                if partial else "the whole board is in view")
         raise InvalidInputError(
             f"checkerboard ({board.cols} x {board.rows} inner corners) not found in the {what} of "
-            f"camera(s) {', '.join(missing)}; check the board size, that the whole board is in "
-            "view and in focus, or leave those shots out")
+            f"camera(s) {', '.join(missing)}; check the board size, that {seen} and in focus, "
+            "or leave those shots out")
     return found

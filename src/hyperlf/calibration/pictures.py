@@ -48,7 +48,7 @@ def save_corner_pictures(path: str | os.PathLike, shots: Mapping, corners: Mappi
 
     Corners are coloured by their canonical index (the first one circled in red), so the same
     colour is the same physical corner in every camera; a camera without a detection is
-    labelled "not found".
+    labelled "not found", one that saw part of the board (NaN corners) says how much.
 
     Parameters
     ----------
@@ -77,7 +77,9 @@ def save_corner_pictures(path: str | os.PathLike, shots: Mapping, corners: Mappi
             continue
         ax.scatter(c[:, 0], c[:, 1], c=np.arange(len(c)), cmap="viridis", s=4)
         ax.scatter(c[:1, 0], c[:1, 1], s=40, facecolors="none", edgecolors="red")
-        ax.set_title(camera_label(key, names), fontsize=7)
+        seen = int(np.all(np.isfinite(c), axis=1).sum())
+        part = "" if seen == len(c) else f": {seen} of {len(c)} corners (board partly out of view)"
+        ax.set_title(camera_label(key, names) + part, fontsize=7)
     return save_figure(fig, path)
 
 

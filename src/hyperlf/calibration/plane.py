@@ -2,7 +2,8 @@
 
 Stages (each a function):
 
-1. :func:`~hyperlf.calibration.board.detect_boards`: the board's corners in every camera.
+1. :func:`~hyperlf.calibration.board.detect_boards`: the board's corners in every camera (a
+   board partly out of some views is accepted: the corners they miss are left out below).
 2. :func:`board_homographies`: each camera's homography onto the reference view at the board
    plane, and its RMS corner residual.
 3. :func:`board_geometry`: one pinhole model fitted to all shots (shared focal length, principal
@@ -36,24 +37,42 @@ __all__ = ["register_plane", "board_homographies", "board_geometry", "parallax_o
            "resolve_positions", "board_outline"]
 
 
-def board_homographies(corners: Mapping, reference) -> tuple[dict, dict, dict]:
+#: Fewest board corners a camera must share with the reference view (a board partly out of
+#: view in either): a homography has 8 degrees of freedom, and the residual should mean
+#: something.
+MIN_SHARED_CORNERS = 9
+
+
+def _seen(points: np.ndarray) -> np.ndarray:
+    """Which board corners a camera saw (unseen ones are NaN)."""
+    return np.all(np.isfinite(points), axis=1)
+
+
+def board_homographies(corners: Mapping, reference, names: Mapping | None = None
+                       ) -> tuple[dict, dict, dict]:
     """Homography (raw -> reference), RMS corner residual (px) and the residual vectors
-    (reference corners, mapped minus reference) of every camera."""
+    (reference corners, mapped minus reference) of every camera, on the corners both saw."""
     import cv2
 
     dst = corners[reference]
     Hs, errs, resid = {}, {}, {}
     for key, pts in corners.items():
-        H = np.eye(3) if key == reference else cv2.findHomography(pts, dst, 0)[0]
+        both = _seen(pts) & _seen(dst)
+        if both.sum() < MIN_SHARED_CORNERS:
+            raise InvalidInputError(
+                f"camera {camera_label(key, names)} sees only {int(both.sum())} of the board's "
+                f"inner corners that the reference view sees (at least {MIN_SHARED_CORNERS} "
+                "needed); place the board where every camera sees most of it")
+        H = np.eye(3) if key == reference else cv2.findHomography(pts[both], dst[both], 0)[0]
         if H is None:
             raise InvalidInputError(
-                f"no homography from camera {camera_label(key)} onto the reference: the board's "
-                "corners are degenerate there")
+                f"no homography from camera {camera_label(key, names)} onto the reference: the "
+                "board's corners are degenerate there")
         H = H / H[2, 2]
-        proj = cv2.perspectiveTransform(pts.reshape(-1, 1, 2), H).reshape(-1, 2)
+        proj = cv2.perspectiveTransform(pts[both].reshape(-1, 1, 2), H).reshape(-1, 2)
         Hs[key] = H
-        errs[key] = float(np.sqrt(np.mean(np.sum((proj - dst) ** 2, axis=1))))
-        resid[key] = (dst.copy(), proj - dst)
+        errs[key] = float(np.sqrt(np.mean(np.sum((proj - dst[both]) ** 2, axis=1))))
+        resid[key] = (dst[both].copy(), proj - dst[both])
     return Hs, errs, resid
 
 
@@ -81,8 +100,10 @@ def board_geometry(corners: Mapping, board: BoardSpec, image_size, reference, *,
     if focal_px:
         flags |= cv2.CALIB_FIX_FOCAL_LENGTH
     obj = board.object_points().astype(np.float32)
+    seen = {k: _seen(corners[k]) for k in keys}
     rms, K, _, rvecs, tvecs, std, _, _ = cv2.calibrateCameraExtended(
-        [obj] * len(keys), [corners[k].astype(np.float32).reshape(-1, 1, 2) for k in keys],
+        [obj[seen[k]] for k in keys],
+        [corners[k][seen[k]].astype(np.float32).reshape(-1, 1, 2) for k in keys],
         (W, H), K0, np.zeros(5), flags=flags)
     rot = {k: cv2.Rodrigues(rv)[0] for k, rv in zip(keys, rvecs)}
     trans = {k: tv.ravel() for k, tv in zip(keys, tvecs)}
@@ -103,8 +124,9 @@ def board_outline(corners: np.ndarray, board: BoardSpec, *, margin: float = 1.6)
     """Image polygon ``(4, 2)`` of the board including ``margin`` squares around its corners."""
     import cv2
 
+    seen = _seen(corners)
     obj = board.object_points()[:, :2] / board.square
-    Hb, _ = cv2.findHomography(obj, corners, 0)
+    Hb, _ = cv2.findHomography(obj[seen], corners[seen], 0)
     quad = np.array([[-margin, -margin], [board.cols - 1 + margin, -margin],
                      [board.cols - 1 + margin, board.rows - 1 + margin],
                      [-margin, board.rows - 1 + margin]], np.float64)
@@ -267,8 +289,8 @@ def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=No
             f"positions_from must be 'auto', 'parallax' or 'board', got {positions_from!r}")
     grid, ref = check_grid(shots.keys(), reference)
     size = check_images(shots, names, what="board shot")
-    corners = detect_boards(shots, board, names=names)
-    Hs, errs, resid = board_homographies(corners, ref)
+    corners = detect_boards(shots, board, names=names, partial=True)
+    Hs, errs, resid = board_homographies(corners, ref, names)
     geo = board_geometry(corners, board, size, ref, focal_px=focal_px)
     info = {"board_pose_rms": geo["rms"], "positions_from": "board",
             "focal_given": bool(focal_px), "focal_std_px": geo["focal_std"]}
