@@ -400,6 +400,40 @@ def test_an_interrupt_lost_in_a_finaliser_is_raised_again(capfd):
     assert "Terminated" not in capfd.readouterr().err
 
 
+def test_a_signal_that_c_code_turned_into_its_own_error_still_ends_the_run(monkeypatch,
+                                                                         capsys):
+    """SIGTERM landing while matplotlib's C resampler called back into Python came out as
+    "ValueError: Invalid affine transformation matrix" with a traceback (exit 1, seen in the
+    suite's signal test of `complete`): a run that received the signal now ends as terminated,
+    whatever the error it turned into."""
+    import hyperlf.cli as cli
+
+    def stopped_inside_c_code(args):
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            for _ in range(2000):
+                time.sleep(0.001)
+        except Terminated:
+            raise ValueError("Invalid affine transformation matrix") from None
+        pytest.fail("SIGTERM never came")
+
+    monkeypatch.setattr(cli, "_run", stopped_inside_c_code)
+    assert main(["-q", "demo", "-o", "unused"]) == 143
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "terminated" in err and "Traceback" not in err
+
+
+def test_an_error_without_a_signal_is_not_called_an_interrupt(monkeypatch):
+    import hyperlf.cli as cli
+
+    def broken(args):
+        raise ValueError("a genuine bug")
+
+    monkeypatch.setattr(cli, "_run", broken)
+    with pytest.raises(ValueError, match="a genuine bug"):
+        main(["-q", "demo", "-o", "unused"])
+
+
 def test_an_extension_module_initialises_whole_under_an_interrupt(monkeypatch):
     """An interrupt raised inside a compiled extension's initialisation used to leave it half
     made ("ImportError: initialization failed" from matplotlib's ft2font, then SIGABRT when the

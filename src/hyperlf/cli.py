@@ -1511,7 +1511,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     malformed file, 4 missing file, 130 interrupted (SIGINT), 143 terminated (SIGTERM), 129
     hung up (SIGHUP). An interrupted or failed command leaves its output as it was before.
     """
-    from .outputs import signals_as_exceptions
+    from .outputs import received_interrupt, signals_as_exceptions
 
     parser = build_parser()
     argv = sys.argv[1:] if argv is None else [os.fspath(a) for a in argv]
@@ -1555,11 +1555,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 2 if exc.errno in (errno.ENAMETOOLONG, errno.ELOOP) else 1
         except KeyboardInterrupt as exc:  # Ctrl-C, or Terminated (SIGTERM, SIGHUP)
             return _interrupted(args, exc)
-        except RuntimeError as exc:
+        except Exception as exc:
             # a signal that came while Python ran code that wraps what it raises (Python 3.11
             # turns an exception in a class's __set_name__, e.g. while colour-science is being
-            # imported, into "RuntimeError: Error calling __set_name__")
-            cause = _interrupt_cause(exc)
+            # imported, into "RuntimeError: Error calling __set_name__"; C code that called
+            # back into Python turns it into its own error): the run was stopped, not broken
+            cause = _interrupt_cause(exc) or received_interrupt()
             if cause is None:
                 raise
             return _interrupted(args, cause)

@@ -55,6 +55,7 @@ __all__ = [
     "deferred_signals",
     "signals_as_exceptions",
     "raise_if_interrupted",
+    "received_interrupt",
 ]
 
 MANIFEST = ".hyperlf-result.json"
@@ -178,6 +179,14 @@ def raise_if_interrupted() -> None:
     if _RECEIVED:
         _forget_deferred()
         raise _interrupt(_RECEIVED[0])
+
+
+def received_interrupt() -> KeyboardInterrupt | None:
+    """The interrupt of the first signal received in the current :func:`signals_as_exceptions`
+    block (None if none came), for code that must tell an exception a signal turned into (C
+    code that called back into Python when the handler raised, e.g. matplotlib's resampler:
+    "ValueError: Invalid affine transformation matrix") from a genuine failure."""
+    return _interrupt(_RECEIVED[0]) if _RECEIVED else None
 
 
 def _quiet_unraisable(previous):
