@@ -167,8 +167,7 @@ def _spacing(grid: np.ndarray) -> float:
 
 
 def _in_image(points: np.ndarray, shape, margin: float) -> np.ndarray:
-    """Which points lie at least ``margin`` px inside an image of ``shape``: a corner nearer
-    the border than 0.9 corner spacings cannot be located (its squares are cut)."""
+    """Which points ``(N, 2)`` lie at least ``margin`` px inside an image of ``shape``."""
     H, W = shape
     return ((points[:, 0] >= margin) & (points[:, 0] <= W - 1 - margin)
             & (points[:, 1] >= margin) & (points[:, 1] <= H - 1 - margin))
@@ -227,6 +226,8 @@ def place_partial_grid(grid: np.ndarray, board: BoardSpec, shape) -> np.ndarray 
     """
     import cv2
 
+    if min(grid.shape[:2]) < MIN_PARTIAL_SIDE:
+        return None
     spacing = _spacing(grid)
     grid = _trim_to_image(grid, shape, 0.5 * spacing)
     if grid is None:
