@@ -8,8 +8,9 @@ from hypothesis import given, settings, strategies as st
 
 from hyperlf import synthesis
 from hyperlf.errors import InvalidInputError
-from hyperlf.hlf import DepthParams, depth, prepare, visible_views
-from hyperlf.warp import forward_warp_disparity, visible_in_view
+from hyperlf.hlf import DepthParams, LabelVisibility, depth, prepare, visibility, visible_views
+from hyperlf.warp import (forward_warp_disparity, occlusion_zbuffer, visible_at_labels,
+                          visible_in_view)
 
 
 def _brute_force(d, offset, margin):
@@ -38,6 +39,86 @@ def test_visible_in_view_matches_brute_force(seed, offset, margin):
     d = np.round(rng.uniform(-3, 3, (7, 9)) * 2) / 2  # ties happen
     assert np.array_equal(visible_in_view(d, offset, margin=margin),
                           _brute_force(d, offset, margin))
+
+
+def _brute_force_at_labels(d, offset, labels, margin):
+    """(l, p) seen: p at labels[l] lands inside at t, and no reference pixel whose landing
+    point (at its own disparity) lies within one pixel of t along both axes is nearer than
+    labels[l] by more than ``margin``."""
+    H, W = d.shape
+    land = [(x - d[y, x] * offset[0], y - d[y, x] * offset[1], d[y, x])
+            for y in range(H) for x in range(W) if np.isfinite(d[y, x])]
+    out = np.zeros((len(labels), H, W), bool)
+    for i, lab in enumerate(labels):
+        for y in range(H):
+            for x in range(W):
+                tx, ty = np.rint(x - lab * offset[0]), np.rint(y - lab * offset[1])
+                if not (0 <= tx < W and 0 <= ty < H):
+                    continue
+                rivals = [dq for qx, qy, dq in land
+                          if np.floor(qx) <= tx <= np.ceil(qx) and np.floor(qy) <= ty <= np.ceil(qy)]
+                out[i, y, x] = not rivals or lab >= max(rivals) - margin
+    return out
+
+
+@settings(max_examples=25, deadline=None, derandomize=True)
+@given(st.integers(0, 2**31), st.sampled_from([(1.0, 0.0), (-2.0, 1.0), (0.5, -1.5)]),
+       st.sampled_from([0.0, 0.5, 2.0]), st.sampled_from(["numpy", "numba"]))
+def test_visible_at_labels_matches_brute_force(seed, offset, margin, impl):
+    rng = np.random.default_rng(seed)
+    d = np.round(rng.uniform(-3, 3, (6, 8)) * 2) / 2  # ties and half-pixel landings happen
+    d[rng.random(d.shape) < 0.1] = np.nan
+    labels = np.arange(-3.0, 3.01, 0.5)
+    z = occlusion_zbuffer(d, offset)
+    got = visible_at_labels(z, offset, labels, margin=margin, impl=impl)
+    assert np.array_equal(got, _brute_force_at_labels(d, offset, labels, margin))
+    rows = visible_at_labels(z, offset, labels, rows=(2, 5), margin=margin, impl=impl)
+    assert np.array_equal(rows, got[:, 2:5])
+
+
+def test_visible_at_labels_asked_at_the_estimate_is_the_estimate_test():
+    """At each pixel's own disparity the hypothesis test is :func:`visible_in_view`; at a
+    background disparity behind a nearer neighbour it drops the views the neighbour hides
+    it from, which the estimate test cannot when the pixel was given the neighbour's."""
+    rng = np.random.default_rng(3)
+    labels = np.arange(-2.0, 4.01, 1.0)
+    d = rng.integers(-2, 3, (20, 24)).astype(np.float64)
+    d[6:14, 8:16] = 4.0  # a nearer square
+    for offset in [(1.0, 0.0), (-1.0, 1.0), (0.5, 2.0)]:
+        z = occlusion_zbuffer(d, offset)
+        at = visible_at_labels(z, offset, labels)
+        own = np.take_along_axis(at, (d - labels[0]).astype(int)[None], 0)[0]
+        assert np.array_equal(own, visible_in_view(d, offset))
+    # a strip of background beside the square, given the square's disparity (fattened)
+    flat = np.zeros((20, 24))
+    flat[6:14, 8:16] = 4.0
+    fat = flat.copy()
+    fat[6:14, 16:18] = 4.0
+    z = occlusion_zbuffer(fat, (-1.0, 0.0))  # the view left of the reference (x + d)
+    at0 = visible_at_labels(z, (-1.0, 0.0), labels)[2]  # label 0, the truth there
+    assert not at0[6:14, 16:18].any()  # the square, shifted right, covers the strip there
+    assert visible_in_view(fat, (-1.0, 0.0))[6:14, 16:18].all()  # the estimate test: seen
+    z = occlusion_zbuffer(fat, (1.0, 0.0))  # the view on the other side sees it
+    assert visible_at_labels(z, (1.0, 0.0), labels)[2][6:14, 16:18].all()
+
+
+def test_label_visibility_falls_back_to_every_view_where_too_few_see():
+    lf = synthesis.procedural_scene(seed=0, rows=3, cols=3, height=32, width=40)
+    d = lf.reference_gt_disparity
+    strict = prepare(lf, n_labels=8, params=DepthParams(min_visible_views=1))
+    prob = prepare(lf, n_labels=8, params=DepthParams(min_visible_views=8))
+    vis, lax = LabelVisibility(strict, d), LabelVisibility(prob, d)
+    H = d.shape[0]
+    count = sum(lax.seen(v, (0, H)).astype(int) for v in prob.others)
+    for v in prob.others:
+        m = lax.mask(v, (0, H))
+        assert np.array_equal(m, lax.seen(v, (0, H)) | (count < 8))
+        # with one view enough, only the hypotheses no view sees (behind the surface) keep all
+        assert np.array_equal(vis.mask(v, (0, H)), vis.seen(v, (0, H)) | (count == 0))
+        assert np.array_equal(lax.mask(v, (5, 17)), m[:, 5:17])  # a strip is its rows
+    assert isinstance(visibility(prob, d), LabelVisibility)
+    est = visibility(prepare(lf, n_labels=8, params=DepthParams(visibility_test="estimate")), d)
+    assert isinstance(est, dict) and set(est) == set(prob.others)
 
 
 def test_visible_in_view_agrees_with_the_z_buffer_and_handles_unknowns():
@@ -92,20 +173,52 @@ def test_visible_views_keeps_every_view_where_too_few_see():
         assert (sees[v] >= strict[v]).all()
 
 
+@pytest.mark.parametrize("scene", ["occlusion", "solids"])
+def test_hypothesis_visibility_gives_a_fattened_edge_back_to_the_background(scene):
+    """The estimate carries the nearer surface 2 px into the background (the window costs'
+    fattening).  Asked at the estimate's disparity, every view "sees" that strip, so the
+    visibility changes nothing there; asked per hypothesis, the background's disparity is
+    matched over the views that see the background, and wins the strip's pixels more often."""
+    from scipy.ndimage import grey_dilation
+
+    from hyperlf.hlf import correspondence
+
+    lf = synthesis.procedural_scene(**{k: v for k, v in synthesis.SCENES[scene].items()
+                                       if k != "name"}, rows=5, cols=6, height=64, width=80,
+                                    texture_scale=2.5)
+    gt = lf.reference_gt_disparity.astype(np.float64)
+    fat = grey_dilation(gt, size=(5, 5))
+    strip = fat > gt + 0.5
+    strip[:6] = strip[-6:] = strip[:, :6] = strip[:, -6:] = False
+    prob = prepare(lf, n_labels=32, params=DepthParams(window=5))
+    right = {}
+    for name, sees in (("none", None), ("estimate", visible_views(prob, fat)),
+                       ("hypothesis", LabelVisibility(prob, fat))):
+        C, _ = correspondence(prob, sees=sees)
+        right[name] = float((np.abs(prob.labels[np.argmin(C, 0)] - gt)[strip] < 0.5).mean())
+    assert abs(right["estimate"] - right["none"]) <= 0.01, right
+    assert right["hypothesis"] >= right["estimate"] + 0.03, right
+
+
 @pytest.mark.parametrize("bad", [{"visibility_rounds": -1}, {"visibility_rounds": 1.5},
                                  {"visibility_rounds": True}, {"min_visible_views": 0},
                                  {"visibility_margin": -0.1}, {"visibility_scale": 0},
                                  {"visibility_min_size": 0},
                                  {"visibility_scale": 1.5}, {"visibility_scale": True},
-                                 {"visibility_margin": float("nan")}])
+                                 {"visibility_margin": float("nan")},
+                                 {"visibility_test": "zbuffer"}])
 def test_depth_params_check_the_visibility_options(bad):
     with pytest.raises(InvalidInputError, match="visibility|visible"):
         DepthParams(**bad)
 
 
-@pytest.mark.parametrize("scene, scale", [("occlusion", 1), ("solids", 1), ("occlusion", 2),
-                                          ("solids", 2)])
-def test_rematching_lowers_the_error_at_depth_edges(scene, scale):
+@pytest.mark.parametrize("scene, scale, test", [("occlusion", 1, "hypothesis"),
+                                                ("solids", 1, "hypothesis"),
+                                                ("occlusion", 2, "hypothesis"),
+                                                ("solids", 2, "hypothesis"),
+                                                ("occlusion", 2, "estimate"),
+                                                ("solids", 2, "estimate")])
+def test_rematching_lowers_the_error_at_depth_edges(scene, scale, test):
     """Through the paper's 5 x 6 array, one re-matching round over the views that see each
     pixel lowers the error within 4 px of the depth edges, where views that cannot see a
     pixel vote otherwise, whether the round starts from a full-resolution pass (scale 1) or
@@ -123,7 +236,8 @@ def test_rematching_lowers_the_error_at_depth_edges(scene, scale):
     err = {}
     for rounds in (0, 1):
         res = depth(lf, n_labels=32, params=DepthParams(visibility_rounds=rounds,
-                                                        visibility_scale=scale, window=5))
+                                                        visibility_scale=scale, window=5,
+                                                        visibility_test=test))
         err[rounds] = float(np.sqrt(np.mean((res.disparity - gt)[near] ** 2)))
         if rounds:
             key = "visibility_round1_correspondence_s" if scale == 1 else "visibility_estimate_s"

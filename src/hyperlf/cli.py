@@ -1314,8 +1314,9 @@ def _add_depth_parser(sub) -> None:
                         "keeps its own slope rather than one depth from its surroundings)")
     p.add_argument("--visibility-rounds", type=_visibility_rounds_arg, default=None,
                    metavar="N",
-                   help="re-match N times over only the views that see each pixel under the "
-                        "previous estimate (sharper depth edges; the first round starts "
+                   help="re-match N times, each candidate depth of a pixel over only the "
+                        "views that see it there under the previous estimate (sharper depth "
+                        "edges; the first round starts "
                         "from a quick half-resolution run, each further one costs about one "
                         "more correspondence pass; default: 1 on an array with at least 12 "
                         "other views and images at least 256 px on their shorter side, else 0)")

@@ -121,8 +121,10 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
    on a dense array of images at least ``params.visibility_min_size`` px on their shorter
    side, none with fewer than ``params.dense_views`` other views or smaller images): the
    disparity so far is forward-warped into every view (z-buffer,
-   :func:`hyperlf.warp.visible_in_view`), each view counts only at the reference pixels it
-   sees (:func:`visible_views`), and stages 2 and 4-6 run again on that volume; the defocus
+   :func:`hyperlf.warp.occlusion_zbuffer`), each view counts only at the reference pixels
+   and candidate disparities at which it sees them (:class:`LabelVisibility`; with
+   ``params.visibility_test="estimate"`` at the estimate's disparity only,
+   :func:`visible_views`), and stages 2 and 4-6 run again on that volume; the defocus
    volume and the texture weight are kept.
    The first round starts from a quick depth run at half resolution
    (:func:`coarse_disparity`), so that one round costs about 1/8 of a pass more than none.
@@ -177,6 +179,9 @@ __all__ = [
     "post_filter",
     "seen_pixels",
     "visible_views",
+    "LabelVisibility",
+    "visibility",
+    "VISIBILITY_TESTS",
     "make_labels",
     "view_costs",
     "shift_map",
@@ -195,6 +200,10 @@ __all__ = [
 ]
 
 DEFOCUS_MODES = ("off", "paper", "gaussian", "flat", "tv")
+#: How a visibility round decides which views see a reference pixel
+#: (``DepthParams.visibility_test``): at every candidate disparity (:class:`LabelVisibility`)
+#: or at the current estimate's only (:func:`visible_views`).
+VISIBILITY_TESTS = ("hypothesis", "estimate")
 OPTIMIZERS = tuple(_reg.OPTIMISERS)
 #: The costs available for H-LF matching (those of the registry with a light-field evaluator;
 #: :func:`hyperlf.costs.cost_names` with ``light_field=True`` is the live list).
@@ -228,9 +237,11 @@ class DepthParams:
     :func:`neutral_missing_views`, which removes the pull of textureless border regions to the
     range limits).
     Visibility (SPEC §5.6): ``visibility_rounds`` re-matchings, each over only the views that
-    see each reference pixel under the current estimate (:func:`visible_views`: z-test with
-    ``visibility_margin`` px per baseline; a pixel seen by fewer than ``min_visible_views``
-    other views keeps them all).  None (the default): 1 on a dense array (at least
+    see each reference pixel under the current estimate: z-test with ``visibility_margin`` px
+    per baseline, asked at every candidate disparity (``visibility_test="hypothesis"``, the
+    default, :class:`LabelVisibility`) or at the estimate's own (``"estimate"``,
+    :func:`visible_views`); a pixel (or pixel and disparity) seen by fewer than
+    ``min_visible_views`` other views keeps them all.  None (the default): 1 on a dense array (at least
     ``dense_views`` other views) whose images are at least ``visibility_min_size`` (256) px on
     their shorter side, else 0 (with few views, dropping the hidden ones leaves too few votes
     near edges; on small images the first estimate is too rough near edges); 0 = off.
@@ -304,6 +315,7 @@ class DepthParams:
     visibility_min_size: int = 256
     visibility_margin: float = 0.5
     min_visible_views: int = 2
+    visibility_test: str = "hypothesis"
     texture_snr: float | None = None
     texture_window: int = 5
     coarse_prior: bool = True
@@ -377,6 +389,9 @@ class DepthParams:
             if isinstance(v, bool) or int(v) != v or v < low:
                 raise InvalidInputError(f"params.{name} must be an integer >= {low}, got {v!r}")
         pos("visibility_margin", self.visibility_margin, True)
+        if self.visibility_test not in VISIBILITY_TESTS:
+            raise InvalidInputError(f"params.visibility_test must be one of {VISIBILITY_TESTS}, "
+                                    f"got {self.visibility_test!r}")
         try:
             self.aggregation_params
         except InvalidInputError as e:
@@ -1154,6 +1169,67 @@ def visible_views(prob: DepthProblem, disparity: np.ndarray) -> dict:
     return {v: m | few for v, m in sees.items()}
 
 
+class LabelVisibility:
+    """Which other views see each reference pixel at each candidate disparity (SPEC §5.6 a,
+    asked of every hypothesis; ``DepthParams.visibility_test="hypothesis"``, the default).
+
+    The estimate's z-buffer in every view (:func:`hyperlf.warp.occlusion_zbuffer`) is kept;
+    :meth:`mask` answers for a strip of rows with :func:`hyperlf.warp.visible_at_labels`, so
+    no ``(L, H, W)`` mask per view is ever held.  A ``(d, p)`` that fewer than
+    ``params.min_visible_views`` views see keeps every view (hypotheses behind the estimated
+    surface, which no view sees, are matched as without visibility).
+
+    Why per hypothesis: the test of :func:`visible_views` is asked at the estimate's own
+    disparity, so a background pixel that the estimate gave the foreground (a fattened edge)
+    is "seen" by every view and nothing changes there; asked at the background's disparity,
+    the views in which the foreground covers it drop out of that label's mean.
+    """
+
+    def __init__(self, prob: "DepthProblem", disparity: np.ndarray):
+        from .warp import occlusion_zbuffer
+
+        p = prob.params
+        d = np.asarray(disparity, np.float64)
+        self.zbuffers = {v: occlusion_zbuffer(d, tuple(prob.offsets[v])).astype(np.float32)
+                         for v in prob.others}
+        self.offsets = {v: tuple(float(o) for o in prob.offsets[v]) for v in prob.others}
+        self.labels = np.asarray(prob.labels, np.float64)
+        self.margin = float(p.visibility_margin)
+        self.min_views = int(p.min_visible_views)
+        self.impl = prob.impl
+        self._few = (None, None)
+
+    def seen(self, v, rows) -> np.ndarray:
+        """``(L, b - a, W)`` bool: view ``v`` sees ``(d, p)`` (before the fallback)."""
+        from .warp import visible_at_labels
+
+        return visible_at_labels(self.zbuffers[v], self.offsets[v], self.labels, rows=rows,
+                                 margin=self.margin, impl=self.impl)
+
+    def too_few(self, rows) -> np.ndarray:
+        """``(L, b - a, W)`` bool: fewer than ``min_visible_views`` views see ``(d, p)``."""
+        rows = (int(rows[0]), int(rows[1]))
+        if self._few[0] != rows:
+            count = np.zeros((self.labels.size, rows[1] - rows[0],
+                              next(iter(self.zbuffers.values())).shape[1]), np.int16)
+            for v in self.zbuffers:
+                count += self.seen(v, rows)
+            self._few = (rows, count < self.min_views)
+        return self._few[1]
+
+    def mask(self, v, rows) -> np.ndarray:
+        """``(L, b - a, W)`` bool: the samples of view ``v`` that count for the strip."""
+        return self.seen(v, rows) | self.too_few(rows)
+
+
+def visibility(prob: "DepthProblem", disparity: np.ndarray):
+    """Stage 7's visibility under ``params.visibility_test``: :class:`LabelVisibility`
+    (``"hypothesis"``) or :func:`visible_views` (``"estimate"``)."""
+    if prob.params.visibility_test == "estimate":
+        return visible_views(prob, disparity)
+    return LabelVisibility(prob, disparity)
+
+
 def coarse_disparity(prob: DepthProblem, *, scale: int | None = None,
                      progress: bool | str = False, return_confidence: bool = False):
     """A depth estimate made cheaply at a coarser scale: the start of the first visibility
@@ -1281,7 +1357,9 @@ def _strip_correspondence(prob: DepthProblem, rows, scales, sees, cache, bar, cl
                                rows=None if whole else rows,
                                scales=None if scales is None else scales[v],
                                **_mask_args(prob, v))
-        if sees is not None:
+        if isinstance(sees, LabelVisibility):
+            valid &= sees.mask(v, rows)
+        elif sees is not None:
             valid &= sees[v][None, a:b]
         clock.lap("correspondence_s")
         sides = None if prob.sides is None else prob.sides[i][inside]
@@ -1303,8 +1381,9 @@ def correspondence(prob: DepthProblem, *, progress: bool | str = False, timings=
     """Stage 2 of :func:`depth`: per-view costs streamed into the aggregation (SPEC §5.1-5.2).
 
     ``progress``: a bar over the views on stderr (a string: the bar's label, else "views").
-    ``sees`` (optional; :func:`visible_views`): per other view, the reference pixels it sees;
-    a view counts only there (SPEC §5.6).  ``strips`` (optional; :func:`hyperlf.tiling.plan`):
+    ``sees`` (optional; :func:`visibility`): per other view, the reference pixels it sees
+    (:func:`visible_views`), or a :class:`LabelVisibility` (those it sees at each label); a
+    view counts only there (SPEC §5.6).  ``strips`` (optional; :func:`hyperlf.tiling.plan`):
     full-width strips of rows ``[(a, b), ...]`` covering the image in order, each aggregated
     alone (memory for its rows only; SPEC §12 tiles); bit for bit the result of one strip.
     A cost with whole-view scales (the fusions) then takes one more pass over the views to
@@ -1762,7 +1841,7 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
     strips = strips_for(prob)
     rounds, first = prob.visibility_rounds, 0
     start = coarse_disparity(prob, progress=progress, return_confidence=True) if rounds else None
-    sees = None if start is None else visible_views(prob, start[0])
+    sees = None if start is None else visibility(prob, start[0])
     if start is not None:
         rounds, first = rounds - 1, 1
         clock.lap("visibility_estimate_s")
@@ -1778,7 +1857,7 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
     clock.lap("defocus_s")
     U, sC, sD, disp, conf = _solve(prob, C, D, seen, f_c, w, prior, clock)
     for k in range(first + 1, first + rounds + 1):
-        sees = visible_views(prob, disp)
+        sees = visibility(prob, disp)
         C = U = None  # the new round's volumes replace them: not both at once
         C, n_used = correspondence(prob, progress=f"views, visibility round {k}" if progress
                                    else False, sees=sees, strips=strips)

@@ -48,6 +48,8 @@ __all__ = [
     "warp_to_reference",
     "forward_warp_disparity",
     "visible_in_view",
+    "occlusion_zbuffer",
+    "visible_at_labels",
 ]
 
 #: Tolerance (px) within which a sample just outside ``[0, n - 1]`` still counts as inside.
@@ -463,6 +465,41 @@ def _forward_targets(d: np.ndarray, offset, rounding=(np.rint, np.rint)):
     return ok, idx
 
 
+def occlusion_zbuffer(disparity: np.ndarray, offset: tuple[float, float]) -> np.ndarray:
+    """The nearest reference surface at every pixel of another view, splatted for z-tests.
+
+    Each reference pixel lands at ``(x - d dx, y - d dy)``; its disparity is written onto the
+    2 x 2 pixels around the landing point (an occluder's edge, which pixel centres sample only
+    to half a pixel, is not missed) and the largest (nearest) wins.  The z-buffer of
+    :func:`visible_in_view` and :func:`visible_at_labels`.
+
+    Parameters
+    ----------
+    disparity : ndarray, shape (H, W)
+        Reference disparity (px per baseline); NaN = unknown (lands nowhere).
+    offset : (dx, dy)
+        View position minus reference position, in baselines.
+
+    Returns
+    -------
+    ndarray of float64, shape (H, W)
+        ``-inf`` where nothing lands.
+
+    Examples
+    --------
+    >>> occlusion_zbuffer(np.array([[0.0, 2.0, 0.0]]), (0.25, 0.0)).tolist()  # lands at 0.5
+    [[2.0, 2.0, 0.0]]
+    """
+    d = np.asarray(disparity, dtype=np.float64)
+    H, W = d.shape
+    z = np.full(H * W, -np.inf)
+    for rounding in ((np.floor, np.floor), (np.floor, np.ceil), (np.ceil, np.floor),
+                     (np.ceil, np.ceil)):  # every pixel the landing point touches
+        ok, idx = _forward_targets(d, offset, rounding)
+        np.maximum.at(z, idx[ok], d[ok])
+    return z.reshape(H, W)
+
+
 def visible_in_view(disparity: np.ndarray, offset: tuple[float, float], *,
                     margin: float = 0.5) -> np.ndarray:
     """Which reference pixels another view sees (SPEC §5.6 a): the z-test of
@@ -498,14 +535,80 @@ def visible_in_view(disparity: np.ndarray, offset: tuple[float, float], *,
     """
     d = np.asarray(disparity, dtype=np.float64)
     H, W = d.shape
-    z = np.full(H * W, -np.inf)
-    for rounding in ((np.floor, np.floor), (np.floor, np.ceil), (np.ceil, np.floor),
-                     (np.ceil, np.ceil)):  # every pixel the landing point touches
-        ok, idx = _forward_targets(d, offset, rounding)
-        np.maximum.at(z, idx[ok], d[ok])
+    z = occlusion_zbuffer(d, offset).ravel()
     ok, idx = _forward_targets(d, offset)
     seen = np.zeros(H * W, bool)
     flat = d.ravel()
     sel = ok.ravel()
     seen[sel] = flat[sel] >= z[idx.ravel()[sel]] - float(margin)
     return seen.reshape(H, W)
+
+
+def visible_at_labels(zbuffer: np.ndarray, offset: tuple[float, float], labels, *,
+                      rows: tuple[int, int] | None = None, margin: float = 0.5,
+                      impl: str = "auto") -> np.ndarray:
+    """Which reference pixels another view would see *at each candidate disparity*.
+
+    The z-test of :func:`visible_in_view` asked of every hypothesis instead of the current
+    estimate only: reference pixel ``p`` at disparity ``d`` lands at the nearest pixel ``t`` of
+    ``p - d (dx, dy)``, and the view sees it there when the nearest surface that the current
+    estimate puts at ``t`` (``zbuffer``, :func:`occlusion_zbuffer`) is not nearer than ``d`` by
+    more than ``margin``: ``d >= zbuffer[t] - margin``.  A background pixel that the estimate
+    gave the foreground (a fattened edge) is then matched, at the background's disparity,
+    over the views that see the background there, and the foreground's disparity over all.
+    Landing outside the image: not seen.
+
+    Parameters
+    ----------
+    zbuffer : ndarray, shape (H, W)
+        :func:`occlusion_zbuffer` of the current estimate for this view.
+    offset : (dx, dy)
+        View position minus reference position, in baselines.
+    labels : array_like, shape (L,)
+        Candidate disparities.
+    rows : (int, int), optional
+        Reference rows ``[a, b)`` to answer for (default all).
+    margin : float
+        Disparity difference below which two surfaces count as one (>= 0).
+    impl : {"auto", "numba", "numpy"}
+        ``numpy`` is the reference the numba kernel is tested against.
+
+    Returns
+    -------
+    ndarray of bool, shape (L, b - a, W)
+
+    Examples
+    --------
+    A nearer surface on the left, seen from a view that shifts content right (``x + d``):
+    at disparity 0 the two background pixels beside it are hidden, at 2 they are seen (the
+    last two would land outside the image).
+
+    >>> z = occlusion_zbuffer(np.array([[2.0, 2.0, 0.0, 0.0, 0.0]]), (-1.0, 0.0))
+    >>> visible_at_labels(z, (-1.0, 0.0), [0.0, 2.0], impl="numpy")[:, 0].tolist()
+    [[True, True, False, False, True], [True, True, True, False, False]]
+    """
+    z = np.ascontiguousarray(zbuffer, np.float64)
+    H, W = z.shape
+    a, b = (0, H) if rows is None else (int(rows[0]), int(rows[1]))
+    lab = np.ascontiguousarray(np.asarray(labels, np.float64).ravel())
+    dx, dy = (float(v) for v in offset)
+    if impl == "numpy":
+        return _visible_at_labels_reference(z, dx, dy, lab, a, b, float(margin))
+    from . import _warp_kernels
+
+    out = np.empty((lab.size, b - a, W), np.bool_)
+    _warp_kernels.visible_at_labels(z, dx, dy, lab, a, b, float(margin), out)
+    return out
+
+
+def _visible_at_labels_reference(z, dx, dy, labels, a, b, margin):
+    """The numpy reference of :func:`visible_at_labels` (one label at a time)."""
+    H, W = z.shape
+    yy, xx = np.mgrid[a:b, 0:W].astype(np.float64)
+    out = np.zeros((labels.size, b - a, W), bool)
+    for i, d in enumerate(labels):
+        tx, ty = np.rint(xx - d * dx), np.rint(yy - d * dy)
+        ok = (tx >= 0) & (tx < W) & (ty >= 0) & (ty < H)
+        near = z[np.where(ok, ty, 0).astype(np.intp), np.where(ok, tx, 0).astype(np.intp)]
+        out[i] = ok & (d >= near - margin)
+    return out
