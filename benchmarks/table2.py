@@ -110,6 +110,9 @@ ABLATIONS = {
                     "+ visibility-aware re-matching, 2 rounds (§5.6)"),
     "no_visibility": ({"params": DepthParams(visibility_rounds=0)},
                       "without visibility-aware re-matching (§5.6)"),
+    "visibility_estimate": ({"params": DepthParams(visibility_test="estimate")},
+                            "visibility asked at the estimate's disparity only (before "
+                            "2026-11-26)"),
     "visibility_full": ({"params": DepthParams(visibility_scale=1)},
                         "visibility round from a full-resolution first pass (§5.6)"),
     "window5": ({"params": DepthParams(window=5)}, "RSNCC 5 x 5 (the window before 2026-11-25)"),
