@@ -1318,8 +1318,8 @@ def _add_depth_parser(sub) -> None:
                         "views that see it there under the previous estimate (sharper depth "
                         "edges; the first round starts "
                         "from a quick half-resolution run, each further one costs about one "
-                        "more correspondence pass; default: 1 on an array with at least 12 "
-                        "other views and images at least 256 px on their shorter side, else 0)")
+                        "more correspondence pass; default: 1 on images at least 256 px on "
+                        "their shorter side, else 0)")
     p.add_argument("--max-memory", type=_memory_arg, default=None, metavar="SIZE",
                    help="memory budget of the hlf method, e.g. 6G or 512M (default 16G, which "
                         "leaves room on a 24 GB machine, or the memory available now when that "

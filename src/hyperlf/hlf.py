@@ -118,8 +118,8 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
 6. **Post-filter**: the guided weighted median (:func:`post_filter`).
 
 7. **Visibility-aware re-matching** (SPEC §5.6, ``params.visibility_rounds``; default 1 round
-   on a dense array of images at least ``params.visibility_min_size`` px on their shorter
-   side, none with fewer than ``params.dense_views`` other views or smaller images): the
+   on images at least ``params.visibility_min_size`` px on their shorter side, none on
+   smaller ones): the
    disparity so far is forward-warped into every view (z-buffer,
    :func:`hyperlf.warp.occlusion_zbuffer`), each view counts only at the reference pixels
    and candidate disparities at which it sees them (:class:`LabelVisibility`; with
@@ -241,10 +241,10 @@ class DepthParams:
     per baseline, asked at every candidate disparity (``visibility_test="hypothesis"``, the
     default, :class:`LabelVisibility`) or at the estimate's own (``"estimate"``,
     :func:`visible_views`); a pixel (or pixel and disparity) seen by fewer than
-    ``min_visible_views`` other views keeps them all.  None (the default): 1 on a dense array (at least
-    ``dense_views`` other views) whose images are at least ``visibility_min_size`` (256) px on
-    their shorter side, else 0 (with few views, dropping the hidden ones leaves too few votes
-    near edges; on small images the first estimate is too rough near edges); 0 = off.
+    ``min_visible_views`` other views keeps them all.  None (the default): 1 on images at
+    least ``visibility_min_size`` (256) px on their shorter side, else 0 (on small images the
+    first estimate is too rough near edges; until the per-hypothesis test, arrays with fewer
+    than ``dense_views`` other views had none either: BENCHMARKS.md); 0 = off.
     ``visibility_scale`` (2): the estimate that the first round starts from is a whole depth
     run on the light field downscaled by this factor (:func:`coarse_disparity`, about 1/8 of
     the work at 2), instead of a full-resolution pass (1); it is used where both downscaled
@@ -1120,7 +1120,7 @@ def prepare(lf, *, disparity_range=None, n_labels: int = 64, metric: str = "auto
     prob.window = light_field_window(mname, len(prob.others), window=params.window,
                                      dense_views=params.dense_views)
     big = min(lf.image_shape) >= int(params.visibility_min_size)
-    prob.visibility_rounds = int(dense and big if params.visibility_rounds is None
+    prob.visibility_rounds = int(big if params.visibility_rounds is None
                                  else params.visibility_rounds)
     prob.Mn = _selection_maps(prob.In, params.selection_normalise, masks)
     prob.M_ref = prob.Mn[ref].astype(np.float32)
