@@ -960,7 +960,7 @@ class DepthProblem:
         The correspondence window (:func:`hyperlf.costs.light_field_window`; None: the
         cost's own).
     visibility_rounds : int
-        ``params.visibility_rounds`` resolved (None: 1 on a dense array of images at least
+        ``params.visibility_rounds`` resolved (None: 1 on images at least
         ``params.visibility_min_size`` px on their shorter side, else 0).
     """
 
@@ -1116,7 +1116,6 @@ def prepare(lf, *, disparity_range=None, n_labels: int = 64, metric: str = "auto
         reference=ref, offsets=lf.offsets, ref_img=imgs[ref].astype(np.float64),
         In={v: normalise_intensity(imgs[v], valid=None if masks is None else masks[v])
             for v in views}, valid=masks)
-    dense = len(prob.others) >= int(params.dense_views)
     prob.window = light_field_window(mname, len(prob.others), window=params.window,
                                      dense_views=params.dense_views)
     big = min(lf.image_shape) >= int(params.visibility_min_size)
