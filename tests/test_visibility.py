@@ -74,6 +74,8 @@ def test_visible_at_labels_matches_brute_force(seed, offset, margin, impl):
     assert np.array_equal(got, _brute_force_at_labels(d, offset, labels, margin))
     rows = visible_at_labels(z, offset, labels, rows=(2, 5), margin=margin, impl=impl)
     assert np.array_equal(rows, got[:, 2:5])
+    z32 = visible_at_labels(z.astype(np.float32), offset, labels, margin=margin, impl=impl)
+    assert np.array_equal(z32, got)  # the float32 z-buffer LabelVisibility keeps
 
 
 def test_visible_at_labels_asked_at_the_estimate_is_the_estimate_test():

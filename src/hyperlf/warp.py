@@ -587,7 +587,8 @@ def visible_at_labels(zbuffer: np.ndarray, offset: tuple[float, float], labels, 
     >>> visible_at_labels(z, (-1.0, 0.0), [0.0, 2.0], impl="numpy")[:, 0].tolist()
     [[True, True, False, False, True], [True, True, True, False, False]]
     """
-    z = np.ascontiguousarray(zbuffer, np.float64)
+    z = np.asarray(zbuffer)  # float32 as kept by LabelVisibility: no copy per call
+    z = np.ascontiguousarray(z, z.dtype if z.dtype in (np.float32, np.float64) else np.float64)
     H, W = z.shape
     a, b = (0, H) if rows is None else (int(rows[0]), int(rows[1]))
     lab = np.ascontiguousarray(np.asarray(labels, np.float64).ravel())
@@ -610,5 +611,5 @@ def _visible_at_labels_reference(z, dx, dy, labels, a, b, margin):
         tx, ty = np.rint(xx - d * dx), np.rint(yy - d * dy)
         ok = (tx >= 0) & (tx < W) & (ty >= 0) & (ty < H)
         near = z[np.where(ok, ty, 0).astype(np.intp), np.where(ok, tx, 0).astype(np.intp)]
-        out[i] = ok & (d >= near - margin)
+        out[i] = ok & (d >= near.astype(np.float64) - margin)  # as the kernel: in float64
     return out
