@@ -30,6 +30,23 @@ def test_integer_round_trip_exact(tmp_path, rng, ext, dtype, shape):
     assert os.listdir(tmp_path) == [f"a{ext}"]
 
 
+@pytest.mark.parametrize("dtype,shape", [(np.uint16, (40, 30)), (np.uint8, (40, 30, 3))])
+def test_lzw_tiff_read_exactly(tmp_path, rng, dtype, shape):
+    """LZW TIFFs (what OpenCV and many camera programs write) need a codec tifffile lacks
+    without imagecodecs; they are read through OpenCV, exactly and in RGB order."""
+    import cv2
+    import tifffile
+
+    a = rng.integers(0, np.iinfo(dtype).max + 1, size=shape).astype(dtype)
+    bgr = a[..., ::-1] if a.ndim == 3 else a
+    assert cv2.imwrite(str(tmp_path / "l.tif"), np.ascontiguousarray(bgr))
+    with tifffile.TiffFile(tmp_path / "l.tif") as tif:
+        assert tif.pages[0].compression == 5  # LZW, OpenCV's default
+    b = read_image(tmp_path / "l.tif", as_float=False)
+    assert b.dtype == dtype
+    np.testing.assert_array_equal(a, b)
+
+
 @pytest.mark.parametrize("bits,ext", [(8, ".png"), (16, ".png"), (16, ".tiff"), (32, ".tif")])
 def test_float_quantisation(tmp_path, rng, bits, ext):
     a = rng.random((6, 5, 3)).astype(np.float32)

@@ -7,7 +7,9 @@ Conventions
 * Palette PNGs (several Middlebury masks and ground truths) are expanded to the colours of their
   palette; when the palette is grey (all three channels equal) the image is returned as ``(H, W)``
   grey levels, so Tsukuba's ``groundtruth.png`` reads as 0..224, not as palette indices 0..7.
-* TIFF files (8/16-bit integer and float32) go through :mod:`tifffile`; the rest through OpenCV.
+* TIFF files (8/16-bit integer and float32) go through :mod:`tifffile`; the rest through OpenCV,
+  and so do TIFF files whose compression tifffile cannot decode without the optional
+  ``imagecodecs`` package (LZW, as OpenCV and many camera programs write them, and JPEG).
 * ``as_float=True`` maps integer images to [0, 1] by dividing by the dtype's maximum
   (255 or 65535); float images are returned as float32 unchanged.
 
@@ -46,6 +48,9 @@ MAX_IMAGE_BYTES = 2 * 1024 ** 3
 MAX_IMAGE_BYTES_ENV = "HYPERLF_MAX_IMAGE_BYTES"
 
 _TIFF = (".tif", ".tiff")
+#: TIFF compressions (LZW, JPEG) that tifffile decodes only with the optional ``imagecodecs``
+#: package; such files are read through OpenCV's libtiff instead.
+_LIBTIFF_ONLY = (5, 7)
 _PNG_SIG = b"\x89PNG\r\n\x1a\n"
 _WRITABLE = (".png", ".tif", ".tiff")
 
@@ -186,6 +191,9 @@ def _read_tiff(p: Path) -> np.ndarray:
                 contig = len(shape) == 3 and shape[-1] == page.samplesperpixel
                 h, w = shape[:2] if contig else shape[-2:]
                 check_image_size(p, w, h, int(np.prod(shape)) // (w * h), dtype.itemsize)
+            if page.compression in _LIBTIFF_ONLY and page.compression not in \
+                    tifffile.TIFF.DECOMPRESSORS:
+                return _read_cv2(p)
             arr = tif.asarray(key=0)
     except HyperLFError:
         raise
