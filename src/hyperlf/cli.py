@@ -151,6 +151,9 @@ _workers_arg = _int_at_least(1, "the number of workers", 256,
 #: checked against the input, :func:`_downscaled`).
 _downscale_arg = _int_at_least(1, "--downscale", 64)
 
+#: ``--raw-bits``: a sensor's sample depth inside 8/16-bit files.
+_raw_bits_arg = _int_at_least(1, "--raw-bits", 16, " (raw images are 8 or 16-bit files)")
+
 #: ``--aggregation-radius``: the guided filter's box half-size, px.
 _aggregation_radius_arg = _int_at_least(1, "--aggregation-radius", 64)
 
@@ -573,7 +576,7 @@ def _cmd_ingest(args, dest) -> list[Path]:
                              pattern=args.pattern, wavelengths=args.wavelengths,
                              dark=args.dark, flat=args.flat, dead=args.dead or (),
                              saturation=None if args.saturation >= 1 else args.saturation,
-                             disparity_range=args.disparity_range,
+                             raw_bits=args.raw_bits, disparity_range=args.disparity_range,
                              log=lambda m: _say(args, m))
     R, C = lf.grid_shape
     _say(args, f"{R} x {C} views of {lf.image_shape[1]} x {lf.image_shape[0]} px, "
@@ -1239,8 +1242,12 @@ def _add_ingest_parser(sub) -> None:
     p.add_argument("--dead", type=_view_index, action="append", metavar="R,C",
                    help="a camera to leave out (repeat for several)")
     p.add_argument("--saturation", type=_float_within(0.0, 1.0, "--saturation"), default=0.98,
-                   help="raw level (0..1 of the file's range) at or above which a pixel is "
-                        "invalid; 1 turns the check off (default 0.98)")
+                   help="raw level (0..1 of the sensor's full scale) at or above which a "
+                        "pixel is invalid; 1 turns the check off (default 0.98)")
+    p.add_argument("--raw-bits", type=_raw_bits_arg, default=None, metavar="B",
+                   help="bits of the sensor's values, full scale 2^B - 1 (default: the fewest "
+                        "of 8, 10, 12, 14, 16 that hold the largest raw value, so that a "
+                        "12-bit camera's 16-bit files saturate at 4095, not 65535)")
     p.add_argument("--disparity-range", type=_pair_of_floats, default=None, metavar="MIN,MAX",
                    help="px per baseline (default: the plane registration's estimate, or "
                         "measured on the rectified images after a full calibration)")

@@ -456,18 +456,19 @@ def run_calibration(shots: str | os.PathLike, out_dir: str | os.PathLike, *, pat
     return cal, written
 
 
-def _camera_frames(spec, grid, what: str):
+def _camera_frames(spec, grid, what: str, bits: int | None):
     """A dark frame or flat field: one image for all cameras, or a pattern with ``{index}`` /
-    ``{row}``/``{col}`` giving one per camera (``None`` stays None)."""
+    ``{row}``/``{col}`` giving one per camera (``None`` stays None), on the raw images' scale
+    (``bits``, :class:`hyperlf.calibration.raw.RawScale`)."""
     if spec is None:
         return None
-    from .calibration.raw import camera_files, read_camera_images
-    from .formats import read_image
+    from .calibration.raw import camera_files, read_camera_images, read_raw_image
 
     if "{" in str(spec):
         p = Path(spec)
-        return read_camera_images(camera_files(p.parent, p.name, grid), where=what)
-    return read_image(spec, as_float=True, channels="grey")
+        return read_camera_images(camera_files(p.parent, p.name, grid), where=what,
+                                  bits=bits)
+    return read_raw_image(spec, bits=bits)
 
 
 def _wavelength_table(spec, grid) -> np.ndarray | None:
@@ -490,8 +491,8 @@ def _wavelength_table(spec, grid) -> np.ndarray | None:
 
 def run_ingest(raw: str | os.PathLike, out_dir: str | os.PathLike, *, calibration,
                pattern: str, wavelengths=None, dark=None, flat=None, dead=(),
-               saturation: float | None = 0.98, disparity_range=None,
-               log: Callable[[str], None] | None = None):
+               saturation: float | None = 0.98, raw_bits: int | None = None,
+               disparity_range=None, log: Callable[[str], None] | None = None):
     """Raw images of a calibrated array -> a capture folder with validity masks and pictures.
 
     Reads one image per camera (``pattern`` in ``raw``), applies dark frame, flat field and the
@@ -516,7 +517,11 @@ def run_ingest(raw: str | os.PathLike, out_dir: str | os.PathLike, *, calibratio
     dead : sequence of (int, int)
         Cameras to leave out (their views are entirely invalid).
     saturation : float or None
-        Raw level in [0, 1] at or above which a pixel is invalid.
+        Raw level in [0, 1] of the sensor's full scale at or above which a pixel is invalid.
+    raw_bits : int, optional
+        The sensor's bits (full scale ``2**raw_bits - 1``); default: detected from the
+        largest raw value (:func:`hyperlf.calibration.raw.sensor_bits`), and said in the log
+        when it is below the files' own.
     disparity_range : (float, float), optional
         Default: the calibration's estimate, else measured on the images
         (:func:`hyperlf.calibration.ingest`).
@@ -534,11 +539,16 @@ def run_ingest(raw: str | os.PathLike, out_dir: str | os.PathLike, *, calibratio
     log = log or _quiet
     cal_path = Path(calibration)
     cal = read_calibration(cal_path / "calibration.toml" if cal_path.is_dir() else cal_path)
-    images = read_camera_images(camera_files(raw, pattern, cal.grid), where=str(raw))
+    images, scale = read_camera_images(camera_files(raw, pattern, cal.grid), where=str(raw),
+                                       bits=raw_bits, return_scale=True)
+    if raw_bits is None and scale.bits is not None and scale.bits < scale.file_bits:
+        log(f"the raw images' values fit in {scale.bits} of their files' {scale.file_bits} "
+            f"bits: {scale.bits}-bit data, full scale {2 ** scale.bits - 1} (--raw-bits to "
+            "say otherwise)")
     log(f"{len(images)} raw images -> {cal.mode}-{'registered' if cal.mode == 'plane' else 'rectified'} views ...")
     lf = ingest(images, cal, wavelengths=_wavelength_table(wavelengths, cal.grid),
-                dark=_camera_frames(dark, cal.grid, "dark frames"),
-                flat=_camera_frames(flat, cal.grid, "flat fields"), dead=dead,
+                dark=_camera_frames(dark, cal.grid, "dark frames", scale.bits),
+                flat=_camera_frames(flat, cal.grid, "flat fields", scale.bits), dead=dead,
                 saturation=saturation, disparity_range=disparity_range)
     out = Path(out_dir)
     written = [save_lightfield(lf, out)]

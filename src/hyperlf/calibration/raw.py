@@ -10,12 +10,14 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
 from ..errors import DataNotFoundError, InvalidInputError
 
-__all__ = ["camera_files", "pose_folders", "read_camera_images", "read_poses"]
+__all__ = ["camera_files", "pose_folders", "read_camera_images", "read_poses", "read_raw_image",
+           "sensor_bits", "RawScale", "SENSOR_BITS"]
 
 _FIELDS = ("index", "row", "col")
 
@@ -114,20 +116,135 @@ def pose_folders(folder: str | os.PathLike, pattern: str, grid: tuple[int, int])
     return subs
 
 
-def read_camera_images(files: dict, *, where: str = "") -> dict:
+class RawScale(NamedTuple):
+    """How raw sample values became [0, 1]: divided by ``2**bits - 1``.
+
+    ``bits`` is None for floating-point files (taken as they are); ``file_bits`` is the
+    files' integer sample size (8 or 16), None for floating point.
+    """
+    bits: int | None
+    file_bits: int | None
+
+
+#: Sample depths a sensor may deliver inside wider integer files, right-aligned (a 12-bit
+#: camera's values 0..4095 in a 16-bit PNG or TIFF).
+SENSOR_BITS = (8, 10, 12, 14, 16)
+
+
+def sensor_bits(largest: int, file_bits: int) -> int:
+    """The fewest bits of :data:`SENSOR_BITS`, at most ``file_bits``, that hold ``largest``.
+
+    A raw image's white level is the sensor's, not the file's: a 12-bit camera saved as
+    16-bit integers never exceeds 4095, and its saturated pixels sit there, far below 98 % of
+    65535. No file says which; the largest value of all the cameras' images does, unless
+    every image is so dark that it stays below a smaller full scale (then its brightest
+    pixels would be judged near saturation: ``hyperlf ingest`` says which scale it took).
+
+    Examples
+    --------
+    >>> sensor_bits(4095, 16), sensor_bits(4096, 16), sensor_bits(65486, 16), sensor_bits(200, 8)
+    (12, 14, 16, 8)
+    """
+    for b in SENSOR_BITS:
+        if b >= file_bits or largest <= 2 ** b - 1:
+            return min(b, file_bits)
+    return file_bits
+
+
+def _given_bits(bits, file_bits: int, where: str) -> int:
+    """A stated sensor depth, which the files must be able to hold."""
+    b = int(bits)
+    if not 1 <= b <= file_bits:
+        raise InvalidInputError(f"{where}: {b}-bit raw data cannot be in {file_bits}-bit files; "
+                                "check --raw-bits")
+    return b
+
+
+def read_raw_image(path, *, bits: int | None = None) -> np.ndarray:
+    """One raw image as grey float32, integer values divided by ``2**bits - 1``.
+
+    ``bits`` None: the file's own sample size (8 or 16); floating-point files are returned as
+    they are.
+
+    Raises
+    ------
+    InvalidInputError
+        A value above what ``bits`` bits hold.
+    """
+    from ..formats.images import read_image
+
+    arr = read_image(path, as_float=False, channels="grey")
+    if not np.issubdtype(arr.dtype, np.integer):
+        return np.asarray(arr, np.float32)
+    b = 8 * arr.dtype.itemsize
+    b = b if bits is None else _given_bits(bits, b, str(path))
+    full = 2 ** b - 1
+    top = int(arr.max())
+    if top > full:
+        raise InvalidInputError(f"{path} has values up to {top}, more than {b}-bit data holds "
+                                f"({full}); give the raw images' bit depth (--raw-bits)")
+    return arr.astype(np.float32) / np.float32(full)
+
+
+def read_camera_images(files: dict, *, where: str = "", bits: int | None = None,
+                       return_scale: bool = False):
     """Read one grey image per camera, as float32 in [0, 1]: ``{(row, col): (H, W) array}``.
 
-    Colour files are reduced to grey; every image must have the same size (otherwise a one-line
-    error names both files).
+    Colour files are reduced to grey; every image must have the same size and sample type
+    (otherwise a one-line error names the files).
+
+    Parameters
+    ----------
+    files : dict
+        ``(row, col) -> Path``, as :func:`camera_files` gives it.
+    where : str
+        What is being read, for error messages.
+    bits : int, optional
+        The sensor's bits: integer values are divided by ``2**bits - 1``. Default: the fewest
+        of :data:`SENSOR_BITS` that hold the largest value of all the images
+        (:func:`sensor_bits`), so that a 12-bit camera's values in 16-bit files reach 1 where
+        the sensor saturates.
+    return_scale : bool
+        Also return the :class:`RawScale` used.
+
+    Returns
+    -------
+    dict, or (dict, RawScale)
     """
     from ..formats.images import read_image, read_images_same_size
 
     keys = list(files)
     labels = [f"camera {k[0]},{k[1]} ({files[k].name})" for k in keys]
-    stack = read_images_same_size([files[k] for k in keys],
-                                  lambda p: read_image(p, as_float=True, channels="grey"),
-                                  where or "the raw images", labels=labels)
-    return {k: np.asarray(stack[i], np.float32) for i, k in enumerate(keys)}
+    kinds: dict = {}
+
+    def read(p):
+        arr = read_image(p, as_float=False, channels="grey")
+        kinds[p] = arr.dtype
+        return arr
+
+    stack = read_images_same_size([files[k] for k in keys], read, where or "the raw images",
+                                  labels=labels)
+    types = {kinds[files[k]] for k in keys}
+    if len(types) > 1:
+        first = {str(kinds[files[k]]): lab for k, lab in zip(keys, labels)}
+        raise InvalidInputError(f"{where or 'the raw images'}: "
+                                + " but ".join(f"{lab} holds {t}" for t, lab in first.items())
+                                + "; one array, one sample type")
+    dtype = types.pop()
+    if not np.issubdtype(dtype, np.integer):
+        scale = RawScale(None, None)
+    else:
+        file_bits = 8 * np.dtype(dtype).itemsize
+        top = int(stack.max())
+        b = sensor_bits(top, file_bits) if bits is None else _given_bits(bits, file_bits,
+                                                                           where)
+        if top > 2 ** b - 1:
+            raise InvalidInputError(f"{where or 'the raw images'}: values up to {top}, more "
+                                    f"than {b}-bit data holds ({2 ** b - 1}); check --raw-bits")
+        stack /= np.float32(2 ** b - 1)
+        scale = RawScale(b, file_bits)
+    images = {k: stack[i] for i, k in enumerate(keys)}
+    return (images, scale) if return_scale else images
 
 
 def read_poses(folder: str | os.PathLike, pattern: str, grid: tuple[int, int]) -> dict:
