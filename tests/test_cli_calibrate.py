@@ -83,6 +83,57 @@ def test_calibrate_errors_are_one_line(shots, tmp_path, capsys, case, code, word
     assert not (tmp_path / "cal").exists()
 
 
+@pytest.mark.parametrize("dc,dr", [(1, 1), (-1, 0), (0, -1), (-1, -1)])
+def test_a_wrong_board_size_is_named_with_the_size_seen(shots, tmp_path, capsys, dc, dr):
+    """Squares counted instead of inner corners (+1, +1), or a board stated smaller than it is
+    (a detector may lock onto a part of it, differently in each camera): a one-line error
+    that gives the inner corners the shots show."""
+    folder, rig = shots
+    capsys.readouterr()
+    assert run(folder, "--pattern", "Cam-{index}.png", "--grid", "2,3", "--board",
+               f"{rig.board.cols + dc},{rig.board.rows + dr}", "-o", tmp_path / "cal") == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    assert f"{rig.board.cols} x {rig.board.rows} inner corners" in err, err
+    assert not (tmp_path / "cal").exists()
+
+
+def checkerboard(shape, origin, squares, side=16):
+    """A grey image with a checkerboard of ``squares`` (cols, rows) at ``origin`` (x, y)."""
+    img = np.full(shape, 0.5, np.float32)
+    x0, y0 = origin
+    for j in range(squares[1]):
+        for i in range(squares[0]):
+            img[y0 + j * side:y0 + (j + 1) * side, x0 + i * side:x0 + (i + 1) * side] = \
+                0.1 if (i + j) % 2 else 0.9
+    return img
+
+
+def inner_corners(origin, cols, rows, side=16, first=(1, 1)):
+    """Inner corners (pixel centres at integers) of :func:`checkerboard`, from corner
+    ``first`` (column, row), row by row."""
+    j, i = np.mgrid[first[1]:first[1] + rows, first[0]:first[0] + cols]
+    return np.stack([origin[0] + i * 16 - 0.5, origin[1] + j * 16 - 0.5], -1).reshape(-1, 2)
+
+
+def test_a_larger_grid_elsewhere_is_not_the_board():
+    """A tiled floor beside the board (a larger grid that does not hold the board's corners)
+    is no reason to refuse the board; a part of a larger board is."""
+    import cv2
+
+    from hyperlf.calibration.board import BoardSpec, check_board_size
+    from hyperlf.errors import InvalidInputError
+
+    cv2.setNumThreads(1)
+    img = checkerboard((240, 420), (20, 40), (6, 5))            # the board: 5 x 4 inner corners
+    img[20:200, 180:-20] = checkerboard((180, 220), (10, 10), (12, 10))[:180, :220]  # tiles
+    check_board_size(img, BoardSpec(5, 4), inner_corners((20, 40), 5, 4))
+    big = checkerboard((240, 320), (20, 20), (12, 9))           # 11 x 8 inner corners
+    with pytest.raises(InvalidInputError, match="11 x 8 inner corners, more than --board 6,4"):
+        check_board_size(big, BoardSpec(6, 4), inner_corners((20, 20), 6, 4, first=(3, 2)))
+    check_board_size(big, BoardSpec(11, 8), inner_corners((20, 20), 11, 8))
+
+
 def test_calibrate_the_lab_capture(tmp_path):
     shots = require_dataset("real_arrays/msir_lab") / "calibration"
     out = tmp_path / "cal"

@@ -24,7 +24,7 @@ import numpy as np
 from ..errors import InvalidInputError
 
 __all__ = ["BoardSpec", "normalise_for_detection", "detect_board", "detect_boards",
-           "canonical_order", "refine_corners", "camera_label", "place_partial_grid",
+           "check_board_size", "largest_grid", "canonical_order", "refine_corners", "camera_label", "place_partial_grid",
            "MIN_PARTIAL_SIDE"]
 
 
@@ -278,7 +278,7 @@ def _trim_to_image(grid: np.ndarray, shape, margin: float) -> np.ndarray | None:
     return None
 
 
-def _detect_partial(img8: np.ndarray, board: BoardSpec) -> list:
+def _detect_partial(img8: np.ndarray) -> list:
     """Candidate blocks of seen corners ``(r, c, 2)``, oriented, from the sector-based detector
     allowed to return any grid of at least 4 x 4 (then 3 x 3) corners, on the image and on its
     inverse."""
@@ -292,6 +292,18 @@ def _detect_partial(img8: np.ndarray, board: BoardSpec) -> list:
             if ok and meta is not None and c is not None and c.size == 2 * meta.size:
                 out.append(_orient_grid(np.asarray(c, np.float64).reshape(*meta.shape, 2)))
     return out
+
+
+def _detection_image(image: np.ndarray, detect_size: int) -> tuple[np.ndarray, float]:
+    """The 8-bit image the detectors search (:func:`normalise_for_detection`), scaled so that
+    its larger side is at most ``detect_size`` px, and that scale."""
+    import cv2
+
+    img8 = normalise_for_detection(image)
+    scale = min(1.0, detect_size / max(img8.shape))
+    small = img8 if scale == 1.0 else cv2.resize(img8, None, fx=scale, fy=scale,
+                                                 interpolation=cv2.INTER_AREA)
+    return small, scale
 
 
 def detect_board(image: np.ndarray, board: BoardSpec, *, detect_size: int = 800,
@@ -326,11 +338,8 @@ def detect_board(image: np.ndarray, board: BoardSpec, *, detect_size: int = 800,
     """
     import cv2
 
-    img8 = normalise_for_detection(image)
+    small, scale = _detection_image(image, detect_size)
     size = (int(board.cols), int(board.rows))
-    scale = min(1.0, detect_size / max(img8.shape))
-    small = img8 if scale == 1.0 else cv2.resize(img8, None, fx=scale, fy=scale,
-                                                 interpolation=cv2.INTER_AREA)
     for detector in (_detect_sb, _detect_classic):
         for candidate in (small, 255 - small):
             c = detector(candidate, size)
@@ -344,7 +353,7 @@ def detect_board(image: np.ndarray, board: BoardSpec, *, detect_size: int = 800,
 def _partial_board(image, small, scale: float, board: BoardSpec) -> np.ndarray | None:
     """The placed candidate block with the most seen corners, refined, or None."""
     best = None
-    for grid in _detect_partial(small, board):
+    for grid in _detect_partial(small):
         placed = place_partial_grid((grid + 0.5) / scale - 0.5, board, np.shape(image))
         if placed is not None and (best is None or np.isfinite(placed).sum()
                                    > np.isfinite(best).sum()):
@@ -403,15 +412,79 @@ def detect_boards(images: Mapping, board: BoardSpec, *, names: Mapping | None = 
     for key, img in images.items():
         c = detect_board(img, board, partial=partial)
         if c is None:
-            missing.append(camera_label(key, names))
+            missing.append(key)
         else:
             found[key] = c
+    whole = [k for k, c in found.items() if np.isfinite(c).all()]
+    if whole:  # a part of a larger board is found first; say so before any other error
+        check_board_size(images[whole[0]], board, found[whole[0]],
+                         name=f"the {what} of camera {camera_label(whole[0], names)}")
     if missing:
         seen = (f"at least {MIN_PARTIAL_SIDE} x {MIN_PARTIAL_SIDE} of its inner corners are in "
                 "view, the board cut by at most one side of the image in each direction,"
                 if partial else "the whole board is in view")
         raise InvalidInputError(
             f"checkerboard ({board.cols} x {board.rows} inner corners) not found in the {what} of "
-            f"camera(s) {', '.join(missing)}; check the board size, that {seen} and in focus, "
-            "or leave those shots out")
+            f"camera(s) {', '.join(camera_label(k, names) for k in missing)}"
+            f"{_board_size_hint(images[missing[0]], board)}; check the board size, that "
+            f"{seen} and in focus, or leave those shots out")
     return found
+
+
+def largest_grid(image: np.ndarray, *, detect_size: int = 800) -> np.ndarray | None:
+    """The largest checkerboard grid of inner corners in a shot, ``(rows, cols, 2)`` image
+    coordinates with rows running right and columns down (the whole board when it is in
+    view), or None when there is none of at least 3 x 3."""
+    small, scale = _detection_image(image, detect_size)
+    grids = _detect_partial(small)
+    if not grids:
+        return None
+    g = max(grids, key=lambda g: g.shape[0] * g.shape[1])
+    return (g + 0.5) / scale - 0.5
+
+
+def _fits(grid: np.ndarray, board: BoardSpec) -> bool:
+    """Whether a corner grid ``(rows, cols, 2)`` fits within ``board``, either way round."""
+    r, c = grid.shape[:2]
+    return (c <= board.cols and r <= board.rows) or (c <= board.rows and r <= board.cols)
+
+
+def check_board_size(image: np.ndarray, board: BoardSpec, corners: np.ndarray, *,
+                     name: str = "a board shot") -> None:
+    """Refuse a ``board`` smaller than the board whose ``corners`` were found in ``image``.
+
+    A detector asked for fewer inner corners than a board has may lock onto a part of it,
+    and onto different parts in different cameras: every correspondence would then be off by
+    whole squares, silently. So when the largest grid of corners in the shot
+    (:func:`largest_grid`) holds the found corners and has more than ``board``, that is a
+    named error (a larger grid elsewhere, a tiled floor, is not).
+
+    Raises
+    ------
+    InvalidInputError
+        The found board is part of a larger one.
+    """
+    grid = largest_grid(image)
+    if grid is None or _fits(grid, board):
+        return
+    spacing = _spacing(grid)
+    found = np.asarray(corners, np.float64).reshape(-1, 2)
+    found = found[np.all(np.isfinite(found), axis=1)]
+    near = np.min(np.linalg.norm(found[:, None] - grid.reshape(1, -1, 2), axis=-1), axis=1)
+    if np.mean(near < 0.25 * spacing) >= 0.9:
+        seen = (grid.shape[1], grid.shape[0])
+        raise InvalidInputError(
+            f"{name} shows a board of {seen[0]} x {seen[1]} inner corners, more than --board "
+            f"{board.cols},{board.rows}; give the inner corners of the whole board (a 12 x 9 "
+            "squares board has 11,8), else a part of it is matched")
+
+
+def _board_size_hint(image: np.ndarray, board: BoardSpec) -> str:
+    """`` (the largest grid in it has C x R inner corners ...)`` when that is not ``board``:
+    most often the squares were counted instead of the inner corners."""
+    grid = largest_grid(image)
+    if grid is None or sorted(grid.shape[:2]) == sorted((board.cols, board.rows)):
+        return ""
+    seen = (grid.shape[1], grid.shape[0])
+    return (f" (the largest checkerboard grid in it has {seen[0]} x {seen[1]} inner corners: "
+            "--board counts the inner corners, one fewer than the squares along each side)")

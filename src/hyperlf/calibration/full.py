@@ -23,7 +23,7 @@ from typing import Mapping
 import numpy as np
 
 from ..errors import InvalidInputError
-from .board import BoardSpec, camera_label, detect_board
+from .board import BoardSpec, camera_label, check_board_size, detect_board
 from .grid import check_grid, check_images
 from .model import Calibration, CameraCalibration
 
@@ -52,6 +52,10 @@ def detect_poses(shots: Mapping, board: BoardSpec, *, names=None, min_poses: int
             f"checkerboard ({board.cols} x {board.rows} inner corners) found in fewer than "
             f"{min_poses} poses for camera(s) {', '.join(short)}; add board shots those cameras "
             "see whole, or use one pose (plane registration)")
+    key = next(iter(found))
+    pose = min(found[key])
+    check_board_size(shots[key][pose], board, found[key][pose],
+                     name=f"pose {pose + 1} of camera {camera_label(key, names)}")
     return found
 
 
