@@ -83,6 +83,39 @@ def test_calibrate_errors_are_one_line(shots, tmp_path, capsys, case, code, word
     assert not (tmp_path / "cal").exists()
 
 
+def test_a_camera_mounted_upside_down_is_turned_back(shots, tmp_path, capsys):
+    """Its board corners come in reverse and fit the board as well, but the scene around the
+    board would be registered upside down (the lab capture with one camera's images turned:
+    positions 1303 baselines away, no word). The parallax matching finds it and turns it."""
+    import cv2
+
+    folder, rig = shots
+    work = tmp_path / "shots"
+    work.mkdir()
+    for f in folder.iterdir():
+        (work / f.name).write_bytes(f.read_bytes())
+    img = cv2.imread(str(work / "Cam-2.png"), cv2.IMREAD_UNCHANGED)
+    assert cv2.imwrite(str(work / "Cam-2.png"), np.ascontiguousarray(img[::-1, ::-1]))
+    board = f"{rig.board.cols},{rig.board.rows}"
+    for src, out in ((folder, "upright"), (work, "turned")):
+        assert main(["calibrate", str(src), "--pattern", "Cam-{index}.png", "--grid", "2,3",
+                     "--board", board, "-o", str(tmp_path / out)]) == 0
+    assert "camera(s) 0,2: images upside down" in capsys.readouterr().err
+    up, turned = (read_calibration(tmp_path / d / "calibration.toml")
+                  for d in ("upright", "turned"))
+    assert up.info["turned_cameras"] == [] and turned.info["turned_cameras"] == ["0,2"]
+    np.testing.assert_allclose(turned.positions(), up.positions(), atol=0.02)
+    # the turned camera's homography is the upright one's after the 180-degree turn
+    W, H = rig.image_size
+    pts = np.array([[10.0, 20.0], [200.0, 30.0], [150.0, 180.0]])
+    back = np.c_[W - 1 - pts[:, 0], H - 1 - pts[:, 1]]          # the same pixels, turned
+    def apply(Hm, p):
+        q = np.c_[p, np.ones(len(p))] @ np.asarray(Hm).T
+        return q[:, :2] / q[:, 2:]
+    np.testing.assert_allclose(apply(turned.cameras[(0, 2)].homography, back),
+                               apply(up.cameras[(0, 2)].homography, pts), atol=0.3)
+
+
 @pytest.mark.parametrize("dc,dr", [(1, 1), (-1, 0), (0, -1), (-1, -1)])
 def test_a_wrong_board_size_is_named_with_the_size_seen(shots, tmp_path, capsys, dc, dr):
     """Squares counted instead of inner corners (+1, +1), or a board stated smaller than it is

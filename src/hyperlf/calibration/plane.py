@@ -13,6 +13,8 @@ Stages (each a function):
 4. :func:`parallax_offsets`: the parallax of off-board scene content in the registered views,
    factored into ``-d(x) (p_v - p_ref)`` (:mod:`~hyperlf.calibration.parallax`): the offsets'
    directions and relative lengths, free of the rotations that confound the board's raw shift.
+   Before the homographies, :func:`turned_cameras` finds cameras mounted upside down (their
+   corners come in reverse, which the board alone cannot tell) by the same matching.
 5. :func:`resolve_positions`: scale (median nearest-neighbour distance = one baseline) and sign
    (the one that agrees with the board-pose centres, so that ``d_rel = f B (1/Z - 1/Z_board)``
    is positive for points nearer than the board).
@@ -34,7 +36,7 @@ from .model import Calibration, CameraCalibration
 from .parallax import factor_rank1, feature_image, match_flows, select_points
 
 __all__ = ["register_plane", "board_homographies", "board_geometry", "parallax_offsets",
-           "resolve_positions", "board_outline"]
+           "turned_cameras", "resolve_positions", "board_outline"]
 
 
 #: Fewest board corners a camera must share with the reference view (a board partly out of
@@ -173,7 +175,8 @@ def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, boar
     Returns
     -------
     dict with ``offsets`` (key -> (2,) in full-resolution px per unit d, NaN if unknown),
-    ``n_points``, ``rms`` (px), ``median_flow`` (px) and ``d`` (per point).
+    ``n_points``, ``rms`` (px), ``median_flow`` (px), ``d`` (per point) and ``consistent``
+    (key -> at how many points that view's flow fits the common parallax model).
     """
     import cv2
 
@@ -193,6 +196,8 @@ def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, boar
                                   radius=radius)[0] for k in others]) if len(pts) else \
         np.zeros((len(others), 0, 2))
     fac = factor_rank1(flows)
+    consistent = {reference: len(pts)}
+    consistent.update({k: int(n) for k, n in zip(others, fac.inliers.sum(1))})
     offsets = {reference: np.zeros(2)}
     for k, o in zip(others, fac.offsets):
         offsets[k] = o / scale
@@ -202,7 +207,53 @@ def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, boar
     reach = float(np.percentile(np.abs(fac.d[used]), 99)) * spacing if used.any() else np.nan
     return {"offsets": offsets, "n_points": int(used.sum()), "rms": fac.rms / scale
             if np.isfinite(fac.rms) else np.nan, "median_flow": med, "d": fac.d,
-            "reach": reach}
+            "reach": reach, "consistent": consistent}
+
+
+def turned_cameras(shots: Mapping, corners: Mapping, board: BoardSpec, reference, *,
+                   names=None, share: float = 0.5, **search) -> list:
+    """Cameras whose images are turned by 180 degrees against the reference's.
+
+    The corners are put in one order for upright cameras (:func:`~hyperlf.calibration.board.
+    canonical_order`); a camera mounted upside down gets the board's corners in reverse, and
+    as a checkerboard looks the same turned, its homography fits the board as well as the
+    right one would, but turns the scene around the board upside down. Such a view's parallax
+    fits the other views' common model (:func:`parallax_offsets`) at few points: a camera
+    consistent at fewer than ``share`` of the other views' median count is tried, alone, with
+    its corners reversed, and is turned when that at least doubles its count, brings it to
+    ``share`` of that median, and does not double the model's RMS residual. (An upright
+    camera tried reversed keeps almost no consistent point.)
+
+    Parameters
+    ----------
+    shots, corners : mapping key -> board shot, corners (canonical order)
+    board : BoardSpec
+    reference : key of the reference camera
+    names : mapping, optional
+    share : float
+    **search
+        ``work_size``, ``max_parallax`` of :func:`parallax_offsets`.
+
+    Returns
+    -------
+    list of keys
+    """
+    def consistent(c) -> tuple[dict, float]:
+        Hs = board_homographies(c, reference, names)[0]
+        par = parallax_offsets(shots, Hs, c[reference], board, reference, **search)
+        return par["consistent"], par["rms"]
+
+    n, rms = consistent(corners)
+    others = [k for k in corners if k != reference]
+    floor = share * float(np.median([n[k] for k in others])) if others else 0.0
+    turned, now = [], dict(corners)
+    for k in sorted((k for k in others if n[k] < floor), key=n.get):
+        trial = {**now, k: corners[k][::-1]}           # one suspect at a time
+        n_k, rms_k = consistent(trial)
+        if n_k[k] >= max(floor, 2 * n[k]) and not rms_k > 2 * rms:
+            turned.append(k)
+            now, rms = trial, rms_k
+    return turned
 
 
 def nearest_spacing(offsets: np.ndarray) -> float:
@@ -290,10 +341,14 @@ def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=No
     grid, ref = check_grid(shots.keys(), reference)
     size = check_images(shots, names, what="board shot")
     corners = detect_boards(shots, board, names=names, partial=True)
+    turned = [] if positions_from == "board" else turned_cameras(
+        shots, corners, board, ref, names=names, work_size=work_size, max_parallax=max_parallax)
+    corners = {k: c[::-1] if k in turned else c for k, c in corners.items()}
     Hs, errs, resid = board_homographies(corners, ref, names)
     geo = board_geometry(corners, board, size, ref, focal_px=focal_px)
     info = {"board_pose_rms": geo["rms"], "positions_from": "board",
-            "focal_given": bool(focal_px), "focal_std_px": geo["focal_std"]}
+            "focal_given": bool(focal_px), "focal_std_px": geo["focal_std"],
+            "turned_cameras": [camera_label(k, names) for k in turned]}
     # a board facing the cameras squarely leaves the focal length (and so every metric
     # figure) undetermined: its standard deviation says so (OpenCV reports 0 when the
     # problem is singular)
