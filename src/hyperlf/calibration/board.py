@@ -24,7 +24,8 @@ import numpy as np
 from ..errors import InvalidInputError
 
 __all__ = ["BoardSpec", "normalise_for_detection", "detect_board", "detect_boards",
-           "check_board_size", "largest_grid", "canonical_order", "refine_corners", "camera_label", "place_partial_grid",
+           "check_board_size", "largest_grid", "canonical_order", "refine_corners",
+           "camera_label", "place_partial_grid",
            "MIN_PARTIAL_SIDE"]
 
 

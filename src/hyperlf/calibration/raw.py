@@ -151,15 +151,6 @@ def sensor_bits(largest: int, file_bits: int) -> int:
     return file_bits
 
 
-def _given_bits(bits, file_bits: int, where: str) -> int:
-    """A stated sensor depth, which the files must be able to hold."""
-    b = int(bits)
-    if not 1 <= b <= file_bits:
-        raise InvalidInputError(f"{where}: {b}-bit raw data cannot be in {file_bits}-bit files; "
-                                "check --raw-bits")
-    return b
-
-
 def read_raw_image(path, *, bits: int | None = None) -> np.ndarray:
     """One raw image as grey float32, integer values divided by ``2**bits - 1``.
 
@@ -176,14 +167,30 @@ def read_raw_image(path, *, bits: int | None = None) -> np.ndarray:
     arr = read_image(path, as_float=False, channels="grey")
     if not np.issubdtype(arr.dtype, np.integer):
         return np.asarray(arr, np.float32)
-    b = 8 * arr.dtype.itemsize
-    b = b if bits is None else _given_bits(bits, b, str(path))
-    full = 2 ** b - 1
-    top = int(arr.max())
-    if top > full:
-        raise InvalidInputError(f"{path} has values up to {top}, more than {b}-bit data holds "
-                                f"({full}); give the raw images' bit depth (--raw-bits)")
-    return arr.astype(np.float32) / np.float32(full)
+    file_bits = 8 * arr.dtype.itemsize
+    values = arr.astype(np.float32)
+    _to_full_scale(values, file_bits if bits is None else bits, file_bits, str(path))
+    return values
+
+
+def _to_full_scale(values: np.ndarray, bits, file_bits: int, where: str) -> int:
+    """Divide integer raw ``values`` (float32, in place) by ``2**bits - 1``; the bits used.
+
+    Raises
+    ------
+    InvalidInputError
+        ``bits`` more than the files hold, or a value above what ``bits`` bits hold.
+    """
+    b = int(bits)
+    if not 1 <= b <= file_bits:
+        raise InvalidInputError(f"{where}: {b}-bit raw data cannot be in {file_bits}-bit files; "
+                                "check --raw-bits")
+    top = int(values.max())
+    if top > 2 ** b - 1:
+        raise InvalidInputError(f"{where}: values up to {top}, more than {b}-bit data holds "
+                                f"({2 ** b - 1}); check --raw-bits")
+    values /= np.float32(2 ** b - 1)
+    return b
 
 
 def read_camera_images(files: dict, *, where: str = "", bits: int | None = None,
@@ -235,14 +242,9 @@ def read_camera_images(files: dict, *, where: str = "", bits: int | None = None,
         scale = RawScale(None, None)
     else:
         file_bits = 8 * np.dtype(dtype).itemsize
-        top = int(stack.max())
-        b = sensor_bits(top, file_bits) if bits is None else _given_bits(bits, file_bits,
-                                                                           where)
-        if top > 2 ** b - 1:
-            raise InvalidInputError(f"{where or 'the raw images'}: values up to {top}, more "
-                                    f"than {b}-bit data holds ({2 ** b - 1}); check --raw-bits")
-        stack /= np.float32(2 ** b - 1)
-        scale = RawScale(b, file_bits)
+        b = sensor_bits(int(stack.max()), file_bits) if bits is None else bits
+        scale = RawScale(_to_full_scale(stack, b, file_bits, where or "the raw images"),
+                         file_bits)
     images = {k: stack[i] for i, k in enumerate(keys)}
     return (images, scale) if return_scale else images
 
