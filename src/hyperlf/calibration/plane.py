@@ -236,24 +236,27 @@ def turned_cameras(shots: Mapping, corners: Mapping, board: BoardSpec, reference
 
     Returns
     -------
-    list of keys
+    turned : list of keys
+    parallax : dict
+        :func:`parallax_offsets` of the views with those cameras turned back (what the
+        positions are measured from; not computed again).
     """
-    def consistent(c) -> tuple[dict, float]:
+    def parallax(c) -> dict:
         Hs = board_homographies(c, reference, names)[0]
-        par = parallax_offsets(shots, Hs, c[reference], board, reference, **search)
-        return par["consistent"], par["rms"]
+        return parallax_offsets(shots, Hs, c[reference], board, reference, **search)
 
-    n, rms = consistent(corners)
+    best = parallax(corners)
+    n = best["consistent"]
     others = [k for k in corners if k != reference]
     floor = share * float(np.median([n[k] for k in others])) if others else 0.0
     turned, now = [], dict(corners)
     for k in sorted((k for k in others if n[k] < floor), key=n.get):
         trial = {**now, k: corners[k][::-1]}           # one suspect at a time
-        n_k, rms_k = consistent(trial)
-        if n_k[k] >= max(floor, 2 * n[k]) and not rms_k > 2 * rms:
+        par = parallax(trial)
+        if par["consistent"][k] >= max(floor, 2 * n[k]) and not par["rms"] > 2 * best["rms"]:
             turned.append(k)
-            now, rms = trial, rms_k
-    return turned
+            now, best = trial, par
+    return turned, best
 
 
 def nearest_spacing(offsets: np.ndarray) -> float:
@@ -341,7 +344,7 @@ def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=No
     grid, ref = check_grid(shots.keys(), reference)
     size = check_images(shots, names, what="board shot")
     corners = detect_boards(shots, board, names=names, partial=True)
-    turned = [] if positions_from == "board" else turned_cameras(
+    turned, par = ([], None) if positions_from == "board" else turned_cameras(
         shots, corners, board, ref, names=names, work_size=work_size, max_parallax=max_parallax)
     corners = {k: c[::-1] if k in turned else c for k, c in corners.items()}
     Hs, errs, resid = board_homographies(corners, ref, names)
@@ -355,9 +358,7 @@ def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=No
     info["focal_determined"] = bool(focal_px) or bool(
         np.isfinite(geo["focal_std"]) and 0 < geo["focal_std"] < FOCAL_TOLERANCE * geo["focal"])
     offsets = {k: np.asarray(v[:2]) for k, v in geo["centres"].items()}
-    if positions_from != "board":
-        par = parallax_offsets(shots, Hs, corners[ref], board, ref, work_size=work_size,
-                               max_parallax=max_parallax)
+    if par is not None:  # measured by turned_cameras on these corners
         info.update(parallax_points=par["n_points"], parallax_rms=par["rms"],
                     parallax_median_flow=par["median_flow"])
         usable = (par["n_points"] >= 8 and par["median_flow"] >= min_parallax_px
