@@ -116,6 +116,28 @@ def test_a_camera_mounted_upside_down_is_turned_back(shots, tmp_path, capsys):
                                apply(up.cameras[(0, 2)].homography, pts), atol=0.3)
 
 
+
+def test_full_calibration_with_the_reference_turned_says_so(tmp_path, capsys):
+    """Several poses (full calibration), the reference camera mounted upside down: the others
+    are turned against it, so the log says that the reference may be the turned one and how
+    to name another."""
+    rig = make_rig(1, 3, seed=6)
+    for i, pose in enumerate(rig.calibration_poses(9, n_shared=5)):
+        folder = tmp_path / "poses" / f"pose{i}"
+        folder.mkdir(parents=True)
+        for (r, c), img in rig.render(pose, salt=i, scene=False).items():
+            img = img[::-1, ::-1] if (r, c) == rig.reference else img
+            write_image(folder / f"Cam-{c}.png", np.clip(img, 0, 1), bit_depth=16)
+    assert main(["calibrate", str(tmp_path / "poses"), "--pattern", "Cam-{index}.png",
+                 "--grid", "1,3", "--board", f"{rig.board.cols},{rig.board.rows}",
+                 "-o", str(tmp_path / "cal")]) == 0
+    err = capsys.readouterr().err
+    assert "camera(s) 0,0, 0,2: images upside down" in err
+    assert "the reference may be the one turned" in err and "--reference" in err
+    cal = read_calibration(tmp_path / "cal" / "calibration.toml")
+    assert cal.mode == "full" and cal.info["turned_cameras"] == ["0,0", "0,2"]
+    assert max(cal.reprojection_errors().values()) < 0.2
+
 @pytest.mark.parametrize("dc,dr", [(1, 1), (-1, 0), (0, -1), (-1, -1)])
 def test_a_wrong_board_size_is_named_with_the_size_seen(shots, tmp_path, capsys, dc, dr):
     """Squares counted instead of inner corners (+1, +1), or a board stated smaller than it is

@@ -532,10 +532,10 @@ def _cmd_calibrate(args, dest) -> list[Path]:
     (files named by --pattern in FOLDER) registers every view onto the reference at the board
     plane, with the views' positions and shift directions measured from the parallax of the
     scene around the board (a board partly out of some views is fine: at least 3 x 3 inner
-    corners, cut by the image border; a camera mounted upside down is found and turned
-    back); one subfolder of shots per pose (three or more) runs a
+    corners, cut by the image border); one subfolder of shots per pose (three or more) runs a
     full calibration with rectification (poses a camera does not see whole are left out for
-    it). Writes calibration.toml and pictures: corners.png
+    it). In either mode a camera mounted upside down against the reference is found and
+    turned back. Writes calibration.toml and pictures: corners.png
     (detected corners per camera), registered.png (registered views side by side),
     residuals.png (corner residual vectors).
 
@@ -553,9 +553,13 @@ def _cmd_calibrate(args, dest) -> list[Path]:
         _say(args, "note: the board faces the cameras too squarely to fix the focal length; "
                    "registration and positions are fine, but for metric depth give "
                    "--focal-px (focal length / pixel pitch)")
-    if cal.info.get("turned_cameras"):
-        _say(args, f"camera(s) {', '.join(cal.info['turned_cameras'])}: images upside down "
-                   "against the reference's (mounted turned); registered turned back")
+    turned = cal.info.get("turned_cameras")
+    if turned:
+        most = 2 * len(turned) > len(cal.cameras) - 1
+        _say(args, f"camera(s) {', '.join(turned)}: images upside down against the "
+                   "reference's (mounted turned); registered turned back"
+             + ("; as most cameras are, the reference may be the one turned (the views are "
+                "then upside down): --reference names another" if most else ""))
     errs = cal.reprojection_errors()
     worst = max(errs, key=errs.get)
     _say(args, f"{cal.mode} calibration of {len(errs)} cameras: residual up to "

@@ -6,8 +6,10 @@ Stages:
    misses the board is left out for that camera).
 2. :func:`intrinsics`: Zhang's method per camera (OpenCV ``calibrateCamera``; radial ``k1``,
    ``k2`` and tangential ``p1``, ``p2``; ``k3`` fixed at 0, which a few poses cannot pin down).
-3. :func:`extrinsics`: every camera's pose relative to the reference camera (OpenCV
-   ``stereoCalibrate`` with the intrinsics fixed, over the poses both cameras saw).
+3. :func:`relative_pose`: every camera's pose relative to the reference camera (OpenCV
+   ``stereoCalibrate`` with the intrinsics fixed, over the poses both cameras saw,
+   :func:`extrinsics`); a camera whose images are turned by 180 degrees against the
+   reference's (mounted upside down) is found there and its corners are reversed.
 4. :func:`rectification`: one image plane parallel to the array plane (its normal from the
    camera centres, facing the scene), ``x`` along the reference camera's ``x`` axis projected
    onto that plane, one focal length (the cameras' mean) and principal point for all views.
@@ -27,7 +29,11 @@ from .board import BoardSpec, camera_label, check_board_size, detect_board
 from .grid import check_grid, check_images
 from .model import Calibration, CameraCalibration
 
-__all__ = ["calibrate_full", "detect_poses", "intrinsics", "extrinsics", "rectification"]
+__all__ = ["calibrate_full", "detect_poses", "intrinsics", "extrinsics", "relative_pose",
+           "rectification"]
+
+#: A camera whose stereo RMS against the reference is above this (px) is also tried turned.
+TURN_TRY_RMS = 1.0
 
 
 def detect_poses(shots: Mapping, board: BoardSpec, *, names=None, min_poses: int = 3) -> dict:
@@ -93,6 +99,32 @@ def extrinsics(ref_corners: Mapping, corners: Mapping, board: BoardSpec, K_ref, 
     out = cv2.stereoCalibrate([obj] * len(shared), a, b, K_ref, d_ref, K, d, tuple(size),
                               flags=cv2.CALIB_FIX_INTRINSIC, criteria=crit)
     return out[5], out[6].ravel(), float(out[0])
+
+
+def relative_pose(ref_corners: Mapping, corners: Mapping, board: BoardSpec, K_ref, d_ref, K, d,
+                  size, *, label: str = "") -> tuple[np.ndarray, np.ndarray, float, bool]:
+    """:func:`extrinsics`, or those of the camera turned by 180 degrees: ``(R, t, rms, turned)``.
+
+    The corners are put in one order for upright cameras (:func:`~hyperlf.calibration.board.
+    canonical_order`), so a camera mounted upside down sees the board's corners in reverse.
+    A checkerboard turned looks the same, so its own calibration (:func:`intrinsics`) cannot
+    tell; but its pose relative to the reference then differs from pose to pose (the board's
+    frame turns about the board's normal, which each pose tilts differently), and the
+    stereo fit is poor. A camera whose RMS is above :data:`TURN_TRY_RMS` is tried with its
+    corners reversed, and taken as turned when that at least halves the RMS (an upright
+    camera tried reversed fits at tens of pixels).
+    """
+    R, t, rms = extrinsics(ref_corners, corners, board, K_ref, d_ref, K, d, size, label=label)
+    if rms <= TURN_TRY_RMS:
+        return R, t, rms, False
+    Rr, tr, rmsr = extrinsics(ref_corners, _reversed(corners), board, K_ref, d_ref, K, d, size,
+                              label=label)
+    return (Rr, tr, rmsr, True) if rmsr < 0.5 * rms else (R, t, rms, False)
+
+
+def _reversed(corners: Mapping) -> dict:
+    """Corners per pose in reverse order: the board seen turned by 180 degrees."""
+    return {p: c[::-1] for p, c in corners.items()}
 
 
 def _array_axes(centres: np.ndarray) -> np.ndarray:
@@ -210,12 +242,15 @@ def calibrate_full(shots: Mapping, board: BoardSpec, *, reference=None, names=No
     Ks, ds, errs, bposes = {}, {}, {}, {}
     for k in shots:
         Ks[k], ds[k], errs[k], bposes[k] = intrinsics(corners[k], board, size)
-    Rs, ts, stereo = {ref: np.eye(3)}, {ref: np.zeros(3)}, {}
-    for k in shots:
-        if k != ref:
-            Rs[k], ts[k], stereo[k] = extrinsics(corners[ref], corners[k], board, Ks[ref],
-                                                 ds[ref], Ks[k], ds[k], size,
-                                                 label=camera_label(k, names))
+    Rs, ts, stereo, turned = {ref: np.eye(3)}, {ref: np.zeros(3)}, {}, []
+    for k in (k for k in shots if k != ref):
+        Rs[k], ts[k], stereo[k], turn = relative_pose(
+            corners[ref], corners[k], board, Ks[ref], ds[ref], Ks[k], ds[k], size,
+            label=camera_label(k, names))
+        if turn:            # its board poses follow the reversed corners
+            turned.append(k)
+            corners[k] = _reversed(corners[k])
+            Ks[k], ds[k], errs[k], bposes[k] = intrinsics(corners[k], board, size)
     resid = {}
     if refine:
         errs, resid = _refine(corners, board, Ks, ds, Rs, ts, bposes, ref)
@@ -225,7 +260,8 @@ def calibrate_full(shots: Mapping, board: BoardSpec, *, reference=None, names=No
                                  reprojection_error=errs[k], K=Ks[k], dist=ds[k], R=Rs[k], t=ts[k],
                                  rectify=rect["rectify"][k]) for k in shots}
     info = {"stereo_rms": {f"{k[0]},{k[1]}": v for k, v in stereo.items()},
-            "planarity": rect["planarity"], "poses": int(counts.pop())}
+            "planarity": rect["planarity"], "poses": int(counts.pop()),
+            "turned_cameras": [camera_label(k, names) for k in turned]}
     return Calibration(mode="full", grid=grid, reference=ref, image_size=size, output_size=size,
                        camera_matrix=rect["K"], cameras=cams, board=board,
                        baseline=rect["baseline"], info=info, residuals=resid,
