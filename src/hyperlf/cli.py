@@ -767,6 +767,10 @@ def _cmd_depth(args, dest) -> list[Path]:
                 label="1: the data term comes from the coarse level"))
     _say(args, f"{args.method}: {time.perf_counter() - t0:.1f} s "
                + ", ".join(f"{k} {v:.1f} s" for k, v in res.timings.items()))
+    passes = getattr(res, "config", {}).get("median_passes", 1)
+    if passes > 1 and np.isfinite(res.config.get("edge_blur_px", np.nan)):
+        _say(args, f"soft image edges (blur {res.config['edge_blur_px']:.2f} px): the "
+                   f"weighted median ran {passes} times to pull the depth edges back onto them")
     weak = getattr(res, "config", {}).get("weak_data_share", 0.0)
     if weak > 0:
         _say(args, f"weakly textured: {100 * weak:.1f} % of the data term dropped, "

@@ -11,6 +11,8 @@
 * :func:`noise_sigma` and :func:`texture_snr`: how much texture a matching window holds above
   the sensor noise, which tells textureless regions (a white table, a wall) that no cost can
   match from the rest.
+* :func:`edge_blur`: how soft the image's sharpest edges are (the Gaussian blur, px), which
+  tells how far window costs carry a foreground over its blurred outline.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ import numpy as np
 from .errors import InvalidInputError
 
 __all__ = ["normalise_intensity", "gradient_magnitude", "fill_masked", "noise_sigma",
-           "texture_snr", "block_reduce"]
+           "texture_snr", "edge_blur", "block_reduce"]
 
 
 def normalise_intensity(image, dtype=np.float64, *, valid=None) -> np.ndarray:
@@ -81,10 +83,14 @@ def gradient_magnitude(image) -> np.ndarray:
     >>> gradient_magnitude(np.tile(np.arange(4.0), (3, 1)))[1].tolist()
     [0.5, 1.0, 1.0, 0.5]
     """
-    p = np.pad(image, 1, mode="edge")
-    gx = (p[1:-1, 2:] - p[1:-1, :-2]) / 2.0
-    gy = (p[2:, 1:-1] - p[:-2, 1:-1]) / 2.0
+    gx, gy = _central_gradient(image)
     return np.sqrt(gx * gx + gy * gy)
+
+
+def _central_gradient(image) -> tuple[np.ndarray, np.ndarray]:
+    """``(d/dx, d/dy)`` by central differences, borders replicated."""
+    p = np.pad(image, 1, mode="edge")
+    return (p[1:-1, 2:] - p[1:-1, :-2]) / 2.0, (p[2:, 1:-1] - p[:-2, 1:-1]) / 2.0
 
 
 def fill_masked(image, valid) -> np.ndarray:
@@ -245,6 +251,85 @@ def texture_snr(image, window: int = 5, *, sigma: float | None = None, valid=Non
         var = var - cov * cov / var_ramp
     ratio = np.maximum(var, 0.0) * n / ((n - 3) * s * s)
     return np.sqrt(np.maximum(ratio - 1.0, 0.0))
+
+
+def edge_blur(image, *, valid=None, reblur: float = 1.0, share: float = 0.1,
+              min_edges: int = 100) -> float:
+    """Gaussian blur (px) of the image's sharpest edges, from how much a known blur softens them.
+
+    A step edge blurred by a Gaussian of ``s`` px has a gradient maximum proportional to
+    ``1 / s``; blurred again by ``reblur`` px, to ``1 / sqrt(s^2 + reblur^2)``. So the ratio
+    ``r`` of the two gradient magnitudes at the edge gives ``s = reblur / sqrt(r^2 - 1)``,
+    whatever the edge's contrast [1]_. The edges are the pixels whose gradient magnitude
+    (:func:`gradient_magnitude`) is a maximum across the edge (non-maximum suppression, four
+    directions) and among the strongest ``share`` of the image's; the result is the median over
+    them. A sharp step reads 0.6-0.85 px (the differences' own width; a rendered light field
+    reads so too).
+
+    Parameters
+    ----------
+    image : array_like, shape (H, W)
+    valid : array_like of bool, shape (H, W), optional
+        Pixels with data: the rest is filled (:func:`fill_masked`) and no edge within
+        ``3 reblur + 1`` px of it is counted.
+    reblur : float
+        The known blur, px.
+    share : float
+        Fraction of the (valid) pixels, by gradient magnitude, that may count as edges.
+    min_edges : int
+        Fewer edge pixels than this: NaN (no edge to tell).
+
+    Returns
+    -------
+    float
+        Blur in px (NaN when the image has too few edges).
+
+    References
+    ----------
+    .. [1] S. Zhuo and T. Sim, "Defocus map estimation from a single image", Pattern
+       Recognition 44(9), 2011.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.ndimage import gaussian_filter
+    >>> from hyperlf.imageops import edge_blur
+    >>> steps = np.kron(np.random.default_rng(0).random((16, 16)), np.ones((16, 16)))
+    >>> round(edge_blur(gaussian_filter(steps, 2.0)), 1)
+    2.1
+    """
+    from scipy.ndimage import binary_erosion, gaussian_filter
+
+    a = np.asarray(image, dtype=np.float64)
+    keep = np.ones(a.shape, bool)
+    if valid is not None:
+        v = np.asarray(valid, bool)
+        a = fill_masked(a, v)
+        keep = binary_erosion(v, iterations=int(3 * reblur) + 1, border_value=1)
+    gx, gy = _central_gradient(a)
+    m = np.sqrt(gx * gx + gy * gy)
+    if not keep.any():
+        return float("nan")
+    edges = keep & _ridge(m, gx, gy) & (m > np.quantile(m[keep], 1.0 - share))
+    ratio = m[edges] / np.maximum(gradient_magnitude(gaussian_filter(a, reblur))[edges], 1e-300)
+    ratio = ratio[ratio > 1.0 + 1e-9]
+    if ratio.size < min_edges:
+        return float("nan")
+    return float(np.median(reblur / np.sqrt(ratio * ratio - 1.0)))
+
+
+def _ridge(m: np.ndarray, gx: np.ndarray, gy: np.ndarray) -> np.ndarray:
+    """Pixels where ``m`` is at least its two neighbours along the gradient (quantised to
+    0, 45, 90, 135 degrees)."""
+    H, W = m.shape
+    p = np.pad(m, 1, mode="edge")
+    direction = np.round(np.arctan2(gy, gx) / (np.pi / 4)).astype(np.int64) % 4
+    out = np.zeros(m.shape, bool)
+    for k, (dy, dx) in enumerate(((0, 1), (1, 1), (1, 0), (1, -1))):
+        ahead = p[1 + dy:1 + dy + H, 1 + dx:1 + dx + W]
+        behind = p[1 - dy:1 - dy + H, 1 - dx:1 - dx + W]
+        out |= (direction == k) & (m >= ahead) & (m >= behind)
+    return out
 
 
 def block_reduce(a, factor: int = 2, how=np.mean) -> np.ndarray:

@@ -1,0 +1,117 @@
+"""How soft a view's edges are (imageops.edge_blur), and the post-filter passes it sets
+(hlf.median_passes): blurred views carry the foreground further over the background."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.ndimage import gaussian_filter
+
+from hyperlf.errors import InvalidInputError
+from hyperlf.hlf import DepthParams, median_passes, post_filter
+from hyperlf.imageops import edge_blur
+from hyperlf.regularisers import weighted_median
+
+
+def _steps(seed=0, size=16, n=16):
+    """Piecewise-constant blocks of random grey levels: step edges of every contrast."""
+    return np.kron(np.random.default_rng(seed).random((n, n)), np.ones((size, size)))
+
+
+@pytest.mark.parametrize("sigma", [1.0, 1.5, 2.0, 3.0])
+def test_edge_blur_recovers_a_known_gaussian_blur(sigma):
+    """Blurs add in quadrature: what the sharp steps read (the differences' own width) and
+    the known blur."""
+    img = _steps()
+    own = edge_blur(img)
+    assert 0.6 < own < 0.9
+    assert edge_blur(gaussian_filter(img, sigma)) == pytest.approx(np.hypot(own, sigma),
+                                                                   rel=0.05)
+
+
+def test_edge_blur_grows_with_blur_and_ignores_contrast_and_offset():
+    img = _steps(seed=1)
+    sharp, soft = edge_blur(img), edge_blur(gaussian_filter(img, 1.0))
+    assert sharp < 0.9 < 1.2 < soft           # the rule's one-pass and two-pass sides
+    assert edge_blur(5.0 * img + 3.0) == pytest.approx(sharp, rel=1e-9)
+
+
+def test_edge_blur_counts_no_edge_at_the_border_of_missing_data():
+    img = gaussian_filter(_steps(seed=2), 2.0)
+    valid = np.ones(img.shape, bool)
+    valid[:, 6::32] = valid[:, 7::32] = valid[:, 8::32] = False   # dead columns, zeros
+    cut = img.copy()
+    cut[~valid] = 0.0                         # hard steps where the data ends
+    assert edge_blur(cut) < 1.5               # counted, they read sharper
+    assert edge_blur(cut, valid=valid) == pytest.approx(edge_blur(img), rel=0.02)
+
+
+def test_edge_blur_is_nan_without_edges():
+    assert np.isnan(edge_blur(np.full((64, 64), 0.3)))
+    assert np.isnan(edge_blur(np.ones((40, 40)), valid=np.zeros((40, 40), bool)))
+
+
+def test_passes_follow_the_blur():
+    img = _steps(seed=3)
+    p = DepthParams()
+    assert median_passes(img, p)[0] == 1
+    for sigma, expected in ((1.0, 2), (2.0, 4)):       # ceil((blur - 0.8) / 0.4)
+        n, blur = median_passes(gaussian_filter(img, sigma), p)
+        assert n == expected == int(np.ceil((blur - 0.8) / 0.4))
+    assert median_passes(gaussian_filter(img, 2.0), DepthParams(median_passes=1)) == \
+        (1, pytest.approx(np.nan, nan_ok=True))
+    assert median_passes(np.full((32, 32), 0.5), p)[0] == 1     # nothing to tell: one
+
+
+def test_post_filter_runs_the_passes():
+    rng = np.random.default_rng(4)
+    d = rng.normal(size=(30, 40)).astype(np.float32)
+    g = gaussian_filter(_steps(seed=4, size=5, n=8)[:30, :40], 1.0).astype(np.float32)
+    p = DepthParams(median_radius=2)
+    twice = weighted_median(weighted_median(d, g, 2, p.median_sigma), g, 2, p.median_sigma)
+    np.testing.assert_array_equal(post_filter(d, g, p, passes=2), twice)
+    np.testing.assert_array_equal(post_filter(d, g, DepthParams(median_radius=2,
+                                                                median_passes=2)), twice)
+    assert post_filter(d, g, DepthParams(median_radius=0, median_passes=3)) is d
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.one_of(st.integers(-3, 5), st.floats(allow_nan=True), st.text(max_size=6),
+                 st.booleans(), st.none()))
+def test_median_passes_option_is_checked(value):
+    ok = value == "auto" or (isinstance(value, (int, float)) and not isinstance(value, bool)
+                             and np.isfinite(value) and value == int(value) and value >= 1)
+    if ok:
+        assert DepthParams(median_passes=value).median_passes == value
+    else:
+        with pytest.raises(InvalidInputError, match="median_passes"):
+            DepthParams(median_passes=value)
+
+
+@pytest.mark.parametrize("name, value", [("median_blur_step", 0.0), ("median_blur_step", -1.0),
+                                         ("median_blur_sharp", -0.1)])
+def test_blur_rule_constants_are_checked(name, value):
+    with pytest.raises(InvalidInputError, match=name):
+        DepthParams(**{name: value})
+
+
+def test_depth_says_when_soft_edges_get_more_passes(tmp_path, capsys):
+    """A blurred capture through the CLI: more passes, and the log says why."""
+    from hyperlf import synthesis
+    from hyperlf.cli import main
+    from hyperlf.formats import save_lightfield
+
+    lf = synthesis.procedural_scene(seed=3, rows=3, cols=3, height=64, width=64)
+    v = lf.views.astype(np.float64)
+    soft = lf.replace(views=np.stack([[gaussian_filter(v[r, c], 2.0) for c in range(3)]
+                                      for r in range(3)]).astype(lf.views.dtype))
+    save_lightfield(soft, tmp_path / "cap")
+    assert main(["depth", str(tmp_path / "cap"), "--labels", "8", "-o",
+                 str(tmp_path / "d")]) == 0
+    import re
+
+    said = re.search(r"soft image edges \(blur ([0-9.]+) px\): the weighted median ran "
+                     r"(\d+) times", capsys.readouterr().err)
+    assert said, "no word of the soft edges"
+    blur, passes = float(said[1]), int(said[2])
+    assert blur > 1.2 and passes == int(np.ceil((blur - 0.8) / 0.4)) >= 2
