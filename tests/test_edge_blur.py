@@ -46,6 +46,13 @@ def test_edge_blur_counts_no_edge_at_the_border_of_missing_data():
     assert edge_blur(cut, valid=valid) == pytest.approx(edge_blur(img), rel=0.02)
 
 
+@pytest.mark.parametrize("kw", [{"reblur": 0.0}, {"reblur": -1.0}, {"share": 0.0},
+                                {"share": 1.5}, {"reblur": float("nan")}])
+def test_edge_blur_refuses_meaningless_options(kw):
+    with pytest.raises(InvalidInputError, match="edge_blur"):
+        edge_blur(_steps(), **kw)
+
+
 def test_edge_blur_is_nan_without_edges():
     assert np.isnan(edge_blur(np.full((64, 64), 0.3)))
     assert np.isnan(edge_blur(np.ones((40, 40)), valid=np.zeros((40, 40), bool)))

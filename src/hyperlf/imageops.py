@@ -300,6 +300,9 @@ def edge_blur(image, *, valid=None, reblur: float = 1.0, share: float = 0.1,
     """
     from scipy.ndimage import binary_erosion, gaussian_filter
 
+    if not (reblur > 0 and 0 < share <= 1):
+        raise InvalidInputError(f"edge_blur needs reblur > 0 and 0 < share <= 1, got "
+                                f"{reblur!r}, {share!r}")
     a = np.asarray(image, dtype=np.float64)
     keep = np.ones(a.shape, bool)
     if valid is not None:
