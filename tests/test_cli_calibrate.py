@@ -116,7 +116,6 @@ def test_a_camera_mounted_upside_down_is_turned_back(shots, tmp_path, capsys):
                                apply(up.cameras[(0, 2)].homography, pts), atol=0.3)
 
 
-
 def test_full_calibration_with_the_reference_turned_says_so(tmp_path, capsys):
     """Several poses (full calibration), the reference camera mounted upside down: the others
     are turned against it, so the log says that the reference may be the turned one and how
@@ -137,6 +136,7 @@ def test_full_calibration_with_the_reference_turned_says_so(tmp_path, capsys):
     cal = read_calibration(tmp_path / "cal" / "calibration.toml")
     assert cal.mode == "full" and cal.info["turned_cameras"] == ["0,0", "0,2"]
     assert max(cal.reprojection_errors().values()) < 0.2
+
 
 @pytest.mark.parametrize("dc,dr", [(1, 1), (-1, 0), (0, -1), (-1, -1)])
 def test_a_wrong_board_size_is_named_with_the_size_seen(shots, tmp_path, capsys, dc, dr):
