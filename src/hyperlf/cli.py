@@ -767,18 +767,24 @@ def _cmd_depth(args, dest) -> list[Path]:
                 label="1: the data term comes from the coarse level"))
     _say(args, f"{args.method}: {time.perf_counter() - t0:.1f} s "
                + ", ".join(f"{k} {v:.1f} s" for k, v in res.timings.items()))
-    passes = getattr(res, "config", {}).get("median_passes", 1)
-    if passes > 1 and np.isfinite(res.config.get("edge_blur_px", np.nan)):
-        _say(args, f"soft image edges (blur {res.config['edge_blur_px']:.2f} px): the "
-                   f"weighted median ran {passes} times to pull the depth edges back onto them")
-    weak = getattr(res, "config", {}).get("weak_data_share", 0.0)
-    if weak > 0:
-        _say(args, f"weakly textured: {100 * weak:.1f} % of the data term dropped, "
-                   f"{100 * res.config['coarse_prior_share']:.1f} % taken from the "
-                   "half-resolution estimate instead (--save-intermediate shows where)")
+    _say_depth_config(args, getattr(res, "config", {}))
     if gt is not None:
         _say_depth_scores(args, res.disparity, gt)
     return written
+
+
+def _say_depth_config(args, config: dict) -> None:
+    """What the H-LF depth run decided for itself: more post-filter passes for soft views,
+    weakly textured pixels taken from the half-resolution estimate."""
+    passes = config.get("median_passes", 1)
+    if passes > 1 and np.isfinite(config.get("edge_blur_px", np.nan)):
+        _say(args, f"soft image edges (blur {config['edge_blur_px']:.2f} px): the "
+                   f"weighted median ran {passes} times to pull the depth edges back onto them")
+    weak = config.get("weak_data_share", 0.0)
+    if weak > 0:
+        _say(args, f"weakly textured: {100 * weak:.1f} % of the data term dropped, "
+                   f"{100 * config['coarse_prior_share']:.1f} % taken from the "
+                   "half-resolution estimate instead (--save-intermediate shows where)")
 
 
 def _cmd_batch(args, dest) -> list[Path]:  # noqa: ARG001 - batch writes its own result sets

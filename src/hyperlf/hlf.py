@@ -1761,14 +1761,22 @@ def strips_for(prob: DepthProblem) -> list:
                 selection=prob.view_selection, tile_rows=p.tile_rows)
 
 
-def _config(prob: DepthProblem, sC, sD) -> dict:
+def _config(prob: DepthProblem, sC, sD, *, strips, start, prior, w, passes, blur) -> dict:
+    """``DepthResult.config``: the problem's settings and what the run decided."""
+    p = prob.params
     return dict(metric=prob.metric, n_labels=prob.labels.size,
                 disparity_range=prob.disparity_range, view_selection=prob.view_selection,
                 occlusion_split=prob.occlusion_split, defocus=prob.defocus,
-                optimizer=prob.optimizer, params=asdict(prob.params), window=prob.window,
+                optimizer=prob.optimizer, params=asdict(p), window=prob.window,
                 visibility_rounds=prob.visibility_rounds,
                 scale_C=sC, scale_D=sD,
-                n_edge_pixels=int(prob.edges.sum()), reference=tuple(prob.reference))
+                n_edge_pixels=int(prob.edges.sum()), reference=tuple(prob.reference),
+                strips=strips, median_passes=passes, edge_blur_px=blur,
+                visibility_estimate_scale=None if start is None else int(p.visibility_scale),
+                coarse_prior_scale=None if prior is None else int(p.coarse_prior_scale),
+                coarse_prior_levels=0 if prior is None else len(_prior_levels(prob)),
+                weak_data_share=0.0 if w is None else float(np.mean(1.0 - w)),
+                coarse_prior_share=0.0 if prior is None else float(np.mean(prior[1])))
 
 
 class _Clock:
@@ -1917,16 +1925,6 @@ def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
                      coarse_prior_strength=None if prior is None else prior[1])
     return DepthResult(disparity=np.asarray(disp, np.float32), confidence=conf, f_c=f_c,
                        f_d=f_d, labels=prob.labels, timings=timings,
-                       config=dict(_config(prob, sC, sD), strips=strips,
-                                   median_passes=passes, edge_blur_px=blur,
-                                   visibility_estimate_scale=None if start is None
-                                   else int(prob.params.visibility_scale),
-                                   coarse_prior_scale=None if prior is None
-                                   else int(prob.params.coarse_prior_scale),
-                                   coarse_prior_levels=0 if prior is None
-                                   else len(_prior_levels(prob)),
-                                   weak_data_share=0.0 if w is None
-                                   else float(np.mean(1.0 - w)),
-                                   coarse_prior_share=0.0 if prior is None
-                                   else float(np.mean(prior[1]))),
+                       config=_config(prob, sC, sD, strips=strips, start=start, prior=prior,
+                                      w=w, passes=passes, blur=blur),
                        intermediate=inter)

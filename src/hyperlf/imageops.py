@@ -309,10 +309,10 @@ def edge_blur(image, *, valid=None, reblur: float = 1.0, share: float = 0.1,
         v = np.asarray(valid, bool)
         a = fill_masked(a, v)
         keep = binary_erosion(v, iterations=int(3 * reblur) + 1, border_value=1)
+        if not keep.any():
+            return float("nan")
     gx, gy = _central_gradient(a)
     m = np.sqrt(gx * gx + gy * gy)
-    if not keep.any():
-        return float("nan")
     edges = keep & _ridge(m, gx, gy) & (m > np.quantile(m[keep], 1.0 - share))
     ratio = m[edges] / np.maximum(gradient_magnitude(gaussian_filter(a, reblur))[edges], 1e-300)
     ratio = ratio[ratio > 1.0 + 1e-9]
