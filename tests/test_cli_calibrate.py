@@ -138,6 +138,28 @@ def test_full_calibration_with_the_reference_turned_says_so(tmp_path, capsys):
     assert max(cal.reprojection_errors().values()) < 0.2
 
 
+def test_a_camera_turned_by_a_quarter_is_named_with_its_angle(tmp_path, capsys):
+    """One shot per camera (plane registration), one camera mounted turned by 90 degrees:
+    the log names it with the angle, and the file keeps it."""
+    import dataclasses
+
+    from hyperlf.calibration.rig import rotation_matrix
+
+    rig = make_rig(2, 3, seed=11, imperfect=0.5)
+    cam = rig.cameras[(0, 2)]
+    rig.cameras[(0, 2)] = dataclasses.replace(cam, R=rotation_matrix(0, 0, 90) @ cam.R)
+    for (r, c), img in rig.render(rig.board_pose(450.0), supersample=2).items():
+        write_image(tmp_path / f"Cam-{r * 3 + c}.png", np.clip(img, 0, 1), bit_depth=16)
+    assert main(["calibrate", str(tmp_path), "--pattern", "Cam-{index}.png", "--grid", "2,3",
+                 "--board", f"{rig.board.cols},{rig.board.rows}", "-o",
+                 str(tmp_path / "cal")]) == 0
+    err = capsys.readouterr().err
+    assert ("camera(s) 0,2: images turned by 90 degrees clockwise against the reference's "
+            "(mounted turned); registered turned back") in err
+    cal = read_calibration(tmp_path / "cal" / "calibration.toml")
+    assert cal.info["turned_cameras"] == ["0,2"] and cal.info["camera_turns"] == {"0,2": 90}
+
+
 @pytest.mark.parametrize("dc,dr", [(1, 1), (-1, 0), (0, -1), (-1, -1)])
 def test_a_wrong_board_size_is_named_with_the_size_seen(shots, tmp_path, capsys, dc, dr):
     """Squares counted instead of inner corners (+1, +1), or a board stated smaller than it is

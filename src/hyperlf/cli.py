@@ -534,8 +534,8 @@ def _cmd_calibrate(args, dest) -> list[Path]:
     scene around the board (a board partly out of some views is fine: at least 3 x 3 inner
     corners, cut by the image border); one subfolder of shots per pose (three or more) runs a
     full calibration with rectification (poses a camera does not see whole are left out for
-    it). In either mode a camera mounted upside down against the reference is found and
-    turned back. Writes calibration.toml and pictures: corners.png
+    it). In either mode a camera mounted turned against the reference (by 90, 180 or 270
+    degrees) is found and turned back, and the board may be held any way round. Writes calibration.toml and pictures: corners.png
     (detected corners per camera), registered.png (registered views side by side),
     residuals.png (corner residual vectors).
 
@@ -553,13 +553,16 @@ def _cmd_calibrate(args, dest) -> list[Path]:
         _say(args, "note: the board faces the cameras too squarely to fix the focal length; "
                    "registration and positions are fine, but for metric depth give "
                    "--focal-px (focal length / pixel pitch)")
-    turned = cal.info.get("turned_cameras")
-    if turned:
-        most = 2 * len(turned) > len(cal.cameras) - 1
-        _say(args, f"camera(s) {', '.join(turned)}: images upside down against the "
-                   "reference's (mounted turned); registered turned back"
+    turns = cal.info.get("camera_turns") or {}
+    if turns:
+        most = 2 * len(turns) > len(cal.cameras) - 1
+        _say(args, "; ".join(
+            f"camera(s) {', '.join(k for k, v in turns.items() if v == deg)}: images "
+            + ("upside down" if deg == 180 else f"turned by {deg} degrees clockwise")
+            + " against the reference's" for deg in sorted(set(turns.values())))
+             + " (mounted turned); registered turned back"
              + ("; as most cameras are, the reference may be the one turned (the views are "
-                "then upside down): --reference names another" if most else ""))
+                "then turned too): --reference names another" if most else ""))
     errs = cal.reprojection_errors()
     worst = max(errs, key=errs.get)
     _say(args, f"{cal.mode} calibration of {len(errs)} cameras: residual up to "

@@ -5,9 +5,13 @@ the dark squares reflect more than the light ones. :func:`detect_board` therefor
 normalised image (percentile stretch, then CLAHE), tries OpenCV's sector-based detector first
 and the classic detector with sub-pixel refinement second, each on the image and on its
 inverse, and puts the corners in one canonical order so that corner ``i`` is the same physical
-corner in every camera: rows run top to bottom of the image and every row runs left to right
-(valid while the board is seen within 45 degrees of upright, as it is by every camera of an
-array). A board partly out of view (``detect_board(..., partial=True)``, used by the plane
+corner in every camera: rows run top to bottom of the image and every row runs left to right.
+That order is ambiguous where the board is held turned by about 90 degrees (its rows then run
+down the image, and which end is "first" depends on each camera's perspective), so the
+calibrations put every camera's corners in the order of the reference camera's in the same
+pose (:func:`order_like`: the symmetry of the grid whose row and column directions agree with
+the reference's); a camera mounted turned against the others is then found by its fit
+(:mod:`~hyperlf.calibration.plane`, :mod:`~hyperlf.calibration.full`). A board partly out of view (``detect_board(..., partial=True)``, used by the plane
 registration) is accepted when at least 3 x 3 of its inner corners are seen and the image
 border alone explains the missing ones: exactly one placement of the seen block within the
 board puts every unseen corner outside the image (:func:`place_partial_grid`); unseen corners
@@ -25,8 +29,8 @@ from ..errors import InvalidInputError
 
 __all__ = ["BoardSpec", "normalise_for_detection", "detect_board", "detect_boards",
            "check_board_size", "largest_grid", "canonical_order", "refine_corners",
-           "camera_label", "place_partial_grid",
-           "MIN_PARTIAL_SIDE"]
+           "camera_label", "place_partial_grid", "grid_symmetries", "order_like",
+           "orders_like", "image_turn", "turn_report", "MIN_PARTIAL_SIDE"]
 
 
 #: The most inner corners along one side of a checkerboard (OpenCV needs at least 3).
@@ -139,6 +143,97 @@ def canonical_order(corners: np.ndarray, cols: int, rows: int) -> np.ndarray:
         if s > score:
             best, score = c, s
     return np.ascontiguousarray(best.reshape(-1, 2))
+
+
+def grid_symmetries(cols: int, rows: int) -> list[np.ndarray]:
+    """The orders of a board's corners that look the same: index arrays into the canonical
+    order, the identity first and the 180-degree turn second.
+
+    A checkerboard's inner-corner grid maps onto itself when it is turned by 180 degrees about
+    its normal or about either of its axes (a board seen from behind is the same grid); a square
+    grid also when turned by 90 degrees or flipped about a diagonal. Any of these orders fits a
+    camera's own calibration equally well, so only the cameras' agreement tells them apart.
+
+    Examples
+    --------
+    >>> [s.tolist() for s in grid_symmetries(3, 1)]
+    [[0, 1, 2], [2, 1, 0], [0, 1, 2], [2, 1, 0]]
+    >>> len(grid_symmetries(4, 4))
+    8
+    """
+    idx = np.arange(rows * cols).reshape(rows, cols)
+    grids = [idx, idx[::-1, ::-1], idx[::-1], idx[:, ::-1]]
+    if rows == cols:
+        grids += [g.T for g in grids]
+    return [g.ravel() for g in grids]
+
+
+def _directions(corners: np.ndarray, cols: int, rows: int) -> np.ndarray:
+    """Unit mean steps along the rows and down the columns of a corner grid, ``(2, 2)``
+    (unseen, NaN, corners ignored)."""
+    g = np.asarray(corners, np.float64).reshape(rows, cols, 2)
+    steps = []
+    for d in (np.diff(g, axis=1).reshape(-1, 2), np.diff(g, axis=0).reshape(-1, 2)):
+        d = d[np.all(np.isfinite(d), axis=1)]
+        v = d.mean(axis=0) if len(d) else np.zeros(2)
+        steps.append(v / (np.linalg.norm(v) + 1e-12))
+    return np.stack(steps)
+
+
+def order_like(corners: np.ndarray, anchor: np.ndarray, board: BoardSpec) -> np.ndarray:
+    """``corners`` in the order of the grid symmetry (:func:`grid_symmetries`) whose row and
+    column directions in the image agree best with ``anchor``'s (another camera's corners of
+    the same board pose).
+
+    Cameras of an array look the same way, so the same physical corner gets the same index in
+    all of them whichever way the board is held; the image-based canonical order alone cannot
+    promise that for a board held turned by about 90 degrees.
+
+    Examples
+    --------
+    >>> g = np.stack(np.meshgrid(np.arange(4.0), np.arange(3.0)), -1).reshape(-1, 2)
+    >>> order_like(g[::-1] + 0.1, g, BoardSpec(4, 3))[0].tolist()
+    [0.1, 0.1]
+    """
+    ref = _directions(anchor, board.cols, board.rows)
+    cands = grid_symmetries(board.cols, board.rows)
+    score = [np.sum(_directions(corners[s], board.cols, board.rows) * ref) for s in cands]
+    return np.ascontiguousarray(corners[cands[int(np.argmax(score))]])
+
+
+def orders_like(corners: Mapping, reference, board: BoardSpec) -> dict:
+    """Every camera's corners of one pose in the reference camera's order (:func:`order_like`);
+    when the reference missed the pose, in the first camera's that saw it."""
+    anchor = reference if reference in corners else next(iter(corners), None)
+    return {k: c if k == anchor else order_like(c, corners[anchor], board)
+            for k, c in corners.items()}
+
+
+def image_turn(corners: np.ndarray, anchor: np.ndarray, board: BoardSpec) -> int:
+    """By how many degrees (0, 90, 180 or 270, clockwise on screen) the board's rows run
+    turned in one camera's image against another's (same pose), rounded to a quarter turn.
+
+    Examples
+    --------
+    >>> g = np.stack(np.meshgrid(np.arange(4.0), np.arange(3.0)), -1).reshape(-1, 2)
+    >>> image_turn(g[::-1], g, BoardSpec(4, 3))
+    180
+    >>> image_turn(g[:, ::-1] * [-1, 1], g, BoardSpec(4, 3))   # rows now run down the image
+    90
+    """
+    a = _directions(anchor, board.cols, board.rows)[0]
+    b = _directions(corners, board.cols, board.rows)[0]
+    angle = np.degrees(np.arctan2(a[0] * b[1] - a[1] * b[0], a @ b))
+    return int(np.round(angle / 90.0) * 90) % 360
+
+
+def turn_report(corners: Mapping, anchors: Mapping, board: BoardSpec, names=None) -> dict:
+    """The calibration's ``turned_cameras`` (labels) and ``camera_turns`` (label -> degrees
+    clockwise on screen) of the cameras whose board runs turned (:func:`image_turn`):
+    ``corners[k]`` against ``anchors[k]``, the reference camera's corners of the same pose."""
+    turns = {camera_label(k, names): image_turn(c, anchors[k], board) for k, c in corners.items()}
+    turns = {k: v for k, v in turns.items() if v}
+    return {"turned_cameras": list(turns), "camera_turns": turns}
 
 
 def _detect_sb(img8: np.ndarray, size) -> np.ndarray | None:

@@ -8,8 +8,10 @@ Stages:
    ``k2`` and tangential ``p1``, ``p2``; ``k3`` fixed at 0, which a few poses cannot pin down).
 3. :func:`relative_pose`: every camera's pose relative to the reference camera (OpenCV
    ``stereoCalibrate`` with the intrinsics fixed, over the poses both cameras saw,
-   :func:`extrinsics`); a camera whose images are turned by 180 degrees against the
-   reference's (mounted upside down) is found there and its corners are reversed.
+   :func:`extrinsics`). Every camera's corners come in the reference's order of each pose,
+   whichever way the board is held; a camera whose images are turned against the reference's
+   (mounted turned by 90, 180 or 270 degrees) is found there and its corners put in the
+   orders that fit (:func:`turned_orders`).
 4. :func:`rectification`: one image plane parallel to the array plane (its normal from the
    camera centres, facing the scene), ``x`` along the reference camera's ``x`` axis projected
    onto that plane, one focal length (the cameras' mean) and principal point for all views.
@@ -25,12 +27,13 @@ from typing import Mapping
 import numpy as np
 
 from ..errors import InvalidInputError
-from .board import BoardSpec, camera_label, check_board_size, detect_board
+from .board import (BoardSpec, camera_label, check_board_size, detect_board, grid_symmetries,
+                    orders_like, turn_report)
 from .grid import check_grid, check_images
 from .model import Calibration, CameraCalibration
 
 __all__ = ["calibrate_full", "detect_poses", "intrinsics", "extrinsics", "relative_pose",
-           "rectification"]
+           "turned_orders", "rectification"]
 
 #: A camera whose stereo RMS against the reference is above this (px) is also tried turned.
 TURN_TRY_RMS = 1.0
@@ -102,29 +105,85 @@ def extrinsics(ref_corners: Mapping, corners: Mapping, board: BoardSpec, K_ref, 
 
 
 def relative_pose(ref_corners: Mapping, corners: Mapping, board: BoardSpec, K_ref, d_ref, K, d,
-                  size, *, label: str = "") -> tuple[np.ndarray, np.ndarray, float, bool]:
-    """:func:`extrinsics`, or those of the camera turned by 180 degrees: ``(R, t, rms, turned)``.
+                  size, *, label: str = "") -> tuple[np.ndarray, np.ndarray, float, dict | None]:
+    """:func:`extrinsics`, or those of the camera mounted turned: ``(R, t, rms, corners)``,
+    ``corners`` None when kept, else the camera's corners in the orders found.
 
-    The corners are put in one order for upright cameras (:func:`~hyperlf.calibration.board.
-    canonical_order`), so a camera mounted upside down sees the board's corners in reverse.
-    A checkerboard turned looks the same, so its own calibration (:func:`intrinsics`) cannot
-    tell; but its pose relative to the reference then differs from pose to pose (the board's
-    frame turns about the board's normal, which each pose tilts differently), and the
-    stereo fit is poor. A camera whose RMS is above :data:`TURN_TRY_RMS` is tried with its
-    corners reversed, and taken as turned when that at least halves the RMS (an upright
-    camera tried reversed fits at tens of pixels).
+    The corners come in the reference camera's order (:func:`_aligned`), right for cameras
+    mounted the same way. A camera mounted turned by 180 degrees sees the board's corners in
+    reverse, one turned by 90 degrees in an order that may change from pose to pose. A
+    checkerboard turned looks the same, so its own calibration (:func:`intrinsics`) cannot
+    tell; but its pose relative to the reference then differs from pose to pose, and the stereo
+    fit is poor. A camera whose RMS is above :data:`TURN_TRY_RMS` is given, pose by pose, the
+    orders that make its rotation against the reference the same in every pose
+    (:func:`turned_orders`), and taken as turned when that at least halves the RMS (an
+    upright camera fits at a tenth of a pixel, tried turned at tens of pixels).
     """
     R, t, rms = extrinsics(ref_corners, corners, board, K_ref, d_ref, K, d, size, label=label)
     if rms <= TURN_TRY_RMS:
-        return R, t, rms, False
-    Rr, tr, rmsr = extrinsics(ref_corners, _reversed(corners), board, K_ref, d_ref, K, d, size,
-                              label=label)
-    return (Rr, tr, rmsr, True) if rmsr < 0.5 * rms else (R, t, rms, False)
+        return R, t, rms, None
+    trial = turned_orders(ref_corners, corners, board, K_ref, d_ref, K, d)
+    if trial.keys() == corners.keys() and all(np.array_equal(trial[p], corners[p]) for p in trial):
+        return R, t, rms, None
+    Rr, tr, rmsr = extrinsics(ref_corners, trial, board, K_ref, d_ref, K, d, size, label=label)
+    return (Rr, tr, rmsr, trial) if rmsr < 0.5 * rms else (R, t, rms, None)
 
 
-def _reversed(corners: Mapping) -> dict:
-    """Corners per pose in reverse order: the board seen turned by 180 degrees."""
-    return {p: c[::-1] for p, c in corners.items()}
+def _board_rotation(corners: np.ndarray, board: BoardSpec, K, d) -> np.ndarray:
+    """Rotation of the board in a camera (board -> camera) from one view's corners."""
+    import cv2
+
+    obj = board.object_points().astype(np.float64)
+    ok, rvec, _ = cv2.solvePnP(obj, corners.astype(np.float64), K, d, flags=cv2.SOLVEPNP_IPPE)
+    return cv2.Rodrigues(rvec)[0] if ok else np.full((3, 3), np.nan)
+
+
+def _angle(A: np.ndarray, B: np.ndarray) -> float:
+    """Angle (degrees) of the rotation between ``A`` and ``B``; 180 when undefined."""
+    c = (np.trace(A.T @ B) - 1.0) / 2.0
+    return float(np.degrees(np.arccos(np.clip(c, -1, 1)))) if np.isfinite(c) else 180.0
+
+
+def turned_orders(ref_corners: Mapping, corners: Mapping, board: BoardSpec, K_ref, d_ref, K,
+                  d, *, tolerance: float = 30.0) -> dict:
+    """A camera's corners per pose in the grid symmetries' orders (:func:`~hyperlf.calibration.
+    board.grid_symmetries`) that make its rotation against the reference camera one rotation.
+
+    Each order of each pose the two cameras share gives a candidate rotation from the
+    reference to the camera (the board's rotation in the camera, :func:`_board_rotation`,
+    times the inverse of its rotation in the reference). Every candidate is tried as the
+    camera's rotation; each pose then takes the order nearest it, and the candidate whose
+    nearest orders lie closest (angles capped at ``tolerance`` degrees) wins. Poses the
+    reference did not see keep the order every shared pose took, and are left out when the
+    shared poses took different ones.
+    """
+    orders = grid_symmetries(board.cols, board.rows)
+    shared = sorted(set(ref_corners) & set(corners))
+    rel = {p: [_board_rotation(corners[p][s], board, K, d)
+               @ _board_rotation(ref_corners[p], board, K_ref, d_ref).T for s in orders]
+           for p in shared}
+
+    def nearest(A) -> tuple[float, dict]:
+        picks = {p: min(range(len(orders)), key=lambda i: _angle(rel[p][i], A)) for p in shared}
+        return sum(min(_angle(rel[p][i], A), tolerance) for p, i in picks.items()), picks
+
+    picks = min((nearest(A) for p in shared for A in rel[p]), key=lambda r: r[0])[1]
+    out = {p: corners[p][orders[i]] for p, i in picks.items()}
+    if len(set(picks.values())) == 1:
+        i = next(iter(picks.values()))
+        out.update({p: c[orders[i]] for p, c in corners.items() if p not in picks})
+    return dict(sorted(out.items()))
+
+
+def _aligned(corners: Mapping, reference, board: BoardSpec) -> dict:
+    """Every camera's corners of every pose in the reference camera's order of that pose
+    (:func:`~hyperlf.calibration.board.orders_like`)."""
+    out = {k: {} for k in corners}
+    for p in sorted({p for c in corners.values() for p in c}):
+        seen = orders_like({k: c[p] for k, c in corners.items() if p in c}, reference, board)
+        for k, c in seen.items():
+            out[k][p] = c
+    return out
 
 
 def _array_axes(centres: np.ndarray) -> np.ndarray:
@@ -199,6 +258,15 @@ def _refine(corners, board, Ks, ds, Rs, ts, bposes, ref) -> dict:
     return errs, resid
 
 
+def _turn_report(corners: Mapping, reference, board: BoardSpec, names=None) -> dict:
+    """:func:`~hyperlf.calibration.board.turn_report` on each camera's first pose shared with
+    the reference."""
+    first = {k: min(set(c) & set(corners[reference])) for k, c in corners.items()
+             if k != reference}
+    return turn_report({k: corners[k][p] for k, p in first.items()},
+                       {k: corners[reference][p] for k, p in first.items()}, board, names)
+
+
 def calibrate_full(shots: Mapping, board: BoardSpec, *, reference=None, names=None,
                    min_poses: int = 3, refine: bool = True) -> Calibration:
     """Calibrate and rectify a planar array from several board poses.
@@ -238,18 +306,17 @@ def calibrate_full(shots: Mapping, board: BoardSpec, *, reference=None, names=No
         raise InvalidInputError(f"every camera needs the same number of board shots ({per})")
     flat = {(k, i): img for k, imgs in shots.items() for i, img in enumerate(imgs)}
     size = check_images(flat, None, what="board shot")
-    corners = detect_poses(shots, board, names=names, min_poses=min_poses)
+    corners = _aligned(detect_poses(shots, board, names=names, min_poses=min_poses), ref, board)
     Ks, ds, errs, bposes = {}, {}, {}, {}
     for k in shots:
         Ks[k], ds[k], errs[k], bposes[k] = intrinsics(corners[k], board, size)
-    Rs, ts, stereo, turned = {ref: np.eye(3)}, {ref: np.zeros(3)}, {}, []
+    Rs, ts, stereo = {ref: np.eye(3)}, {ref: np.zeros(3)}, {}
     for k in (k for k in shots if k != ref):
-        Rs[k], ts[k], stereo[k], turn = relative_pose(
+        Rs[k], ts[k], stereo[k], found = relative_pose(
             corners[ref], corners[k], board, Ks[ref], ds[ref], Ks[k], ds[k], size,
             label=camera_label(k, names))
-        if turn:            # its board poses follow the reversed corners
-            turned.append(k)
-            corners[k] = _reversed(corners[k])
+        if found is not None:       # its board poses follow the corners' new orders
+            corners[k] = found
             Ks[k], ds[k], errs[k], bposes[k] = intrinsics(corners[k], board, size)
     resid = {}
     if refine:
@@ -261,7 +328,7 @@ def calibrate_full(shots: Mapping, board: BoardSpec, *, reference=None, names=No
                                  rectify=rect["rectify"][k]) for k in shots}
     info = {"stereo_rms": {f"{k[0]},{k[1]}": v for k, v in stereo.items()},
             "planarity": rect["planarity"], "poses": int(counts.pop()),
-            "turned_cameras": [camera_label(k, names) for k in turned]}
+            **_turn_report(corners, ref, board, names)}
     return Calibration(mode="full", grid=grid, reference=ref, image_size=size, output_size=size,
                        camera_matrix=rect["K"], cameras=cams, board=board,
                        baseline=rect["baseline"], info=info, residuals=resid,

@@ -3,7 +3,8 @@
 Stages (each a function):
 
 1. :func:`~hyperlf.calibration.board.detect_boards`: the board's corners in every camera (a
-   board partly out of some views is accepted: the corners they miss are left out below).
+   board partly out of some views is accepted: the corners they miss are left out below), put
+   in the reference camera's order (:func:`~hyperlf.calibration.board.orders_like`).
 2. :func:`board_homographies`: each camera's homography onto the reference view at the board
    plane, and its RMS corner residual.
 3. :func:`board_geometry`: one pinhole model fitted to all shots (shared focal length, principal
@@ -13,8 +14,9 @@ Stages (each a function):
 4. :func:`parallax_offsets`: the parallax of off-board scene content in the registered views,
    factored into ``-d(x) (p_v - p_ref)`` (:mod:`~hyperlf.calibration.parallax`): the offsets'
    directions and relative lengths, free of the rotations that confound the board's raw shift.
-   Before the homographies, :func:`turned_cameras` finds cameras mounted upside down (their
-   corners come in reverse, which the board alone cannot tell) by the same matching.
+   Before the homographies, :func:`turned_cameras` finds cameras mounted turned by 90, 180 or
+   270 degrees (their corners come in another of the grid's symmetric orders, which the board
+   alone cannot tell) by the same matching.
 5. :func:`resolve_positions`: scale (median nearest-neighbour distance = one baseline) and sign
    (the one that agrees with the board-pose centres, so that ``d_rel = f B (1/Z - 1/Z_board)``
    is positive for points nearer than the board).
@@ -30,7 +32,8 @@ from typing import Mapping
 import numpy as np
 
 from ..errors import InvalidInputError
-from .board import BoardSpec, camera_label, detect_boards
+from .board import (BoardSpec, camera_label, detect_boards, grid_symmetries, image_turn,
+                    orders_like, turn_report)
 from .grid import check_grid, check_images
 from .model import Calibration, CameraCalibration
 from .parallax import factor_rank1, feature_image, match_flows, select_points
@@ -211,35 +214,44 @@ def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, boar
 
 
 def turned_cameras(shots: Mapping, corners: Mapping, board: BoardSpec, reference, *,
-                   names=None, share: float = 0.5, **search) -> list:
-    """Cameras whose images are turned by 180 degrees against the reference's.
+                   names=None, share: float = 0.5, suspect_rms: float = 2.0,
+                   **search) -> tuple[list, dict, dict]:
+    """Cameras whose images are turned against the reference's (by 90, 180 or 270 degrees).
 
-    The corners are put in one order for upright cameras (:func:`~hyperlf.calibration.board.
-    canonical_order`); a camera mounted upside down gets the board's corners in reverse, and
-    as a checkerboard looks the same turned, its homography fits the board as well as the
-    right one would, but turns the scene around the board upside down. Such a view's parallax
-    fits the other views' common model (:func:`parallax_offsets`) at few points: a camera
-    consistent at fewer than ``share`` of the other views' median count is tried, alone, with
-    its corners reversed, and is turned when that at least doubles its count, brings it to
-    ``share`` of that median, and does not double the model's RMS residual. (An upright
-    camera tried reversed keeps almost no consistent point.)
+    Every camera's corners come in the reference camera's order (:func:`~hyperlf.calibration.
+    board.orders_like`), which is right for cameras mounted the same way. A camera mounted
+    turned gets another of the grid's symmetric orders (:func:`~hyperlf.calibration.board.
+    grid_symmetries`), and as a checkerboard looks the same turned, its homography fits the
+    board as well as the right one would, but turns or mirrors the scene around the board.
+    Such a view's parallax fits the other views' common model (:func:`parallax_offsets`) at
+    few points, or spoils the model's fit. A camera is tried, alone, in each of the other
+    orders when it is consistent at fewer than ``share`` of the other views' median count,
+    when no order lines its board up with the reference's (a quarter turn of a board that is
+    not square), or, while the model's RMS residual is above ``suspect_rms`` px, in turn from
+    the least consistent. Its best order is taken when that brings it to ``share`` of the
+    median count, at least doubles its count or halves the model's residual, and does not
+    double the residual. (An upright camera tried turned keeps almost no consistent point.)
 
     Parameters
     ----------
-    shots, corners : mapping key -> board shot, corners (canonical order)
+    shots, corners : mapping key -> board shot, corners (the reference's order)
     board : BoardSpec
     reference : key of the reference camera
     names : mapping, optional
     share : float
+    suspect_rms : float
     **search
         ``work_size``, ``max_parallax`` of :func:`parallax_offsets`.
 
     Returns
     -------
     turned : list of keys
+        The cameras put in another order.
     parallax : dict
         :func:`parallax_offsets` of the views with those cameras turned back (what the
         positions are measured from; not computed again).
+    corners : dict
+        ``corners`` with the turned cameras' in their found order.
     """
     def parallax(c) -> dict:
         Hs = board_homographies(c, reference, names)[0]
@@ -247,16 +259,24 @@ def turned_cameras(shots: Mapping, corners: Mapping, board: BoardSpec, reference
 
     best = parallax(corners)
     n = best["consistent"]
-    others = [k for k in corners if k != reference]
+    others = sorted((k for k in corners if k != reference), key=n.get)
     floor = share * float(np.median([n[k] for k in others])) if others else 0.0
     turned, now = [], dict(corners)
-    for k in sorted((k for k in others if n[k] < floor), key=n.get):
-        trial = {**now, k: corners[k][::-1]}           # one suspect at a time
-        par = parallax(trial)
-        if par["consistent"][k] >= max(floor, 2 * n[k]) and not par["rms"] > 2 * best["rms"]:
+    orders = grid_symmetries(board.cols, board.rows)[1:]
+    suspects = [k for k in others if n[k] < floor
+                or image_turn(corners[k], corners[reference], board)]
+    for k in suspects + [k for k in others if k not in suspects]:
+        if k not in suspects and not best["rms"] > suspect_rms:
+            break
+        trials = [{**now, k: corners[k][s]} for s in orders]    # one camera at a time
+        pars = [parallax(t) for t in trials]
+        i = int(np.argmax([p["consistent"][k] for p in pars]))
+        got, rms = pars[i]["consistent"][k], pars[i]["rms"]
+        if got >= floor and (got >= 2 * n[k] or rms < 0.5 * best["rms"]) \
+                and not rms > 2 * best["rms"]:
             turned.append(k)
-            now, best = trial, par
-    return turned, best
+            now, best = trials[i], pars[i]
+    return turned, best, now
 
 
 def nearest_spacing(offsets: np.ndarray) -> float:
@@ -343,15 +363,17 @@ def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=No
             f"positions_from must be 'auto', 'parallax' or 'board', got {positions_from!r}")
     grid, ref = check_grid(shots.keys(), reference)
     size = check_images(shots, names, what="board shot")
-    corners = detect_boards(shots, board, names=names, partial=True)
-    turned, par = ([], None) if positions_from == "board" else turned_cameras(
-        shots, corners, board, ref, names=names, work_size=work_size, max_parallax=max_parallax)
-    corners = {k: c[::-1] if k in turned else c for k, c in corners.items()}
+    corners = orders_like(detect_boards(shots, board, names=names, partial=True), ref, board)
+    par = None
+    if positions_from != "board":
+        par, corners = turned_cameras(shots, corners, board, ref, names=names,
+                                      work_size=work_size, max_parallax=max_parallax)[1:]
     Hs, errs, resid = board_homographies(corners, ref, names)
     geo = board_geometry(corners, board, size, ref, focal_px=focal_px)
     info = {"board_pose_rms": geo["rms"], "positions_from": "board",
             "focal_given": bool(focal_px), "focal_std_px": geo["focal_std"],
-            "turned_cameras": [camera_label(k, names) for k in turned]}
+            **turn_report({k: c for k, c in corners.items() if k != ref},
+                          {k: corners[ref] for k in corners}, board, names)}
     # a board facing the cameras squarely leaves the focal length (and so every metric
     # figure) undetermined: its standard deviation says so (OpenCV reports 0 when the
     # problem is singular)
