@@ -527,6 +527,19 @@ def _cmd_demo(args, dest) -> list[Path]:
 
 
 # --------------------------------------------------------------------------- real arrays
+def _turns_message(turns: dict, n_cameras: int) -> str:
+    """The calibrate log's line on the cameras found turned (label -> degrees clockwise)."""
+    parts = []
+    for deg in sorted(set(turns.values())):
+        how = "upside down" if deg == 180 else f"turned by {deg} degrees clockwise"
+        labels = ", ".join(k for k, v in turns.items() if v == deg)
+        parts.append(f"camera(s) {labels}: images {how} against the reference's")
+    most = 2 * len(turns) > n_cameras - 1
+    return ("; ".join(parts) + " (mounted turned); registered turned back"
+            + ("; as most cameras are, the reference may be the one turned (the views are "
+               "then turned too): --reference names another" if most else ""))
+
+
 def _cmd_calibrate(args, dest) -> list[Path]:
     """Calibrate a camera array from checkerboard shots (SPEC §11). One shot per camera
     (files named by --pattern in FOLDER) registers every view onto the reference at the board
@@ -534,10 +547,10 @@ def _cmd_calibrate(args, dest) -> list[Path]:
     scene around the board (a board partly out of some views is fine: at least 3 x 3 inner
     corners, cut by the image border); one subfolder of shots per pose (three or more) runs a
     full calibration with rectification (poses a camera does not see whole are left out for
-    it). In either mode a camera mounted turned against the reference (by 90, 180 or 270
-    degrees) is found and turned back, and the board may be held any way round. Writes calibration.toml and pictures: corners.png
-    (detected corners per camera), registered.png (registered views side by side),
-    residuals.png (corner residual vectors).
+    it). The board may be held any way round, and in either mode a camera mounted turned
+    against the reference (by 90, 180 or 270 degrees) is found and turned back. Writes
+    calibration.toml and pictures: corners.png (detected corners per camera), registered.png
+    (registered views side by side), residuals.png (corner residual vectors).
 
     examples:
       hyperlf calibrate lab/calibration --pattern 'Cam-{index}.png' --grid 3,3 --board 11,8 -o cal
@@ -555,14 +568,7 @@ def _cmd_calibrate(args, dest) -> list[Path]:
                    "--focal-px (focal length / pixel pitch)")
     turns = cal.info.get("camera_turns") or {}
     if turns:
-        most = 2 * len(turns) > len(cal.cameras) - 1
-        _say(args, "; ".join(
-            f"camera(s) {', '.join(k for k, v in turns.items() if v == deg)}: images "
-            + ("upside down" if deg == 180 else f"turned by {deg} degrees clockwise")
-            + " against the reference's" for deg in sorted(set(turns.values())))
-             + " (mounted turned); registered turned back"
-             + ("; as most cameras are, the reference may be the one turned (the views are "
-                "then turned too): --reference names another" if most else ""))
+        _say(args, _turns_message(turns, len(cal.cameras)))
     errs = cal.reprojection_errors()
     worst = max(errs, key=errs.get)
     _say(args, f"{cal.mode} calibration of {len(errs)} cameras: residual up to "

@@ -11,11 +11,11 @@ down the image, and which end is "first" depends on each camera's perspective), 
 calibrations put every camera's corners in the order of the reference camera's in the same
 pose (:func:`order_like`: the symmetry of the grid whose row and column directions agree with
 the reference's); a camera mounted turned against the others is then found by its fit
-(:mod:`~hyperlf.calibration.plane`, :mod:`~hyperlf.calibration.full`). A board partly out of view (``detect_board(..., partial=True)``, used by the plane
-registration) is accepted when at least 3 x 3 of its inner corners are seen and the image
-border alone explains the missing ones: exactly one placement of the seen block within the
-board puts every unseen corner outside the image (:func:`place_partial_grid`); unseen corners
-are NaN.
+(:mod:`~hyperlf.calibration.plane`, :mod:`~hyperlf.calibration.full`). A board partly out of
+view (``detect_board(..., partial=True)``, used by the plane registration) is accepted when at
+least 3 x 3 of its inner corners are seen and the image border alone explains the missing
+ones: exactly one placement of the seen block within the board puts every unseen corner
+outside the image (:func:`place_partial_grid`); unseen corners are NaN.
 """
 
 from __future__ import annotations

@@ -159,8 +159,8 @@ def turned_orders(ref_corners: Mapping, corners: Mapping, board: BoardSpec, K_re
     """
     orders = grid_symmetries(board.cols, board.rows)
     shared = sorted(set(ref_corners) & set(corners))
-    rel = {p: [_board_rotation(corners[p][s], board, K, d)
-               @ _board_rotation(ref_corners[p], board, K_ref, d_ref).T for s in orders]
+    in_ref = {p: _board_rotation(ref_corners[p], board, K_ref, d_ref) for p in shared}
+    rel = {p: [_board_rotation(corners[p][s], board, K, d) @ in_ref[p].T for s in orders]
            for p in shared}
 
     def nearest(A) -> tuple[float, dict]:
