@@ -122,3 +122,16 @@ def test_depth_says_when_soft_edges_get_more_passes(tmp_path, capsys):
     assert said, "no word of the soft edges"
     blur, passes = float(said[1]), int(said[2])
     assert blur > 1.2 and passes == int(np.ceil((blur - 0.8) / 0.4)) >= 2
+    # --median-passes overrides the rule: once, as the library's median_passes=1 does
+    from hyperlf.formats import load_lightfield, read_pfm
+    from hyperlf.hlf import depth
+
+    assert main(["depth", str(tmp_path / "cap"), "--labels", "8", "--median-passes", "1",
+                 "-o", str(tmp_path / "once")]) == 0
+    assert "soft image edges" not in capsys.readouterr().err
+    once = read_pfm(tmp_path / "once" / "disparity.pfm")
+    auto = read_pfm(tmp_path / "d" / "disparity.pfm")
+    lib = depth(load_lightfield(tmp_path / "cap"), n_labels=8,
+                params=DepthParams(median_passes=1)).disparity
+    assert not np.array_equal(once, auto)
+    np.testing.assert_allclose(once, lib, atol=1e-6)

@@ -147,6 +147,13 @@ _workers_arg = _int_at_least(1, "the number of workers", 256,
                              "; use --scheduler for a larger cluster")
 
 
+def _median_passes_arg(text: str) -> int | str:
+    """``--median-passes``: ``auto`` or a number of passes in [1, 20]."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    return _int_at_least(1, "--median-passes", 20, " (or 'auto')")(text)
+
+
 #: ``--downscale``: block side of the quick look (whether the image stays large enough is
 #: checked against the input, :func:`_downscaled`).
 _downscale_arg = _int_at_least(1, "--downscale", 64)
@@ -708,6 +715,7 @@ def _cmd_depth(args, dest) -> list[Path]:
         if budget is None and _available_memory() < DEFAULT_MAX_MEMORY:
             budget = _available_memory()
         options = {k: v for k, v in (("median_radius", args.median_radius),
+                                     ("median_passes", args.median_passes),
                                      ("texture_snr", args.texture_snr),
                                      ("coarse_prior", False if args.no_coarse_prior else None),
                                      ("visibility_rounds", args.visibility_rounds),
@@ -819,6 +827,7 @@ def _cmd_batch(args, dest) -> list[Path]:  # noqa: ARG001 - batch writes its own
     depth_args = []
     for flag, value in (("--labels", args.labels), ("--metric", args.metric),
                         ("--optimizer", args.optimizer), ("--median-radius", args.median_radius),
+                        ("--median-passes", args.median_passes),
                         ("--texture-snr", args.texture_snr), ("--max-memory", args.max_memory),
                         ("--min-confidence", args.min_confidence)):
         if value is not None:
@@ -1332,6 +1341,10 @@ def _add_depth_parser(sub) -> None:
     p.add_argument("--median-radius", type=int, default=None, metavar="PX",
                    help="radius of the guided weighted-median post-filter that snaps depth "
                         "edges to image edges (default 4; 0 turns it off)")
+    p.add_argument("--median-passes", type=_median_passes_arg, default=None, metavar="N",
+                   help="how often the post-filter runs (default auto: once, and once more "
+                        "per 0.4 px of the reference view's edge blur above 0.8 px, since "
+                        "soft views carry the foreground further over the background)")
     p.add_argument("--texture-snr", type=_texture_snr_arg,
                    default=None, metavar="T",
                    help="pixels whose matching window holds less texture than T times the "
@@ -1402,6 +1415,8 @@ def _add_batch_parser(sub) -> None:
     _add_metric_option(p, light_field=True, help="correspondence cost (depth's default, auto)")
     _add_optimizer_option(p)
     p.add_argument("--median-radius", type=int, default=None, metavar="PX",
+                   help="as for depth")
+    p.add_argument("--median-passes", type=_median_passes_arg, default=None, metavar="N",
                    help="as for depth")
     p.add_argument("--texture-snr", type=_texture_snr_arg, default=None, metavar="T",
                    help="as for depth")
