@@ -195,6 +195,35 @@ def test_complete_command_writes_a_cube_that_render_reads(tmp_path, capsys):
                  "-o", str(tmp_path / "c2")]) == 4
 
 
+def test_complete_a_capture_without_wavelengths(tmp_path, capsys):
+    """A capture whose manifest names no wavelengths (an array's filters not known) is
+    completed with the cameras as bands; the colour rendering is replaced by the bands'
+    mosaic, and the commands that need wavelengths refuse the cube in one line."""
+    cap = tmp_path / "planes"
+    assert main(["-q", "synth", "procedural", "--scene", "planes", "--size", "40,48",
+                 "--grid", "3,3", "-o", str(cap), "--no-pictures"]) == 0
+    manifest = cap / "capture.toml"
+    lines = manifest.read_text().splitlines(keepends=True)
+    manifest.write_text("".join(ln for ln in lines
+                                if not ln.startswith(("wavelength =", "gt_cube ="))))
+    out = tmp_path / "c"
+    capsys.readouterr()
+    assert main(["complete", str(cap), "--use-ground-truth", "--stereo", "none",
+                 "-o", str(out)]) == 0
+    assert "cameras in raster order" in capsys.readouterr().err
+    assert (out / "reference_bands.png").is_file() and (out / "missing_bands.png").is_file()
+    assert not (out / "reference_srgb.png").exists()
+    for argv in (["render", str(out / "cube.h5"), "-o", str(tmp_path / "r")],
+                 ["spectrum", str(out / "cube.h5"), "--at", "3,4", "-o",
+                  str(tmp_path / "s.png")]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "ingest --wavelengths" in err, err
+        assert not (tmp_path / "r").exists() and not (tmp_path / "s.png").exists()
+    assert main(["-q", "convert", str(out / "cube.h5"), "-o", str(tmp_path / "e.hdr")]) == 0
+    assert "wavelength" not in (tmp_path / "e.hdr").read_text()
+
+
 def test_complete_at_1_over_n_scores_against_the_block_means(tmp_path, capsys):
     """``complete --downscale 2``: a cube of half the size, close to the ground-truth cube's
     block means; a full-resolution --disparity is made 1/2 (the same cube as from that map at

@@ -178,6 +178,49 @@ def test_streaming_equals_memory(planes_lf, planes_result, tmp_path):
     assert not list(tmp_path.glob(".*scratch*"))  # scratch file removed
 
 
+def test_unknown_wavelengths_complete_the_cameras_in_raster_order(planes_lf, planes_result,
+                                                                  tmp_path):
+    """Without wavelengths the bands are the views in raster order (the same order as the
+    raster filter layout's sorted wavelengths here), every registered or inferred entry is the
+    one the known-wavelength run gives, entries no view observed stay 0 instead of the
+    spectral fill, and colour rendering of the streamed cube is refused by name."""
+    from hyperlf import render
+    from hyperlf.formats.hdf5 import open_cube_h5
+
+    lf = planes_lf.replace(wavelengths=None)
+    res = cp.complete(lf, planes_lf.reference_gt_disparity)
+    R, C = lf.grid_shape
+    assert np.isnan(res.wavelengths).all() and res.wavelengths.shape == (R * C,)
+    np.testing.assert_array_equal(res.band_index, np.arange(R * C).reshape(R, C))
+    np.testing.assert_array_equal(res.band_index, planes_result.band_index)
+    np.testing.assert_array_equal(res.mask, planes_result.mask)
+    np.testing.assert_array_equal(res.inferred, planes_result.inferred)
+    np.testing.assert_array_equal(res.cube, planes_result.cube)  # inference reached everything
+    assert res.stats["config"]["fill"] == "zero"
+    known = cp.complete(planes_lf, planes_lf.reference_gt_disparity, infer=False)
+    unknown = cp.complete(lf, planes_lf.reference_gt_disparity, infer=False)
+    np.testing.assert_array_equal(unknown.mask, known.mask)
+    assert not known.mask.all()
+    np.testing.assert_array_equal(unknown.cube[known.mask], known.cube[known.mask])
+    assert not unknown.cube[~known.mask].any() and known.cube[~known.mask].all()
+    with pytest.raises(InvalidInputError, match="ingest --wavelengths"):
+        cp.complete(lf, planes_lf.reference_gt_disparity, fill="spectral")
+    cp.complete(lf, planes_lf.reference_gt_disparity, out_path=tmp_path / "u.h5")
+    with open_cube_h5(tmp_path / "u.h5") as cf:
+        assert np.isnan(cf.wavelengths).all()
+        with pytest.raises(InvalidInputError, match="unknown"):
+            render.emulate_camera(cf, views=(1, 1))
+
+
+def test_band_order_follows_wavelengths_not_positions(planes_lf):
+    wl = planes_lf.wavelengths[::-1, ::-1].copy()  # the last view has the shortest band
+    order, index = cp.band_order(planes_lf.replace(wavelengths=wl))
+    np.testing.assert_array_equal(order, np.sort(wl.ravel()))
+    np.testing.assert_array_equal(index, np.arange(wl.size)[::-1].reshape(wl.shape))
+    order, index = cp.band_order(planes_lf.replace(wavelengths=None))
+    np.testing.assert_array_equal(index, np.arange(wl.size).reshape(wl.shape))
+
+
 def test_fill_missing_spectral():
     wl = np.array([400.0, 410.0, 420.0, 430.0])
     cube = np.array([1.0, 0.0, 3.0, 0.0], dtype=np.float32)[:, None, None]
@@ -185,6 +228,11 @@ def test_fill_missing_spectral():
     out = cp.fill_missing(cube, mask, wl)
     np.testing.assert_allclose(out[:, 0, 0], [1.0, 2.0, 3.0, 3.0])
     np.testing.assert_allclose(cp.fill_missing(cube, mask, wl, "zero")[:, 0, 0], [1, 0, 3, 0])
+    unknown = np.full(4, np.nan)
+    np.testing.assert_allclose(cp.fill_missing(cube, mask, unknown, "zero")[:, 0, 0],
+                               [1, 0, 3, 0])
+    with pytest.raises(InvalidInputError, match="unknown"):
+        cp.fill_missing(cube, mask, unknown)
 
 
 def test_background_fill_and_wls():

@@ -29,6 +29,15 @@ def test_round_trip(tmp_path, rng, interleave):
     assert sorted(os.listdir(tmp_path)) == ["cube.hdr", "cube.img"]
 
 
+def test_unknown_wavelengths_write_no_wavelength_line(tmp_path, rng):
+    cube = rng.random((3, 4, 5)).astype(np.float32)
+    hdr = write_envi(tmp_path / "u", cube, [np.nan] * 3)
+    assert "wavelength" not in hdr.read_text() and "bands = 3" in hdr.read_text()
+    c2, wl2, _ = read_envi(hdr)
+    np.testing.assert_array_equal(c2, cube)
+    assert wl2 is None
+
+
 def test_hwb_input(tmp_path, rng):
     cube = rng.random((5, 6, 3)).astype(np.float32)
     write_envi(tmp_path / "x.hdr", cube, [500, 600, 700])

@@ -66,6 +66,19 @@ def test_cube_round_trip_and_lazy(tmp_path, rng):
     assert read_cube_h5(tmp_path / "n.h5")[2] is None
 
 
+def test_cube_with_unknown_wavelengths(tmp_path, rng):
+    """A cube completed from a capture without wavelengths stores them all NaN; a mix of
+    known and NaN is refused."""
+    cube = rng.random((1, 2, 3, 4, 5)).astype(np.float32)
+    write_cube_h5(tmp_path / "u.h5", cube, [np.nan] * 3)
+    c2, wl2, _ = read_cube_h5(tmp_path / "u.h5")
+    np.testing.assert_array_equal(c2, cube)
+    assert wl2.shape == (3,) and np.isnan(wl2).all()
+    with pytest.raises(InvalidInputError, match="all NaN when unknown"):
+        write_cube_h5(tmp_path / "m.h5", cube, [500.0, np.nan, 600.0])
+    assert not (tmp_path / "m.h5").exists()
+
+
 def test_streaming_writer(tmp_path, rng):
     R, C, B, H, W = 2, 2, 3, 4, 5
     cube = rng.random((R, C, B, H, W)).astype(np.float32)

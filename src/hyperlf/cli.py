@@ -887,12 +887,26 @@ def _complete_disparity(args, disparity, full_shape):
                             f"{disparity.shape[0]} px but the views are {sizes}")
 
 
+def _save_reference_bands(path, cf, reference) -> Path:
+    """Every band of the reference view's completed cube as one mosaic, band ``k`` in the tile
+    of the camera that recorded it (the bands of a cube without wavelengths are the cameras in
+    raster order)."""
+    from . import visualise
+
+    R, C = cf.cube.shape[:2]
+    bands = np.asarray(cf.cube[reference], np.float32)
+    return visualise.save_mosaic_png(path, bands.reshape((R, C) + bands.shape[1:]),
+                                     title="reference view: every camera's band, registered")
+
+
 def _cmd_complete(args, dest) -> list[Path]:
     """Register every band into every view (SPEC §7): the reference disparity is warped to
     every view, refined (pairwise cross-spectral stereo + edge-aware WLS), then each band is
     warped in with occlusion checks and propagated. Writes cube.h5 ([R, C, B, H, W] +
     registration and inference masks), a map of missing bands and an sRGB rendering of the
-    reference.
+    reference. A capture without wavelengths (ingested without --wavelengths) is completed
+    too: its bands are the cameras in raster order, and instead of the colour rendering
+    reference_bands.png shows every camera's band registered onto the reference.
 
     examples:
       hyperlf complete scene3 -o cube3
@@ -937,15 +951,21 @@ def _cmd_complete(args, dest) -> list[Path]:
     from .formats import open_cube_h5
 
     with open_cube_h5(res.path) as cf:
-        srgb = render.emulate_camera(cf, camera="CIE 1931", output="srgb",
-                                     exposure="percentile", views=lf.reference)
+        if lf.wavelengths is None:
+            written.append(_save_reference_bands(out / "reference_bands.png", cf, lf.reference))
+            _say(args, "the views have no wavelengths: the cube's bands are the cameras in "
+                       "raster order (reference_bands.png), entries no view observed are 0, "
+                       "and no colour rendering is made")
+        else:
+            srgb = render.emulate_camera(cf, camera="CIE 1931", output="srgb",
+                                         exposure="percentile", views=lf.reference)
+            written.append(write_image(out / "reference_srgb.png", srgb, bit_depth=8))
         with open_gt_cube(args.input) as gt_cube:
             if gt_cube is not None:
                 psnr, sam = metrics.cube_scores(cf.cube, gt_cube if n == 1
                                                 else BlockMeanCube(gt_cube, n))
                 _say(args, f"against the ground-truth cube: PSNR {psnr:.2f} dB, SAM "
                            f"{sam:.2f} deg")
-    written.append(write_image(out / "reference_srgb.png", srgb, bit_depth=8))
     _say(args, f"{res.stats['completed_pct']:.1f} % of (view, band, pixel) entries completed "
                f"({res.stats['registered_pct']:.1f} % registered, "
                f"{res.stats['inferred_pct']:.1f} % inferred) in "

@@ -2,7 +2,10 @@
 
 Every view of a hyperspectral light field records one band; completion gives every view every
 band, i.e. the plenoptic cube ``[R, C, B, H, W]`` with ``B = R * C`` bands sorted by wavelength,
-plus a validity mask of the same shape.
+plus a validity mask of the same shape. A light field whose filter wavelengths are unknown (a
+real array's capture ingested without them) is completed too: its bands are the views in raster
+order, the cube's wavelengths are NaN, and entries no view observed stay 0 (``fill="zero"``),
+since interpolating over wavelength needs the wavelengths.
 
 :func:`complete` runs the pipeline::
 
@@ -82,7 +85,8 @@ Stages
    flagged in a separate ``inferred`` mask, not in the registration mask.  Entries that are
    still missing keep mask False and are filled (``fill``): ``"spectral"`` (default) linear
    interpolation over wavelength between the nearest valid bands of the same pixel (constant
-   beyond the ends; the view's own band is always valid), or ``"zero"``.  "% completed" counts
+   beyond the ends; the view's own band is always valid), or ``"zero"`` (the default when the
+   wavelengths are unknown).  "% completed" counts
    registered and inferred entries; metrics "on valid entries" use the registration mask;
    metrics "on all entries" use every value.
 
@@ -156,7 +160,7 @@ class CompletionResult:
         True where an entry was registered (not filled); None when streamed (read it with
         :func:`read_band_mask`).
     wavelengths : float64 (B,)
-        Band centres, ascending.
+        Band centres, ascending (all NaN when the views had no wavelengths).
     band_index : int (R, C)
         The band each view records.
     disparities : float32 (R, C, H, W)
@@ -192,9 +196,21 @@ def _check_lf(lf):
         raise InvalidInputError(f"lf must be a hyperlf.LightField, got {type(lf).__name__}")
     if lf.views.ndim != 4:
         raise InvalidInputError("cube completion needs monochrome views (R, C, H, W)")
-    if lf.wavelengths is None:
-        raise InvalidInputError("cube completion needs the views' wavelengths")
     return lf
+
+
+def _fill_mode(fill, wavelengths: np.ndarray) -> str:
+    """``fill`` checked; None picks "spectral", or "zero" when the wavelengths are unknown."""
+    known = bool(np.isfinite(wavelengths).all())
+    if fill is None:
+        return "spectral" if known else "zero"
+    if fill not in ("spectral", "zero"):
+        raise InvalidInputError(f"fill must be 'spectral' or 'zero', got {fill!r}")
+    if fill == "spectral" and not known:
+        raise InvalidInputError("fill='spectral' interpolates over wavelength, and the views' "
+                                "wavelengths are unknown: use fill='zero', or give the capture "
+                                "its wavelengths ('hyperlf ingest --wavelengths')")
+    return fill
 
 
 def band_order(lf) -> tuple[np.ndarray, np.ndarray]:
@@ -207,7 +223,8 @@ def band_order(lf) -> tuple[np.ndarray, np.ndarray]:
     Returns
     -------
     wavelengths : ndarray (B,)
-        Sorted band centres in nm, ``B = R * C``.
+        Sorted band centres in nm, ``B = R * C``; all NaN when the light field has no
+        wavelengths, whose bands are then the views in raster order.
     band_index : ndarray of intp (R, C)
         Index in ``wavelengths`` of each view's band.
 
@@ -215,7 +232,17 @@ def band_order(lf) -> tuple[np.ndarray, np.ndarray]:
     ------
     InvalidInputError
         When two views share a wavelength (the cube needs distinct bands).
+
+    Examples
+    --------
+    >>> from hyperlf import synthesis
+    >>> lf = synthesis.procedural_scene(seed=1, rows=2, cols=2, height=8, width=8)
+    >>> band_order(lf.replace(wavelengths=None))[1].tolist()
+    [[0, 1], [2, 3]]
     """
+    if lf.wavelengths is None:
+        R, C = lf.grid_shape
+        return np.full(R * C, np.nan), np.arange(R * C, dtype=np.intp).reshape(R, C)
     wl = np.asarray(lf.wavelengths, dtype=np.float64)
     flat = wl.ravel()
     if np.unique(flat).size != flat.size:
@@ -752,6 +779,7 @@ def fill_missing(cube: np.ndarray, mask: np.ndarray, wavelengths, mode: str = "s
         raise InvalidInputError(f"fill must be 'spectral' or 'zero', got {mode!r}")
     B = cube.shape[0]
     wl = np.asarray(wavelengths, dtype=np.float64)
+    _fill_mode(mode, wl)
     out = np.where(m, cube, 0.0).astype(np.float32)
     if m.all():
         return out
@@ -1004,14 +1032,15 @@ def complete(lf, disparity=None, out_path=None, *, metric: str = "rsncc",
              edge_sigma: float = 0.1, init_confidence: float = 1.0,
              stereo_confidence: float = 0.25, fill_confidence: float = 0.5,
              keep_initial: bool = True, occlusion_tol: float = 0.5, max_iter: int = 10,
-             infer: bool | dict = True, fill: str = "spectral",
+             infer: bool | dict = True, fill: str | None = None,
              compression: str | None = "gzip", progress: bool = False) -> CompletionResult:
     """Complete the plenoptic cube of an H-LF (SPEC §7; module docstring for every stage).
 
     Parameters
     ----------
     lf : LightField
-        Monochrome views with distinct wavelengths.
+        Monochrome views with distinct wavelengths, or with none (unknown: the bands are the
+        views in raster order and the cube's wavelengths NaN).
     disparity : None, (H, W) or (R, C, H, W)
         The reference view's disparity (forward-warped, then stereo + refinement), per-view
         maps (NaN holes are estimated and refined; complete maps are used as they are), or
@@ -1033,8 +1062,9 @@ def complete(lf, disparity=None, out_path=None, *, metric: str = "rsncc",
         Stage 5 inference of entries no view observed (:func:`infer_missing`); a dict gives
         its keyword arguments (``radius``, ``sigma_d``, ``sigma_g``, ``min_weight``,
         ``rounds``, ``impl``).  False: leave them to ``fill``.
-    fill : {"spectral", "zero"}
-        Value of entries that stay missing (neither registered nor inferred).
+    fill : {"spectral", "zero"}, optional
+        Value of entries that stay missing (neither registered nor inferred). Default
+        "spectral", or "zero" when the wavelengths are unknown ("spectral" needs them).
     compression : str or None
         HDF5 compression of the output file.
 
@@ -1058,8 +1088,8 @@ def complete(lf, disparity=None, out_path=None, *, metric: str = "rsncc",
     ((3, 3, 9, 24, 32), (3, 3, 9, 24, 32))
     """
     lf = _filled(_check_lf(lf))
-    if fill not in ("spectral", "zero"):
-        raise InvalidInputError(f"fill must be 'spectral' or 'zero', got {fill!r}")
+    wl, bidx = band_order(lf)
+    fill = _fill_mode(fill, wl)
     infer_kw = _check_infer(infer)
     t_all = time.perf_counter()
     timings: dict[str, float] = {}
@@ -1069,7 +1099,6 @@ def complete(lf, disparity=None, out_path=None, *, metric: str = "rsncc",
                                stereo_confidence=stereo_confidence, fill_confidence=fill_confidence,
                                keep_initial=keep_initial, occlusion_tol=occlusion_tol,
                                max_iter=max_iter, infer=infer_kw, fill=fill)
-    wl, bidx = band_order(lf)
     _, disp = _view_disparities(lf, disparity, metric=metric, optimizer=optimizer, band=band,
                                 guidance=guidance, window=window, params=params,
                                 wls_lambda=wls_lambda, edge_sigma=edge_sigma,
@@ -1082,7 +1111,7 @@ def complete(lf, disparity=None, out_path=None, *, metric: str = "rsncc",
                          infer=infer_kw)
 
 
-def naive_completion(lf, ref_disparity, out_path=None, fill: str = "spectral",
+def naive_completion(lf, ref_disparity, out_path=None, fill: str | None = None,
                      compression: str | None = "gzip") -> CompletionResult:
     """Naive baseline: warp every band with the forward-warped reference disparity only.
 
@@ -1111,6 +1140,7 @@ def naive_completion(lf, ref_disparity, out_path=None, fill: str = "spectral",
     lf = _filled(_check_lf(lf))
     t_all = time.perf_counter()
     wl, bidx = band_order(lf)
+    fill = _fill_mode(fill, wl)
     t0 = time.perf_counter()
     disp = propagate_disparity(lf, ref_disparity)
     timings = {"initialisation": time.perf_counter() - t0}

@@ -115,7 +115,8 @@ def as_wavelengths(wavelengths, name: str = "wavelengths") -> np.ndarray:
     Raises
     ------
     InvalidInputError
-        For non-numeric, empty, multi-dimensional or non-finite input.
+        For non-numeric, empty, multi-dimensional or non-finite input; all NaN (a cube
+        whose capture had no wavelengths) gets its own message.
 
     Examples
     --------
@@ -134,6 +135,11 @@ def as_wavelengths(wavelengths, name: str = "wavelengths") -> np.ndarray:
         raise InvalidInputError(
             f"{name} must be a non-empty 1-D array of wavelengths in nm, got shape {wl.shape}"
         )
+    if np.isnan(wl).all():
+        raise InvalidInputError(
+            f"{name} are unknown (NaN), as in a cube completed from a capture without them: "
+            "give them when the capture is made ('hyperlf ingest --wavelengths') and complete "
+            "it again")
     if not np.all(np.isfinite(wl)):
         raise InvalidInputError(f"{name} contains NaN or infinite values; pass finite nm values")
     return wl

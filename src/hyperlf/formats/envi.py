@@ -46,7 +46,8 @@ def write_envi(path_hdr_or_base: str | os.PathLike, cube, wavelengths=None,
         the number of wavelengths, else (H, W, B) when the last does (ambiguous shapes resolve to
         (B, H, W)). Without wavelengths ``"auto"`` means (B, H, W).
     wavelengths : array_like, shape (B,), optional
-        Band centres in nm (written with ``wavelength units = Nanometers``).
+        Band centres in nm (written with ``wavelength units = Nanometers``); all NaN
+        (unknown) is written as no wavelengths.
     interleave : {"bsq", "bil", "bip"}
     axes : {"auto", "bhw", "hwb"}
     description : str
@@ -62,6 +63,8 @@ def write_envi(path_hdr_or_base: str | os.PathLike, cube, wavelengths=None,
     if not np.issubdtype(a.dtype, np.number) or np.iscomplexobj(a):
         raise InvalidInputError(f"an ENVI cube must hold real numbers, got {a.dtype}")
     wl = None if wavelengths is None else np.asarray(wavelengths, dtype=np.float64).ravel()
+    if wl is not None and wl.size and np.isnan(wl).all():
+        wl = None  # unknown (a cube completed without wavelengths): no wavelength line
     if axes == "auto":
         if wl is None or a.shape[0] == wl.size:
             axes = "bhw"

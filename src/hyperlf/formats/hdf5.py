@@ -390,8 +390,11 @@ def _check_cube_args(shape, wavelengths):
         raise InvalidInputError(
             f"{wl.size} wavelengths given for a cube with {shape[2]} bands"
         )
+    if np.isnan(wl).all():  # unknown: a capture ingested without its filters' wavelengths
+        return shape, wl
     if not np.all(np.isfinite(wl)) or np.any(wl <= 0):
-        raise InvalidInputError("cube wavelengths must be positive finite numbers (nm)")
+        raise InvalidInputError("cube wavelengths must be positive finite numbers (nm), or all "
+                                "NaN when unknown")
     return shape, wl
 
 
@@ -414,7 +417,7 @@ class CubeWriter:
         Target ``.h5`` file.
     shape : (R, C, B, H, W)
     wavelengths : array_like, shape (B,)
-        Band centres in nm.
+        Band centres in nm, or all NaN when unknown.
     compression : {"gzip", "lzf", None}
     metadata : dict, optional
         Stored as a JSON attribute.
@@ -575,6 +578,8 @@ class CubeFile:
     cube : h5py.Dataset, shape (R, C, B, H, W)
         Slice it to read only what you need (``f.cube[r, c, b]``).
     wavelengths : ndarray, shape (B,)
+        Band centres in nm; all NaN when unknown (the bands are then the views in raster
+        order, :func:`hyperlf.completion.band_order`).
     mask : h5py.Dataset or None, shape (R, C, H, W)
     metadata : dict
     """
