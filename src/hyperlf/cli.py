@@ -960,8 +960,8 @@ def _cmd_complete(args, dest) -> list[Path]:
             srgb = render.emulate_camera(cf, camera="CIE 1931", output="srgb",
                                          exposure="percentile", views=lf.reference)
             written.append(write_image(out / "reference_srgb.png", srgb, bit_depth=8))
-        with open_gt_cube(args.input) as gt_cube:
-            if gt_cube is not None:
+        with open_gt_cube(args.input) as gt_cube:  # its bands follow the wavelengths
+            if gt_cube is not None and lf.wavelengths is not None:
                 psnr, sam = metrics.cube_scores(cf.cube, gt_cube if n == 1
                                                 else BlockMeanCube(gt_cube, n))
                 _say(args, f"against the ground-truth cube: PSNR {psnr:.2f} dB, SAM "
