@@ -182,8 +182,8 @@ def test_unknown_wavelengths_complete_the_cameras_in_raster_order(planes_lf, pla
                                                                   tmp_path):
     """Without wavelengths the bands are the views in raster order (the same order as the
     raster filter layout's sorted wavelengths here), every registered or inferred entry is the
-    one the known-wavelength run gives, entries no view observed stay 0 instead of the
-    spectral fill, and colour rendering of the streamed cube is refused by name."""
+    one the known-wavelength run gives, entries neither registered nor inferred stay 0
+    instead of the spectral fill, and colour rendering of the streamed cube is refused by name."""
     from hyperlf import render
     from hyperlf.formats.hdf5 import open_cube_h5
 

@@ -954,8 +954,8 @@ def _cmd_complete(args, dest) -> list[Path]:
         if lf.wavelengths is None:
             written.append(_save_reference_bands(out / "reference_bands.png", cf, lf.reference))
             _say(args, "the views have no wavelengths: the cube's bands are the cameras in "
-                       "raster order (reference_bands.png), entries no view observed are 0, "
-                       "and no colour rendering is made")
+                       "raster order (reference_bands.png), entries neither observed nor "
+                       "inferred are 0, and no colour rendering is made")
         else:
             srgb = render.emulate_camera(cf, camera="CIE 1931", output="srgb",
                                          exposure="percentile", views=lf.reference)

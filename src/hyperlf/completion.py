@@ -4,8 +4,8 @@ Every view of a hyperspectral light field records one band; completion gives eve
 band, i.e. the plenoptic cube ``[R, C, B, H, W]`` with ``B = R * C`` bands sorted by wavelength,
 plus a validity mask of the same shape. A light field whose filter wavelengths are unknown (a
 real array's capture ingested without them) is completed too: its bands are the views in raster
-order, the cube's wavelengths are NaN, and entries no view observed stay 0 (``fill="zero"``),
-since interpolating over wavelength needs the wavelengths.
+order, the cube's wavelengths are NaN, and entries neither registered nor inferred stay 0
+(``fill="zero"``), since interpolating over wavelength needs the wavelengths.
 
 :func:`complete` runs the pipeline::
 
