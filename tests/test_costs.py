@@ -300,6 +300,21 @@ def test_streaming_blocks_do_not_change_result(rng):
     assert np.mean(np.abs(a - c) < 1e-3) > 0.98
 
 
+@pytest.mark.parametrize("impl", ["numpy", "numba"])
+@pytest.mark.parametrize("fn", [costs.ncc_volume, costs.rsncc_volume])
+def test_label_blocks_do_not_change_single_map_ncc(rng, monkeypatch, fn, impl):
+    """ncc and rsncc compute their float64 scores a few labels at a time (memory); blocks of
+    one and of three labels give the very bits of one block of all labels."""
+    from hyperlf.costs import pair
+
+    left, right = _pair(rng, remap=_cross_spectral_reversed)
+    whole = fn(left, right, -3, 9, impl=impl)
+    for labels in (1, 3):
+        monkeypatch.setattr(pair, "NCC_BLOCK_BYTES", 8 * H * W * labels)
+        assert len(pair._label_blocks(13, (H, W))) == -(-13 // labels)
+        np.testing.assert_array_equal(fn(left, right, -3, 9, impl=impl), whole)
+
+
 # ---------------------------------------------------------------------------------------------
 # Numerics
 # ---------------------------------------------------------------------------------------------

@@ -360,19 +360,38 @@ def ssd_volume(left, right, dmin, dmax, window: int = 5) -> np.ndarray:
     return fill_invalid(out, dmin)
 
 
-def _ncc_scores(A, B, dmin, dmax, n, tau_rel, impl) -> np.ndarray:
-    """NCC ``xi`` volume (float64 (L, H, W), 0 at invalid candidates) of two single maps."""
+#: Bytes of one float64 ``(labels, H, W)`` block of NCC scores: the single-map volumes (ncc,
+#: rsncc) are computed a few labels at a time, so that their float64 scores and temporaries
+#: never exceed a few such blocks beside the float32 result.
+NCC_BLOCK_BYTES = 64 * 2**20
+
+
+def _ncc_setup(A, B, n, tau_rel) -> tuple:
+    """Everything of two single maps that does not depend on the disparity: padded maps,
+    patch statistics, ``1/sigma`` (0 below ``tau_rel`` times the view's mean patch variance)."""
     r = n // 2
-    H, W = A.shape
-    ds = _ds(dmin, dmax)
     sa = channel_stats(A[None], n)
     sb = channel_stats(B[None], n)
     isA = inv_sigma(sa["var"], tau_rel * float(sa["mean_var"][0]))
     isB = inv_sigma(sb["var"], tau_rel * float(sb["mean_var"][0]))
+    return (pad_replicate(A[None], r), pad_replicate(B[None], r), sa["centre"], sb["centre"],
+            sa["mu"], isA, sb["mu"], isB)
+
+
+def _ncc_scores(setup, ds, r, impl) -> np.ndarray:
+    """NCC ``xi`` (float64 ``(len(ds), H, W)``, 0 at invalid candidates) at disparities ``ds``
+    of two maps prepared by :func:`_ncc_setup`; each disparity is computed on its own, so
+    blocks of ``ds`` give exactly the slices of the whole volume."""
+    H, W = setup[4].shape[1:]
     acc = np.zeros((len(ds), H, W))
-    _xcorr(impl, pad_replicate(A[None], r), pad_replicate(B[None], r), sa["centre"], sb["centre"],
-           sa["mu"], isA, sb["mu"], isB, ds, r, False, acc, acc)
+    _xcorr(impl, *setup, ds, r, False, acc, acc)
     return acc
+
+
+def _label_blocks(n_labels: int, shape) -> list[slice]:
+    """Consecutive label slices of at most :data:`NCC_BLOCK_BYTES` of float64 each."""
+    step = max(1, NCC_BLOCK_BYTES // (8 * int(np.prod(shape))))
+    return [slice(k, min(k + step, n_labels)) for k in range(0, n_labels, step)]
 
 
 def ncc_volume(left, right, dmin, dmax, window: int = 5, impl: str = "auto",
@@ -386,8 +405,11 @@ def ncc_volume(left, right, dmin, dmax, window: int = 5, impl: str = "auto",
     dmin, dmax = check_disp(dmin, dmax)
     n = check_window(window)
     impl = check_impl(impl, "ncc")
-    xi = _ncc_scores(L, R, dmin, dmax, n, tau_rel, impl)
-    return fill_invalid((1.0 - xi).astype(np.float32), dmin)
+    ds, setup = _ds(dmin, dmax), _ncc_setup(L, R, n, tau_rel)
+    out = np.empty((len(ds),) + L.shape, np.float32)
+    for sl in _label_blocks(len(ds), L.shape):
+        out[sl] = 1.0 - _ncc_scores(setup, ds[sl], n // 2, impl)
+    return fill_invalid(out, dmin)
 
 
 def rsncc_volume(left, right, dmin, dmax, window: int = 5, impl: str = "auto",
@@ -398,10 +420,15 @@ def rsncc_volume(left, right, dmin, dmax, window: int = 5, impl: str = "auto",
     n = check_window(window)
     impl = check_impl(impl, "rsncc")
     Ln, Rn = normalise_intensity(L), normalise_intensity(R)
-    xi_i = _ncc_scores(Ln, Rn, dmin, dmax, n, tau_rel, impl)
-    xi_g = _ncc_scores(gradient_magnitude(Ln), gradient_magnitude(Rn), dmin, dmax, n, tau_rel, impl)
-    c = rho(1.0 - xi_i) + float(rs_tau) * rho(1.0 - xi_g)
-    return fill_invalid(c.astype(np.float32), dmin)
+    ds = _ds(dmin, dmax)
+    set_i = _ncc_setup(Ln, Rn, n, tau_rel)
+    set_g = _ncc_setup(gradient_magnitude(Ln), gradient_magnitude(Rn), n, tau_rel)
+    out = np.empty((len(ds),) + L.shape, np.float32)
+    for sl in _label_blocks(len(ds), L.shape):  # float64 per block, as for the whole volume
+        xi_i = _ncc_scores(set_i, ds[sl], n // 2, impl)
+        xi_g = _ncc_scores(set_g, ds[sl], n // 2, impl)
+        out[sl] = rho(1.0 - xi_i) + float(rs_tau) * rho(1.0 - xi_g)
+    return fill_invalid(out, dmin)
 
 
 def census_transform(image, window: int = 7) -> np.ndarray:
