@@ -223,6 +223,15 @@ def test_complete_a_capture_without_wavelengths(tmp_path, capsys):
         assert not (tmp_path / "r").exists() and not (tmp_path / "s.png").exists()
     assert main(["-q", "convert", str(out / "cube.h5"), "-o", str(tmp_path / "e.hdr")]) == 0
     assert "wavelength" not in (tmp_path / "e.hdr").read_text()
+    # info describes the cube: its shares are those of the masks read back whole
+    from hyperlf.completion import read_band_mask
+
+    assert main(["info", str(out / "cube.h5")]) == 0
+    info = capsys.readouterr().out
+    assert "3 x 3 views x 9 bands of 48 x 40 px" in info and "raster order" in info
+    for name in ("band_mask", "inferred_mask"):
+        share = f"{100 * read_band_mask(out / 'cube.h5', name=name).mean():.1f} %"
+        assert f"{share} of the entries" in info, (name, share, info)
 
 
 def test_complete_at_1_over_n_scores_against_the_block_means(tmp_path, capsys):

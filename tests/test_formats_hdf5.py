@@ -79,6 +79,27 @@ def test_cube_with_unknown_wavelengths(tmp_path, rng):
     assert not (tmp_path / "m.h5").exists()
 
 
+def test_cube_description_and_format(tmp_path, rng):
+    """``describe`` (hyperlf info): size, wavelengths and the mask's share of True pixels;
+    ``h5_format`` tells a cube file from a light field file and from anything else."""
+    from hyperlf.formats.hdf5 import CUBE_FORMAT, LF_FORMAT, h5_format
+
+    cube = rng.random((2, 3, 4, 5, 6)).astype(np.float32)
+    mask = np.zeros((2, 3, 5, 6), bool)
+    mask[:, :, :2] = True  # 2 of 5 rows
+    write_cube_h5(tmp_path / "c.h5", cube, [400, 450, 500, 550], mask=mask)
+    with open_cube_h5(tmp_path / "c.h5") as cf:
+        text = cf.describe()
+    assert "2 x 3 views x 4 bands of 6 x 5 px" in text
+    assert "4, 400..550 nm" in text and "40.0 % of the pixels (valid)" in text
+    assert "registered" not in text and "inferred" not in text
+    write_lightfield_h5(tmp_path / "lf.h5", full_lf(rng))
+    (tmp_path / "t.h5").write_text("not hdf5")
+    assert h5_format(tmp_path / "c.h5") == CUBE_FORMAT
+    assert h5_format(tmp_path / "lf.h5") == LF_FORMAT
+    assert h5_format(tmp_path / "t.h5") is None and h5_format(tmp_path) is None
+
+
 def test_streaming_writer(tmp_path, rng):
     R, C, B, H, W = 2, 2, 3, 4, 5
     cube = rng.random((R, C, B, H, W)).astype(np.float32)

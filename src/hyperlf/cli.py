@@ -431,12 +431,23 @@ def _add_spectral_options(p: argparse.ArgumentParser) -> None:
 # --------------------------------------------------------------------------- commands
 def _cmd_info(args, dest) -> None:
     """Print grid, bands, image size, reference view, baselines and disparity range of a light
-    field."""
-    from .formats import load_lightfield
+    field; of a cube file (complete's cube.h5), its grid, bands and how much of it was
+    registered or inferred.
 
-    lf = load_lightfield(args.input)
+    examples:
+      hyperlf info antinous-hlf
+      hyperlf info cube3/cube.h5
+    """
+    from .formats import load_lightfield
+    from .formats.hdf5 import CUBE_FORMAT, h5_format, open_cube_h5
+
+    if h5_format(args.input) == CUBE_FORMAT:
+        with open_cube_h5(args.input) as cf:
+            text = cf.describe()
+    else:
+        text = load_lightfield(args.input).describe()
     print(f"{args.input}")
-    print(lf.describe())
+    print(text)
 
 
 def _cmd_synth(args, dest) -> list[Path]:
@@ -1234,8 +1245,9 @@ def _add_synth_parser(sub) -> None:
 
 def _add_info_parser(sub) -> None:
     p = _subcommand(sub, "info", _cmd_info,
-                    help="describe a capture, HDF5 light field or HCI scene")
-    p.add_argument("input", help="capture folder, .h5 light field or HCI scene folder")
+                    help="describe a capture, HDF5 light field, HCI scene or cube file")
+    p.add_argument("input", help="capture folder, .h5 light field, HCI scene folder or a cube "
+                                 "file (complete's cube.h5)")
 
 
 def _add_convert_parser(sub) -> None:

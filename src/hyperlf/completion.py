@@ -102,10 +102,12 @@ file and updates views in place.  Finally every view is filled and written throu
 view was written), the scratch file is deleted.  The per-entry registration mask
 ``/band_mask`` and the inference mask ``/inferred_mask`` (bool, ``(R, C, B, H, W)``,
 :func:`read_band_mask`) are written view by view into the same atomic file.  The writer's own
-``/mask`` (``(R, C, H, W)``) is True where *all* bands of a pixel are registered.  A 5 x 6 x 30 cube at 1200 x 900 thus never sits in memory: the peak
-is about ``2 * R*C*H*W * 4`` bytes plus a few ``(B, H, W)`` views (~0.5 GB).  The in-memory
-path (``out_path=None``) runs the very same code on numpy arrays, so both give identical
-results.
+``/mask`` (``(R, C, H, W)``) is True where *all* bands of a pixel are registered.  A 5 x 6 x 30
+cube at 1200 x 900 thus never sits in memory.  The peak is one view's stage 3 (the sparse
+factors of its WLS system) or one pair's stage 2 (its float32 cost volumes; the costs compute
+their float64 scores a few labels at a time), whichever is larger; BENCHMARKS.md measures it.
+The in-memory path (``out_path=None``) runs the very same code on numpy arrays, so both give
+identical results.
 
 Baseline: :func:`naive_completion` warps every band with the forward-warped reference disparity
 only (no stereo, no refinement, no occlusion check, no propagation); holes stay invalid.

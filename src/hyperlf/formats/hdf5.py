@@ -609,6 +609,41 @@ class CubeFile:
     def shape(self) -> tuple[int, ...]:
         return tuple(self.cube.shape)
 
+    def describe(self) -> str:
+        """Human-readable multi-line summary (used by ``hyperlf info``): grid, bands, size,
+        and the share of True entries of each mask, read one view at a time."""
+        R, C, B, H, W = self.shape
+        wl = self.wavelengths
+        lines = [f"cube        : {R} x {C} views x {B} bands of {W} x {H} px (W x H)"]
+        ref = self.metadata.get("reference")
+        if isinstance(ref, list) and len(ref) == 2:
+            lines.append(f"reference   : view ({ref[0]}, {ref[1]})")
+        if wl.size and np.isnan(wl).all():
+            lines.append("bands       : wavelengths unknown: band k is camera k in raster order")
+        elif wl.size:
+            lines.append(f"bands       : {wl.size}, {np.nanmin(wl):g}..{np.nanmax(wl):g} nm")
+            lines.append("wavelengths : " + " ".join(f"{v:g}" for v in wl))
+        what = {"band_mask": "registered  : {} of the entries (observed or warped in)",
+                "inferred_mask": "inferred    : {} of the entries (from spatial neighbours)"}
+        for name, text in what.items():
+            ds = _dataset(self.path, self._file, name, required=False)
+            if ds is not None:
+                lines.append(text.format(self._share(name, ds)))
+        if self.mask is not None:
+            done = "every band registered" if "band_mask" in self._file else "valid"
+            lines.append(f"mask        : {self._share('mask', self.mask)} of the pixels ({done})")
+        if isinstance(self.metadata.get("method"), str):
+            lines.append(f"made by     : {self.metadata['method']}")
+        return "\n".join(lines)
+
+    def _share(self, name: str, ds) -> str:
+        """The percentage of True entries of a per-view dataset, read view by view."""
+        _check_numeric(self.path, name, ds)
+        R, C = ds.shape[:2]
+        true = sum(int(np.count_nonzero(_read(self.path, name, ds, (r, c))))
+                   for r in range(R) for c in range(C))
+        return f"{100.0 * true / max(ds.size, 1):.1f} %"
+
     def view(self, r: int, c: int) -> np.ndarray:
         """The ``(B, H, W)`` float32 cube of view ``(r, c)``."""
         return np.asarray(_read(self.path, "cube", self.cube, (r, c)), dtype=np.float32)
@@ -623,6 +658,20 @@ class CubeFile:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def h5_format(path: str | os.PathLike) -> str | None:
+    """The ``format`` attribute of a hyperlf HDF5 file (:data:`LF_FORMAT` or
+    :data:`CUBE_FORMAT`), or None for a file that is not HDF5 or has none."""
+    h5py = _h5py()
+    p = Path(path)
+    if not p.is_file():
+        return None
+    try:
+        with h5py.File(p, "r") as f:
+            return _text_attr(p, f, "format")
+    except (OSError, FormatError):  # not HDF5 or an unreadable attribute: the readers say why
+        return None
 
 
 def open_cube_h5(path: str | os.PathLike) -> CubeFile:
