@@ -198,7 +198,10 @@ def test_complete_command_writes_a_cube_that_render_reads(tmp_path, capsys):
 def test_complete_a_capture_without_wavelengths(tmp_path, capsys):
     """A capture whose manifest names no wavelengths (an array's filters not known) is
     completed with the cameras as bands; the colour rendering is replaced by the bands'
-    mosaic, and the commands that need wavelengths refuse the cube in one line."""
+    mosaic, the commands that need wavelengths refuse the cube in one line, and spectrum
+    plots the cameras' values by band index."""
+    from hyperlf.formats import open_cube_h5
+
     cap = tmp_path / "planes"
     assert main(["-q", "synth", "procedural", "--scene", "planes", "--size", "40,48",
                  "--grid", "3,3", "-o", str(cap), "--no-pictures"]) == 0
@@ -214,13 +217,20 @@ def test_complete_a_capture_without_wavelengths(tmp_path, capsys):
     assert "cameras in raster order" in err and "PSNR" not in err
     assert (out / "reference_bands.png").is_file() and (out / "missing_bands.png").is_file()
     assert not (out / "reference_srgb.png").exists()
-    for argv in (["render", str(out / "cube.h5"), "-o", str(tmp_path / "r")],
-                 ["spectrum", str(out / "cube.h5"), "--at", "3,4", "-o",
-                  str(tmp_path / "s.png")]):
-        assert main(argv) == 2
-        err = capsys.readouterr().err.strip()
-        assert len(err.splitlines()) == 1 and "ingest --wavelengths" in err, err
-        assert not (tmp_path / "r").exists() and not (tmp_path / "s.png").exists()
+    assert main(["render", str(out / "cube.h5"), "-o", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "ingest --wavelengths" in err, err
+    assert not (tmp_path / "r").exists()
+    # spectrum gives each camera's value at the pixel, by band index
+    assert main(["-q", "spectrum", str(out / "cube.h5"), "--at", "3,4", "--view", "0,2",
+                 "-o", str(tmp_path / "s.png")]) == 0
+    rows = (tmp_path / "s.csv").read_text().splitlines()
+    with open_cube_h5(out / "cube.h5") as cf:
+        want = cf.cube[0, 2, :, 4, 3]
+    assert rows[0] == "band,value" and [r.split(",")[0] for r in rows[1:]] == [
+        str(k) for k in range(9)]
+    np.testing.assert_allclose([float(r.split(",")[1]) for r in rows[1:]], want, rtol=1e-5)
+    assert (tmp_path / "s.png").stat().st_size > 0
     assert main(["-q", "convert", str(out / "cube.h5"), "-o", str(tmp_path / "e.hdr")]) == 0
     assert "wavelength" not in (tmp_path / "e.hdr").read_text()
     # info describes the cube: its shares are those of the masks read back whole

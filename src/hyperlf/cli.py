@@ -1109,7 +1109,14 @@ def _cmd_refocus(args, dest) -> list[Path]:
 
 
 def _cmd_spectrum(args, dest) -> list[Path]:
-    """Plot (PNG) and tabulate (CSV) the spectrum of a cube at a pixel of a view."""
+    """Plot (PNG) and tabulate (CSV) the spectrum of a cube at a pixel of a view. A cube
+    completed without wavelengths gives each camera's value instead, by band index (the
+    cameras in raster order).
+
+    examples:
+      hyperlf spectrum cube3/cube.h5 --at 120,80 -o s.png
+      hyperlf spectrum cube3/cube.h5 --at 120,80 --view 0,2 -o s.png
+    """
     from . import render
     from ._atomic import atomic_write_text
 
@@ -1126,8 +1133,12 @@ def _cmd_spectrum(args, dest) -> list[Path]:
         wl = np.asarray(cf.wavelengths)
         png = render.save_spectrum_figure(dest[0], cf, None, points=[(x, y)], view=view,
                                           labels=[f"view {view}, x={x:g}, y={y:g}"])
-    csv = atomic_write_text(dest[1], "wavelength_nm,value\n" + "".join(
-        f"{w:g},{v:.6g}\n" for w, v in zip(wl, np.ravel(spec))))
+    from .spectral import wavelengths_unknown
+
+    column, keys = (("band", range(wl.size)) if wavelengths_unknown(wl)
+                    else ("wavelength_nm", wl))
+    csv = atomic_write_text(dest[1], f"{column},value\n" + "".join(
+        f"{k:g},{v:.6g}\n" for k, v in zip(keys, np.ravel(spec))))
     return [png, csv]
 
 

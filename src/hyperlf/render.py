@@ -1280,7 +1280,8 @@ def spectrum_at(cube, wavelengths=None, x=None, y=None, view=None) -> np.ndarray
     ----------
     cube : array_like (B, H, W) or (R, C, B, H, W), h5py dataset, or CubeFile
     wavelengths : array_like (B,), optional
-        Only checked against the band count (from a CubeFile when omitted).
+        Only checked against the band count (from a CubeFile when omitted); all NaN when
+        unknown (:func:`hyperlf.spectral.wavelengths_unknown`).
     x, y : float or array_like (n,)
         Column and row in pixels.
     view : (int, int), optional
@@ -1311,7 +1312,8 @@ def spectrum_at(cube, wavelengths=None, x=None, y=None, view=None) -> np.ndarray
     else:
         raise InvalidInputError(f"cube must be (B, H, W) or (R, C, B, H, W), got shape {shape}")
     B, H, W = shape[-3:]
-    if wavelengths is not None and spectral.as_wavelengths(wavelengths).size != B:
+    if wavelengths is not None and (np.size(wavelengths) if spectral.wavelengths_unknown(
+            wavelengths) else spectral.as_wavelengths(wavelengths).size) != B:
         raise InvalidInputError(f"the cube has {B} bands but {np.size(wavelengths)} wavelengths")
     xs = np.atleast_1d(np.asarray(x, dtype=np.float64))
     ys = np.atleast_1d(np.asarray(y, dtype=np.float64))

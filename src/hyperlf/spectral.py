@@ -39,6 +39,7 @@ import numpy as np
 from .errors import DataNotFoundError, FormatError, InvalidInputError
 
 __all__ = [
+    "wavelengths_unknown",
     "CIE1931",
     "cmfs",
     "list_cameras",
@@ -97,6 +98,19 @@ _BRADFORD = np.array([[0.8951, 0.2664, -0.1614],
 # small validation helpers
 # ---------------------------------------------------------------------------------------------
 
+def wavelengths_unknown(wavelengths) -> bool:
+    """True for wavelengths that are all NaN: those of a cube completed from a capture whose
+    filters were not given (its bands are then the cameras in raster order).
+
+    Examples
+    --------
+    >>> wavelengths_unknown([np.nan, np.nan]), wavelengths_unknown([550.0, np.nan])
+    (True, False)
+    """
+    wl = np.asarray(wavelengths, dtype=np.float64)
+    return bool(wl.size) and bool(np.isnan(wl).all())
+
+
 def as_wavelengths(wavelengths, name: str = "wavelengths") -> np.ndarray:
     """Validate wavelengths: a finite, non-empty 1-D float64 array (a scalar becomes 1-D).
 
@@ -135,7 +149,7 @@ def as_wavelengths(wavelengths, name: str = "wavelengths") -> np.ndarray:
         raise InvalidInputError(
             f"{name} must be a non-empty 1-D array of wavelengths in nm, got shape {wl.shape}"
         )
-    if np.isnan(wl).all():
+    if wavelengths_unknown(wl):
         raise InvalidInputError(
             f"{name} are unknown (NaN), as in a cube completed from a capture without them: "
             "give them when the capture is made ('hyperlf ingest --wavelengths') and complete "

@@ -241,7 +241,8 @@ def save_spectrum_plot(path: str | os.PathLike, wavelengths: np.ndarray,
     path : path-like
         Output PNG.
     wavelengths : ndarray, shape (B,)
-        Wavelengths in nm.
+        Wavelengths in nm; all NaN when unknown: the bands are then plotted against their
+        index (the cameras in raster order, :func:`hyperlf.completion.band_order`).
     spectra : ndarray, shape (B,) or (N, B), or a sequence of them
         The spectra.
     labels : sequence of str, optional
@@ -260,16 +261,24 @@ def save_spectrum_plot(path: str | os.PathLike, wavelengths: np.ndarray,
         raise InvalidInputError(
             f"spectra have {sp.shape[-1]} samples but there are {wl.size} wavelengths"
         )
+    from .spectral import wavelengths_unknown
+
+    unknown = wavelengths_unknown(wl)
+    x = np.arange(wl.size, dtype=np.float64) if unknown else wl
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6, 3.5))
-    order = np.argsort(wl)
-    for i, s in enumerate(sp):
-        ax.plot(wl[order], s[order], marker="o", ms=3,
-                label=None if labels is None else labels[i])
-    colours = wavelength_to_rgb(wl[order])
-    lo = ax.get_ylim()[0]
-    ax.scatter(wl[order], np.full(wl.size, lo), c=colours, marker="s", s=40, zorder=3)
-    ax.set_xlabel("wavelength (nm)")
+    order = np.argsort(x)
+    for i, s in enumerate(sp):  # bands of unknown order: points, no line between them
+        ax.plot(x[order], s[order], marker="o", ms=5 if unknown else 3,
+                ls="none" if unknown else "-", label=None if labels is None else labels[i])
+    if unknown:
+        ax.set_xticks(x)
+        ax.set_xlabel("band = camera in raster order (wavelengths unknown)")
+    else:
+        colours = wavelength_to_rgb(wl[order])
+        lo = ax.get_ylim()[0]
+        ax.scatter(wl[order], np.full(wl.size, lo), c=colours, marker="s", s=40, zorder=3)
+        ax.set_xlabel("wavelength (nm)")
     ax.set_ylabel(ylabel)
     ax.set_title(title)
     if labels is not None:

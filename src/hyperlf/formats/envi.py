@@ -17,6 +17,7 @@ import numpy as np
 
 from .._atomic import atomic_path, atomic_write_text
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
+from ..spectral import wavelengths_unknown
 
 __all__ = ["write_envi", "read_envi", "ENVI_DTYPES"]
 
@@ -63,7 +64,7 @@ def write_envi(path_hdr_or_base: str | os.PathLike, cube, wavelengths=None,
     if not np.issubdtype(a.dtype, np.number) or np.iscomplexobj(a):
         raise InvalidInputError(f"an ENVI cube must hold real numbers, got {a.dtype}")
     wl = None if wavelengths is None else np.asarray(wavelengths, dtype=np.float64).ravel()
-    if wl is not None and wl.size and np.isnan(wl).all():
+    if wl is not None and wavelengths_unknown(wl):
         wl = None  # unknown (a cube completed without wavelengths): no wavelength line
     if axes == "auto":
         if wl is None or a.shape[0] == wl.size:

@@ -41,6 +41,7 @@ import numpy as np
 from .._atomic import atomic_path, publish
 from ..errors import DataNotFoundError, FormatError, HyperLFError, InvalidInputError
 from ..lightfield import LightField
+from ..spectral import wavelengths_unknown
 
 __all__ = [
     "write_lightfield_h5",
@@ -390,7 +391,7 @@ def _check_cube_args(shape, wavelengths):
         raise InvalidInputError(
             f"{wl.size} wavelengths given for a cube with {shape[2]} bands"
         )
-    if np.isnan(wl).all():  # unknown: a capture ingested without its filters' wavelengths
+    if wavelengths_unknown(wl):  # a capture ingested without its filters' wavelengths
         return shape, wl
     if not np.all(np.isfinite(wl)) or np.any(wl <= 0):
         raise InvalidInputError("cube wavelengths must be positive finite numbers (nm), or all "
@@ -618,7 +619,7 @@ class CubeFile:
         ref = self.metadata.get("reference")
         if isinstance(ref, list) and len(ref) == 2:
             lines.append(f"reference   : view ({ref[0]}, {ref[1]})")
-        if wl.size and np.isnan(wl).all():
+        if wavelengths_unknown(wl):
             lines.append("bands       : wavelengths unknown: band k is camera k in raster order")
         elif wl.size:
             lines.append(f"bands       : {wl.size}, {np.nanmin(wl):g}..{np.nanmax(wl):g} nm")
