@@ -221,6 +221,15 @@ def test_complete_a_capture_without_wavelengths(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "ingest --wavelengths" in err, err
     assert not (tmp_path / "r").exists()
+    # refocus needs weights over the cameras; with them it works
+    assert main(["refocus", str(out / "cube.h5"), "--disparity", "0", "-o",
+                 str(tmp_path / "f")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--profile weights:FILE" in err, err
+    (tmp_path / "w.csv").write_text(",".join(["1"] * 9))
+    assert main(["-q", "refocus", str(out / "cube.h5"), "--disparity", "0", "--profile",
+                 f"weights:{tmp_path / 'w.csv'}", "-o", str(tmp_path / "f")]) == 0
+    assert (tmp_path / "f" / "refocus_d+0.00.png").is_file()
     # spectrum gives each camera's value at the pixel, by band index
     assert main(["-q", "spectrum", str(out / "cube.h5"), "--at", "3,4", "--view", "0,2",
                  "-o", str(tmp_path / "s.png")]) == 0

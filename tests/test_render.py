@@ -252,6 +252,22 @@ def test_refocus_excludes_outside_samples_instead_of_zero_filling():
     assert cnt.max() == 1
 
 
+def test_refocus_a_cube_without_wavelengths_by_weights(planes):
+    """A cube whose wavelengths are unknown (all NaN) refocuses by band weights and all bands
+    exactly as with wavelengths; a camera or a single band, which need them, are refused."""
+    cube, wl = planes.gt_cube, planes.cube_wavelengths
+    unknown = np.full(wl.size, np.nan)
+    w = np.linspace(0.0, 1.0, wl.size)
+    for profile in (w, None):
+        for d in (0.0, 1.5):
+            np.testing.assert_array_equal(
+                render.refocus(cube, planes.offsets, d, profile, wavelengths=unknown),
+                render.refocus(cube, planes.offsets, d, profile, wavelengths=wl))
+    for profile in ("CIE 1931", float(wl[3])):
+        with pytest.raises(InvalidInputError, match="unknown"):
+            render.refocus(cube, planes.offsets, 0.0, profile, wavelengths=unknown)
+
+
 def test_refocus_camera_is_linear_and_views_are_white_balanced(planes):
     cube, wl, off = planes.gt_cube, planes.cube_wavelengths, planes.offsets
     bands = render.refocus(cube, off, 0.75, None, wavelengths=wl)

@@ -1072,7 +1072,8 @@ def _cmd_render(args, dest) -> list[Path]:
 
 def _cmd_refocus(args, dest) -> list[Path]:
     """Shift-and-add over the views at a disparity for a spectral profile: a camera (RGB), one
-    band, or a weight vector.
+    band, or a weight vector. A cube completed without wavelengths is refocused with
+    --profile weights:FILE, one weight per camera in raster order.
 
     examples:
       hyperlf refocus cube.h5 --disparity 1.2 -o out
@@ -1083,8 +1084,15 @@ def _cmd_refocus(args, dest) -> list[Path]:
     from .formats import write_image
     from .lightfield import check_disparity_reach
 
+    from .spectral import wavelengths_unknown
+
     profile = _profile_arg(args.profile)
     cf, offsets, reference = _open_cube(args.cube)
+    if wavelengths_unknown(cf.wavelengths) and not isinstance(profile, np.ndarray):
+        cf.close()
+        raise InvalidInputError(f"{args.cube}: the cube's wavelengths are unknown (its capture "
+                                "was ingested without --wavelengths); refocus it with "
+                                "--profile weights:FILE, one weight per camera in raster order")
     out = dest
     with cf:
         focus = args.sweep[:2] if args.sweep is not None else [args.disparity]

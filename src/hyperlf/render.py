@@ -250,8 +250,8 @@ def _make_source(obj, wavelengths=None, offsets=None, mask=None, reference=None)
     if mask is False:
         mask = None
     shape = tuple(int(s) for s in data.shape)
-    if kind == "cube":
-        wl = spectral.as_wavelengths(wl)
+    if kind == "cube":  # unknown wavelengths (all NaN) allow the profiles that need none
+        wl = wl.ravel() if spectral.wavelengths_unknown(wl) else spectral.as_wavelengths(wl)
         if wl.size != shape[2]:
             raise InvalidInputError(
                 f"the cube has {shape[2]} bands but {wl.size} wavelengths were given")
@@ -444,6 +444,7 @@ def _camera_plan(camera, wl_bands: np.ndarray, white_balance: bool, illuminant, 
                  view_wl: np.ndarray | None = None) -> _Plan:
     if output not in _OUTPUTS:
         raise InvalidInputError(f"output must be 'camera' or 'srgb', got {output!r}")
+    wl_bands = spectral.as_wavelengths(wl_bands, "the cube's wavelengths")  # known ones
     S, Wraw, xyz = _camera_stage(camera, wl_bands, white_balance, illuminant, white)
     post = None
     if output == "camera":
@@ -482,6 +483,7 @@ def _camera_plan(camera, wl_bands: np.ndarray, white_balance: bool, illuminant, 
 
 
 def _band_index(wl_bands: np.ndarray, lam: float) -> int:
+    wl_bands = spectral.as_wavelengths(wl_bands, "the cube's wavelengths")  # known ones
     if not np.isfinite(lam):
         raise InvalidInputError(f"a band profile needs a finite wavelength in nm, got {lam}")
     b = int(np.argmin(np.abs(wl_bands - lam)))
@@ -1028,6 +1030,8 @@ def refocus(views_or_cube, offsets=None, disparity=0.0, profile="CIE 1931", wave
         for views, or None (all bands)
     wavelengths : array_like
         ``(B,)`` for a cube, ``(R, C)`` for views (from a CubeFile / LightField when omitted).
+        A cube's may be all NaN (unknown, :func:`hyperlf.spectral.wavelengths_unknown`): then
+        only weights and None (all bands) work.
     output : {"camera", "srgb"}
     exposure, exposure_percentile, white_balance, illuminant, white, ccm, ccm_source :
         As in :func:`emulate_camera`.
