@@ -125,7 +125,7 @@ from typing import Any
 
 import numpy as np
 
-from ._progress import progress_bar
+from ._progress import grid_views, progress_bar
 from .errors import InvalidInputError
 from .warp import bilinear_taps, forward_warp_disparity, gather_taps
 
@@ -707,61 +707,60 @@ def _propagate(lf, store, disparities, occlusion_tol, max_iter, progress=False) 
     for it in range(int(max_iter)):
         passes += 1
         changed = 0
-        for r in range(R):
-            for c in range(C):
-                v = (r, c)
-                cube_v, mask_v = store.get(v)
-                missing = ~mask_v
-                if not missing.any():
+        for r, c in grid_views(R, C, f"propagation, pass {it + 1}", enabled=progress):
+            v = (r, c)
+            cube_v, mask_v = store.get(v)
+            missing = ~mask_v
+            if not missing.any():
+                continue
+            dv = np.asarray(disparities[v], dtype=np.float64)
+            nbrs = [(r + dr, c + dc) for dr, dc in ((0, 1), (0, -1), (1, 0), (-1, 0))
+                    if 0 <= r + dr < R and 0 <= c + dc < C]
+            # The footprint of each neighbour and its occlusion check depend on the view
+            # pair only, not on the band: compute them once per view and pass.
+            todo = np.flatnonzero(missing.any(axis=0).ravel() & np.isfinite(dv).ravel())
+            if todo.size == 0:
+                continue
+            ty, tx = np.divmod(todo, W)
+            dt = dv.ravel()[todo]
+            geom = []
+            for w in nbrs:
+                ox, oy = _offset(lf, w, v)
+                inside, idx, wts = bilinear_taps(tx - dt * ox, ty - dt * oy, (H, W))
+                if occlusion_tol is not None:
+                    inside = inside & _footprint_ok(
+                        np.asarray(disparities[w], np.float64).ravel(), idx, wts, d=dt,
+                        scale=max(np.hypot(ox, oy), 1.0), tol=float(occlusion_tol))
+                geom.append((w, inside, idx, wts))
+            pos = np.full(H * W, -1, dtype=np.intp)
+            pos[todo] = np.arange(todo.size)
+            for b in np.nonzero(missing.reshape(missing.shape[0], -1).any(axis=1))[0]:
+                pix = np.flatnonzero(missing[b].ravel() & (pos >= 0))
+                if pix.size == 0:
                     continue
-                dv = np.asarray(disparities[v], dtype=np.float64)
-                nbrs = [(r + dr, c + dc) for dr, dc in ((0, 1), (0, -1), (1, 0), (-1, 0))
-                        if 0 <= r + dr < R and 0 <= c + dc < C]
-                # The footprint of each neighbour and its occlusion check depend on the view
-                # pair only, not on the band: compute them once per view and pass.
-                todo = np.flatnonzero(missing.any(axis=0).ravel() & np.isfinite(dv).ravel())
-                if todo.size == 0:
-                    continue
-                ty, tx = np.divmod(todo, W)
-                dt = dv.ravel()[todo]
-                geom = []
-                for w in nbrs:
-                    ox, oy = _offset(lf, w, v)
-                    inside, idx, wts = bilinear_taps(tx - dt * ox, ty - dt * oy, (H, W))
-                    if occlusion_tol is not None:
-                        inside = inside & _footprint_ok(
-                            np.asarray(disparities[w], np.float64).ravel(), idx, wts, d=dt,
-                            scale=max(np.hypot(ox, oy), 1.0), tol=float(occlusion_tol))
-                    geom.append((w, inside, idx, wts))
-                pos = np.full(H * W, -1, dtype=np.intp)
-                pos[todo] = np.arange(todo.size)
-                for b in np.nonzero(missing.reshape(missing.shape[0], -1).any(axis=1))[0]:
-                    pix = np.flatnonzero(missing[b].ravel() & (pos >= 0))
-                    if pix.size == 0:
+                sel = pos[pix]
+                acc = np.zeros(pix.size)
+                n = np.zeros(pix.size)
+                for w, inside, idx_all, wts_all in geom:
+                    img_w, m_w = store.get_band(w, b)
+                    if not m_w.any():
                         continue
-                    sel = pos[pix]
-                    acc = np.zeros(pix.size)
-                    n = np.zeros(pix.size)
-                    for w, inside, idx_all, wts_all in geom:
-                        img_w, m_w = store.get_band(w, b)
-                        if not m_w.any():
-                            continue
-                        idx = tuple(i[sel] for i in idx_all)
-                        wts = tuple(x[sel] for x in wts_all)
-                        ok = inside[sel] & _footprint_ok(m_w.ravel(), idx, wts)
-                        if not ok.any():
-                            continue
-                        val = gather_taps(img_w.ravel(), idx, wts)
-                        acc[ok] += val[ok]
-                        n[ok] += 1
-                    got = n > 0
-                    if got.any():
-                        img = cube_v[b].copy()
-                        m = mask_v[b].copy()
-                        img.ravel()[pix[got]] = (acc[got] / n[got]).astype(np.float32)
-                        m.ravel()[pix[got]] = True
-                        store.put_band(v, b, img, m)
-                        changed += int(got.sum())
+                    idx = tuple(i[sel] for i in idx_all)
+                    wts = tuple(x[sel] for x in wts_all)
+                    ok = inside[sel] & _footprint_ok(m_w.ravel(), idx, wts)
+                    if not ok.any():
+                        continue
+                    val = gather_taps(img_w.ravel(), idx, wts)
+                    acc[ok] += val[ok]
+                    n[ok] += 1
+                got = n > 0
+                if got.any():
+                    img = cube_v[b].copy()
+                    m = mask_v[b].copy()
+                    img.ravel()[pix[got]] = (acc[got] / n[got]).astype(np.float32)
+                    m.ravel()[pix[got]] = True
+                    store.put_band(v, b, img, m)
+                    changed += int(got.sum())
         total += changed
         if changed == 0:
             break
@@ -1020,25 +1019,24 @@ def _view_disparities(lf, disparity, *, metric, optimizer, band, guidance, windo
     timings["stereo"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     out = np.empty_like(init)
-    for r in range(R):
-        for c in range(C):
-            has = np.isfinite(init[r, c])
-            if has.all():
-                out[r, c] = init[r, c]
-                continue
-            # two data terms in the holes: background fill and stereo (c1 z1 + c2 z2 form)
-            c1 = np.where(has, init_confidence, np.where(np.isfinite(bg[r, c]),
-                                                         fill_confidence, 0.0))
-            z1 = np.where(has, init[r, c], bg[r, c])
-            okm = np.isfinite(merged[r, c]) & ~has
-            c2 = np.where(okm, stereo_confidence * conf[r, c], 0.0)
-            z2 = np.where(okm, merged[r, c], 0.0)
-            cw = c1 + c2
-            with np.errstate(invalid="ignore", divide="ignore"):
-                z = np.where(cw > 0, (c1 * np.nan_to_num(z1) + c2 * z2) / np.maximum(cw, 1e-12),
-                             np.nan)
-            ref = refine_disparity(lf.views[r, c], z, cw, lam=wls_lambda, edge_sigma=edge_sigma)
-            out[r, c] = np.where(has, init[r, c], ref) if keep_initial else ref
+    for r, c in grid_views(R, C, "refinement (WLS)", enabled=progress):
+        has = np.isfinite(init[r, c])
+        if has.all():
+            out[r, c] = init[r, c]
+            continue
+        # two data terms in the holes: background fill and stereo (c1 z1 + c2 z2 form)
+        c1 = np.where(has, init_confidence, np.where(np.isfinite(bg[r, c]),
+                                                     fill_confidence, 0.0))
+        z1 = np.where(has, init[r, c], bg[r, c])
+        okm = np.isfinite(merged[r, c]) & ~has
+        c2 = np.where(okm, stereo_confidence * conf[r, c], 0.0)
+        z2 = np.where(okm, merged[r, c], 0.0)
+        cw = c1 + c2
+        with np.errstate(invalid="ignore", divide="ignore"):
+            z = np.where(cw > 0, (c1 * np.nan_to_num(z1) + c2 * z2) / np.maximum(cw, 1e-12),
+                         np.nan)
+        ref = refine_disparity(lf.views[r, c], z, cw, lam=wls_lambda, edge_sigma=edge_sigma)
+        out[r, c] = np.where(has, init[r, c], ref) if keep_initial else ref
     timings["refinement"] = time.perf_counter() - t0
     return init, out
 
@@ -1236,7 +1234,8 @@ def _register_all(lf, disp, wl, bidx, out_path, occlusion_tol, max_iter, fill, c
                   "positions": np.asarray(lf.positions).tolist(),
                   "reference": list(lf.reference)}
             with CubeWriter(out_path, shape, wl, compression=compression, metadata=md) as wr:
-                for v in views:
+                for v in progress_bar(views, "inference and output", total=len(views),
+                                      enabled=progress, unit="view"):
                     cv, mv = store.get(v)
                     filled, iv = finish(v, cv, mv)
                     wr.write_view(v[0], v[1], filled, mv.all(axis=0))
