@@ -1083,7 +1083,6 @@ def _cmd_refocus(args, dest) -> list[Path]:
     from . import render
     from .formats import write_image
     from .lightfield import check_disparity_reach
-
     from .spectral import wavelengths_unknown
 
     profile = _profile_arg(args.profile)
@@ -1127,6 +1126,7 @@ def _cmd_spectrum(args, dest) -> list[Path]:
     """
     from . import render
     from ._atomic import atomic_write_text
+    from .spectral import wavelengths_unknown
 
     cf, offsets, reference = _open_cube(args.cube)
     view = args.view if args.view is not None else reference
@@ -1141,8 +1141,6 @@ def _cmd_spectrum(args, dest) -> list[Path]:
         wl = np.asarray(cf.wavelengths)
         png = render.save_spectrum_figure(dest[0], cf, None, points=[(x, y)], view=view,
                                           labels=[f"view {view}, x={x:g}, y={y:g}"])
-    from .spectral import wavelengths_unknown
-
     column, keys = (("band", range(wl.size)) if wavelengths_unknown(wl)
                     else ("wavelength_nm", wl))
     csv = atomic_write_text(dest[1], f"{column},value\n" + "".join(
