@@ -293,7 +293,12 @@ def test_the_lab_capture_without_wavelengths_is_completed(tmp_path, capsys):
     capsys.readouterr()
     assert main(["complete", str(tmp_path / "cap"), "--downscale", "8",
                  "-o", str(tmp_path / "cube")]) == 0
-    assert "no wavelengths" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "no wavelengths" in err
+    # every long stage shows progress (the bars are left behind in the captured stream)
+    for stage in ("pairwise stereo", "refinement (WLS)", "registration", "propagation, pass 1",
+                  "inference and output"):
+        assert stage in err, stage
     assert (tmp_path / "cube" / "reference_bands.png").is_file()
     assert not (tmp_path / "cube" / "reference_srgb.png").exists()
     lf = downscale(load_lightfield(tmp_path / "cap"), 8)
