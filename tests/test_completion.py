@@ -248,6 +248,34 @@ def test_background_fill_and_wls():
     assert np.abs(out[:, :3] - 1).max() < 0.2 and np.abs(out[:, 5:] - 3).max() < 0.2
 
 
+def test_wls_iterations_match_the_direct_solve(rng, monkeypatch):
+    """Stage 3's WLS: the conjugate gradients give the direct solve's map (to 1e-5 px) where
+    the background fill gives every hole a confidence, without the direct solve; when they do
+    not converge in time, the direct solve gives the answer."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    H, W = 40, 56
+    img = np.cumsum(rng.random((H, W)), axis=1)  # edges of every strength
+    z = np.where(rng.random((H, W)) < 0.7, rng.random((H, W)) * 8, np.nan)
+    z[10:30, 20:45] = np.nan  # a wide hole, given the fill's value and confidence
+    c = np.where(np.isfinite(z), 1.0, 0.5)
+    z = np.where(np.isfinite(z), z, 4.0)
+    direct = spla.spsolve
+    monkeypatch.setattr(cp, "_solve_spd", lambda A, b: direct(sp.csc_matrix(A), b))
+    want = cp.refine_disparity(img, z, c, lam=1.0)
+    monkeypatch.undo()
+    used = []
+    monkeypatch.setattr(spla, "spsolve", lambda *a, **k: used.append(1) or direct(*a, **k))
+    np.testing.assert_allclose(cp.refine_disparity(img, z, c, lam=1.0), want, atol=1e-5)
+    assert not used
+    A = sp.random(60, 60, density=0.1, random_state=3)
+    A = A @ A.T + sp.identity(60) * 1e-3  # symmetric positive definite, ill-conditioned
+    b = rng.random(60)
+    x = cp._solve_spd(A, b, maxiter=3)
+    assert used and np.allclose(A @ x, b, atol=1e-8)
+
+
 def test_bad_inputs(planes_lf):
     with pytest.raises(InvalidInputError):
         cp.complete(planes_lf, np.zeros((3, 3), np.float32))

@@ -51,8 +51,9 @@ Stages
    procedural scenes, BENCHMARKS.md), so stereo only nudges it; ``optimizer=None`` skips the
    stereo (used for the 512 x 512 benchmark).
    The stereo of stage 2 is guided by the background-filled map (not the raw warped map), so
-   hole pixels are also band-limited around the background hypothesis.  Solved exactly by a
-   sparse direct solve (``scipy.sparse.linalg.spsolve``, 5-point system).  With
+   hole pixels are also band-limited around the background hypothesis.  The 5-point system
+   is solved by preconditioned conjugate gradients to a relative residual of 1e-10 (a sparse
+   direct solve when they do not converge, :func:`_solve_spd`).  With
    ``keep_initial=True`` (default) the warped initial disparity is kept unchanged where it
    exists and the WLS result is used only in its holes (the initial values come from the
    reference disparity, the best estimate available; smoothing them would only blur edges).
@@ -103,9 +104,10 @@ view was written), the scratch file is deleted.  The per-entry registration mask
 ``/band_mask`` and the inference mask ``/inferred_mask`` (bool, ``(R, C, B, H, W)``,
 :func:`read_band_mask`) are written view by view into the same atomic file.  The writer's own
 ``/mask`` (``(R, C, H, W)``) is True where *all* bands of a pixel are registered.  A 5 x 6 x 30
-cube at 1200 x 900 thus never sits in memory.  The peak is one view's stage 3 (the sparse
-factors of its WLS system) or one pair's stage 2 (its float32 cost volumes; the costs compute
-their float64 scores a few labels at a time), whichever is larger; BENCHMARKS.md measures it.
+cube at 1200 x 900 thus never sits in memory.  The peak is one pair's stage 2 (its float32
+cost volumes; the costs compute their float64 scores a few labels at a time), or a view's
+stage 3 when its WLS falls back to the direct solve (sparse factors); BENCHMARKS.md measures
+it.
 The in-memory path (``out_path=None``) runs the very same code on numpy arrays, so both give
 identical results.
 
@@ -521,8 +523,8 @@ def refine_disparity(image, z, c, lam: float = 1.0, edge_sigma: float = 0.1,
                      min_weight: float = 1e-3) -> np.ndarray:
     """Confidence-weighted edge-aware WLS (module docstring, stage 3); fills every hole.
 
-    Solved with ``scipy.sparse.linalg.spsolve`` (SuperLU, minimum-degree ordering of the
-    symmetric system).
+    Solved by :func:`_solve_spd` (preconditioned conjugate gradients, a direct solve when
+    they do not converge).
 
     Parameters
     ----------
@@ -577,11 +579,46 @@ def refine_disparity(image, z, c, lam: float = 1.0, edge_sigma: float = 0.1,
     cols = np.concatenate([idx[:, 1:].ravel(), idx[:, :-1].ravel(),
                            idx[1:, :].ravel(), idx[:-1, :].ravel(), idx.ravel()])
     vals = np.concatenate([-wx.ravel(), -wx.ravel(), -wy.ravel(), -wy.ravel(), diag.ravel()])
-    A = sp.csc_matrix((vals, (rows, cols)), shape=(N, N))
-    # the system is symmetric: a minimum-degree ordering of A + A^T fills the factors far
-    # less than the default column ordering (about 2/3 of its memory, half its time)
-    d = spla.spsolve(A, rhs.ravel(), permc_spec="MMD_AT_PLUS_A")
-    return np.asarray(d, dtype=np.float32).reshape(H, W)
+    A = sp.csr_matrix((vals, (rows, cols)), shape=(N, N))
+    return np.asarray(_solve_spd(A, rhs.ravel()), dtype=np.float32).reshape(H, W)
+
+
+def _solve_spd(A, b, *, rtol: float = 1e-10, maxiter: int = 1000) -> np.ndarray:
+    """Solve a sparse symmetric positive definite system ``A x = b`` (stage 3's WLS).
+
+    Conjugate gradients with a Jacobi preconditioner, started from ``b / diag(A)``: where
+    every pixel has some confidence (the background fill gives the holes one) the system is
+    well conditioned and a few dozen iterations reach ``rtol``, in the memory of a few
+    vectors.  When they do not converge within ``maxiter`` (confidence near 0 over wide
+    regions), the sparse direct solve (SuperLU; a minimum-degree ordering of ``A + A^T``
+    fills its factors least) gives the exact answer.
+
+    Parameters
+    ----------
+    A : scipy.sparse matrix, shape (N, N)
+        Symmetric positive definite.
+    b : ndarray, shape (N,)
+    rtol : float
+        Relative residual ``|b - A x| / |b|`` at which the iterations stop.
+    maxiter : int
+        Iterations before the direct solve takes over.
+
+    Returns
+    -------
+    ndarray of float64, shape (N,)
+    """
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    A = sp.csr_matrix(A)
+    b = np.asarray(b, dtype=np.float64)
+    diag = A.diagonal()
+    if np.all(diag > 0):
+        x, info = spla.cg(A, b, x0=b / diag, rtol=rtol, atol=0.0, maxiter=int(maxiter),
+                          M=sp.diags(1.0 / diag))
+        if info == 0:
+            return x
+    return spla.spsolve(A.tocsc(), b, permc_spec="MMD_AT_PLUS_A")
 
 
 # ----------------------------------------------------------------------------- stage 4
