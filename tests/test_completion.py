@@ -235,6 +235,24 @@ def test_fill_missing_spectral():
         cp.fill_missing(cube, mask, unknown)
 
 
+def test_fill_missing_by_row_blocks_is_the_whole_fill(rng, monkeypatch):
+    """The spectral fill runs a few rows at a time (memory); blocks of one row and of three
+    give the very bits of one block, and every pixel is its own 1-D interpolation."""
+    wl = np.sort(rng.uniform(400, 700, 7))
+    cube = rng.random((7, 10, 6)).astype(np.float32)
+    mask = rng.random((7, 10, 6)) < 0.5
+    mask[:, 0, 0] = False  # a pixel with no valid band: 0
+    whole = cp.fill_missing(cube, mask, wl)
+    for rows in (1, 3):
+        monkeypatch.setattr(cp, "FILL_BLOCK_ENTRIES", 7 * 6 * rows)
+        np.testing.assert_array_equal(cp.fill_missing(cube, mask, wl), whole)
+    np.testing.assert_array_equal(whole[:, 0, 0], 0.0)
+    for y, x in ((3, 2), (7, 5)):
+        ok = mask[:, y, x]
+        want = np.interp(wl, wl[ok], cube[ok, y, x]) if ok.any() else np.zeros(7)
+        np.testing.assert_allclose(whole[:, y, x], want, rtol=1e-6)
+
+
 def test_background_fill_and_wls():
     d = np.full((5, 9), 1.0, dtype=np.float32)
     d[:, 5:] = 3.0

@@ -836,6 +836,22 @@ def fill_missing(cube: np.ndarray, mask: np.ndarray, wavelengths, mode: str = "s
     out = np.where(m, cube, 0.0).astype(np.float32)
     if m.all():
         return out
+    step = max(1, FILL_BLOCK_ENTRIES // max(B * cube.shape[2], 1))
+    for y in range(0, cube.shape[1], step):  # pixels are independent: a few rows at a time
+        rows = slice(y, y + step)
+        out[:, rows] = _interpolate_bands(out[:, rows], m[:, rows], wl)
+    return out
+
+
+#: ``(B, rows, W)`` entries that :func:`fill_missing` interpolates at a time: its int64 and
+#: float64 temporaries stay a few tens of MB whatever the view's size.
+FILL_BLOCK_ENTRIES = 2**21
+
+
+def _interpolate_bands(out: np.ndarray, m: np.ndarray, wl: np.ndarray) -> np.ndarray:
+    """The spectral fill of one block ``(B, h, W)``: invalid entries linearly interpolated
+    over wavelength between the nearest valid bands (module docstring, stage 5)."""
+    B = out.shape[0]
     bi = np.arange(B)[:, None, None]
     lo = np.maximum.accumulate(np.where(m, bi, -1), axis=0)
     hi = np.minimum.accumulate(np.where(m, bi, B)[::-1], axis=0)[::-1]
