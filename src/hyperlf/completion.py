@@ -548,7 +548,6 @@ def refine_disparity(image, z, c, lam: float = 1.0, edge_sigma: float = 0.1,
        upsampling and completion for RGB-D cameras", IEEE Trans. Image Processing, 2014.
     """
     import scipy.sparse as sp
-    import scipy.sparse.linalg as spla
 
     g = np.asarray(image, dtype=np.float64)
     H, W = g.shape
