@@ -158,6 +158,8 @@ def _open_read(path: str | os.PathLike, expected: str):
         ) from None
     try:
         fmt = _text_attr(p, f, "format")
+        if {fmt, expected} == {LF_FORMAT, CUBE_FORMAT}:  # hyperlf's other kind of file
+            raise FormatError(_other_kind(p, fmt))
         if fmt != expected:
             raise FormatError(
                 f"{p} is an HDF5 file but not a {expected} file (format attribute {str(fmt)[:40]!r}); "
@@ -170,6 +172,15 @@ def _open_read(path: str | os.PathLike, expected: str):
         raise _corrupt(p, exc) from None
     finally:
         f.close()
+
+
+def _other_kind(p: Path, fmt: str) -> str:
+    """The one-line message for a cube file where a light field is expected, or the reverse."""
+    if fmt == CUBE_FORMAT:
+        return (f"{p} is a cube file (hyperlf complete's output), not a light field: give the "
+                f"capture it was completed from ('hyperlf info {p}' describes the cube)")
+    return (f"{p} is a light field file, not a cube: complete it first "
+            f"('hyperlf complete {p} -o OUT', then use OUT/cube.h5)")
 
 
 def _corrupt(p: Path, exc: Exception) -> FormatError:
