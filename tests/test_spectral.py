@@ -387,3 +387,15 @@ def test_missing_data_errors(monkeypatch):
         sp.load_camspec()
     wl, refl = sp.reflectance_library("auto")
     assert refl.shape[0] == 24
+
+
+def test_wavelengths_unknown_only_for_all_nan():
+    """All NaN is 'unknown'; a mix, numbers, empty input and non-numbers are not (the last
+    are for as_wavelengths to refuse in one line)."""
+    from hyperlf.spectral import as_wavelengths, wavelengths_unknown
+
+    assert wavelengths_unknown([np.nan] * 3) and wavelengths_unknown(np.nan)
+    for wl in ([500.0, np.nan], [500.0], [], ["a", "b"], None, {"x": 1}):
+        assert not wavelengths_unknown(wl)
+    with pytest.raises(InvalidInputError, match="numbers in nm"):
+        as_wavelengths(["a", "b"])

@@ -107,7 +107,12 @@ def wavelengths_unknown(wavelengths) -> bool:
     >>> wavelengths_unknown([np.nan, np.nan]), wavelengths_unknown([550.0, np.nan])
     (True, False)
     """
-    wl = np.asarray(wavelengths, dtype=np.float64)
+    if wavelengths is None:  # not given, which is not the same as given as unknown
+        return False
+    try:
+        wl = np.asarray(wavelengths, dtype=np.float64)
+    except (TypeError, ValueError):  # not numbers: as_wavelengths says what is wrong
+        return False
     return bool(wl.size) and bool(np.isnan(wl).all())
 
 
