@@ -304,6 +304,21 @@ def test_a_run_killed_between_two_renames_gets_its_old_set_back(tmp_path):
     assert temporaries(tmp_path) == []
 
 
+def test_an_interrupt_while_the_lock_is_made_leaves_no_trace(tmp_path, monkeypatch):
+    made = outputs._try_lock
+
+    def lock_then_interrupt(path, *, create):  # the signal lands between lock and staging folder
+        f = made(path, create=create)
+        os.kill(os.getpid(), signal.SIGINT)
+        return f
+
+    monkeypatch.setattr(outputs, "_try_lock", lock_then_interrupt)
+    out = tmp_path / "new" / "out"
+    with pytest.raises(KeyboardInterrupt):
+        write_set(out, {"x.txt": "1"})
+    assert os.listdir(tmp_path) == []  # no lock, no staging folder, no parent it made
+
+
 # ----------------------------------------------------------------------------- signals
 def test_signals_are_held_back_while_a_set_moves():
     with pytest.raises(KeyboardInterrupt):

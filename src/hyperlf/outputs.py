@@ -498,7 +498,7 @@ class _ResultSet:
         self.inplace = inplace and self._needs_inplace(self.targets[0])
         self.home = self.targets[0] if self.inplace else self.parent
         self.created: list[Path] = []
-        self.lock = None
+        self.lock = self.stem = None
 
     @staticmethod
     def _needs_inplace(target: Path) -> bool:
@@ -516,22 +516,29 @@ class _ResultSet:
             check_replaceable(t, overwrite=self.overwrite)
 
     def open(self) -> Path:
-        """Create the staging folder (and missing parents); return it."""
+        """Create the staging folder (and missing parents); return it.
+
+        The lock and the staging folder come to be with signals held back, so that an interrupt
+        finds either neither or both recorded here, and :meth:`abort` removes what there is."""
         self.check()
-        missing = [p for p in (self.home, *self.home.parents) if not p.exists()]
-        self.home.mkdir(parents=True, exist_ok=True)
-        self.created = missing  # deepest first, as rmdir needs
+        self.created = [p for p in (self.home, *self.home.parents) if not p.exists()]
+        self.home.mkdir(parents=True, exist_ok=True)  # self.created: deepest first, for rmdir
         clean_stale(self.home)
+        with deferred_signals():
+            self._lock_and_stage()
+        return self.stage
+
+    def _lock_and_stage(self) -> None:
         for _ in range(100):
-            self.stem = f"{_PREFIX}{os.getpid()}-{secrets.token_hex(4)}"
-            self.lock = _try_lock(self.home / f"{self.stem}.lock", create=True)
+            stem = f"{_PREFIX}{os.getpid()}-{secrets.token_hex(4)}"
+            self.lock = _try_lock(self.home / f"{stem}.lock", create=True)
             if self.lock is not None:
                 break
         else:  # pragma: no cover - 100 collisions
             raise InvalidInputError(f"cannot create a staging folder in {self.home}")
+        self.stem = stem
         self.stage = self.home / f"{self.stem}.new"
         self.stage.mkdir()
-        return self.stage
 
     def commit(self) -> None:
         """Move the staged outputs into place (signals held back meanwhile)."""
@@ -566,6 +573,8 @@ class _ResultSet:
     def close(self) -> None:
         """Remove this run's temporaries; a previous set still set aside (a move that failed
         half-way) is put back first."""
+        if self.stem is None:  # interrupted before it had any
+            return
         _recover_run(self.home, self.stem)
         if self.lock is not None:
             (self.home / f"{self.stem}.lock").unlink(missing_ok=True)
@@ -581,8 +590,8 @@ def _as_targets(targets) -> list[Path]:
 
 @contextlib.contextmanager
 def _staged(rs: _ResultSet) -> Iterator[Path]:
-    stage = rs.open()
     try:
+        stage = rs.open()  # an interrupt delivered as it ends is cleaned up too
         yield stage
         rs.commit()
     except BaseException:
