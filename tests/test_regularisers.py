@@ -85,6 +85,10 @@ def test_wta_and_data_term(rng):
     assert d.shape == c.shape and d.min() == 0.0
     np.testing.assert_allclose(d.min(axis=0), 0.0)
     np.testing.assert_array_equal(R.wta(d), gt)
+    own = c.copy()
+    assert R.data_term(own, overwrite=True) is own  # in place, the same numbers
+    np.testing.assert_array_equal(own, d)
+    np.testing.assert_array_equal(R.data_term(c.astype(np.float64), overwrite=True), d)
 
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf])
@@ -532,6 +536,9 @@ def test_right_cost_from_left_shifts_and_fills(rng):
     # sub-pixel labels interpolate linearly
     cr_half = R.right_cost_from_left(c[:2], labels=np.array([0.0, 0.5]))
     np.testing.assert_allclose(cr_half[1, :, :-1], 0.5 * (c[1, :, :-1] + c[1, :, 1:]), rtol=1e-6)
+    # a right pixel no label reaches gets the worst cost of the whole volume
+    far = R.right_cost_from_left(c[:2], labels=np.array([W, W + 1.5]))
+    assert (far == c[:2].max()).all()
 
 
 def test_right_map_from_same_volume_passes_lr_check():

@@ -394,10 +394,10 @@ def _add_guided_term(D: np.ndarray, kmin: int, base: float, init: np.ndarray, gu
 
 def _side_disparity(vol, scale, kmin, base, init, img, labels, opt, guidance, band):
     """Sub-pixel disparity and confidence of one side of a guided pair: the data term of
-    ``vol`` over ``scale`` plus the guidance, optimised (one volume-sized temporary)."""
+    ``vol`` over ``scale`` plus the guidance, optimised. ``vol`` is overwritten by the term."""
     from . import regularisers as _reg
 
-    D = _reg.data_term(vol)
+    D = _reg.data_term(vol, overwrite=True)
     D /= np.float32(scale)
     _add_guided_term(D, kmin, base, init, guidance, band, outside=10.0)
     return _optimise(D, opt, img, labels)
@@ -501,8 +501,9 @@ def pairwise_disparities(lf, initial: np.ndarray, metric: str = "rsncc", optimiz
         s = _volume_std(cl)
         side = dict(kmin=kmin, base=base, labels=labels, opt=opt, guidance=guidance, band=band)
         dL, cL = _side_disparity(cl, s, init=ia, img=L_img, **side)
+        del cl  # each side's volume goes as soon as it is used
         dR, cR = _side_disparity(cr, s, init=ib, img=R_img, **side)
-        del cl, cr
+        del cr
         okL = _reg.left_right_check(dL, dR, tol=1.0)
         okR = _reg.left_right_check(dR[:, ::-1], dL[:, ::-1], tol=1.0)[:, ::-1]
         back = (lambda x: x) if kind == "h" else (lambda x: x.T)

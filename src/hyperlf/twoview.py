@@ -428,7 +428,8 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
     labels = np.arange(dmin, dmin + Lc, dtype=np.float64)
     s = _data_scale(cl, dmin)
     t0 = time.perf_counter()
-    DL = _reg.data_term(cl) / np.float32(s)
+    DL = _reg.data_term(cl)
+    DL /= np.float32(s)  # in place: one volume-sized temporary fewer
     fl, disp_l, vol_l = _optimise(DL, opt, guide_left, labels, subpixel, progress)
     conf = _reg.confidence(vol_l, fl)
     disp_r = None
@@ -442,7 +443,8 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
         cr = np.asarray(cost_right, dtype=np.float32)
         if cr.shape != cl.shape:
             raise InvalidInputError(f"cost_right shape {cr.shape} != cost_left shape {cl.shape}")
-        DR = _reg.data_term(cr) / np.float32(s)
+        DR = _reg.data_term(cr)
+        DR /= np.float32(s)
         fr, _, _ = _optimise(DR, opt, guide_right, labels, False, progress)
         disp_r = labels[fr].astype(np.float32)
         valid = _reg.left_right_check(labels[fl], disp_r, tol=1.0)

@@ -27,7 +27,7 @@ from ._checks import check_cost
 __all__ = ["data_term", "wta", "fill_invalid"]
 
 
-def data_term(cost) -> np.ndarray:
+def data_term(cost, *, overwrite: bool = False) -> np.ndarray:
     """Subtract each pixel's minimum cost.
 
     The paper's data term ``|C(f(p)) - C(f*(p))|``; it shifts the MRF energy by a constant and
@@ -37,6 +37,9 @@ def data_term(cost) -> np.ndarray:
     ----------
     cost : array_like, shape (L, H, W)
         Finite cost volume (module docstring, with an example).
+    overwrite : bool
+        Subtract in place when ``cost`` is already a float32 array, saving a volume-sized
+        copy; ``cost`` then holds the result.
 
     Returns
     -------
@@ -44,6 +47,9 @@ def data_term(cost) -> np.ndarray:
         ``cost - min_l cost[l]``.
     """
     c = check_cost(cost)
+    if overwrite:
+        c -= c.min(axis=0, keepdims=True)
+        return c
     return c - c.min(axis=0, keepdims=True)
 
 

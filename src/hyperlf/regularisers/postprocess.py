@@ -198,10 +198,21 @@ def right_cost_from_left(cost_left, labels=None) -> np.ndarray:
         else:
             x0, x1, t, valid[l] = coordinate_taps(xs + d, W)
             out[l] = (c[l][:, x0] * (1 - t) + c[l][:, x1] * t).astype(np.float32)
-    vmask = np.broadcast_to(valid[:, None, :], c.shape)
-    worst = np.where(vmask, out, -np.inf).max(axis=0)
+    return _fill_outside(out, valid, c)
+
+
+def _fill_outside(out, valid, c):
+    """Give ``out``'s entries outside ``valid`` (L, W) their right pixel's worst valid cost,
+    label by label in place (no volume-sized temporary)."""
+    worst = np.full(out.shape[1:], -np.inf, dtype=out.dtype)
+    for l in range(out.shape[0]):
+        cols = valid[l]
+        worst[:, cols] = np.maximum(worst[:, cols], out[l][:, cols])
     worst = np.where(np.isfinite(worst), worst, c.max())
-    return np.where(vmask, out, worst[None]).astype(np.float32)
+    for l in range(out.shape[0]):
+        cols = ~valid[l]
+        out[l][:, cols] = worst[:, cols]
+    return out
 
 
 # ----------------------------------------------------------------------------------------------

@@ -43,8 +43,8 @@ def _neighbour_diff(g: np.ndarray, dy: int, dx: int) -> np.ndarray:
 
 def _sgm_p2_maps(H, W, directions, p1, p2, guide, guide_scale):
     """Per direction, the (H, W) map of the effective P2 at each pixel (for the step into it)."""
-    if guide is None:
-        return [np.full((H, W), p2, dtype=np.float64) for _ in directions]
+    if guide is None:  # one read-only map shared by every direction
+        return [np.full((H, W), p2, dtype=np.float64)] * len(directions)
     g = check_guide(guide, H, W)
     diffs = [_neighbour_diff(g, dy, dx) for dy, dx in directions]
     if guide_scale is None:
@@ -225,6 +225,7 @@ def sgm(cost, p1: float, p2: float, paths: int = 8, guide=None, impl: str = "aut
             kernel(C, acc, sy, sx, dy, dx, p1, np.ascontiguousarray(p2map), mode)
         else:
             _sgm_numpy_direction(C, acc, dy, dx, p1, p2map, mode)
+    del C  # one volume fewer while the result is laid out label-first
     return np.ascontiguousarray(acc.transpose(2, 0, 1))
 
 
