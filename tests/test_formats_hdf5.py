@@ -172,3 +172,79 @@ def test_read_errors(tmp_path, rng):
         f.attrs["reference"] = [7, 7]
     with pytest.raises(FormatError, match="outside"):
         read_lightfield_h5(tmp_path / "lf2.h5")
+
+
+# ----------------------------------------------------------------------------- parallel chunks
+def _chunks(ds, lead=()):
+    """The stored bytes of every image chunk below the indices ``lead``."""
+    keys = np.ndindex(*ds.shape[len(lead):-2])
+    return [ds.id.read_direct_chunk(tuple(lead) + tuple(k) + (0, 0)) for k in keys]
+
+
+@pytest.mark.parametrize("threads", ["1", "3"])
+@pytest.mark.parametrize("dtype,shuffle", [("<f4", True), ("<f4", False), (">f4", True),
+                                           ("bool", True), ("uint8", True), ("<u2", True)])
+def test_parallel_chunks_are_the_bytes_hdf5_writes(tmp_path, rng, monkeypatch, threads, dtype,
+                                                   shuffle):
+    """The chunks write_images compresses itself are byte for byte what libhdf5's shuffle and
+    deflate filters store, so any HDF5 reader reads them."""
+    from hyperlf.formats._h5chunks import write_images
+
+    monkeypatch.setenv("HYPERLF_H5_THREADS", threads)
+    data = (rng.random((2, 5, 17, 23)) * (3 if dtype == "bool" else 300)).astype(dtype)
+    data[0, 1] = 0  # a run that compresses well next to noise
+    opts = dict(chunks=(1, 1, 1, 17, 23), compression="gzip", compression_opts=4, shuffle=shuffle)
+    with h5py.File(tmp_path / "f.h5", "w") as f:
+        ours = f.create_dataset("ours", shape=(3,) + data.shape, dtype=dtype, **opts)
+        theirs = f.create_dataset("theirs", shape=(3,) + data.shape, dtype=dtype, **opts)
+        write_images(ours, (1,), data)
+        theirs[1] = data
+        assert _chunks(ours, (1,)) == _chunks(theirs, (1,))
+        np.testing.assert_array_equal(ours[()], theirs[()])
+        np.testing.assert_array_equal(ours[1], data)
+
+
+def test_other_layouts_are_written_plainly(tmp_path, rng):
+    from hyperlf.formats._h5chunks import write_images
+
+    data = rng.random((4, 6, 8)).astype(np.float32)
+    with h5py.File(tmp_path / "f.h5", "w") as f:
+        for name, opts in [("lzf", dict(chunks=(1, 1, 6, 8), compression="lzf")),
+                           ("plain", {}), ("halves", dict(chunks=(1, 1, 3, 8), compression="gzip")),
+                           ("checksum", dict(chunks=(1, 1, 6, 8), compression="gzip",
+                                             fletcher32=True))]:
+            ds = f.create_dataset(name, shape=(2,) + data.shape, dtype=np.float32, **opts)
+            write_images(ds, (1,), data)
+            np.testing.assert_array_equal(ds[1], data)
+        with pytest.raises((TypeError, ValueError)):  # h5py's own check of a wrong shape
+            write_images(f["plain"], (1,), data[:2])
+
+
+@pytest.mark.parametrize("value,expected", [("2", 2), ("16", 16), ("0", None), ("-1", None),
+                                            ("x", None), ("", None), (" 3 ", 3)])
+def test_compress_threads_setting(monkeypatch, value, expected):
+    from hyperlf.formats._h5chunks import compress_threads
+
+    monkeypatch.setenv("HYPERLF_H5_THREADS", value)
+    assert compress_threads() == (expected or len(os.sched_getaffinity(0)))
+
+
+def test_lightfield_and_cube_files_keep_their_bytes(tmp_path, rng, monkeypatch):
+    """The writers' files hold the same chunks whether compressed in one thread or many."""
+    lf = LightField(views=rng.random((2, 3, 9, 11)).astype(np.float32),
+                    positions=np.stack(np.meshgrid(np.arange(3.0), np.arange(2.0))[::-1], -1),
+                    wavelengths=raster_wavelengths(2, 3), reference=(0, 1),
+                    valid=rng.random((2, 3, 9, 11)) > 0.2,
+                    gt_cube=rng.random((2, 3, 6, 9, 11)).astype(np.float32),
+                    cube_wavelengths=np.linspace(420, 670, 6))
+    files = {}
+    for threads in ("1", "4"):
+        monkeypatch.setenv("HYPERLF_H5_THREADS", threads)
+        files[threads] = write_lightfield_h5(tmp_path / f"lf{threads}.h5", lf)
+    with h5py.File(files["1"]) as a, h5py.File(files["4"]) as b:
+        for name in ("views", "gt_cube", "valid"):
+            assert _chunks(a[name]) == _chunks(b[name])
+    back = read_lightfield_h5(files["4"])
+    np.testing.assert_array_equal(back.views, lf.views)
+    np.testing.assert_array_equal(back.gt_cube, lf.gt_cube)
+    np.testing.assert_array_equal(back.valid, lf.valid)

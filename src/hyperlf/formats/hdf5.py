@@ -42,6 +42,7 @@ from .._atomic import atomic_path, publish
 from ..errors import DataNotFoundError, FormatError, HyperLFError, InvalidInputError
 from ..lightfield import LightField
 from ..spectral import wavelengths_unknown
+from ._h5chunks import write_images
 
 __all__ = [
     "write_lightfield_h5",
@@ -308,23 +309,30 @@ def write_lightfield_h5(path: str | os.PathLike, lf: LightField,
             f.attrs["reference"] = np.asarray(lf.reference, dtype=np.int64)
             if lf.disparity_range is not None:
                 f.attrs["disparity_range"] = np.asarray(lf.disparity_range, dtype=np.float64)
-            f.create_dataset("views", data=lf.views, chunks=(1, 1) + lf.views.shape[2:], **comp)
+            _images(f, "views", lf.views, chunks=(1, 1) + lf.views.shape[2:], **comp)
             f.create_dataset("positions", data=lf.positions)
             if lf.wavelengths is not None:
                 f.create_dataset("wavelengths", data=lf.wavelengths)
             if lf.gt_disparity is not None:
                 g = lf.gt_disparity
                 chunks = g.shape if g.ndim == 2 else (1, 1) + g.shape[2:]
-                f.create_dataset("gt_disparity", data=g, chunks=chunks, **comp)
+                _images(f, "gt_disparity", g, chunks=chunks, **comp)
             if lf.gt_cube is not None:
                 cube = lf.gt_cube
-                f.create_dataset("gt_cube", data=cube, chunks=(1, 1, 1) + cube.shape[3:], **comp)
+                _images(f, "gt_cube", cube, chunks=(1, 1, 1) + cube.shape[3:], **comp)
             if lf.cube_wavelengths is not None:
                 f.create_dataset("cube_wavelengths", data=lf.cube_wavelengths)
             if lf.valid is not None:
-                f.create_dataset("valid", data=lf.valid.astype(np.uint8),
-                                 chunks=(1, 1) + lf.valid.shape[2:], **comp)
+                _images(f, "valid", lf.valid.astype(np.uint8), chunks=(1, 1) + lf.valid.shape[2:],
+                        **comp)
     return Path(path)
+
+
+def _images(f, name: str, data, **options) -> None:
+    """Create ``/name`` for an image-chunked array and write it (chunks compressed in
+    parallel, :func:`hyperlf.formats._h5chunks.write_images`)."""
+    a = np.asarray(data)
+    write_images(f.create_dataset(name, shape=a.shape, dtype=a.dtype, **options), (), a)
 
 
 @contextlib.contextmanager
@@ -480,7 +488,7 @@ class CubeWriter:
             raise InvalidInputError(f"view ({r}, {c}) cube must have shape {(B, H, W)}, got {a.shape}")
         if not np.all(np.isfinite(a)):
             raise InvalidInputError(f"view ({r}, {c}) cube contains NaN or inf")
-        self._file["cube"][r, c] = a
+        write_images(self._file["cube"], (r, c), a)
         if mask_rc is not None:
             m = np.asarray(mask_rc, dtype=bool)
             if m.shape != (H, W):
@@ -488,7 +496,7 @@ class CubeWriter:
             if "mask" not in self._file:
                 self._file.create_dataset("mask", shape=(R, C, H, W), dtype=bool,
                                           chunks=(1, 1, H, W), fillvalue=True, **self._comp)
-            self._file["mask"][r, c] = m
+            write_images(self._file["mask"], (r, c), m)
         self._written[r, c] = True
 
     def write_view_extra(self, name: str, r: int, c: int, data) -> None:
@@ -514,7 +522,7 @@ class CubeWriter:
         if ds.shape[2:] != a.shape:
             raise InvalidInputError(f"/{name} of view ({r}, {c}) must have shape {ds.shape[2:]}, "
                                     f"got {a.shape}")
-        ds[r, c] = a
+        write_images(ds, (r, c), a)
 
     def _discard(self) -> None:
         if self._file is not None:
