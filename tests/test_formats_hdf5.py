@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import zlib
 
 import h5py
 import numpy as np
@@ -13,6 +14,8 @@ from hyperlf import LightField, raster_wavelengths
 from hyperlf.errors import DataNotFoundError, FormatError, InvalidInputError
 from hyperlf.formats import (CubeWriter, open_cube_h5, read_cube_h5, read_lightfield_h5,
                              write_cube_h5, write_lightfield_h5)
+from hyperlf.formats._h5chunks import compress_threads, read_images, write_images
+from hyperlf.formats.hdf5 import ChunkedImages
 
 
 def full_lf(rng, R=2, C=3, H=8, W=9, B=4):
@@ -181,15 +184,14 @@ def _chunks(ds, lead=()):
     return [ds.id.read_direct_chunk(tuple(lead) + tuple(k) + (0, 0)) for k in keys]
 
 
-@pytest.mark.parametrize("threads", ["1", "3"])
+@pytest.mark.parametrize("threads", ["1", "3"])  # 1: libhdf5's filters, the reference
 @pytest.mark.parametrize("dtype,shuffle", [("<f4", True), ("<f4", False), (">f4", True),
-                                           ("bool", True), ("uint8", True), ("<u2", True)])
+                                           ("bool", True), ("uint8", True), ("<u2", True),
+                                           ("<f8", True), ("<c16", True)])
 def test_parallel_chunks_are_the_bytes_hdf5_writes(tmp_path, rng, monkeypatch, threads, dtype,
                                                    shuffle):
     """The chunks write_images compresses itself are byte for byte what libhdf5's shuffle and
     deflate filters store, so any HDF5 reader reads them."""
-    from hyperlf.formats._h5chunks import write_images
-
     monkeypatch.setenv("HYPERLF_H5_THREADS", threads)
     data = (rng.random((2, 5, 17, 23)) * (3 if dtype == "bool" else 300)).astype(dtype)
     data[0, 1] = 0  # a run that compresses well next to noise
@@ -202,11 +204,41 @@ def test_parallel_chunks_are_the_bytes_hdf5_writes(tmp_path, rng, monkeypatch, t
         assert _chunks(ours, (1,)) == _chunks(theirs, (1,))
         np.testing.assert_array_equal(ours[()], theirs[()])
         np.testing.assert_array_equal(ours[1], data)
+        back = read_images(theirs, (1,))  # and read back in parallel
+        assert back.dtype == theirs.dtype and back.shape == data.shape
+        np.testing.assert_array_equal(back, data)
+        np.testing.assert_array_equal(read_images(theirs, (1, 1, 3)), data[1, 3])
+        np.testing.assert_array_equal(read_images(theirs), theirs[()])  # chunks never written
+        np.testing.assert_array_equal(read_images(theirs, (-2,)), data)  # h5py's own path
+
+
+@pytest.mark.parametrize("stored", [b"not zlib", zlib.compress(b"short"),
+                                    zlib.compress(bytes(10_000))])
+def test_a_chunk_that_does_not_inflate_to_its_image_is_refused(tmp_path, monkeypatch, stored):
+    """A corrupt chunk, one too short and one too long (a decompression bomb is cut off at the
+    image's size) are errors, and the readers call the file corrupt."""
+    monkeypatch.setenv("HYPERLF_H5_THREADS", "2")
+    path = tmp_path / "c.h5"
+    write_cube_h5(path, np.ones((1, 2, 3, 8, 9), np.float32), np.array([450.0, 550, 650]))
+    with h5py.File(path, "r+") as f:
+        f["cube"].id.write_direct_chunk((0, 1, 2, 0, 0), stored)
+        with pytest.raises((ValueError, zlib.error)):
+            read_images(f["cube"], (0, 1))
+    with pytest.raises(FormatError, match="corrupt"):
+        read_cube_h5(path)
+    with open_cube_h5(path) as cf:
+        assert cf.view(0, 0).tolist() == np.ones((3, 8, 9)).tolist()
+        with pytest.raises(FormatError, match="corrupt"):
+            cf.view(0, 1)
+        views = ChunkedImages(cf.cube)  # what cube_scores reads
+        assert views.shape == (1, 2, 3, 8, 9) and len(views) == 1 and views.ndim == 5
+        np.testing.assert_array_equal(views[0, 0], np.ones((3, 8, 9)))
+        np.testing.assert_array_equal(views[0, 1, 1], np.ones((8, 9)))
+        with pytest.raises(FormatError, match=r"'/?cube'.*corrupt"):
+            views[0, 1]
 
 
 def test_other_layouts_are_written_plainly(tmp_path, rng):
-    from hyperlf.formats._h5chunks import write_images
-
     data = rng.random((4, 6, 8)).astype(np.float32)
     with h5py.File(tmp_path / "f.h5", "w") as f:
         for name, opts in [("lzf", dict(chunks=(1, 1, 6, 8), compression="lzf")),
@@ -216,6 +248,7 @@ def test_other_layouts_are_written_plainly(tmp_path, rng):
             ds = f.create_dataset(name, shape=(2,) + data.shape, dtype=np.float32, **opts)
             write_images(ds, (1,), data)
             np.testing.assert_array_equal(ds[1], data)
+            np.testing.assert_array_equal(read_images(ds, (1,)), data)
         with pytest.raises((TypeError, ValueError)):  # h5py's own check of a wrong shape
             write_images(f["plain"], (1,), data[:2])
 
@@ -223,8 +256,6 @@ def test_other_layouts_are_written_plainly(tmp_path, rng):
 @pytest.mark.parametrize("value,expected", [("2", 2), ("16", 16), ("0", None), ("-1", None),
                                             ("x", None), ("", None), (" 3 ", 3)])
 def test_compress_threads_setting(monkeypatch, value, expected):
-    from hyperlf.formats._h5chunks import compress_threads
-
     monkeypatch.setenv("HYPERLF_H5_THREADS", value)
     assert compress_threads() == (expected or len(os.sched_getaffinity(0)))
 

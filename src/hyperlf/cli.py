@@ -928,6 +928,7 @@ def _cmd_complete(args, dest) -> list[Path]:
     from . import metrics, render, visualise
     from .completion import complete, read_band_mask
     from .formats import load_lightfield, open_gt_cube, read_pfm, write_image
+    from .formats.hdf5 import ChunkedImages
     from .lightfield import BlockMeanCube
 
     lf = load_lightfield(args.input, cube=False)  # a ground-truth cube is scored from disk
@@ -973,7 +974,8 @@ def _cmd_complete(args, dest) -> list[Path]:
             written.append(write_image(out / "reference_srgb.png", srgb, bit_depth=8))
         with open_gt_cube(args.input) as gt_cube:  # its bands follow the wavelengths
             if gt_cube is not None and lf.wavelengths is not None:
-                psnr, sam = metrics.cube_scores(cf.cube, gt_cube if n == 1
+                gt_cube = ChunkedImages(gt_cube)  # views inflated on every core
+                psnr, sam = metrics.cube_scores(ChunkedImages(cf.cube), gt_cube if n == 1
                                                 else BlockMeanCube(gt_cube, n))
                 _say(args, f"against the ground-truth cube: PSNR {psnr:.2f} dB, SAM "
                            f"{sam:.2f} deg")

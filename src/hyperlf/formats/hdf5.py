@@ -42,7 +42,7 @@ from .._atomic import atomic_path, publish
 from ..errors import DataNotFoundError, FormatError, HyperLFError, InvalidInputError
 from ..lightfield import LightField
 from ..spectral import wavelengths_unknown
-from ._h5chunks import write_images
+from ._h5chunks import read_images, write_images
 
 __all__ = [
     "write_lightfield_h5",
@@ -52,6 +52,7 @@ __all__ = [
     "read_cube_h5",
     "CubeWriter",
     "CubeFile",
+    "ChunkedImages",
     "open_cube_h5",
 ]
 
@@ -231,10 +232,46 @@ def _check_fits(p: Path, name: str, nbytes: int) -> None:
 def _read(p: Path, name: str, ds, sel=()):
     """``ds[sel]`` as numbers, any decoding failure (e.g. a corrupt chunk) a FormatError."""
     try:
-        return ds[sel]
+        return read_images(ds, sel)
     except Exception as exc:  # h5py raises OSError/KeyError/TypeError on corrupt data
         raise FormatError(f"{p}: cannot read dataset '/{name}' ({type(exc).__name__}); "
                           "the file is corrupt") from None
+
+
+class ChunkedImages:
+    """An h5py dataset indexed like an array, whole images read in parallel.
+
+    For code that takes any array-like and reads it a view at a time
+    (:func:`hyperlf.metrics.cube_scores`, :class:`hyperlf.lightfield.BlockMeanCube`): an index
+    of leading integers is read by :func:`hyperlf.formats._h5chunks.read_images`, any other by
+    h5py, and a chunk that cannot be decoded is a :class:`~hyperlf.errors.FormatError`.
+
+    Parameters
+    ----------
+    ds : h5py.Dataset
+    """
+
+    def __init__(self, ds):
+        self.ds = ds
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return self.ds.shape
+
+    @property
+    def dtype(self) -> np.dtype:
+        return self.ds.dtype
+
+    @property
+    def ndim(self) -> int:
+        return self.ds.ndim
+
+    def __len__(self) -> int:
+        return len(self.ds)
+
+    def __getitem__(self, index) -> np.ndarray:
+        sel = index if isinstance(index, tuple) else (index,)
+        return _read(Path(self.ds.file.filename), self.ds.name.lstrip("/"), self.ds, sel)
 
 
 def _get(p: Path, f, name: str, required: bool = True):
