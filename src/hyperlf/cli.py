@@ -927,8 +927,7 @@ def _cmd_complete(args, dest) -> list[Path]:
     """
     from . import metrics, render, visualise
     from .completion import complete, read_band_mask
-    from .formats import load_lightfield, open_gt_cube, read_pfm, write_image
-    from .formats.hdf5 import ChunkedImages
+    from .formats import ChunkedImages, load_lightfield, open_gt_cube, read_pfm, write_image
     from .lightfield import BlockMeanCube
 
     lf = load_lightfield(args.input, cube=False)  # a ground-truth cube is scored from disk

@@ -27,8 +27,8 @@ from .capture import (CAPTURE_FORMAT, MANIFEST, gt_cube_file, is_capture, read_c
                       write_capture)
 from .envi import ENVI_DTYPES, read_envi, write_envi
 from .hci import HCI_LICENCE, is_hci_scene, read_hci_scene
-from .hdf5 import (CubeFile, CubeWriter, open_cube_h5, open_lightfield_gt_cube, read_cube_h5,
-                   read_lightfield_h5, write_cube_h5, write_lightfield_h5)
+from .hdf5 import (ChunkedImages, CubeFile, CubeWriter, open_cube_h5, open_lightfield_gt_cube,
+                   read_cube_h5, read_lightfield_h5, write_cube_h5, write_lightfield_h5)
 from .images import REC709_WEIGHTS, read_image, read_images_same_size, to_grey, write_image
 from .middlebury import MASK_NAMES, StereoPair, read_middlebury, write_middlebury
 from .pfm import read_pfm, write_pfm

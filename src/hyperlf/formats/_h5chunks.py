@@ -28,7 +28,7 @@ from typing import Callable, Iterable
 import numpy as np
 
 #: Tasks in flight per thread: bounds the (compressed) images waiting in memory.
-_DEPTH_PER_THREAD = 4
+_DEPTH_PER_THREAD = 2
 
 #: Little-endian unsigned integers as wide as an element: the byte planes are put back by
 #: shifts, several times faster than a strided byte copy.
@@ -108,7 +108,8 @@ def write_images(ds, index: tuple[int, ...], data) -> None:
         return
     a = np.ascontiguousarray(a, dtype=ds.dtype)
     keys = list(product(*(range(n) for n in a.shape[:-2])))
-    tasks = (functools.partial(lambda k: (k, _filtered(a[k], level, bool(ds.shuffle))), key)
+    shuffle = bool(ds.shuffle)  # read here: h5py calls from the pool would wait on its lock
+    tasks = (functools.partial(lambda k: (k, _filtered(a[k], level, shuffle)), key)
              for key in keys)
     _pipeline(tasks, len(keys),
               then=lambda kb: ds.id.write_direct_chunk(lead + kb[0] + (0, 0), kb[1]))
