@@ -32,7 +32,7 @@ def run(*argv):
     return main(["-q", "calibrate", *map(str, argv)])
 
 
-def test_calibrate_writes_file_and_pictures_with_measured_positions(shots, tmp_path):
+def test_calibrate_writes_file_and_pictures_with_measured_positions(shots, tmp_path, capsys):
     folder, rig = shots
     out = tmp_path / "cal"
     assert run(folder, "--pattern", "Cam-{index}.png", "--grid", "2,3", "--board",
@@ -46,6 +46,14 @@ def test_calibrate_writes_file_and_pictures_with_measured_positions(shots, tmp_p
         got = np.asarray(cam.position) - np.asarray(cal.cameras[cal.reference].position)
         want = np.asarray(true[k]) - np.asarray(true[cal.reference])
         assert np.linalg.norm(got - want) < 0.1, (k, got, want)
+    capsys.readouterr()
+    assert main(["info", str(out)]) == 0  # the folder described: mode, cameras, errors
+    text = capsys.readouterr().out
+    errs = list(cal.reprojection_errors().values())
+    assert ("calibration.toml: calibration (plane mode), 2 x 3 cameras, "
+            f"{cal.output_size[0]} x {cal.output_size[1]} px frame") in text
+    assert f"reprojection error median {np.median(errs):.3f} px (largest {max(errs):.3f})" in text
+    assert "pictures    : corners.png, registered.png, residuals.png" in text
 
 
 @pytest.mark.parametrize("case,code,words", [

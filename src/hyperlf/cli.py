@@ -432,20 +432,18 @@ def _add_spectral_options(p: argparse.ArgumentParser) -> None:
 def _cmd_info(args, dest) -> None:
     """Print grid, bands, image size, reference view, baselines and disparity range of a light
     field; of a cube file (complete's cube.h5), its grid, bands and how much of it was
-    registered or inferred.
+    registered or inferred; of a PFM map or PLY point cloud, its size and values; of a folder a
+    hyperlf command wrote, the command and a line on each map, point cloud and cube in it.
 
     examples:
       hyperlf info antinous-hlf
       hyperlf info cube3/cube.h5
+      hyperlf info depth3                  # a depth result: its maps and point cloud
+      hyperlf info depth3/disparity.pfm
     """
-    from .formats import load_lightfield
-    from .formats.hdf5 import CUBE_FORMAT, h5_format, open_cube_h5
+    from .formats import describe
 
-    if h5_format(args.input) == CUBE_FORMAT:
-        with open_cube_h5(args.input) as cf:
-            text = cf.describe()
-    else:
-        text = load_lightfield(args.input).describe()
+    text = describe(args.input)
     print(f"{args.input}")
     print(text)
 

@@ -49,6 +49,7 @@ __all__ = [
     "result_folder",
     "result_files",
     "manifest_files",
+    "read_manifest",
     "foreign_entries",
     "check_replaceable",
     "clean_stale",
@@ -255,6 +256,36 @@ def _write_manifest(folder: Path, command: str | None) -> None:
     atomic_write_text(folder / MANIFEST, json.dumps(doc, indent=1) + "\n")
 
 
+def read_manifest(folder: str | os.PathLike) -> dict | None:
+    """The manifest of the result set in ``folder``: ``written_by`` (str), ``command`` (str or
+    None) and ``files`` (relative POSIX paths); None when :data:`MANIFEST` is missing, a
+    symlink, unreadable or malformed.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "result"
+    >>> with result_folder(out, command="depth") as stage:
+    ...     _ = (stage / "a.txt").write_text("1")
+    >>> m = read_manifest(out)
+    >>> m["command"], m["files"]
+    ('depth', ['a.txt'])
+    """
+    man = Path(folder) / MANIFEST
+    if man.is_symlink() or not man.is_file():
+        return None
+    try:
+        doc = json.loads(man.read_text(encoding="utf-8"))
+        files = doc["files"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    if not isinstance(files, list) or not all(isinstance(f, str) for f in files):
+        return None
+    command, by = doc.get("command"), doc.get("written_by")
+    return {"written_by": by if isinstance(by, str) else "hyperlf",
+            "command": command if isinstance(command, str) else None, "files": files}
+
+
 def manifest_files(folder: str | os.PathLike) -> set[str] | None:
     """The files of the result set a folder's manifest lists, or None (no valid manifest).
 
@@ -268,16 +299,8 @@ def manifest_files(folder: str | os.PathLike) -> set[str] | None:
     set of str or None
         Relative POSIX paths; None when :data:`MANIFEST` is missing, a symlink or unreadable.
     """
-    man = Path(folder) / MANIFEST
-    if man.is_symlink() or not man.is_file():
-        return None
-    try:
-        files = json.loads(man.read_text(encoding="utf-8"))["files"]
-    except (OSError, ValueError, KeyError, TypeError):
-        return None
-    if not isinstance(files, list) or not all(isinstance(f, str) for f in files):
-        return None
-    return set(files)
+    doc = read_manifest(folder)
+    return None if doc is None else set(doc["files"])
 
 
 def foreign_entries(folder: str | os.PathLike) -> list[str]:

@@ -128,6 +128,20 @@ class Calibration:
         """RMS corner residual in px of every camera, keyed ``(row, col)``."""
         return {k: cam.reprojection_error for k, cam in self.cameras.items()}
 
+    def describe(self) -> str:
+        """One line: mode, grid, frame, focal length, baseline and the reprojection errors."""
+        errs = np.array([e for e in self.reprojection_errors().values() if e is not None],
+                        dtype=np.float64)
+        errs = errs[np.isfinite(errs)]
+        W, H = self.output_size
+        text = (f"calibration ({self.mode} mode), {self.grid[0]} x {self.grid[1]} cameras, "
+                f"{W} x {H} px frame, focal {self.focal_px:.1f} px, baseline "
+                f"{self.baseline:.4g} board units")
+        if errs.size:
+            text += (f", reprojection error median {np.median(errs):.3f} px "
+                     f"(largest {errs.max():.3f})")
+        return text
+
     def board_depth(self) -> np.ndarray | None:
         """Plane mode: the board's depth ``Z_board`` (board units) along every reference
         pixel's ray, ``(H, W)``; None in full mode."""

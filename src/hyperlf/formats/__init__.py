@@ -20,21 +20,23 @@ import contextlib
 import os
 from pathlib import Path
 
-from ..errors import DataNotFoundError, FormatError, InvalidInputError
+from ..errors import DataNotFoundError, FormatError, HyperLFError, InvalidInputError
 from ..lightfield import LightField
 from . import capture, envi, hci, hdf5, images, middlebury, pfm
 from .capture import (CAPTURE_FORMAT, MANIFEST, gt_cube_file, is_capture, read_capture,
                       write_capture)
 from .envi import ENVI_DTYPES, read_envi, write_envi
 from .hci import HCI_LICENCE, is_hci_scene, read_hci_scene
-from .hdf5 import (ChunkedImages, CubeFile, CubeWriter, open_cube_h5, open_lightfield_gt_cube,
-                   read_cube_h5, read_lightfield_h5, write_cube_h5, write_lightfield_h5)
+from .hdf5 import (CUBE_FORMAT, ChunkedImages, CubeFile, CubeWriter, h5_format, open_cube_h5,
+                   open_lightfield_gt_cube, read_cube_h5, read_lightfield_h5, write_cube_h5,
+                   write_lightfield_h5)
 from .images import REC709_WEIGHTS, read_image, read_images_same_size, to_grey, write_image
 from .middlebury import MASK_NAMES, StereoPair, read_middlebury, write_middlebury
-from .pfm import read_pfm, write_pfm
+from .pfm import describe_pfm, read_pfm, write_pfm
+from .ply import describe_ply
 
-# the package's public API: its own two functions and every format module's
-__all__ = ["load_lightfield", "save_lightfield", "open_gt_cube"] + [
+# the package's public API: its own functions and every format module's
+__all__ = ["load_lightfield", "save_lightfield", "open_gt_cube", "describe"] + [
     name for module in (pfm, images, hci, middlebury, capture, hdf5, envi)
     for name in module.__all__]
 
@@ -128,6 +130,122 @@ def load_lightfield(path: str | os.PathLike, *, cube: bool = True, **kwargs) -> 
     if p.suffix.lower() in _H5:
         return read_lightfield_h5(p, cube=cube, **kwargs)
     raise FormatError(f"cannot load {p} (suffix {p.suffix or 'none'!r}): hyperlf loads {_SUPPORTED}")
+
+
+def describe(path: str | os.PathLike) -> str:
+    """What ``path`` holds, as ``hyperlf info`` prints it.
+
+    * a light field (capture folder, HCI scene, ``.h5``) -> :meth:`LightField.describe`;
+    * a cube file (``complete``'s ``cube.h5``) -> :meth:`CubeFile.describe`;
+    * a ``.pfm`` map, a ``.ply`` point cloud or a ``calibration.toml`` -> one line
+      (:func:`describe_pfm`, :func:`describe_ply`,
+      :meth:`hyperlf.calibration.Calibration.describe`);
+    * a folder a hyperlf command wrote (its manifest, :func:`hyperlf.outputs.read_manifest`)
+      -> the command, then a line for each map, point cloud and HDF5 file in it, and the names
+      of its pictures. Symlinks in it are named, not followed.
+
+    Raises
+    ------
+    DataNotFoundError, FormatError
+        As :func:`load_lightfield`, or for an unreadable map, cloud or cube given alone.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> import numpy as np
+    >>> from hyperlf.outputs import result_folder
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "depth"
+    >>> with result_folder(out, command="depth") as stage:
+    ...     _ = write_pfm(stage / "disparity.pfm", np.full((2, 3), 1.5))
+    ...     _ = (stage / "disparity.png").write_bytes(b"")
+    >>> print(describe(out))
+    result set  : written by `hyperlf depth` (hyperlf ...), 2 files
+    disparity.pfm: PFM map, 3 x 2 px (W x H), values 1.5..1.5
+    pictures    : disparity.png
+    """
+    from ..outputs import read_manifest
+
+    p = Path(path)
+    if not p.exists():
+        raise DataNotFoundError(f"{p} does not exist; expected {_SUPPORTED}")
+    if p.is_dir() and not is_capture(p) and not is_hci_scene(p):
+        manifest = read_manifest(p)
+        if manifest is not None:
+            return _describe_result(p, manifest)
+    if p.is_file() and p.name in _BY_NAME:
+        return _BY_NAME[p.name](p)
+    if p.is_file() and p.suffix.lower() in _ONE_LINE:
+        return _ONE_LINE[p.suffix.lower()](p)
+    if p.is_file() and h5_format(p) == CUBE_FORMAT:
+        with open_cube_h5(p) as cf:
+            return cf.describe()
+    return load_lightfield(p).describe()
+
+
+def _describe_calibration(path: Path) -> str:
+    from ..calibration import read_calibration
+
+    return read_calibration(path).describe()
+
+
+#: One-line describers of the files a result set may hold, by suffix (or by whole name).
+_ONE_LINE = {".pfm": describe_pfm, ".ply": describe_ply}
+_BY_NAME = {"calibration.toml": _describe_calibration}
+_PICTURES = (".png", ".tif", ".tiff", ".jpg", ".jpeg")
+
+
+def _describe_result(p: Path, manifest: dict) -> str:
+    """A result folder: its command, a line per map, cloud and HDF5 file, its pictures."""
+    cmd = f"`hyperlf {manifest['command']}`" if manifest["command"] else "a hyperlf command"
+    files = sorted(manifest["files"])
+    lines = [f"result set  : written by {cmd} ({manifest['written_by']}), {len(files)} files"]
+    pictures, other = [], []
+    for name in files:
+        suffix = Path(name).suffix.lower()
+        if suffix in _ONE_LINE or suffix in _H5 or Path(name).name in _BY_NAME:
+            text = _one_line(p / name) if _inside(name, p) else "outside the folder (not read)"
+            lines.append(f"{name:<12}: {text}")
+        else:
+            (pictures if suffix in _PICTURES else other).append(name)
+    if pictures:
+        lines.append(f"pictures    : {', '.join(pictures)}")
+    if other:
+        lines.append(f"other files : {', '.join(other)}")
+    return "\n".join(lines)
+
+
+def _inside(name: str, folder: Path) -> bool:
+    """Whether a manifest's relative path stays in ``folder``: not absolute, no ``..``, no
+    symlinked folder on the way (a manifest is a file anyone can edit)."""
+    rel = Path(name)
+    if rel.is_absolute() or ".." in rel.parts or not rel.parts:
+        return False
+    here = folder
+    for part in rel.parts[:-1]:
+        here = here / part
+        if here.is_symlink():
+            return False
+    return True
+
+
+def _one_line(f: Path) -> str:
+    """One line on a map, cloud or HDF5 file of a result set; what is wrong with it if it
+    cannot be read (the rest of the folder is still described)."""
+    if f.is_symlink():
+        return "a symlink (not followed)"
+    if not f.is_file():
+        return "missing (removed since it was written)"
+    try:
+        if f.name in _BY_NAME:
+            return _BY_NAME[f.name](f)
+        if f.suffix.lower() in _ONE_LINE:
+            return _ONE_LINE[f.suffix.lower()](f)
+        if h5_format(f) == CUBE_FORMAT:
+            with open_cube_h5(f) as cf:
+                return "cube, " + cf.describe().splitlines()[0].split(":", 1)[1].strip()
+        return f"HDF5 {h5_format(f) or 'file'} (hyperlf info {f.name} describes it)"
+    except HyperLFError as exc:
+        return f"unreadable: {exc}"
 
 
 def save_lightfield(lf: LightField, path: str | os.PathLike, bit_depth: int = 16,

@@ -23,7 +23,7 @@ import numpy as np
 from .._atomic import atomic_path
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
 
-__all__ = ["read_pfm", "write_pfm"]
+__all__ = ["read_pfm", "write_pfm", "describe_pfm"]
 
 # header: identifier, width, height, scale, then exactly one whitespace byte before the data
 _HEADER = re.compile(
@@ -144,3 +144,26 @@ def write_pfm(path: str | os.PathLike, array, scale: float = -1.0) -> Path:
             fh.write(header)
             fh.write(body)
     return Path(path)
+
+
+def describe_pfm(path: str | os.PathLike) -> str:
+    """One line on a PFM map: its size, channels and the range of its finite values.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> p = write_pfm(pathlib.Path(tempfile.mkdtemp()) / "d.pfm",
+    ...               np.array([[1.5, np.nan], [-2.0, 4.0]]))
+    >>> describe_pfm(p)
+    'PFM map, 2 x 2 px (W x H), values -2..4, 1 of 4 values not finite'
+    """
+    a = read_pfm(path)
+    h, w = a.shape[:2]
+    kind = "PFM map" if a.ndim == 2 else "PFM colour image"
+    fin = np.isfinite(a)
+    if not fin.any():
+        return f"{kind}, {w} x {h} px (W x H), no finite value"
+    lo, hi = float(a[fin].min()), float(a[fin].max())
+    bad = int(fin.size - np.count_nonzero(fin))
+    tail = f", {bad} of {fin.size} values not finite" if bad else ""
+    return f"{kind}, {w} x {h} px (W x H), values {lo:.6g}..{hi:.6g}{tail}"

@@ -18,7 +18,7 @@ import numpy as np
 from .._atomic import atomic_path
 from ..errors import FormatError, InvalidInputError
 
-__all__ = ["write_ply", "read_ply", "read_ply_properties"]
+__all__ = ["write_ply", "read_ply", "read_ply_properties", "describe_ply"]
 
 _XYZ = [("x", "<f4"), ("y", "<f4"), ("z", "<f4")]
 _RGB = [("red", "u1"), ("green", "u1"), ("blue", "u1")]
@@ -182,3 +182,31 @@ def read_ply_properties(path: str | os.PathLike) -> dict[str, np.ndarray]:
         else:
             raise FormatError(f"{p}: PLY format {fmt!r} is not supported")
     return {n: np.asarray(rec[n]) for n in names}
+
+
+def describe_ply(path: str | os.PathLike) -> str:
+    """One line on a vertex PLY file from its header: points and properties.
+
+    Raises
+    ------
+    FormatError
+        As :func:`read_ply`.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> p = write_ply(pathlib.Path(tempfile.mkdtemp()) / "p.ply", np.zeros((3, 3)),
+    ...               np.zeros((3, 3), np.uint8))
+    >>> describe_ply(p)
+    'PLY point cloud, 3 points (x, y, z, red, green, blue)'
+    """
+    p = Path(path)
+    try:
+        with open(p, "rb") as f:
+            fmt, count, props = _header(f, p)
+    except OSError as exc:
+        raise FormatError(f"cannot read PLY file {p}: {exc.strerror or exc}") from None
+    if count is None:
+        raise FormatError(f"{p}: PLY without a vertex element")
+    names = ", ".join(n for n, _ in props)
+    return f"PLY point cloud, {count} points ({names})"
