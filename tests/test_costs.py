@@ -434,3 +434,26 @@ def test_fuse_numba_matches_numpy(rng, weights, masked):
     np.testing.assert_array_equal(fast, ref)
     if masked:
         assert (fast[:, 4, 5] == 0).all()
+
+
+def test_rho_is_the_formula_bit_for_bit():
+    """Shen et al.'s robust function, computed in place, gives the formula's very numbers
+    (float64, float32, scalars and integers), and its shape: rho(0) = -log(1 + e^-2), even,
+    falling as 2 - |x| far out."""
+    from hyperlf.costs.pair import rho
+
+    rng = np.random.default_rng(3)
+
+    def formula(x):
+        a = np.abs(x)
+        return -np.log(np.exp(-a) + np.exp(a - 2.0))
+
+    for x in ((rng.standard_normal((3, 40, 50)) * 4).astype(np.float64),
+              (rng.standard_normal((3, 40, 50)) * 4).astype(np.float32),
+              np.array([0.0, -0.0, 1e-300, 30.0, -700.0]), np.array([1, -3, 0])):
+        got = rho(x)
+        assert got.dtype == formula(x).dtype
+        np.testing.assert_array_equal(got, formula(x))
+    assert rho(0.5) == formula(0.5)
+    assert rho(0.0) == pytest.approx(-np.log1p(np.exp(-2.0)), abs=1e-15)
+    assert rho(-1.3) == rho(1.3) and rho(40.0) == pytest.approx(2.0 - 40.0)

@@ -143,7 +143,15 @@ def worst_fill(cost: np.ndarray, invalid, *, empty: str = "zero") -> np.ndarray:
 def rho(x):
     """Shen et al.'s robust function ``rho(x) = -log(exp(-|x|) + exp(|x| - 2))``."""
     a = np.abs(x)
-    return -np.log(np.exp(-a) + np.exp(a - 2.0))
+    if not (isinstance(a, np.ndarray) and a.dtype.kind == "f"):  # scalars, integers
+        return -np.log(np.exp(-a) + np.exp(a - 2.0))
+    e = np.negative(a)  # the same operations in place: two arrays instead of six
+    np.exp(e, out=e)
+    a -= 2.0
+    np.exp(a, out=a)
+    a += e
+    np.log(a, out=a)
+    return np.negative(a, out=a)
 
 
 # --------------------------------------------------------------------------------------------
