@@ -76,14 +76,13 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
         suffix=target.suffix if suffix is None else suffix,
         dir=target.parent,
     )
-    os.close(fd)
-    tmp_path = Path(tmp)
-    try:
-        yield tmp_path
-        publish(tmp_path, target)
+    try:  # from the file's first moment: an interrupt anywhere below removes it
+        os.close(fd)
+        yield Path(tmp)
+        publish(tmp, target)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
-            tmp_path.unlink()
+            os.unlink(tmp)
         raise
 
 

@@ -495,9 +495,9 @@ class CubeWriter:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.partial-", suffix=self.path.suffix,
                                    dir=self.path.parent)
-        os.close(fd)
         self._tmp = Path(tmp)
-        try:
+        try:  # from the file's first moment: an interrupt anywhere below removes it
+            os.close(fd)
             f = h5py.File(self._tmp, "w", libver=_LIBVER)
             _write_header(f, CUBE_FORMAT, self._metadata)
             R, C, B, H, W = self.shape
