@@ -242,15 +242,37 @@ def test_fill_missing_by_row_blocks_is_the_whole_fill(rng, monkeypatch):
     cube = rng.random((7, 10, 6)).astype(np.float32)
     mask = rng.random((7, 10, 6)) < 0.5
     mask[:, 0, 0] = False  # a pixel with no valid band: 0
-    whole = cp.fill_missing(cube, mask, wl)
+    whole = cp.fill_missing(cube, mask, wl, impl="numpy")
     for rows in (1, 3):
         monkeypatch.setattr(cp, "FILL_BLOCK_ENTRIES", 7 * 6 * rows)
-        np.testing.assert_array_equal(cp.fill_missing(cube, mask, wl), whole)
+        np.testing.assert_array_equal(cp.fill_missing(cube, mask, wl, impl="numpy"), whole)
     np.testing.assert_array_equal(whole[:, 0, 0], 0.0)
     for y, x in ((3, 2), (7, 5)):
         ok = mask[:, y, x]
         want = np.interp(wl, wl[ok], cube[ok, y, x]) if ok.any() else np.zeros(7)
         np.testing.assert_allclose(whole[:, y, x], want, rtol=1e-6)
+
+
+@pytest.mark.parametrize("case", ["random", "duplicate wavelengths", "one band", "none valid",
+                                  "all valid", "wide range"])
+def test_fill_missing_numba_is_the_numpy_reference_bit_for_bit(rng, case):
+    B = 1 if case == "one band" else 9
+    wl = np.sort(rng.uniform(400, 700, B))
+    if case == "duplicate wavelengths":
+        wl[3] = wl[4] = wl[5]
+    cube = rng.random((B, 13, 11)).astype(np.float32)
+    if case == "wide range":
+        cube = (cube * 10.0 ** rng.integers(-30, 30, cube.shape)).astype(np.float32)
+    mask = rng.random((B, 13, 11)) < {"none valid": 0.0, "all valid": 1.0}.get(case, 0.4)
+    mask[:, 0, 0] = False
+    mask[:, 1, 1] = [b == B // 2 for b in range(B)]  # one valid band: copied to every band
+    ref = cp.fill_missing(cube, mask, wl, impl="numpy")
+    got = cp.fill_missing(cube, mask, wl, impl="numba")
+    np.testing.assert_array_equal(got, ref)
+    assert got.dtype == np.float32 and np.array_equal(cp.fill_missing(cube, mask, wl), got)
+    np.testing.assert_array_equal(got[mask], cube[mask])
+    with pytest.raises(InvalidInputError, match="impl"):
+        cp.fill_missing(cube, mask, wl, impl="fortran")
 
 
 def test_background_fill_and_wls():

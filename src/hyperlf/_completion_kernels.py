@@ -47,3 +47,51 @@ def infer_round(cube, src, disp, guide, radius, sigma_d, sigma_g, min_weight, ou
                 if ws >= min_weight:
                     out[b, y, x] = acc / ws
                     got[b, y, x] = True
+
+
+#: ``np.nan_to_num``'s stand-in for an infinite interpolation weight (duplicate wavelengths).
+_BIG = np.finfo(np.float64).max
+
+
+@numba.njit(parallel=True, cache=True, error_model="numpy")
+def fill_bands(out, m, wl):
+    """The spectral fill of one view's ``(B, H, W)`` float32 cube ``out`` in place: each entry
+    not in ``m`` linearly interpolated over ``wl`` between the pixel's nearest valid bands, the
+    nearest valid band beyond the ends, 0 with none. The numpy reference,
+    ``completion._interpolate_bands``, computes the same operations (float32 difference,
+    float64 weight and sum, rounded to float32), so the results are equal bit for bit."""
+    B, H, W = out.shape
+    for y in numba.prange(H):
+        lo = np.empty(B, np.int64)
+        hi = np.empty(B, np.int64)
+        for x in range(W):
+            last = -1
+            for b in range(B):
+                if m[b, y, x]:
+                    last = b
+                lo[b] = last
+            last = B
+            for b in range(B - 1, -1, -1):
+                if m[b, y, x]:
+                    last = b
+                hi[b] = last
+            for b in range(B):
+                if m[b, y, x]:
+                    continue
+                l, h = lo[b], hi[b]
+                if l >= 0 and h < B:
+                    t = (wl[b] - wl[l]) / (wl[h] - wl[l])
+                    if np.isnan(t):
+                        t = 0.0
+                    elif t > _BIG:
+                        t = _BIG
+                    elif t < -_BIG:
+                        t = -_BIG
+                    d = out[h, y, x] - out[l, y, x]
+                    out[b, y, x] = np.float32(np.float64(out[l, y, x]) + t * np.float64(d))
+                elif l >= 0:
+                    out[b, y, x] = out[l, y, x]
+                elif h < B:
+                    out[b, y, x] = out[h, y, x]
+                else:
+                    out[b, y, x] = 0.0

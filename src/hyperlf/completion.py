@@ -805,7 +805,8 @@ def _propagate(lf, store, disparities, occlusion_tol, max_iter, progress=False) 
 
 
 # ----------------------------------------------------------------------------- stage 5
-def fill_missing(cube: np.ndarray, mask: np.ndarray, wavelengths, mode: str = "spectral") -> np.ndarray:
+def fill_missing(cube: np.ndarray, mask: np.ndarray, wavelengths, mode: str = "spectral", *,
+                 impl: str = "auto") -> np.ndarray:
     """Fill invalid entries of one view's ``(B, H, W)`` cube (module docstring, stage 5).
 
     ``"spectral"``: per pixel, linear interpolation over wavelength between the nearest valid
@@ -818,12 +819,17 @@ def fill_missing(cube: np.ndarray, mask: np.ndarray, wavelengths, mode: str = "s
         True = valid.
     wavelengths : array_like (B,)
     mode : {"spectral", "zero"}
+    impl : {"auto", "numpy", "numba"}
+        ``"numpy"``: the reference, a few rows at a time; ``"numba"`` / ``"auto"``: the kernel
+        (the same numbers, bit for bit).
 
     Returns
     -------
     ndarray of float32 (B, H, W)
         A new array.
     """
+    if impl not in ("auto", "numpy", "numba"):
+        raise InvalidInputError(f"impl must be 'auto', 'numpy' or 'numba', got {impl!r}")
     cube = np.asarray(cube, dtype=np.float32)
     m = np.asarray(mask, dtype=bool)
     if mode == "zero":
@@ -835,6 +841,11 @@ def fill_missing(cube: np.ndarray, mask: np.ndarray, wavelengths, mode: str = "s
     _fill_mode(mode, wl)
     out = np.where(m, cube, 0.0).astype(np.float32)
     if m.all():
+        return out
+    if impl != "numpy":
+        from . import _completion_kernels
+
+        _completion_kernels.fill_bands(out, np.ascontiguousarray(m), np.ascontiguousarray(wl))
         return out
     step = max(1, FILL_BLOCK_ENTRIES // max(B * cube.shape[2], 1))
     for y in range(0, cube.shape[1], step):  # pixels are independent: a few rows at a time
