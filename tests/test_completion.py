@@ -323,3 +323,17 @@ def test_bad_inputs(planes_lf):
         cp.complete(planes_lf, planes_lf.reference_gt_disparity, fill="nope")
     with pytest.raises(InvalidInputError):
         cp.complete("not a light field", None)
+
+
+def test_register_view_on_threads_is_the_serial_result(planes_lf, monkeypatch):
+    """The source views are warped on a thread pool, each into its own band: the same cube
+    and mask as one thread, bit for bit."""
+    lf = planes_lf
+    _, bidx = cp.band_order(lf)
+    out = {}
+    for n in ("1", "3"):
+        monkeypatch.setenv("HYPERLF_THREADS", n)
+        out[n] = cp.register_view(lf, lf.gt_disparity, (1, 2), bidx, occlusion_tol=0.5)
+    np.testing.assert_array_equal(out["1"][0], out["3"][0])
+    np.testing.assert_array_equal(out["1"][1], out["3"][1])
+    assert out["3"][1].any() and not out["3"][1].all()

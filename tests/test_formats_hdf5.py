@@ -192,7 +192,7 @@ def test_parallel_chunks_are_the_bytes_hdf5_writes(tmp_path, rng, monkeypatch, t
                                                    shuffle):
     """The chunks write_images compresses itself are byte for byte what libhdf5's shuffle and
     deflate filters store, so any HDF5 reader reads them."""
-    monkeypatch.setenv("HYPERLF_H5_THREADS", threads)
+    monkeypatch.setenv("HYPERLF_THREADS", threads)
     data = (rng.random((2, 5, 17, 23)) * (3 if dtype == "bool" else 300)).astype(dtype)
     data[0, 1] = 0  # a run that compresses well next to noise
     opts = dict(chunks=(1, 1, 1, 17, 23), compression="gzip", compression_opts=4, shuffle=shuffle)
@@ -217,7 +217,7 @@ def test_parallel_chunks_are_the_bytes_hdf5_writes(tmp_path, rng, monkeypatch, t
 def test_a_chunk_that_does_not_inflate_to_its_image_is_refused(tmp_path, monkeypatch, stored):
     """A corrupt chunk, one too short and one too long (a decompression bomb is cut off at the
     image's size) are errors, and the readers call the file corrupt."""
-    monkeypatch.setenv("HYPERLF_H5_THREADS", "2")
+    monkeypatch.setenv("HYPERLF_THREADS", "2")
     path = tmp_path / "c.h5"
     write_cube_h5(path, np.ones((1, 2, 3, 8, 9), np.float32), np.array([450.0, 550, 650]))
     with h5py.File(path, "r+") as f:
@@ -256,7 +256,7 @@ def test_other_layouts_are_written_plainly(tmp_path, rng):
 @pytest.mark.parametrize("value,expected", [("2", 2), ("16", 16), ("0", None), ("-1", None),
                                             ("x", None), ("", None), (" 3 ", 3)])
 def test_compress_threads_setting(monkeypatch, value, expected):
-    monkeypatch.setenv("HYPERLF_H5_THREADS", value)
+    monkeypatch.setenv("HYPERLF_THREADS", value)
     assert compress_threads() == (expected or len(os.sched_getaffinity(0)))
 
 
@@ -270,7 +270,7 @@ def test_lightfield_and_cube_files_keep_their_bytes(tmp_path, rng, monkeypatch):
                     cube_wavelengths=np.linspace(420, 670, 6))
     files = {}
     for threads in ("1", "4"):
-        monkeypatch.setenv("HYPERLF_H5_THREADS", threads)
+        monkeypatch.setenv("HYPERLF_THREADS", threads)
         files[threads] = write_lightfield_h5(tmp_path / f"lf{threads}.h5", lf)
     with h5py.File(files["1"]) as a, h5py.File(files["4"]) as b:
         for name in ("views", "gt_cube", "valid"):

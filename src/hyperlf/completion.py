@@ -127,6 +127,7 @@ from typing import Any
 
 import numpy as np
 
+from ._parallel import map_threads
 from ._progress import grid_views, progress_bar
 from .errors import InvalidInputError
 from .warp import bilinear_taps, forward_warp_disparity, gather_taps
@@ -653,28 +654,36 @@ def register_view(lf, disparities: np.ndarray, view, band_index: np.ndarray,
     mask = np.zeros((B, H, W), dtype=bool)
     dv = np.asarray(disparities[v], dtype=np.float64)
     yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
-    for r in range(R):
-        for c in range(C):
-            b = int(band_index[r, c])
-            if (r, c) == v:
-                mask[b] = True if lf.valid is None else lf.valid[v]
-                cube[b] = np.where(mask[b], lf.views[v], np.nan)
-                continue
-            ox, oy = _offset(lf, (r, c), v)
-            qx = xx - dv * ox
-            qy = yy - dv * oy
-            inside, idx, wts = bilinear_taps(qx, qy, (H, W))
-            ok = inside & np.isfinite(dv)
-            if occlusion_tol is not None:
-                du = np.asarray(disparities[r, c], dtype=np.float64).ravel()
-                ok &= _footprint_ok(du, idx, wts, d=dv, scale=max(np.hypot(ox, oy), 1.0),
-                                    tol=float(occlusion_tol))
-            if lf.valid is not None:
-                ok &= _footprint_ok(lf.valid[r, c].ravel(), idx, wts)
-            val = gather_taps(lf.views[r, c].ravel(), idx, wts)
-            cube[b] = np.where(ok, val, np.nan)
-            mask[b] = ok
+
+    def one(src):
+        """Warp source view ``src``'s band into ``cube`` and ``mask`` (its own band)."""
+        b = int(band_index[src])
+        if src == v:
+            mask[b] = True if lf.valid is None else lf.valid[v]
+            cube[b] = np.where(mask[b], lf.views[v], np.nan)
+            return
+        ox, oy = _offset(lf, src, v)
+        inside, idx, wts = bilinear_taps(xx - dv * ox, yy - dv * oy, (H, W))
+        ok = inside & np.isfinite(dv)
+        if occlusion_tol is not None:
+            du = np.asarray(disparities[src], dtype=np.float64).ravel()
+            ok &= _footprint_ok(du, idx, wts, d=dv, scale=max(np.hypot(ox, oy), 1.0),
+                                tol=float(occlusion_tol))
+        if lf.valid is not None:
+            ok &= _footprint_ok(lf.valid[src].ravel(), idx, wts)
+        val = gather_taps(lf.views[src].ravel(), idx, wts)
+        cube[b] = np.where(ok, val, np.nan)
+        mask[b] = ok
+
+    # each source its own band; numpy lets go of the GIL. At most REGISTER_THREADS: each
+    # holds a dozen image-sized temporaries
+    map_threads(one, [(r, c) for r in range(R) for c in range(C)], cap=REGISTER_THREADS)
     return cube, mask
+
+
+#: The most threads :func:`register_view` warps source views on (each holds about a dozen
+#: image-sized float64 temporaries; numpy's Python-side work caps the gain anyway).
+REGISTER_THREADS = 4
 
 
 class _MemStore:

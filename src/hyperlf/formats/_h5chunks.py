@@ -27,6 +27,8 @@ from typing import Callable, Iterable
 
 import numpy as np
 
+from .._parallel import threads
+
 #: Tasks in flight per thread: bounds the (compressed) images waiting in memory.
 _DEPTH_PER_THREAD = 2
 
@@ -36,15 +38,10 @@ _WORDS = {2: np.dtype("<u2"), 4: np.dtype("<u4"), 8: np.dtype("<u8")}
 
 
 def compress_threads() -> int:
-    """The threads :func:`write_images` and :func:`read_images` use: the CPUs this process may
-    use (``HYPERLF_H5_THREADS`` overrides; 1 leaves the filters to libhdf5)."""
-    env = os.environ.get("HYPERLF_H5_THREADS", "").strip()
-    if env.isdigit() and int(env) > 0:
-        return int(env)
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - not Linux
-        return max(1, os.cpu_count() or 1)
+    """The threads :func:`write_images` and :func:`read_images` use
+    (:func:`hyperlf._parallel.threads`: ``HYPERLF_THREADS`` or the CPUs; 1 leaves the filters
+    to libhdf5)."""
+    return threads()
 
 
 def _gzip_level(ds) -> int | None:

@@ -1,0 +1,60 @@
+"""hyperlf's own thread pools (`hyperlf._parallel`): the thread count and `map_threads`."""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from hyperlf._parallel import map_threads, threads
+
+CPUS = len(os.sched_getaffinity(0))
+
+
+@settings(max_examples=80, deadline=None)
+@given(value=st.one_of(st.text(max_size=6), st.integers(-5, 99).map(str)),
+       cap=st.one_of(st.none(), st.integers(1, 8)))
+def test_the_thread_count_setting(value, cap):
+    os.environ["HYPERLF_THREADS"] = value
+    try:
+        n = threads(cap)
+    finally:
+        del os.environ["HYPERLF_THREADS"]
+    s = value.strip()
+    want = int(s) if s.isdigit() and int(s) > 0 else CPUS
+    assert n == (min(want, cap) if cap else want) and n >= 1
+
+
+@pytest.mark.parametrize("n", ["1", "3"])
+def test_map_threads_keeps_order_and_uses_the_threads(monkeypatch, n):
+    monkeypatch.setenv("HYPERLF_THREADS", n)
+    seen = set()
+
+    def work(x):
+        seen.add(threading.get_ident())
+        time.sleep(0.01)
+        return x * 10
+
+    assert map_threads(work, range(12)) == [x * 10 for x in range(12)]
+    assert len(seen) == (1 if n == "1" else 3)
+    assert map_threads(work, []) == []
+
+
+def test_a_failing_task_cancels_the_rest(monkeypatch):
+    monkeypatch.setenv("HYPERLF_THREADS", "2")
+    started = []
+
+    def work(x):
+        started.append(x)
+        if x == 0:
+            raise ValueError("task 0")
+        time.sleep(0.05)
+        return x
+
+    with pytest.raises(ValueError, match="task 0"):
+        map_threads(work, range(40))
+    assert len(started) < 40  # the queued ones never ran
