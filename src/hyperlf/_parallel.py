@@ -10,13 +10,17 @@ CPUs the process may use, or ``HYPERLF_THREADS``.
 from __future__ import annotations
 
 import os
+from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 from typing import Callable, Iterable, TypeVar
 
 T = TypeVar("T")
 R = TypeVar("R")
 
-__all__ = ["threads", "map_threads"]
+__all__ = ["threads", "map_threads", "pipeline"]
+
+#: Tasks :func:`pipeline` keeps in flight per thread: bounds the results waiting in memory.
+DEPTH_PER_THREAD = 2
 
 
 def threads(cap: int | None = None) -> int:
@@ -62,3 +66,33 @@ def map_threads(fn: Callable[[T], R], items: Iterable[T], *, cap: int | None = N
         return list(pool.map(fn, items))
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def pipeline(tasks: Iterable[Callable[[], R]], n_tasks: int,
+             then: Callable[[R], None] | None = None) -> None:
+    """Run the callables ``tasks`` (made one by one in this thread, e.g. reading each input)
+    on :func:`threads` threads, a bounded number in flight (:data:`DEPTH_PER_THREAD` each),
+    and ``then(result)`` in this thread in their order (e.g. writing each output); inline
+    with one thread. ``n_tasks`` is how many ``tasks`` yields.
+
+    Examples
+    --------
+    >>> out = []
+    >>> pipeline((lambda k=k: k * k for k in range(5)), 5, then=out.append)
+    >>> out
+    [0, 1, 4, 9, 16]
+    """
+    n = min(threads(), max(n_tasks, 1))
+    then = then or (lambda result: None)
+    if n == 1:
+        for task in tasks:
+            then(task())
+        return
+    with ThreadPoolExecutor(n) as pool:
+        pending: deque = deque()
+        for task in tasks:
+            pending.append(pool.submit(task))
+            if len(pending) >= n * DEPTH_PER_THREAD:
+                then(pending.popleft().result())
+        while pending:
+            then(pending.popleft().result())

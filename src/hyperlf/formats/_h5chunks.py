@@ -18,19 +18,12 @@ from __future__ import annotations
 
 import contextlib
 import functools
-import os
 import zlib
-from collections import deque
-from concurrent.futures import ThreadPoolExecutor
 from itertools import product
-from typing import Callable, Iterable
 
 import numpy as np
 
-from .._parallel import threads
-
-#: Tasks in flight per thread: bounds the (compressed) images waiting in memory.
-_DEPTH_PER_THREAD = 2
+from .._parallel import pipeline, threads
 
 #: Little-endian unsigned integers as wide as an element: the byte planes are put back by
 #: shifts, several times faster than a strided byte copy.
@@ -53,26 +46,6 @@ def _gzip_level(ds) -> int | None:
             or tuple(chunks) != (1,) * (ds.ndim - 2) + tuple(ds.shape[-2:])):
         return None
     return int(ds.compression_opts)
-
-
-def _pipeline(tasks: Iterable[Callable], n_tasks: int,
-              then: Callable | None = None) -> None:
-    """Run ``tasks`` (made one by one in this thread) in a pool, a bounded number in flight,
-    and ``then(result)`` in this thread in their order; inline with one thread."""
-    threads = min(compress_threads(), max(n_tasks, 1))
-    then = then or (lambda result: None)
-    if threads == 1:
-        for task in tasks:
-            then(task())
-        return
-    with ThreadPoolExecutor(threads) as pool:
-        pending: deque = deque()
-        for task in tasks:
-            pending.append(pool.submit(task))
-            if len(pending) >= threads * _DEPTH_PER_THREAD:
-                then(pending.popleft().result())
-        while pending:
-            then(pending.popleft().result())
 
 
 # ----------------------------------------------------------------------------- writing
@@ -108,7 +81,7 @@ def write_images(ds, index: tuple[int, ...], data) -> None:
     shuffle = bool(ds.shuffle)  # read here: h5py calls from the pool would wait on its lock
     tasks = (functools.partial(lambda k: (k, _filtered(a[k], level, shuffle)), key)
              for key in keys)
-    _pipeline(tasks, len(keys),
+    pipeline(tasks, len(keys),
               then=lambda kb: ds.id.write_direct_chunk(lead + kb[0] + (0, 0), kb[1]))
 
 
@@ -194,7 +167,7 @@ def read_images(ds, index: tuple[int, ...] = ()) -> np.ndarray:
     tasks = (functools.partial(_unfiltered, _stored(ds, lead + key + (0, 0)), out[key], shuffle)
              for key in keys)
     with contextlib.suppress(_Plain):
-        _pipeline(tasks, len(keys))
+        pipeline(tasks, len(keys))
         return out
     return ds[index]
 
