@@ -34,7 +34,7 @@ def test_a_depth_result_is_described_map_by_map(depth_result, capsys):
     lines = capsys.readouterr().out.splitlines()
     files = read_manifest(depth_result)["files"]
     assert lines[0] == str(depth_result)
-    assert lines[1].startswith(f"result set  : written by `hyperlf depth` (hyperlf ")
+    assert lines[1].startswith("result set  : written by `hyperlf depth` (hyperlf ")
     assert lines[1].endswith(f"), {len(files)} files")
     for name in ("disparity.pfm", "confidence.pfm"):
         d = read_pfm(depth_result / name)
