@@ -1,8 +1,10 @@
-"""Numba kernel of :mod:`hyperlf.completion`: one round of the joint-bilateral inference of
-entries no view observed.
+"""Numba kernels of :mod:`hyperlf.completion`: one round of the joint-bilateral inference of
+entries no view observed (:func:`infer_round`), and the spectral fill of what is still
+missing (:func:`fill_bands`).
 
-Its numpy reference is ``completion._infer_round_numpy`` (compared in the tests).  Imported
-only inside the function that runs it, so ``import hyperlf.completion`` does not load numba.
+Their numpy references are ``completion._infer_round_numpy`` and
+``completion._interpolate_bands`` (compared in the tests).  Imported only inside the
+functions that run them, so ``import hyperlf.completion`` does not load numba.
 """
 
 from __future__ import annotations

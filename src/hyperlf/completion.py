@@ -675,8 +675,7 @@ def register_view(lf, disparities: np.ndarray, view, band_index: np.ndarray,
         cube[b] = np.where(ok, val, np.nan)
         mask[b] = ok
 
-    # each source its own band; numpy lets go of the GIL. At most REGISTER_THREADS: each
-    # holds a dozen image-sized temporaries
+    # each source writes only its own band; numpy releases the GIL
     map_threads(one, [(r, c) for r in range(R) for c in range(C)], cap=REGISTER_THREADS)
     return cube, mask
 
