@@ -150,3 +150,26 @@ def test_a_manifest_naming_files_outside_its_folder_does_not_reach_them(tmp_path
     text = describe(out)
     for name in names:
         assert f"{name:<12}: outside the folder (not read)" in text
+
+
+@pytest.mark.parametrize("kind", ["capture", "h5"])
+def test_a_light_field_is_described_without_reading_its_ground_truth_cube(tmp_path, kind):
+    """`info` on a paper-size capture used to load its 3.9 GB cube for one line: the line
+    is now made from the cube's shape and wavelengths, and the cube's data is never read
+    (a corrupt chunk does not matter)."""
+    import h5py
+
+    from hyperlf.formats import gt_cube_file, load_lightfield
+
+    path = tmp_path / ("cap" if kind == "capture" else "lf.h5")
+    assert main(["-q", "synth", "procedural", "--size", "24,32", "--grid", "2,3",
+                 "--no-pictures", "-o", str(path)]) == 0
+    want = load_lightfield(path).describe()  # the cube loaded
+    assert "ground truth: cube with" in want
+    assert describe(path) == want
+    cube_file, name = ((gt_cube_file(path), "cube") if kind == "capture" else (path, "gt_cube"))
+    with h5py.File(cube_file, "r+") as f:
+        f[name].id.write_direct_chunk((0,) * f[name].ndim, b"not a chunk")
+    with pytest.raises(FormatError):
+        load_lightfield(path)
+    assert describe(path) == want

@@ -490,8 +490,12 @@ class LightField:
         """A copy with some fields replaced (validated again)."""
         return dataclasses.replace(self, **changes)
 
-    def describe(self) -> str:
-        """Human-readable multi-line summary (used by ``hyperlf info``)."""
+    def describe(self, *, cube: tuple[int, np.ndarray | None] | None = None) -> str:
+        """Human-readable multi-line summary (used by ``hyperlf info``).
+
+        ``cube``: the band count and wavelengths of a ground-truth cube left on disk (a light
+        field loaded with ``cube=False``), described as if it were loaded.
+        """
         R, C = self.grid_shape
         H, W = self.image_shape
         lines = [
@@ -528,10 +532,12 @@ class LightField:
                     + (" (every view)" if self.gt_disparity.ndim == 4 else " (reference view)")
                 )
         if self.gt_cube is not None:
-            lines.append(
-                f"ground truth: cube with {self.gt_cube.shape[2]} bands per view "
-                f"({self.cube_wavelengths.min():g}..{self.cube_wavelengths.max():g} nm)"
-            )
+            cube = (self.gt_cube.shape[2], self.cube_wavelengths)
+        if cube is not None:
+            bands, cwl = cube
+            known = cwl is not None and np.size(cwl) and np.isfinite(cwl).all()
+            lines.append(f"ground truth: cube with {bands} bands per view"
+                         + (f" ({np.min(cwl):g}..{np.max(cwl):g} nm)" if known else ""))
         if self.valid is not None:
             lines.append(_describe_valid(self.valid))
         vmin, vmax = float(self.views.min()), float(self.views.max())

@@ -20,6 +20,8 @@ import contextlib
 import os
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import DataNotFoundError, FormatError, HyperLFError, InvalidInputError
 from ..lightfield import LightField
 from . import capture, envi, hci, hdf5, images, middlebury, pfm
@@ -179,7 +181,19 @@ def describe(path: str | os.PathLike) -> str:
     if p.is_file() and h5_format(p) == CUBE_FORMAT:
         with open_cube_h5(p) as cf:
             return cf.describe()
-    return load_lightfield(p).describe()
+    lf = load_lightfield(p, cube=False)  # a paper-size ground-truth cube is 3.9 GB
+    return lf.describe(cube=_gt_cube_bands(p))
+
+
+def _gt_cube_bands(path: Path):
+    """Band count and wavelengths of the ground-truth cube of a capture or light-field file,
+    read without its data; None when it has none."""
+    with open_gt_cube(path) as cube:
+        if cube is None:
+            return None
+        name = "wavelengths" if cube.name == "/cube" else "cube_wavelengths"  # cube file / LF
+        wl = cube.file[name][()] if name in cube.file else None
+        return int(cube.shape[2]), None if wl is None else np.asarray(wl, dtype=np.float64)
 
 
 def _describe_calibration(path: Path) -> str:
