@@ -173,3 +173,12 @@ def test_a_light_field_is_described_without_reading_its_ground_truth_cube(tmp_pa
     with pytest.raises(FormatError):
         load_lightfield(path)
     assert describe(path) == want
+    with h5py.File(cube_file, "r+") as f:  # wavelengths that are not numbers
+        name = "wavelengths" if kind == "capture" else "cube_wavelengths"
+        del f[name]
+        f[name] = "not numbers"
+    if kind == "capture":  # the cube file's reader checks them: a one-line error
+        with pytest.raises(FormatError, match="wavelengths"):
+            describe(path)
+    else:  # a light-field file's cube is described without them
+        assert "ground truth: cube with 6 bands per view\n" in describe(path) + "\n"

@@ -192,8 +192,11 @@ def _gt_cube_bands(path: Path):
         if cube is None:
             return None
         name = "wavelengths" if cube.name == "/cube" else "cube_wavelengths"  # cube file / LF
-        wl = cube.file[name][()] if name in cube.file else None
-        return int(cube.shape[2]), None if wl is None else np.asarray(wl, dtype=np.float64)
+        try:
+            wl = np.asarray(cube.file[name][()], dtype=np.float64).ravel()
+        except (KeyError, OSError, TypeError, ValueError):  # absent or unreadable: no range
+            wl = None
+        return int(cube.shape[2]), wl
 
 
 def _describe_calibration(path: Path) -> str:
