@@ -16,7 +16,10 @@ CPUS = len(os.sched_getaffinity(0))
 
 
 @settings(max_examples=80, deadline=None)
-@given(value=st.one_of(st.text(max_size=6), st.integers(-5, 99).map(str)),
+@given(value=st.one_of(st.text(st.characters(blacklist_categories=("Cs",),  # what an
+                                             blacklist_characters="\x00"),  # environment holds
+                                max_size=6),
+                       st.integers(-5, 99).map(str)),
        cap=st.one_of(st.none(), st.integers(1, 8)))
 def test_the_thread_count_setting(value, cap):
     os.environ["HYPERLF_THREADS"] = value
@@ -25,8 +28,14 @@ def test_the_thread_count_setting(value, cap):
     finally:
         del os.environ["HYPERLF_THREADS"]
     s = value.strip()
-    want = int(s) if s.isdigit() and int(s) > 0 else CPUS
+    want = int(s) if s.isascii() and s.isdigit() and int(s) > 0 else CPUS
     assert n == (min(want, cap) if cap else want) and n >= 1
+
+
+@pytest.mark.parametrize("value", ["\u00b2", "\u0663", "1\u00b2", " 0 ", "+2"])
+def test_digits_that_are_not_ascii_fall_back_to_the_cpus(monkeypatch, value):
+    monkeypatch.setenv("HYPERLF_THREADS", value)
+    assert threads() == CPUS
 
 
 @pytest.mark.parametrize("n", ["1", "3"])

@@ -36,7 +36,7 @@ def threads(cap: int | None = None) -> int:
     >>> del os.environ["HYPERLF_THREADS"]
     """
     env = os.environ.get("HYPERLF_THREADS", "").strip()
-    if env.isdigit() and int(env) > 0:
+    if env.isascii() and env.isdigit() and int(env) > 0:  # '²' is a digit int() refuses
         n = int(env)
     else:
         try:
