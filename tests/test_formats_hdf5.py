@@ -14,7 +14,8 @@ from hyperlf import LightField, raster_wavelengths
 from hyperlf.errors import DataNotFoundError, FormatError, InvalidInputError
 from hyperlf.formats import (CubeWriter, open_cube_h5, read_cube_h5, read_lightfield_h5,
                              write_cube_h5, write_lightfield_h5)
-from hyperlf.formats._h5chunks import compress_threads, read_images, write_images
+from hyperlf._parallel import threads
+from hyperlf.formats._h5chunks import read_images, write_images
 from hyperlf.formats.hdf5 import ChunkedImages
 
 
@@ -184,15 +185,15 @@ def _chunks(ds, lead=()):
     return [ds.id.read_direct_chunk(tuple(lead) + tuple(k) + (0, 0)) for k in keys]
 
 
-@pytest.mark.parametrize("threads", ["1", "3"])  # 1: libhdf5's filters, the reference
+@pytest.mark.parametrize("n_threads", ["1", "3"])  # 1: libhdf5's filters, the reference
 @pytest.mark.parametrize("dtype,shuffle", [("<f4", True), ("<f4", False), (">f4", True),
                                            ("bool", True), ("uint8", True), ("<u2", True),
                                            ("<f8", True), ("<c16", True)])
-def test_parallel_chunks_are_the_bytes_hdf5_writes(tmp_path, rng, monkeypatch, threads, dtype,
+def test_parallel_chunks_are_the_bytes_hdf5_writes(tmp_path, rng, monkeypatch, n_threads, dtype,
                                                    shuffle):
     """The chunks write_images compresses itself are byte for byte what libhdf5's shuffle and
     deflate filters store, so any HDF5 reader reads them."""
-    monkeypatch.setenv("HYPERLF_THREADS", threads)
+    monkeypatch.setenv("HYPERLF_THREADS", n_threads)
     data = (rng.random((2, 5, 17, 23)) * (3 if dtype == "bool" else 300)).astype(dtype)
     data[0, 1] = 0  # a run that compresses well next to noise
     opts = dict(chunks=(1, 1, 1, 17, 23), compression="gzip", compression_opts=4, shuffle=shuffle)
@@ -255,9 +256,9 @@ def test_other_layouts_are_written_plainly(tmp_path, rng):
 
 @pytest.mark.parametrize("value,expected", [("2", 2), ("16", 16), ("0", None), ("-1", None),
                                             ("x", None), ("", None), (" 3 ", 3)])
-def test_compress_threads_setting(monkeypatch, value, expected):
+def test_the_thread_setting_the_hdf5_pool_reads(monkeypatch, value, expected):
     monkeypatch.setenv("HYPERLF_THREADS", value)
-    assert compress_threads() == (expected or len(os.sched_getaffinity(0)))
+    assert threads() == (expected or len(os.sched_getaffinity(0)))
 
 
 def test_lightfield_and_cube_files_keep_their_bytes(tmp_path, rng, monkeypatch):
@@ -269,9 +270,9 @@ def test_lightfield_and_cube_files_keep_their_bytes(tmp_path, rng, monkeypatch):
                     gt_cube=rng.random((2, 3, 6, 9, 11)).astype(np.float32),
                     cube_wavelengths=np.linspace(420, 670, 6))
     files = {}
-    for threads in ("1", "4"):
-        monkeypatch.setenv("HYPERLF_THREADS", threads)
-        files[threads] = write_lightfield_h5(tmp_path / f"lf{threads}.h5", lf)
+    for n in ("1", "4"):
+        monkeypatch.setenv("HYPERLF_THREADS", n)
+        files[n] = write_lightfield_h5(tmp_path / f"lf{n}.h5", lf)
     with h5py.File(files["1"]) as a, h5py.File(files["4"]) as b:
         for name in ("views", "gt_cube", "valid"):
             assert _chunks(a[name]) == _chunks(b[name])

@@ -30,13 +30,6 @@ from .._parallel import pipeline, threads
 _WORDS = {2: np.dtype("<u2"), 4: np.dtype("<u4"), 8: np.dtype("<u8")}
 
 
-def compress_threads() -> int:
-    """The threads :func:`write_images` and :func:`read_images` use
-    (:func:`hyperlf._parallel.threads`: ``HYPERLF_THREADS`` or the CPUs; 1 leaves the filters
-    to libhdf5)."""
-    return threads()
-
-
 def _gzip_level(ds) -> int | None:
     """The deflate level when ``ds`` is chunked one trailing image per chunk and filtered by
     deflate alone or shuffle + deflate (the filters this module reproduces); else None."""
@@ -73,7 +66,7 @@ def write_images(ds, index: tuple[int, ...], data) -> None:
     level, lead = _gzip_level(ds), _chunk_index(ds, index)
     a = np.asarray(data)
     if (level is None or lead is None or a.shape != ds.shape[len(lead):]
-            or compress_threads() == 1):
+            or threads() == 1):
         ds[index] = a  # h5py's own checks and messages; its filters on one thread
         return
     a = np.ascontiguousarray(a, dtype=ds.dtype)
@@ -159,7 +152,7 @@ def read_images(ds, index: tuple[int, ...] = ()) -> np.ndarray:
         errors on the plain path.
     """
     level, lead = _gzip_level(ds), _chunk_index(ds, index)
-    if level is None or lead is None or compress_threads() == 1:
+    if level is None or lead is None or threads() == 1:
         return ds[index]
     out = np.empty(ds.shape[len(lead):], dtype=ds.dtype)
     keys = list(product(*(range(n) for n in out.shape[:-2])))
