@@ -436,6 +436,43 @@ def test_fuse_numba_matches_numpy(rng, weights, masked):
         assert (fast[:, 4, 5] == 0).all()
 
 
+@pytest.mark.parametrize("weights", [None, [3, 1], [0, 2]])
+@pytest.mark.parametrize("masked", [False, True])
+def test_fuse_overwrite_gives_the_same_bits_in_the_inputs_memory(rng, weights, masked):
+    """``overwrite=True`` (what the light-field fusions use) normalises the float32 volumes
+    in place and fuses into the first one kept: the numbers of a fresh fuse, bit for bit."""
+    a = rng.random((7, 11, 13)).astype(np.float32)
+    b = (10 * rng.random((7, 11, 13))).astype(np.float32)
+    valid = rng.random(a.shape) > 0.3 if masked else None
+    expect = costs.fuse([a, b], weights, -2, valid, impl="numba")
+    first = b if weights == [0, 2] else a
+    got = costs.fuse([a, b], weights, -2, valid, impl="numba", overwrite=True)
+    np.testing.assert_array_equal(got, expect)
+    assert got is first
+
+
+def test_normalise_overwrite_only_writes_over_float32_volumes(rng):
+    """In place for a C-contiguous float32 volume; a float64, read-only or strided one is
+    left untouched and a new float32 volume returned; the numbers are the same every way."""
+    cost = (5 * rng.random((6, 9, 11))).astype(np.float32)
+    expect = costs.normalise_volume(cost, 0, impl="numba")
+    wide = np.zeros(cost.shape[:2] + (2 * cost.shape[2],), np.float32)
+    wide[:, :, ::2] = cost
+    for other in (cost.astype(np.float64), wide[:, :, ::2], np.asfortranarray(cost)):
+        keep = other.copy()
+        out = costs.normalise_volume(other, 0, impl="numba", overwrite=True)
+        np.testing.assert_array_equal(out, expect)
+        np.testing.assert_array_equal(other, keep)
+    assert not wide[:, :, 1::2].any()
+    frozen = cost.copy()
+    frozen.flags.writeable = False
+    assert costs.normalise_volume(frozen, 0, impl="numba", overwrite=True) is not frozen
+    mine = cost.copy()
+    out = costs.normalise_volume(mine, 0, impl="numba", overwrite=True)
+    assert out is mine
+    np.testing.assert_array_equal(out, expect)
+
+
 def test_rho_is_the_formula_bit_for_bit():
     """Shen et al.'s robust function, computed in place, gives the formula's very numbers
     (float64, float32, scalars and integers), and its shape: rho(0) = -log(1 + e^-2), even,

@@ -187,6 +187,43 @@ def test_aggregate_numba_matches_numpy(rng, use_sel):
         np.testing.assert_allclose(accs[0][k], accs[1][k], rtol=1e-5, atol=1e-5, err_msg=k)
 
 
+@pytest.mark.parametrize("impl", ["numba", "numpy"])
+def test_accumulators_without_selection_are_shared_and_give_the_same_volume(rng, impl):
+    """Without view selection one set of sums serves both (half the memory): the volume, the
+    counts and the occlusion split's halves are those of separate accumulators, bit for bit,
+    and finishing them in place (``consume``) changes nothing either."""
+    L, H, W, E = 4, 6, 8, 5
+    edge_idx = rng.choice(H * W, E, replace=False).astype(np.int64)
+    shared = dp._new_accumulators(L, H, W, E, selection=False)
+    apart = dp._new_accumulators(L, H, W, E)
+    assert shared["S_sel"] is shared["S_all"] and shared["E_N_sel"] is shared["E_N_all"]
+    M_ref = np.zeros((H, W), np.float32)
+    for _ in range(5):
+        Cv = rng.uniform(0, 3, (L, H, W)).astype(np.float32)
+        valid = rng.uniform(size=(L, H, W)) > 0.3
+        valid[1, 0, 0] = False  # an entry no view sees
+        side = rng.integers(-1, 2, E).astype(np.int8)
+        for acc in (shared, apart):
+            aggregate_view(acc, Cv, valid, None, None, M_ref, False, edge_idx, side, impl=impl)
+    for k in ("S_all", "N_all", "E_S_all", "E_N_all"):
+        np.testing.assert_array_equal(shared[k], apart[k], err_msg=k)
+    expect = dp._finish_aggregation(apart, 2, 1, edge_idx, True)
+    kept = {k: v.copy() for k, v in shared.items()}
+    again = dp._finish_aggregation(shared, 2, 1, edge_idx, True)
+    for k in shared:  # not consumed: untouched
+        np.testing.assert_array_equal(shared[k], kept[k], err_msg=k)
+    consumed = dp._finish_aggregation(shared, 2, 1, edge_idx, True, consume=True)
+    assert consumed[0] is shared["S_all"]
+    for got in (again, consumed):
+        np.testing.assert_array_equal(got[0], expect[0])
+        np.testing.assert_array_equal(got[1], expect[1])
+    assert np.isnan(expect[0][1, 0, 0])
+    with pytest.raises(InvalidInputError, match="selection"):
+        aggregate_view(dp._new_accumulators(L, H, W, 0, selection=False), Cv, valid,
+                       np.ones((L, H, W), np.float32), np.ones((L, H, W), np.float32), M_ref,
+                       True, impl=impl)
+
+
 # ----------------------------------------------------------------------------- occlusion split
 
 

@@ -132,11 +132,12 @@ def test_tiled_depth_is_the_untiled_depth_bit_for_bit(name):
 
 def test_a_tiny_budget_picks_strips_and_changes_nothing():
     lf = _edge_scene()
-    budget = depth_memory(lf.image_shape, 20, lf.n_views, strip_rows=64) + 1
-    assert plan(lf.image_shape, 20, lf.n_views, budget) == [(0, 64), (64, 100)]
+    budget = depth_memory(lf.image_shape, 20, lf.n_views, strip_rows=32) + 1
+    strips = [(0, 32), (32, 64), (64, 96), (96, 100)]
+    assert plan(lf.image_shape, 20, lf.n_views, budget) == strips
     whole = depth(lf, n_labels=20)
     tiled = depth(lf, n_labels=20, params=DepthParams(max_memory=budget))
-    assert tiled.config["strips"] == [(0, 64), (64, 100)]
+    assert tiled.config["strips"] == strips
     np.testing.assert_array_equal(tiled.disparity, whole.disparity)
 
 
@@ -158,7 +159,7 @@ def test_plan_fits_the_budget_and_refuses_what_cannot_fit():
     assert plan(shape, L, V, None) == [(0, 900)]  # the paper's size fits the default budget
     assert depth_memory(shape, L, V) < DEFAULT_MAX_MEMORY
     previous = 1
-    for gib in (3.5, 3.0, 2.5, 2.2):
+    for gib in (2.3, 2.2, 2.1):
         strips = plan(shape, L, V, gib * 2**30)
         rows = strips[0][1]
         assert rows % ROW_BLOCK == 0 and strips == row_strips(900, rows)

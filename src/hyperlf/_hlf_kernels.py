@@ -13,8 +13,10 @@ import numba
 
 
 @numba.njit(parallel=True, cache=True)
-def aggregate(Cv, valid, Mq, Mbar, M_ref, use_sel, S_sel, N_sel, S_all, N_all,
-                      edge_idx, edge_side, ES_sel, EN_sel, ES_all, EN_all):  # pragma: no cover
+def aggregate(Cv, valid, Mq, Mbar, M_ref, use_sel, separate, S_sel, N_sel, S_all, N_all,
+              edge_idx, edge_side, ES_sel, EN_sel, ES_all, EN_all):  # pragma: no cover
+    """``separate`` False: the ``*_sel`` arrays are the ``*_all`` ones (no view selection),
+    so they are added to once."""
     L, H, W = Cv.shape
     for l in numba.prange(L):
         for y in range(H):
@@ -27,7 +29,7 @@ def aggregate(Cv, valid, Mq, Mbar, M_ref, use_sel, S_sel, N_sel, S_all, N_all,
                 s = True
                 if use_sel:
                     s = (M_ref[y, x] > Mbar[l, y, x]) == (Mq[l, y, x] > Mbar[l, y, x])
-                if s:
+                if s and separate:
                     S_sel[l, y, x] += c
                     N_sel[l, y, x] += 1.0
         for e in range(edge_idx.shape[0]):
@@ -45,7 +47,7 @@ def aggregate(Cv, valid, Mq, Mbar, M_ref, use_sel, S_sel, N_sel, S_all, N_all,
                 if sd == 0 or (h == 0 and sd == 1) or (h == 1 and sd == -1):
                     ES_all[h, l, e] += c
                     EN_all[h, l, e] += 1.0
-                    if s:
+                    if s and separate:
                         ES_sel[h, l, e] += c
                         EN_sel[h, l, e] += 1.0
 

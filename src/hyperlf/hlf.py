@@ -539,9 +539,11 @@ def aggregate_view_reference(acc: dict, Cv, valid, Mq, Mbar, M_ref, use_selectio
     """Numpy reference of :func:`aggregate_view` (same arguments and effect)."""
     L, H, W = Cv.shape
     valid = np.asarray(valid, bool)
+    separate = _separate_selection(acc, use_selection)
     sel = selection_masks(M_ref, Mq, valid, Mbar) if use_selection else valid
-    acc["S_sel"] += np.where(sel, Cv, 0.0).astype(np.float32)
-    acc["N_sel"] += sel.astype(np.float32)
+    if separate:
+        acc["S_sel"] += np.where(sel, Cv, 0.0).astype(np.float32)
+        acc["N_sel"] += sel.astype(np.float32)
     acc["S_all"] += np.where(valid, Cv, 0.0).astype(np.float32)
     acc["N_all"] += valid.astype(np.float32)
     if edge_idx is not None and len(edge_idx):
@@ -553,17 +555,31 @@ def aggregate_view_reference(acc: dict, Cv, valid, Mq, Mbar, M_ref, use_selectio
             inh = (side == s) | (side == 0)
             m_sel = sf & inh[None]
             m_all = vf & inh[None]
-            acc["E_S_sel"][h] += np.where(m_sel, Cf, 0.0).astype(np.float32)
-            acc["E_N_sel"][h] += m_sel.astype(np.float32)
+            if separate:
+                acc["E_S_sel"][h] += np.where(m_sel, Cf, 0.0).astype(np.float32)
+                acc["E_N_sel"][h] += m_sel.astype(np.float32)
             acc["E_S_all"][h] += np.where(m_all, Cf, 0.0).astype(np.float32)
             acc["E_N_all"][h] += m_all.astype(np.float32)
 
 
-def _new_accumulators(L, H, W, E):
+def _new_accumulators(L, H, W, E, selection: bool = True):
+    """Sums and counts of :func:`aggregate_view`.  Without view ``selection`` the selected
+    views are all valid ones, so each ``*_sel`` entry is its ``*_all`` array itself (half the
+    memory; :func:`aggregate_view` then adds to it once)."""
     z = lambda *s: np.zeros(s, np.float32)  # noqa: E731
-    return {"S_sel": z(L, H, W), "N_sel": z(L, H, W), "S_all": z(L, H, W), "N_all": z(L, H, W),
-            "E_S_sel": z(2, L, E), "E_N_sel": z(2, L, E), "E_S_all": z(2, L, E),
-            "E_N_all": z(2, L, E)}
+    acc = {"S_all": z(L, H, W), "N_all": z(L, H, W), "E_S_all": z(2, L, E), "E_N_all": z(2, L, E)}
+    for k in ("S", "N", "E_S", "E_N"):
+        acc[f"{k}_sel"] = z(*acc[f"{k}_all"].shape) if selection else acc[f"{k}_all"]
+    return acc
+
+
+def _separate_selection(acc: dict, use_selection: bool) -> bool:
+    """Whether ``acc`` keeps the selected views' sums apart from all views' (else they are the
+    same arrays, which only an aggregation without view selection may use)."""
+    separate = acc["S_sel"] is not acc["S_all"]
+    if use_selection and not separate:
+        raise InvalidInputError("view selection needs accumulators made with selection=True")
+    return separate
 
 
 def aggregate_view(acc: dict, Cv, valid, Mq, Mbar, M_ref, use_selection: bool,
@@ -571,7 +587,8 @@ def aggregate_view(acc: dict, Cv, valid, Mq, Mbar, M_ref, use_selection: bool,
     """Add one view's costs to the selection / split accumulators (numba fast path).
 
     ``acc``: dict from :func:`_new_accumulators` (``S_sel, N_sel, S_all, N_all`` (L, H, W);
-    ``E_*`` (2, L, E) for the two half-planes at the ``E`` edge pixels).  ``Cv``, ``valid``,
+    ``E_*`` (2, L, E) for the two half-planes at the ``E`` edge pixels; ``*_sel`` may be the
+    ``*_all`` arrays themselves when ``use_selection`` is False).  ``Cv``, ``valid``,
     ``Mq`` (M of the view at ``q_v``), ``Mbar`` (L, H, W); ``M_ref`` (H, W); ``edge_idx``
     (E,) flat pixel indices; ``edge_side`` (E,) in {-1, 0, 1} (0 = on the line: both halves).
     ``impl="numpy"`` runs :func:`aggregate_view_reference`.
@@ -586,11 +603,13 @@ def aggregate_view(acc: dict, Cv, valid, Mq, Mbar, M_ref, use_selection: bool,
                                         edge_side)
     from . import _hlf_kernels
 
+    separate = _separate_selection(acc, use_selection)
     _hlf_kernels.aggregate(np.ascontiguousarray(Cv, np.float32),
                            np.ascontiguousarray(valid, np.bool_),
                            np.ascontiguousarray(Mq, np.float32),
                            np.ascontiguousarray(Mbar, np.float32),
                            np.ascontiguousarray(M_ref, np.float32), bool(use_selection),
+                           separate,
                            acc["S_sel"], acc["N_sel"], acc["S_all"], acc["N_all"],
                            np.ascontiguousarray(edge_idx, np.int64),
                            np.ascontiguousarray(edge_side, np.int8),
@@ -630,20 +649,34 @@ def neutral_missing_views(C: np.ndarray, n_used: np.ndarray) -> np.ndarray:
     return out.astype(np.float32)
 
 
-def _finish_aggregation(acc, min_selected, min_half_views, edge_idx, split: bool):
-    """``C`` (L, H, W) float32 and the number of views used, from the accumulators."""
-    use_sel = acc["N_sel"] >= min_selected
-    S = np.where(use_sel, acc["S_sel"], acc["S_all"])
-    N = np.where(use_sel, acc["N_sel"], acc["N_all"])
-    C = np.where(N > 0, S / np.maximum(N, 1), np.nan).astype(np.float32)
+def _finish_aggregation(acc, min_selected, min_half_views, edge_idx, split: bool, *,
+                        consume: bool = False):
+    """``C`` (L, H, W) float32 and the number of views used, from the accumulators.
+
+    ``consume``: ``acc`` is not used again, so ``C`` and the counts may be its own arrays
+    (without view selection no volume is then allocated here)."""
+    shared = acc["S_sel"] is acc["S_all"]  # no view selection: the selected views are all
+    use_sel = None if shared else acc["N_sel"] >= min_selected
+
+    def pick(sel, every, mask):
+        return every if mask is None else np.where(mask, sel, every)
+
+    S = pick(acc["S_sel"], acc["S_all"], use_sel)
+    N = pick(acc["N_sel"], acc["N_all"], use_sel)
+    if shared and not consume:
+        S, N = S.copy(), N.copy()
+    seen = N > 0  # counts are whole numbers: where seen, N = max(N, 1)
+    C = np.divide(S, N, out=S, where=seen)
+    C[~seen] = np.nan
+    del seen
     if split and edge_idx is not None and len(edge_idx):
         L = C.shape[0]
         Cf = C.reshape(L, -1)
-        us = use_sel.reshape(L, -1)[:, edge_idx]
+        us = None if use_sel is None else use_sel.reshape(L, -1)[:, edge_idx]
         best = np.full((L, len(edge_idx)), np.inf, np.float32)
         for h in range(2):
-            Sh = np.where(us, acc["E_S_sel"][h], acc["E_S_all"][h])
-            Nh = np.where(us, acc["E_N_sel"][h], acc["E_N_all"][h])
+            Sh = pick(acc["E_S_sel"][h], acc["E_S_all"][h], us)
+            Nh = pick(acc["E_N_sel"][h], acc["E_N_all"][h], us)
             ok = Nh >= min_half_views
             Ch = np.where(ok, Sh / np.maximum(Nh, 1), np.inf)
             best = np.minimum(best, Ch)
@@ -1362,7 +1395,7 @@ def _strip_correspondence(prob: DepthProblem, rows, scales, sees, cache, bar, cl
     a, b = rows
     W = prob.lf.image_shape[1]
     edge_idx, inside = _strip_edges(prob, rows)  # none unless the occlusion split is on
-    acc = _new_accumulators(prob.labels.size, b - a, W, len(edge_idx))
+    acc = _new_accumulators(prob.labels.size, b - a, W, len(edge_idx), prob.view_selection)
     whole = (a, b) == (0, prob.lf.image_shape[0])
     M_ref = prob.M_ref if whole else np.ascontiguousarray(prob.M_ref[a:b])
     Mbar = None if prob.Mbar is None else (prob.Mbar if whole else prob.Mbar[:, a:b])
@@ -1385,7 +1418,7 @@ def _strip_correspondence(prob: DepthProblem, rows, scales, sees, cache, bar, cl
         del Cv, valid
         clock.lap("selection_split_s")
     C, n_used = _finish_aggregation(acc, int(p.min_selected), int(p.min_half_views),
-                                    edge_idx, prob.occlusion_split)
+                                    edge_idx, prob.occlusion_split, consume=True)
     del acc
     if p.missing_views == "neutral":
         C = neutral_missing_views(C, n_used)

@@ -2,9 +2,9 @@
 
 The depth of a capture holds a few volumes of ``L x H x W`` float32 (``L`` labels): the
 aggregated correspondence volume that the MRF optimises, its view counts, the unary and the
-MRF's own.  The correspondence stage needs far more: per pixel and label it adds four float32
-accumulators (the selection and its fallback, sums and counts) and the volumes of the view being
-matched.  :func:`hyperlf.hlf.correspondence` can aggregate full-width strips of rows one at a
+MRF's own.  The correspondence stage needs more: per pixel and label it adds float32 sums and
+counts (twice, for the selection and its fallback, when view selection is on) and the volumes
+of the view being matched.  :func:`hyperlf.hlf.correspondence` can aggregate full-width strips of rows one at a
 time, so that this part of the memory is held for one strip only; the result is bit for bit the
 untiled one (the strips start on the :data:`hyperlf.costs.ROW_BLOCK` grid, the views stay whole,
 so every sample and window reads the rows it needs, however far the largest shift reaches: the
@@ -21,8 +21,8 @@ Examples
 True
 >>> plan((384, 512), 64, 30, max_memory=None)        # fits: one strip
 [(0, 384)]
->>> plan((384, 512), 64, 30, max_memory=parse_memory("700M"))
-[(0, 128), (128, 256), (256, 384)]
+>>> plan((384, 512), 64, 30, max_memory=parse_memory("640M"))
+[(0, 160), (160, 320), (320, 384)]
 """
 
 from __future__ import annotations
@@ -54,9 +54,13 @@ _IMAGE_BYTES = 20.0
 #: Bytes per pixel and label of the MRF stage: the correspondence volume, the unary and the
 #: graph's own (measured 16.7 with the view counts still held; planned with a margin).
 _VOLUME_BYTES = 18.0
-#: Bytes per pixel and label of a strip being aggregated: four accumulators, one view's cost,
-#: validity and fusion parts, and the finishing temporaries (measured 40; with a margin).
-_STRIP_BYTES = 44.0
+#: Bytes per pixel and label of a strip being aggregated: the sums and counts, one view's cost
+#: parts (a fusion normalises them in place and sums into the first), its validity, and the
+#: finishing temporaries (measured 20; with a margin).
+_STRIP_BYTES = 22.0
+#: Bytes per pixel and label that view selection adds to a strip: the selected views' sums and
+#: counts apart from all views', and their merge (measured 17.4).
+_SELECTION_STRIP_BYTES = 18.0
 #: Bytes per pixel and label of the whole volume and its view counts that the strips fill.
 _GATHER_BYTES = 8.0
 #: Bytes per pixel and label of the view-selection means ``Mbar`` and one view's ``M(q_v)``.
@@ -157,9 +161,11 @@ def depth_memory(shape, n_labels: int, n_views: int, *, strip_rows: int | None =
     lw = float(n_labels) * W
     rows = H if strip_rows is None else min(int(strip_rows), H)
     fixed = _PROCESS_BYTES + _IMAGE_BYTES * n_views * px
+    per_strip = _STRIP_BYTES
     if selection:
         fixed += _SELECTION_BYTES * n_labels * px
-    strip = _STRIP_BYTES * lw * rows
+        per_strip += _SELECTION_STRIP_BYTES
+    strip = per_strip * lw * rows
     if rows < H:  # the strips are gathered into the whole volume and its counts
         strip += _GATHER_BYTES * n_labels * px
     return fixed + max(_VOLUME_BYTES * n_labels * px, strip)

@@ -800,7 +800,7 @@ def moments_std(n, mean, m2) -> float:
 
 
 def normalise_volume(cost, dmin: int, valid=None, *, sd: float | None = None,
-                     impl: str = "auto") -> np.ndarray:
+                     impl: str = "auto", overwrite: bool = False) -> np.ndarray:
     """``norm(C)`` of SPEC §3 fusion, float32.
 
     Invalid entries -> the pixel's worst valid cost (:func:`fill_invalid`), minus the per-pixel
@@ -812,7 +812,8 @@ def normalise_volume(cost, dmin: int, valid=None, *, sd: float | None = None,
     measured on ``cost``.  ``impl="numba"`` (the ``"auto"`` choice) runs the same arithmetic
     in kernels without the float64 copies; its standard deviation is summed row by row
     (:func:`row_moments`, :func:`moments_std`), so it agrees with ``"numpy"`` to rounding
-    (``rtol`` 1e-12).
+    (``rtol`` 1e-12).  ``overwrite``: under ``"numba"``, a C-contiguous float32 ``cost`` is
+    normalised in place and returned (the same numbers, one volume less).
     """
     impl = check_impl(impl, "normalise")
     Lc, H, W = np.shape(cost)
@@ -827,8 +828,8 @@ def normalise_volume(cost, dmin: int, valid=None, *, sd: float | None = None,
         ok = np.ascontiguousarray(np.broadcast_to(np.asarray(valid, bool), C.shape))
         if sd is None:
             sd = moments_std(*row_moments(C, ok))
-        out = np.empty(C.shape, np.float32)
-        normalise_fill(C, ok, float(sd), out)
+        out = C if overwrite and _own_float32(cost, C) else np.empty(C.shape, np.float32)
+        normalise_fill(C, ok, float(sd), out)  # reads a pixel's costs before writing them
         return out
     C = np.array(cost, dtype=np.float64)
     if sd is None:
@@ -841,14 +842,23 @@ def normalise_volume(cost, dmin: int, valid=None, *, sd: float | None = None,
     return C.astype(np.float32)
 
 
+def _own_float32(given, array) -> bool:
+    """``array`` is the float32, C-contiguous ``given`` itself (safe to write over)."""
+    return array is given and array.dtype == np.float32 and array.flags.c_contiguous \
+        and array.flags.writeable
+
+
 def fuse(volumes: Sequence[np.ndarray], weights: Sequence[float] | None = None, dmin: int = 0,
-         valid=None, *, scales: Sequence[float] | None = None, impl: str = "auto") -> np.ndarray:
+         valid=None, *, scales: Sequence[float] | None = None, impl: str = "auto",
+         overwrite: bool = False) -> np.ndarray:
     """Weighted mean of normalised volumes: ``sum_i w_i norm(C_i) / sum_i w_i``; then the
     out-of-image rule again (the fused worst valid cost).  ``dmin`` is needed only to know
     which entries are invalid (the volumes must share ``dmin..dmax``).  ``scales``: the
     standard deviation of each volume's normaliser when measured elsewhere (``sd`` of
     :func:`normalise_volume`).  ``impl`` as :func:`normalise_volume` (``"numba"``: the sum
-    and the fill in one kernel, same float64 arithmetic)."""
+    and the fill in one kernel, same float64 arithmetic).  ``overwrite``: the volumes are not
+    used again, so under ``"numba"`` the C-contiguous float32 ones are normalised in place
+    and the first one holds the result (the same numbers, without new volumes)."""
     vols = list(volumes)
     if not vols:
         raise InvalidInputError("fuse needs at least one volume")
@@ -869,9 +879,11 @@ def fuse(volumes: Sequence[np.ndarray], weights: Sequence[float] | None = None, 
             valid = candidate_validity((H, W), dmin, dmin + Lc - 1)
         ok = np.ascontiguousarray(np.broadcast_to(np.asarray(valid, bool), shape))
         keep = [i for i in range(len(vols)) if w[i]]
-        parts = tuple(normalise_volume(vols[i], dmin, ok, sd=sds[i], impl="numba") for i in keep)
-        out = np.empty(shape, np.float32)
-        fuse_fill(parts, np.ascontiguousarray(w[keep]), ok, out)
+        parts = tuple(normalise_volume(vols[i], dmin, ok, sd=sds[i], impl="numba",
+                                       overwrite=overwrite) for i in keep)
+        own = overwrite and _own_float32(vols[keep[0]], parts[0])
+        out = parts[0] if own else np.empty(shape, np.float32)
+        fuse_fill(parts, np.ascontiguousarray(w[keep]), ok, out)  # reads, then writes, each entry
         return out
     out = np.zeros(shape, np.float64)
     for wi, v, sd in zip(w, vols, sds):

@@ -252,7 +252,7 @@ class FusedCost(Cost):
         """The fused volume; ``scales`` (one per part): the normalisers' standard deviations
         when measured on the whole view (a strip of ``rows``), else measured here."""
         vols = list(self._view_parts(ref_img, img, shifts, window, valid, options))
-        return fuse(vols, self.weights, dmin=0, valid=valid, scales=scales)
+        return fuse(vols, self.weights, dmin=0, valid=valid, scales=scales, overwrite=True)
 
     def view_moments(self, ref_img, img, shifts, *, window=None, valid=None, **options):
         """Per part, :func:`hyperlf.costs.row_moments` of its raw volume on the strip."""
