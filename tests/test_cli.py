@@ -117,6 +117,26 @@ def test_stereo_command_writes_disparity_products(tmp_path):
                  "-o", str(out)]) == 2  # no range given: usage error with a hint
 
 
+def test_stereo_refuses_a_range_the_memory_cannot_hold_before_any_work(tmp_path, capsys,
+                                                                       monkeypatch):
+    """Cost volumes of 16 B per pixel and disparity at least: a pair and range above the memory
+    available is refused at once (one line, exit 2, nothing written), a smaller one runs."""
+    from hyperlf import cli
+    from hyperlf.formats import write_image
+
+    tex = np.random.default_rng(5).random((30, 50)).astype(np.float32)
+    write_image(tmp_path / "l.png", tex[:, 3:43], bit_depth=16)
+    write_image(tmp_path / "r.png", tex[:, 6:46], bit_depth=16)
+    need = 16 * 11 * 30 * 40  # --disparity-range 0,10 on 40 x 30 px
+    monkeypatch.setattr(cli, "_available_memory", lambda: need - 1)
+    args = ["stereo", str(tmp_path / "l.png"), str(tmp_path / "r.png"), "--optimizer", "wta"]
+    assert main([*args, "--disparity-range", "0,10", "-o", str(tmp_path / "a")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--disparity-range 0,10 on 40 x 30 px" in err[0]
+    assert "narrow the range" in err[0] and not (tmp_path / "a").exists()
+    assert main(["-q", *args, "--disparity-range", "0,9", "-o", str(tmp_path / "b")]) == 0
+
+
 @pytest.mark.parametrize("extra, want", [(["--occlusion", "lr-fill"], "lr-fill"),
                                          (["--occlusion", "none"], "none"),
                                          (["--no-occlusion"], "none"), ([], "lr-plane")])

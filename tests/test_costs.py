@@ -473,6 +473,31 @@ def test_normalise_overwrite_only_writes_over_float32_volumes(rng):
     np.testing.assert_array_equal(out, expect)
 
 
+@pytest.mark.parametrize("dtype", [np.float16, np.float32, np.float64, np.int32])
+@pytest.mark.parametrize("mask_shape", ["volume", "image", "columns"])
+def test_worst_fill_is_the_rule_whatever_the_dtype_and_mask(rng, dtype, mask_shape):
+    """The label-by-label fill gives the one-expression rule: every invalid entry the pixel's
+    largest valid cost (NaN and infinities included: a pixel whose worst is not finite, or
+    that has no valid entry, gets 0), the dtype kept, for masks that broadcast."""
+    from hyperlf.costs.pair import worst_fill
+
+    L, H, W = 6, 5, 7
+    cost = (20 * rng.random((L, H, W)) - 5).astype(dtype)
+    if np.issubdtype(dtype, np.floating):
+        cost[2, 1, 1], cost[0, 3, 4] = np.nan, np.inf
+    shape = {"volume": (L, H, W), "image": (H, W), "columns": (L, 1, W)}[mask_shape]
+    invalid = rng.random(shape) > 0.5
+    full = np.broadcast_to(invalid, cost.shape)
+    if mask_shape == "volume":
+        invalid[:, 2, 2] = True  # a pixel with no valid entry
+    worst = np.where(full, -np.inf, cost).max(axis=0)
+    worst[~np.isfinite(worst)] = 0.0
+    expect = np.where(full, worst.astype(dtype), cost)
+    got = worst_fill(cost, invalid)
+    assert got is cost and got.dtype == dtype
+    np.testing.assert_array_equal(got, expect)
+
+
 def test_rho_is_the_formula_bit_for_bit():
     """Shen et al.'s robust function, computed in place, gives the formula's very numbers
     (float64, float32, scalars and integers), and its shape: rho(0) = -log(1 + e^-2), even,

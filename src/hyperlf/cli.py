@@ -400,6 +400,21 @@ def _check_labels_memory(labels: int, shape) -> None:
                   "use fewer --labels")
 
 
+#: Bytes per pixel and disparity that two-view stereo holds at least: the left and right cost
+#: volumes, the data term and the optimiser's own (float32; every cost and optimiser measured
+#: 16-70, BENCHMARKS.md "Two-view stereo's memory").
+PAIR_BYTES_AT_LEAST = 16.0
+
+
+def _check_pair_memory(disparity_range, shape) -> None:
+    """Stereo: refuse a pair and range whose cost volumes alone exceed the available memory."""
+    (lo, hi), (H, W) = disparity_range, shape
+    _check_memory(PAIR_BYTES_AT_LEAST * (hi - lo + 1) * H * W,
+                  f"--disparity-range {lo},{hi} on {W} x {H} px images",
+                  "narrow the range, or match the pair downscaled (half the size and half the "
+                  "range need an eighth)")
+
+
 def _layout_arg(text: str):
     if text in ("raster", "serpentine", "random"):
         return text
@@ -629,7 +644,9 @@ def _cmd_stereo(args, dest) -> list[Path]:
     """Disparity of the left image of a rectified pair whose images may see different spectra
     (SPEC §4). Left x matches right x - d. Writes disparity.pfm (exact), disparity_16bit.png
     (value/256 + offset, see the .txt beside it), a colour-mapped disparity.png and the
-    confidence (confidence.pfm, exact, and confidence.png; 0 ambiguous to 1 unique).
+    confidence (confidence.pfm, exact, and confidence.png; 0 ambiguous to 1 unique). Matching
+    holds about 16-70 bytes per pixel and disparity; a pair and range that cannot fit in the
+    memory available are refused before any matching.
 
     examples:
       hyperlf stereo imL.png imR.png --disparity-range 0,59 -o out
@@ -646,6 +663,7 @@ def _cmd_stereo(args, dest) -> list[Path]:
     lo, hi = args.disparity_range
     if lo != int(lo) or hi != int(hi):
         raise InvalidInputError(f"--disparity-range must be integers, got {lo:g},{hi:g}")
+    _check_pair_memory((int(lo), int(hi)), left.shape[:2])
     channel = args.channel
     res = stereo(left, right, (int(lo), int(hi)), metric=args.metric, optimizer=args.optimizer,
                  occlusion="none" if args.no_occlusion else args.occlusion,

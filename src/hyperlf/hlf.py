@@ -993,7 +993,7 @@ class DepthProblem:
         ``I_v / mean(I_v)`` per view (float64).
     Mn : dict
         Gradient magnitude of ``In`` per view (normalised by its median when
-        ``params.selection_normalise``).
+        ``params.selection_normalise``); the reference's alone without view selection.
     M_ref : ndarray, float32 (H, W)
     Mbar : ndarray, float32 (L, H, W) or None
         Mean gradient magnitude over the valid views (view selection only).
@@ -1172,7 +1172,9 @@ def prepare(lf, *, disparity_range=None, n_labels: int = 64, metric: str = "auto
     big = min(lf.image_shape) >= int(params.visibility_min_size)
     prob.visibility_rounds = int(big if params.visibility_rounds is None
                                  else params.visibility_rounds)
-    prob.Mn = _selection_maps(prob.In, params.selection_normalise, masks)
+    # every view's map only for the selection; without it the reference's alone
+    prob.Mn = _selection_maps(prob.In if view_selection else {ref: prob.In[ref]},
+                              params.selection_normalise, masks)
     prob.M_ref = prob.Mn[ref].astype(np.float32)
     if view_selection:
         prob.Mbar = _mean_gradient(prob)

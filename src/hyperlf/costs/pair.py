@@ -130,7 +130,10 @@ def worst_fill(cost: np.ndarray, invalid, *, empty: str = "zero") -> np.ndarray:
     """
     if empty not in FILL_EMPTY_MODES:
         raise InvalidInputError(f"empty must be one of {FILL_EMPTY_MODES}, got {empty!r}")
-    worst = np.where(invalid, -np.inf, cost).max(axis=0)
+    invalid = np.broadcast_to(np.asarray(invalid, dtype=bool), cost.shape)
+    worst = np.full(cost.shape[1:], -np.inf, np.result_type(cost.dtype, np.float32))
+    for k in range(cost.shape[0]):  # label by label: no volume-sized temporary
+        np.maximum(worst, np.where(invalid[k], -np.inf, cost[k]), out=worst)
     none_valid = ~np.isfinite(worst)
     if none_valid.any():
         if empty == "global" and none_valid.all():
