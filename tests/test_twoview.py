@@ -234,3 +234,36 @@ def test_default_params_table():
     assert default_window("ssd", "graphcut") == 9 and default_window("ssd", "sgm") is None
     assert default_window("census", "graphcut") == 7 and default_window("census", "wta") == 5
     assert default_window("auto", "graphcut") is None
+
+
+@pytest.mark.parametrize("metric", ["auto", "census", "fused"])
+def test_volumes_made_in_place_give_the_same_bits(metric):
+    """The fused costs fuse each side in the memory of its parts, and ``stereo`` makes the
+    data terms in its own volumes: the volumes and the disparities of fresh copies, bit for
+    bit; a caller's volumes are written over only when it says ``overwrite=True``."""
+    from hyperlf.costs import fuse, get_cost
+    from hyperlf.costs.registry import FusedCost, _right_from_left
+    from hyperlf.twoview import stereo_from_volumes
+
+    L, R, _ = cross_spectral(3)
+    cl, cr = compute_volumes(L, R, 0, 12, metric)
+    cost = get_cost(metric)
+    if isinstance(cost, FusedCost):  # the reference: every part kept, every fusion fresh
+        parts = [get_cost(p).pair_volume(L, R, 0, 12, window=get_cost(p).window)
+                 for p in cost.parts]
+        np.testing.assert_array_equal(cl, fuse(parts, cost.weights, 0))
+        vr = costs.right_validity(cl.shape[1:], 0, 12)
+        right = [_right_from_left(v, 0) for v in parts]
+        np.testing.assert_array_equal(cr, fuse(right, cost.weights, 0, valid=vr))
+    keep_l, keep_r = cl.copy(), cr.copy()
+    fresh = stereo_from_volumes(cl, cr, 0, "graphcut", "lr-plane", guide_left=L, guide_right=R,
+                                metric=metric)
+    np.testing.assert_array_equal(cl, keep_l)
+    np.testing.assert_array_equal(cr, keep_r)
+    mine = stereo_from_volumes(cl, cr, 0, "graphcut", "lr-plane", guide_left=L, guide_right=R,
+                               metric=metric, overwrite=True)
+    np.testing.assert_array_equal(mine.disparity, fresh.disparity)
+    np.testing.assert_array_equal(mine.confidence, fresh.confidence)
+    assert not np.array_equal(cl, keep_l)  # now the data term
+    np.testing.assert_array_equal(stereo(L, R, (0, 12), metric=metric).disparity,
+                                  fresh.disparity)

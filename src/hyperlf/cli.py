@@ -401,8 +401,8 @@ def _check_labels_memory(labels: int, shape) -> None:
 
 
 #: Bytes per pixel and disparity that two-view stereo holds at least: the left and right cost
-#: volumes, the data term and the optimiser's own (float32; every cost and optimiser measured
-#: 16-70, BENCHMARKS.md "Two-view stereo's memory").
+#: volumes (float32, the data terms made in them) and what the optimiser adds (every cost and
+#: optimiser measured 19-233, BENCHMARKS.md "Two-view stereo's memory").
 PAIR_BYTES_AT_LEAST = 16.0
 
 
@@ -645,7 +645,7 @@ def _cmd_stereo(args, dest) -> list[Path]:
     (SPEC §4). Left x matches right x - d. Writes disparity.pfm (exact), disparity_16bit.png
     (value/256 + offset, see the .txt beside it), a colour-mapped disparity.png and the
     confidence (confidence.pfm, exact, and confidence.png; 0 ambiguous to 1 unique). Matching
-    holds about 16-70 bytes per pixel and disparity; a pair and range that cannot fit in the
+    holds about 20-70 bytes per pixel and disparity; a pair and range that cannot fit in the
     memory available are refused before any matching.
 
     examples:

@@ -390,7 +390,8 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
                         occlusion: str = DEFAULT_OCCLUSION, params: dict | None = None,
                         guide_left=None, guide_right=None, subpixel: bool = False,
                         metric: str = "auto", progress: bool = False,
-                        plane_params: _reg.PlaneFillParams | None = None) -> StereoResult:
+                        plane_params: _reg.PlaneFillParams | None = None, *,
+                        overwrite: bool = False) -> StereoResult:
     """Steps 4-7 of the pipeline on precomputed volumes (see :func:`compute_volumes`).
 
     Parameters
@@ -409,6 +410,9 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
         Recorded, and used to look up the default parameters.
     plane_params : PlaneFillParams, optional
         Constants of the ``"lr-plane"`` fill (:class:`hyperlf.regularisers.PlaneFillParams`).
+    overwrite : bool
+        The volumes are not used again: float32 ones then hold the data terms (two
+        volume-sized copies fewer; the result is the same).
 
     Returns
     -------
@@ -428,7 +432,7 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
     labels = np.arange(dmin, dmin + Lc, dtype=np.float64)
     s = _data_scale(cl, dmin)
     t0 = time.perf_counter()
-    DL = _reg.data_term(cl)
+    DL = _reg.data_term(cl, overwrite=overwrite)
     DL /= np.float32(s)  # in place: one volume-sized temporary fewer
     fl, disp_l, vol_l = _optimise(DL, opt, guide_left, labels, subpixel, progress)
     conf = _reg.confidence(vol_l, fl)
@@ -443,7 +447,7 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
         cr = np.asarray(cost_right, dtype=np.float32)
         if cr.shape != cl.shape:
             raise InvalidInputError(f"cost_right shape {cr.shape} != cost_left shape {cl.shape}")
-        DR = _reg.data_term(cr)
+        DR = _reg.data_term(cr, overwrite=overwrite)
         DR /= np.float32(s)
         fr, _, _ = _optimise(DR, opt, guide_right, labels, False, progress)
         disp_r = labels[fr].astype(np.float32)
@@ -554,7 +558,7 @@ def stereo(left, right, disparity_range, metric: str = "auto", optimizer: str = 
     t_cost = time.perf_counter() - t0
     res = stereo_from_volumes(cl, cr, dmin, optimizer, occlusion, p, guide_left=L, guide_right=R,
                               subpixel=bool(subpixel), metric=name, progress=progress,
-                              plane_params=plane_params)
+                              plane_params=plane_params, overwrite=True)
     res.window = window
     res.extra["aggregation"] = {"method": agg.method, "radius": agg.radius, "eps": agg.eps}
     res.timings = {"cost": t_cost, "optimiser": res.timings["optimiser"],

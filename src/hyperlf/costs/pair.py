@@ -902,7 +902,7 @@ def fused_volume(left, right, dmin, dmax, window=None, impl: str = "auto",
     generalise the mean).  ``window`` is ignored (use ``bwncc_window`` / ``census_window``)."""
     b = bwncc_volume(left, right, dmin, dmax, "default", window=bwncc_window, impl=impl, **bwncc_params)
     c = census_volume(left, right, dmin, dmax, window=census_window, impl=impl)
-    return fuse([b, c], weights, dmin)
+    return fuse([b, c], weights, dmin, overwrite=True)
 
 
 def census_rsncc_volume(left, right, dmin, dmax, window=None, impl: str = "auto",
@@ -915,4 +915,4 @@ def census_rsncc_volume(left, right, dmin, dmax, window=None, impl: str = "auto"
     """
     a = rsncc_volume(left, right, dmin, dmax, window=rsncc_window, impl=impl, **rsncc_params)
     c = census_volume(left, right, dmin, dmax, window=census_window, impl=impl)
-    return fuse([a, c], weights, dmin)
+    return fuse([a, c], weights, dmin, overwrite=True)

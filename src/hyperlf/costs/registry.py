@@ -228,17 +228,17 @@ class FusedCost(Cost):
 
     def pair_volume(self, left, right, dmin, dmax, *, window=None, impl="auto", **options):
         vols, weights = self._part_volumes(left, right, dmin, dmax, impl, options)
-        return fuse(vols, weights, dmin)
+        return fuse(vols, weights, dmin, overwrite=True)
 
     def pair_volumes(self, left, right, dmin, dmax, *, window=None, impl="auto",
                      need_right=True, **options):
         vols, weights = self._part_volumes(left, right, dmin, dmax, impl, options)
-        cl = fuse(vols, weights, dmin)
         if not need_right:
-            return cl, None
+            return fuse(vols, weights, dmin, overwrite=True), None
+        rights = [_right_from_left(v, dmin) for v in vols]  # before the left fuse writes over vols
+        cl = fuse(vols, weights, dmin, overwrite=True)
         vr = right_validity(cl.shape[1:], dmin, dmax)
-        cr = fuse([_right_from_left(v, dmin) for v in vols], weights, dmin, valid=vr)
-        return cl, cr
+        return cl, fuse(rights, weights, dmin, valid=vr, overwrite=True)
 
     global_scales = True
 
