@@ -467,6 +467,12 @@ def test_normalise_overwrite_only_writes_over_float32_volumes(rng):
     frozen = cost.copy()
     frozen.flags.writeable = False
     assert costs.normalise_volume(frozen, 0, impl="numba", overwrite=True) is not frozen
+    whole = np.concatenate([cost, cost])
+    part = whole[:cost.shape[0]]  # C-contiguous, but a view of another array
+    assert part.flags.c_contiguous
+    np.testing.assert_array_equal(costs.normalise_volume(part, 0, impl="numba", overwrite=True),
+                                  expect)
+    np.testing.assert_array_equal(whole[:cost.shape[0]], cost)
     mine = cost.copy()
     out = costs.normalise_volume(mine, 0, impl="numba", overwrite=True)
     assert out is mine

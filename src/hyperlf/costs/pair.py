@@ -846,9 +846,10 @@ def normalise_volume(cost, dmin: int, valid=None, *, sd: float | None = None,
 
 
 def _own_float32(given, array) -> bool:
-    """``array`` is the float32, C-contiguous ``given`` itself (safe to write over)."""
+    """``array`` is the float32, C-contiguous ``given`` itself, owning its memory (so no view
+    of another array, such as a cache, is written over)."""
     return array is given and array.dtype == np.float32 and array.flags.c_contiguous \
-        and array.flags.writeable
+        and array.flags.writeable and array.flags.owndata
 
 
 def fuse(volumes: Sequence[np.ndarray], weights: Sequence[float] | None = None, dmin: int = 0,
