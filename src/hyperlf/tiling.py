@@ -4,11 +4,12 @@ The depth of a capture holds a few volumes of ``L x H x W`` float32 (``L`` label
 aggregated correspondence volume that the MRF optimises, its view counts, the unary and the
 MRF's own.  The correspondence stage needs more: per pixel and label it adds float32 sums and
 counts (twice, for the selection and its fallback, when view selection is on) and the volumes
-of the view being matched.  :func:`hyperlf.hlf.correspondence` can aggregate full-width strips of rows one at a
-time, so that this part of the memory is held for one strip only; the result is bit for bit the
-untiled one (the strips start on the :data:`hyperlf.costs.ROW_BLOCK` grid, the views stay whole,
-so every sample and window reads the rows it needs, however far the largest shift reaches: the
-halo is implicit; a cost with whole-view scales, the fusions, measures them in one more pass).
+of the view being matched.  :func:`hyperlf.hlf.correspondence` can aggregate full-width
+strips of rows one at a time, so that this part of the memory is held for one strip only; the
+result is bit for bit the untiled one (the strips start on the :data:`hyperlf.costs.ROW_BLOCK`
+grid, the views stay whole, so every sample and window reads the rows it needs, however far the
+largest shift reaches: the halo is implicit; a cost with whole-view scales, the fusions,
+measures them in one more pass).
 
 :func:`plan` picks the tallest strips whose estimated peak (:func:`depth_memory`) fits a budget
 (``DepthParams.max_memory``, ``hyperlf depth --max-memory``); :func:`parse_memory` reads a
