@@ -110,6 +110,8 @@ def test_ingest_masks_a_twelve_bit_sensors_saturation_and_scales_the_dark_frame(
     w, h = rig.image_size
     raw = {i: np.full((h, w), 2000, np.uint16) for i in range(3)}
     raw[1][h // 2 - 10:h // 2 + 10, w // 2 - 10:w // 2 + 10] = 4095  # saturated patch
+    for i in (0, 2):
+        raw[i][0, 0] = 2001  # not constant: a constant camera is refused as dead
     write_raw(tmp / "raw", raw)
     cv2.imwrite(str(tmp / "dark.png"), np.full((h, w), 1000, np.uint16))
     capsys.readouterr()

@@ -1342,7 +1342,8 @@ def _add_ingest_parser(sub) -> None:
                                                 "such as darks/Cam-{index}.png")
     p.add_argument("--flat", default=None, help="flat field: one image, or a pattern path")
     p.add_argument("--dead", type=_view_index, action="append", metavar="R,C",
-                   help="a camera to leave out (repeat for several)")
+                   help="a broken camera to leave out (repeat for several); its file is "
+                        "not read and may be missing; not the reference")
     p.add_argument("--saturation", type=_float_within(0.0, 1.0, "--saturation"), default=0.98,
                    help="raw level (0..1 of the sensor's full scale) at or above which a "
                         "pixel is invalid; 1 turns the check off (default 0.98)")

@@ -1138,6 +1138,16 @@ def _view_masks(lf, views):
     return masks, {v: fill_masked(lf.views[v], masks[v]) for v in views}
 
 
+def _views_with_data(views, ref, masks) -> list:
+    """The views matched against the reference: all others but those without a valid pixel
+    (a dead camera's view carries nothing to match)."""
+    others = [v for v in views if v != ref and (masks is None or masks[v].any())]
+    if not others:
+        raise InvalidInputError("no view besides the reference has a valid pixel (lf.valid): "
+                                "depth needs at least two views with data")
+    return others
+
+
 def prepare(lf, *, disparity_range=None, n_labels: int = 64, metric: str = "auto",
             view_selection: bool = False, occlusion_split: bool = False, defocus: str = "off",
             optimizer: str = "graphcut", params: DepthParams | None = None) -> DepthProblem:
@@ -1163,7 +1173,7 @@ def prepare(lf, *, disparity_range=None, n_labels: int = 64, metric: str = "auto
     prob = DepthProblem(
         lf=lf, metric=mname, view_selection=view_selection, occlusion_split=occlusion_split,
         defocus=defocus, optimizer=optimizer, params=params, labels=labels,
-        disparity_range=(dmin, dmax), views=views, others=[v for v in views if v != ref],
+        disparity_range=(dmin, dmax), views=views, others=_views_with_data(views, ref, masks),
         reference=ref, offsets=lf.offsets, ref_img=imgs[ref].astype(np.float64),
         In={v: normalise_intensity(imgs[v], valid=None if masks is None else masks[v])
             for v in views}, valid=masks)

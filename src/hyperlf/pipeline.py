@@ -456,17 +456,17 @@ def run_calibration(shots: str | os.PathLike, out_dir: str | os.PathLike, *, pat
     return cal, written
 
 
-def _camera_frames(spec, grid, what: str, bits: int | None):
+def _camera_frames(spec, grid, what: str, bits: int | None, dead=()):
     """A dark frame or flat field: one image for all cameras, or a pattern with ``{index}`` /
-    ``{row}``/``{col}`` giving one per camera (``None`` stays None), on the raw images' scale
-    (``bits``, :class:`hyperlf.calibration.raw.RawScale`)."""
+    ``{row}``/``{col}`` giving one per camera but the ``dead`` (``None`` stays None), on the
+    raw images' scale (``bits``, :class:`hyperlf.calibration.raw.RawScale`)."""
     if spec is None:
         return None
     from .calibration.raw import camera_files, read_camera_images, read_raw_image
 
     if "{" in str(spec):
         p = Path(spec)
-        return read_camera_images(camera_files(p.parent, p.name, grid), where=what,
+        return read_camera_images(camera_files(p.parent, p.name, grid, skip=dead), where=what,
                                   bits=bits)
     return read_raw_image(spec, bits=bits)
 
@@ -515,7 +515,8 @@ def run_ingest(raw: str | os.PathLike, out_dir: str | os.PathLike, *, calibratio
     dark, flat : path-like, optional
         One image for all cameras, or a pattern path (``darks/Cam-{index}.png``).
     dead : sequence of (int, int)
-        Cameras to leave out (their views are entirely invalid).
+        Cameras to leave out (their views are entirely invalid; their files are not read and
+        may be missing).
     saturation : float or None
         Raw level in [0, 1] of the sensor's full scale at or above which a pixel is invalid.
     raw_bits : int, optional
@@ -539,16 +540,16 @@ def run_ingest(raw: str | os.PathLike, out_dir: str | os.PathLike, *, calibratio
     log = log or _quiet
     cal_path = Path(calibration)
     cal = read_calibration(cal_path / "calibration.toml" if cal_path.is_dir() else cal_path)
-    images, scale = read_camera_images(camera_files(raw, pattern, cal.grid), where=str(raw),
-                                       bits=raw_bits, return_scale=True)
+    images, scale = read_camera_images(camera_files(raw, pattern, cal.grid, skip=dead),
+                                       where=str(raw), bits=raw_bits, return_scale=True)
     if raw_bits is None and scale.bits is not None and scale.bits < scale.file_bits:
         log(f"the raw images' values fit in {scale.bits} of their files' {scale.file_bits} "
             f"bits: {scale.bits}-bit data, full scale {2 ** scale.bits - 1} (--raw-bits to "
             "say otherwise)")
     log(f"{len(images)} raw images -> {cal.mode}-{'registered' if cal.mode == 'plane' else 'rectified'} views ...")
     lf = ingest(images, cal, wavelengths=_wavelength_table(wavelengths, cal.grid),
-                dark=_camera_frames(dark, cal.grid, "dark frames", scale.bits),
-                flat=_camera_frames(flat, cal.grid, "flat fields", scale.bits), dead=dead,
+                dark=_camera_frames(dark, cal.grid, "dark frames", scale.bits, dead),
+                flat=_camera_frames(flat, cal.grid, "flat fields", scale.bits, dead), dead=dead,
                 saturation=saturation, disparity_range=disparity_range)
     out = Path(out_dir)
     written = [save_lightfield(lf, out)]

@@ -66,6 +66,49 @@ def correct_raw(image: np.ndarray, *, dark=None, flat=None) -> np.ndarray:
     return np.maximum(out, 0.0).astype(np.float32)
 
 
+def _check_dead(calibration, dead, images) -> set:
+    """The dead cameras as a set of (row, col), refused when they leave nothing to match."""
+    R, C = calibration.grid
+    dead = {tuple(int(v) for v in k) for k in dead}
+    for k in sorted(dead):
+        if not (0 <= k[0] < R and 0 <= k[1] < C):
+            raise InvalidInputError(f"dead camera {k[0]},{k[1]} is outside the {R} x {C} grid")
+    ref = tuple(int(v) for v in calibration.reference)
+    if ref in dead:
+        raise InvalidInputError(
+            f"camera {ref[0]},{ref[1]} is the calibration's reference and cannot be dead; "
+            "calibrate again with --reference naming a working camera")
+    if R * C - len(dead) < 2:
+        raise InvalidInputError(f"{len(dead)} of {R * C} cameras dead: at least two must work")
+    missing = [k for k in calibration.cameras if k not in dead and k not in images]
+    if missing:
+        raise InvalidInputError(f"no raw image for camera {missing[0][0]},{missing[0][1]}; "
+                                "give one per camera, or name it dead")
+    return dead
+
+
+def _no_signal(key, raw, corrected) -> str | None:
+    """Why a live camera's image holds nothing to match (it is constant), or None."""
+    raw = np.asarray(raw)
+    where = f"camera {key[0]},{key[1]}"
+    if float(np.ptp(raw)) == 0.0:
+        return (f"{where}'s raw image is constant (every pixel {float(raw.flat[0]):.4g}): no "
+                f"signal; if the camera is broken, name it with --dead {key[0]},{key[1]}")
+    if float(np.ptp(corrected)) == 0.0:
+        return (f"{where} holds no signal once the dark frame and flat field are applied "
+                "(every pixel 0); check --dark: it must be taken with the lens capped")
+    return None
+
+
+def _check_reference_valid(calibration, valid, saturation) -> None:
+    r, c = (int(v) for v in calibration.reference)
+    if not valid[r, c].any():
+        sat = "" if saturation is None else f" (saturated at {saturation:g} of full scale?)"
+        raise InvalidInputError(
+            f"the reference camera {r},{c}'s view has no valid pixel{sat}; check --saturation "
+            "and the exposure")
+
+
 def ingest(images: Mapping, calibration, *, wavelengths=None, dark=None, flat=None,
            dead: Sequence = (), saturation: float | None = 0.98,
            disparity_range=None):
@@ -83,7 +126,9 @@ def ingest(images: Mapping, calibration, *, wavelengths=None, dark=None, flat=No
     dark, flat : ndarray or mapping (row, col) -> ndarray, optional
         Dark frame and flat field, one for all cameras or one per camera.
     dead : sequence of (row, col)
-        Cameras whose images are unusable: their views are entirely invalid.
+        Cameras whose images are unusable: their views are entirely invalid, and their images
+        need not be in ``images``. The reference camera cannot be dead, and at least two
+        cameras must be alive.
     saturation : float or None
         Raw value (in [0, 1]) at or above which a pixel is saturated and invalid.
     disparity_range : (float, float), optional
@@ -91,6 +136,13 @@ def ingest(images: Mapping, calibration, *, wavelengths=None, dark=None, flat=No
         registration with positions from parallax), else measured on these images
         (:func:`hyperlf.calibration.parallax.measured_disparity_range`; none when too few
         points match: ``hyperlf depth`` then asks for one).
+
+    Raises
+    ------
+    InvalidInputError
+        A dead camera outside the grid or the reference; fewer than two cameras alive; a live
+        camera whose image is constant (no signal: a dead camera not named, or a dark frame
+        that takes all of it); a reference view with no valid pixel.
 
     Returns
     -------
@@ -104,22 +156,26 @@ def ingest(images: Mapping, calibration, *, wavelengths=None, dark=None, flat=No
     from .metric import capture_geometry
     from .parallax import measured_disparity_range
 
-    R, C = calibration.grid
-    dead = {tuple(int(v) for v in k) for k in dead}
-    for k in dead:
-        if not (0 <= k[0] < R and 0 <= k[1] < C):
-            raise InvalidInputError(f"dead camera {k[0]},{k[1]} is outside the {R} x {C} grid")
-    fixed = {}
+    dead = _check_dead(calibration, dead, images)
+    fixed, silent = {}, []
     for k, img in images.items():
+        if k in dead:
+            continue
         out = correct_raw(img, dark=_per_camera(dark, k, "dark frame"),
                           flat=_per_camera(flat, k, "flat field"))
+        silent += [problem for problem in [_no_signal(k, img, out)] if problem]
         if saturation is not None:  # judged on the raw values; NaN makes the warp mark it
             out[np.asarray(img) >= saturation] = np.nan
         fixed[k] = out
-    views, valid = apply_calibration(calibration, fixed)
+    shape = next(iter(fixed.values())).shape
+    fixed.update({k: np.zeros(shape, np.float32) for k in dead})
+    views, valid = apply_calibration(calibration, fixed)   # refuses images of another size
+    if silent:
+        raise InvalidInputError(silent[0])
     for (r, c) in dead:
         valid[r, c] = False
         views[r, c] = 0.0
+    _check_reference_valid(calibration, valid, saturation)
     wl = None if wavelengths is None else np.asarray(wavelengths, np.float64).reshape(R, C)
     rng = disparity_range if disparity_range is not None else \
         calibration.info.get("disparity_range")

@@ -35,7 +35,7 @@ def _check_pattern(pattern: str) -> None:
 
 
 def camera_files(folder: str | os.PathLike, pattern: str, grid: tuple[int, int], *,
-                 must_exist: bool = True) -> dict:
+                 must_exist: bool = True, skip=()) -> dict:
     """The file of every camera of an ``R x C`` grid: ``{(row, col): Path}``.
 
     Parameters
@@ -48,6 +48,8 @@ def camera_files(folder: str | os.PathLike, pattern: str, grid: tuple[int, int],
         Rows and columns of cameras.
     must_exist : bool
         Refuse a missing file (naming the camera and the path).
+    skip : collection of (int, int)
+        Cameras not looked for (dead cameras, whose files may be missing): left out.
 
     Returns
     -------
@@ -78,8 +80,11 @@ def camera_files(folder: str | os.PathLike, pattern: str, grid: tuple[int, int],
     root = Path(folder)
     real_root = os.path.realpath(root)
     files = {}
+    skip = {tuple(int(v) for v in k) for k in skip}
     for r in range(R):
         for c in range(C):
+            if (r, c) in skip:
+                continue
             name = expand_pattern(pattern, _FIELDS, what="--pattern", index=r * C + c, row=r,
                                   col=c)
             p = root / name
