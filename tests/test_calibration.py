@@ -253,6 +253,59 @@ def test_rank1_factorisation_survives_outliers():
     assert np.abs(fac.offsets / scale - o).max() < 0.02
 
 
+def test_rank1_factorisation_with_one_view_wrong_everywhere():
+    """A camera mounted turned gives a view whose every flow is wrong: no point fits in
+    every view, and the others' offsets must still come out (the turned view's inliers
+    few), so that the turned camera can be found."""
+    rng = np.random.default_rng(1)
+    o = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [0.0, -1.0]])
+    d = rng.uniform(-8, 8, 150)
+    F = -d[None, :, None] * o[:, None, :] + rng.normal(0, 0.1, (5, 150, 2))
+    good = [0, 1, 2, 4]
+    for share in (0.3, 0.0):   # a few wrong flows in view 3, or none matched at all
+        G = F.copy()
+        G[3] = np.nan
+        some = rng.random(150) < share
+        G[3, some] = rng.uniform(-20, 20, (some.sum(), 2))
+        fac = factor_rank1(G)
+        scale = fac.offsets[0, 0] / o[0, 0]
+        assert np.abs(fac.offsets[good] / scale - o[good]).max() < 0.02
+        assert fac.inliers[3].sum() < 0.1 * fac.inliers[good].sum(1).min()
+    assert np.isnan(fac.offsets[3]).all()   # no point fits it: unknown, not the reference's
+
+
+def test_rank1_factorisation_ignores_a_wrong_match_repeated_in_several_views():
+    """Wrong matches with large flows, the same in several views (repeated texture, peaks at
+    the search border), must not start the model although they are most of the points
+    measured in every view and all of the largest flows: they would put cameras on one
+    spot (the lab capture with its reference at the array's edge)."""
+    rng = np.random.default_rng(2)
+    o = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [-1.0, 1.0], [0.0, 2.0]])
+    d = rng.uniform(-3, 3, 200)
+    F = -d[None, :, None] * o[:, None, :] + rng.normal(0, 0.1, (6, 200, 2))
+    lost = rng.random(200) < 0.85                      # most points lost in one view
+    F[rng.integers(0, 6, lost.sum()), np.flatnonzero(lost)] = np.nan
+    wrong = rng.random(200) < 0.2
+    c = rng.uniform(20, 30, (wrong.sum(), 1)) * np.array([1.0, -1.0])   # per point, large
+    F[:, wrong] = -d[wrong][None, :, None] * o[:, None, :]
+    F[2:, wrong] = c[None] + rng.normal(0, 0.2, (4, wrong.sum(), 2))
+    fac = factor_rank1(F)
+    scale = fac.offsets[0, 0] / o[0, 0]
+    assert np.abs(fac.offsets / scale - o).max() < 0.05
+
+
+def test_positions_the_board_poses_contradict_are_refused():
+    from hyperlf.calibration.plane import POSITION_DISAGREEMENT, _check_positions_agree
+
+    fine = {"positions_from": "parallax", "focal_determined": True, "pose_position_rms": 0.04}
+    _check_positions_agree(fine)
+    _check_positions_agree({**fine, "pose_position_rms": 11.2, "focal_determined": False})
+    _check_positions_agree({**fine, "pose_position_rms": 11.2, "positions_from": "board"})
+    with pytest.raises(InvalidInputError, match="disagree by 11.20 baselines.*check --grid"):
+        _check_positions_agree({**fine, "pose_position_rms": 11.2})
+    assert POSITION_DISAGREEMENT < 1
+
+
 # ----------------------------------------------------------------------------- plane mode
 def test_plane_registration_positions_and_residuals(rig, plane_cal):
     truth = rig.true_positions("reference")

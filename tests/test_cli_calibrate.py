@@ -14,7 +14,7 @@ from conftest import require_dataset
 from hyperlf.calibration import read_calibration
 from hyperlf.calibration.rig import make_rig
 from hyperlf.cli import main
-from hyperlf.formats import write_image
+from hyperlf.formats import read_image, write_image
 
 
 @pytest.fixture(scope="module")
@@ -228,6 +228,42 @@ def test_calibrate_the_lab_capture(tmp_path):
     pos = cal.positions() - cal.positions()[1, 1]
     assert max(cal.reprojection_errors().values()) < 0.3
     # a 3 x 3 grid up to the mirroring the images show: every neighbour one baseline away
+    assert np.allclose(np.abs(pos), [[[1, 1], [0, 1], [1, 1]], [[1, 0], [0, 0], [1, 0]],
+                                     [[1, 1], [0, 1], [1, 1]]], atol=0.1)
+
+
+@pytest.mark.parametrize("reference", ["0,1", "2,2"])
+def test_the_lab_capture_with_the_reference_at_the_edge(tmp_path, reference):
+    """Any camera may be the reference: from the top row's middle, half of the points seen in
+    every view with the largest flows were wrong matches, and they used to start the
+    parallax model (positions up to 14 baselines off, exit 0)."""
+    shots = require_dataset("real_arrays/msir_lab") / "calibration"
+    out = tmp_path / "cal"
+    assert run(shots, "--pattern", "Cam-{index}.png", "--grid", "3,3", "--board", "11,8",
+               "--reference", reference, "-o", out) == 0
+    cal = read_calibration(out / "calibration.toml")
+    pos = cal.positions() - cal.positions()[cal.reference]
+    r0, c0 = cal.reference
+    want = np.abs(np.stack(np.meshgrid(np.arange(3.0) - c0, np.arange(3.0) - r0), -1))
+    assert np.allclose(np.abs(pos), want, atol=0.1)
+    assert cal.info["parallax_rms"] < 0.5
+
+
+def test_the_lab_capture_with_a_camera_turned_upside_down(tmp_path):
+    """One camera of the lab's board shots turned by 180 degrees: no point is then matched in
+    every view, which left the parallax model empty and the turn unfound."""
+    src = require_dataset("real_arrays/msir_lab") / "calibration"
+    shots = tmp_path / "shots"
+    shots.mkdir()
+    for i in range(9):
+        img = read_image(src / f"Cam-{i}.png", as_float=False, channels="grey")
+        write_image(shots / f"Cam-{i}.png", img[::-1, ::-1] if i == 5 else img)
+    out = tmp_path / "cal"
+    assert run(shots, "--pattern", "Cam-{index}.png", "--grid", "3,3", "--board", "11,8",
+               "-o", out) == 0
+    cal = read_calibration(out / "calibration.toml")
+    assert cal.info["turned_cameras"] == ["1,2"] and cal.info["positions_from"] == "parallax"
+    pos = cal.positions() - cal.positions()[1, 1]
     assert np.allclose(np.abs(pos), [[[1, 1], [0, 1], [1, 1]], [[1, 0], [0, 0], [1, 0]],
                                      [[1, 1], [0, 1], [1, 1]]], atol=0.1)
 

@@ -137,20 +137,68 @@ def _fit_d(F: np.ndarray, w: np.ndarray, o: np.ndarray) -> np.ndarray:
     return (w * num).sum(0) / np.maximum(den, 1e-12)
 
 
+def _distinct_places(o: np.ndarray, seen: np.ndarray, share: float = 0.2) -> bool:
+    """Whether offsets ``(V, 2)`` and the reference's (0, 0) put every camera that has a flow
+    (``seen``, (V,) bool) at its own place: each one's nearest neighbour at least ``share``
+    of ``extent / n`` away (the array's largest distance over its ``n`` cameras, which even a
+    row of cameras spaces by more). A wrong match that recurs in several views (the same flow
+    everywhere) would put those cameras on one spot."""
+    pts = np.vstack([np.zeros((1, 2)), o[seen]])
+    dd = np.linalg.norm(pts[:, None] - pts[None], axis=-1)
+    extent = float(dd.max())
+    np.fill_diagonal(dd, np.inf)
+    return bool(dd.min() >= share * extent / len(pts))
+
+
+def _hypotheses(F: np.ndarray, w: np.ndarray, tol: float) -> np.ndarray:
+    """Points that may start a hypothesis: measured in every view, or (three or more views)
+    in all but one, with flows of at least ``3 tol`` px on average (off the plane) when any."""
+    moved = np.linalg.norm(np.nan_to_num(F), axis=-1)
+    seen = w & (moved > 0)
+    need = F.shape[0] - (1 if F.shape[0] >= 3 else 0)
+    cands = np.flatnonzero(seen.sum(0) >= need)
+    if cands.size == 0:
+        return cands
+    mags = np.array([moved[seen[:, i], i].mean() for i in cands])
+    return cands[mags >= 3 * tol] if (mags >= 3 * tol).any() else cands
+
+
+def _hypothesis(F: np.ndarray, w: np.ndarray, i: int) -> np.ndarray:
+    """Offsets ``o = -F[:, i]``; a view the point was not measured in gets the least-squares
+    offset of the other points' flows, their ``d`` fitted on the other views."""
+    o = -np.nan_to_num(F[:, i])
+    for u in np.flatnonzero(~w[:, i]):
+        rest = w.copy()
+        rest[u] = False
+        d = _fit_d(F, rest, o)
+        wu = w[u] & rest.any(0)
+        den = float((wu * d ** 2).sum())
+        o[u] = -(np.nan_to_num(F[u]) * (wu * d)[:, None]).sum(0) / max(den, 1e-12)
+    return o
+
+
 def _ransac_offsets(F: np.ndarray, w: np.ndarray, tol: float, trials: int,
                     seed: int) -> np.ndarray | None:
     """Offsets from the one point whose flows explain the most entries (a hypothesis is one
-    point measured in every view: its flow vector is ``-d o``); None if no point qualifies."""
-    full = np.flatnonzero(w.all(0) & (np.linalg.norm(np.nan_to_num(F), axis=-1).min(0) > 0))
-    if full.size == 0:
+    point's flow vector, ``-d o``: :func:`_hypotheses`, :func:`_hypothesis`; it must put
+    every camera at its own place); None if no point qualifies.
+
+    Every point off the plane may start a hypothesis: the larger flows are not the safer
+    ones, as wrong matches (repeated texture, peaks at the search border) have large flows
+    too (with the reference at the array's edge they were half of the lab capture's
+    largest); and one view whose every flow is wrong (a camera mounted turned, before
+    :func:`hyperlf.calibration.plane.turned_cameras` finds it) must not leave no point seen
+    everywhere."""
+    cands = _hypotheses(F, w, tol)
+    if cands.size == 0:
         return None
-    mags = np.linalg.norm(F[:, full], axis=-1).mean(0)
-    cands = full[mags >= np.median(mags)] if full.size > 4 else full
     rng = np.random.default_rng(seed)
     pick = rng.choice(cands, size=min(trials, cands.size), replace=False)
     best, score = None, -1.0
     for i in pick:
-        o = -F[:, i]
+        o = _hypothesis(F, w, i)
+        if not _distinct_places(o, w.any(1)):
+            continue
         d = _fit_d(F, w, o)
         res = np.linalg.norm(np.nan_to_num(F) + d[None, :, None] * o[:, None, :], axis=-1)
         sc = float(np.sum(w & (res <= tol + 0.05 * np.abs(d)[None] * np.linalg.norm(o, axis=1)
@@ -163,6 +211,8 @@ def _ransac_offsets(F: np.ndarray, w: np.ndarray, tol: float, trials: int,
 def factor_rank1(flows: np.ndarray, *, min_views: int = 2, floor: float = 0.25,
                  rounds: int = 5, tol: float = 1.0, trials: int = 200, seed: int = 0) -> Rank1:
     """Robust rank-1 factorisation of measured flows ``(V, N, 2)`` (NaN = not measured).
+
+    A view in which no point fits the model gets NaN offsets.
 
     A RANSAC start (the flows of one point seen in every view, the one that explains most
     entries within ``tol`` px plus 5 % of the flow) picks the inliers; then alternating least
@@ -198,6 +248,7 @@ def factor_rank1(flows: np.ndarray, *, min_views: int = 2, floor: float = 0.25,
     res = np.linalg.norm(np.nan_to_num(F) + d[None, :, None] * o[:, None, :], axis=-1)
     rms = float(np.sqrt(np.mean(res[w] ** 2))) if w.any() else np.nan
     d = np.where(w.any(0), d, np.nan)
+    o = np.where(w.any(1)[:, None], o, np.nan)   # a view no point fits: unknown, not (0, 0)
     return Rank1(o, d, w, rms)
 
 

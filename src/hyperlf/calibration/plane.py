@@ -348,7 +348,9 @@ def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=No
     ------
     InvalidInputError
         The board is missing in some cameras (named), images differ in size, the grid has
-        holes, or ``positions_from="parallax"`` found no usable parallax.
+        holes, ``positions_from="parallax"`` found no usable parallax, or the positions from
+        parallax contradict the board poses (:data:`POSITION_DISAGREEMENT`: files that are
+        not the cameras the grid says).
 
     Examples
     --------
@@ -398,8 +400,27 @@ def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=No
     pos, agree = resolve_positions(offsets, geo["centres"], ref)
     info["sign_agreement"] = agree
     cal = _plane_calibration(grid, ref, size, Hs, errs, pos, geo, board, names, info)
+    _check_positions_agree(cal.info)
     cal.residuals, cal.corners = resid, corners
     return cal
+
+
+#: Largest RMS (baselines) by which the positions from parallax may differ from the board
+#: poses' centres; the lab capture's differ by 0.04, the synthetic rigs' by under 0.1.
+POSITION_DISAGREEMENT = 0.5
+
+
+def _check_positions_agree(info: dict) -> None:
+    """Refuse positions from parallax that the board poses contradict (when the poses fix the
+    focal length, and so their centres): the files are not the cameras the grid says."""
+    rms = info.get("pose_position_rms", 0.0)
+    if info.get("positions_from") != "parallax" or not info.get("focal_determined") \
+            or not rms > POSITION_DISAGREEMENT:
+        return
+    raise InvalidInputError(
+        f"the cameras' positions from the scene's parallax and from the board's poses disagree "
+        f"by {rms:.2f} baselines (RMS); check --grid and --pattern: each file must be the "
+        "camera at its place in the grid")
 
 
 def _plane_calibration(grid, ref, size, Hs, errs, pos, geo, board, names, info) -> Calibration:
