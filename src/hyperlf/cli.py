@@ -1336,8 +1336,9 @@ def _add_ingest_parser(sub) -> None:
                    help="calibration.toml from 'hyperlf calibrate' (or its folder)")
     _add_pattern_option(p)
     p.add_argument("--wavelengths", default=None,
-                   help="filter centre wavelengths in nm, raster order: comma-separated or a "
-                        "file (default: unknown)")
+                   help="filter centre wavelengths in nm (200-20000), raster order: "
+                        "comma-separated, or a text/CSV file of the numbers (one header line "
+                        "allowed); default: unknown")
     p.add_argument("--dark", default=None, help="dark frame: one image, or a pattern path "
                                                 "such as darks/Cam-{index}.png")
     p.add_argument("--flat", default=None, help="flat field: one image, or a pattern path")

@@ -471,22 +471,53 @@ def _camera_frames(spec, grid, what: str, bits: int | None, dead=()):
     return read_raw_image(spec, bits=bits)
 
 
+#: Filter wavelengths (nm) ``ingest`` accepts: ultraviolet to thermal infrared.
+WAVELENGTH_RANGE_NM = (200.0, 20000.0)
+
+
 def _wavelength_table(spec, grid) -> np.ndarray | None:
-    """Filter wavelengths (nm) in raster order: a comma list, or a text/CSV file of numbers."""
+    """Filter wavelengths (nm) in raster order: a comma list, or a text/CSV file of numbers
+    (separated by commas, spaces or lines; one header line is skipped)."""
     if spec is None:
         return None
-    from .errors import InvalidInputError
+    from .errors import DataNotFoundError, InvalidInputError
 
-    text = Path(spec).read_text(encoding="utf-8") if Path(spec).is_file() else str(spec)
-    try:
-        wl = np.array([float(v) for v in text.replace(",", " ").split()], dtype=np.float64)
-    except ValueError:
-        raise InvalidInputError(f"--wavelengths {spec!r}: give {grid[0] * grid[1]} numbers in "
-                                "nm (raster order), comma-separated or in a file") from None
-    if wl.size != grid[0] * grid[1] or not (np.isfinite(wl).all() and (wl > 0).all()):
-        raise InvalidInputError(f"--wavelengths: need {grid[0] * grid[1]} positive numbers in "
-                                f"nm (one per camera, raster order), got {wl.size}")
+    n, text = grid[0] * grid[1], str(spec)
+    if _is_file(spec):
+        text = Path(spec).read_text(encoding="utf-8", errors="replace")
+        lines = text.splitlines()
+        if lines and _numbers(lines[0]) is None:
+            text = "\n".join(lines[1:])
+    elif _numbers(text) is None and ("/" in text or Path(text).suffix):
+        raise DataNotFoundError(f"--wavelengths: file {spec} does not exist")
+    wl = _numbers(text)
+    if wl is None:
+        raise InvalidInputError(f"--wavelengths {spec!r}: give {n} numbers in nm (raster "
+                                "order), separated by commas, or a file of them")
+    lo, hi = WAVELENGTH_RANGE_NM
+    if wl.size != n:
+        raise InvalidInputError(f"--wavelengths: need {n} numbers (one per camera, raster "
+                                f"order), got {wl.size}")
+    if not (np.isfinite(wl).all() and (wl >= lo).all() and (wl <= hi).all()):
+        um = " (micrometres? give nm, e.g. 450)" if np.nanmax(np.abs(wl)) < 20 else ""
+        raise InvalidInputError(f"--wavelengths: every value must be a wavelength in nm "
+                                f"between {lo:g} and {hi:g}{um}")
     return wl.reshape(grid)
+
+
+def _is_file(spec) -> bool:
+    try:
+        return Path(spec).is_file()
+    except (OSError, ValueError):   # a name too long for the file system, a NUL
+        return False
+
+
+def _numbers(text: str) -> np.ndarray | None:
+    """The numbers of ``text`` (separated by commas or white space), or None if any is not."""
+    try:
+        return np.array([float(v) for v in text.replace(",", " ").split()], dtype=np.float64)
+    except ValueError:
+        return None
 
 
 def run_ingest(raw: str | os.PathLike, out_dir: str | os.PathLike, *, calibration,
@@ -533,13 +564,15 @@ def run_ingest(raw: str | os.PathLike, out_dir: str | os.PathLike, *, calibratio
     (LightField, list of Path)
     """
     from .calibration import read_calibration, save_registration_picture
-    from .calibration.ingest import ingest
+    from .calibration.ingest import check_dead, ingest
     from .calibration.raw import camera_files, read_camera_images
     from .formats import save_lightfield
 
     log = log or _quiet
     cal_path = Path(calibration)
     cal = read_calibration(cal_path / "calibration.toml" if cal_path.is_dir() else cal_path)
+    wl = _wavelength_table(wavelengths, cal.grid)  # the options first: no images read yet
+    dead = check_dead(cal, dead)
     images, scale = read_camera_images(camera_files(raw, pattern, cal.grid, skip=dead),
                                        where=str(raw), bits=raw_bits, return_scale=True)
     if raw_bits is None and scale.bits is not None and scale.bits < scale.file_bits:
@@ -547,7 +580,7 @@ def run_ingest(raw: str | os.PathLike, out_dir: str | os.PathLike, *, calibratio
             f"bits: {scale.bits}-bit data, full scale {2 ** scale.bits - 1} (--raw-bits to "
             "say otherwise)")
     log(f"{len(images)} raw images -> {cal.mode}-{'registered' if cal.mode == 'plane' else 'rectified'} views ...")
-    lf = ingest(images, cal, wavelengths=_wavelength_table(wavelengths, cal.grid),
+    lf = ingest(images, cal, wavelengths=wl,
                 dark=_camera_frames(dark, cal.grid, "dark frames", scale.bits, dead),
                 flat=_camera_frames(flat, cal.grid, "flat fields", scale.bits, dead), dead=dead,
                 saturation=saturation, disparity_range=disparity_range)

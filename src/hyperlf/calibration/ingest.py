@@ -16,7 +16,7 @@ import numpy as np
 
 from ..errors import InvalidInputError
 
-__all__ = ["ingest", "correct_raw"]
+__all__ = ["ingest", "correct_raw", "check_dead"]
 
 
 def _per_camera(value, key, what: str):
@@ -66,8 +66,14 @@ def correct_raw(image: np.ndarray, *, dark=None, flat=None) -> np.ndarray:
     return np.maximum(out, 0.0).astype(np.float32)
 
 
-def _check_dead(calibration, dead, images) -> set:
-    """The dead cameras as a set of (row, col), refused when they leave nothing to match."""
+def check_dead(calibration, dead) -> set:
+    """The dead cameras as a set of (row, col), refused when they leave nothing to match.
+
+    Raises
+    ------
+    InvalidInputError
+        A camera outside the grid or the reference; fewer than two cameras alive.
+    """
     R, C = calibration.grid
     dead = {tuple(int(v) for v in k) for k in dead}
     for k in sorted(dead):
@@ -80,6 +86,12 @@ def _check_dead(calibration, dead, images) -> set:
             "calibrate again with --reference naming a working camera")
     if R * C - len(dead) < 2:
         raise InvalidInputError(f"{len(dead)} of {R * C} cameras dead: at least two must work")
+    return dead
+
+
+def _check_dead(calibration, dead, images) -> set:
+    """:func:`check_dead`, and a raw image for every live camera."""
+    dead = check_dead(calibration, dead)
     missing = [k for k in calibration.cameras if k not in dead and k not in images]
     if missing:
         raise InvalidInputError(f"no raw image for camera {missing[0][0]},{missing[0][1]}; "
@@ -176,7 +188,8 @@ def ingest(images: Mapping, calibration, *, wavelengths=None, dark=None, flat=No
         valid[r, c] = False
         views[r, c] = 0.0
     _check_reference_valid(calibration, valid, saturation)
-    wl = None if wavelengths is None else np.asarray(wavelengths, np.float64).reshape(R, C)
+    wl = None if wavelengths is None else \
+        np.asarray(wavelengths, np.float64).reshape(calibration.grid)
     rng = disparity_range if disparity_range is not None else \
         calibration.info.get("disparity_range")
     if rng is None:  # a full calibration (or positions from the board): measure the scene

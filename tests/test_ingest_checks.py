@@ -1,7 +1,8 @@
-"""Broken cameras in a real array (issue 11): ``ingest --dead`` leaves a camera out (its file
+"""What ``ingest`` checks (issue 11). Broken cameras: ``--dead`` leaves a camera out (its file
 may be missing) and ``depth`` matches the others; a camera that holds no signal, a dead
-reference, too few live cameras and a reference view with no valid pixel are refused by
-``ingest`` in one line, before a capture is written."""
+reference, too few live cameras and a reference view with no valid pixel are refused in one
+line, before a capture is written. Filter wavelengths: read from a list or a file, refused
+when they cannot be nanometres."""
 
 from __future__ import annotations
 
@@ -9,13 +10,17 @@ import shutil
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from hyperlf import hlf
 from hyperlf.calibration import read_calibration
 from hyperlf.calibration.rig import make_rig
 from hyperlf.cli import main
+from hyperlf.errors import DataNotFoundError, HyperLFError, InvalidInputError
 from hyperlf.formats import load_lightfield, read_pfm, write_image
 from hyperlf.lightfield import LightField
+from hyperlf.pipeline import WAVELENGTH_RANGE_NM, _wavelength_table
 
 COLS = 3
 
@@ -129,3 +134,42 @@ def test_a_camera_without_signal_is_named_with_the_fix(rig_dirs, capsys):
     assert _ingest(tmp, scene, "--dark", str(tmp / "dark.png"), out="refused") == 2
     assert "check --dark" in capsys.readouterr().err
     assert not (tmp / "refused").exists()
+
+
+# ----------------------------------------------------------------------------- wavelengths
+WL = [410.0 + 10 * i for i in range(6)]
+
+
+def test_the_wavelengths_given_reach_the_capture(rig_dirs, tmp_path):
+    tmp, scene, _ = rig_dirs
+    table = tmp_path / "filters.csv"
+    table.write_text("centre_nm\n" + "\n".join(f"{w:g}" for w in WL) + "\n")
+    assert _ingest(tmp, scene, "--wavelengths", str(table), out="cap_wl") == 0
+    np.testing.assert_array_equal(load_lightfield(tmp / "cap_wl").wavelengths,
+                                  np.reshape(WL, (2, COLS)))
+
+
+@pytest.mark.parametrize("spec, error, words", [
+    ("0.41,0.42,0.43,0.44,0.45,0.46", InvalidInputError, "micrometres"),
+    ("410,420,430", InvalidInputError, "need 6 numbers"),
+    ("410,420,430,440,450,nan", InvalidInputError, "between 200 and 20000"),
+    ("410,420,430,440,450,-460", InvalidInputError, "between 200 and 20000"),
+    ("filters/none.csv", DataNotFoundError, "does not exist"),
+    ("blue,green", InvalidInputError, "give 6 numbers"),
+])
+def test_wavelengths_that_cannot_be_nanometres_are_refused(spec, error, words):
+    with pytest.raises(error, match=words):
+        _wavelength_table(spec, (2, 3))
+
+
+@settings(max_examples=200, deadline=None, derandomize=True)
+@given(st.text(st.characters(blacklist_categories=("Cs",), blacklist_characters="\x00"),
+               max_size=60))
+def test_any_wavelength_option_is_a_table_or_a_one_line_error(text):
+    try:
+        wl = _wavelength_table(text, (2, 3))
+    except HyperLFError as e:
+        assert "\n" not in str(e)
+        return
+    assert wl.shape == (2, 3)
+    assert (wl >= WAVELENGTH_RANGE_NM[0]).all() and (wl <= WAVELENGTH_RANGE_NM[1]).all()
