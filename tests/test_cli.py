@@ -76,6 +76,8 @@ def test_demo_runs_and_writes_pictures(tmp_path):
     for name in ("views.png", "gt_disparity.png", "reference_srgb.png", "gt_disparity.pfm"):
         assert (out / name).is_file(), name
     assert (out / "capture" / "capture.toml").is_file()
+    # every path it names is where the file ends up, not the hidden folder it was written in
+    assert ".hyperlf-" not in proc.stderr and f"wrote {out / 'report.html'}" in proc.stderr
 
 
 def test_render_refocus_spectrum_on_a_capture_cube(tmp_path):
@@ -115,6 +117,23 @@ def test_stereo_command_writes_disparity_products(tmp_path):
         assert (out / name).is_file(), name
     assert main(["-q", "stereo", str(tmp_path / "l.png"), str(tmp_path / "r.png"),
                  "-o", str(out)]) == 2  # no range given: usage error with a hint
+
+
+def test_refocus_refuses_a_sweep_the_memory_cannot_hold(tmp_path, capsys, monkeypatch):
+    """Every frame of a sweep is held until the animations are written: 100000 frames ran the
+    machine out of memory; a sweep above the memory available is refused in one line."""
+    from hyperlf import cli
+
+    cap = tmp_path / "planes"
+    assert main(["-q", "synth", "procedural", "--scene", "planes", "--size", "40,48",
+                 "--grid", "2,2", "-o", str(cap), "--no-pictures"]) == 0
+    monkeypatch.setattr(cli, "_available_memory", lambda: cli.SWEEP_BYTES_AT_LEAST * 40 * 48 * 5)
+    capsys.readouterr()
+    assert main(["-q", "refocus", str(cap), "--sweep=-1,1,6", "-o", str(tmp_path / "f")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--sweep with 6 frames of 48 x 40 px" in err[0]
+    assert "fewer frames" in err[0] and not (tmp_path / "f").exists()
+    assert main(["-q", "refocus", str(cap), "--sweep=-1,1,5", "-o", str(tmp_path / "g")]) == 0
 
 
 def test_stereo_refuses_a_range_the_memory_cannot_hold_before_any_work(tmp_path, capsys,

@@ -415,6 +415,18 @@ def _check_pair_memory(disparity_range, shape) -> None:
                   "range need an eighth)")
 
 
+#: Bytes per pixel and frame a focal sweep holds at least: every frame is kept (float64 RGB)
+#: until the animations are written, with its 8-bit copy.
+SWEEP_BYTES_AT_LEAST = 27.0
+
+
+def _check_sweep_memory(n_frames: int, shape) -> None:
+    """Refocus: refuse a sweep whose frames alone exceed the available memory."""
+    H, W = shape
+    _check_memory(SWEEP_BYTES_AT_LEAST * n_frames * H * W,
+                  f"--sweep with {n_frames} frames of {W} x {H} px", "use fewer frames (N)")
+
+
 def _layout_arg(text: str):
     if text in ("raster", "serpentine", "random"):
         return text
@@ -1115,6 +1127,7 @@ def _cmd_refocus(args, dest) -> list[Path]:
         check_disparity_reach(focus, offsets, cf.cube.shape[-2:])
         if args.sweep is not None:
             lo, hi, n = args.sweep
+            _check_sweep_memory(int(n), cf.cube.shape[-2:])
             res = render.focal_sweep(cf, offsets, np.linspace(lo, hi, int(n)), profile,
                                      out_dir=out, fps=args.fps, progress=not args.quiet,
                                      reference=reference, white=args.white)

@@ -388,7 +388,7 @@ def run_demo(out_dir: str | os.PathLike, *, seed: int = 0, grid: tuple[int, int]
     rep = _demo_report(out, lf, metric, sc, cres, scores, timings, pics, disp_pics, rendered)
     log(f"depth RMSE {sc.rmse:.3f} px; cube PSNR {cube_psnr:.1f} dB, "
         f"SAM {cube_sam:.2f} deg; emulated sRGB {rendered['srgb_psnr']:.1f} dB")
-    log(f"done in {timings['total']:.1f} s; open {rep}")
+    log(f"done in {timings['total']:.1f} s; the report: {rep.name} in the output folder")
     written.append(rep)
     return DemoResult(out_dir=out, report=rep, written=written, scores=scores, timings=timings)
 
