@@ -208,6 +208,10 @@ def test_a_batch_folder_records_its_options(captures, tmp_path):
     assert [t.name for t in tasks] == [f"frame{s}" for s in range(4)]
     assert all(Path(t.output).parent == out for t in tasks)
     batch.plan_batch([captures], out, depth_args=["--labels", "8"])  # same options: fine
+    # nothing computed yet (an unreachable scheduler): other options are free to start
+    batch.plan_batch([captures], out, depth_args=["--labels", "7"])
+    batch.plan_batch([captures], out, depth_args=["--labels", "8"])
+    (out / "frame0").mkdir()   # a capture's results: now the options bind
     with pytest.raises(InvalidInputError, match="other depth options"):
         batch.plan_batch([captures], out, depth_args=["--labels", "9"])
     tasks = batch.plan_batch([captures], out, depth_args=["--labels", "9"], overwrite=True)

@@ -139,9 +139,9 @@ def _names(captures: Sequence[Path]) -> list[str]:
 
 def _record_options(out: Path, depth_args: Sequence[str], overwrite: bool) -> None:
     """Make ``out`` a batch folder recording ``depth_args``; refuse another batch's folder
-    with other options (unless ``overwrite``), a folder that is not a batch's, and, without
-    ``overwrite``, a folder whose last ``overwrite`` run did not finish (some of its result
-    sets may still come from the old options)."""
+    with other options (unless ``overwrite``, or it holds no result yet), a folder that is not
+    a batch's, and, without ``overwrite``, a folder whose last ``overwrite`` run did not
+    finish (some of its result sets may still come from the old options)."""
     marker = out / BATCH_FILE
     if out.is_symlink() or (out.exists() and not out.is_dir()):
         raise InvalidInputError(f"-o {out}: not a folder; give a folder for the batch results")
@@ -149,7 +149,7 @@ def _record_options(out: Path, depth_args: Sequence[str], overwrite: bool) -> No
         if any(out.iterdir()):
             raise InvalidInputError(f"-o {out}: a folder that is not a hyperlf batch output "
                                     "and not empty; give a new or empty folder")
-    elif marker.is_file() and not overwrite:
+    elif marker.is_file() and not overwrite and _holds_results(out):
         before = _read_marker(marker)
         if before.get("overwrite_unfinished"):
             raise InvalidInputError(f"-o {out}: an --overwrite run into it did not finish, so "
@@ -162,6 +162,13 @@ def _record_options(out: Path, depth_args: Sequence[str], overwrite: bool) -> No
                 "same options, or --overwrite to recompute")
     out.mkdir(parents=True, exist_ok=True)
     _write_marker(marker, {"depth_args": list(depth_args), "overwrite_unfinished": overwrite})
+
+
+def _holds_results(out: Path) -> bool:
+    """Whether a batch folder holds anything but its marker (and hidden unfinished result
+    sets): a run that computed nothing (an unreachable scheduler) binds no later run."""
+    return any(p.name != BATCH_FILE and not p.name.startswith(".hyperlf-")
+               for p in out.iterdir())
 
 
 def _read_marker(marker: Path) -> dict:
