@@ -58,7 +58,7 @@ def test_synth_info_convert_chain(tmp_path, capsys):
 
 
 def test_pfm_to_png_conversion(tmp_path):
-    from hyperlf.formats import read_image, write_pfm
+    from hyperlf.formats import read_image, read_pfm, write_pfm
 
     d = np.linspace(-1, 2, 30 * 20, dtype=np.float32).reshape(20, 30)
     write_pfm(tmp_path / "d.pfm", d)
@@ -66,6 +66,31 @@ def test_pfm_to_png_conversion(tmp_path):
     img = read_image(tmp_path / "d.png", as_float=True)
     assert img.shape == (20, 30) and img.min() == 0 and img.max() == 1
     assert (tmp_path / "d_colour.png").is_file()
+    # and back: the mapping beside the image gives the values to 16-bit precision
+    assert main(["-q", "convert", str(tmp_path / "d.png"), "-o", str(tmp_path / "b.pfm")]) == 0
+    np.testing.assert_allclose(read_pfm(tmp_path / "b.pfm"), d, atol=3 / 65535 / 2 + 1e-6)
+    assert main(["-q", "convert", str(tmp_path / "d.pfm"), "--bit-depth", "8", "-o",
+                 str(tmp_path / "e.png")]) == 0
+    assert read_image(tmp_path / "e.png", as_float=False).dtype == np.uint8
+    assert main(["-q", "convert", str(tmp_path / "e.png"), "-o", str(tmp_path / "e.pfm")]) == 0
+    np.testing.assert_allclose(read_pfm(tmp_path / "e.pfm"), d, atol=3 / 255 / 2 + 1e-6)
+    # depth's disparity_16bit.png, through its disparity_16bit.txt
+    (tmp_path / "q").mkdir()
+    from hyperlf.pipeline import save_disparity_outputs
+    save_disparity_outputs(tmp_path / "q", d, "d")
+    assert main(["-q", "convert", str(tmp_path / "q" / "disparity_16bit.png"), "-o",
+                 str(tmp_path / "q.pfm")]) == 0
+    np.testing.assert_allclose(read_pfm(tmp_path / "q.pfm"), d, atol=1 / 512 + 1e-6)
+
+
+def test_a_light_field_does_not_become_a_folder_named_like_a_file(tmp_path, capsys):
+    cap = tmp_path / "s"
+    assert main(["-q", "synth", "procedural", "--size", "24,28", "--grid", "2,2", "-o", str(cap),
+                 "--no-pictures"]) == 0
+    capsys.readouterr()
+    assert main(["-q", "convert", str(cap), "-o", str(tmp_path / "v1.png")]) == 2
+    assert "a capture folder or a .h5 file, not a .png file" in capsys.readouterr().err
+    assert not (tmp_path / "v1.png").exists()
 
 
 def test_demo_runs_and_writes_pictures(tmp_path):

@@ -318,7 +318,7 @@ def test_usage_errors_are_one_line(tmp_path):
 def _convert_cases(capture):
     pfm = capture / "gt_disparity_r0_c0.pfm"  # the fixture writes per-view ground truth
     return [
-        ("pfm-to-png", ["convert", pfm], "d.png", ["d.png", "d_colour.png"]),
+        ("pfm-to-png", ["convert", pfm], "d.png", ["d.png", "d.txt", "d_colour.png"]),
         ("pfm-to-pfm", ["convert", pfm], "d.pfm", ["d.pfm"]),
         ("cube-to-envi", ["convert", capture / "gt_cube.h5"], "c.hdr", ["c.hdr", "c.img"]),
     ]

@@ -324,8 +324,8 @@ def _file_outputs(args) -> list[Path]:
     suffix = out.suffix.lower()
     if suffix in (".hdr", ".img"):
         return [out.with_suffix(".hdr"), out.with_suffix(".img")]
-    if suffix in (".png", ".tif", ".tiff"):
-        return [out, out.with_name(out.stem + "_colour.png")]
+    if suffix in (".png", ".tif", ".tiff"):  # convert's image: its value mapping, a preview
+        return [out, out.with_suffix(".txt"), out.with_name(out.stem + "_colour.png")]
     return [out]
 
 
@@ -514,46 +514,115 @@ def _cmd_synth(args, dest) -> list[Path]:
     return [data]
 
 
+#: Suffixes of single files a light field cannot be converted to (it becomes a folder or .h5).
+_NOT_A_LIGHTFIELD = {".png", ".tif", ".tiff", ".pfm", ".jpg", ".jpeg", ".hdr", ".img", ".txt",
+                     ".csv", ".npy", ".gif", ".mp4", ".ply", ".toml", ".json"}
+
+
 def _cmd_convert(args, dest) -> list[Path]:
     """Convert a light field between capture folder, HCI folder (read only) and HDF5 (.h5); a
-    PFM to 16-bit PNG/TIFF (with a colour-mapped preview) or back; one view of a cube (.h5) to
-    ENVI (.hdr + .img)."""
-    from . import formats, visualise
-    from .lightfield import centre_view
+    PFM to a 16-bit (or --bit-depth 8) PNG/TIFF with a colour-mapped preview and the linear
+    mapping back in a .txt beside it, or such an image back to PFM (through the .txt when it
+    is there, else as 0..1 of the file's full scale); one view of a cube (.h5) to ENVI
+    (.hdr + .img).
+
+    examples:
+      hyperlf convert capture -o capture.h5            # capture folder -> one HDF5 file
+      hyperlf convert capture.h5 -o capture-copy       # and back
+      hyperlf convert $HYPERLF_DATA/hci4d/antinous -o antinous.h5   # an HCI scene (RGB views)
+      hyperlf convert out/disparity.pfm -o disparity.png   # + disparity.txt, disparity_colour.png
+      hyperlf convert disparity.png -o back.pfm        # the values again, through disparity.txt
+      hyperlf convert cube.h5 --view 2,2 -o view.hdr   # ENVI .hdr + .img of one view's bands
+    """
+    from . import formats
 
     src = Path(args.input)
     dst = dest if isinstance(dest, Path) else dest[0]  # where this run writes args.output
     img_ext = {".png", ".tif", ".tiff"}
     if src.suffix.lower() == ".pfm" or (src.suffix.lower() in img_ext and dst.suffix.lower() == ".pfm"):
-        _check_input_file(src, "input")
-        data = formats.read_pfm(src) if src.suffix.lower() == ".pfm" else formats.read_image(src)
-        if dst.suffix.lower() == ".pfm":
-            return [formats.write_pfm(dst, data)]
-        if dst.suffix.lower() not in img_ext:
-            raise InvalidInputError(f"cannot convert {src.suffix} to {dst.suffix}; "
-                                    "use .pfm, .png or .tif")
-        finite = data[np.isfinite(data)]
-        lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
-        scaled = (data - lo) / (hi - lo) if hi > lo else np.zeros_like(data)
-        written = [formats.write_image(dst, np.nan_to_num(scaled), bit_depth=16)]
-        _say(args, f"values {lo:g}..{hi:g} mapped linearly to 0..65535")
-        if data.ndim == 2:
-            written.append(visualise.save_disparity_png(dest[1], data, title=src.name,
-                                                        label="value"))
-        return written
+        return _convert_map(args, src, dst, dest)
     if dst.suffix.lower() in (".hdr", ".img"):
-        if src.suffix.lower() not in (".h5", ".hdf5"):
-            raise InvalidInputError("ENVI export needs a cube file (.h5) as input")
-        with formats.open_cube_h5(src) as cf:  # one view is read, not the whole cube
-            R, C = cf.cube.shape[:2]
-            r, c = args.view if args.view is not None else centre_view(R, C)
-            if not (r < R and c < C):
-                raise InvalidInputError(f"--view {r},{c} is outside the {R} x {C} grid of {src}")
-            view, wl = np.asarray(cf.cube[r, c], np.float32), cf.wavelengths
-        formats.write_envi(dest[0], view, wl)
-        return list(dest)
+        return _convert_envi(args, src, dest)
+    if dst.suffix.lower() in _NOT_A_LIGHTFIELD:
+        raise InvalidInputError(f"-o {args.output}: a light field converts to a capture folder "
+                                f"or a .h5 file, not a {dst.suffix} file")
     lf = formats.load_lightfield(src)
     return [formats.save_lightfield(lf, dst, bit_depth=args.bit_depth)]
+
+
+def _convert_map(args, src: Path, dst: Path, dest) -> list[Path]:
+    """A PFM to a 16/8-bit image (+ mapping .txt + colour preview), or an image to PFM."""
+    from . import formats, visualise
+    from ._atomic import atomic_write_text
+
+    img_ext = {".png", ".tif", ".tiff"}
+    _check_input_file(src, "input")
+    if src.suffix.lower() != ".pfm":
+        data = formats.read_image(src, as_float=True)
+        mapping = _read_value_mapping(src.with_suffix(".txt"))
+        if mapping is None:
+            _say(args, f"no value mapping ({src.with_suffix('.txt').name}) beside {src.name}: "
+                       "values are its 0..1 of full scale")
+        else:
+            data = formats.read_image(src, as_float=False).astype(np.float64) / mapping[0] \
+                + mapping[1]
+            _say(args, f"values through {src.with_suffix('.txt').name}")
+        return [formats.write_pfm(dst, np.asarray(data, np.float32))]
+    data = formats.read_pfm(src)
+    if dst.suffix.lower() == ".pfm":
+        return [formats.write_pfm(dst, data)]
+    if dst.suffix.lower() not in img_ext:
+        raise InvalidInputError(f"cannot convert {src.suffix} to {dst.suffix}; "
+                                "use .pfm, .png or .tif")
+    finite = data[np.isfinite(data)]
+    lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
+    full = 2 ** args.bit_depth - 1
+    scaled = (data - lo) / (hi - lo) if hi > lo else np.zeros_like(data)
+    written = [formats.write_image(dst, np.nan_to_num(scaled), bit_depth=args.bit_depth)]
+    per = full / (hi - lo) if hi > lo else 1.0
+    written.append(atomic_write_text(dest[1], f"value = pixel / {per:.17g} + ({lo:.17g})   "
+                                     f"# {args.bit_depth}-bit pixels of {dst.name}; exact "
+                                     f"values in {src.name}\n"))
+    _say(args, f"values {lo:g}..{hi:g} mapped linearly to 0..{full} ({dest[1].name})")
+    if data.ndim == 2:
+        written.append(visualise.save_disparity_png(dest[2], data, title=src.name,
+                                                    label="value"))
+    return written
+
+
+def _read_value_mapping(path: Path) -> tuple[float, float] | None:
+    """``(divisor, offset)`` of a ``NAME = pixel / D + (O)`` line hyperlf wrote beside a 16-bit
+    image (``convert``'s .txt, depth's ``disparity_16bit.txt``), or None."""
+    import re
+
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")[:4096]
+    except OSError:
+        return None
+    m = re.search(r"=\s*(?:pixel|value)\s*/\s*([-+0-9.eE]+)\s*\+\s*\(([-+0-9.eEinfa]+)\)",
+                  text)
+    try:
+        div, off = (float(m.group(1)), float(m.group(2))) if m else (np.nan, np.nan)
+    except ValueError:
+        return None
+    return (div, off) if np.isfinite(div) and div != 0 and np.isfinite(off) else None
+
+
+def _convert_envi(args, src: Path, dest) -> list[Path]:
+    """One view of a cube (.h5) to ENVI .hdr + .img."""
+    from . import formats
+    from .lightfield import centre_view
+
+    if src.suffix.lower() not in (".h5", ".hdf5"):
+        raise InvalidInputError("ENVI export needs a cube file (.h5) as input")
+    with formats.open_cube_h5(src) as cf:  # one view is read, not the whole cube
+        R, C = cf.cube.shape[:2]
+        r, c = args.view if args.view is not None else centre_view(R, C)
+        if not (r < R and c < C):
+            raise InvalidInputError(f"--view {r},{c} is outside the {R} x {C} grid of {src}")
+        view, wl = np.asarray(cf.cube[r, c], np.float32), cf.wavelengths
+    formats.write_envi(dest[0], view, wl)
+    return list(dest)
 
 
 def _cmd_demo(args, dest) -> list[Path]:
@@ -1299,10 +1368,13 @@ def _add_info_parser(sub) -> None:
 
 def _add_convert_parser(sub) -> None:
     p = _subcommand(sub, "convert", _cmd_convert, help="convert between formats")
-    p.add_argument("input")
+    p.add_argument("input", help="capture folder, .h5 light field, HCI scene folder, cube .h5, "
+                                 ".pfm, or a .png/.tif that convert wrote from a PFM")
     p.add_argument("-o", "--output", required=True,
                    help="target: folder (capture), .h5, .pfm, .png, .tif or .hdr")
-    p.add_argument("--bit-depth", type=int, choices=(8, 16), default=16)
+    p.add_argument("--bit-depth", type=int, choices=(8, 16), default=16,
+                   help="of the images written: a capture's views or a PFM's picture "
+                        "(default 16)")
     p.add_argument("--view", type=_view_index, default=None, metavar="R,C",
                    help="view (0-based row,col) whose cube is exported to ENVI "
                         "(default: the centre view)")
