@@ -396,3 +396,10 @@ def test_stereo_and_depth_commands_pass_the_aggregation(tmp_path, monkeypatch):
     assert main(["-q", "depth", str(tmp_path / "cap"), "--labels", "4", "--optimizer", "wta",
                  "-o", str(tmp_path / "d0")]) == 0
     assert seen["depth"] is None or seen["depth"].aggregation == "none"
+
+
+def test_quiet_may_follow_the_command(tmp_path, capsys):
+    assert main(["synth", "procedural", "-q", "--size", "24,28", "--grid", "2,2", "-o",
+                 str(tmp_path / "s"), "--no-pictures"]) == 0
+    assert main(["info", str(tmp_path / "s"), "-q"]) == 0
+    assert capsys.readouterr().err == ""

@@ -132,7 +132,8 @@ def write_lightfield_pictures(lf, out: str | os.PathLike, stem: str = "") -> lis
 def save_disparity_outputs(out: str | os.PathLike, disparity: np.ndarray, title: str,
                            truth: np.ndarray | None = None,
                            confidence: np.ndarray | None = None,
-                           stem: str = "disparity") -> list[Path]:
+                           stem: str = "disparity", unit: str = "px per baseline"
+                           ) -> list[Path]:
     """Write a disparity map as PFM (exact), 16-bit PNG and a colour-mapped picture.
 
     The 16-bit PNG holds ``(disparity - offset) * 256`` rounded; the offset is written to a
@@ -152,6 +153,8 @@ def save_disparity_outputs(out: str | os.PathLike, disparity: np.ndarray, title:
         Confidence in [0, 1]; adds ``confidence.pfm`` (exact) and ``confidence.png``.
     stem : str
         File-name stem (default ``"disparity"``).
+    unit : str
+        The disparity's unit, for the ``.txt`` (a pair's disparity is in px).
 
     Returns
     -------
@@ -171,7 +174,7 @@ def save_disparity_outputs(out: str | os.PathLike, disparity: np.ndarray, title:
     written.append(write_image(out / f"{stem}_16bit.png", png))
     written.append(atomic_write_text(
         out / f"{stem}_16bit.txt",
-        f"disparity = value / 256 + ({offset:g})   # px per baseline; exact values in {stem}.pfm\n"))
+        f"disparity = value / 256 + ({offset:g})   # {unit}; exact values in {stem}.pfm\n"))
     written.append(visualise.save_disparity_png(out / f"{stem}.png", disparity, title=title))
     if truth is not None:
         written.append(visualise.save_error_png(out / f"{stem}_error.png", disparity, truth))
