@@ -1293,10 +1293,14 @@ def _subcommand(sub, name: str, func, *, help: str) -> argparse.ArgumentParser:
                   formatter_class=argparse.RawDescriptionHelpFormatter)
     p = sub.add_parser(name, help=help, description=" ".join(description.split()) or None, **kw)
     p.set_defaults(func=func)
-    # -q after the command too ('hyperlf depth -q ...'); SUPPRESS keeps a -q given before it
+    _add_quiet_option(p)
+    return p
+
+
+def _add_quiet_option(p: argparse.ArgumentParser) -> None:
+    """-q after the command too ('hyperlf depth -q ...'); SUPPRESS keeps a -q given before."""
     p.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
                    help="no progress or messages")
-    return p
 
 
 def _add_overwrite_option(p: argparse.ArgumentParser) -> None:
@@ -1381,6 +1385,7 @@ def _add_synth_parser(sub) -> None:
         q.add_argument("--seed", type=_seed_arg, default=None,
                        help="random seed (default: 0, or the named scene's own)")
         q.add_argument("--no-pictures", action="store_true", help="write data only")
+        _add_quiet_option(q)
         _add_spectral_options(q)
         _add_overwrite_option(q)
         q.set_defaults(func=_cmd_synth)
