@@ -9,13 +9,13 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hyperlf.calibration.raw import (SENSOR_BITS, RawScale, camera_files, read_camera_images,
                                      read_raw_image, sensor_bits)
 from hyperlf.cli import main
-from hyperlf.errors import InvalidInputError
+from hyperlf.errors import DataNotFoundError, InvalidInputError
 from hyperlf.formats import load_lightfield, write_image
 
 
@@ -129,3 +129,31 @@ def test_ingest_masks_a_twelve_bit_sensors_saturation_and_scales_the_dark_frame(
     v12, v16 = lf12.views[ref][inside], lf16.views[ref][inside]
     np.testing.assert_allclose(v12, 1000 / 4095, atol=1 / 65535 + 1e-6)
     np.testing.assert_allclose(v16, 1000 / 65535, atol=1 / 65535 + 1e-6)
+
+
+def test_files_numbered_from_one_take_an_offset_in_the_pattern(tmp_path):
+    for i in range(1, 7):
+        (tmp_path / f"Cam-{i}.png").write_bytes(b"")
+    files = camera_files(tmp_path, "Cam-{index+1}.png", (2, 3))
+    assert files[(1, 2)].name == "Cam-6.png" and files[(0, 0)].name == "Cam-1.png"
+    with pytest.raises(DataNotFoundError, match=r"Cam-1.png is there.*\{index\+1\}"):
+        camera_files(tmp_path, "Cam-{index}.png", (2, 3))
+    (tmp_path / "r1c2").mkdir()
+    assert camera_files(tmp_path, "r{row+1}c{col+1}", (1, 2), must_exist=False)[(0, 1)].name \
+        == "r1c2"
+    with pytest.raises(DataNotFoundError, match="is not a folder"):
+        camera_files(tmp_path / "nope", "Cam-{index}.png", (2, 3))
+
+
+@settings(max_examples=300, deadline=None, derandomize=True)
+@given(st.text(st.characters(blacklist_categories=("Cs",), blacklist_characters="\x00"),
+               max_size=40))
+def test_any_pattern_expands_or_is_refused_in_one_line(pattern):
+    from hyperlf.formats.patterns import expand_pattern
+
+    try:
+        name = expand_pattern(pattern, ["index", "row", "col"], index=7, row=2, col=1)
+    except InvalidInputError as e:
+        assert "\n" not in str(e)
+        return
+    assert isinstance(name, str)

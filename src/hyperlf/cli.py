@@ -1417,8 +1417,8 @@ def _add_pattern_option(p: argparse.ArgumentParser) -> None:
     """``--pattern``: how a real array's files are named (see :mod:`hyperlf.formats.patterns`)."""
     p.add_argument("--pattern", required=True,
                    help="file name of each camera's image, with {index} (raster order) or "
-                        "{row} and {col} (0-based), e.g. 'Cam-{index}.png' or "
-                        "'cam_{row}_{col:02d}.tif'")
+                        "{row} and {col} (0-based; {index+1} for files numbered from 1), e.g. "
+                        "'Cam-{index}.png' or 'cam_{row}_{col:02d}.tif'")
 
 
 def _add_calibrate_parser(sub) -> None:

@@ -1,9 +1,10 @@
 """Raw images of a camera array: one file per camera, named by a pattern the user states once.
 
 A pattern names each camera's file with ``{index}`` (raster order, ``row * cols + col``) or with
-``{row}`` and ``{col}`` (0-based), e.g. ``Cam-{index}.png`` or ``cam_{row}_{col:02d}.tif``
-(:mod:`hyperlf.formats.patterns`). Board shots come as one such set per pose: the set in the
-folder itself (one pose), or one set per subfolder (several poses, in name order).
+``{row}`` and ``{col}`` (0-based; ``{index+1}`` for files numbered from 1), e.g.
+``Cam-{index}.png`` or ``cam_{row}_{col:02d}.tif`` (:mod:`hyperlf.formats.patterns`). Board
+shots come as one such set per pose: the set in the folder itself (one pose), or one set per
+subfolder (several poses, in name order).
 """
 
 from __future__ import annotations
@@ -89,12 +90,30 @@ def camera_files(folder: str | os.PathLike, pattern: str, grid: tuple[int, int],
                                   col=c)
             p = root / name
             if must_exist and not p.is_file():
+                if not root.is_dir():
+                    raise DataNotFoundError(f"{root} is not a folder; give the folder of the "
+                                            "images")
                 raise DataNotFoundError(f"no image for camera {r * C + c} (row {r}, col {c}): "
-                                        f"{p} does not exist; check --pattern and --grid")
+                                        f"{p} does not exist; check --pattern and --grid"
+                                        + _numbered_from_one_hint(root, pattern, r * C + c, r, c))
             if must_exist and os.path.commonpath([real_root, os.path.realpath(p)]) != real_root:
-                raise InvalidInputError(f"{p} leads outside {root} (a symlink); copy the file in")
+                how = "a symlink" if any(q.is_symlink() for q in [p, *p.parents]) else "'..'"
+                raise InvalidInputError(f"{p} leads outside {root} ({how}); put the file in "
+                                        "the folder")
             files[(r, c)] = p
     return files
+
+
+def _numbered_from_one_hint(root: Path, pattern: str, index: int, row: int, col: int) -> str:
+    """A hint when the files are there numbered from 1 (Cam-1 ... Cam-9)."""
+    from ..formats.patterns import expand_pattern
+
+    if "+" in pattern:
+        return ""
+    one = expand_pattern(pattern, _FIELDS, what="--pattern", index=index + 1, row=row + 1,
+                         col=col + 1)
+    return (f" ({one} is there: are the files numbered from 1? then write {{index+1}}, "
+            "{row+1}, {col+1})") if (root / one).is_file() else ""
 
 
 def pose_folders(folder: str | os.PathLike, pattern: str, grid: tuple[int, int]) -> list[Path]:

@@ -1,9 +1,10 @@
 """File-name patterns that name one file per camera: ``Cam-{index}.png``, ``v_{row}_{col}.tif``.
 
 A pattern may use only the fields it is given (``row``, ``col``, ``index``, ...), each optionally
-with a zero-padded width below 100 (``{index:02d}``); attributes, indices, conversions, other
-format specs and stray braces are refused, so a pattern read from a file or typed by a user can
-never reach into Python objects or ask for a gigantic width.
+plus a number for files numbered from it (``{index+1}`` for Cam-1 ... Cam-9) and with a
+zero-padded width below 100 (``{index:02d}``); attributes, indices, conversions, other format
+specs and stray braces are refused, so a pattern read from a file or typed by a user can never
+reach into Python objects or ask for a gigantic width.
 """
 
 from __future__ import annotations
@@ -21,6 +22,35 @@ __all__ = ["pattern_fields", "expand_pattern"]
 _FIELD_SPEC = re.compile(r"0?\d{0,2}d?")
 
 
+#: A field: an allowed name, optionally plus a number below 10000 (``index+1``).
+_FIELD_NAME = re.compile(r"(\w+?)(?:\+(\d{1,4}))?")
+
+
+def _parse(pattern: str, allowed: Sequence[str], what: str) -> list[tuple]:
+    """``(literal, name, offset, spec)`` per part of ``pattern`` (name None after the last
+    field); refuses what :func:`pattern_fields` documents."""
+    names = [f"{{{a}}}" for a in allowed]
+    names = names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+    bad = InvalidInputError(f"{what} {pattern!r} may only use {names}, optionally plus a number "
+                            "(files numbered from 1: {" + allowed[0] + "+1}) and with a width "
+                            "below 100 such as {" + allowed[0] + ":02d}")
+    try:
+        parts = list(string.Formatter().parse(pattern))
+    except ValueError:
+        raise bad from None
+    out = []
+    for literal, field, spec, conversion in parts:
+        if field is None:
+            out.append((literal, None, 0, ""))
+            continue
+        m = _FIELD_NAME.fullmatch(field)
+        if not m or m.group(1) not in allowed or conversion \
+                or not _FIELD_SPEC.fullmatch(spec or ""):
+            raise bad
+        out.append((literal, m.group(1), int(m.group(2) or 0), spec or ""))
+    return out
+
+
 def pattern_fields(pattern: str, allowed: Sequence[str], *, what: str = "pattern") -> list[str]:
     """The fields ``pattern`` uses (empty for a plain name); refuse anything else.
 
@@ -36,7 +66,7 @@ def pattern_fields(pattern: str, allowed: Sequence[str], *, what: str = "pattern
     Returns
     -------
     list of str
-        The field names used, in order.
+        The field names used, in order (``index`` for ``{index+1}``).
 
     Raises
     ------
@@ -48,19 +78,10 @@ def pattern_fields(pattern: str, allowed: Sequence[str], *, what: str = "pattern
     --------
     >>> pattern_fields("Cam-{index:02d}.png", ["row", "col", "index"])
     ['index']
+    >>> pattern_fields("r{row+1}c{col+1}.tif", ["row", "col", "index"])
+    ['row', 'col']
     """
-    names = [f"{{{a}}}" for a in allowed]
-    names = names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
-    bad = InvalidInputError(f"{what} {pattern!r} may only use {names}, optionally with a width "
-                            "below 100 such as {" + allowed[0] + ":02d}")
-    try:
-        fields = [f for f in string.Formatter().parse(pattern) if f[1] is not None]
-    except ValueError:
-        raise bad from None
-    for _, name, spec, conversion in fields:
-        if name not in allowed or conversion or not _FIELD_SPEC.fullmatch(spec or ""):
-            raise bad
-    return [f[1] for f in fields]
+    return [name for _, name, _, _ in _parse(pattern, allowed, what) if name is not None]
 
 
 def expand_pattern(pattern: str, allowed: Sequence[str], *, what: str = "pattern",
@@ -76,9 +97,11 @@ def expand_pattern(pattern: str, allowed: Sequence[str], *, what: str = "pattern
     --------
     >>> expand_pattern("v_{row}_{col:02d}.png", ["row", "col"], row=1, col=2)
     'v_1_02.png'
+    >>> expand_pattern("Cam-{index+1}.png", ["index"], index=0)
+    'Cam-1.png'
     """
-    pattern_fields(pattern, allowed, what=what)
-    name = pattern.format(**values)
+    name = "".join(literal + ("" if field is None else format(values[field] + offset, spec))
+                   for literal, field, offset, spec in _parse(pattern, allowed, what))
     if any(len(os.fsencode(part)) > 255 for part in name.replace("\\", "/").split("/")):
         raise InvalidInputError(f"{what} {pattern!r} gives a name longer than 255 bytes")
     return name
