@@ -157,3 +157,14 @@ def test_any_pattern_expands_or_is_refused_in_one_line(pattern):
         assert "\n" not in str(e)
         return
     assert isinstance(name, str)
+
+
+def test_a_file_beyond_the_grid_is_noticed(tmp_path):
+    from hyperlf.calibration.raw import beyond_grid
+
+    for i in range(9):
+        (tmp_path / f"Cam-{i}.png").write_bytes(b"")
+    assert beyond_grid(tmp_path, "Cam-{index}.png", (3, 3)) is None
+    assert beyond_grid(tmp_path, "Cam-{index}.png", (2, 4)).name == "Cam-8.png"
+    (tmp_path / "v_0_3.png").write_bytes(b"")
+    assert beyond_grid(tmp_path, "v_{row}_{col}.png", (2, 3)).name == "v_0_3.png"

@@ -437,10 +437,11 @@ def run_calibration(shots: str | os.PathLike, out_dir: str | os.PathLike, *, pat
         The calibration and every file written.
     """
     from . import calibration as cal_mod
-    from .calibration.raw import read_poses
+    from .calibration.raw import pose_folders, read_poses
 
     log = log or _quiet
     out = Path(out_dir)
+    _say_beyond_grid(pose_folders(shots, pattern, grid)[0], pattern, grid, log)
     per = read_poses(shots, pattern, grid)
     n = len(next(iter(per.values())))
     log(f"{len(per)} cameras, {n} pose(s): calibrating ...")
@@ -472,6 +473,16 @@ def _camera_frames(spec, grid, what: str, bits: int | None, dead=()):
         return read_camera_images(camera_files(p.parent, p.name, grid, skip=dead), where=what,
                                   bits=bits)
     return read_raw_image(spec, bits=bits)
+
+
+def _say_beyond_grid(folder, pattern: str, grid, log) -> None:
+    """Log a file for a camera outside the grid (only the grid's cameras are read)."""
+    from .calibration.raw import beyond_grid
+
+    extra = beyond_grid(folder, pattern, grid)
+    if extra is not None:
+        log(f"note: {extra.name} is there too, outside the {grid[0]} x {grid[1]} grid; only "
+            "the grid's cameras are read (check --grid)")
 
 
 #: Filter wavelengths (nm) ``ingest`` accepts: ultraviolet to thermal infrared.
@@ -576,6 +587,7 @@ def run_ingest(raw: str | os.PathLike, out_dir: str | os.PathLike, *, calibratio
     cal = read_calibration(cal_path / "calibration.toml" if cal_path.is_dir() else cal_path)
     wl = _wavelength_table(wavelengths, cal.grid)  # the options first: no images read yet
     dead = check_dead(cal, dead)
+    _say_beyond_grid(raw, pattern, cal.grid, log)
     images, scale = read_camera_images(camera_files(raw, pattern, cal.grid, skip=dead),
                                        where=str(raw), bits=raw_bits, return_scale=True)
     if raw_bits is None and scale.bits is not None and scale.bits < scale.file_bits:

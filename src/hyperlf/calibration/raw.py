@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import DataNotFoundError, InvalidInputError
 
-__all__ = ["camera_files", "pose_folders", "read_camera_images", "read_poses", "read_raw_image",
+__all__ = ["camera_files", "beyond_grid", "pose_folders", "read_camera_images", "read_poses", "read_raw_image",
            "sensor_bits", "RawScale", "SENSOR_BITS"]
 
 _FIELDS = ("index", "row", "col")
@@ -114,6 +114,20 @@ def _numbered_from_one_hint(root: Path, pattern: str, index: int, row: int, col:
                          col=col + 1)
     return (f" ({one} is there: are the files numbered from 1? then write {{index+1}}, "
             "{row+1}, {col+1})") if (root / one).is_file() else ""
+
+
+def beyond_grid(folder: str | os.PathLike, pattern: str, grid: tuple[int, int]) -> Path | None:
+    """A file the pattern names for a camera just outside the grid (``{index}`` = R * C, or row
+    R / column C), when there is one: a sign that ``grid`` is smaller than the array."""
+    from ..formats.patterns import expand_pattern
+
+    R, C = (int(v) for v in grid)
+    for index, row, col in ((R * C, R, 0), (R * C, 0, C)):
+        p = Path(folder) / expand_pattern(pattern, _FIELDS, what="--pattern", index=index,
+                                          row=row, col=col)
+        if p.is_file():
+            return p
+    return None
 
 
 def pose_folders(folder: str | os.PathLike, pattern: str, grid: tuple[int, int]) -> list[Path]:
