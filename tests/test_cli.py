@@ -103,6 +103,7 @@ def test_demo_runs_and_writes_pictures(tmp_path):
     assert (out / "capture" / "capture.toml").is_file()
     # every path it names is where the file ends up, not the hidden folder it was written in
     assert ".hyperlf-" not in proc.stderr and f"wrote {out / 'report.html'}" in proc.stderr
+    assert "\r" not in proc.stderr  # no progress bars into a pipe or a log: stage lines only
 
 
 def test_render_refocus_spectrum_on_a_capture_cube(tmp_path):

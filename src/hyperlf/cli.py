@@ -231,6 +231,12 @@ def _one_line(text: str) -> str:
     return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
+def _bars(args) -> bool:
+    """Progress bars: on a terminal unless --quiet; never into a log file or a pipe, where
+    their carriage returns would pile up (the stage messages still say what happens)."""
+    return not args.quiet and sys.stderr.isatty()
+
+
 def _report(args, written, dest) -> None:
     """After the result set is in place: list the files written (stderr, under their final
     names) and print the output location (stdout)."""
@@ -494,7 +500,7 @@ def _cmd_synth(args, dest) -> list[Path]:
                   layout=args.layout, noise_sigma=args.noise)
     if args.seed is not None:  # a named scene keeps its own seed unless one is given
         common["seed"] = args.seed
-    common["progress"] = not args.quiet
+    common["progress"] = _bars(args)
     if args.source == "hci":
         lf = synthesis.from_hci_scene(args.scene, **common)
     else:
@@ -507,7 +513,7 @@ def _cmd_synth(args, dest) -> list[Path]:
     out = Path(args.output)
     data = dest if isinstance(dest, Path) else dest[0]  # a capture folder, or a .h5 file
     _say(args, f"writing {out} ...")
-    save_lightfield(lf, data, bit_depth=args.bit_depth, progress=not args.quiet)
+    save_lightfield(lf, data, bit_depth=args.bit_depth, progress=_bars(args))
     if not args.no_pictures:
         write_lightfield_pictures(lf, data / "preview" if data is dest else dest[1])
     _say(args, f"made {R} x {C} views of {lf.image_shape[1]} x {lf.image_shape[0]} px "
@@ -635,7 +641,7 @@ def _cmd_demo(args, dest) -> list[Path]:
     _check_views_memory(args.grid, args.size)
     _check_labels_memory(args.labels, args.size)
     res = run_demo(dest, seed=args.seed, grid=args.grid, size=args.size, metric=args.metric,
-                   labels=args.labels, progress=not args.quiet, log=lambda msg: _say(args, msg))
+                   labels=args.labels, progress=_bars(args), log=lambda msg: _say(args, msg))
     return [res.report]
 
 
@@ -750,7 +756,7 @@ def _cmd_stereo(args, dest) -> list[Path]:
     res = stereo(left, right, (int(lo), int(hi)), metric=args.metric, optimizer=args.optimizer,
                  occlusion="none" if args.no_occlusion else args.occlusion,
                  subpixel=args.subpixel, aggregation=_aggregation_of(args),
-                 channel=channel, progress=not args.quiet)
+                 channel=channel, progress=_bars(args))
     written = save_disparity_outputs(dest, res.disparity,
                                       f"{res.metric} + {res.optimizer}", confidence=res.confidence,
                                       unit="px")
@@ -848,7 +854,7 @@ def _cmd_depth(args, dest) -> list[Path]:
         res = depth(lf, disparity_range=rng, n_labels=args.labels, metric=args.metric,
                     view_selection=args.view_selection, occlusion_split=args.occlusion_split,
                     defocus=args.defocus, optimizer=args.optimizer, params=params,
-                    save_intermediate=args.save_intermediate, progress=not args.quiet)
+                    save_intermediate=args.save_intermediate, progress=_bars(args))
         extra = {"correspondence_only": res.f_c, "defocus_only": res.f_d,
                  "coarse_disparity": res.intermediate.get("coarse_disparity")
                  if res.intermediate else None}
@@ -858,7 +864,7 @@ def _cmd_depth(args, dest) -> list[Path]:
         from .baselines import METHODS
 
         res = METHODS[args.method](lf, n_labels=args.labels, disparity_range=rng,
-                                   progress=not args.quiet)
+                                   progress=_bars(args))
         extra = {k: v for k, v in res.maps.items()
                  if isinstance(v, np.ndarray) and v.shape == res.disparity.shape}
         weight = strength = None
@@ -949,7 +955,7 @@ def _cmd_batch(args, dest) -> list[Path]:  # noqa: ARG001 - batch writes its own
                        overwrite=args.overwrite)
     _say(args, f"{len(tasks)} captures -> {args.output}")
     rows = run_batch(tasks, workers=args.workers, scheduler=args.scheduler,
-                     progress=not args.quiet)
+                     progress=_bars(args))
     write_summary(args.output, rows)
     finish_batch(args.output, rows)
     counts = {k: sum(r.status == k for r in rows) for k in ("done", "done before", "failed")}
@@ -1048,7 +1054,7 @@ def _cmd_complete(args, dest) -> list[Path]:
                    "('hyperlf depth' with the default settings)")
     res = complete(lf, disparity, out_path=out / "cube.h5", metric=args.metric,
                    optimizer=None if args.stereo == "none" else args.stereo,
-                   infer=not args.no_infer, progress=not args.quiet)
+                   infer=not args.no_infer, progress=_bars(args))
     completed = np.empty(lf.views.shape[:4], np.float32)  # share of bands per view pixel
     for v in np.ndindex(*lf.grid_shape):  # view by view: the masks are the cube's size
         mask = read_band_mask(res.path, view=v)
@@ -1155,7 +1161,7 @@ def _cmd_render(args, dest) -> list[Path]:
         views = "all" if args.all_views else "reference"
         kw = dict(camera=args.camera, output="srgb", white=args.white, views=views,
                   exposure="percentile" if args.white is None else "white",
-                  progress=not args.quiet)
+                  progress=_bars(args))
         if views == "reference":
             kw["views"] = reference
         rgb = render.emulate_camera(cf, **kw)
@@ -1201,7 +1207,7 @@ def _cmd_refocus(args, dest) -> list[Path]:
             lo, hi, n = args.sweep
             _check_sweep_memory(int(n), cf.cube.shape[-2:])
             res = render.focal_sweep(cf, offsets, np.linspace(lo, hi, int(n)), profile,
-                                     out_dir=out, fps=args.fps, progress=not args.quiet,
+                                     out_dir=out, fps=args.fps, progress=_bars(args),
                                      reference=reference, white=args.white)
             written = [res[key] for key in ("gif", "mp4") if res.get(key)]
             _say(args, f"{len(res['frames'])} frames")
@@ -1209,7 +1215,7 @@ def _cmd_refocus(args, dest) -> list[Path]:
             img = render.refocus(cf, offsets, args.disparity, profile, output="srgb"
                                  if not isinstance(profile, (float, np.ndarray)) else "camera",
                                  exposure="percentile", reference=reference, white=args.white,
-                                 progress=not args.quiet)
+                                 progress=_bars(args))
             img = np.clip(img / max(float(np.percentile(img, 99.5)), 1e-6), 0, 1) \
                 if img.ndim == 2 else img
             written = [write_image(out / f"refocus_d{args.disparity:+.2f}.png", img,
