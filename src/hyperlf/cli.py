@@ -635,7 +635,12 @@ def _convert_envi(args, src: Path, dest) -> list[Path]:
 def _cmd_demo(args, dest) -> list[Path]:
     """Run the whole chain on a small synthetic hyperspectral light field with ground truth:
     capture -> depth -> plenoptic cube -> emulated colour image -> focal sweep, and write
-    report.html with every picture and figure. Needs no data."""
+    report.html with every picture and figure. Needs no data.
+
+    examples:
+      hyperlf demo                                  # ./hyperlf-demo/report.html
+      hyperlf demo --size 48,64 --grid 3,4 -o small-demo    # smaller and faster
+    """
     from .pipeline import run_demo  # the chain itself
 
     _check_views_memory(args.grid, args.size)
