@@ -221,14 +221,20 @@ def test_depth_command_on_a_synthetic_capture(tmp_path, capsys):
     assert d.shape == (40, 48) and np.isfinite(d).all()
     for name in ("disparity.png", "disparity_error.png", "correspondence_only.pfm"):
         assert (out / name).is_file(), name
+    # a result folder given where a capture goes is named for what it is
+    assert main(["-q", "depth", str(out), "-o", str(tmp_path / "dd")]) == 2
+    assert "holds the results of 'hyperlf depth', not a light field" in capsys.readouterr().err
     assert main(["-q", "depth", str(cap), "--method", "lin2015", "--labels", "16",
                  "-o", str(tmp_path / "lin")]) == 0
     # the post-filter can be switched off; it changes the map, and a negative radius is refused
     assert main(["-q", "depth", str(cap), "--metric", "ncc", "--labels", "16",
                  "--median-radius", "0", "-o", str(tmp_path / "raw")]) == 0
     assert not np.array_equal(read_pfm(tmp_path / "raw" / "disparity.pfm"), d)
-    assert main(["-q", "depth", str(cap), "--metric", "ncc", "--labels", "16",
-                 "--median-radius", "-1", "-o", str(tmp_path / "bad")]) == 2
+    with pytest.raises(SystemExit) as usage:  # a usage error, named by its option
+        main(["-q", "depth", str(cap), "--metric", "ncc", "--labels", "16",
+              "--median-radius", "-1", "-o", str(tmp_path / "bad")])
+    assert usage.value.code == 2 and "--median-radius must be in [0, 64]" in \
+        capsys.readouterr().err
     # no calibration, so no metric outputs: --min-confidence says it has nothing to act on
     capsys.readouterr()
     assert main(["depth", str(cap), "--metric", "ncc", "--labels", "16", "--min-confidence",

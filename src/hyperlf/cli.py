@@ -166,6 +166,27 @@ _raw_bits_arg = _int_at_least(1, "--raw-bits", 16, " (raw images are 8 or 16-bit
 _aggregation_radius_arg = _int_at_least(1, "--aggregation-radius", 64)
 
 
+def _count_arg(what: str, low: int, high: int):
+    """An argparse type: an integer in ``[low, high]``."""
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{what} must be an integer, got {text!r}") from None
+        if not low <= v <= high:
+            raise argparse.ArgumentTypeError(f"{what} must be in [{low}, {high}], got {text!r}")
+        return v
+    return parse
+
+
+def _range_arg(text: str) -> tuple[float, float]:
+    """``--disparity-range MIN,MAX``: two finite numbers, MIN < MAX."""
+    lo, hi = _pair_of_floats(text)
+    if not lo < hi:
+        raise argparse.ArgumentTypeError(f"MIN must be below MAX, got {text!r}")
+    return lo, hi
+
+
 def _float_within(low: float, high: float, what: str):
     """An argparse type: a finite number in ``[low, high]``."""
     def parse(text: str) -> float:
@@ -1480,7 +1501,7 @@ def _add_ingest_parser(sub) -> None:
                    help="bits of the sensor's values, full scale 2^B - 1 (default: the fewest "
                         "of 8, 10, 12, 14, 16 that hold the largest raw value, so that a "
                         "12-bit camera's 16-bit files saturate at 4095, not 65535)")
-    p.add_argument("--disparity-range", type=_pair_of_floats, default=None, metavar="MIN,MAX",
+    p.add_argument("--disparity-range", type=_range_arg, default=None, metavar="MIN,MAX",
                    help="px per baseline (default: the plane registration's estimate, or "
                         "measured on the rectified images after a full calibration)")
     _add_output_folder(p)
@@ -1492,7 +1513,7 @@ def _add_stereo_parser(sub) -> None:
     p = _subcommand(sub, "stereo", _cmd_stereo, help="cross-spectral two-view stereo")
     p.add_argument("left", help="left image of the rectified pair (disparity is its)")
     p.add_argument("right", help="right image, seeing the same rows")
-    p.add_argument("--disparity-range", type=_pair_of_floats, default=None, metavar="MIN,MAX",
+    p.add_argument("--disparity-range", type=_range_arg, default=None, metavar="MIN,MAX",
                    help="integer disparity search range in px (needed; write "
                         "--disparity-range=-8,8 for a negative MIN)")
     _add_metric_option(p, help="matching cost (default auto: the library's cross-spectral "
@@ -1518,7 +1539,7 @@ def _add_depth_parser(sub) -> None:
     p.add_argument("input", help="capture folder, .h5 light field or HCI scene folder")
     p.add_argument("--method", default="hlf", choices=["hlf", *_baseline_choices()],
                    help="hlf (ours, default) or a baseline")
-    p.add_argument("--disparity-range", type=_pair_of_floats, default=None, metavar="MIN,MAX",
+    p.add_argument("--disparity-range", type=_range_arg, default=None, metavar="MIN,MAX",
                    help="px per baseline (default: the capture's metadata); write "
                         "--disparity-range=-2,2 when MIN is negative")
     p.add_argument("--labels", type=_labels_arg, default=64,
@@ -1535,7 +1556,8 @@ def _add_depth_parser(sub) -> None:
                    help="enable the occlusion-aware half-plane split (off by default)")
     p.add_argument("--defocus", default="off", choices=_defocus_choices(),
                    help="spectral-aware defocus cost (off by default; 'paper' is the literal one)")
-    p.add_argument("--median-radius", type=int, default=None, metavar="PX",
+    p.add_argument("--median-radius", type=_count_arg("--median-radius", 0, 64), default=None,
+                   metavar="PX",
                    help="radius of the guided weighted-median post-filter that snaps depth "
                         "edges to image edges (default 4; 0 turns it off)")
     p.add_argument("--median-passes", type=_median_passes_arg, default=None, metavar="N",
@@ -1606,7 +1628,7 @@ def _add_batch_parser(sub) -> None:
                    help="use an existing dask scheduler instead of a local cluster, e.g. "
                         "tcp://scheduler-host:8786 (its workers need hyperlf installed and must see "
                         "the input and output paths)")
-    p.add_argument("--disparity-range", type=_pair_of_floats, default=None, metavar="MIN,MAX",
+    p.add_argument("--disparity-range", type=_range_arg, default=None, metavar="MIN,MAX",
                    help="as for depth (default: each capture's metadata)")
     p.add_argument("--labels", type=_labels_arg, default=None,
                    help="number of disparity labels (depth's default, 64)")

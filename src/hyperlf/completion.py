@@ -200,7 +200,9 @@ def _check_lf(lf):
     if not isinstance(lf, LightField):
         raise InvalidInputError(f"lf must be a hyperlf.LightField, got {type(lf).__name__}")
     if lf.views.ndim != 4:
-        raise InvalidInputError("cube completion needs monochrome views (R, C, H, W)")
+        raise InvalidInputError("cube completion needs a spectral capture, one band per view "
+                                "(R, C, H, W); from an RGB light field make one with "
+                                "'hyperlf synth hci'")
     return lf
 
 

@@ -1055,7 +1055,8 @@ def _check_depth_options(lf, metric, view_selection, occlusion_split, defocus, o
     if lf.views.ndim != 4:
         raise InvalidInputError(
             "H-LF matching needs monochrome views (R, C, H, W); this light field has "
-            f"{lf.channels} channels per view")
+            f"{lf.channels} channels per view (an RGB light field: make an H-LF of it with "
+            "'hyperlf synth hci')")
     if lf.n_views < 2:
         raise InvalidInputError("H-LF matching needs at least 2 views")
     params = DepthParams() if params is None else params

@@ -559,7 +559,8 @@ def _make_plan(profile, src: _Source, white_balance: bool = True, illuminant=Non
                                             if src.kind == "views" else "")
     raise InvalidInputError(
         f"profile must be a camera (name, CSV path or ({B}, 3) sensitivities), a wavelength in "
-        f"nm, None (all bands) or weights {expected}; got shape {arr.shape}")
+        f"nm, None (all bands) or weights {expected}; got "
+        f"{arr.size if arr.ndim == 1 else arr.shape} values")
 
 
 # ============================================================================ finishing

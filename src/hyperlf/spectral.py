@@ -540,7 +540,7 @@ def _match_camera(name: str, names: Sequence[str]) -> str:
         close = difflib.get_close_matches(name.casefold(), list(folded), n=4, cutoff=0.3)
         close = [folded[c] for c in close]
     hint = f"did you mean {', '.join(repr(c) for c in close)}?" if close else \
-        "see hyperlf.spectral.list_cameras()"
+        "hyperlf.spectral.list_cameras() lists them"
     raise InvalidInputError(
         f"unknown camera {name!r}; {hint} (or pass a CSV file wavelength_nm,r,g,b; "
         "camspec cameras need HYPERLF_DATA)"

@@ -123,6 +123,7 @@ def load_lightfield(path: str | os.PathLike, *, cube: bool = True, **kwargs) -> 
             return read_capture(p, cube=cube, **kwargs)
         if is_hci_scene(p):
             return read_hci_scene(p, **kwargs)
+        _refuse_result_folder(p)
         if any(f.suffix.lower() in (".png", ".tif", ".tiff") for f in p.iterdir()):
             raise DataNotFoundError(
                 f"{p} holds images but no {MANIFEST}; an unfinished capture or a folder of "
@@ -132,6 +133,18 @@ def load_lightfield(path: str | os.PathLike, *, cube: bool = True, **kwargs) -> 
     if p.suffix.lower() in _H5:
         return read_lightfield_h5(p, cube=cube, **kwargs)
     raise FormatError(f"cannot load {p} (suffix {p.suffix or 'none'!r}): hyperlf loads {_SUPPORTED}")
+
+
+def _refuse_result_folder(p: Path) -> None:
+    """A folder a hyperlf command wrote its results to (not a light field) is named as such."""
+    from ..errors import InvalidInputError
+    from ..outputs import read_manifest
+
+    record = read_manifest(p)
+    if record is not None and record["command"] not in (None, "synth", "ingest", "convert"):
+        raise InvalidInputError(f"{p} holds the results of 'hyperlf {record['command']}', not a "
+                                f"light field; give the capture it was made from "
+                                f"('hyperlf info {p}' says what it holds)")
 
 
 def describe(path: str | os.PathLike) -> str:

@@ -156,7 +156,7 @@ def _open_read(path: str | os.PathLike, expected: str):
     except OSError:
         raise FormatError(
             f"{p} is not a readable HDF5 file (corrupt or another format); "
-            "re-create it with hyperlf.save"
+            "re-create it with hyperlf (hyperlf convert, or hyperlf.save)"
         ) from None
     try:
         fmt = _text_attr(p, f, "format")
