@@ -377,7 +377,7 @@ def test_every_cli_output_folder_is_a_result_set(capture, tmp_path):
 
 def test_a_failing_command_leaves_no_output(capture, tmp_path, capsys):
     out = tmp_path / "sub" / "d"
-    assert main(["-q", "depth", str(capture), "--disparity-range=5,1", "-o", str(out)]) == 2
+    assert main(["-q", "depth", str(capture), "--max-memory=1K", "-o", str(out)]) == 2
     assert os.listdir(tmp_path) == []
     assert "error" in capsys.readouterr().err
 
