@@ -178,6 +178,10 @@ def test_a_failed_capture_is_reported_and_the_others_finish(captures, tmp_path):
     assert rows["frame1"]["exit_code"] == "3" and "view_r0_c0.png" in rows["frame1"]["message"]
     assert not (out / "frame1").exists()
     _assert_whole(out / "frame0")
+    from hyperlf.formats import describe  # what 'hyperlf info OUT' prints
+    text = describe(out)
+    assert text.startswith("batch output: 2 captures (1 done, 1 failed)")
+    assert "frame1: failed (" in text
 
 
 # ----------------------------------------------------------------------------- planning

@@ -410,3 +410,20 @@ def test_quiet_may_follow_the_command(tmp_path, capsys):
                  str(tmp_path / "s"), "--no-pictures"]) == 0
     assert main(["info", str(tmp_path / "s"), "-q"]) == 0
     assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["depth", "CAP", "--method", "wang2015", "--metric", "ncc"], "--metric acts on --method hlf"),
+    (["depth", "CAP", "--aggregation-radius", "3"], "--aggregation-radius acts only with"),
+    (["complete", "CAP", "--disparity", "d.pfm", "--use-ground-truth"], "give one source"),
+    (["refocus", "CAP", "--disparity", "1", "--sweep=-1,1,3"], "--disparity and --sweep"),
+    (["stereo", "l.png", "r.png", "--disparity-range", "0,4", "--no-occlusion", "--occlusion",
+      "lr-fill"], "--no-occlusion and --occlusion"),
+])
+def test_options_that_contradict_or_would_be_ignored_are_refused(tmp_path, capsys, argv, words):
+    """Refused before the input is even read (CAP need not exist): one line, exit 2."""
+    argv = [str(tmp_path / a) if a in ("CAP", "l.png", "r.png", "d.pfm") else a for a in argv]
+    assert main(["-q", *argv, "-o", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert words in err and len(err.splitlines()) == 1, err
+    assert not (tmp_path / "out").exists()

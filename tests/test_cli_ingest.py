@@ -274,7 +274,7 @@ def _gradient_ncc(a, b, keep):
     return float((u * v).sum() / np.sqrt((u * u).sum() * (v * v).sum()))
 
 
-def test_the_lab_capture_without_wavelengths_is_completed(tmp_path, capsys):
+def test_the_lab_capture_without_wavelengths_is_completed(tmp_path, capsys, monkeypatch):
     """The real 3 x 3 lab capture (filter wavelengths not published) from its folders to a
     cube with the documented commands: every camera's band registered onto the reference.
     Measured (1/8 resolution): the gradients of the completed bands correlate with the
@@ -291,6 +291,8 @@ def test_the_lab_capture_without_wavelengths_is_completed(tmp_path, capsys):
     assert main(["-q", "ingest", str(lab / "scene"), "--calibration", str(tmp_path / "cal"),
                  *pattern, "-o", str(tmp_path / "cap")]) == 0
     capsys.readouterr()
+    from hyperlf import cli
+    monkeypatch.setattr(cli, "_bars", lambda args: not args.quiet)  # as on a terminal
     assert main(["complete", str(tmp_path / "cap"), "--downscale", "8",
                  "-o", str(tmp_path / "cube")]) == 0
     err = capsys.readouterr().err

@@ -1413,7 +1413,8 @@ def _add_synth_parser(sub) -> None:
                     help="view size in pixels (default 256,256)")
     for q in (ph, pp):
         q.add_argument("-o", "--output", required=True,
-                       help="output capture folder, or a .h5 file")
+                       help="output capture folder, or a .h5 file (its pictures then go to "
+                            "a folder of the same name beside it, unless --no-pictures)")
         q.add_argument("--seed", type=_seed_arg, default=None,
                        help="random seed (default: 0, or the named scene's own)")
         q.add_argument("--no-pictures", action="store_true", help="write data only")
@@ -1774,6 +1775,39 @@ def _run(args) -> int:
     return 0
 
 
+#: Options that contradict each other: (command, option, option, what to do).
+_EXCLUSIVE = (
+    ("stereo", "--no-occlusion", "--occlusion", "--no-occlusion is --occlusion none; give one"),
+    ("complete", "--disparity", "--use-ground-truth", "give one source of disparity"),
+    ("refocus", "--disparity", "--sweep", "a sweep focuses at its own disparities; give one"),
+)
+#: Options that act only with another option's value: (option, other, value).
+_ONLY_WITH = (("--aggregation-radius", "--aggregation", "guided"),
+              ("--aggregation-eps", "--aggregation", "guided"))
+#: Options of ``depth`` that act on ``--method hlf`` only (the baselines take the range and
+#: the labels).
+_HLF_ONLY = ("--metric", "--optimizer", "--view-selection", "--occlusion-split", "--defocus",
+             "--median-radius", "--median-passes", "--texture-snr", "--max-memory",
+             "--no-coarse-prior", "--visibility-rounds", "--aggregation", "--aggregation-radius",
+             "--aggregation-eps")
+
+
+def _check_combinations(args, argv) -> None:
+    """Refuse options given together that contradict each other or would be ignored."""
+    given = {a.split("=", 1)[0] for a in argv if a.startswith("--")}
+    for command, a, b, fix in _EXCLUSIVE:
+        if args.command == command and {a, b} <= given:
+            raise InvalidInputError(f"{a} and {b} together: {fix}")
+    for a, b, value in _ONLY_WITH:
+        if a in given and getattr(args, b[2:].replace("-", "_"), value) != value:
+            raise InvalidInputError(f"{a} acts only with {b} {value}")
+    if args.command == "depth" and args.method != "hlf":
+        ignored = [a for a in _HLF_ONLY if a in given]
+        if ignored:
+            raise InvalidInputError(f"{ignored[0]} acts on --method hlf only; --method "
+                                    f"{args.method} takes --labels and --disparity-range")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """The ``hyperlf`` command: parse ``argv``, run the subcommand, return the exit status.
 
@@ -1805,6 +1839,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     with signals_as_exceptions():
         try:
+            _check_combinations(args, argv)
             return _run(args)
         except HyperLFError as exc:
             print(f"hyperlf {args.command}: error: {_one_line(str(exc))}", file=sys.stderr)

@@ -438,14 +438,18 @@ def run_calibration(shots: str | os.PathLike, out_dir: str | os.PathLike, *, pat
     """
     from . import calibration as cal_mod
     from .calibration.raw import pose_folders, read_poses
+    from .errors import InvalidInputError
 
     log = log or _quiet
     out = Path(out_dir)
+    spec = cal_mod.BoardSpec(int(board[0]), int(board[1]), float(square))  # options first
+    if reference is not None and not (0 <= reference[0] < grid[0] and 0 <= reference[1] < grid[1]):
+        raise InvalidInputError(f"--reference {reference[0]},{reference[1]} is outside the "
+                                f"{grid[0]} x {grid[1]} grid (rows and columns count from 0)")
     _say_beyond_grid(pose_folders(shots, pattern, grid)[0], pattern, grid, log)
     per = read_poses(shots, pattern, grid)
     n = len(next(iter(per.values())))
     log(f"{len(per)} cameras, {n} pose(s): calibrating ...")
-    spec = cal_mod.BoardSpec(int(board[0]), int(board[1]), float(square))
     names = {k: f"{k[0]},{k[1]}" for k in per}
     opts = {"focal_px": focal_px} if focal_px is not None else {}
     cal = cal_mod.calibrate(per, spec, mode=mode, reference=reference, names=names, **opts)
@@ -587,6 +591,10 @@ def run_ingest(raw: str | os.PathLike, out_dir: str | os.PathLike, *, calibratio
     cal = read_calibration(cal_path / "calibration.toml" if cal_path.is_dir() else cal_path)
     wl = _wavelength_table(wavelengths, cal.grid)  # the options first: no images read yet
     dead = check_dead(cal, dead)
+    for frame, what in ((dark, "--dark"), (flat, "--flat")):
+        if frame is not None and "{" not in str(frame) and not Path(frame).is_file():
+            from .errors import DataNotFoundError
+            raise DataNotFoundError(f"{what} {frame} does not exist; check the path")
     _say_beyond_grid(raw, pattern, cal.grid, log)
     images, scale = read_camera_images(camera_files(raw, pattern, cal.grid, skip=dead),
                                        where=str(raw), bits=raw_bits, return_scale=True)

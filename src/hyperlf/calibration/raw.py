@@ -136,12 +136,18 @@ def pose_folders(folder: str | os.PathLike, pattern: str, grid: tuple[int, int])
 
     Raises
     ------
+    InvalidInputError
+        ``folder`` is a file.
     DataNotFoundError
-        Neither ``folder`` nor any subfolder holds a file for every camera.
+        ``folder`` does not exist, or neither it nor any subfolder holds a file for every
+        camera.
     """
     root = Path(folder)
+    if root.exists() and not root.is_dir():
+        raise InvalidInputError(f"{root} is a file; give the folder of the images (and "
+                                "--pattern for their names)")
     if not root.is_dir():
-        raise DataNotFoundError(f"{root} is not a folder; give the folder of the images")
+        raise DataNotFoundError(f"{root} does not exist; give the folder of the images")
 
     def complete(d: Path) -> bool:
         return all(p.is_file() for p in camera_files(d, pattern, grid, must_exist=False).values())

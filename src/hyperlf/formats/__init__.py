@@ -187,6 +187,8 @@ def describe(path: str | os.PathLike) -> str:
         manifest = read_manifest(p)
         if manifest is not None:
             return _describe_result(p, manifest)
+        if (p / ".hyperlf-batch.json").is_file():
+            return _describe_batch(p)
     if p.is_file() and p.name in _BY_NAME:
         return _BY_NAME[p.name](p)
     if p.is_file() and p.suffix.lower() in _ONE_LINE:
@@ -196,6 +198,26 @@ def describe(path: str | os.PathLike) -> str:
             return cf.describe()
     lf = load_lightfield(p, cube=False)  # a paper-size ground-truth cube is 3.9 GB
     return lf.describe(cube=_gt_cube_bands(p))
+
+
+def _describe_batch(p: Path) -> str:
+    """``hyperlf batch``'s output folder: its captures and their status from summary.csv."""
+    import csv
+    from collections import Counter
+
+    try:
+        with open(p / "summary.csv", newline="", encoding="utf-8") as f:
+            rows = list(csv.DictReader(f))
+    except (OSError, ValueError, csv.Error):
+        rows = []
+    status = Counter(r.get("status", "?") for r in rows)
+    counts = ", ".join(f"{n} {k}" for k, n in sorted(status.items())) or "no summary yet"
+    lines = [f"batch output: {len(rows)} captures ({counts}); the table: summary.html"]
+    lines += [f"  {r.get('capture')}: {r.get('status')}"
+              + (f" ({r.get('message')})" if r.get("message") else "") for r in rows[:20]]
+    if len(rows) > 20:
+        lines.append(f"  ... and {len(rows) - 20} more")
+    return "\n".join(lines)
 
 
 def _gt_cube_bands(path: Path):
