@@ -9,6 +9,7 @@ expectation below comes from the rig's own geometry, never from the code under t
 from __future__ import annotations
 
 import dataclasses
+import re
 
 import cv2
 import numpy as np
@@ -439,6 +440,14 @@ def test_calibration_file_round_trip(tmp_path, plane_cal):
         assert back.cameras[k].reprojection_error == pytest.approx(cam.reprojection_error)
 
 
+def _with_info_range(text: str, value: str) -> str:
+    """The calibration file with ``[info] disparity_range = value`` (replaced or added)."""
+    if re.search(r"(?m)^disparity_range = ", text):
+        return re.sub(r"(?ms)^disparity_range = \[.*?\]", f"disparity_range = {value}", text,
+                      count=1)
+    return text.replace("[info]", f"[info]\ndisparity_range = {value}", 1)
+
+
 @pytest.mark.parametrize("edit, words", [
     (lambda t: t.replace('mode = "plane"', 'mode = "other"'), "mode"),
     (lambda t: t.replace('format = "hyperlf-calibration"', 'format = "x"'), "format"),
@@ -448,6 +457,11 @@ def test_calibration_file_round_trip(tmp_path, plane_cal):
     (lambda t: t.replace("homography = [", "homography = [[1.0], ", 1), "homography"),
     (lambda t: t + "\n[[[broken", "TOML"),
     (lambda t: t.replace("baseline = ", "baseline = -", 1), "baseline"),
+    (lambda t: re.sub(r"(homography = \[\s*\[\s*)([-0-9.e]+)", r'\1"\2"', t, count=1),
+     "no quotes"),
+    (lambda t: re.sub(r"(homography = \[\s*\[\s*)([-0-9.e]+)", r"\1nan", t, count=1),
+     "NaN or infinite"),
+    (lambda t: _with_info_range(t, "[-3, 0, 3]"), "'disparity_range' in [info] must be two"),
 ])
 def test_malformed_calibration_files_are_one_line_format_errors(tmp_path, plane_cal, edit,
                                                                   words):

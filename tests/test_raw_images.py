@@ -71,7 +71,7 @@ def test_raw_scale_errors_are_named(tmp_path):
                                          1: np.full((4, 4), 9, np.uint16)})
     with pytest.raises(InvalidInputError, match="up to 3000, more than 10-bit"):
         read_camera_images(files, bits=10)
-    with pytest.raises(InvalidInputError, match="16-bit raw data cannot be in 8-bit files"):
+    with pytest.raises(InvalidInputError, match="holds 8-bit values, the raw data is 16-bit"):
         read_raw_image(write_raw(tmp_path / "e", {0: np.zeros((3, 3), np.uint8),
                                                   1: np.zeros((3, 3), np.uint8)})[(0, 0)],
                        bits=16)

@@ -136,13 +136,18 @@ class _Reader:
 
     def array(self, table: dict, key: str, shape, where: str = "") -> np.ndarray:
         val = self.get(table, key, where)
+        if not _all_numbers(val):   # a quoted "0.99" is text, not a number
+            raise self.fail(f"'{key}'{where} must be numbers of shape {tuple(shape)} (no "
+                            "quotes)")
         try:
             arr = np.asarray(val, dtype=np.float64)
         except (TypeError, ValueError):
-            raise self.fail(f"'{key}'{where} must be numbers of shape {shape}") from None
-        if arr.shape != tuple(shape) or not np.all(np.isfinite(arr)):
-            raise self.fail(f"'{key}'{where} must be finite numbers of shape {tuple(shape)}, "
+            raise self.fail(f"'{key}'{where} must be numbers of shape {tuple(shape)}") from None
+        if arr.shape != tuple(shape):
+            raise self.fail(f"'{key}'{where} must be numbers of shape {tuple(shape)}, "
                             f"got {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise self.fail(f"'{key}'{where} holds a NaN or infinite number")
         return arr
 
     def ints(self, table: dict, key: str, n: int, low: int, where: str = "") -> tuple:
@@ -151,6 +156,22 @@ class _Reader:
                 isinstance(v, int) and not isinstance(v, bool) and v >= low for v in val)):
             raise self.fail(f"'{key}'{where} must be {n} integers >= {low}, got {val!r}")
         return tuple(val)
+
+
+def _all_numbers(val) -> bool:
+    """Whether ``val`` is a number or (nested) lists of numbers: TOML ints and floats only."""
+    if isinstance(val, list):
+        return all(_all_numbers(v) for v in val)
+    return isinstance(val, (int, float)) and not isinstance(val, bool)
+
+
+def _check_info(rd: _Reader, info: dict) -> dict:
+    """The ``[info]`` entries that later steps read: ``disparity_range`` is two numbers."""
+    rng = info.get("disparity_range")
+    if rng is not None and not (_all_numbers(rng) and isinstance(rng, list) and len(rng) == 2
+                                and all(math.isfinite(v) for v in rng) and rng[0] < rng[1]):
+        raise rd.fail(f"'disparity_range' in [info] must be two numbers MIN < MAX, got {rng!r}")
+    return info
 
 
 def _read_camera(rd: _Reader, t: Any, i: int, mode: str, grid) -> tuple:
@@ -240,4 +261,4 @@ def read_calibration(path: str | os.PathLike) -> Calibration:
                        output_size=rd.ints(doc, "output_size", 2, 1),
                        camera_matrix=rd.array(doc, "camera_matrix", (3, 3)), cameras=cams,
                        board=board, baseline=float(baseline), board_plane=plane,
-                       info=info if isinstance(info, dict) else {})
+                       info=_check_info(rd, info) if isinstance(info, dict) else {})

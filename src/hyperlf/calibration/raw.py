@@ -227,8 +227,8 @@ def _to_full_scale(values: np.ndarray, bits, file_bits: int, where: str) -> int:
     """
     b = int(bits)
     if not 1 <= b <= file_bits:
-        raise InvalidInputError(f"{where}: {b}-bit raw data cannot be in {file_bits}-bit files; "
-                                "check --raw-bits")
+        raise InvalidInputError(f"{where} holds {file_bits}-bit values, the raw data is {b}-bit; "
+                                "save it with the raw images' bit depth, or check --raw-bits")
     top = int(values.max())
     if top > 2 ** b - 1:
         raise InvalidInputError(f"{where}: values up to {top}, more than {b}-bit data holds "
@@ -280,7 +280,8 @@ def read_camera_images(files: dict, *, where: str = "", bits: int | None = None,
         first = {str(kinds[files[k]]): lab for k, lab in zip(keys, labels)}
         raise InvalidInputError(f"{where or 'the raw images'}: "
                                 + " but ".join(f"{lab} holds {t}" for t, lab in first.items())
-                                + "; one array, one sample type")
+                                + "; one array, one sample type: save every image with the "
+                                "same bit depth")
     dtype = types.pop()
     if not np.issubdtype(dtype, np.integer):
         scale = RawScale(None, None)
