@@ -427,3 +427,16 @@ def test_options_that_contradict_or_would_be_ignored_are_refused(tmp_path, capsy
     err = capsys.readouterr().err.strip()
     assert words in err and len(err.splitlines()) == 1, err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_result_set_records_the_command_line_that_made_it(tmp_path, capsys):
+    from hyperlf.formats import describe
+    from hyperlf.outputs import read_manifest
+
+    cap = tmp_path / "s"
+    assert main(["-q", "synth", "procedural", "--size", "24,28", "--grid", "2,2", "-o", str(cap),
+                 "--no-pictures"]) == 0
+    argv = ["depth", str(cap), "--labels", "6", "-q", "-o", str(tmp_path / "d")]
+    assert main(argv) == 0
+    assert read_manifest(tmp_path / "d")["argv"] == ["hyperlf", *argv]
+    assert f"made by     : hyperlf depth {cap} --labels 6 -q -o" in describe(tmp_path / "d")

@@ -387,7 +387,7 @@ def _result(args):
     if kind is None:
         yield None
         return
-    opts = dict(overwrite=args.overwrite, command=args.command)
+    opts = dict(overwrite=args.overwrite, command=args.command, argv=getattr(args, "argv", None))
     with (result_folder(targets[0], **opts) if kind == "folder"
           else result_files(targets, **opts)) as dest:
         yield dest
@@ -1837,6 +1837,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    args.argv = ["hyperlf", *argv]  # what made the result set, for its manifest
     with signals_as_exceptions():
         try:
             _check_combinations(args, argv)

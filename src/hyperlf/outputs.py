@@ -247,12 +247,14 @@ def _walk_files(folder: Path) -> list[str]:
     return sorted(f for f in out if f != MANIFEST)
 
 
-def _write_manifest(folder: Path, command: str | None) -> None:
+def _write_manifest(folder: Path, command: str | None, argv=None) -> None:
     from . import __version__
     from ._atomic import atomic_write_text
 
     doc = {"written_by": f"hyperlf {__version__}", "command": command,
            "files": _walk_files(folder)}
+    if argv is not None:  # provenance: the command line that made it
+        doc["argv"] = [str(a) for a in argv]
     atomic_write_text(folder / MANIFEST, json.dumps(doc, indent=1) + "\n")
 
 
@@ -281,9 +283,11 @@ def read_manifest(folder: str | os.PathLike) -> dict | None:
         return None
     if not isinstance(files, list) or not all(isinstance(f, str) for f in files):
         return None
-    command, by = doc.get("command"), doc.get("written_by")
+    command, by, argv = doc.get("command"), doc.get("written_by"), doc.get("argv")
     return {"written_by": by if isinstance(by, str) else "hyperlf",
-            "command": command if isinstance(command, str) else None, "files": files}
+            "command": command if isinstance(command, str) else None, "files": files,
+            "argv": argv if isinstance(argv, list) and all(isinstance(a, str) for a in argv)
+            else None}
 
 
 def manifest_files(folder: str | os.PathLike) -> set[str] | None:
@@ -510,9 +514,9 @@ class _ResultSet:
     """The staging area of one command's outputs and the moves that publish it."""
 
     def __init__(self, targets: Sequence[Path], *, overwrite: bool, command: str | None,
-                 inplace: bool = True):
+                 inplace: bool = True, argv=None):
         self.targets = [Path(os.path.abspath(t)) for t in targets]
-        self.overwrite, self.command = overwrite, command
+        self.overwrite, self.command, self.argv = overwrite, command, argv
         self.parent = self.targets[0].parent
         if any(t.parent != self.parent for t in self.targets):
             raise InvalidInputError("the outputs of one result set must share one folder")
@@ -569,7 +573,7 @@ class _ResultSet:
         with deferred_signals():
             self.check()
             if self.inplace:
-                _write_manifest(self.stage, self.command)
+                _write_manifest(self.stage, self.command, self.argv)
                 _merge_into(self.stage, self.targets[0])
             else:
                 for t in self.targets:
@@ -580,7 +584,7 @@ class _ResultSet:
         if not os.path.lexists(staged):
             return
         if staged.is_dir():
-            _write_manifest(staged, self.command)
+            _write_manifest(staged, self.command, self.argv)
             _replace_folder(staged, target, self.home / f"{self.stem}.old")
         else:
             os.replace(staged, target)
@@ -624,7 +628,7 @@ def _staged(rs: _ResultSet) -> Iterator[Path]:
 
 @contextlib.contextmanager
 def result_folder(folder: str | os.PathLike, *, overwrite: bool = False,
-                  command: str | None = None) -> Iterator[Path]:
+                  command: str | None = None, argv=None) -> Iterator[Path]:
     """Write a command's output folder as one whole result set.
 
     Yields the folder to write into (a staging folder). When the block ends normally its
@@ -641,6 +645,8 @@ def result_folder(folder: str | os.PathLike, *, overwrite: bool = False,
         Replace a previous result set.
     command : str, optional
         Recorded in the manifest.
+    argv : sequence of str, optional
+        The command line, recorded in the manifest (``hyperlf info`` shows it).
 
     Yields
     ------
@@ -665,7 +671,7 @@ def result_folder(folder: str | os.PathLike, *, overwrite: bool = False,
     >>> sorted(p.name for p in out.iterdir())
     ['.hyperlf-result.json', 'a.txt']
     """
-    rs = _ResultSet(_as_targets(folder), overwrite=overwrite, command=command)
+    rs = _ResultSet(_as_targets(folder), overwrite=overwrite, command=command, argv=argv)
     with _staged(rs) as stage:
         if rs.inplace:
             yield stage
@@ -677,7 +683,7 @@ def result_folder(folder: str | os.PathLike, *, overwrite: bool = False,
 
 @contextlib.contextmanager
 def result_files(paths: Iterable[str | os.PathLike], *, overwrite: bool = False,
-                 command: str | None = None) -> Iterator[list[Path]]:
+                 command: str | None = None, argv=None) -> Iterator[list[Path]]:
     """Write single files (and sidecars, or a folder beside a file) as one result set.
 
     Yields one staging path per entry of ``paths``, in order; write each entry there (a file,
@@ -708,6 +714,7 @@ def result_files(paths: Iterable[str | os.PathLike], *, overwrite: bool = False,
     >>> sorted(p.name for p in d.iterdir())
     ['s.csv', 's.png']
     """
-    rs = _ResultSet(_as_targets(paths), overwrite=overwrite, command=command, inplace=False)
+    rs = _ResultSet(_as_targets(paths), overwrite=overwrite, command=command, inplace=False,
+                    argv=argv)
     with _staged(rs) as stage:
         yield [stage / t.name for t in rs.targets]

@@ -251,6 +251,9 @@ def _describe_result(p: Path, manifest: dict) -> str:
     cmd = f"`hyperlf {manifest['command']}`" if manifest["command"] else "a hyperlf command"
     files = sorted(manifest["files"])
     lines = [f"result set  : written by {cmd} ({manifest['written_by']}), {len(files)} files"]
+    if manifest.get("argv"):
+        import shlex
+        lines.append(f"made by     : {shlex.join(manifest['argv'])}")
     pictures, other = [], []
     for name in files:
         suffix = Path(name).suffix.lower()
