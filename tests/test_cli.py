@@ -104,6 +104,9 @@ def test_demo_runs_and_writes_pictures(tmp_path):
     # every path it names is where the file ends up, not the hidden folder it was written in
     assert ".hyperlf-" not in proc.stderr and f"wrote {out / 'report.html'}" in proc.stderr
     assert "\r" not in proc.stderr  # no progress bars into a pipe or a log: stage lines only
+    from hyperlf.formats import describe  # 'hyperlf info': the capture inside in one line
+    text = describe(out)
+    assert "capture/    : a capture, " in text and "gt_disparity_r0_c0" not in text
 
 
 def test_render_refocus_spectrum_on_a_capture_cube(tmp_path):

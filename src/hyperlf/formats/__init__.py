@@ -191,6 +191,8 @@ def describe(path: str | os.PathLike) -> str:
             return _describe_batch(p)
     if p.is_file() and p.name in _BY_NAME:
         return _BY_NAME[p.name](p)
+    if p.is_file() and p.name == MANIFEST and is_capture(p.parent):
+        return describe(p.parent)   # a capture's manifest stands for the capture
     if p.is_file() and p.suffix.lower() in _ONE_LINE:
         return _ONE_LINE[p.suffix.lower()](p)
     if p.is_file() and h5_format(p) == CUBE_FORMAT:
@@ -255,6 +257,15 @@ def _describe_result(p: Path, manifest: dict) -> str:
         import shlex
         lines.append(f"made by     : {shlex.join(manifest['argv'])}")
     pictures, other = [], []
+    def top(name: str) -> str:
+        return Path(name).parts[0] if len(Path(name).parts) > 1 else ""
+
+    captures = sorted({top(n) for n in files
+                       if top(n) and _inside(n, p) and is_capture(p / top(n))})
+    for sub in captures:  # one line for a capture inside (its views and truth are its own)
+        n = sum(top(f) == sub for f in files)
+        lines.append(f"{sub + '/':<12}: a capture, {n} files ('hyperlf info {p / sub}')")
+    files = [f for f in files if top(f) not in captures]
     for name in files:
         suffix = Path(name).suffix.lower()
         if suffix in _ONE_LINE or suffix in _H5 or Path(name).name in _BY_NAME:
