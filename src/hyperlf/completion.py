@@ -103,7 +103,9 @@ file and updates views in place.  Finally every view is filled and written throu
 view was written), the scratch file is deleted.  The per-entry registration mask
 ``/band_mask`` and the inference mask ``/inferred_mask`` (bool, ``(R, C, B, H, W)``,
 :func:`read_band_mask`) are written view by view into the same atomic file.  The writer's own
-``/mask`` (``(R, C, H, W)``) is True where *all* bands of a pixel are registered.  A 5 x 6 x 30
+``/mask`` (``(R, C, H, W)``) is True where *every* band of a pixel holds data, registered or
+inferred (renderers leave the other pixels out; a pixel whose bands were only filled across
+the spectrum is not in it).  A 5 x 6 x 30
 cube at 1200 x 900 thus never sits in memory.  The peak is one pair's stage 2 (its float32
 cost volumes; the costs compute their float64 scores a few labels at a time), or a view's
 stage 3 when its WLS falls back to the direct solve (sparse factors); BENCHMARKS.md measures
@@ -1312,7 +1314,8 @@ def _register_all(lf, disp, wl, bidx, out_path, occlusion_tol, max_iter, fill, c
                                       enabled=progress, unit="view"):
                     cv, mv = store.get(v)
                     filled, iv = finish(v, cv, mv)
-                    wr.write_view(v[0], v[1], filled, mv.all(axis=0))
+                    # a pixel renders when each band holds data: registered or inferred
+                    wr.write_view(v[0], v[1], filled, (mv | iv).all(axis=0))
                     wr.write_view_extra("band_mask", v[0], v[1], mv)
                     if infer is not None:
                         wr.write_view_extra("inferred_mask", v[0], v[1], iv)
