@@ -895,8 +895,12 @@ def _cmd_depth(args, dest) -> list[Path]:
                  if isinstance(v, np.ndarray) and v.shape == res.disparity.shape}
         weight = strength = None
     gt = lf.reference_gt_disparity
-    written = save_disparity_outputs(out, res.disparity, f"{args.method} disparity", truth=gt,
-                                      confidence=res.confidence)
+    small = "" if args.downscale == 1 else f" (1/{args.downscale} resolution)"
+    written = save_disparity_outputs(out, res.disparity, f"{args.method} disparity{small}",
+                                      truth=gt, confidence=res.confidence,
+                                      unit="px per baseline" if not small else
+                                      f"px per baseline at 1/{args.downscale} resolution (x "
+                                      f"{args.downscale} for full-resolution px)")
     metric = save_metric_outputs(out, res.disparity, lf, confidence=res.confidence,
                                  min_confidence=args.min_confidence)
     if args.min_confidence > 0 and not metric:
@@ -1007,8 +1011,10 @@ def _say_depth_scores(args, disparity: np.ndarray, gt: np.ndarray) -> None:
         _say(args, f"views of {gt.shape[1]} x {gt.shape[0]} px are too small to score inside "
                    f"the {metrics.HCI_BORDER} px border; no scores against the ground truth")
         return
-    _say(args, f"against the ground truth: RMSE {sc.rmse:.4f} px, MSE x 100 "
-               f"{sc.mse_x100:.3f}, BadPix(0.07) {sc.badpix_007:.2f} %")
+    unit = "px" if args.downscale == 1 else f"px at 1/{args.downscale} resolution"
+    _say(args, f"against the ground truth ({metrics.HCI_BORDER} px border left out): RMSE "
+               f"{sc.rmse:.4f} {unit}, MSE x 100 {sc.mse_x100:.3f}, BadPix(0.07) "
+               f"{sc.badpix_007:.2f} %")
 
 
 def _complete_disparity(args, disparity, full_shape):

@@ -285,7 +285,7 @@ def _demo_report(out: Path, lf, metric: str, sc, cres, scores: dict, timings: di
                         f"{cres.stats['completed_pct']:.1f}", f"{timings['completion']:.1f}")]),
         Section("Rendering", f"The reference view as a CIE 1931 observer would see it (sRGB, "
                 f"D65 white), from the completed cube: {scores['srgb_psnr']:.1f} dB against the "
-                "rendering of the true cube. Focal sweep from near to far.",
+                "rendering of the true cube. Focal sweep from far to near (disparity rising).",
                 pictures=[(rendered["completed"], "emulated sRGB, completed cube"),
                           (rendered["truth"], "emulated sRGB, ground-truth cube"),
                           (rendered["sweep"], "focal sweep"),
@@ -673,4 +673,6 @@ def save_metric_outputs(out: str | os.PathLike, disparity: np.ndarray, lf, *,
     return [write_pfm(out / "depth.pfm", Z),
             visualise.save_disparity_png(out / "depth.png", Z, title=f"depth ({unit})",
                                          label=unit, cmap="viridis"),
-            write_ply(out / "points.ply", pts, rgb, scalars=scalars, comment=f"unit: {unit}")]
+            write_ply(out / "points.ply", pts, rgb, scalars=scalars,
+                      comment=f"unit: {unit}; the reference camera's frame: x right, y down, "
+                              "z forward (viewers with y up show it upside down)")]
