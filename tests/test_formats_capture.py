@@ -271,3 +271,13 @@ def test_a_light_field_loads_without_its_cube(tmp_path):
         assert lean.cube_wavelengths is None
         np.testing.assert_array_equal(lean.views, full.views)
         np.testing.assert_array_equal(lean.gt_disparity, full.gt_disparity)
+
+
+def test_what_save_returns_loads_again(tmp_path):
+    """save_lightfield returns a folder's capture.toml; load_lightfield takes it back."""
+    import hyperlf
+    from hyperlf.synthesis import procedural_scene
+
+    lf = procedural_scene(seed=2, rows=2, cols=2, height=12, width=16)
+    back = hyperlf.load(hyperlf.save(lf, tmp_path / "cap"))
+    np.testing.assert_allclose(back.views, lf.views, atol=1 / 65535)

@@ -391,3 +391,14 @@ def test_dense_array_window_reaches_the_costs(dense_lf, small_lf):
 def test_dense_views_validation(bad):
     with pytest.raises(InvalidInputError, match="dense_views"):
         DepthParams(dense_views=bad)
+
+
+def test_views_all_at_one_place_are_refused():
+    """No baseline, no disparity: every label would cost the same (the range minimum won)."""
+    from hyperlf.synthesis import procedural_scene
+
+    lf = procedural_scene(seed=3, rows=2, cols=2, height=24, width=32)
+    flat = LightField(lf.views, wavelengths=lf.wavelengths, positions=np.zeros((2, 2, 2)),
+                      disparity_range=(-2, 2))
+    with pytest.raises(InvalidInputError, match="no baseline"):
+        depth(flat, n_labels=8)

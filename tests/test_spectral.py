@@ -111,6 +111,8 @@ def test_srgb_transfer_round_trip():
     np.testing.assert_allclose(sp.srgb_to_linear(sp.linear_to_srgb(x)), x, atol=1e-12)
     np.testing.assert_allclose(sp.linear_to_srgb(sp.srgb_to_linear(x)), x, atol=1e-12)
     assert sp.srgb_to_linear(np.float32(1.0)) == pytest.approx(1.0)
+    with pytest.raises(InvalidInputError, match="divide by 255"):  # 8-bit values refused
+        sp.srgb_to_linear(np.array([0, 128, 255], np.uint8))
     assert sp.srgb_to_linear(0.04045) == pytest.approx(0.04045 / 12.92)
     assert sp.linear_to_srgb(np.array([0.5], np.float32)).dtype == np.float32
 
@@ -399,3 +401,15 @@ def test_wavelengths_unknown_only_for_all_nan():
         assert not wavelengths_unknown(wl)
     with pytest.raises(InvalidInputError, match="numbers in nm"):
         as_wavelengths(["a", "b"])
+
+
+def test_importing_colour_leaves_numpys_printing_alone():
+    """colour-science sets numpy's legacy 1.13 printing on import; a library must not change
+    how its user's arrays print."""
+    code = ("import numpy as np; from hyperlf import spectral; "
+            "spectral.cmfs(np.array([550.0])); "
+            "print(np.get_printoptions()['legacy'], 'colour' in __import__('sys').modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["False", "True"]

@@ -1059,6 +1059,9 @@ def _check_depth_options(lf, metric, view_selection, occlusion_split, defocus, o
             "'hyperlf synth hci')")
     if lf.n_views < 2:
         raise InvalidInputError("H-LF matching needs at least 2 views")
+    if not np.any(np.asarray(lf.offsets, np.float64)):
+        raise InvalidInputError("every view sits at the reference's position (lf.positions): "
+                                "with no baseline there is no disparity to find")
     params = DepthParams() if params is None else params
     if not isinstance(params, DepthParams):
         raise InvalidInputError(f"params must be a DepthParams, got {type(params).__name__}")

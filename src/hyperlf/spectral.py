@@ -222,13 +222,28 @@ def sample_widths(wavelengths) -> np.ndarray:
     return widths
 
 
+def _colour():
+    """colour-science, imported lazily and without its side effect: on import it switches
+    numpy's printing to the 1.13 style for the whole process (``np.set_printoptions``), which
+    would change how a user's own arrays print."""
+    import sys
+
+    if "colour" not in sys.modules:
+        options = np.get_printoptions()
+        try:
+            import colour  # noqa: F401
+        finally:
+            np.set_printoptions(**options)
+    return sys.modules["colour"]
+
+
 # ---------------------------------------------------------------------------------------------
 # colour matching functions
 # ---------------------------------------------------------------------------------------------
 
 @lru_cache(maxsize=8)
 def _cmf_table(observer: str) -> tuple[np.ndarray, np.ndarray]:
-    import colour  # lazy
+    colour = _colour()
 
     try:
         msds = colour.MSDS_CMFS[observer]
@@ -479,7 +494,7 @@ def load_sensitivities_csv(path: str | os.PathLike) -> tuple[np.ndarray, np.ndar
 
 
 def _colour_camera_names() -> list[str]:
-    import colour
+    colour = _colour()
 
     return [k for k in colour.MSDS_CAMERA_SENSITIVITIES]
 
@@ -606,7 +621,7 @@ def camera_sensitivities(name_or_path, wavelengths) -> np.ndarray:
     if match in camspec:
         table_wl, table = camspec[match]
         return _interp_table(wl, table_wl, table, outside="zero")
-    import colour
+    colour = _colour()
 
     msds = colour.MSDS_CAMERA_SENSITIVITIES[match]
     return _interp_table(wl, np.asarray(msds.wavelengths, float), np.asarray(msds.values, float),
@@ -627,7 +642,7 @@ def srgb_to_linear(x) -> np.ndarray:
     Parameters
     ----------
     x : array_like
-        sRGB-encoded values.
+        sRGB-encoded values, floats (1 = white; integers are refused).
 
     Returns
     -------
@@ -639,7 +654,11 @@ def srgb_to_linear(x) -> np.ndarray:
     >>> srgb_to_linear(np.array([0.0, 1.0])).tolist()
     [0.0, 1.0]
     """
-    a = _float(_as_array(x, "x"))
+    a = _as_array(x, "x")
+    if np.issubdtype(a.dtype, np.integer):   # 8-bit values would come out 0..524946
+        raise InvalidInputError(f"sRGB values must be floats in [0, 1], got {a.dtype} "
+                                "integers; divide by 255 (or 65535) first")
+    a = _float(a)
     ax = np.abs(a)
     out = np.where(ax <= 0.04045, ax / 12.92, ((ax + 0.055) / 1.055) ** 2.4)
     return (np.sign(a) * out).astype(a.dtype, copy=False)
@@ -794,7 +813,7 @@ def illuminant_spd(name: str, wavelengths) -> np.ndarray:
 
 @lru_cache(maxsize=32)
 def _illuminant_table(name: str) -> tuple[np.ndarray, np.ndarray]:
-    import colour
+    colour = _colour()
 
     keys = list(colour.SDS_ILLUMINANTS)
     folded = {k.casefold(): k for k in keys}
@@ -1001,7 +1020,7 @@ def spectrum_to_rgb(spectra, wavelengths, camera="CIE 1931", white_balance: bool
 
 @lru_cache(maxsize=32)
 def _mallett_basis(wl_key: tuple) -> np.ndarray:
-    import colour
+    colour = _colour()
 
     msds = colour.recovery.MSDS_BASIS_FUNCTIONS_sRGB_MALLETT2019
     table_wl = np.asarray(msds.wavelengths, dtype=np.float64)
@@ -1287,7 +1306,7 @@ def load_munsell(path: str | os.PathLike | None = None) -> tuple[np.ndarray, np.
 
 @lru_cache(maxsize=1)
 def _colorchecker() -> tuple[np.ndarray, np.ndarray]:
-    import colour
+    colour = _colour()
 
     sds = colour.SDS_COLOURCHECKERS["ColorChecker N Ohta"]
     first = next(iter(sds.values()))

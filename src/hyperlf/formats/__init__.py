@@ -118,6 +118,8 @@ def load_lightfield(path: str | os.PathLike, *, cube: bool = True, **kwargs) -> 
     p = Path(path)
     if not p.exists():
         raise DataNotFoundError(f"{p} does not exist; expected {_SUPPORTED}")
+    if p.is_file() and p.name == MANIFEST and is_capture(p.parent):
+        p = p.parent   # what save_lightfield returns for a folder: its capture.toml
     if p.is_dir():
         if is_capture(p):
             return read_capture(p, cube=cube, **kwargs)
