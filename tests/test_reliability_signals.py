@@ -10,6 +10,7 @@ leaves (the hidden staging folder) must be cleaned up by the next run.
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import signal
@@ -27,11 +28,18 @@ SIGNALS = {"SIGINT": (signal.SIGINT, 130), "SIGTERM": (signal.SIGTERM, 143),
 
 
 def snapshot(folder):
+    """Every file's bytes; the manifest without its command line (which names the output
+    folder, so the same result set written to another folder records another -o)."""
     out = {}
     for root, _, files in os.walk(folder):
         for f in files:
             p = os.path.join(root, f)
-            out[os.path.relpath(p, folder)] = open(p, "rb").read()
+            data = open(p, "rb").read()
+            if f == ".hyperlf-result.json":
+                doc = json.loads(data)
+                doc.pop("argv", None)
+                data = json.dumps(doc, sort_keys=True).encode()
+            out[os.path.relpath(p, folder)] = data
     return out
 
 
