@@ -267,6 +267,14 @@ def test_complete_command_writes_a_cube_that_render_reads(tmp_path, capsys):
     assert main(["-q", "render", str(out / "cube.h5"), "-o", str(tmp_path / "r")]) == 0
     assert main(["-q", "complete", str(cap), "--disparity", str(tmp_path / "nope.pfm"),
                  "-o", str(tmp_path / "c2")]) == 4
+    # a completed cube's spectrum says which bands were registered and which were not
+    from hyperlf.completion import read_band_mask
+    assert main(["-q", "spectrum", str(out / "cube.h5"), "--at", "2,3", "--view", "0,0", "-o",
+                 str(tmp_path / "s.png")]) == 0
+    rows = (tmp_path / "s.csv").read_text().splitlines()
+    assert rows[0].endswith(",value,source") and len(rows) == 10
+    registered = read_band_mask(out / "cube.h5", (0, 0))[:, 3, 2]
+    assert [r.endswith(",registered") for r in rows[1:]] == list(registered)
 
 
 def test_complete_a_capture_without_wavelengths(tmp_path, capsys):
@@ -310,7 +318,7 @@ def test_complete_a_capture_without_wavelengths(tmp_path, capsys):
     rows = (tmp_path / "s.csv").read_text().splitlines()
     with open_cube_h5(out / "cube.h5") as cf:
         want = cf.cube[0, 2, :, 4, 3]
-    assert rows[0] == "band,value" and [r.split(",")[0] for r in rows[1:]] == [
+    assert rows[0] == "band,value,source" and [r.split(",")[0] for r in rows[1:]] == [
         str(k) for k in range(9)]
     np.testing.assert_allclose([float(r.split(",")[1]) for r in rows[1:]], want, rtol=1e-5)
     assert (tmp_path / "s.png").stat().st_size > 0
@@ -352,6 +360,7 @@ def test_complete_at_1_over_n_scores_against_the_block_means(tmp_path, capsys):
         assert "1/2 resolution: 24 x 20 px" in printed[name]
         with open_cube_h5(tmp_path / name / "cube.h5") as cf:
             cubes[name] = cf.cube[()]
+            assert cf.metadata["downscale"] == 2  # the file says so, wherever it is copied
     assert cubes["truth"].shape == (3, 3, 9, 20, 24)
     np.testing.assert_array_equal(cubes["full"], cubes["half"])
     assert main(["-q", "complete", str(cap), "--use-ground-truth", "--stereo", "none",

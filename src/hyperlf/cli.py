@@ -1256,9 +1256,11 @@ def _cmd_refocus(args, dest) -> list[Path]:
 
 
 def _cmd_spectrum(args, dest) -> list[Path]:
-    """Plot (PNG) and tabulate (CSV) the spectrum of a cube at a pixel of a view. A cube
-    completed without wavelengths gives each camera's value instead, by band index (the
-    cameras in raster order).
+    """Plot (PNG) and tabulate (CSV) the spectrum of a cube at a pixel of a view. For a cube
+    from 'hyperlf complete' the CSV says where each band's value comes from (registered from
+    the view that saw the band, inferred from spatial neighbours, or filled across the
+    spectrum). A cube completed without wavelengths gives each camera's value instead, by
+    band index (the cameras in raster order).
 
     examples:
       hyperlf spectrum cube3/cube.h5 --at 120,80 -o s.png
@@ -1281,11 +1283,34 @@ def _cmd_spectrum(args, dest) -> list[Path]:
         wl = np.asarray(cf.wavelengths)
         png = render.save_spectrum_figure(dest[0], cf, None, points=[(x, y)], view=view,
                                           labels=[f"view {view}, x={x:g}, y={y:g}"])
+        source = _entry_sources(cf.path, view, int(round(y)), int(round(x)))
     column, keys = (("band", range(wl.size)) if wavelengths_unknown(wl)
                     else ("wavelength_nm", wl))
-    csv = atomic_write_text(dest[1], f"{column},value\n" + "".join(
-        f"{k:g},{v:.6g}\n" for k, v in zip(keys, np.ravel(spec))))
+    head = f"{column},value" + (",source" if source else "")
+    rows = [f"{k:g},{v:.6g}" + (f",{source[i]}" if source else "")
+            for i, (k, v) in enumerate(zip(keys, np.ravel(spec)))]
+    csv = atomic_write_text(dest[1], "\n".join([head, *rows]) + "\n")
+    if source and any(s != "registered" for s in source):
+        n = sum(s != "registered" for s in source)
+        _say(args, f"{n} of {len(source)} bands at that pixel were not registered (the CSV's "
+                   "source column: inferred or filled)")
     return [png, csv]
+
+
+def _entry_sources(path, view, y: int, x: int) -> list[str] | None:
+    """Per band of a completed cube at one pixel: registered, inferred or filled (None for a
+    cube without completion masks, e.g. a ground-truth cube)."""
+    from .completion import read_band_mask
+
+    try:
+        reg = read_band_mask(path, view)[:, y, x]
+    except (HyperLFError, OSError, KeyError):
+        return None
+    try:
+        inf = read_band_mask(path, view, name="inferred_mask")[:, y, x]
+    except (HyperLFError, OSError, KeyError):
+        inf = np.zeros_like(reg)
+    return ["registered" if r else "inferred" if i else "filled" for r, i in zip(reg, inf)]
 
 
 # --------------------------------------------------------------------------- parser

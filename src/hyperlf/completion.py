@@ -1308,7 +1308,10 @@ def _register_all(lf, disp, wl, bidx, out_path, occlusion_tol, max_iter, fill, c
                                      else repr(v)) for k, v in cfg.items()}, "method": name,
                   # geometry, so renderers can refocus non-uniform arrays from the file alone
                   "positions": np.asarray(lf.positions).tolist(),
-                  "reference": list(lf.reference)}
+                  "reference": list(lf.reference),
+                  # 1/N resolution (``lightfield.downscale``), so that a copied file says so
+                  "downscale": int(lf.metadata.get("downscale", 1))
+                  if isinstance(lf.metadata.get("downscale", 1), int) else 1}
             with CubeWriter(out_path, shape, wl, compression=compression, metadata=md) as wr:
                 for v in progress_bar(views, "inference and output", total=len(views),
                                       enabled=progress, unit="view"):

@@ -357,6 +357,11 @@ class LightField:
             raise InvalidInputError(f"views are empty (shape {views.shape})")
         if not np.issubdtype(views.dtype, np.number) or np.iscomplexobj(views):
             raise InvalidInputError(f"views must be real numbers, got dtype {views.dtype}")
+        if np.issubdtype(views.dtype, np.integer):  # 0..255 taken as intensities misleads
+            raise InvalidInputError(
+                f"views must be linear intensities as floats (1 = full scale), got "
+                f"{views.dtype}; divide by the sensor's full scale (e.g. 255 or 65535) first, "
+                "or read the files with hyperlf.load")
         views = views.astype(np.float32, copy=False)
         _finite("views", views)
         self.views = views
@@ -393,10 +398,12 @@ class LightField:
         else:
             try:
                 r0, c0 = (int(v) for v in self.reference)
+                exact = all(float(v) == int(v) for v in self.reference)
             except (TypeError, ValueError):
+                exact = False
+            if not exact:
                 raise InvalidInputError(
-                    f"reference must be a pair (row, col), got {self.reference!r}"
-                ) from None
+                    f"reference must be a pair of integers (row, col), got {self.reference!r}")
             if not (0 <= r0 < R and 0 <= c0 < C):
                 raise InvalidInputError(
                     f"reference view ({r0}, {c0}) is outside the {R} x {C} grid; "
@@ -662,8 +669,11 @@ def _block_camera_matrix(K, factor: int) -> np.ndarray:
 
 
 def _downscaled_metadata(metadata: dict, factor: int) -> dict:
-    """``metadata`` with a calibration's camera matrix on the block grid (a copy)."""
+    """``metadata`` with a calibration's camera matrix on the block grid and the total
+    ``downscale`` factor (a copy)."""
     meta = dict(metadata)
+    before = meta.get("downscale", 1)
+    meta["downscale"] = (before if isinstance(before, int) and before >= 1 else 1) * factor
     cal = meta.get("calibration")
     if isinstance(cal, dict) and "camera_matrix" in cal:
         try:

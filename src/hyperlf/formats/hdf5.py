@@ -672,6 +672,9 @@ class CubeFile:
         R, C, B, H, W = self.shape
         wl = self.wavelengths
         lines = [f"cube        : {R} x {C} views x {B} bands of {W} x {H} px (W x H)"]
+        n = self.metadata.get("downscale")
+        if isinstance(n, int) and n > 1:
+            lines[0] += f", at 1/{n} resolution (means of {n} x {n} pixel blocks)"
         ref = self.metadata.get("reference")
         if isinstance(ref, list) and len(ref) == 2:
             lines.append(f"reference   : view ({ref[0]}, {ref[1]})")
@@ -687,7 +690,7 @@ class CubeFile:
             if ds is not None:
                 lines.append(text.format(self._share(name, ds)))
         if self.mask is not None:
-            done = "every band registered" if "band_mask" in self._file else "valid"
+            done = "every band registered or inferred" if "band_mask" in self._file else "valid"
             lines.append(f"mask        : {self._share('mask', self.mask)} of the pixels ({done})")
         if isinstance(self.metadata.get("method"), str):
             lines.append(f"made by     : {self.metadata['method']}")
