@@ -280,3 +280,16 @@ def test_lightfield_and_cube_files_keep_their_bytes(tmp_path, rng, monkeypatch):
     np.testing.assert_array_equal(back.views, lf.views)
     np.testing.assert_array_equal(back.gt_cube, lf.gt_cube)
     np.testing.assert_array_equal(back.valid, lf.valid)
+
+
+def test_datasets_explain_themselves_to_plain_h5py(tmp_path):
+    """Axes, units and meaning are attributes of every dataset hyperlf writes."""
+    from hyperlf.synthesis import procedural_scene
+
+    lf = procedural_scene(seed=1, rows=2, cols=2, height=12, width=16)
+    path = write_lightfield_h5(tmp_path / "lf.h5", lf)
+    with h5py.File(path, "r") as f:
+        assert f["wavelengths"].attrs["unit"] == b"nm"
+        assert f["positions"].attrs["unit"] == b"baselines"
+        assert f["gt_disparity"].attrs["unit"] == b"px per baseline"
+        assert f["views"].attrs["axes"].startswith(b"row, col, y, x")

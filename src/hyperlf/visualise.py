@@ -100,8 +100,18 @@ def save_disparity_png(path: str | os.PathLike, disparity: np.ndarray, title: st
     im = ax.imshow(np.ma.masked_invalid(d), cmap=cm, vmin=lo, vmax=hi, interpolation="nearest")
     ax.set_title(title)
     ax.set_axis_off()
-    fig.colorbar(im, ax=ax, fraction=0.046, pad=0.03, label=label)
+    fig.colorbar(im, ax=ax, fraction=0.046, pad=0.03, label=label, extend=_clipped(d, lo, hi))
     return save_figure(fig, path)
+
+
+def _clipped(d: np.ndarray, lo: float, hi: float) -> str:
+    """The colour bar's ``extend``: arrows at the ends that values pass (a robust or given
+    range shows them in the end colours)."""
+    finite = d[np.isfinite(d)]
+    below = bool(finite.size) and float(finite.min()) < lo
+    above = bool(finite.size) and float(finite.max()) > hi
+    return {(False, False): "neither", (True, False): "min", (False, True): "max"}.get(
+        (below, above), "both")
 
 
 def save_error_png(path: str | os.PathLike, estimate: np.ndarray, truth: np.ndarray,

@@ -347,9 +347,9 @@ def write_lightfield_h5(path: str | os.PathLike, lf: LightField,
             if lf.disparity_range is not None:
                 f.attrs["disparity_range"] = np.asarray(lf.disparity_range, dtype=np.float64)
             _images(f, "views", lf.views, chunks=(1, 1) + lf.views.shape[2:], **comp)
-            f.create_dataset("positions", data=lf.positions)
+            _annotate(f.create_dataset("positions", data=lf.positions))
             if lf.wavelengths is not None:
-                f.create_dataset("wavelengths", data=lf.wavelengths)
+                _annotate(f.create_dataset("wavelengths", data=lf.wavelengths))
             if lf.gt_disparity is not None:
                 g = lf.gt_disparity
                 chunks = g.shape if g.ndim == 2 else (1, 1) + g.shape[2:]
@@ -358,18 +358,47 @@ def write_lightfield_h5(path: str | os.PathLike, lf: LightField,
                 cube = lf.gt_cube
                 _images(f, "gt_cube", cube, chunks=(1, 1, 1) + cube.shape[3:], **comp)
             if lf.cube_wavelengths is not None:
-                f.create_dataset("cube_wavelengths", data=lf.cube_wavelengths)
+                _annotate(f.create_dataset("cube_wavelengths", data=lf.cube_wavelengths))
             if lf.valid is not None:
                 _images(f, "valid", lf.valid.astype(np.uint8), chunks=(1, 1) + lf.valid.shape[2:],
                         **comp)
     return Path(path)
 
 
+#: What each dataset holds, stored on it (fixed-length text attributes ``axes``, ``unit``,
+#: ``description``) so that a file read with plain h5py explains itself.
+_ANNOTATIONS = {
+    "views": ("row, col, y, x[, channel]", "", "linear intensities, 1 = full scale"),
+    "positions": ("row, col, (x, y)", "baselines", "camera positions"),
+    "wavelengths": ("row, col (light field) or band (cube)", "nm",
+                    "filter centre wavelengths; NaN = unknown"),
+    "gt_disparity": ("[row, col,] y, x", "px per baseline", "ground-truth disparity"),
+    "gt_cube": ("row, col, band, y, x", "", "ground-truth plenoptic cube"),
+    "cube_wavelengths": ("band", "nm", "wavelengths of the cube's bands"),
+    "valid": ("row, col, y, x", "", "1 = the pixel holds data"),
+    "cube": ("row, col, band, y, x", "", "plenoptic cube: every band seen from every view"),
+    "mask": ("row, col, y, x", "", "True = every band of the pixel holds data"),
+    "band_mask": ("row, col, band, y, x", "", "True = registered (observed or warped in)"),
+    "inferred_mask": ("row, col, band, y, x", "", "True = inferred from spatial neighbours"),
+}
+
+
+def _annotate(ds) -> None:
+    """Store :data:`_ANNOTATIONS` on dataset ``ds`` (by its name)."""
+    what = _ANNOTATIONS.get(ds.name.lstrip("/"))
+    if what is not None:
+        for key, text in zip(("axes", "unit", "description"), what):
+            if text:
+                ds.attrs[key] = np.bytes_(text.encode())
+
+
 def _images(f, name: str, data, **options) -> None:
     """Create ``/name`` for an image-chunked array and write it (chunks compressed in
     parallel, :func:`hyperlf.formats._h5chunks.write_images`)."""
     a = np.asarray(data)
-    write_images(f.create_dataset(name, shape=a.shape, dtype=a.dtype, **options), (), a)
+    ds = f.create_dataset(name, shape=a.shape, dtype=a.dtype, **options)
+    _annotate(ds)
+    write_images(ds, (), a)
 
 
 @contextlib.contextmanager
@@ -501,9 +530,9 @@ class CubeWriter:
             f = h5py.File(self._tmp, "w", libver=_LIBVER)
             _write_header(f, CUBE_FORMAT, self._metadata)
             R, C, B, H, W = self.shape
-            f.create_dataset("cube", shape=self.shape, dtype=np.float32,
-                             chunks=(1, 1, 1, H, W), **self._comp)
-            f.create_dataset("wavelengths", data=self.wavelengths)
+            _annotate(f.create_dataset("cube", shape=self.shape, dtype=np.float32,
+                                       chunks=(1, 1, 1, H, W), **self._comp))
+            _annotate(f.create_dataset("wavelengths", data=self.wavelengths))
         except BaseException:
             self._discard()
             raise
@@ -531,8 +560,9 @@ class CubeWriter:
             if m.shape != (H, W):
                 raise InvalidInputError(f"view ({r}, {c}) mask must have shape {(H, W)}, got {m.shape}")
             if "mask" not in self._file:
-                self._file.create_dataset("mask", shape=(R, C, H, W), dtype=bool,
-                                          chunks=(1, 1, H, W), fillvalue=True, **self._comp)
+                _annotate(self._file.create_dataset("mask", shape=(R, C, H, W), dtype=bool,
+                                                    chunks=(1, 1, H, W), fillvalue=True,
+                                                    **self._comp))
             write_images(self._file["mask"], (r, c), m)
         self._written[r, c] = True
 
@@ -553,8 +583,8 @@ class CubeWriter:
         a = np.asarray(data)
         if name not in self._file:
             chunks = (1, 1) + (1,) * max(a.ndim - 2, 0) + a.shape[-2:] if a.ndim >= 2 else None
-            self._file.create_dataset(name, shape=(R, C) + a.shape, dtype=a.dtype,
-                                      chunks=chunks, **self._comp)
+            _annotate(self._file.create_dataset(name, shape=(R, C) + a.shape, dtype=a.dtype,
+                                                chunks=chunks, **self._comp))
         ds = self._file[name]
         if ds.shape[2:] != a.shape:
             raise InvalidInputError(f"/{name} of view ({r}, {c}) must have shape {ds.shape[2:]}, "
