@@ -259,15 +259,12 @@ def _describe_result(p: Path, manifest: dict) -> str:
         import shlex
         lines.append(f"made by     : {shlex.join(manifest['argv'])}")
     pictures, other = [], []
-    def top(name: str) -> str:
-        return Path(name).parts[0] if len(Path(name).parts) > 1 else ""
-
-    captures = sorted({top(n) for n in files
-                       if top(n) and _inside(n, p) and is_capture(p / top(n))})
+    captures = sorted({_top(n) for n in files
+                       if _top(n) and _inside(n, p) and is_capture(p / _top(n))})
     for sub in captures:  # one line for a capture inside (its views and truth are its own)
-        n = sum(top(f) == sub for f in files)
+        n = sum(_top(f) == sub for f in files)
         lines.append(f"{sub + '/':<12}: a capture, {n} files ('hyperlf info {p / sub}')")
-    files = [f for f in files if top(f) not in captures]
+    files = [f for f in files if _top(f) not in captures]
     for name in files:
         suffix = Path(name).suffix.lower()
         if suffix in _ONE_LINE or suffix in _H5 or Path(name).name in _BY_NAME:
@@ -280,6 +277,12 @@ def _describe_result(p: Path, manifest: dict) -> str:
     if other:
         lines.append(f"other files : {', '.join(other)}")
     return "\n".join(lines)
+
+
+def _top(name: str) -> str:
+    """The first folder of a manifest's relative path ('' for a file at the top)."""
+    parts = Path(name).parts
+    return parts[0] if len(parts) > 1 else ""
 
 
 def _inside(name: str, folder: Path) -> bool:
