@@ -118,6 +118,9 @@ def test_render_refocus_spectrum_on_a_capture_cube(tmp_path):
     assert main(["-q", "refocus", str(cap), "--sweep=-1,1,3", "-o", str(tmp_path / "f")]) == 0
     assert len(list((tmp_path / "f").glob("refocus_*.png"))) == 3
     assert (tmp_path / "f" / "refocus.gif").is_file()
+    assert (tmp_path / "f" / "refocus_frames.csv").read_text().splitlines() == [
+        "frame,file,disparity", "0,refocus_000.png,-1", "1,refocus_001.png,0",
+        "2,refocus_002.png,1"]
     assert main(["-q", "refocus", str(cap), "--profile", "band:9999", "-o",
                  str(tmp_path / "g")]) == 2  # no such band: a clear usage error
     assert main(["-q", "spectrum", str(cap), "--at", "10,12", "-o",

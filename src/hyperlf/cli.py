@@ -1094,8 +1094,10 @@ def _cmd_complete(args, dest) -> list[Path]:
             mask |= read_band_mask(res.path, view=v, name="inferred_mask")
         completed[v] = mask.mean(axis=0)
     written = [res.path,
-               visualise.save_mosaic_png(out / "missing_bands.png", completed,
-                                         title="fraction of bands completed per pixel")]
+               visualise.save_share_mosaic_png(
+                   out / "missing_bands.png", completed,
+                   title="share of bands completed per pixel (registered or inferred)",
+                   label="1: every band holds data")]
     from .formats import open_cube_h5
 
     with open_cube_h5(res.path) as cf:

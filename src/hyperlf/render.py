@@ -1217,7 +1217,8 @@ def focal_sweep(views_or_cube, offsets=None, disparities=None, profile="CIE 1931
     disparities : array_like (n,)
         Focus disparities, one frame each.
     out_dir : path-like
-        Folder for ``{stem}_{i:03d}.png``, ``{stem}.gif`` and ``{stem}.mp4``.
+        Folder for ``{stem}_{i:03d}.png``, ``{stem}_frames.csv`` (each frame's disparity),
+        ``{stem}.gif`` and ``{stem}.mp4``.
     fps : float
         Frames per second of the animations.
     formats : subset of ("gif", "mp4")
@@ -1237,7 +1238,7 @@ def focal_sweep(views_or_cube, offsets=None, disparities=None, profile="CIE 1931
     -------
     dict
         ``{"frames": [Path, ...], "gif": Path or None, "mp4": Path or None,
-        "disparities": ndarray}``.
+        "disparities": ndarray, "table": Path}``.
     """
     from .formats.images import write_image
 
@@ -1265,10 +1266,14 @@ def focal_sweep(views_or_cube, offsets=None, disparities=None, profile="CIE 1931
     for i, f in enumerate(frames):
         paths.append(write_image(out / f"{stem}_{i:03d}.png", np.nan_to_num(f),
                                  bit_depth=bit_depth))
+    table = out / f"{stem}_frames.csv"   # which disparity each frame is focused at
+    table.write_text("frame,file,disparity\n" + "".join(
+        f"{i},{q.name},{d:.6g}\n" for i, (q, d) in enumerate(zip(paths, ds))), encoding="utf-8")
     u8 = [_to_uint8_rgb(f) for f in frames]
     if annotate:
         u8 = [_annotate(f, f"d = {d:+.2f}") for f, d in zip(u8, ds)]
-    result: dict[str, Any] = {"frames": paths, "gif": None, "mp4": None, "disparities": ds}
+    result: dict[str, Any] = {"frames": paths, "gif": None, "mp4": None, "disparities": ds,
+                              "table": table}
     if "gif" in fmts:
         result["gif"] = _write_gif(out / f"{stem}.gif", u8, fps)
     if "mp4" in fmts:

@@ -240,6 +240,45 @@ def save_mosaic_png(path: str | os.PathLike, views: np.ndarray,
     return save_figure(fig, path)
 
 
+def save_share_mosaic_png(path: str | os.PathLike, shares: np.ndarray, *, title: str,
+                          label: str, max_side: int = 1600) -> Path:
+    """Grid of per-view maps of a share in [0, 1] on one fixed colour scale, each view named
+    ``(row, col)``, with one colour bar (e.g. the share of bands completed per pixel).
+
+    Parameters
+    ----------
+    path : path-like
+        Output PNG.
+    shares : ndarray, shape (R, C, H, W)
+        Values in [0, 1].
+    title, label : str
+        Figure title; colour-bar label.
+    max_side : int
+        Longest side of the mosaic in pixels (views are subsampled to fit).
+
+    Returns
+    -------
+    Path
+        The written PNG.
+    """
+    v = np.asarray(shares, dtype=np.float32)
+    if v.ndim != 4:
+        raise InvalidInputError(f"shares must be (R, C, H, W), got {v.shape}")
+    R, C, H, W = v.shape
+    step = max(1, int(np.ceil(max(R * H, C * W) / max_side)))
+    plt = pyplot()
+    fig, axes = plt.subplots(R, C, figsize=(1.8 * C + 0.8, 1.8 * R * H / W + 0.4),
+                             squeeze=False)
+    for (r, c), ax in np.ndenumerate(axes):
+        im = ax.imshow(v[r, c, ::step, ::step], vmin=0, vmax=1, cmap="viridis",
+                       interpolation="nearest")
+        ax.set_axis_off()
+        ax.set_title(f"view ({r}, {c})", fontsize=7, pad=2)
+    fig.suptitle(title)
+    fig.colorbar(im, ax=axes, fraction=0.03, pad=0.02, label=label)
+    return save_figure(fig, path)
+
+
 def save_spectrum_plot(path: str | os.PathLike, wavelengths: np.ndarray,
                        spectra: Sequence[np.ndarray] | np.ndarray,
                        labels: Sequence[str] | None = None, title: str = "spectral profile",
