@@ -254,12 +254,12 @@ def save_share_mosaic_png(path: str | os.PathLike, shares: np.ndarray, *, title:
     title, label : str
         Figure title; colour-bar label.
     max_side : int
-        Longest side of the mosaic in pixels (views are subsampled to fit).
+        As in :func:`save_mosaic_png`.
 
     Returns
     -------
     Path
-        The written PNG.
+        The PNG.
     """
     v = np.asarray(shares, dtype=np.float32)
     if v.ndim != 4:
