@@ -154,7 +154,7 @@ def test_the_wavelengths_given_reach_the_capture(rig_dirs, tmp_path):
     ("410,420,430", InvalidInputError, "need 6 numbers"),
     ("410,420,430,440,450,nan", InvalidInputError, "between 200 and 20000"),
     ("410,420,430,440,450,-460", InvalidInputError, "between 200 and 20000"),
-    ("filters/none.csv", DataNotFoundError, "does not exist"),
+    ("filters/none.csv", DataNotFoundError, "is not a file"),
     ("blue,green", InvalidInputError, "give 6 numbers"),
 ])
 def test_wavelengths_that_cannot_be_nanometres_are_refused(spec, error, words):
@@ -173,3 +173,12 @@ def test_any_wavelength_option_is_a_table_or_a_one_line_error(text):
         return
     assert wl.shape == (2, 3)
     assert (wl >= WAVELENGTH_RANGE_NM[0]).all() and (wl <= WAVELENGTH_RANGE_NM[1]).all()
+
+
+def test_a_missing_dark_frame_is_named_before_any_image_is_read(rig_dirs, capsys):
+    tmp, scene, _ = rig_dirs
+    capsys.readouterr()
+    assert _ingest(tmp, scene, "--dark", str(tmp / "nope.png"), out="refused") == 4
+    err = capsys.readouterr().err.strip()
+    assert "--dark" in err and "is not a file" in err and len(err.splitlines()) == 1
+    assert not (tmp / "refused").exists()

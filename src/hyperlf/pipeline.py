@@ -507,7 +507,7 @@ def _wavelength_table(spec, grid) -> np.ndarray | None:
         if lines and _numbers(lines[0]) is None:
             text = "\n".join(lines[1:])
     elif _numbers(text) is None and ("/" in text or Path(text).suffix):
-        raise DataNotFoundError(f"--wavelengths: file {spec} does not exist")
+        raise DataNotFoundError(f"--wavelengths: {spec} is not a file; check the path")
     wl = _numbers(text)
     if wl is None:
         raise InvalidInputError(f"--wavelengths {spec!r}: give {n} numbers in nm (raster "
@@ -584,6 +584,7 @@ def run_ingest(raw: str | os.PathLike, out_dir: str | os.PathLike, *, calibratio
     from .calibration import read_calibration, save_registration_picture
     from .calibration.ingest import check_dead, ingest
     from .calibration.raw import camera_files, read_camera_images
+    from .errors import DataNotFoundError
     from .formats import save_lightfield
 
     log = log or _quiet
@@ -593,8 +594,7 @@ def run_ingest(raw: str | os.PathLike, out_dir: str | os.PathLike, *, calibratio
     dead = check_dead(cal, dead)
     for frame, what in ((dark, "--dark"), (flat, "--flat")):
         if frame is not None and "{" not in str(frame) and not Path(frame).is_file():
-            from .errors import DataNotFoundError
-            raise DataNotFoundError(f"{what} {frame} does not exist; check the path")
+            raise DataNotFoundError(f"{what} {frame} is not a file; check the path")
     _say_beyond_grid(raw, pattern, cal.grid, log)
     images, scale = read_camera_images(camera_files(raw, pattern, cal.grid, skip=dead),
                                        where=str(raw), bits=raw_bits, return_scale=True)

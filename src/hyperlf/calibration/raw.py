@@ -17,8 +17,8 @@ import numpy as np
 
 from ..errors import DataNotFoundError, InvalidInputError
 
-__all__ = ["camera_files", "beyond_grid", "pose_folders", "read_camera_images", "read_poses", "read_raw_image",
-           "sensor_bits", "RawScale", "SENSOR_BITS"]
+__all__ = ["camera_files", "beyond_grid", "pose_folders", "read_camera_images", "read_poses",
+           "read_raw_image", "sensor_bits", "RawScale", "SENSOR_BITS"]
 
 _FIELDS = ("index", "row", "col")
 
