@@ -239,7 +239,7 @@ def test_depth_command_on_a_synthetic_capture(tmp_path, capsys):
     with pytest.raises(SystemExit) as usage:  # a usage error, named by its option
         main(["-q", "depth", str(cap), "--metric", "ncc", "--labels", "16",
               "--median-radius", "-1", "-o", str(tmp_path / "bad")])
-    assert usage.value.code == 2 and "--median-radius must be in [0, 64]" in \
+    assert usage.value.code == 2 and "--median-radius must be at least 0" in \
         capsys.readouterr().err
     # no calibration, so no metric outputs: --min-confidence says it has nothing to act on
     capsys.readouterr()

@@ -166,19 +166,6 @@ _raw_bits_arg = _int_at_least(1, "--raw-bits", 16, " (raw images are 8 or 16-bit
 _aggregation_radius_arg = _int_at_least(1, "--aggregation-radius", 64)
 
 
-def _count_arg(what: str, low: int, high: int):
-    """An argparse type: an integer in ``[low, high]``."""
-    def parse(text: str) -> int:
-        try:
-            v = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{what} must be an integer, got {text!r}") from None
-        if not low <= v <= high:
-            raise argparse.ArgumentTypeError(f"{what} must be in [{low}, {high}], got {text!r}")
-        return v
-    return parse
-
-
 def _range_arg(text: str) -> tuple[float, float]:
     """``--disparity-range MIN,MAX``: two finite numbers, MIN < MAX."""
     lo, hi = _pair_of_floats(text)
@@ -542,6 +529,9 @@ def _cmd_synth(args, dest) -> list[Path]:
     return [data]
 
 
+#: Image files a PFM converts to and back.
+_IMAGE_SUFFIXES = {".png", ".tif", ".tiff"}
+
 #: Suffixes of single files a light field cannot be converted to (it becomes a folder or .h5).
 _NOT_A_LIGHTFIELD = {".png", ".tif", ".tiff", ".pfm", ".jpg", ".jpeg", ".hdr", ".img", ".txt",
                      ".csv", ".npy", ".gif", ".mp4", ".ply", ".toml", ".json"}
@@ -566,8 +556,7 @@ def _cmd_convert(args, dest) -> list[Path]:
 
     src = Path(args.input)
     dst = dest if isinstance(dest, Path) else dest[0]  # where this run writes args.output
-    img_ext = {".png", ".tif", ".tiff"}
-    if src.suffix.lower() == ".pfm" or (src.suffix.lower() in img_ext and dst.suffix.lower() == ".pfm"):
+    if src.suffix.lower() == ".pfm" or (src.suffix.lower() in _IMAGE_SUFFIXES and dst.suffix.lower() == ".pfm"):
         return _convert_map(args, src, dst, dest)
     if dst.suffix.lower() in (".hdr", ".img"):
         return _convert_envi(args, src, dest)
@@ -583,7 +572,6 @@ def _convert_map(args, src: Path, dst: Path, dest) -> list[Path]:
     from . import formats, visualise
     from ._atomic import atomic_write_text
 
-    img_ext = {".png", ".tif", ".tiff"}
     _check_input_file(src, "input")
     if src.suffix.lower() != ".pfm":
         data = formats.read_image(src, as_float=True)
@@ -599,7 +587,7 @@ def _convert_map(args, src: Path, dst: Path, dest) -> list[Path]:
     data = formats.read_pfm(src)
     if dst.suffix.lower() == ".pfm":
         return [formats.write_pfm(dst, data)]
-    if dst.suffix.lower() not in img_ext:
+    if dst.suffix.lower() not in _IMAGE_SUFFIXES:
         raise InvalidInputError(f"cannot convert {src.suffix} to {dst.suffix}; "
                                 "use .pfm, .png or .tif")
     finite = data[np.isfinite(data)]
@@ -1590,7 +1578,7 @@ def _add_depth_parser(sub) -> None:
                    help="enable the occlusion-aware half-plane split (off by default)")
     p.add_argument("--defocus", default="off", choices=_defocus_choices(),
                    help="spectral-aware defocus cost (off by default; 'paper' is the literal one)")
-    p.add_argument("--median-radius", type=_count_arg("--median-radius", 0, 64), default=None,
+    p.add_argument("--median-radius", type=_int_at_least(0, "--median-radius", 64), default=None,
                    metavar="PX",
                    help="radius of the guided weighted-median post-filter that snaps depth "
                         "edges to image edges (default 4; 0 turns it off)")

@@ -189,7 +189,9 @@ def describe(path: str | os.PathLike) -> str:
         manifest = read_manifest(p)
         if manifest is not None:
             return _describe_result(p, manifest)
-        if (p / ".hyperlf-batch.json").is_file():
+        from ..batch import BATCH_FILE
+
+        if (p / BATCH_FILE).is_file():
             return _describe_batch(p)
     if p.is_file() and p.name in _BY_NAME:
         return _BY_NAME[p.name](p)
