@@ -11,7 +11,7 @@ import pytest
 
 import hyperlf
 from hyperlf import costs, hlf, synthesis, twoview
-from hyperlf.costs import Cost, box_mean, fill_invalid, shift_cols
+from hyperlf.costs import Cost, box_mean, fill_out_of_image, shift_cols
 from hyperlf.errors import InvalidInputError
 from hyperlf.imageops import normalise_intensity
 from hyperlf.warp import shift_map
@@ -30,7 +30,7 @@ class SAD(Cost):
         a = normalise_intensity(np.asarray(left, np.float64))
         b = normalise_intensity(np.asarray(right, np.float64))
         vol = np.stack([box_mean(np.abs(a - shift_cols(b, d)), n) for d in range(dmin, dmax + 1)])
-        return fill_invalid(vol.astype(np.float32), dmin)
+        return fill_out_of_image(vol.astype(np.float32), dmin)
 
     def view_volume(self, ref_img, img, shifts, *, window=None, valid=None, **options):
         n = self.window if window is None else window

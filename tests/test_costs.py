@@ -366,7 +366,7 @@ def test_no_valid_candidate_gives_zero(rng):
     c = costs.cost_volume(left[:, :8], right[:, :8], 8, 10, metric="ncc")
     assert np.all(c == 0)
     cost = np.arange(2 * 1 * 3, dtype=np.float32).reshape(2, 1, 3) + 1
-    out = costs.fill_invalid(cost.copy(), 2)  # d = 2, 3 with W = 3: only (d=2, x=2) valid
+    out = costs.fill_out_of_image(cost.copy(), 2)  # d = 2, 3 with W = 3: only (d=2, x=2) valid
     np.testing.assert_array_equal(out[:, 0, 2], [3, 3])
     np.testing.assert_array_equal(out[:, 0, :2], 0)
 
@@ -378,7 +378,7 @@ def test_fuse_general(rng):
     assert np.allclose(na.min(axis=0), 0)
     np.testing.assert_allclose(costs.fuse([a], dmin=0), na, rtol=1e-6)
     f = costs.fuse([a, b], [3, 1], dmin=0)
-    np.testing.assert_allclose(f, costs.fill_invalid((3 * na + costs.normalise_volume(b, 0)) / 4, 0),
+    np.testing.assert_allclose(f, costs.fill_out_of_image((3 * na + costs.normalise_volume(b, 0)) / 4, 0),
                                rtol=1e-5, atol=1e-6)
     with pytest.raises(InvalidInputError):
         costs.fuse([a, b], [1, -1])

@@ -158,7 +158,7 @@ def test_fill_invalid_zero_matches_the_costs_rule(rng):
     valid = costs.candidate_validity((H, W), dmin, dmin + L - 1)
     valid = valid & (rng.random((L, H, W)) < 0.8)
     valid[:, 1, 4] = False                            # a pixel with no valid candidate
-    expected = costs.fill_invalid(c.copy(), dmin, valid)
+    expected = costs.fill_out_of_image(c.copy(), dmin, valid)
     np.testing.assert_array_equal(R.fill_invalid(c, ~valid, empty="zero"), expected)
     assert np.all(expected[:, 1, 4] == 0)
 

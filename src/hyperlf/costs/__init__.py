@@ -14,7 +14,7 @@ Conventions
 * **Out-of-image rule (SPEC §4), the same for every cost.**  A candidate with ``x - d < 0`` or
   ``x - d >= W`` is invalid (:func:`candidate_validity`); it gets the pixel's *worst valid* cost
   (its maximum over valid ``d``), never zero.  A pixel with no valid candidate gets 0 for every
-  ``d``.  See :func:`fill_invalid`.
+  ``d``.  See :func:`fill_out_of_image`.
 * **Border rule for windows: replicate, each view independently.**  The ``n x n`` window
   (patch) around a pixel of a view takes, for window pixels outside that view, the value of the
   nearest border pixel of *that view* (``cv2.BORDER_REPLICATE``/``mode='nearest'``).  A windowed

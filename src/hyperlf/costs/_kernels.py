@@ -427,7 +427,7 @@ def bw_den_add(mu_c, centre, den):
 
 @numba.njit(parallel=True, cache=True)
 def bw_finish(accF, accB, denL, denR, ds, eps, cost):
-    """:func:`bwncc_finish` + :func:`fill_invalid` fused: float32 cost volume."""
+    """:func:`bwncc_finish` + :func:`fill_out_of_image` fused: float32 cost volume."""
     L, H, W = accF.shape
     lg = -np.log(eps)
     for y in prange(H):

@@ -49,7 +49,7 @@ import numpy as np
 
 from ..imageops import fill_masked, gradient_magnitude, normalise_intensity
 from ..warp import axis_taps, axis_valid, shift_map
-from .pair import (bwncc_finish, census_transform, channel_stats, fill_invalid, inv_sigma,
+from .pair import (bwncc_finish, census_transform, channel_stats, fill_out_of_image, inv_sigma,
                    pad_replicate, rho, window_stats)
 
 __all__ = [
@@ -537,7 +537,7 @@ def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | 
     extra = {} if scales is None else {"scales": scales}
     C = cost.view_volume(A, B, shifts, window=window, valid=valid, tau_rel=tau_rel, eps=eps,
                          block=block, cache=cache, rows=rows, **extra)
-    C = fill_invalid(np.ascontiguousarray(C, dtype=np.float32), 0, valid)
+    C = fill_out_of_image(np.ascontiguousarray(C, dtype=np.float32), 0, valid)
     return C, valid
 
 

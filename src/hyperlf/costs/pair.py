@@ -2,7 +2,7 @@
 
 Left pixel ``(y, x)`` with disparity ``d`` in ``dmin..dmax`` matches right pixel ``(y, x - d)``.
 Every evaluator returns ``cost[L, H, W]`` float32, ``L = dmax - dmin + 1``, index ``k`` <->
-``d = dmin + k``, lower is better, with the out-of-image rule applied (:func:`fill_invalid`).
+``d = dmin + k``, lower is better, with the out-of-image rule applied (:func:`fill_out_of_image`).
 The conventions (border rule, numerics, ``impl``) are those of :mod:`hyperlf.costs`.  The
 registry (:mod:`hyperlf.costs.registry`) calls these functions; they can also be called
 directly.  The papers behind the costs are listed in :mod:`hyperlf.costs` (References).
@@ -21,7 +21,7 @@ from ._validate import check_disp, check_impl, check_pair, check_window
 __all__ = [
     "candidate_validity",
     "right_validity",
-    "fill_invalid",
+    "fill_out_of_image",
     "worst_fill",
     "rho",
     "pad_replicate",
@@ -79,7 +79,7 @@ def right_validity(shape, dmin: int, dmax: int) -> np.ndarray:
     return np.broadcast_to((x + d >= 0) & (x + d < W), (d.shape[0], H, W))
 
 
-def fill_invalid(cost: np.ndarray, dmin: int, valid: np.ndarray | None = None) -> np.ndarray:
+def fill_out_of_image(cost: np.ndarray, dmin: int, valid: np.ndarray | None = None) -> np.ndarray:
     """Apply the out-of-image rule in place and return ``cost``.
 
     Invalid entries get the pixel's worst (largest) valid cost; a pixel with no valid candidate
@@ -99,7 +99,7 @@ def worst_fill(cost: np.ndarray, invalid, *, empty: str = "zero") -> np.ndarray:
     """The worst-cost rule of SPEC §4, in place: every invalid entry of a cost volume gets its
     pixel's worst (largest) valid cost.
 
-    The one implementation behind :func:`fill_invalid` and
+    The one implementation behind :func:`fill_out_of_image` and
     :func:`hyperlf.regularisers.fill_invalid`.
 
     Parameters
@@ -368,7 +368,7 @@ def ssd_volume(left, right, dmin, dmax, window: int = 5) -> np.ndarray:
     for k, d in enumerate(range(dmin, dmax + 1)):
         diff = Ln - shift_cols(Rn, d)
         out[k] = _box_valid(diff * diff, n)
-    return fill_invalid(out, dmin)
+    return fill_out_of_image(out, dmin)
 
 
 #: Bytes of one float64 ``(labels, H, W)`` block of NCC scores: the single-map volumes (ncc,
@@ -420,7 +420,7 @@ def ncc_volume(left, right, dmin, dmax, window: int = 5, impl: str = "auto",
     out = np.empty((len(ds),) + L.shape, np.float32)
     for sl in _label_blocks(len(ds), L.shape):
         out[sl] = 1.0 - _ncc_scores(setup, ds[sl], n // 2, impl)
-    return fill_invalid(out, dmin)
+    return fill_out_of_image(out, dmin)
 
 
 def rsncc_volume(left, right, dmin, dmax, window: int = 5, impl: str = "auto",
@@ -439,7 +439,7 @@ def rsncc_volume(left, right, dmin, dmax, window: int = 5, impl: str = "auto",
         xi_i = _ncc_scores(set_i, ds[sl], n // 2, impl)
         xi_g = _ncc_scores(set_g, ds[sl], n // 2, impl)
         out[sl] = rho(1.0 - xi_i) + float(rs_tau) * rho(1.0 - xi_g)
-    return fill_invalid(out, dmin)
+    return fill_out_of_image(out, dmin)
 
 
 def census_transform(image, window: int = 7) -> np.ndarray:
@@ -481,7 +481,7 @@ def census_volume(left, right, dmin, dmax, window: int = 7, impl: str = "auto") 
     else:
         for k, d in enumerate(ds):
             out[k] = np.bitwise_count(cl ^ shift_cols(cr, int(d))).astype(np.float32)
-    return fill_invalid(out, dmin)
+    return fill_out_of_image(out, dmin)
 
 
 # --------------------------------------------------------------------------------------------
@@ -616,7 +616,7 @@ class _BwnccAccumulator:
         den_b = np.stack([shift_cols(self.denR, int(d)) for d in self.ds])
         res = bwncc_finish(self.accF, self.accB, self.denL[None], den_b, eps, return_scores)
         cost = res[0] if return_scores else res
-        cost = fill_invalid(cost.astype(np.float32), self.dmin)
+        cost = fill_out_of_image(cost.astype(np.float32), self.dmin)
         return (cost,) + tuple(res[1:]) if return_scores else cost
 
 
@@ -806,7 +806,7 @@ def normalise_volume(cost, dmin: int, valid=None, *, sd: float | None = None,
                      impl: str = "auto", overwrite: bool = False) -> np.ndarray:
     """``norm(C)`` of SPEC §3 fusion, float32.
 
-    Invalid entries -> the pixel's worst valid cost (:func:`fill_invalid`), minus the per-pixel
+    Invalid entries -> the pixel's worst valid cost (:func:`fill_out_of_image`), minus the per-pixel
     minimum, divided by the **global** standard deviation of the valid raw entries of ``C``.
     (Global, not per-pixel: that is what the prototype measured — "divided by the std of the
     valid raw entries" — and a per-pixel std would inflate flat, uninformative pixels.)  A
@@ -838,7 +838,7 @@ def normalise_volume(cost, dmin: int, valid=None, *, sd: float | None = None,
     if sd is None:
         vals = C[np.broadcast_to(valid, C.shape)]
         sd = float(vals.std()) if vals.size else 0.0
-    fill_invalid(C, dmin, valid)
+    fill_out_of_image(C, dmin, valid)
     C -= C.min(axis=0, keepdims=True)
     if sd > 0:
         C /= sd
@@ -894,7 +894,7 @@ def fuse(volumes: Sequence[np.ndarray], weights: Sequence[float] | None = None, 
         if wi:
             out += wi * normalise_volume(v, dmin, valid, sd=sd, impl="numpy")
     out /= w.sum()
-    return fill_invalid(out.astype(np.float32), dmin, valid)
+    return fill_out_of_image(out.astype(np.float32), dmin, valid)
 
 
 def fused_volume(left, right, dmin, dmax, window=None, impl: str = "auto",

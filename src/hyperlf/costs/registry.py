@@ -114,7 +114,7 @@ class Cost:
         """Cost volume of a rectified pair, float32 ``(dmax - dmin + 1, H, W)``.
 
         Left ``x`` vs right ``x - d``; lower is better; out-of-image candidates carry the
-        pixel's worst valid cost (:func:`hyperlf.costs.fill_invalid`).
+        pixel's worst valid cost (:func:`hyperlf.costs.fill_out_of_image`).
         """
         raise NotImplementedError
 

@@ -82,7 +82,7 @@ def fill_invalid(cost, invalid=None, *, empty: str = "global") -> np.ndarray:
     empty : {"global", "zero"}
         Value for a pixel with no valid entry at all: ``"global"`` (default) the worst valid
         cost of the whole volume; ``"zero"`` 0 for every label (the rule of
-        :func:`hyperlf.costs.fill_invalid`).
+        :func:`hyperlf.costs.fill_out_of_image`).
 
     Returns
     -------
