@@ -455,3 +455,30 @@ def test_a_result_set_records_the_command_line_that_made_it(tmp_path, capsys):
     assert main(argv) == 0
     assert read_manifest(tmp_path / "d")["argv"] == ["hyperlf", *argv]
     assert f"made by     : hyperlf depth {cap} --labels 6 -q -o" in describe(tmp_path / "d")
+
+
+def test_complete_refuses_a_map_that_depth_made_from_another_capture(tmp_path, capsys):
+    """Two captures of one size: the depth result's manifest names its input, and
+    ``complete --disparity`` refuses the map for the other one (a copy out of the folder is
+    taken as it is)."""
+    from hyperlf.outputs import read_manifest
+
+    caps = []
+    for seed in (3, 4):
+        caps.append(tmp_path / f"s{seed}")
+        assert main(["-q", "synth", "procedural", "--seed", str(seed), "--size", "32,40",
+                     "--grid", "2,2", "-o", str(caps[-1]), "--no-pictures"]) == 0
+    d = tmp_path / "d"
+    assert main(["-q", "depth", str(caps[0]), "--labels", "6", "-o", str(d)]) == 0
+    assert read_manifest(d)["input"]["path"] == str(caps[0])
+    capsys.readouterr()
+    assert main(["-q", "complete", str(caps[1]), "--disparity", str(d / "disparity.pfm"),
+                 "--stereo", "none", "-o", str(tmp_path / "c")]) == 2
+    err = capsys.readouterr().err
+    assert "was computed from" in err and "another scene" in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "c").exists()
+    assert main(["-q", "complete", str(caps[0]), "--disparity", str(d / "disparity.pfm"),
+                 "--stereo", "none", "-o", str(tmp_path / "c")]) == 0
+    (tmp_path / "copy.pfm").write_bytes((d / "disparity.pfm").read_bytes())
+    assert main(["-q", "complete", str(caps[1]), "--disparity", str(tmp_path / "copy.pfm"),
+                 "--stereo", "none", "-o", str(tmp_path / "c2")]) == 0

@@ -228,3 +228,44 @@ def test_block_mean_cube_scores_like_the_block_means_of_the_whole_cube():
     lazy = BlockMeanCube(truth, 3)
     assert lazy.shape == small.shape == (2, 3, 4, 3, 4)
     np.testing.assert_allclose(cube_scores(est, lazy), cube_scores(est, small), rtol=1e-12)
+
+
+def _textured(rng, shape=(60, 80)):
+    from scipy.ndimage import gaussian_filter
+
+    g = gaussian_filter(rng.random(shape), 6)
+    return (0.1 + (g - g.min()) / np.ptp(g)).astype(np.float32)
+
+
+def test_capture_signature_tells_another_scene_from_another_shading(rng):
+    """Exposure, vignetting and a small shift keep the signature; another scene, grid,
+    reference or wavelength does not."""
+    from hyperlf.lightfield import capture_signature, signature_mismatch
+
+    def sig(view, **kw):
+        return capture_signature(LightField(np.stack([view, view])[None],
+                                            wavelengths=[[500.0, 600.0]], **kw))
+
+    view = _textured(rng)
+    y, x = np.mgrid[:60, :80]
+    vignetting = 1 - 0.6 * (((x - 40) / 40) ** 2 + ((y - 30) / 30) ** 2) / 2
+    base = sig(view)
+    for same in (0.5 * view, view * vignetting, np.roll(view, 2, axis=1)):
+        assert signature_mismatch(base, sig(same.astype(np.float32))) is None
+    assert "another scene" in signature_mismatch(base, sig(_textured(rng)))
+    assert "reference" in signature_mismatch(base, sig(view, reference=(0, 1)))
+    assert signature_mismatch(base, dict(base, wavelengths=[[500.0, 610.0]])) == \
+        "its wavelengths differ"
+    assert signature_mismatch({"grid": "x"}, base) is None  # malformed: nothing to tell
+
+
+def test_capture_signature_uses_valid_pixels_only(rng):
+    from hyperlf.lightfield import capture_signature
+
+    view = _textured(rng)
+    valid = np.ones((1, 2, 60, 80), bool)
+    valid[0, 0, :8] = False  # the top row of blocks: rows 0-7 (60 rows in 8, 8, 8, 8, 7, ...)
+    sig = capture_signature(LightField(np.stack([view, view])[None], valid=valid,
+                                       reference=(0, 0)))
+    assert sig["thumbnail"][:8] == [None] * 8
+    assert sig["thumbnail"][8] == pytest.approx(float(view[8:16, :10].mean()), rel=1e-6)

@@ -375,9 +375,39 @@ def _result(args):
         yield None
         return
     opts = dict(overwrite=args.overwrite, command=args.command, argv=getattr(args, "argv", None))
-    with (result_folder(targets[0], **opts) if kind == "folder"
+    args.provenance = {}  # filled by the command (_record_input), read when the set is published
+    with (result_folder(targets[0], provenance=args.provenance, **opts) if kind == "folder"
           else result_files(targets, **opts)) as dest:
         yield dest
+
+
+def _record_input(args, lf) -> None:
+    """Put what the result is made from in its manifest: the input's path and signature
+    (:func:`hyperlf.lightfield.capture_signature`), which ``complete --disparity`` checks."""
+    from .lightfield import capture_signature
+
+    if getattr(args, "provenance", None) is not None:
+        args.provenance["input"] = {"path": os.path.abspath(args.input),
+                                    **capture_signature(lf)}
+
+
+def _check_disparity_source(args, lf) -> None:
+    """Refuse a ``--disparity`` map that a depth result set records as made from another
+    capture (a map copied out of its folder is taken as it is)."""
+    from .lightfield import capture_signature, signature_mismatch
+    from .outputs import read_manifest
+
+    path = Path(args.disparity)
+    man = read_manifest(path.parent)
+    if man is None or man["input"] is None or path.name not in man["files"]:
+        return
+    why = signature_mismatch(man["input"], capture_signature(lf))
+    if why is not None:
+        made_from = man["input"].get("path", "another capture")
+        raise InvalidInputError(
+            f"--disparity {args.disparity} was computed from {made_from}, not from "
+            f"{args.input}: {why}; run 'hyperlf depth {args.input}' first (or copy the map "
+            "out of its result folder to use it anyway)")
 
 
 def _available_memory() -> int:
@@ -827,6 +857,7 @@ def _cmd_depth(args, dest) -> list[Path]:
     from .pipeline import save_disparity_outputs, save_metric_outputs
 
     lf = load_lightfield(args.input, cube=False)  # a ground-truth cube is not needed here
+    _record_input(args, lf)
     out = dest
     rng = args.disparity_range
     if rng is None and lf.disparity_range is None:
@@ -1060,6 +1091,7 @@ def _cmd_complete(args, dest) -> list[Path]:
     n = args.downscale
     disparity = None
     if args.disparity is not None:  # checked before the light field is made small
+        _check_disparity_source(args, lf)
         disparity = _complete_disparity(args, read_pfm(_check_input_file(args.disparity,
                                                                          "--disparity")),
                                         lf.image_shape)

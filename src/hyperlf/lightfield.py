@@ -27,7 +27,8 @@ from .imageops import block_reduce
 
 __all__ = ["LightField", "raster_wavelengths", "filter_layout", "view_offsets",
            "grid_positions", "centre_view", "check_disparity_range", "resolve_disparity_range",
-           "check_disparity_reach", "downscale", "downscale_disparity", "BlockMeanCube"]
+           "check_disparity_reach", "downscale", "downscale_disparity", "BlockMeanCube",
+           "capture_signature", "signature_mismatch"]
 
 
 def _finite(name: str, arr: np.ndarray) -> None:
@@ -303,6 +304,8 @@ class LightField:
     views : array_like, shape (R, C, H, W) or (R, C, H, W, K)
         Linear intensities, stored as float32. Monochrome views (4-D) form a hyperspectral light
         field; a trailing channel axis (e.g. ``K = 3``) an ordinary colour light field.
+        A float32 array is kept, not copied (a paper-size capture is gigabytes): changing it
+        afterwards changes the light field; pass ``views.copy()`` to keep the two apart.
     wavelengths : array_like, shape (R, C), optional
         Centre wavelength (nm) of each view's band-pass filter. Required to be positive; may be
         ``None`` for colour light fields.
@@ -615,6 +618,106 @@ def downscale_disparity(disparity, factor: int) -> np.ndarray:
     [[1.5, 1.5, 1.5], [1.5, 1.5, 1.5]]
     """
     return (block_reduce(np.asarray(disparity), factor) / factor).astype(np.float32)
+
+
+#: Blocks on each side of the reference view's thumbnail in :func:`capture_signature`.
+SIGNATURE_BLOCKS = 8
+#: Largest RMS of two thumbnails' log ratio, beyond a smooth shading, that
+#: :func:`signature_mismatch` takes for one scene.
+SIGNATURE_MAX_RESIDUAL = 0.1
+
+
+def capture_signature(lf: LightField) -> dict:
+    """What tells one capture from another, as JSON values: the grid, the view size, the
+    reference view, the wavelengths, the positions and a thumbnail of the reference view
+    (:data:`SIGNATURE_BLOCKS` x :data:`SIGNATURE_BLOCKS` means of its valid pixels; None where a
+    block has none).
+
+    ``hyperlf depth`` records it in its result's manifest, so that ``complete --disparity``
+    can refuse a map made from another capture of the same size (:func:`signature_mismatch`).
+
+    Examples
+    --------
+    >>> lf = LightField(np.ones((1, 2, 16, 16), np.float32), wavelengths=[[500.0, 600.0]])
+    >>> sig = capture_signature(lf)
+    >>> sig["grid"], sig["image_shape"], len(sig["thumbnail"])
+    ([1, 2], [16, 16], 64)
+    """
+    ref = tuple(lf.reference)
+    view = np.asarray(lf.views[ref], np.float64)
+    view = view.mean(axis=-1) if view.ndim == 3 else view
+    valid = np.ones(view.shape, bool) if lf.valid is None else np.asarray(lf.valid[ref])
+    thumb = []
+    for rows in np.array_split(np.arange(view.shape[0]), SIGNATURE_BLOCKS):
+        for cols in np.array_split(np.arange(view.shape[1]), SIGNATURE_BLOCKS):
+            block, ok = view[np.ix_(rows, cols)], valid[np.ix_(rows, cols)]
+            thumb.append(float(block[ok].mean()) if ok.any() else None)
+    return {"grid": list(lf.grid_shape), "image_shape": list(lf.image_shape),
+            "reference": [int(i) for i in ref],
+            "wavelengths": None if lf.wavelengths is None else np.asarray(
+                lf.wavelengths, float).round(3).tolist(),
+            "positions": np.asarray(lf.positions, float).round(4).tolist(),
+            "thumbnail": thumb}
+
+
+def signature_mismatch(recorded: dict, sig: dict) -> str | None:
+    """Why two :func:`capture_signature` values name different captures, or None when they may
+    name the same one (also when ``recorded`` is malformed: nothing can be told then).
+
+    Grid, view size and reference must agree exactly, wavelengths within 0.5 nm, positions
+    within 0.05 baselines, and the thumbnails' ratio must be a smooth shading up to
+    :data:`SIGNATURE_MAX_RESIDUAL` (another exposure, vignetting or a flat field of the same
+    scene keeps it smooth; another scene does not).
+
+    Examples
+    --------
+    >>> a = {"grid": [3, 3], "image_shape": [60, 80], "reference": [1, 1]}
+    >>> signature_mismatch(a, dict(a, grid=[5, 6]))
+    'its grid is 3 x 3, not 5 x 6'
+    """
+    try:
+        for key, what in (("grid", "grid"), ("image_shape", "view size (rows x columns)"),
+                          ("reference", "reference view")):
+            if [int(v) for v in recorded[key]] != [int(v) for v in sig[key]]:
+                a, b = (" x ".join(str(int(v)) for v in s[key]) for s in (recorded, sig))
+                return f"its {what} is {a}, not {b}"
+        return _geometry_mismatch(recorded, sig) or _thumbnail_mismatch(recorded, sig)
+    except (KeyError, TypeError, ValueError):
+        return None
+
+
+def _geometry_mismatch(recorded: dict, sig: dict) -> str | None:
+    for key, tol, what in (("wavelengths", 0.5, "wavelengths"),
+                           ("positions", 0.05, "view positions")):
+        a, b = recorded.get(key), sig.get(key)
+        if a is None and b is None:
+            continue
+        if a is None or b is None or np.shape(a) != np.shape(b) or not np.allclose(
+                np.asarray(a, float), np.asarray(b, float), atol=tol):
+            return f"its {what} differ"
+    return None
+
+
+def _thumbnail_mismatch(recorded: dict, sig: dict) -> str | None:
+    """The thumbnails' log ratio less its best quadratic surface (exposure, vignetting and a
+    flat field are smooth): its RMS above :data:`SIGNATURE_MAX_RESIDUAL` is another scene."""
+    a, b = (np.array([np.nan if v is None else v for v in s["thumbnail"]], float)
+            for s in (recorded, sig))
+    n = SIGNATURE_BLOCKS
+    if a.shape != (n * n,) or b.shape != (n * n,):
+        return None
+    both = np.isfinite(a) & np.isfinite(b) & (a > 0) & (b > 0)
+    if both.sum() < 12:
+        return None
+    y, x = (g.ravel()[both] / n for g in np.mgrid[:n, :n])
+    design = np.stack([np.ones_like(x), x, y, x * x, x * y, y * y], axis=1)
+    ratio = np.log(a[both] / b[both])
+    fit, *_ = np.linalg.lstsq(design, ratio, rcond=None)
+    rms = float(np.sqrt(np.mean((ratio - design @ fit) ** 2)))
+    if rms > SIGNATURE_MAX_RESIDUAL:
+        return (f"its reference view shows another scene (thumbnails differ by {100 * rms:.0f} % "
+                "beyond shading)")
+    return None
 
 
 class BlockMeanCube:

@@ -247,7 +247,7 @@ def _walk_files(folder: Path) -> list[str]:
     return sorted(f for f in out if f != MANIFEST)
 
 
-def _write_manifest(folder: Path, command: str | None, argv=None) -> None:
+def _write_manifest(folder: Path, command: str | None, argv=None, provenance=None) -> None:
     from . import __version__
     from ._atomic import atomic_write_text
 
@@ -255,12 +255,15 @@ def _write_manifest(folder: Path, command: str | None, argv=None) -> None:
            "files": _walk_files(folder)}
     if argv is not None:  # provenance: the command line that made it
         doc["argv"] = [str(a) for a in argv]
+    for key, value in (provenance or {}).items():  # e.g. the input's fingerprint
+        doc.setdefault(key, value)
     atomic_write_text(folder / MANIFEST, json.dumps(doc, indent=1) + "\n")
 
 
 def read_manifest(folder: str | os.PathLike) -> dict | None:
     """The manifest of the result set in ``folder``: ``written_by`` (str), ``command`` (str or
-    None) and ``files`` (relative POSIX paths); None when :data:`MANIFEST` is missing, a
+    None), ``files`` (relative POSIX paths), ``argv`` (list of str or None) and ``input`` (dict
+    or None: what the result was made from); None when :data:`MANIFEST` is missing, a
     symlink, unreadable or malformed.
 
     Examples
@@ -284,10 +287,12 @@ def read_manifest(folder: str | os.PathLike) -> dict | None:
     if not isinstance(files, list) or not all(isinstance(f, str) for f in files):
         return None
     command, by, argv = doc.get("command"), doc.get("written_by"), doc.get("argv")
+    source = doc.get("input")
     return {"written_by": by if isinstance(by, str) else "hyperlf",
             "command": command if isinstance(command, str) else None, "files": files,
             "argv": argv if isinstance(argv, list) and all(isinstance(a, str) for a in argv)
-            else None}
+            else None,
+            "input": source if isinstance(source, dict) else None}
 
 
 def manifest_files(folder: str | os.PathLike) -> set[str] | None:
@@ -514,9 +519,10 @@ class _ResultSet:
     """The staging area of one command's outputs and the moves that publish it."""
 
     def __init__(self, targets: Sequence[Path], *, overwrite: bool, command: str | None,
-                 inplace: bool = True, argv=None):
+                 inplace: bool = True, argv=None, provenance=None):
         self.targets = [Path(os.path.abspath(t)) for t in targets]
         self.overwrite, self.command, self.argv = overwrite, command, argv
+        self.provenance = provenance
         self.parent = self.targets[0].parent
         if any(t.parent != self.parent for t in self.targets):
             raise InvalidInputError("the outputs of one result set must share one folder")
@@ -573,7 +579,7 @@ class _ResultSet:
         with deferred_signals():
             self.check()
             if self.inplace:
-                _write_manifest(self.stage, self.command, self.argv)
+                _write_manifest(self.stage, self.command, self.argv, self.provenance)
                 _merge_into(self.stage, self.targets[0])
             else:
                 for t in self.targets:
@@ -584,7 +590,7 @@ class _ResultSet:
         if not os.path.lexists(staged):
             return
         if staged.is_dir():
-            _write_manifest(staged, self.command, self.argv)
+            _write_manifest(staged, self.command, self.argv, self.provenance)
             _replace_folder(staged, target, self.home / f"{self.stem}.old")
         else:
             os.replace(staged, target)
@@ -628,7 +634,8 @@ def _staged(rs: _ResultSet) -> Iterator[Path]:
 
 @contextlib.contextmanager
 def result_folder(folder: str | os.PathLike, *, overwrite: bool = False,
-                  command: str | None = None, argv=None) -> Iterator[Path]:
+                  command: str | None = None, argv=None,
+                  provenance: dict | None = None) -> Iterator[Path]:
     """Write a command's output folder as one whole result set.
 
     Yields the folder to write into (a staging folder). When the block ends normally its
@@ -647,6 +654,10 @@ def result_folder(folder: str | os.PathLike, *, overwrite: bool = False,
         Recorded in the manifest.
     argv : sequence of str, optional
         The command line, recorded in the manifest (``hyperlf info`` shows it).
+    provenance : dict, optional
+        Further manifest entries (JSON values), e.g. ``"input"``: what the result was made
+        from (:func:`read_manifest` returns it). Read when the set is published, so the block
+        may fill it in.
 
     Yields
     ------
@@ -671,7 +682,8 @@ def result_folder(folder: str | os.PathLike, *, overwrite: bool = False,
     >>> sorted(p.name for p in out.iterdir())
     ['.hyperlf-result.json', 'a.txt']
     """
-    rs = _ResultSet(_as_targets(folder), overwrite=overwrite, command=command, argv=argv)
+    rs = _ResultSet(_as_targets(folder), overwrite=overwrite, command=command, argv=argv,
+                    provenance=provenance)
     with _staged(rs) as stage:
         if rs.inplace:
             yield stage

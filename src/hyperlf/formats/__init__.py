@@ -260,6 +260,9 @@ def _describe_result(p: Path, manifest: dict) -> str:
     if manifest.get("argv"):
         import shlex
         lines.append(f"made by     : {shlex.join(manifest['argv'])}")
+    source = (manifest.get("input") or {}).get("path")
+    if isinstance(source, str):
+        lines.append(f"made from   : {source}")
     pictures, other = [], []
     captures = sorted({_top(n) for n in files
                        if _top(n) and _inside(n, p) and is_capture(p / _top(n))})
