@@ -426,6 +426,19 @@ def test_plane_positions_from_board_poses_alone(rig, plane_shots):
             assert _angle_deg(cam.position - ref, truth[key]) < 15.0, key
 
 
+def test_plane_says_why_the_parallax_was_not_used(tmp_path, rig, plane_shots):
+    """Too little parallax for the positions: the calibration falls back on the board poses
+    and records why (calibrate prints it), also in its file."""
+    cal = register_plane(plane_shots, rig.board, min_parallax_px=1e6)
+    assert cal.info["positions_from"] == "board"
+    why = cal.info["parallax_unused"]
+    assert "median flow" in why and "1e+06 px are needed" in why
+    assert read_calibration(write_calibration(cal, tmp_path / "c.toml")).info[
+        "parallax_unused"] == why
+    assert "parallax_unused" not in register_plane(plane_shots, rig.board,
+                                                   positions_from="board").info
+
+
 # ----------------------------------------------------------------------------- files
 def test_calibration_file_round_trip(tmp_path, plane_cal):
     p = write_calibration(plane_cal, tmp_path / "cal.toml")

@@ -482,3 +482,35 @@ def test_complete_refuses_a_map_that_depth_made_from_another_capture(tmp_path, c
     (tmp_path / "copy.pfm").write_bytes((d / "disparity.pfm").read_bytes())
     assert main(["-q", "complete", str(caps[1]), "--disparity", str(tmp_path / "copy.pfm"),
                  "--stereo", "none", "-o", str(tmp_path / "c2")]) == 0
+
+
+def test_depth_notes_a_map_stuck_at_a_limit_of_the_range(tmp_path, capsys):
+    """A range that leaves most of the scene out puts those pixels at its limit; depth says
+    so (a map without ground truth would show no other sign), and is silent on a fitting
+    range."""
+    cap = tmp_path / "s"
+    assert main(["-q", "synth", "procedural", "--seed", "1", "--size", "48,64", "--grid", "1,3",
+                 "-o", str(cap), "--no-pictures"]) == 0
+    capsys.readouterr()
+    assert main(["depth", str(cap), "--labels", "8", "--disparity-range=0.5,2", "-o",
+                 str(tmp_path / "d")]) == 0
+    note = [line for line in capsys.readouterr().err.splitlines() if "limit of the" in line]
+    assert len(note) == 1 and "at 0.5" in note[0] and "--disparity-range" in note[0]
+    share = float(note[0].split("note: ")[1].split(" %")[0])
+    from hyperlf.formats import read_pfm
+    from hyperlf.metrics import range_limit_shares
+    disparity = read_pfm(tmp_path / "d" / "disparity.pfm")
+    assert share == pytest.approx(sum(range_limit_shares(disparity, (0.5, 2))), abs=0.05)
+    assert share > 50
+    assert main(["depth", str(cap), "--labels", "8", "--disparity-range=-2.5,2.5", "-o",
+                 str(tmp_path / "d2")]) == 0  # the scene's own range is -1.8..1.4
+    assert "limit of the" not in capsys.readouterr().err
+
+
+def test_depth_of_views_smaller_than_the_post_filter(tmp_path):
+    """The default post-filter radius (4) on 3 x 3 px views: a window over the whole view,
+    not a refusal of an option the user never gave."""
+    cap = tmp_path / "tiny"
+    assert main(["-q", "synth", "procedural", "--size", "3,3", "--grid", "3,3", "-o", str(cap),
+                 "--no-pictures"]) == 0
+    assert main(["-q", "depth", str(cap), "--labels", "8", "-o", str(tmp_path / "d")]) == 0

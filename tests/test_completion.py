@@ -339,3 +339,13 @@ def test_register_view_on_threads_is_the_serial_result(planes_lf, monkeypatch):
     np.testing.assert_array_equal(out["1"][0], out["3"][0])
     np.testing.assert_array_equal(out["1"][1], out["3"][1])
     assert out["3"][1].any() and not out["3"][1].all()
+
+
+def test_two_views_with_one_wavelength_are_named():
+    from hyperlf import LightField
+
+    wl = np.array([[500.0, 555.0, 600.0], [650.0, 555.0, 700.0]])
+    lf = LightField(np.ones((2, 3, 8, 8), np.float32), wavelengths=wl)
+    with pytest.raises(InvalidInputError, match=r"views \(0,1\), \(1,1\) all have 555 nm"):
+        cp.band_order(lf)
+    assert "6 filters (5 distinct)" in lf.describe()

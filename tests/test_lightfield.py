@@ -80,7 +80,7 @@ def test_colour_lightfield_and_replace():
 @given(rows=st.integers(1, 7), cols=st.integers(1, 7),
        lo=st.floats(300, 600), span=st.floats(0, 400))
 def test_raster_wavelengths_properties(rows, cols, lo, span):
-    wl = raster_wavelengths(rows, cols, lo, lo + span)
+    wl = raster_wavelengths(rows, cols, lambda_min=lo, lambda_max=lo + span)
     assert wl.shape == (rows, cols)
     top = lo if rows * cols == 1 else lo + span  # a single view gets lambda_min
     assert np.isclose(wl.min(), lo) and np.isclose(wl.max(), top)

@@ -386,3 +386,17 @@ def test_raw_view_camera_refocus_equals_emulated_reference_on_a_plane(one_plane)
         full = cnt == lf.n_views
         assert full.sum() > 0.5 * full.size
         np.testing.assert_allclose(got[full], want[full], atol=1e-5)
+
+
+def test_a_band_profile_picks_a_band_only_within_a_filter_width():
+    """band:NM takes the nearest band within 5 nm (and half the spacing), not any band: two
+    bands 290 nm apart do not make 550 nm mean 410 nm."""
+    from hyperlf.render import BAND_TOLERANCE_NM, band_index
+
+    assert band_index([410.0, 548.7, 700.0], 550) == 1
+    assert band_index(np.linspace(410, 700, 30), 523) == 11  # 10 nm spacing: 520 is within 3 nm
+    with pytest.raises(InvalidInputError, match="no band at 550 nm.*nearest 410"):
+        band_index([410.0, 700.0], 550)
+    with pytest.raises(InvalidInputError, match="within 2.5 nm"):
+        band_index([500.0, 505.0], 510)
+    assert BAND_TOLERANCE_NM == 5.0

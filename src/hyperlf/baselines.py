@@ -514,7 +514,7 @@ def _tao_cues(Dvol: np.ndarray, Cvol: np.ndarray, labels: np.ndarray, pct: float
     return depth_d, depth_c, np.clip(ratio_d / norm, 0, 1), np.clip(ratio_c / norm, 0, 1)
 
 
-def tao2013(lf: LightField, n_labels: int = 64, disparity_range=None,
+def tao2013(lf: LightField, *, n_labels: int = 64, disparity_range=None,
             progress: bool = False, **params) -> BaselineResult:
     """Tao et al. 2013: defocus + correspondence cues, peak-ratio confidences, global fusion.
 
@@ -832,7 +832,7 @@ def _wang_mrf(l0, conf, ref, edges, occ, labels: np.ndarray, p: dict) -> np.ndar
                          edge_weights=(wx, wy))
 
 
-def wang2015(lf: LightField, n_labels: int = 64, disparity_range=None,
+def wang2015(lf: LightField, *, n_labels: int = 64, disparity_range=None,
              progress: bool = False, **params) -> BaselineResult:
     """Wang et al. 2015: occlusion-aware angular-patch split, occlusion map, edge-aware MRF.
 
@@ -963,7 +963,7 @@ def _lin_graphcut(run: _Run, S: np.ndarray, Dvol: np.ndarray):
     return E, lab
 
 
-def lin2015(lf: LightField, n_labels: int = 64, disparity_range=None,
+def lin2015(lf: LightField, *, n_labels: int = 64, disparity_range=None,
             progress: bool = False, **params) -> BaselineResult:
     """Lin et al. 2015: focal-stack symmetry + data consistency, graph cuts.
 

@@ -289,12 +289,10 @@ def _measure(task: CaptureTask, row: CaptureResult) -> CaptureResult:
     if task.downscale > 1:  # what depth --downscale matched: block means, range and truth
         lf = downscale(lf, task.downscale, truth=True)
     rng = lf.disparity_range  # the range depth used, in the px of its map
-    ok = np.isfinite(d)
-    if lf.valid is not None:
-        ok &= lf.valid[lf.reference]
-    if rng is not None and ok.any():
-        at = metrics.at_range_limit(d, rng)
-        row.range_limit_pct = round(100.0 * float(at[ok].mean()), 3)
+    shares = None if rng is None else metrics.range_limit_shares(
+        d, rng, None if lf.valid is None else lf.valid[lf.reference])
+    if shares is not None:
+        row.range_limit_pct = round(sum(shares), 3)
     gt = lf.reference_gt_disparity
     sc = None if gt is None else metrics.hci_scores(d, gt)
     if sc is not None:

@@ -729,6 +729,10 @@ def _cmd_calibrate(args, dest) -> list[Path]:
         _say(args, "note: the board faces the cameras too squarely to fix the focal length; "
                    "registration and positions are fine, but for metric depth give "
                    "--focal-px (focal length / pixel pitch)")
+    if cal.info.get("parallax_unused"):
+        _say(args, "note: positions from the board poses, not from the scene's parallax ("
+                   f"{cal.info['parallax_unused']}); 'hyperlf ingest' then measures the "
+                   "disparity range on the scene")
     turns = cal.info.get("camera_turns") or {}
     if turns:
         _say(args, _turns_message(turns, len(cal.cameras)))
@@ -950,9 +954,32 @@ def _cmd_depth(args, dest) -> list[Path]:
     _say(args, f"{args.method}: {time.perf_counter() - t0:.1f} s "
                + ", ".join(f"{k} {v:.1f} s" for k, v in res.timings.items()))
     _say_depth_config(args, getattr(res, "config", {}))
+    _say_range_limits(args, res.disparity, lf, rng)
     if gt is not None:
         _say_depth_scores(args, res.disparity, gt)
     return written
+
+
+#: Share (%) of the reference pixels at a limit of the disparity range above which depth warns.
+RANGE_LIMIT_NOTE_PCT = 5.0
+
+
+def _say_range_limits(args, disparity, lf, rng) -> None:
+    """A note when many pixels sit at a limit of the range: where the scene reaches beyond
+    it (or nothing can be matched) the cost minimum lands there, and a map without ground
+    truth shows no other sign of it."""
+    from .lightfield import resolve_disparity_range
+    from .metrics import range_limit_shares
+
+    lo, hi = resolve_disparity_range(lf, rng)
+    shares = range_limit_shares(disparity, (lo, hi),
+                                None if lf.valid is None else lf.valid[lf.reference])
+    if shares is None or sum(shares) < RANGE_LIMIT_NOTE_PCT:
+        return
+    _say(args, f"note: {sum(shares):.1f} % of the pixels sit at a limit of the disparity range "
+               f"({shares[0]:.1f} % at {lo:g}, {shares[1]:.1f} % at {hi:g}): the scene may "
+               "reach beyond it, or there the costs found no match; try a wider "
+               "--disparity-range")
 
 
 def _say_depth_config(args, config: dict) -> None:
@@ -1255,6 +1282,10 @@ def _cmd_refocus(args, dest) -> list[Path]:
                                 "--profile weights:FILE, one weight per camera in raster order")
     out = dest
     with cf:
+        if isinstance(profile, float):  # say which band a wavelength picked
+            band = float(np.ravel(cf.wavelengths)[render.band_index(cf.wavelengths, profile)])
+            if band != profile:
+                _say(args, f"band {band:g} nm (the nearest to {profile:g} nm)")
         focus = args.sweep[:2] if args.sweep is not None else [args.disparity]
         check_disparity_reach(focus, offsets, cf.cube.shape[-2:])
         if args.sweep is not None:

@@ -255,7 +255,13 @@ def band_order(lf) -> tuple[np.ndarray, np.ndarray]:
     wl = np.asarray(lf.wavelengths, dtype=np.float64)
     flat = wl.ravel()
     if np.unique(flat).size != flat.size:
-        raise InvalidInputError("cube completion needs a distinct wavelength per view")
+        values, counts = np.unique(flat, return_counts=True)
+        twice = values[counts > 1][0]
+        views = [f"({r},{c})" for r, c in zip(*np.nonzero(wl == twice))]
+        raise InvalidInputError(
+            f"cube completion needs a distinct wavelength per view; views {', '.join(views)} "
+            f"all have {twice:g} nm (an array with two equal filters cannot be completed; "
+            "give their real centre wavelengths, or leave one camera out)")
     order = np.argsort(flat, kind="stable")
     idx = np.empty(flat.size, dtype=np.intp)
     idx[order] = np.arange(flat.size)
@@ -445,7 +451,7 @@ def _optimise(D, opt, guide, labels):
     return disp, conf
 
 
-def pairwise_disparities(lf, initial: np.ndarray, metric: str = "rsncc", optimizer: str = "sgm",
+def pairwise_disparities(lf, initial: np.ndarray, *, metric: str = "rsncc", optimizer: str = "sgm",
                          band: float = 2.0, guidance: float = 0.5, window: int | None = None,
                          params: dict | None = None, disparity_range=None,
                          progress: bool = False) -> tuple[np.ndarray, np.ndarray]:
@@ -501,7 +507,8 @@ def pairwise_disparities(lf, initial: np.ndarray, metric: str = "rsncc", optimiz
             kmin, kmax = kmin - 1, kmax + 1
         if L_img.mean() <= 0 or R_img.mean() <= 0:
             continue
-        cl, cr = _stereo.compute_volumes(L_img, R_img, kmin, kmax, metric, window, need_right=True)
+        cl, cr = _stereo.compute_volumes(L_img, R_img, kmin, kmax, metric, window=window,
+                                             need_right=True)
         labels = np.arange(kmin, kmax + 1, dtype=np.float64)
         s = _volume_std(cl)
         side = dict(kmin=kmin, base=base, labels=labels, opt=opt, guidance=guidance, band=band)
@@ -525,7 +532,7 @@ def pairwise_disparities(lf, initial: np.ndarray, metric: str = "rsncc", optimiz
 
 
 # ----------------------------------------------------------------------------- stage 3
-def refine_disparity(image, z, c, lam: float = 1.0, edge_sigma: float = 0.1,
+def refine_disparity(image, z, c, *, lam: float = 1.0, edge_sigma: float = 0.1,
                      min_weight: float = 1e-3) -> np.ndarray:
     """Confidence-weighted edge-aware WLS (module docstring, stage 3); fills every hole.
 
@@ -999,7 +1006,7 @@ def infer_missing(cube, mask, disparity, guide, *, radius: int = 6, sigma_d: flo
     return out, inferred
 
 
-def read_band_mask(path, view=None, name: str = "band_mask") -> np.ndarray:
+def read_band_mask(path, view=None, *, name: str = "band_mask") -> np.ndarray:
     """A per-entry mask of a streamed completion file.
 
     Parameters
@@ -1202,7 +1209,7 @@ def complete(lf, disparity=None, out_path=None, *, metric: str = "rsncc",
                          infer=infer_kw)
 
 
-def naive_completion(lf, ref_disparity, out_path=None, fill: str | None = None,
+def naive_completion(lf, ref_disparity, out_path=None, *, fill: str | None = None,
                      compression: str | None = "gzip") -> CompletionResult:
     """Naive baseline: warp every band with the forward-warped reference disparity only.
 

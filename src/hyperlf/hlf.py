@@ -1770,13 +1770,15 @@ def prior_free_confidence(volume: np.ndarray, labels_map: np.ndarray, labels: np
 def post_filter(disparity: np.ndarray, guide: np.ndarray, params: DepthParams, *,
                 passes: int | None = None) -> np.ndarray:
     """Stage 6 of :func:`depth`: the guided weighted median, ``passes`` times (default
-    :func:`median_passes` of ``guide``; off when ``params.median_radius == 0``)."""
+    :func:`median_passes` of ``guide``; off when ``params.median_radius == 0``). A radius
+    beyond the image's longer side is taken as that side (a window over the whole image)."""
     from .regularisers import weighted_median
 
     if params.median_radius <= 0:
         return disparity
+    radius = min(int(params.median_radius), max(disparity.shape))
     for _ in range(median_passes(guide, params)[0] if passes is None else passes):
-        disparity = weighted_median(disparity, guide, int(params.median_radius),
+        disparity = weighted_median(disparity, guide, radius,
                                     params.median_sigma,
                                     impl="numpy" if params.impl == "numpy" else "numba")
     return disparity
@@ -1865,7 +1867,7 @@ def _solve(prob: DepthProblem, C, D, seen, f_c, w, prior, clock, passes: int,
     return U, sC, sD, disp, conf
 
 
-def depth(lf, disparity_range=None, n_labels: int = 64, metric: str = "auto",
+def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
           view_selection: bool = False, occlusion_split: bool = False, defocus: str = "off",
           optimizer: str = "graphcut", params: DepthParams | None = None,
           save_intermediate: bool = False, progress: bool | str = False) -> DepthResult:

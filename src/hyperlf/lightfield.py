@@ -41,7 +41,7 @@ def _finite(name: str, arr: np.ndarray) -> None:
 
 
 def filter_layout(rows: int, cols: int, order: str | Sequence[int] = "raster",
-                  seed: int = 0) -> np.ndarray:
+                  *, seed: int = 0) -> np.ndarray:
     """Band index of every view of an ``rows x cols`` array.
 
     Parameters
@@ -83,7 +83,7 @@ def filter_layout(rows: int, cols: int, order: str | Sequence[int] = "raster",
     return k.reshape(rows, cols).astype(int)
 
 
-def raster_wavelengths(rows: int = 5, cols: int = 6, lambda_min: float = 410.0,
+def raster_wavelengths(rows: int = 5, cols: int = 6, *, lambda_min: float = 410.0,
                        lambda_max: float = 700.0,
                        order: str | Sequence[int] = "raster", seed: int = 0) -> np.ndarray:
     """Centre wavelengths (nm) of an ``rows x cols`` filter array in equal steps (SPEC §1).
@@ -119,7 +119,7 @@ def raster_wavelengths(rows: int = 5, cols: int = 6, lambda_min: float = 410.0,
         )
     n = rows * cols
     bands = np.linspace(lambda_min, lambda_max, n) if n > 1 else np.array([lambda_min])
-    return bands[filter_layout(rows, cols, order, seed)]
+    return bands[filter_layout(rows, cols, order, seed=seed)]
 
 
 def view_offsets(positions: np.ndarray, reference: tuple[int, int]) -> np.ndarray:
@@ -518,7 +518,10 @@ class LightField:
             wl = self.wavelengths
             step = np.diff(np.sort(wl.ravel()))
             step_txt = f", step {step.min():g} nm" if step.size and np.allclose(step, step[0]) else ""
-            lines.append(f"bands       : {wl.size} filters, {wl.min():g}..{wl.max():g} nm{step_txt}")
+            distinct = np.unique(wl).size
+            lines.append(f"bands       : {wl.size} filter{'s' if wl.size > 1 else ''}"
+                         + (f" ({distinct} distinct)" if distinct < wl.size else "")
+                         + f", {wl.min():g}..{wl.max():g} nm{step_txt}")
             lines.append(f"reference   : sees {wl[self.reference]:g} nm")
             rows = ["  " + " ".join(f"{v:6.1f}" for v in row) for row in wl]
             lines.append("wavelengths :\n" + "\n".join(rows))
@@ -539,7 +542,8 @@ class LightField:
             if ok.any():
                 lines.append(
                     f"ground truth: disparity {float(gt[ok].min()):.3f}..{float(gt[ok].max()):.3f} px"
-                    + (" (every view)" if self.gt_disparity.ndim == 4 else " (reference view)")
+                    + (" (reference view; every view has its own)"
+                       if self.gt_disparity.ndim == 4 else " (reference view)")
                 )
         if self.gt_cube is not None:
             cube = (self.gt_cube.shape[2], self.cube_wavelengths)

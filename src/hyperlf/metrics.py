@@ -26,6 +26,7 @@ __all__ = [
     "disparity_scores",
     "hci_scores",
     "at_range_limit",
+    "range_limit_shares",
     "psnr",
     "psnr_per_band",
     "sam",
@@ -49,7 +50,7 @@ def _pair(estimate, truth) -> tuple[np.ndarray, np.ndarray]:
 
 
 def evaluation_mask(truth: np.ndarray, mask: np.ndarray | None = None,
-                    border: int = 0) -> np.ndarray:
+                    *, border: int = 0) -> np.ndarray:
     """Pixels to evaluate: finite ground truth, inside ``mask``, outside a ``border``.
 
     Parameters
@@ -90,7 +91,7 @@ def evaluation_mask(truth: np.ndarray, mask: np.ndarray | None = None,
 
 def _masked_error(estimate, truth, mask, border) -> np.ndarray:
     est, gt = _pair(estimate, truth)
-    m = evaluation_mask(gt, mask, border)
+    m = evaluation_mask(gt, mask, border=border)
     if not m.any():
         raise InvalidInputError("no pixel to evaluate: the mask (and border) exclude everything")
     err = est[m] - gt[m]
@@ -98,7 +99,7 @@ def _masked_error(estimate, truth, mask, border) -> np.ndarray:
     return np.where(np.isfinite(err), err, np.inf)
 
 
-def bad_pixels(estimate, truth, tau: float, mask=None, border: int = 0) -> float:
+def bad_pixels(estimate, truth, tau: float, *, mask=None, border: int = 0) -> float:
     """Percentage of evaluated pixels with ``|estimate - truth| > tau`` (bad-tau, %).
 
     Parameters
@@ -127,7 +128,7 @@ def bad_pixels(estimate, truth, tau: float, mask=None, border: int = 0) -> float
     return float(100.0 * np.mean(np.abs(err) > tau))
 
 
-def rmse(estimate, truth, mask=None, border: int = 0) -> float:
+def rmse(estimate, truth, *, mask=None, border: int = 0) -> float:
     """Root-mean-square disparity error (px) over evaluated pixels.
 
     Parameters
@@ -149,7 +150,7 @@ def rmse(estimate, truth, mask=None, border: int = 0) -> float:
     return float(np.sqrt(np.mean(err ** 2)))
 
 
-def mse_x100(estimate, truth, mask=None, border: int = 0) -> float:
+def mse_x100(estimate, truth, *, mask=None, border: int = 0) -> float:
     """Mean squared error times 100, ``100 * mean(error ** 2)`` (px squared), as the HCI
     benchmark reports it (reference at :func:`badpix`); parameters and evaluated pixels as in
     :func:`rmse`.
@@ -163,7 +164,7 @@ def mse_x100(estimate, truth, mask=None, border: int = 0) -> float:
     return float(100.0 * np.mean(err ** 2))
 
 
-def badpix(estimate, truth, threshold: float = 0.07, mask=None,
+def badpix(estimate, truth, threshold: float = 0.07, *, mask=None,
            border: int = HCI_BORDER) -> float:
     """HCI BadPix(threshold): % of pixels with error above ``threshold`` (default 0.07 px),
     excluding the benchmark's 15-pixel border.
@@ -229,7 +230,7 @@ class DisparityScores:
         return dict(self.__dict__)
 
 
-def disparity_scores(estimate, truth, mask=None, mask_name: str = "all",
+def disparity_scores(estimate, truth, *, mask=None, mask_name: str = "all",
                      border: int = 0) -> DisparityScores:
     """All disparity metrics at once on one mask.
 
@@ -294,7 +295,25 @@ def at_range_limit(disparity, disparity_range, tol: float = 1e-3) -> np.ndarray:
     return (np.abs(d - lo) < tol) | (np.abs(d - hi) < tol)
 
 
-def psnr(estimate, truth, data_range: float = 1.0, mask=None) -> float:
+def range_limit_shares(disparity, disparity_range, mask=None) -> tuple[float, float] | None:
+    """Percentages of the (``mask``'s finite) pixels at the low and at the high end of
+    ``disparity_range`` (:func:`at_range_limit`); None when no pixel is left.
+
+    Examples
+    --------
+    >>> range_limit_shares([[-2.0, 0.3, 2.0, 2.0]], (-2, 2))
+    (25.0, 50.0)
+    """
+    d = np.asarray(disparity, np.float64)
+    ok = np.isfinite(d) if mask is None else np.isfinite(d) & np.asarray(mask, bool)
+    if not ok.any():
+        return None
+    lo, hi = disparity_range
+    return (100.0 * float(np.mean(at_range_limit(d[ok], (lo, lo)))),
+            100.0 * float(np.mean(at_range_limit(d[ok], (hi, hi)))))
+
+
+def psnr(estimate, truth, *, data_range: float = 1.0, mask=None) -> float:
     """Peak signal-to-noise ratio (dB) over all (masked) entries.
 
     Parameters
@@ -333,7 +352,7 @@ def _psnr_of_mse(mse: float, data_range: float) -> float:
     return float(10.0 * np.log10(data_range ** 2 / mse))
 
 
-def psnr_per_band(estimate, truth, band_axis: int = -3, data_range: float = 1.0,
+def psnr_per_band(estimate, truth, *, band_axis: int = -3, data_range: float = 1.0,
                   mask=None) -> np.ndarray:
     """PSNR (dB) of every band of a cube.
 
@@ -354,11 +373,12 @@ def psnr_per_band(estimate, truth, band_axis: int = -3, data_range: float = 1.0,
     gt = np.moveaxis(gt, band_axis, 0)
     m = None if mask is None else np.moveaxis(
         np.broadcast_to(np.asarray(mask, dtype=bool), np.asarray(truth).shape), band_axis, 0)
-    return np.array([psnr(est[b], gt[b], data_range, None if m is None else m[b])
+    return np.array([psnr(est[b], gt[b], data_range=data_range,
+                          mask=None if m is None else m[b])
                      for b in range(est.shape[0])])
 
 
-def sam(estimate, truth, band_axis: int = -3, mask=None, eps: float = 1e-12) -> float:
+def sam(estimate, truth, *, band_axis: int = -3, mask=None, eps: float = 1e-12) -> float:
     """Mean spectral angle (degrees) between estimated and true spectra.
 
     Spectra run along ``band_axis``; every other position is one spectrum. ``mask`` (shape of

@@ -130,7 +130,7 @@ def write_lightfield_pictures(lf, out: str | os.PathLike, stem: str = "") -> lis
 
 
 def save_disparity_outputs(out: str | os.PathLike, disparity: np.ndarray, title: str,
-                           truth: np.ndarray | None = None,
+                           *, truth: np.ndarray | None = None,
                            confidence: np.ndarray | None = None,
                            stem: str = "disparity", unit: str = "px per baseline"
                            ) -> list[Path]:

@@ -112,10 +112,14 @@ __all__ = [
     "all_focus",
     "focal_sweep",
     "spectrum_at",
+    "band_index",
     "save_spectrum_figure",
 ]
 
 _OUTPUTS = ("camera", "srgb")
+#: The farthest (nm) a ``band:NM`` profile may be from the band it picks: about half a narrow
+#: band-pass filter's width (and never more than half the spacing of the bands).
+BAND_TOLERANCE_NM = 5.0
 
 
 # ============================================================================ data sources
@@ -351,7 +355,7 @@ def _camera_stage(camera, wl: np.ndarray, white_balance: bool, illuminant, white
     return S, Wraw, xyz
 
 
-def fit_ccm(camera, wavelengths, illuminant=None, white=None, source: str = "auto",
+def fit_ccm(camera, wavelengths, *, illuminant=None, white=None, source: str = "auto",
             white_preserving: bool = True) -> np.ndarray:
     """Least-squares colour-correction matrix from white-balanced camera RGB to linear sRGB.
 
@@ -407,7 +411,7 @@ def _xyz_of(spectra: np.ndarray, wl: np.ndarray, illuminant, white):
     return spectra @ cmf, (_white_spd(white, wl)[:, None] * cmf).sum(axis=0)
 
 
-def camera_matrix(camera, wavelengths, white_balance: bool = True, illuminant=None, white=None,
+def camera_matrix(camera, wavelengths, *, white_balance: bool = True, illuminant=None, white=None,
                   output: str = "camera", ccm="fit", ccm_source: str = "auto") -> np.ndarray:
     """The ``(B, 3)`` matrix ``M`` of a camera emulation: ``linear_output = spectrum @ M``.
 
@@ -482,20 +486,33 @@ def _camera_plan(camera, wl_bands: np.ndarray, white_balance: bool, illuminant, 
                  output == "srgb", "hwk", desc)
 
 
-def _band_index(wl_bands: np.ndarray, lam: float) -> int:
-    wl_bands = spectral.as_wavelengths(wl_bands, "the cube's wavelengths")  # known ones
+def band_index(wavelengths, lam: float) -> int:
+    """Index of the band at ``lam`` nm: the nearest, if it lies within
+    :data:`BAND_TOLERANCE_NM` and within half the bands' smallest spacing.
+
+    Raises
+    ------
+    InvalidInputError
+        ``lam`` is not finite, or no band is that near.
+
+    Examples
+    --------
+    >>> band_index([410.0, 548.7, 700.0], 550)
+    1
+    """
+    wl_bands = spectral.as_wavelengths(np.asarray(wavelengths, np.float64).ravel(),
+                                       "the cube's wavelengths")  # known ones
     if not np.isfinite(lam):
         raise InvalidInputError(f"a band profile needs a finite wavelength in nm, got {lam}")
     b = int(np.argmin(np.abs(wl_bands - lam)))
+    tol = BAND_TOLERANCE_NM
     if wl_bands.size > 1:
-        step = float(np.min(np.diff(np.sort(wl_bands))))
-        tol = 0.5 * step if step > 0 else 0.5
-    else:
-        tol = 0.5
+        step = float(np.min(np.diff(np.unique(wl_bands)), initial=np.inf))
+        tol = min(tol, 0.5 * step)
     if abs(wl_bands[b] - lam) > tol + 1e-9:
         raise InvalidInputError(
-            f"no band at {lam:g} nm: the bands are {wl_bands.min():g}-{wl_bands.max():g} nm "
-            f"(nearest {wl_bands[b]:g} nm)")
+            f"no band at {lam:g} nm: the bands are {wl_bands.min():g}-{wl_bands.max():g} nm, "
+            f"the nearest {wl_bands[b]:g} nm; name a band within {tol:g} nm of it")
     return b
 
 
@@ -522,7 +539,7 @@ def _make_plan(profile, src: _Source, white_balance: bool = True, illuminant=Non
         return _Plan(B, None, vw, None, np.ones(B), None, np.ones(B), encode, "khw", "all bands")
     if _is_number(profile):
         lam = float(profile)
-        b = _band_index(wl_bands, lam)
+        b = band_index(wl_bands, lam)
         if src.kind == "cube":
             M = np.zeros((B, 1))
             M[b, 0] = 1.0
@@ -677,7 +694,7 @@ def _emulate_views(data, sel, idx: np.ndarray, B: int, M: np.ndarray, plan: _Pla
     return out, bad_px
 
 
-def emulate_camera(cube, wavelengths=None, camera="CIE 1931", white_balance: bool = True,
+def emulate_camera(cube, wavelengths=None, camera="CIE 1931", *, white_balance: bool = True,
                    illuminant=None, output: str = "camera", mask=None, exposure="white",
                    exposure_percentile: float = 99.5, white=None, views=None, ccm="fit",
                    ccm_source: str = "auto", fill: float = 0.0,
@@ -964,7 +981,7 @@ def _check_occlusion(occlusion, view_disparities, src: _Source):
 
 
 def focal_stack(views_or_cube, offsets=None, disparities=(0.0,), profile="CIE 1931",
-                wavelengths=None, output: str = "camera", exposure="white",
+                *, wavelengths=None, output: str = "camera", exposure="white",
                 exposure_percentile: float = 99.5, white_balance: bool = True, illuminant=None,
                 white=None, ccm="fit", ccm_source: str = "auto", aperture=None, mask=None,
                 reference=None, fill: float = 0.0, return_counts: bool = False,
@@ -1006,7 +1023,7 @@ def focal_stack(views_or_cube, offsets=None, disparities=(0.0,), profile="CIE 19
     return (out, cnt) if return_counts else out
 
 
-def refocus(views_or_cube, offsets=None, disparity=0.0, profile="CIE 1931", wavelengths=None,
+def refocus(views_or_cube, offsets=None, disparity=0.0, profile="CIE 1931", *, wavelengths=None,
             output: str = "camera", exposure="white", exposure_percentile: float = 99.5,
             white_balance: bool = True, illuminant=None, white=None, ccm="fit",
             ccm_source: str = "auto", aperture=None, mask=None, reference=None,
@@ -1074,7 +1091,7 @@ def refocus(views_or_cube, offsets=None, disparity=0.0, profile="CIE 1931", wave
     return (out[0], cnt[0]) if return_counts else out[0]
 
 
-def all_focus(cube_or_views, offsets=None, disparity=None, profile="CIE 1931", wavelengths=None,
+def all_focus(cube_or_views, offsets=None, disparity=None, profile="CIE 1931", *, wavelengths=None,
               view_disparities=None, occlusion="auto", tol: float = 0.5,
               output: str = "camera", exposure="white", exposure_percentile: float = 99.5,
               white_balance: bool = True, illuminant=None, white=None, ccm="fit",
@@ -1203,7 +1220,7 @@ def _write_mp4(path: Path, frames: list[np.ndarray], fps: float) -> Path | None:
 
 
 def focal_sweep(views_or_cube, offsets=None, disparities=None, profile="CIE 1931",
-                out_dir=None, fps: float = 8, formats: Sequence[str] = ("gif", "mp4"),
+                *, out_dir=None, fps: float = 8, formats: Sequence[str] = ("gif", "mp4"),
                 wavelengths=None, output: str = "srgb", exposure="percentile",
                 exposure_percentile: float = 99.5, annotate: bool = True,
                 stem: str = "refocus", bit_depth: int = 8, progress: bool = False,
@@ -1257,8 +1274,9 @@ def focal_sweep(views_or_cube, offsets=None, disparities=None, profile="CIE 1931
             raise InvalidInputError(f"unknown animation format {f!r}; use 'gif' and/or 'mp4'")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    frames = focal_stack(views_or_cube, offsets, list(ds), profile, wavelengths, output,
-                         exposure, exposure_percentile, progress=progress, **kwargs)
+    frames = focal_stack(views_or_cube, offsets, list(ds), profile, wavelengths=wavelengths,
+                         output=output, exposure=exposure,
+                         exposure_percentile=exposure_percentile, progress=progress, **kwargs)
     if frames[0].ndim == 3 and frames[0].shape[-1] != 3:
         raise InvalidInputError("a focal sweep needs an image profile (a camera, a band or "
                                 "weights), not all bands")
@@ -1345,7 +1363,7 @@ def spectrum_at(cube, wavelengths=None, x=None, y=None, view=None) -> np.ndarray
     return out[0] if np.ndim(x) == 0 and np.ndim(y) == 0 else out
 
 
-def save_spectrum_figure(path, cube, wavelengths=None, points: Sequence[tuple[float, float]] = (),
+def save_spectrum_figure(path, cube, wavelengths=None, *, points: Sequence[tuple[float, float]] = (),
                          view=None, labels: Sequence[str] | None = None,
                          title: str = "spectral profiles",
                          ylabel: str = "relative intensity") -> Path:

@@ -743,7 +743,7 @@ def srgb_linear_to_xyz(rgb) -> np.ndarray:
     return (a @ _M_RGB_TO_XYZ.T.astype(a.dtype)).astype(a.dtype, copy=False)
 
 
-def xyz_to_srgb(xyz, white=None, clip: bool = False) -> np.ndarray:
+def xyz_to_srgb(xyz, white=None, *, clip: bool = False) -> np.ndarray:
     """CIE XYZ -> encoded sRGB: :func:`xyz_to_srgb_linear` then :func:`linear_to_srgb`.
 
     See :func:`xyz_to_srgb_linear` for ``white``. With ``clip=True`` the linear values are
@@ -898,7 +898,7 @@ def _weigh_spectra(moved: np.ndarray, weights: np.ndarray, axis: int) -> np.ndar
     return np.moveaxis(out, -1, axis) if axis not in (-1, moved.ndim - 1) else out
 
 
-def spectrum_to_xyz(spectra, wavelengths, illuminant=None, normalise: str | None = "equal-energy",
+def spectrum_to_xyz(spectra, wavelengths, *, illuminant=None, normalise: str | None = "equal-energy",
                     observer: str = CIE1931, axis: int = -1) -> np.ndarray:
     """CIE XYZ of spectra (reflectances, or emission spectra when ``illuminant`` is None).
 
@@ -954,7 +954,7 @@ def spectrum_to_xyz(spectra, wavelengths, illuminant=None, normalise: str | None
     return _weigh_spectra(moved, weights, axis)
 
 
-def spectrum_to_rgb(spectra, wavelengths, camera="CIE 1931", white_balance: bool = True,
+def spectrum_to_rgb(spectra, wavelengths, *, camera="CIE 1931", white_balance: bool = True,
                     illuminant=None, axis: int = -1) -> np.ndarray:
     """Camera RGB of spectra: colour sensor emulation (SPEC §8, §5.3).
 
@@ -1144,7 +1144,7 @@ def _check_xy(xy) -> np.ndarray:
     return _as_array(xy, "xy", last=2).astype(np.float64, copy=False)
 
 
-def dominant_wavelength(xy, white=(1 / 3, 1 / 3), lut_size: int = _DW_LUT_SIZE,
+def dominant_wavelength(xy, white=(1 / 3, 1 / 3), *, lut_size: int = _DW_LUT_SIZE,
                         observer: str = CIE1931) -> tuple[np.ndarray, np.ndarray]:
     """Dominant wavelength of chromaticities on the spectral locus, via a cached lookup table.
 
@@ -1200,7 +1200,7 @@ def dominant_wavelength(xy, white=(1 / 3, 1 / 3), lut_size: int = _DW_LUT_SIZE,
 
 
 def dominant_wavelength_for_filters(xy, lambda_min: float, lambda_max: float,
-                                    white=(1 / 3, 1 / 3), achromatic_radius: float = 0.01,
+                                    *, white=(1 / 3, 1 / 3), achromatic_radius: float = 0.01,
                                     lut_size: int = _DW_LUT_SIZE,
                                     observer: str = CIE1931) -> np.ndarray:
     """Dominant wavelength mapped into a filter range (SPEC §5.3 rule).
@@ -1237,7 +1237,7 @@ def dominant_wavelength_for_filters(xy, lambda_min: float, lambda_max: float,
     a = _check_xy(xy)
     w = _white_tuple(white)
     theta0, span, lut, _ = _dominant_lut(w, int(lut_size), observer)
-    wl, purple = dominant_wavelength(a, w, lut_size, observer)
+    wl, purple = dominant_wavelength(a, w, lut_size=lut_size, observer=observer)
     phi, r = _hue_phi(a, w, theta0)
     # hue angles of the range ends on the locus (phi grows with wavelength)
     ends = np.array([lo, hi])
@@ -1421,7 +1421,7 @@ def load_filter_transmissions(path: str | os.PathLike | None = None):
     return _parse_filters(str(p.resolve()), p.stat().st_mtime_ns)
 
 
-def filter_response(center_nm, wavelengths, shape: str = "dirac", fwhm: float = 10.0,
+def filter_response(center_nm, wavelengths, shape: str = "dirac", *, fwhm: float = 10.0,
                     path: str | os.PathLike | None = None, align: str = "centroid") -> np.ndarray:
     """Normalised weights with which a band-pass filter samples a spectrum (SPEC §6).
 

@@ -121,7 +121,7 @@ def band_grid(rows: int, cols: int, lambda_min: float = 410.0,
 
 
 def view_disparity_from_reference(gt_ref: np.ndarray, offset: tuple[float, float],
-                                  tol: float = 0.05, iterations: int = 2) -> np.ndarray:
+                                  *, tol: float = 0.05, iterations: int = 2) -> np.ndarray:
     """Ground-truth disparity of another view from the reference's ground truth.
 
     A pixel ``p`` of the view with disparity ``d`` shows the reference pixel
@@ -464,7 +464,7 @@ def _rgb_metadata(lf_rgb: LightField, start: tuple[int, int], origin: np.ndarray
     }
 
 
-def from_rgb_lightfield(lf_rgb: LightField, rows: int = 5, cols: int = 6,
+def from_rgb_lightfield(lf_rgb: LightField, *, rows: int = 5, cols: int = 6,
                         lambda_min: float = 410.0, lambda_max: float = 700.0,
                         layout: str | Sequence[int] = "raster", filter_shape: str = "dirac",
                         quantum_efficiency: Any = None, noise_sigma: float = 0.0,
@@ -544,7 +544,7 @@ def from_rgb_lightfield(lf_rgb: LightField, rows: int = 5, cols: int = 6,
     rows, cols = int(rows), int(cols)
     t_start = time.perf_counter()
     cube_wl = band_grid(rows, cols, lambda_min, lambda_max)
-    kmap = filter_layout(rows, cols, layout, seed)
+    kmap = filter_layout(rows, cols, layout, seed=seed)
     wavelengths = cube_wl[kmap]
     start = _subgrid_start(lf_rgb.grid_shape, lf_rgb.reference, rows, cols)
 
@@ -919,7 +919,7 @@ def _build_surface(o: dict, H: int, W: int, f: float, d0: float) -> _Surface:
 def _check_procedural_args(H: int, W: int, supersample: int, texture_scale: float,
                            disparity_range: Any, kinds: Sequence[str]) -> tuple[float, float]:
     if H < 2 or W < 2:
-        raise InvalidInputError(f"image must be at least 2 x 2 pixels, got {H} x {W}")
+        raise InvalidInputError(f"image must be at least 2 x 2 pixels, got {W} x {H} (W x H)")
     if supersample < 1:
         raise InvalidInputError(f"supersample must be >= 1, got {supersample}")
     if not (np.isfinite(texture_scale) and texture_scale > 0):
@@ -1120,7 +1120,7 @@ def _procedural_metadata(opts: dict, objs: list[dict], kmap: np.ndarray, dmin: f
     }
 
 
-def procedural_scene(seed: int = 0, rows: int = 5, cols: int = 6, height: int = 128,
+def procedural_scene(seed: int = 0, *, rows: int = 5, cols: int = 6, height: int = 128,
                      width: int = 160, lambda_min: float = 410.0, lambda_max: float = 700.0,
                      layout: str | Sequence[int] = "raster", n_objects: int = 4,
                      kinds: Sequence[str] = _KINDS,
@@ -1205,7 +1205,7 @@ def procedural_scene(seed: int = 0, rows: int = 5, cols: int = 6, height: int = 
                                         kinds)
 
     cube_wl = band_grid(rows, cols, lambda_min, lambda_max)
-    kmap = filter_layout(rows, cols, layout, seed)
+    kmap = filter_layout(rows, cols, layout, seed=seed)
     wavelengths = cube_wl[kmap]
     f = _focal_length(focal_length, H, W)
     d0 = -dmin + 0.5 * (dmax - dmin)  # inverse-depth offset: f / Z = d + d0 > 0 on the range

@@ -305,7 +305,7 @@ def _merge_params(metric: str, optimizer: str, params) -> dict:
 # volumes
 # ----------------------------------------------------------------------------------------------
 
-def compute_volumes(left, right, dmin: int, dmax: int, metric: str = "auto", window=None,
+def compute_volumes(left, right, dmin: int, dmax: int, metric: str = "auto", *, window=None,
                     need_right: bool = True, cost_params: dict | None = None):
     """Left- and right-referenced cost volumes ``(C_L, C_R)`` of two 2-D images.
 
@@ -387,10 +387,10 @@ def fill_inconsistent(disp_l, disp_r, valid, occlusion: str, guide, plane_params
 
 
 def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "graphcut",
-                        occlusion: str = DEFAULT_OCCLUSION, params: dict | None = None,
+                        occlusion: str = DEFAULT_OCCLUSION, *, params: dict | None = None,
                         guide_left=None, guide_right=None, subpixel: bool = False,
                         metric: str = "auto", progress: bool = False,
-                        plane_params: _reg.PlaneFillParams | None = None, *,
+                        plane_params: _reg.PlaneFillParams | None = None,
                         overwrite: bool = False) -> StereoResult:
     """Steps 4-7 of the pipeline on precomputed volumes (see :func:`compute_volumes`).
 
@@ -466,7 +466,7 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
                         extra={"data_scale": s, "plane_filled": float(replaced.mean())})
 
 
-def stereo(left, right, disparity_range, metric: str = "auto", optimizer: str = "graphcut",
+def stereo(left, right, disparity_range, *, metric: str = "auto", optimizer: str = "graphcut",
            occlusion: str = DEFAULT_OCCLUSION, subpixel: bool = False, params: dict | None = None,
            window: int | None = None, channel=None, progress: bool = False,
            cost_params: dict | None = None,
@@ -552,12 +552,13 @@ def stereo(left, right, disparity_range, metric: str = "auto", optimizer: str = 
         raise InvalidInputError("images must have a positive mean (linear intensities expected)")
     agg = _costs.AggregationParams.of(aggregation)
     t0 = time.perf_counter()
-    cl, cr = compute_volumes(L, R, dmin, dmax, name, window, need_right=(occlusion != "none"),
+    cl, cr = compute_volumes(L, R, dmin, dmax, name, window=window,
+                             need_right=(occlusion != "none"),
                              cost_params=cost_params)
     cl, cr = _costs.aggregate_pair(cl, cr, L, R, dmin, agg)
     t_cost = time.perf_counter() - t0
-    res = stereo_from_volumes(cl, cr, dmin, optimizer, occlusion, p, guide_left=L, guide_right=R,
-                              subpixel=bool(subpixel), metric=name, progress=progress,
+    res = stereo_from_volumes(cl, cr, dmin, optimizer, occlusion, params=p, guide_left=L,
+                              guide_right=R, subpixel=bool(subpixel), metric=name, progress=progress,
                               plane_params=plane_params, overwrite=True)
     res.window = window
     res.extra["aggregation"] = {"method": agg.method, "radius": agg.radius, "eps": agg.eps}

@@ -59,7 +59,7 @@ def _robust_range(values: np.ndarray, vmin=None, vmax=None) -> tuple[float, floa
     return lo, hi
 
 
-def save_disparity_png(path: str | os.PathLike, disparity: np.ndarray, title: str = "disparity",
+def save_disparity_png(path: str | os.PathLike, disparity: np.ndarray, *, title: str = "disparity",
                        vmin: float | None = None, vmax: float | None = None,
                        cmap: str = "turbo", label: str = "disparity (px / baseline)") -> Path:
     """Colour-mapped disparity map with a colour bar (PNG). Unknown (NaN) pixels are black.
@@ -115,7 +115,7 @@ def _clipped(d: np.ndarray, lo: float, hi: float) -> str:
 
 
 def save_error_png(path: str | os.PathLike, estimate: np.ndarray, truth: np.ndarray,
-                   title: str = "absolute error", vmax: float = 1.0) -> Path:
+                   *, title: str = "absolute error", vmax: float = 1.0) -> Path:
     """Absolute disparity error map with a colour bar; unknown ground truth is black.
 
     Parameters
@@ -189,7 +189,7 @@ def false_colour(views: np.ndarray, wavelengths: np.ndarray) -> np.ndarray:
 
 
 def save_mosaic_png(path: str | os.PathLike, views: np.ndarray,
-                    wavelengths: np.ndarray | None = None, title: str | None = None,
+                    wavelengths: np.ndarray | None = None, *, title: str | None = None,
                     max_side: int = 1600) -> Path:
     """Grid of all views as one picture; spectral views are tinted by their wavelength.
 
@@ -281,7 +281,7 @@ def save_share_mosaic_png(path: str | os.PathLike, shares: np.ndarray, *, title:
 
 def save_spectrum_plot(path: str | os.PathLike, wavelengths: np.ndarray,
                        spectra: Sequence[np.ndarray] | np.ndarray,
-                       labels: Sequence[str] | None = None, title: str = "spectral profile",
+                       *, labels: Sequence[str] | None = None, title: str = "spectral profile",
                        ylabel: str = "relative intensity") -> Path:
     """Line plot of one or more spectra against wavelength (nm), with a spectrum-coloured band.
 

@@ -392,7 +392,12 @@ def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=No
             if np.isfinite(par["reach"]):  # |d| of 99 % of the points, px per baseline
                 m = float(np.ceil(1.25 * par["reach"]))
                 info["disparity_range"] = [-m, m]
-        elif positions_from == "parallax":
+        elif positions_from == "auto":  # why not, for the user (calibrate says it)
+            info["parallax_unused"] = (
+                f"{par['n_points']} points off the board plane with a median flow of "
+                f"{par['median_flow']:.2f} px; at least 8 points and {min_parallax_px:g} px "
+                "are needed")
+        else:
             raise InvalidInputError(
                 f"no usable parallax around the board ({par['n_points']} points, median flow "
                 f"{par['median_flow']:.2f} px); the scene beside the board needs texture at "

@@ -324,7 +324,7 @@ def _one_line(f: Path) -> str:
         return f"unreadable: {exc}"
 
 
-def save_lightfield(lf: LightField, path: str | os.PathLike, bit_depth: int = 16,
+def save_lightfield(lf: LightField, path: str | os.PathLike, *, bit_depth: int = 16,
                     overwrite: bool = False, progress: bool = False, **kwargs) -> Path:
     """Save a light field: ``.h5``/``.hdf5`` -> HDF5 file, anything else -> capture folder.
 

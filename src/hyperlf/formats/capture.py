@@ -672,7 +672,7 @@ def _remove_stale(root: Path, old_names: set[str], keep: set[str]) -> None:
             _unlink_plain_file(root, parts, protected)
 
 
-def write_capture(lightfield: LightField, folder: str | os.PathLike, bit_depth: int = 16,
+def write_capture(lightfield: LightField, folder: str | os.PathLike, *, bit_depth: int = 16,
                   overwrite: bool = False, image_format: str = "png",
                   progress: bool = False) -> Path:
     """Write a light field as a capture folder (views, ground truth, validity masks, then

@@ -34,7 +34,7 @@ def _base(path: str | os.PathLike) -> Path:
 
 
 def write_envi(path_hdr_or_base: str | os.PathLike, cube, wavelengths=None,
-               interleave: str = "bsq", axes: str = "auto",
+               *, interleave: str = "bsq", axes: str = "auto",
                description: str = "written by hyperlf") -> Path:
     """Write a cube as ENVI (float32): ``<base>.img`` first, then ``<base>.hdr``, both atomic.
 

@@ -113,7 +113,7 @@ def _select(sel: Iterable[int] | None, n: int, what: str) -> list[int]:
     return out
 
 
-def read_hci_scene(folder: str | os.PathLike, grid=None, rows=None, cols=None,
+def read_hci_scene(folder: str | os.PathLike, *, grid=None, rows=None, cols=None,
                    disparity_margin: float = 0.5) -> LightField:
     """Load an HCI 4D light field benchmark scene as an RGB :class:`LightField`.
 

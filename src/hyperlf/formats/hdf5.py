@@ -624,7 +624,7 @@ class CubeWriter:
         return None
 
 
-def write_cube_h5(path: str | os.PathLike, cube, wavelengths, mask=None,
+def write_cube_h5(path: str | os.PathLike, cube, wavelengths, *, mask=None,
                   compression: str | None = "gzip", metadata: dict | None = None) -> Path:
     """Write a plenoptic cube ``(R, C, B, H, W)`` (and optional mask ``(R, C, H, W)``) atomically.
 

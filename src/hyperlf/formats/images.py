@@ -240,7 +240,7 @@ def _read_cv2(p: Path) -> np.ndarray:
     return np.ascontiguousarray(arr)
 
 
-def read_image(path: str | os.PathLike, as_float: bool = True,
+def read_image(path: str | os.PathLike, *, as_float: bool = True,
                channels: str | None = None) -> np.ndarray:
     """Read an image file.
 
