@@ -265,3 +265,40 @@ def test_a_downscaled_batch_is_measured_at_its_own_resolution(tmp_path):
     assert row.range_limit_pct == round(100.0 * float(at.mean()), 3)
     with pytest.raises(InvalidInputError, match="other depth options"):
         batch.plan_batch([big], out, depth_args=["--labels", "8"])  # not silently mixed
+
+
+def test_output_names_never_collide_nor_take_the_summary_names():
+    names = batch._names([Path("A/x"), Path("B/x"), Path("B/x-2"), Path("c/summary.html"),
+                          Path("d/x.h5")])
+    assert len(set(names)) == 5 and names[2] == "x-2" and names[3] != "summary.html"
+    assert names[0] == "x"
+
+
+def test_a_batch_that_fails_before_its_first_capture_leaves_no_folder(captures, tmp_path):
+    from hyperlf.cli import main
+
+    out = tmp_path / "never"
+    assert main(["-q", "batch", str(captures / "frame0"), "--scheduler", "tcp://127.0.0.1:1",
+                 "-o", str(out)]) == 2
+    assert not out.exists()
+    assert main(["-q", "batch", str(captures / "frame0"), "-o", str(captures / "frame0")]) == 2
+
+
+def test_a_local_cluster_keeps_its_scratch_inside_the_batch_folder(captures, tmp_path,
+                                                                    monkeypatch):
+    seen = {}
+    real = batch._client
+
+    def spy(workers, scheduler, scratch=None):
+        seen["scratch"] = scratch
+        return real(workers, scheduler, scratch)
+
+    monkeypatch.setattr(batch, "_client", spy)
+    tasks = batch.plan_batch([captures / "frame0"], tmp_path / "b",
+                             depth_args=["--labels", str(LABELS)])
+    stale = tmp_path / "b" / f"{batch.SCRATCH_PREFIX}999999999-x"
+    stale.mkdir()  # a killed run's (no such process)
+    rows = batch.run_batch(tasks, workers=1, progress=False)
+    assert rows[0].status == "done"
+    assert seen["scratch"].parent == tmp_path / "b"
+    assert not seen["scratch"].exists() and not stale.exists()

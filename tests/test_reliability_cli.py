@@ -351,3 +351,61 @@ def test_spectrum_needs_overwrite_for_the_picture_and_the_csv(tmp_path, capture,
     proc = run_cli("spectrum", capture, "--at", "10,12", "-o", tmp_path / "s.png", "--overwrite")
     assert proc.returncode == 0, proc.stderr
     assert (tmp_path / "s.csv").read_text().startswith("wavelength_nm,value")
+
+
+# ----------------------------------------------------------------------------- twentieth session
+def test_synth_pictures_never_replace_a_capture_named_like_the_h5(tmp_path):
+    """``synth -o scene.h5 --overwrite`` writes its pictures to ``scene/``; a capture folder
+    of that name is the user's, not pictures of an earlier run."""
+    assert run_cli("synth", "procedural", "--size", "24,28", "--grid", "2,2",
+                   "-o", tmp_path / "scene").returncode == 0
+    before = listing(tmp_path / "scene")
+    proc = run_cli("synth", "procedural", "--size", "24,28", "--grid", "2,2", "--seed", "2",
+                   "-o", tmp_path / "scene.h5", "--overwrite")
+    assert_one_line_error(proc, 2, "not the pictures of scene.h5", "--no-pictures")
+    assert listing(tmp_path / "scene") == before and not (tmp_path / "scene.h5").exists()
+    # the pictures of an earlier .h5 are replaced, as before
+    for _ in range(2):
+        assert run_cli("synth", "procedural", "--size", "24,28", "--grid", "2,2", "-o",
+                       tmp_path / "p.h5", "--overwrite").returncode == 0
+    assert any((tmp_path / "p").glob("*.png"))
+
+
+def test_a_sidecar_of_the_wrong_kind_is_refused_before_the_work(tmp_path, capture):
+    (tmp_path / "foo").write_text("notes")
+    proc = run_cli("synth", "procedural", "--size", "24,28", "--grid", "2,2",
+                   "-o", tmp_path / "foo.h5", "--overwrite")
+    assert_one_line_error(proc, 2, "is a file, where synth would put the pictures")
+    assert not (tmp_path / "foo.h5").exists() and (tmp_path / "foo").read_text() == "notes"
+    (tmp_path / "s.csv").mkdir()
+    proc = run_cli("spectrum", capture, "--at", "3,3", "-o", tmp_path / "s.png", "--overwrite")
+    assert_one_line_error(proc, 2, "s.csv is a folder")
+    assert not (tmp_path / "s.png").exists()
+
+
+def test_an_output_that_holds_the_input_is_refused(tmp_path, capture):
+    copy = tmp_path / "cap"
+    shutil.copytree(capture, copy)
+    before = listing(copy)
+    for argv in (["convert", copy, "-o", copy, "--overwrite"],
+                 ["convert", copy, "-o", tmp_path, "--overwrite"],
+                 ["depth", copy, "-o", copy, "--overwrite"]):
+        assert_one_line_error(run_cli(*argv), 2, "holds the input", "choose another -o")
+    assert listing(copy) == before
+
+
+def test_an_empty_output_name_is_refused(capture):
+    assert_one_line_error(run_cli("depth", capture, "-o", ""), 2, "-o is empty")
+
+
+def test_an_hci_scene_is_not_read_through_symlinks_out_of_it(tmp_path):
+    data = os.environ.get("HYPERLF_DATA")
+    if not data:
+        pytest.skip("HYPERLF_DATA is not set: the HCI scene lives in ../shared/data")
+    scene = tmp_path / "scene"
+    scene.mkdir()
+    for f in (Path(data) / "hci4d" / "antinous").iterdir():
+        (scene / f.name).symlink_to(f)
+    proc = run_cli("synth", "hci", scene, "--grid", "2,2", "-o", tmp_path / "out")
+    assert_one_line_error(proc, 2, "leads outside the folder (a symlink)")
+    assert not (tmp_path / "out").exists()

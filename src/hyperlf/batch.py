@@ -32,8 +32,10 @@ import html
 import io
 import json
 import os
+import shutil
 import subprocess
 import sys
+import tempfile
 import time
 import uuid
 from dataclasses import asdict, dataclass
@@ -126,14 +128,22 @@ def find_captures(inputs: Sequence[str | os.PathLike]) -> list[Path]:
 
 
 def _names(captures: Sequence[Path]) -> list[str]:
-    """One output name per capture: its file or folder name without suffix, made unique."""
-    names, seen = [], {}
+    """One output name per capture: its file or folder name without suffix, made unique (a
+    ``-2``, ``-3``, ... that no other capture's own name takes) and never a name the batch
+    folder itself uses (the summary, the marker)."""
+    stems = []
     for p in captures:
         stem = p.stem if p.suffix.lower() in (".h5", ".hdf5") else p.name
-        stem = stem if stem and not stem.startswith(".") else "capture"
-        k = seen.get(stem, 0)
-        seen[stem] = k + 1
-        names.append(stem if k == 0 else f"{stem}-{k + 1}")
+        stems.append(stem if stem and not stem.startswith(".") else "capture")
+    taken = {"summary.csv", "summary.html", BATCH_FILE}
+    names = []
+    for i, stem in enumerate(stems):
+        name, k = stem, 1
+        while name in taken or (k > 1 and name in stems[i + 1:]):
+            k += 1
+            name = f"{stem}-{k}"
+        taken.add(name)
+        names.append(name)
     return names
 
 
@@ -302,9 +312,35 @@ def _measure(task: CaptureTask, row: CaptureResult) -> CaptureResult:
 
 
 # ----------------------------------------------------------------------------- the batch
-def _client(workers: int, scheduler: str | None):
+#: Prefix of the scratch folder a local dask cluster gets inside the batch folder.
+SCRATCH_PREFIX = ".hyperlf-dask-"
+
+
+def _remove_stale_scratch(home: Path) -> None:
+    """Remove the scratch folders of batch runs into ``home`` whose process is gone."""
+    for stale in home.glob(SCRATCH_PREFIX + "*"):
+        try:
+            os.kill(int(stale.name[len(SCRATCH_PREFIX):].split("-")[0]), 0)
+        except ProcessLookupError:
+            shutil.rmtree(stale, ignore_errors=True)
+        except (ValueError, PermissionError):
+            continue
+
+
+def discard_unused(out: str | os.PathLike) -> None:
+    """Remove a batch folder that holds nothing but its marker (a run that failed before its
+    first capture, into a folder it created)."""
+    out = Path(out)
+    if out.is_dir() and not out.is_symlink() and \
+            [p.name for p in out.iterdir()] == [BATCH_FILE]:
+        (out / BATCH_FILE).unlink()
+        out.rmdir()
+
+
+def _client(workers: int, scheduler: str | None, scratch: Path | None = None):
     """A dask client of an existing scheduler or of a new LocalCluster (one thread a worker:
-    numba parallelises inside each capture)."""
+    numba parallelises inside each capture) whose scratch files go to ``scratch`` (dask's
+    default is a shared folder of the system's, which it leaves behind)."""
     try:
         from dask.distributed import Client, LocalCluster
     except ImportError:
@@ -320,7 +356,8 @@ def _client(workers: int, scheduler: str | None):
                                     "the address a dask scheduler prints, e.g. "
                                     "tcp://scheduler-host:8786") from None
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                           dashboard_address=None, silence_logs=logging.ERROR)
+                           dashboard_address=None, silence_logs=logging.ERROR,
+                           local_directory=None if scratch is None else os.fspath(scratch))
     return Client(cluster), cluster
 
 
@@ -341,7 +378,17 @@ def run_batch(tasks: Sequence[CaptureTask], *, workers: int = 2, scheduler: str 
     if todo:
         from dask.distributed import as_completed
 
-        client, cluster = _client(workers, scheduler)
+        scratch = None
+        if not scheduler:  # the local workers' scratch files, inside the batch folder
+            home = Path(tasks[0].output).parent
+            _remove_stale_scratch(home)
+            scratch = Path(tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{os.getpid()}-", dir=home))
+        try:
+            client, cluster = _client(workers, scheduler, scratch)
+        except BaseException:
+            if scratch is not None:
+                shutil.rmtree(scratch, ignore_errors=True)
+            raise
         try:
             token = uuid.uuid4().hex[:12]  # keys unique on a shared scheduler
             futures = {client.submit(run_capture, tasks[i], key=f"hyperlf-depth-{token}-{i}",
@@ -358,6 +405,8 @@ def run_batch(tasks: Sequence[CaptureTask], *, workers: int = 2, scheduler: str 
             client.close()
             if cluster is not None:
                 cluster.close()
+            if scratch is not None:
+                shutil.rmtree(scratch, ignore_errors=True)
     return [results[i] for i in range(len(tasks))]
 
 

@@ -446,8 +446,8 @@ def run_calibration(shots: str | os.PathLike, out_dir: str | os.PathLike, *, pat
     if reference is not None and not (0 <= reference[0] < grid[0] and 0 <= reference[1] < grid[1]):
         raise InvalidInputError(f"--reference {reference[0]},{reference[1]} is outside the "
                                 f"{grid[0]} x {grid[1]} grid (rows and columns count from 0)")
+    per = read_poses(shots, pattern, grid)  # a wrong pattern: refused here
     _say_beyond_grid(pose_folders(shots, pattern, grid)[0], pattern, grid, log)
-    per = read_poses(shots, pattern, grid)
     n = len(next(iter(per.values())))
     log(f"{len(per)} cameras, {n} pose(s): calibrating ...")
     names = {k: f"{k[0]},{k[1]}" for k in per}
@@ -595,9 +595,9 @@ def run_ingest(raw: str | os.PathLike, out_dir: str | os.PathLike, *, calibratio
     for frame, what in ((dark, "--dark"), (flat, "--flat")):
         if frame is not None and "{" not in str(frame) and not Path(frame).is_file():
             raise DataNotFoundError(f"{what} {frame} is not a file; check the path")
+    files = camera_files(raw, pattern, cal.grid, skip=dead)  # a wrong pattern: refused here
     _say_beyond_grid(raw, pattern, cal.grid, log)
-    images, scale = read_camera_images(camera_files(raw, pattern, cal.grid, skip=dead),
-                                       where=str(raw), bits=raw_bits, return_scale=True)
+    images, scale = read_camera_images(files, where=str(raw), bits=raw_bits, return_scale=True)
     if raw_bits is None and scale.bits is not None and scale.bits < scale.file_bits:
         log(f"the raw images' values fit in {scale.bits} of their files' {scale.file_bits} "
             f"bits: {scale.bits}-bit data, full scale {2 ** scale.bits - 1} (--raw-bits to "

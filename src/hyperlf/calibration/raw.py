@@ -15,6 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._paths import leads_outside
 from ..errors import DataNotFoundError, InvalidInputError
 
 __all__ = ["camera_files", "beyond_grid", "pose_folders", "read_camera_images", "read_poses",
@@ -79,7 +80,6 @@ def camera_files(folder: str | os.PathLike, pattern: str, grid: tuple[int, int],
         raise InvalidInputError(f"--grid {R},{C}: {R * C} cameras is more than the "
                                 f"{MAX_CAMERAS} hyperlf handles; check --grid")
     root = Path(folder)
-    real_root = os.path.realpath(root)
     files = {}
     skip = {tuple(int(v) for v in k) for k in skip}
     for r in range(R):
@@ -96,7 +96,7 @@ def camera_files(folder: str | os.PathLike, pattern: str, grid: tuple[int, int],
                 raise DataNotFoundError(f"no image for camera {r * C + c} (row {r}, col {c}): "
                                         f"{p} does not exist; check --pattern and --grid"
                                         + _numbered_from_one_hint(root, pattern, r * C + c, r, c))
-            if must_exist and os.path.commonpath([real_root, os.path.realpath(p)]) != real_root:
+            if must_exist and leads_outside(root, p):
                 how = "a symlink" if any(q.is_symlink() for q in [p, *p.parents]) else "'..'"
                 raise InvalidInputError(f"{p} leads outside {root} ({how}); put the file in "
                                         "the folder")

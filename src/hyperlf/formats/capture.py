@@ -59,6 +59,7 @@ from typing import Any
 import numpy as np
 
 from .._atomic import atomic_write_bytes
+from .._paths import leads_outside
 from .._progress import progress_bar
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
 from ..lightfield import LightField
@@ -142,10 +143,10 @@ def _safe_file(man: Path, root: Path, name, what: str) -> Path:
     if parts is None:
         raise _err(man, f"{what} {name!r} must be a path inside the capture folder")
     path = root / Path(*parts)
-    real, real_root = os.path.realpath(path), os.path.realpath(root)
-    if os.path.commonpath([real, real_root]) != real_root or real == real_root:
-        raise _err(man, f"{what} {name!r} resolves outside the capture folder (to {real}); "
-                        "copy the file into the folder instead of linking to it")
+    if leads_outside(root, path):
+        raise _err(man, f"{what} {name!r} resolves outside the capture folder (to "
+                        f"{os.path.realpath(path)}); copy the file into the folder instead of "
+                        "linking to it")
     return path
 
 

@@ -17,6 +17,7 @@ from typing import Iterable
 
 import numpy as np
 
+from .._paths import leads_outside
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
 from ..lightfield import LightField, centre_view
 from .images import read_image, read_images_same_size
@@ -44,6 +45,14 @@ def _number(text: str):
         except ValueError:
             return text.strip()
     return v
+
+
+def _check_inside(root: Path, files) -> None:
+    """Refuse scene files that lead outside the scene folder (symlinks), before reading."""
+    for f in files:
+        if os.path.lexists(f) and leads_outside(root, f):
+            raise InvalidInputError(f"HCI scene {root}: {f.name} leads outside the folder (a "
+                                    "symlink); copy the files into the folder")
 
 
 def _read_cfg(path: Path) -> dict[str, dict[str, object]]:
@@ -156,6 +165,7 @@ def read_hci_scene(folder: str | os.PathLike, *, grid=None, rows=None, cols=None
     if not root.is_dir():
         raise DataNotFoundError(f"HCI scene folder {root} does not exist")
     cfg_path = root / "parameters.cfg"
+    _check_inside(root, [cfg_path])
     cfg = _read_cfg(cfg_path) if cfg_path.is_file() else {}
     R, C = _grid_from(root, cfg, grid)
     rsel = _select(rows, R, "rows")
@@ -167,9 +177,12 @@ def read_hci_scene(folder: str | os.PathLike, *, grid=None, rows=None, cols=None
         shown = ", ".join(missing[:8]) + (f" and {len(missing) - 8} more" if len(missing) > 8 else "")
         raise DataNotFoundError(
             f"HCI scene {root} is missing {len(missing)} view(s): {shown}; "
-            "download the complete scene or select a sub-grid with rows=/cols="
+            "download the complete scene, or load a sub-grid (hyperlf synth hci --grid R,C; "
+            "read_hci_scene(rows=, cols=) in Python)"
         )
     flat = [f for row in files for f in row]
+    gt_path = root / "gt_disp_lowres.pfm"
+    _check_inside(root, [*flat, gt_path])
     views = read_images_same_size(flat, lambda f: read_image(f, as_float=True, channels="rgb"),
                                   f"HCI scene {root}")
     views = views.reshape(len(rsel), len(csel), *views.shape[1:])
@@ -181,7 +194,6 @@ def read_hci_scene(folder: str | os.PathLike, *, grid=None, rows=None, cols=None
     reference = (rsel.index(centre[0]), csel.index(centre[1])) if centre_in else None
 
     gt = None
-    gt_path = root / "gt_disp_lowres.pfm"
     if gt_path.is_file():
         gt_full = read_pfm(gt_path)
         if gt_full.ndim != 2 or gt_full.shape != views.shape[2:4]:
