@@ -154,10 +154,30 @@ def test_sigterm_to_a_batch_leaves_no_hidden_staging_folders(captures, tmp_path)
         if "Z" in Path(f"/proc/{depth_pid}/stat").read_text().rsplit(")", 1)[1].split()[0]:
             break
         time.sleep(0.05)
+    if not out.exists():  # stopped before its first result: the folder it made is gone
+        return
     hidden = [p.name for p in out.iterdir() if p.name.startswith(".hyperlf-")]
     assert hidden in ([], [".hyperlf-batch.json"]), hidden
     for folder in (p for p in out.iterdir() if p.is_dir()):
         _assert_whole(folder)  # what finished before the signal is whole
+
+
+def test_ctrl_c_to_the_whole_process_group_prints_no_worker_traceback(captures, tmp_path):
+    """A terminal's Ctrl-C reaches every process of the group, the dask workers too: they
+    ignore it (this process closes the cluster), so one line is printed, not their
+    tracebacks."""
+    out = tmp_path / "out"
+    proc = _hyperlf("batch", captures, "--labels", LABELS, "--workers", 1, "-o", out,
+                    start_new_session=True)
+    try:
+        _running_depth(proc.pid)
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
+    assert not list(out.glob(batch.SCRATCH_PREFIX + "*"))
 
 
 def test_a_failed_capture_is_reported_and_the_others_finish(captures, tmp_path):

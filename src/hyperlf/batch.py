@@ -33,9 +33,11 @@ import io
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 import uuid
 from dataclasses import asdict, dataclass
@@ -355,9 +357,17 @@ def _client(workers: int, scheduler: str | None, scratch: Path | None = None):
             raise InvalidInputError(f"--scheduler {scheduler}: cannot connect ({exc}); give "
                                     "the address a dask scheduler prints, e.g. "
                                     "tcp://scheduler-host:8786") from None
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                           dashboard_address=None, silence_logs=logging.ERROR,
-                           local_directory=None if scratch is None else os.fspath(scratch))
+    # The workers start with Ctrl-C ignored (a terminal sends it to the whole process group):
+    # this process closes the cluster on an interrupt, and the workers print no traceback.
+    main = threading.current_thread() is threading.main_thread()  # signal() works only there
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
+    try:
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=logging.ERROR,
+                               local_directory=None if scratch is None else os.fspath(scratch))
+    finally:
+        if main:
+            signal.signal(signal.SIGINT, previous)
     return Client(cluster), cluster
 
 
