@@ -104,14 +104,14 @@ def test_a_view_without_valid_pixels_is_left_out_of_matching():
 @pytest.mark.parametrize("case, message", [
     ("dead reference", "reference and cannot be dead"),
     ("one camera left", "at least two must work"),
-    ("saturation 0", "no valid pixel"),
+    ("saturation 1e-9", "no valid pixel"),  # every pixel saturated (0 is refused when read)
 ])
 def test_ingest_refuses_what_leaves_nothing_to_match(rig_dirs, capsys, case, message):
     tmp, scene, ref = rig_dirs
     others = [f"{r},{c}" for r in range(2) for c in range(COLS) if (r, c) != ref]
     extra = {"dead reference": ("--dead", f"{ref[0]},{ref[1]}"),
              "one camera left": [a for k in others for a in ("--dead", k)],
-             "saturation 0": ("--saturation", "0")}[case]
+             "saturation 1e-9": ("--saturation", "1e-9")}[case]
     capsys.readouterr()
     assert _ingest(tmp, scene, *extra, out="refused") == 2, case
     err = capsys.readouterr().err.strip()
