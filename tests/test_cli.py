@@ -514,3 +514,16 @@ def test_depth_of_views_smaller_than_the_post_filter(tmp_path):
     assert main(["-q", "synth", "procedural", "--size", "3,3", "--grid", "3,3", "-o", str(cap),
                  "--no-pictures"]) == 0
     assert main(["-q", "depth", str(cap), "--labels", "8", "-o", str(tmp_path / "d")]) == 0
+
+
+def test_render_notes_a_cube_with_few_visible_bands(tmp_path, capsys):
+    """Two bands (410, 700 nm) make a picture, but the colours are a rough guess: render
+    says so; a 3 x 4 array's twelve bands do not get the note."""
+    for grid, noted in (("1,2", True), ("3,4", False)):
+        cap = tmp_path / f"g{grid[0]}"
+        assert main(["-q", "synth", "procedural", "--size", "24,32", "--grid", grid, "-o",
+                     str(cap), "--no-pictures"]) == 0
+        capsys.readouterr()
+        assert main(["render", str(cap), "-o", str(tmp_path / f"r{grid[0]}")]) == 0
+        err = capsys.readouterr().err
+        assert ("only 2 band(s) between 400 and 700 nm (410, 700)" in err) is noted, err

@@ -1241,6 +1241,7 @@ def _cmd_render(args, dest) -> list[Path]:
 
     cf, offsets, reference = _open_cube(args.cube)
     out = dest
+    _say_spectral_coverage(args, cf.wavelengths)
     with cf:
         views = "all" if args.all_views else "reference"
         kw = dict(camera=args.camera, output="srgb", white=args.white, views=views,
@@ -1259,6 +1260,21 @@ def _cmd_render(args, dest) -> list[Path]:
         written.append(visualise.save_mosaic_png(out / "rgb_views.png", rgb,
                                                  title=f"emulated {args.camera}"))
     return written
+
+
+#: Fewest bands in the visible range (nm) below which ``render`` notes that colours are rough.
+VISIBLE_NM, MIN_VISIBLE_BANDS = (400.0, 700.0), 4
+
+
+def _say_spectral_coverage(args, wavelengths) -> None:
+    """A note when a cube samples the visible spectrum with too few bands for faithful
+    colour (the rendering integrates camera sensitivities over them)."""
+    wl = np.ravel(np.asarray(wavelengths, np.float64))
+    seen = wl[np.isfinite(wl) & (wl >= VISIBLE_NM[0]) & (wl <= VISIBLE_NM[1])]
+    if np.isfinite(wl).any() and seen.size < MIN_VISIBLE_BANDS:
+        bands = ", ".join(f"{v:g}" for v in np.sort(seen)) or "none"
+        _say(args, f"note: only {seen.size} band(s) between {VISIBLE_NM[0]:g} and "
+                   f"{VISIBLE_NM[1]:g} nm ({bands}); the colours are a rough approximation")
 
 
 def _cmd_refocus(args, dest) -> list[Path]:
