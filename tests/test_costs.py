@@ -525,3 +525,42 @@ def test_rho_is_the_formula_bit_for_bit():
     assert rho(0.5) == formula(0.5)
     assert rho(0.0) == pytest.approx(-np.log1p(np.exp(-2.0)), abs=1e-15)
     assert rho(-1.3) == rho(1.3) and rho(40.0) == pytest.approx(2.0 - 40.0)
+
+
+def test_average_over_shift_properties(rng):
+    """A box over half a pixel of shift each side: constants stay, half 0 is the identity, a
+    coarse label grid (steps over a pixel) is left alone, invalid entries never leak in."""
+    from hyperlf.costs.lightfield import average_over_shift
+
+    c = rng.random((9, 4, 5)).astype(np.float32)
+    fine = [(0.2 * k, 0.1 * k) for k in range(9)]
+    np.testing.assert_array_equal(average_over_shift(c, fine, 0.0), c)
+    np.testing.assert_array_equal(average_over_shift(c, [(3.0 * k, 0) for k in range(9)], 0.5),
+                                  c)
+    np.testing.assert_allclose(average_over_shift(np.full((9, 2, 2), 3.0), fine, 0.5), 3.0)
+    out = average_over_shift(c, fine, 0.5)
+    step = np.hypot(0.2, 0.1)
+    k, half = 4, 0.5
+    w = np.clip((half + step / 2 - np.abs(np.arange(9) - k) * step) / step, 0, 1)
+    np.testing.assert_allclose(out[k], np.tensordot(w / w.sum(), c, axes=1), rtol=1e-6)
+    valid = np.ones(c.shape, bool)
+    poisoned = c.copy()
+    poisoned[5], valid[5] = 1e9, False
+    out = average_over_shift(poisoned, fine, 0.5, valid=valid)
+    assert out[[3, 4, 6, 7]].max() < 1.0 and out[5].max() < 1.0  # label 5 from its neighbours
+
+
+def test_census_of_a_light_field_averages_over_shift(rng):
+    """The registered census cost of a light field is the per-shift Hamming cost averaged by
+    average_over_shift over its valid entries; the two-view pair cost is not."""
+    from hyperlf.costs import get_cost
+    from hyperlf.costs.lightfield import average_over_shift, census_view_volume
+
+    a = rng.random((20, 24))
+    b = np.roll(a, 2, axis=1)
+    shifts = [(-0.25 * k, 0.0) for k in range(13)]
+    raw = census_view_volume(a, b, shifts, 7)
+    valid = np.ones(raw.shape, bool)
+    got = get_cost("census", light_field=True).view_volume(a, b, shifts, valid=valid)
+    np.testing.assert_array_equal(got, average_over_shift(raw, shifts, 0.5, valid=valid))
+    assert not np.array_equal(got, raw)

@@ -122,8 +122,12 @@ def test_view_costs_subpixel_and_vertical(rng):
     labels = np.linspace(0, 1.5, 7)  # step 0.25, contains 0.75
     for metric in ("ncc", "rsncc", "census", "census-rsncc"):
         C, valid = view_costs(a, b, (0.0, 2.0), labels, metric)
-        inner = C[:, 6:-6, 6:-6]
-        assert np.mean(np.argmin(inner, axis=0) == 3) > 0.8, metric
+        best = np.argmin(C[:, 6:-6, 6:-6], axis=0)
+        if metric == "census":  # averaged over +-0.5 px of shift (one label here): a broader
+            # minimum, so a pixel's own argmin is more often one label off
+            assert np.mean(best == 3) > 0.7 and np.mean(np.abs(best - 3) <= 1) > 0.97
+        else:
+            assert np.mean(best == 3) > 0.8, metric
 
 
 def test_census_view_costs_numba_matches_numpy(rng):
@@ -402,3 +406,21 @@ def test_views_all_at_one_place_are_refused():
                       disparity_range=(-2, 2))
     with pytest.raises(InvalidInputError, match="no baseline"):
         depth(flat, n_labels=8)
+
+
+def test_a_sparse_array_does_not_snap_to_whole_pixel_shifts(monkeypatch):
+    """On a 3 x 3 array every view shifts by a whole pixel at the same labels; with census
+    exact only there, the default cost used to pile the map onto them (seed 1: the background
+    at -1.8 went to -2). Averaged over a pixel of shift it follows the truth more closely."""
+    from hyperlf import synthesis
+    from hyperlf.costs import builtin
+
+    lf = synthesis.procedural_scene(seed=1, rows=3, cols=3, height=64, width=80)
+    gt = lf.reference_gt_disparity[8:-8, 8:-8]
+    scores = {}
+    for half in (0.0, builtin.Census.shift_average):
+        monkeypatch.setattr(builtin.Census, "shift_average", half)
+        err = np.abs(dp.depth(lf, n_labels=32).disparity[8:-8, 8:-8] - gt)
+        scores[half] = (float(np.sqrt(np.mean(err ** 2))), float(np.mean(err > 0.07)))
+    (rmse_snap, bad_snap), (rmse_avg, bad_avg) = scores[0.0], scores[0.5]
+    assert bad_avg < 0.8 * bad_snap and rmse_avg < 0.9 * rmse_snap, scores

@@ -101,6 +101,11 @@ class Census(_FunctionCost):
     """Hamming distance of census codes (Zabih & Woodfill 1994, :mod:`hyperlf.costs`
     References [2]): one bit per neighbour of the window (48 bits at 7 x 7), set where the
     neighbour is strictly less than the centre, replicate border.
+
+    Between a light field's views the costs at sub-pixel shifts are averaged over
+    ``shift_average`` px of shift (:func:`hyperlf.costs.lightfield.average_over_shift`):
+    census is exact only at whole-pixel shifts, and without it the disparities snap to them
+    where every view shifts by a whole pixel at the same labels (sparse arrays).
     """
 
     name = "census"
@@ -109,10 +114,13 @@ class Census(_FunctionCost):
     windows = {"graphcut": 7, "sgm": 5, "wta": 5}
     params = {"graphcut": _graphcut(4.0, 8.0), "sgm": _sgm(2.0, 16.0)}
     pair_function = _pair.census_volume
+    #: Half-width (px of shift) of the average over labels in :meth:`view_volume`.
+    shift_average = 0.5
 
     def view_volume(self, ref_img, img, shifts, *, window=None, valid=None, rows=None,
                     **options):
-        return _lf.census_view_volume(ref_img, img, shifts, self.window_for(window), rows=rows)
+        C = _lf.census_view_volume(ref_img, img, shifts, self.window_for(window), rows=rows)
+        return _lf.average_over_shift(C, shifts, self.shift_average, valid=valid)
 
 
 class BWNCC(Cost):

@@ -64,6 +64,7 @@ __all__ = [
     "ncc_view_volume",
     "rsncc_view_volume",
     "census_view_volume",
+    "average_over_shift",
     "bwncc_view_volume",
     "REF_CACHE_BYTES",
     "ROW_BLOCK",
@@ -259,6 +260,60 @@ def _reference_blocks(pA, slB, n_all, tau_rel):
         sel = np.nonzero(ns == nn)[0]
         refs.append((sel, int(nn), _RefBlock(Ablk[sel], int(nn), tau_rel)))
     return refs
+
+
+def average_over_shift(cost, shifts, half: float, *, valid=None) -> np.ndarray:
+    """Each label's cost averaged over the labels whose shift lies within ``half`` px of its
+    own (a box along the label axis, its ends weighted by the part of a label step they
+    cover), over the ``valid`` entries only.
+
+    A cost that is exact only at whole-pixel shifts (census: a bilinearly shifted view is
+    smoother than the reference, and its census bits differ wherever it is interpolated) is
+    then a function of the sub-pixel shift instead of one that dips at each whole pixel.
+
+    Parameters
+    ----------
+    cost : ndarray, shape (L, H, W)
+    shifts : sequence of (sx, sy)
+        The view's shift at each label, in label order.
+    half : float
+        Half-width in px of shift; 0, or less than half a label step, leaves ``cost`` as it is.
+    valid : ndarray of bool, shape (L, H, W), optional
+        Entries that may enter an average (an entry with no valid neighbour keeps its value).
+
+    Returns
+    -------
+    ndarray, float32, shape (L, H, W)
+
+    Examples
+    --------
+    >>> c = np.array([4.0, 4.0, 1.0, 4.0, 4.0])[:, None, None]   # a dip at one label
+    >>> shifts = [(0.25 * k, 0.0) for k in range(5)]              # a quarter pixel apart
+    >>> [round(float(v), 2) for v in average_over_shift(c, shifts, 0.5)[:, 0, 0]]
+    [3.4, 3.14, 3.25, 3.14, 3.4]
+    """
+    C = np.asarray(cost, np.float32)
+    s = np.asarray(shifts, np.float64).reshape(len(C), 2)
+    if len(C) < 2 or not half > 0:
+        return C
+    step = np.hypot(*np.diff(s, axis=0).T)
+    delta = float(np.median(step))
+    if not delta > 0 or half / delta < 0.5:
+        return C
+    t = np.concatenate([[0.0], np.cumsum(step)])
+    w = np.clip((half + delta / 2 - np.abs(t[:, None] - t[None, :])) / delta, 0.0, 1.0)
+    v = None if valid is None else np.asarray(valid, bool)
+    out = np.empty_like(C)
+    for k in range(len(C)):
+        js = np.nonzero(w[k])[0]
+        if v is None:
+            out[k] = np.tensordot(w[k, js] / w[k, js].sum(), C[js], axes=1)
+            continue
+        wj = w[k, js][:, None, None] * v[js]
+        total = wj.sum(axis=0)
+        avg = (wj * C[js]).sum(axis=0) / np.maximum(total, 1e-12)
+        out[k] = np.where(total > 0, avg, C[k])
+    return out
 
 
 def bwncc_view_volume(ref_img, img, shifts, *, paper: bool = False, window=None,
