@@ -364,6 +364,14 @@ def test_synth_pictures_never_replace_a_capture_named_like_the_h5(tmp_path):
                    "-o", tmp_path / "scene.h5", "--overwrite")
     assert_one_line_error(proc, 2, "not the pictures of scene.h5", "--no-pictures")
     assert listing(tmp_path / "scene") == before and not (tmp_path / "scene.h5").exists()
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("x")
+    (tmp_path / "lnk").symlink_to(tmp_path / "mine")
+    for name, words in (("mine", "a folder hyperlf did not write"), ("lnk", "is a symlink")):
+        proc = run_cli("synth", "procedural", "--size", "24,28", "--grid", "2,2",
+                       "-o", tmp_path / f"{name}.h5", "--overwrite")
+        assert_one_line_error(proc, 2, words, "--no-pictures")
+    assert (tmp_path / "mine" / "notes.txt").read_text() == "x"
     # the pictures of an earlier .h5 are replaced, as before
     for _ in range(2):
         assert run_cli("synth", "procedural", "--size", "24,28", "--grid", "2,2", "-o",

@@ -1895,11 +1895,16 @@ def _check_sidecars(args) -> None:
     pictures = _pictures_folder(args)
     for t in targets[1:]:
         if t == pictures:
-            if os.path.lexists(t) and not t.is_dir():
+            if os.path.lexists(t) and (t.is_symlink() or not t.is_dir()):
                 raise InvalidInputError(
-                    f"{t} is a file, where synth would put the pictures of {targets[0].name} "
-                    "(a folder); move it, choose another -o, or give --no-pictures")
+                    f"{t} is a {'symlink' if t.is_symlink() else 'file'}, where synth would "
+                    f"put the pictures of {targets[0].name} (a folder); move it, choose "
+                    "another -o, or give --no-pictures")
             man = read_manifest(t) if t.is_dir() else None
+            if t.is_dir() and man is None and any(t.iterdir()):
+                raise InvalidInputError(
+                    f"{t} is a folder hyperlf did not write, where synth would put the "
+                    f"pictures of {targets[0].name}; choose another -o or give --no-pictures")
             if man is not None and not all(f.lower().endswith(".png") for f in man["files"]):
                 raise InvalidInputError(
                     f"{t} holds a result of 'hyperlf {man['command'] or '...'}', not the "
