@@ -255,7 +255,7 @@ def _write_manifest(folder: Path, command: str | None, argv=None, provenance=Non
            "files": _walk_files(folder)}
     if argv is not None:  # provenance: the command line that made it
         doc["argv"] = [str(a) for a in argv]
-    for key, value in (provenance or {}).items():  # e.g. the input's fingerprint
+    for key, value in (provenance or {}).items():  # e.g. the input's signature
         doc.setdefault(key, value)
     atomic_write_text(folder / MANIFEST, json.dumps(doc, indent=1) + "\n")
 
