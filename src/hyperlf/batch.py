@@ -26,6 +26,7 @@ dependency (``pip install "hyperlf[batch]"``); nothing else of hyperlf needs it.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import glob
 import html
@@ -333,10 +334,11 @@ def discard_unused(out: str | os.PathLike) -> None:
     """Remove a batch folder that holds nothing but its marker (a run that failed before its
     first capture, into a folder it created)."""
     out = Path(out)
-    if out.is_dir() and not out.is_symlink() and \
-            [p.name for p in out.iterdir()] == [BATCH_FILE]:
-        (out / BATCH_FILE).unlink()
-        out.rmdir()
+    with contextlib.suppress(OSError):  # called while another error propagates: never mask it
+        if out.is_dir() and not out.is_symlink() and \
+                [p.name for p in out.iterdir()] == [BATCH_FILE]:
+            (out / BATCH_FILE).unlink()
+            out.rmdir()
 
 
 def _client(workers: int, scheduler: str | None, scratch: Path | None = None):
