@@ -680,11 +680,13 @@ def signature_mismatch(recorded: dict, sig: dict) -> str | None:
     'its grid is 3 x 3, not 5 x 6'
     """
     try:
-        for key, what in (("grid", "grid"), ("image_shape", "view size (rows x columns)"),
-                          ("reference", "reference view")):
+        for key, what, order in (("grid", "grid", 1), ("image_shape", "view size", -1),
+                                 ("reference", "reference view", 1)):
             if [int(v) for v in recorded[key]] != [int(v) for v in sig[key]]:
-                a, b = (" x ".join(str(int(v)) for v in s[key]) for s in (recorded, sig))
-                return f"its {what} is {a}, not {b}"
+                a, b = (" x ".join(str(int(v)) for v in s[key][::order])
+                        for s in (recorded, sig))
+                unit = " px (W x H)" if order < 0 else ""
+                return f"its {what} is {a}{unit}, not {b}{unit}"
         return _geometry_mismatch(recorded, sig) or _thumbnail_mismatch(recorded, sig)
     except (KeyError, TypeError, ValueError):
         return None
