@@ -162,10 +162,11 @@ def test_read_errors(tmp_path, rng):
     with pytest.raises(FormatError, match="format attribute"):
         read_lightfield_h5(tmp_path / "other.h5")
     write_cube_h5(tmp_path / "cube.h5", rng.random((1, 1, 1, 2, 2)), [500])
-    with pytest.raises(FormatError, match="is a cube file .* not a light field"):
+    with pytest.raises(InvalidInputError, match="is a cube file .* not a light field"):
         read_lightfield_h5(tmp_path / "cube.h5")
     write_lightfield_h5(tmp_path / "lf.h5", full_lf(rng))
-    with pytest.raises(FormatError, match="is a light field file, not a cube: complete it"):
+    with pytest.raises(InvalidInputError,
+                       match="is a light field file, not a cube: complete it"):
         read_cube_h5(tmp_path / "lf.h5")
     with h5py.File(tmp_path / "lf.h5", "a") as f:
         del f["views"]

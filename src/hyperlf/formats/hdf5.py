@@ -160,8 +160,8 @@ def _open_read(path: str | os.PathLike, expected: str):
         ) from None
     try:
         fmt = _text_attr(p, f, "format")
-        if {fmt, expected} == {LF_FORMAT, CUBE_FORMAT}:  # hyperlf's other kind of file
-            raise FormatError(_other_kind(p, fmt))
+        if {fmt, expected} == {LF_FORMAT, CUBE_FORMAT}:  # hyperlf's other kind: readable,
+            raise InvalidInputError(_other_kind(p, fmt))  # but the wrong input (exit 2)
         if fmt != expected:
             raise FormatError(
                 f"{p} is an HDF5 file but not a {expected} file (format attribute {str(fmt)[:40]!r}); "
