@@ -929,25 +929,7 @@ def _cmd_depth(args, dest) -> list[Path]:
                    "disparity.pfm and confidence.pfm are written whole")
     written += metric
     if args.save_intermediate:
-        from . import visualise
-        from .formats import write_pfm
-
-        for name, arr in extra.items():
-            if arr is None:
-                continue
-            written.append(write_pfm(out / f"{name}.pfm", arr))
-            written.append(visualise.save_disparity_png(out / f"{name}.png", arr, title=name))
-        if weight is not None:
-            written.append(write_pfm(out / "texture_weight.pfm", weight))
-            written.append(visualise.save_disparity_png(
-                out / "texture_weight.png", weight, title="weight of each pixel's own costs",
-                vmin=0, vmax=1, cmap="viridis", label="0: depth from the surroundings"))
-        if strength is not None:
-            written.append(write_pfm(out / "coarse_prior_strength.pfm", strength))
-            written.append(visualise.save_disparity_png(
-                out / "coarse_prior_strength.png", strength,
-                title="pull towards the coarse estimate", vmin=0, vmax=1, cmap="viridis",
-                label="1: the data term comes from the coarse level"))
+        written += _save_depth_intermediate(out, extra, weight, strength)
     _say(args, f"{args.method}: {time.perf_counter() - t0:.1f} s "
                + ", ".join(f"{k} {v:.1f} s" for k, v in res.timings.items()))
     _say_depth_config(args, getattr(res, "config", {}))
@@ -977,6 +959,32 @@ def _say_range_limits(args, disparity, lf, rng) -> None:
                f"({shares[0]:.1f} % at {lo:g}, {shares[1]:.1f} % at {hi:g}): the scene may "
                "reach beyond it, or there the costs found no match; try a wider "
                "--disparity-range")
+
+
+def _save_depth_intermediate(out, extra: dict, weight, strength) -> list[Path]:
+    """``depth --save-intermediate``: each intermediate map (PFM and picture), the
+    textureless-region weight and the coarse prior's pull when they acted."""
+    from . import visualise
+    from .formats import write_pfm
+
+    written = []
+    for name, arr in extra.items():
+        if arr is None:
+            continue
+        written.append(write_pfm(out / f"{name}.pfm", arr))
+        written.append(visualise.save_disparity_png(out / f"{name}.png", arr, title=name))
+    if weight is not None:
+        written.append(write_pfm(out / "texture_weight.pfm", weight))
+        written.append(visualise.save_disparity_png(
+            out / "texture_weight.png", weight, title="weight of each pixel's own costs",
+            vmin=0, vmax=1, cmap="viridis", label="0: depth from the surroundings"))
+    if strength is not None:
+        written.append(write_pfm(out / "coarse_prior_strength.pfm", strength))
+        written.append(visualise.save_disparity_png(
+            out / "coarse_prior_strength.png", strength,
+            title="pull towards the coarse estimate", vmin=0, vmax=1, cmap="viridis",
+            label="1: the data term comes from the coarse level"))
+    return written
 
 
 def _say_depth_config(args, config: dict) -> None:
