@@ -109,15 +109,21 @@ def test_demo_runs_and_writes_pictures(tmp_path):
     assert "capture/    : a capture, " in text and "gt_disparity_r0_c0" not in text
 
 
-def test_render_refocus_spectrum_on_a_capture_cube(tmp_path):
+def test_render_refocus_spectrum_on_a_capture_cube(tmp_path, capfd):
     cap = tmp_path / "planes"
     assert main(["-q", "synth", "procedural", "--scene", "planes", "--size", "40,48",
                  "--grid", "3,4", "-o", str(cap), "--no-pictures"]) == 0
     assert main(["-q", "render", str(cap), "--white", "D65", "-o", str(tmp_path / "r")]) == 0
     assert (tmp_path / "r" / "rgb_reference.png").is_file()
-    assert main(["-q", "refocus", str(cap), "--sweep=-1,1,3", "-o", str(tmp_path / "f")]) == 0
+    capfd.readouterr()
+    assert main(["refocus", str(cap), "--sweep=-1,1,3", "-o", str(tmp_path / "f")]) == 0
     assert len(list((tmp_path / "f").glob("refocus_*.png"))) == 3
-    assert (tmp_path / "f" / "refocus.gif").is_file()
+    # GIF everywhere, MP4 for desktop players, WebM (VP9) for browsers; each one listed, and
+    # OpenCV's notice about the WebM's fourcc tag kept off stderr
+    err = capfd.readouterr().err.splitlines()
+    for name in ("refocus.gif", "refocus.mp4", "refocus.webm"):
+        assert (tmp_path / "f" / name).is_file() and f"wrote {tmp_path / 'f' / name}" in err
+    assert not [line for line in err if "OpenCV" in line]
     assert (tmp_path / "f" / "refocus_frames.csv").read_text().splitlines() == [
         "frame,file,disparity", "0,refocus_000.png,-1", "1,refocus_001.png,0",
         "2,refocus_002.png,1"]

@@ -342,6 +342,92 @@ def test_focal_sweep_writes_frames_gif_and_mp4(planes, tmp_path):
     assert res["mp4"] is None and len(res["frames"]) == 2
 
 
+def _read_video(path):
+    """Every frame of a video (RGB uint8) and its fourcc, as OpenCV reads them back."""
+    import cv2
+
+    cap = cv2.VideoCapture(str(path))
+    try:
+        frames = []
+        while True:
+            ok, f = cap.read()
+            if not ok:
+                break
+            frames.append(f[..., ::-1])
+        fourcc = int(cap.get(cv2.CAP_PROP_FOURCC)).to_bytes(4, "little").decode("ascii")
+    finally:
+        cap.release()
+    return frames, fourcc
+
+
+def test_focal_sweep_webm_is_vp9_for_browsers(planes, tmp_path, capfd):
+    """The MP4 ('mp4v', MPEG-4 part 2) does not play in browsers; the WebM (VP9) does. It reads
+    back with every frame, the frame size and the frames' brightness (a lossy codec: means
+    within a few levels); OpenCV's 'tag not supported' notice stays off stderr."""
+    from PIL import Image
+
+    ds = np.linspace(-1.5, 1.5, 5)
+    res = render.focal_sweep(planes.gt_cube, planes.offsets, ds, "CIE 1931",
+                             out_dir=tmp_path / "sweep", fps=4, formats=("webm",),
+                             wavelengths=planes.cube_wavelengths, annotate=False)
+    assert res["gif"] is None and res["mp4"] is None
+    assert res["webm"] == tmp_path / "sweep" / "refocus.webm"
+    frames, fourcc = _read_video(res["webm"])
+    assert fourcc == "VP90" and len(frames) == 5
+    H, W = planes.gt_cube.shape[-2:]
+    assert all(f.shape == (H, W, 3) for f in frames)
+    for got, png in zip(frames, res["frames"]):
+        with Image.open(png) as im:
+            want = np.asarray(im.convert("RGB"), dtype=np.float64)
+        assert abs(got.mean() - want.mean()) < 6.0
+        assert np.abs(got.astype(np.float64).mean(axis=(0, 1)) - want.mean(axis=(0, 1))).max() < 10
+    assert not list((tmp_path / "sweep").glob(".*partial*"))
+    assert "OpenCV" not in capfd.readouterr().err
+    with pytest.raises(InvalidInputError, match="'gif', 'mp4' and 'webm'"):
+        render.focal_sweep(planes.gt_cube, planes.offsets, ds, "CIE 1931",
+                           out_dir=tmp_path / "x", formats=("avi",))
+
+
+def test_focal_sweep_videos_of_an_odd_size(planes, tmp_path):
+    """MPEG-4 and VP9 code even sizes only (VP9 dropped the odd row and column): both videos
+    pad the frames to the next even size, every frame there."""
+    cube = planes.gt_cube[..., :47, :59]
+    res = render.focal_sweep(cube, planes.offsets, [-1.0, 0.0, 1.0], "CIE 1931",
+                             out_dir=tmp_path / "odd", fps=4, formats=("mp4", "webm"),
+                             wavelengths=planes.cube_wavelengths)
+    for key in ("mp4", "webm"):
+        if res[key] is None and key == "mp4":  # this OpenCV cannot write MPEG-4
+            continue
+        frames, _ = _read_video(res[key])
+        assert len(frames) == 3 and all(f.shape == (48, 60, 3) for f in frames), key
+
+
+def test_focal_sweep_without_a_video_codec_warns_and_writes_the_gif(planes, tmp_path,
+                                                                     monkeypatch):
+    """An OpenCV build that cannot open the VP9 writer: a RuntimeWarning names the WebM, its
+    entry is None, the GIF is still written and no temporary file is left."""
+    import cv2
+
+    class Closed:
+        def __init__(self, *args, **kwargs):
+            pass
+
+        def isOpened(self):
+            return False
+
+        def release(self):
+            pass
+
+    monkeypatch.setattr(cv2, "VideoWriter", Closed)
+    with pytest.warns(RuntimeWarning, match="no WebM written.*VP90.*VP9 encoder"):
+        res = render.focal_sweep(planes.gt_cube, planes.offsets, [0.0, 1.0], "CIE 1931",
+                                 out_dir=tmp_path / "s", formats=("gif", "webm"),
+                                 wavelengths=planes.cube_wavelengths)
+    assert res["webm"] is None and res["gif"].is_file()
+    assert sorted(q.name for q in (tmp_path / "s").iterdir()) == [
+        "refocus.gif", "refocus_000.png", "refocus_001.png", "refocus_frames.csv"]
+
+
 def test_spectrum_at_and_figure(planes, tmp_path):
     cube, wl = planes.gt_cube, planes.cube_wavelengths
     s = render.spectrum_at(cube, wl, 10, 12)

@@ -561,7 +561,7 @@ _IMAGE_SUFFIXES = {".png", ".tif", ".tiff"}
 
 #: Suffixes of single files a light field cannot be converted to (it becomes a folder or .h5).
 _NOT_A_LIGHTFIELD = {".png", ".tif", ".tiff", ".pfm", ".jpg", ".jpeg", ".hdr", ".img", ".txt",
-                     ".csv", ".npy", ".gif", ".mp4", ".ply", ".toml", ".json"}
+                     ".csv", ".npy", ".gif", ".mp4", ".webm", ".ply", ".toml", ".json"}
 
 
 def _cmd_convert(args, dest) -> list[Path]:
@@ -1293,7 +1293,7 @@ def _cmd_refocus(args, dest) -> list[Path]:
     examples:
       hyperlf refocus cube.h5 --disparity 1.2 -o out
       hyperlf refocus cube.h5 --profile band:550 --disparity 0 -o out
-      hyperlf refocus cube.h5 --sweep=-2,2,17 -o sweep  # GIF + MP4
+      hyperlf refocus cube.h5 --sweep=-2,2,17 -o sweep  # GIF + MP4 + WebM
     """
     from . import render
     from .formats import write_image
@@ -1321,7 +1321,7 @@ def _cmd_refocus(args, dest) -> list[Path]:
             res = render.focal_sweep(cf, offsets, np.linspace(lo, hi, int(n)), profile,
                                      out_dir=out, fps=args.fps, progress=_bars(args),
                                      reference=reference, white=args.white)
-            written = [res[key] for key in ("gif", "mp4") if res.get(key)]
+            written = [res[key] for key in ("gif", "mp4", "webm") if res.get(key)]
             _say(args, f"{len(res['frames'])} frames")
         else:
             img = render.refocus(cf, offsets, args.disparity, profile, output="srgb"

@@ -88,7 +88,11 @@ only the bands the profile needs) at a time; a full ``[R, C, B, H, W]`` is never
 
 from __future__ import annotations
 
+import contextlib
 import os
+import re
+import sys
+import tempfile
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -1184,20 +1188,62 @@ def _write_gif(path: Path, frames: list[np.ndarray], fps: float) -> Path:
     return path
 
 
-def _write_mp4(path: Path, frames: list[np.ndarray], fps: float) -> Path | None:
-    """MP4 (MPEG-4 part 2, 'mp4v') through OpenCV; None (with a warning) when unavailable."""
+#: The focal sweep's videos, by format: (OpenCV fourcc, name in messages, article, codec).
+#: MP4 holds MPEG-4 part 2 ('mp4v'), which desktop players play and browsers do not; WebM holds
+#: VP9, which browsers play. OpenCV's wheels open no H.264 writer, so neither can be H.264.
+_VIDEOS = {"mp4": ("mp4v", "MP4", "an", "MPEG-4"), "webm": ("VP90", "WebM", "a", "VP9")}
+
+#: OpenCV's FFmpeg notice when a container keeps no fourcc tag (WebM keeps none): harmless, and
+#: written straight to file descriptor 2, past ``-q``.
+_OPENCV_TAG_NOTICE = re.compile(rb"OpenCV: FFMPEG: (tag 0x[0-9a-fA-F]+/'.*' is not supported "
+                                rb"with codec id|fallback to use tag)")
+
+
+@contextlib.contextmanager
+def _opencv_tag_notice_held_back():
+    """Run the block with file descriptor 2 in a temporary file; write back all but the notices
+    of :data:`_OPENCV_TAG_NOTICE` (any other line comes out, only later)."""
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError, AttributeError):  # no stderr to hold back
+        yield
+        return
+    with tempfile.TemporaryFile() as held:
+        os.dup2(held.fileno(), 2)
+        try:
+            yield
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            held.seek(0)
+            rest = [ln for ln in held.read().splitlines(keepends=True)
+                    if not _OPENCV_TAG_NOTICE.match(ln)]
+            if rest:
+                os.write(2, b"".join(rest))
+
+
+def _write_video(path: Path, frames: list[np.ndarray], fps: float, fourcc: str, label: str,
+                 article: str, codec: str) -> Path | None:
+    """A video through OpenCV, the container picked from ``path``'s suffix (the temporary file
+    keeps it), checked by reading it back; None (with a warning naming ``label``) when this
+    OpenCV build cannot write or read it. Odd sizes are padded by repeating the last row or
+    column: MPEG-4 and VP9 both code even sizes only (VP9 would drop the odd row and column)."""
     try:
         import cv2
     except ImportError:  # pragma: no cover - opencv is a dependency
-        warnings.warn("OpenCV is not available; no MP4 written", RuntimeWarning, stacklevel=3)
+        warnings.warn(f"OpenCV is not available; no {label} written", RuntimeWarning,
+                      stacklevel=3)
         return None
     H, W = frames[0].shape[:2]
-    He, We = H + (H % 2), W + (W % 2)  # MPEG-4 wants even sizes
+    He, We = H + (H % 2), W + (W % 2)
     try:
         with atomic_path(path) as tmp:
-            vw = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), float(fps), (We, He))
+            with _opencv_tag_notice_held_back():
+                vw = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*fourcc), float(fps),
+                                     (We, He))
             if not vw.isOpened():
-                raise RuntimeError("cv2.VideoWriter could not open an 'mp4v' stream")
+                raise RuntimeError(f"cv2.VideoWriter could not open {article} '{fourcc}' stream")
             try:
                 for f in frames:
                     if (He, We) != (H, W):
@@ -1211,21 +1257,22 @@ def _write_mp4(path: Path, frames: list[np.ndarray], fps: float) -> Path | None:
             finally:
                 cap.release()
             if not ok or os.path.getsize(tmp) == 0:
-                raise RuntimeError("the written MP4 cannot be read back")
+                raise RuntimeError(f"the written {label} cannot be read back")
     except RuntimeError as exc:
-        warnings.warn(f"no MP4 written: {exc} (this OpenCV build lacks an MPEG-4 encoder?)",
-                      RuntimeWarning, stacklevel=3)
+        warnings.warn(f"no {label} written: {exc} (this OpenCV build lacks {article} {codec} "
+                      "encoder?)", RuntimeWarning, stacklevel=3)
         return None
     return path
 
 
 def focal_sweep(views_or_cube, offsets=None, disparities=None, profile="CIE 1931",
-                *, out_dir=None, fps: float = 8, formats: Sequence[str] = ("gif", "mp4"),
+                *, out_dir=None, fps: float = 8,
+                formats: Sequence[str] = ("gif", "mp4", "webm"),
                 wavelengths=None, output: str = "srgb", exposure="percentile",
                 exposure_percentile: float = 99.5, annotate: bool = True,
                 stem: str = "refocus", bit_depth: int = 8, progress: bool = False,
                 **kwargs) -> dict[str, Any]:
-    """Focal sweep: refocused frames at ``disparities`` written as PNGs, a GIF and an MP4.
+    """Focal sweep: refocused frames at ``disparities`` as PNGs, a GIF, an MP4 and a WebM.
 
     Parameters
     ----------
@@ -1235,19 +1282,22 @@ def focal_sweep(views_or_cube, offsets=None, disparities=None, profile="CIE 1931
         Focus disparities, one frame each.
     out_dir : path-like
         Folder for ``{stem}_{i:03d}.png``, ``{stem}_frames.csv`` (each frame's disparity),
-        ``{stem}.gif`` and ``{stem}.mp4``.
+        ``{stem}.gif``, ``{stem}.mp4`` and ``{stem}.webm``.
     fps : float
         Frames per second of the animations.
-    formats : subset of ("gif", "mp4")
-        Animations to write; PNG frames are always written. The MP4 uses OpenCV's 'mp4v'
-        (MPEG-4 part 2) codec and is checked by reading it back; when the OpenCV build cannot
-        write or read it, a RuntimeWarning is issued and ``"mp4"`` is None.
+    formats : subset of ("gif", "mp4", "webm")
+        Animations to write; PNG frames are always written. The GIF plays everywhere (in 256
+        colours); the MP4 (OpenCV's 'mp4v', MPEG-4 part 2) is for desktop players (browsers
+        do not play it); the WebM (VP9) is for browsers, a web page's ``<video>``. (H.264
+        would serve both, but OpenCV's wheels have no H.264 writer.) Each video is checked by
+        reading it back; when the OpenCV build cannot write or read one, a RuntimeWarning
+        names it and its entry is None. The videos pad an odd frame size to an even one.
     output : {"srgb", "camera"}
         Frames are displayed, so sRGB by default (camera RGB is only clipped).
     exposure : default "percentile"
         One scale for all frames (no flicker).
     annotate : bool
-        Print ``d = ...`` in the corner of the GIF / MP4 frames (PNG frames stay clean).
+        Print ``d = ...`` in the corner of the GIF / MP4 / WebM frames (PNG frames stay clean).
     bit_depth : {8, 16}
         Of the PNG frames.
 
@@ -1255,7 +1305,7 @@ def focal_sweep(views_or_cube, offsets=None, disparities=None, profile="CIE 1931
     -------
     dict
         ``{"frames": [Path, ...], "gif": Path or None, "mp4": Path or None,
-        "disparities": ndarray, "table": Path}``.
+        "webm": Path or None, "disparities": ndarray, "table": Path}``.
     """
     from .formats.images import write_image
 
@@ -1270,8 +1320,9 @@ def focal_sweep(views_or_cube, offsets=None, disparities=None, profile="CIE 1931
         raise InvalidInputError(f"fps must be > 0, got {fps}")
     fmts = [str(f).lower().lstrip(".") for f in formats]
     for f in fmts:
-        if f not in ("gif", "mp4"):
-            raise InvalidInputError(f"unknown animation format {f!r}; use 'gif' and/or 'mp4'")
+        if f != "gif" and f not in _VIDEOS:
+            raise InvalidInputError(f"unknown animation format {f!r}; use any of 'gif', 'mp4' "
+                                    "and 'webm'")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     frames = focal_stack(views_or_cube, offsets, list(ds), profile, wavelengths=wavelengths,
@@ -1290,12 +1341,13 @@ def focal_sweep(views_or_cube, offsets=None, disparities=None, profile="CIE 1931
     u8 = [_to_uint8_rgb(f) for f in frames]
     if annotate:
         u8 = [_annotate(f, f"d = {d:+.2f}") for f, d in zip(u8, ds)]
-    result: dict[str, Any] = {"frames": paths, "gif": None, "mp4": None, "disparities": ds,
-                              "table": table}
+    result: dict[str, Any] = {"frames": paths, "gif": None, "mp4": None, "webm": None,
+                              "disparities": ds, "table": table}
     if "gif" in fmts:
         result["gif"] = _write_gif(out / f"{stem}.gif", u8, fps)
-    if "mp4" in fmts:
-        result["mp4"] = _write_mp4(out / f"{stem}.mp4", u8, fps)
+    for fmt, codec in _VIDEOS.items():
+        if fmt in fmts:
+            result[fmt] = _write_video(out / f"{stem}.{fmt}", u8, fps, *codec)
     return result
 
 
