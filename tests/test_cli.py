@@ -426,6 +426,20 @@ def test_stereo_and_depth_commands_pass_the_aggregation(tmp_path, monkeypatch):
     assert seen["depth"] is None or seen["depth"].aggregation == "none"
 
 
+def test_quiet_prints_only_the_output_path(tmp_path, capfd):
+    """-q silences progress bars and messages on stderr, but the output path still comes on
+    stdout, by design: scripts read it (out=$(hyperlf -q depth ...))."""
+    out = tmp_path / "s"
+    assert main(["-q", "synth", "procedural", "--seed", "1", "--size", "24,28", "--grid", "2,2",
+                 "-o", str(out), "--no-pictures"]) == 0
+    assert capfd.readouterr() == (f"{out}\n", "")
+    for argv in (["--help"], ["synth", "--help"]):  # and the help says so, before and after
+        with pytest.raises(SystemExit):
+            main(argv)
+        text = " ".join(capfd.readouterr().out.split())
+        assert "no progress bars or messages on stderr; the output path is still printed" in text
+
+
 def test_quiet_may_follow_the_command(tmp_path, capsys):
     assert main(["synth", "procedural", "-q", "--size", "24,28", "--grid", "2,2", "-o",
                  str(tmp_path / "s"), "--no-pictures"]) == 0

@@ -1440,10 +1440,16 @@ def _subcommand(sub, name: str, func, *, help: str) -> argparse.ArgumentParser:
     return p
 
 
+#: ``-q``: nothing on stderr but errors, yet the output path still comes on stdout, by design:
+#: scripts read it (``out=$(hyperlf -q depth ...)``).
+_QUIET_HELP = ("no progress bars or messages on stderr; the output path is still printed on "
+               "stdout, for scripts")
+
+
 def _add_quiet_option(p: argparse.ArgumentParser) -> None:
     """-q after the command too ('hyperlf depth -q ...'); SUPPRESS keeps a -q given before."""
     p.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
-                   help="no progress or messages")
+                   help=_QUIET_HELP)
 
 
 def _add_overwrite_option(p: argparse.ArgumentParser) -> None:
@@ -1845,7 +1851,7 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"hyperlf {__version__}")
-    parser.add_argument("-q", "--quiet", action="store_true", help="no progress or messages")
+    parser.add_argument("-q", "--quiet", action="store_true", help=_QUIET_HELP)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_demo_parser(sub)
     _add_synth_parser(sub)
