@@ -419,6 +419,55 @@ def test_normalise_volume_numba_matches_numpy(rng, dtype, masked):
                                   costs.normalise_volume(flat, 0, impl="numpy"))
 
 
+@pytest.mark.parametrize("centre", ["mean", "none"])
+@pytest.mark.parametrize("masked", [False, True])
+def test_normalise_volume_centres_numba_matches_numpy(rng, centre, masked):
+    """The other centres: the valid entries' per-pixel mean subtracted, or nothing; invalid
+    entries still take the pixel's worst valid cost, a pixel with none is 0."""
+    cost = (5 * rng.random((9, 13, 17))).astype(np.float32)
+    valid = rng.random(cost.shape) > 0.4 if masked else np.ones(cost.shape, bool)
+    valid[:, 2, 3] = False
+    ref = costs.normalise_volume(cost, 0, valid, impl="numpy", centre=centre)
+    fast = costs.normalise_volume(cost, 0, valid, impl="numba", centre=centre)
+    np.testing.assert_allclose(fast, ref, rtol=1e-6, atol=1e-6)
+    assert (fast[:, 2, 3] == 0).all()
+    sd = cost[valid].std()
+    worst = np.where(valid, cost, -np.inf).max(axis=0)
+    for y, x in ((5, 6), (0, 0), (12, 16)):
+        level = cost[valid[:, y, x], y, x].mean() if centre == "mean" else 0.0
+        expect = (np.where(valid[:, y, x], cost[:, y, x], worst[y, x]) - level) / sd
+        np.testing.assert_allclose(fast[:, y, x], expect, rtol=1e-5, atol=1e-6)
+    with pytest.raises(InvalidInputError, match="centre"):
+        costs.normalise_volume(cost, 0, centre="median")
+
+
+def test_fuse_without_centring_does_not_depend_on_the_labels_a_view_sees(rng):
+    """With ``centre="none"`` a fused cost at a label is the same whichever other labels are
+    valid, so an average over views whose coverage differs (image border, occluders) has no
+    pull towards the labels that partly seen views count at; the minimum (the pair default)
+    moves with the coverage."""
+    a = rng.random((12, 8, 9)).astype(np.float32)
+    b = (4 * rng.random((12, 8, 9))).astype(np.float32)
+    full = np.ones(a.shape, bool)
+    part = full.copy()
+    part[6:] = False  # a view that sees the pixels at the first six labels only
+    scales = (float(a.std()), float(b.std()))
+    for centre, same in (("none", True), ("min", False)):
+        f_full = costs.fuse([a, b], None, 0, full, scales=scales, centre=centre)
+        f_part = costs.fuse([a, b], None, 0, part, scales=scales, centre=centre)
+        assert np.allclose(f_full[:6], f_part[:6], rtol=1e-6) == same
+
+
+@pytest.mark.parametrize("centre", ["min", "mean", "none"])
+def test_fuse_numba_matches_numpy_for_every_centre(rng, centre):
+    a = rng.random((7, 11, 13)).astype(np.float32)
+    b = (10 * rng.random((7, 11, 13))).astype(np.float32)
+    valid = rng.random(a.shape) > 0.3
+    ref = costs.fuse([a, b], [3, 1], -2, valid, impl="numpy", centre=centre)
+    fast = costs.fuse([a, b], [3, 1], -2, valid, impl="numba", centre=centre)
+    np.testing.assert_allclose(fast, ref, rtol=1e-6, atol=1e-6)
+
+
 @pytest.mark.parametrize("weights", [None, [3, 1], [0, 2]])
 @pytest.mark.parametrize("masked", [False, True])
 def test_fuse_numba_matches_numpy(rng, weights, masked):

@@ -172,32 +172,34 @@ def test_depth_does_not_see_what_is_under_the_mask():
 def test_masked_depth_matches_the_unblanked_scene():
     """(a) and (b) of the brief.  Measured on seeds 0..7 of this setup (ColorChecker
     reflectances, 33 labels over -4..4; RMSE on reference pixels more than 4 px from the
-    blanked block; issue 11 report):
-    masked / unblanked 0.81..1.45 (the worst, seed 7, from what the reference block hides
-    from the regulariser), blanked without masks / unblanked 0.96..5.7.  Seed 2 here:
-    unblanked 0.409, no masks 0.993 with 2.45 % of pixels at a range limit, masks 0.396 and
-    none at a limit."""
+    blanked block; issue 11 report, re-measured in the twenty-first session):
+    masked / unblanked 1.03..1.97 (the worst, seeds 1, 4 and 6, from what the reference
+    block hides from the regulariser), blanked without masks / unblanked 0.76..1.86.  Seed 2 here:
+    unblanked 0.402, no masks 0.437, masks 0.422, none at a range limit.  Until the fusion's
+    parts were no longer centred per view (``FusedCost.view_centre``) the blanked views
+    without masks scored 1.322 with 2.55 % of the pixels at a range limit; what the masks
+    still buy is that black is not matched as image content: the blanked block is filled
+    from its surroundings with confidence 0, not matched black on black."""
     lf, valid, blank = _scene(2)
     keep = distance_transform_edt(valid[1, 1]) > 4
+    block = ~valid[1, 1]
     gt = lf.reference_gt_disparity
     kw = dict(disparity_range=(-4, 4), n_labels=33)
-    rmse = {}
-    limit = {}
+    rmse, limit, block_confidence = {}, {}, {}
     for name, l in (("clean", lf), ("blank", lf.replace(views=blank)),
                     ("masked", lf.replace(views=blank, valid=valid))):
         res = depth(l, **kw)
         rmse[name] = float(np.sqrt(np.mean((res.disparity - gt)[keep] ** 2)))
         limit[name] = _at_limit(res)
+        block_confidence[name] = float(res.confidence[block].max())
         if name == "masked":
-            block = ~valid[1, 1]
-            assert float(res.confidence[block].max()) == 0.0
             assert float(res.confidence[keep].mean()) > 0.0
             lab = res.labels
             d = res.disparity[block]
             assert ((d > lab[0] + 0.25) & (d < lab[-1] - 0.25)).all()
     assert rmse["masked"] <= 1.5 * rmse["clean"]
-    assert rmse["blank"] >= 2.0 * rmse["masked"]  # the test has teeth
-    assert limit["masked"] == 0.0 and limit["blank"] >= 0.01
+    assert limit["masked"] == 0.0
+    assert block_confidence["masked"] == 0.0 < 0.1 < block_confidence["blank"]
 
 
 def test_stages_with_masks_compose_to_depth():

@@ -102,28 +102,30 @@ def test_depth_params_check_the_texture_options(bad):
 H, W, D0, BORDER = 96, 128, 1.0, 12
 
 
-def _table_scene(seed):
+def _table_scene(seed, grid=(3, 3), vignetting=True):
     """A fronto-parallel plane at disparity ``D0``: textured above, a uniform (white-table-like)
     band over the bottom half; per-view gain (the filters), vignetting centred on each
     camera, white noise, and the outer views' borders invalid (what registration leaves)."""
     rng = np.random.default_rng(seed)
+    R, C = grid
+    rr, cc = R // 2, C // 2
     pad = 8
     canvas = 0.5 + 0.15 * _fractal(rng, (H + 2 * pad, W + 2 * pad))
     canvas[pad + H // 2:, :] = 0.5
     yy, xx = np.mgrid[0:H, 0:W]
-    vignetting = 1 - 1.4 * (((yy - H / 2) / H) ** 2 + ((xx - W / 2) / W) ** 2)
-    views = np.empty((3, 3, H, W))
-    for r in range(3):
-        for c in range(3):
-            y0, x0 = pad + int(D0 * (r - 1)), pad + int(D0 * (c - 1))
-            views[r, c] = rng.uniform(0.7, 1.3) * vignetting * canvas[y0:y0 + H, x0:x0 + W]
+    shading = 1 - 1.4 * (((yy - H / 2) / H) ** 2 + ((xx - W / 2) / W) ** 2) if vignetting else 1
+    views = np.empty((R, C, H, W))
+    for r in range(R):
+        for c in range(C):
+            y0, x0 = pad + int(D0 * (r - rr)), pad + int(D0 * (c - cc))
+            views[r, c] = rng.uniform(0.7, 1.3) * shading * canvas[y0:y0 + H, x0:x0 + W]
     views += 0.005 * rng.standard_normal(views.shape)
     valid = np.ones(views.shape, bool)
-    valid[:, 0, :, :BORDER] = valid[:, 2, :, -BORDER:] = False
-    valid[0, :, :BORDER, :] = valid[2, :, -BORDER:, :] = False
+    valid[:, :cc, :, :BORDER] = valid[:, cc + 1:, :, -BORDER:] = False
+    valid[:rr, :, :BORDER, :] = valid[rr + 1:, :, -BORDER:, :] = False
     return LightField(np.where(valid, views, 0).astype(np.float32),
-                      np.linspace(420, 680, 9).reshape(3, 3), disparity_range=(-6.0, 6.0),
-                      valid=valid)
+                      np.linspace(420, 680, R * C).reshape(R, C), disparity_range=(-6.0, 6.0),
+                      valid=valid, reference=(rr, cc))
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -146,6 +148,19 @@ def test_a_textureless_region_follows_its_surroundings(seed):
     err_tex = [np.percentile(np.abs(r.disparity[textured] - D0), 95) for r in (on, off)]
     assert err_tex[0] < 0.1 and err_tex[0] <= err_tex[1] + 0.02  # the texture is not lost
     assert on.confidence[inner].mean() < 0.5 * on.confidence[textured].mean()
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_a_noise_band_by_the_border_keeps_no_pull_to_a_range_limit(seed):
+    """A 5 x 6 array, the band below pure noise, no shading, the texture weight off: the views
+    below the reference leave the bottom rows at some labels only.  The fusion's parts are not
+    centred per view (``FusedCost.view_centre``): subtracting each view's minimum over the
+    labels it sees put the whole band at a range limit (error 5 px on both seeds)."""
+    lf = _table_scene(seed, grid=(5, 6), vignetting=False)
+    res = depth(lf, n_labels=25, params=DepthParams(texture_snr=0))
+    err = np.abs(res.disparity[H // 2 + 8:] - D0)
+    assert np.percentile(err, 95) < 0.1
+    assert np.percentile(np.abs(res.disparity[BORDER:H // 2 - 8, BORDER:-BORDER] - D0), 95) < 0.1
 
 
 def test_texture_weight_is_on_by_default_for_camera_captures_only():

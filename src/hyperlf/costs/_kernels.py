@@ -658,16 +658,19 @@ def combine_moments(n, mean, m2):  # pragma: no cover
 
 
 @numba.njit(parallel=True, cache=True)
-def normalise_fill(C, valid, sd, out):  # pragma: no cover
-    """``out = (fill(C) - min_l fill(C)) / sd`` per pixel, float64 arithmetic: invalid entries
-    take the pixel's worst valid cost, a pixel with none is 0; ``sd <= 0`` divides by 1.
-    Rows in parallel, each swept label by label (contiguous).  Reference:
+def normalise_fill(C, valid, sd, centre, out):  # pragma: no cover
+    """``out = (fill(C) - c) / sd`` per pixel, float64 arithmetic: invalid entries take the
+    pixel's worst valid cost, a pixel with none is 0; ``sd <= 0`` divides by 1.  ``c``: the
+    pixel's minimum over its valid entries (``centre`` 0), their mean (1), or 0 (2).  Rows in
+    parallel, each swept label by label (contiguous).  Reference:
     :func:`hyperlf.costs.pair.normalise_volume`."""
     L, H, W = C.shape
     scale = sd if sd > 0 else 1.0
     for y in prange(H):
         worst = np.full(W, -np.inf)
         lo = np.full(W, np.inf)
+        total = np.zeros(W)
+        count = np.zeros(W)
         for k in range(L):
             for x in range(W):
                 if valid[k, y, x]:
@@ -676,6 +679,13 @@ def normalise_fill(C, valid, sd, out):  # pragma: no cover
                         worst[x] = v
                     if v < lo[x]:
                         lo[x] = v
+                    total[x] += v
+                    count[x] += 1.0
+        for x in range(W):
+            if centre == 1:
+                lo[x] = total[x] / count[x] if count[x] > 0 else 0.0
+            elif centre == 2:
+                lo[x] = 0.0
         for k in range(L):
             for x in range(W):
                 if worst[x] == -np.inf:

@@ -802,8 +802,14 @@ def moments_std(n, mean, m2) -> float:
                                  np.ascontiguousarray(m2, np.float64))[0])
 
 
+#: How :func:`normalise_volume` centres each pixel's costs: on their minimum (SPEC §3, the
+#: rectified pair), their mean, or not at all (a scale only).
+NORMALISE_CENTRES = ("min", "mean", "none")
+
+
 def normalise_volume(cost, dmin: int, valid=None, *, sd: float | None = None,
-                     impl: str = "auto", overwrite: bool = False) -> np.ndarray:
+                     impl: str = "auto", overwrite: bool = False,
+                     centre: str = "min") -> np.ndarray:
     """``norm(C)`` of SPEC §3 fusion, float32.
 
     Invalid entries -> the pixel's worst valid cost (:func:`fill_out_of_image`), minus the per-pixel
@@ -812,13 +818,17 @@ def normalise_volume(cost, dmin: int, valid=None, *, sd: float | None = None,
     valid raw entries" — and a per-pixel std would inflate flat, uninformative pixels.)  A
     constant volume (std 0) is only min-subtracted.  ``sd``: that standard deviation when it
     was measured elsewhere (a strip of rows of a larger volume: :func:`row_moments`), else
-    measured on ``cost``.  ``impl="numba"`` (the ``"auto"`` choice) runs the same arithmetic
+    measured on ``cost``.  ``centre`` (:data:`NORMALISE_CENTRES`): ``"min"`` subtracts the
+    per-pixel minimum over the valid entries as above, ``"mean"`` their mean, ``"none"``
+    nothing (only the scale).  ``impl="numba"`` (the ``"auto"`` choice) runs the same arithmetic
     in kernels without the float64 copies; its standard deviation is summed row by row
     (:func:`row_moments`, :func:`moments_std`), so it agrees with ``"numpy"`` to rounding
     (``rtol`` 1e-12).  ``overwrite``: under ``"numba"``, a C-contiguous float32 ``cost`` is
     normalised in place and returned (the same numbers, one volume less).
     """
     impl = check_impl(impl, "normalise")
+    if centre not in NORMALISE_CENTRES:
+        raise InvalidInputError(f"centre must be one of {NORMALISE_CENTRES}, got {centre!r}")
     Lc, H, W = np.shape(cost)
     if valid is None:
         valid = candidate_validity((H, W), dmin, dmin + Lc - 1)
@@ -832,14 +842,21 @@ def normalise_volume(cost, dmin: int, valid=None, *, sd: float | None = None,
         if sd is None:
             sd = moments_std(*row_moments(C, ok))
         out = C if overwrite and _own_float32(cost, C) else np.empty(C.shape, np.float32)
-        normalise_fill(C, ok, float(sd), out)  # reads a pixel's costs before writing them
-        return out
+        normalise_fill(C, ok, float(sd), NORMALISE_CENTRES.index(centre), out)  # reads a
+        return out  # pixel's costs before writing them
     C = np.array(cost, dtype=np.float64)
+    ok = np.broadcast_to(np.asarray(valid, bool), C.shape)
     if sd is None:
-        vals = C[np.broadcast_to(valid, C.shape)]
+        vals = C[ok]
         sd = float(vals.std()) if vals.size else 0.0
+    if centre == "mean":
+        n = ok.sum(axis=0)
+        level = np.where(n > 0, np.where(ok, C, 0.0).sum(axis=0) / np.maximum(n, 1), 0.0)
     fill_out_of_image(C, dmin, valid)
-    C -= C.min(axis=0, keepdims=True)
+    if centre == "min":
+        C -= C.min(axis=0, keepdims=True)
+    elif centre == "mean":
+        C -= level
     if sd > 0:
         C /= sd
     return C.astype(np.float32)
@@ -854,12 +871,13 @@ def _own_float32(given, array) -> bool:
 
 def fuse(volumes: Sequence[np.ndarray], weights: Sequence[float] | None = None, dmin: int = 0,
          valid=None, *, scales: Sequence[float] | None = None, impl: str = "auto",
-         overwrite: bool = False) -> np.ndarray:
+         overwrite: bool = False, centre: str = "min") -> np.ndarray:
     """Weighted mean of normalised volumes: ``sum_i w_i norm(C_i) / sum_i w_i``; then the
     out-of-image rule again (the fused worst valid cost).  ``dmin`` is needed only to know
     which entries are invalid (the volumes must share ``dmin..dmax``).  ``scales``: the
     standard deviation of each volume's normaliser when measured elsewhere (``sd`` of
-    :func:`normalise_volume`).  ``impl`` as :func:`normalise_volume` (``"numba"``: the sum
+    :func:`normalise_volume`); ``centre``: how each volume's pixels are centred (``centre``
+    of :func:`normalise_volume`).  ``impl`` as :func:`normalise_volume` (``"numba"``: the sum
     and the fill in one kernel, same float64 arithmetic).  ``overwrite``: the volumes are not
     used again, so under ``"numba"`` the C-contiguous float32 ones are normalised in place
     and the first one holds the result (the same numbers, without new volumes)."""
@@ -884,7 +902,7 @@ def fuse(volumes: Sequence[np.ndarray], weights: Sequence[float] | None = None, 
         ok = np.ascontiguousarray(np.broadcast_to(np.asarray(valid, bool), shape))
         keep = [i for i in range(len(vols)) if w[i]]
         parts = tuple(normalise_volume(vols[i], dmin, ok, sd=sds[i], impl="numba",
-                                       overwrite=overwrite) for i in keep)
+                                       overwrite=overwrite, centre=centre) for i in keep)
         own = overwrite and _own_float32(vols[keep[0]], parts[0])
         out = parts[0] if own else np.empty(shape, np.float32)
         fuse_fill(parts, np.ascontiguousarray(w[keep]), ok, out)  # reads, then writes, each entry
@@ -892,7 +910,7 @@ def fuse(volumes: Sequence[np.ndarray], weights: Sequence[float] | None = None, 
     out = np.zeros(shape, np.float64)
     for wi, v, sd in zip(w, vols, sds):
         if wi:
-            out += wi * normalise_volume(v, dmin, valid, sd=sd, impl="numpy")
+            out += wi * normalise_volume(v, dmin, valid, sd=sd, impl="numpy", centre=centre)
     out /= w.sum()
     return fill_out_of_image(out.astype(np.float32), dmin, valid)
 

@@ -247,12 +247,22 @@ class FusedCost(Cost):
             w = window if i == self.view_window_part else None
             yield get_cost(p).view_volume(ref_img, img, shifts, window=w, valid=valid, **options)
 
+    #: How each part of one view's volume is centred before the parts are added
+    #: (``centre`` of :func:`hyperlf.costs.normalise_volume`): not at all.  A per-pixel
+    #: minimum is taken over the labels at which the view sees the pixel, and a view that
+    #: sees fewer (near the image border, behind an occluder) has a higher minimum to subtract:
+    #: the average over views then favoured the labels at which such views count, and a
+    #: textureless region by the border drifted to a range limit (BENCHMARKS.md).
+    view_centre = "none"
+
     def view_volume(self, ref_img, img, shifts, *, window=None, valid=None, scales=None,
                     **options):
         """The fused volume; ``scales`` (one per part): the normalisers' standard deviations
-        when measured on the whole view (a strip of ``rows``), else measured here."""
+        when measured on the whole view (a strip of ``rows``), else measured here.  The parts
+        are centred by :attr:`view_centre`."""
         vols = list(self._view_parts(ref_img, img, shifts, window, valid, options))
-        return fuse(vols, self.weights, dmin=0, valid=valid, scales=scales, overwrite=True)
+        return fuse(vols, self.weights, dmin=0, valid=valid, scales=scales, overwrite=True,
+                    centre=self.view_centre)
 
     def view_moments(self, ref_img, img, shifts, *, window=None, valid=None, **options):
         """Per part, :func:`hyperlf.costs.row_moments` of its raw volume on the strip."""
