@@ -28,9 +28,11 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
    evaluated at sub-pixel shifts: :mod:`hyperlf.costs.lightfield`).  The default ``auto`` is
    ``census-rsncc``, ``(norm(rsncc 5x5) + norm(census 7x7)) / 2`` per view (RSNCC 3 x 3 on
    an array with at least ``params.dense_views`` other views:
-   :func:`hyperlf.costs.light_field_window`); ``fused``,
-   ``bwncc`` and ``bwncc-paper`` use the 612-channel descriptor and are much slower; ``ncc``,
-   ``census`` and ``rsncc`` alone serve tests, quick looks and ablations.
+   :func:`hyperlf.costs.light_field_window`; between views ``norm`` only scales, by the
+   part's standard deviation over the whole view: a per-pixel minimum would depend on the
+   labels at which the view sees the pixel, :attr:`hyperlf.costs.FusedCost.view_centre`);
+   ``fused``, ``bwncc`` and ``bwncc-paper`` use the 612-channel descriptor and are much
+   slower; ``ncc``, ``census`` and ``rsncc`` alone serve tests, quick looks and ablations.
 
 2. **View selection** (SPEC §5.1, ``view_selection=True``; :func:`aggregate_view`): with
    ``M_v`` = gradient magnitude of ``In_v = I_v / mean(I_v)`` (central differences),

@@ -48,7 +48,10 @@ Costs (names used by ``--metric``; :func:`cost_names`)
 * ``census-rsncc``: ``(norm(rsncc 5x5) + norm(census 7x7)) / 2``, the same fusion without the
   descriptor: census for intensity order where bands agree, RSNCC's gradient term where they
   reverse, and far cheaper than ``fused``.  Its light-field form takes RSNCC 3 x 3 on a dense
-  array (:func:`light_field_window`).
+  array (:func:`light_field_window`).  Between a light field's views the fusions' ``norm``
+  only scales each part (``centre="none"`` of :func:`normalise_volume`,
+  :attr:`FusedCost.view_centre`): a per-pixel minimum over the labels a view sees would
+  depend on how many it sees.
 * ``auto``: an alias, resolved by :func:`get_cost` to :data:`AUTO_METRIC` = ``"census-rsncc"``,
   the default of two-view stereo and of H-LF depth.  Chosen on Table 1 (parameters tuned on
   Venus only, it has the lowest bad5.0 of every cost under graph cuts on the other scenes) and
