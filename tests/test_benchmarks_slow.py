@@ -70,8 +70,10 @@ def table2():
     return _script("table2")
 
 
-# BENCHMARKS.md, Table 2 with census averaged over a pixel of shift (twentieth session): the
-# default ("auto"), 32 labels, 128 x 128: RMSE / MSE x 100 / BadPix(0.07) %.
+# BENCHMARKS.md, Table 2 with census averaged over a pixel of shift (twentieth session; the
+# fusion's parts uncentred between views since the twenty-first: antinous 0.3312 -> 0.3309, the
+# other scenes the same): the default ("auto"), 32 labels, 128 x 128: RMSE / MSE x 100 /
+# BadPix(0.07) %.
 @pytest.mark.parametrize("scene, expected", [
     ("planes", (0.1752, 3.069, 13.24)),
     ("slanted", (0.0961, 0.924, 4.08)),
@@ -90,7 +92,7 @@ def test_table2_antinous_downscaled(table2):
     disparity, _, _ = table2.run_ours(lf, 32, "auto", {})
     s = table2.score(disparity, lf.reference_gt_disparity, unit)
     assert (round(s["rmse"], 4), round(s["mse_x100"], 3), round(s["badpix_007"], 2)) == \
-        (0.3312, 10.966, 34.73)
+        (0.3309, 10.951, 34.76)
 
 
 # ----------------------------------------------------------------------------- other channels
