@@ -248,11 +248,12 @@ class FusedCost(Cost):
             yield get_cost(p).view_volume(ref_img, img, shifts, window=w, valid=valid, **options)
 
     #: How each part of one view's volume is centred before the parts are added
-    #: (``centre`` of :func:`hyperlf.costs.normalise_volume`): not at all.  A per-pixel
-    #: minimum is taken over the labels at which the view sees the pixel, and a view that
-    #: sees fewer (near the image border, behind an occluder) has a higher minimum to subtract:
-    #: the average over views then favoured the labels at which such views count, and a
-    #: textureless region by the border drifted to a range limit (BENCHMARKS.md).
+    #: (``centre`` of :func:`hyperlf.costs.normalise_volume`): not at all, so that a view's
+    #: cost at a label does not depend on the other labels at which it sees the pixel.  A
+    #: per-pixel minimum is taken over those labels, and a view that sees fewer (near the image
+    #: border, behind a mask) subtracts a higher one: the average over views then favoured the
+    #: labels at which such views count, and a textureless region by the border drifted to a
+    #: range limit.  (The mean over those labels, ``"mean"``, was measured too: BENCHMARKS.md.)
     view_centre = "none"
 
     def view_volume(self, ref_img, img, shifts, *, window=None, valid=None, scales=None,
