@@ -579,10 +579,14 @@ def test_rho_is_the_formula_bit_for_bit():
     assert rho(-1.3) == rho(1.3) and rho(40.0) == pytest.approx(2.0 - 40.0)
 
 
-def test_average_over_shift_properties(rng):
+@pytest.mark.parametrize("impl", ["numpy", "numba"])
+def test_average_over_shift_properties(rng, impl):
     """A box over half a pixel of shift each side: constants stay, half 0 is the identity, a
     coarse label grid (steps over a pixel) is left alone, invalid entries never leak in."""
+    from functools import partial
+
     from hyperlf.costs.lightfield import average_over_shift
+    average_over_shift = partial(average_over_shift, impl=impl)
 
     c = rng.random((9, 4, 5)).astype(np.float32)
     fine = [(0.2 * k, 0.1 * k) for k in range(9)]
@@ -600,6 +604,27 @@ def test_average_over_shift_properties(rng):
     poisoned[5], valid[5] = 1e9, False
     out = average_over_shift(poisoned, fine, 0.5, valid=valid)
     assert out[[3, 4, 6, 7]].max() < 1.0 and out[5].max() < 1.0  # label 5 from its neighbours
+    valid[:, 0, 0] = False  # a pixel no label sees keeps its costs
+    np.testing.assert_array_equal(average_over_shift(poisoned, fine, 0.5, valid=valid)[:, 0, 0],
+                                  poisoned[:, 0, 0])
+
+
+@pytest.mark.parametrize("half", [0.5, 1.3])
+def test_average_over_shift_numba_is_the_numpy_reference(rng, half):
+    """The kernel gives the loop's numbers: uneven shift steps, shifts that fall, entries valid
+    at random (some pixels at none of a label's neighbours), and no validity at all."""
+    from hyperlf.costs.lightfield import average_over_shift
+
+    c = rng.random((23, 17, 19)).astype(np.float32) * 5
+    t = np.cumsum(rng.uniform(0.1, 0.5, 23))
+    shifts = [(-0.8 * v, 0.6 * v) for v in t]
+    valid = rng.random(c.shape) > 0.4
+    valid[:, 3, :7] = False
+    for v in (None, valid):
+        ref = average_over_shift(c, shifts, half, valid=v, impl="numpy")
+        got = average_over_shift(c, shifts, half, valid=v, impl="numba")
+        assert got.dtype == np.float32 and not np.array_equal(ref, c)
+        np.testing.assert_allclose(got, ref, rtol=1e-6, atol=0)
 
 
 def test_census_of_a_light_field_averages_over_shift(rng):

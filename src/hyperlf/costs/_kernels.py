@@ -7,7 +7,8 @@ Each kernel has a readable numpy reference in :mod:`hyperlf.costs.pair` or
 Rectified pair (integer disparities): :func:`xcorr_accum` (NCC cross terms), :func:`hamming_volume`
 (census), and the BWNCC pipeline :func:`bw_channel_stats`, :func:`bw_inv_sigma`, :func:`bw_pad`,
 :func:`bw_den_add`, :func:`bw_accum`, :func:`bw_finish`.  Light field (sub-pixel shifts):
-:func:`xi_shift` (NCC with the bilinearly shifted view) and :func:`census_shift`.  Fusion:
+:func:`xi_shift` (NCC with the bilinearly shifted view), :func:`census_shift` and
+:func:`shift_average` (census averaged over sub-pixel shifts).  Fusion:
 :func:`valid_std` and :func:`normalise_fill` (``norm(C)`` of
 :func:`hyperlf.costs.pair.normalise_volume`), :func:`fuse_fill` (:func:`hyperlf.costs.pair.fuse`).
 """
@@ -606,6 +607,30 @@ def census_shift(img, cref, y0, y1, fy, x0, x1, fx, r, row0, buf, out):  # pragm
                         d += 1
                     k += np.uint64(1)
             out[i, x] = d
+
+
+@numba.njit(parallel=True, cache=True)
+def shift_average(C, w, j0, j1, valid, use_valid, out):  # pragma: no cover
+    """``out[k] = sum_j w[k, j] C[j] / sum_j w[k, j]`` over ``j = j0[k] .. j1[k] - 1``, in
+    float64; with ``use_valid`` only over the entries with ``valid[j]``, and an entry with no
+    valid one in its range keeps ``C[k]``.  Rows in parallel.  Reference:
+    :func:`hyperlf.costs.lightfield.average_over_shift` (``impl="numpy"``)."""
+    L, H, W = C.shape
+    for y in prange(H):
+        num = np.empty(W)
+        den = np.empty(W)
+        for k in range(L):
+            num[:] = 0.0
+            den[:] = 0.0
+            for j in range(j0[k], j1[k]):
+                wk = w[k, j]
+                for x in range(W):
+                    if use_valid and not valid[j, y, x]:
+                        continue
+                    num[x] += wk * C[j, y, x]
+                    den[x] += wk
+            for x in range(W):
+                out[k, y, x] = num[x] / den[x] if den[x] > 0 else C[k, y, x]
 
 
 @numba.njit(parallel=True, cache=True)
