@@ -704,8 +704,9 @@ def normalise_fill(C, valid, sd, centre, out):  # pragma: no cover
                         worst[x] = v
                     if v < lo[x]:
                         lo[x] = v
-                    total[x] += v
-                    count[x] += 1.0
+                    if centre == 1:
+                        total[x] += v
+                        count[x] += 1.0
         for x in range(W):
             if centre == 1:
                 lo[x] = total[x] / count[x] if count[x] > 0 else 0.0

@@ -842,8 +842,9 @@ def normalise_volume(cost, dmin: int, valid=None, *, sd: float | None = None,
         if sd is None:
             sd = moments_std(*row_moments(C, ok))
         out = C if overwrite and _own_float32(cost, C) else np.empty(C.shape, np.float32)
-        normalise_fill(C, ok, float(sd), NORMALISE_CENTRES.index(centre), out)  # reads a
-        return out  # pixel's costs before writing them
+        # reads a pixel's costs before writing them
+        normalise_fill(C, ok, float(sd), NORMALISE_CENTRES.index(centre), out)
+        return out
     C = np.array(cost, dtype=np.float64)
     ok = np.broadcast_to(np.asarray(valid, bool), C.shape)
     if sd is None:
