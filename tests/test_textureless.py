@@ -354,6 +354,30 @@ def test_nested_coarse_levels_keep_eight_windows():
     assert rmse[2] < 0.5 < 1.0 < rmse[1]  # blobs 6 px wide: textured only at 1/4
 
 
+def test_depth_command_nests_the_coarse_prior(tmp_path, capsys):
+    from hyperlf.cli import main
+    from hyperlf.formats import read_pfm, save_lightfield
+
+    big, truth = _slanted_table_scene(2, zoom=2)  # blobs textured only at 1/4 resolution
+    save_lightfield(big, tmp_path / "cap", bit_depth=32)
+    table = np.s_[H + 12:2 * H - 8, 12:-12]
+    rmse = {}
+    for levels in ("1", "2"):
+        out = tmp_path / f"d{levels}"
+        assert main(["-q", "depth", str(tmp_path / "cap"), "--labels", "33",
+                     "--coarse-prior-levels", levels, "-o", str(out)]) == 0
+        rmse[levels] = float(np.sqrt(np.mean((read_pfm(out / "disparity.pfm") - truth)[table]
+                                             ** 2)))
+    assert rmse["2"] < 0.5 < 1.0 < rmse["1"]
+    capsys.readouterr()
+    for bad in ("0", "9", "2.5", "two"):
+        with pytest.raises(SystemExit) as info:  # refused while parsing, exit 2
+            main(["-q", "depth", str(tmp_path / "cap"), "--coarse-prior-levels", bad,
+                  "-o", str(tmp_path / "bad")])
+        assert info.value.code == 2 and "--coarse-prior-levels" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()
+
+
 def test_a_dense_camera_array_reuses_the_visibility_estimate(monkeypatch):
     from hyperlf import hlf, synthesis
 
@@ -372,7 +396,7 @@ def test_a_dense_camera_array_reuses_the_visibility_estimate(monkeypatch):
     assert noprior.config["coarse_prior_scale"] is None
 
 
-def test_batch_passes_no_coarse_prior_to_each_depth_run(tmp_path, monkeypatch):
+def test_batch_passes_the_coarse_prior_options_to_each_depth_run(tmp_path, monkeypatch):
     from hyperlf import batch
     from hyperlf.cli import main
 
@@ -383,6 +407,8 @@ def test_batch_passes_no_coarse_prior_to_each_depth_run(tmp_path, monkeypatch):
         raise InvalidInputError("stop here")
 
     monkeypatch.setattr(batch, "plan_batch", plan)
-    for extra in ((), ("--no-coarse-prior",)):
+    for extra in ((), ("--no-coarse-prior",), ("--coarse-prior-levels", "3")):
         assert main(["-q", "batch", str(tmp_path), *extra, "-o", str(tmp_path / "o")]) == 2
     assert "--no-coarse-prior" not in seen[0] and seen[1][-1] == "--no-coarse-prior"
+    assert "--coarse-prior-levels" not in seen[0]
+    assert seen[2][seen[2].index("--coarse-prior-levels") + 1] == "3"

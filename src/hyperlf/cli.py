@@ -143,6 +143,9 @@ def _memory_arg(text: str) -> int:
 #: ``--visibility-rounds``: each round costs one more correspondence pass.
 _visibility_rounds_arg = _int_at_least(0, "the number of visibility rounds", 5,
                                        " (each round costs a correspondence pass)")
+#: ``--coarse-prior-levels``: each level halves the image again (and must keep 8 texture windows).
+_coarse_levels_arg = _int_at_least(1, "--coarse-prior-levels", 8,
+                                   " (each level halves the image again)")
 #: ``--workers`` of a local cluster: more on one machine only thrash.
 _workers_arg = _int_at_least(1, "the number of workers", 256,
                              "; use --scheduler for a larger cluster")
@@ -880,6 +883,7 @@ def _cmd_depth(args, dest) -> list[Path]:
                                      ("median_passes", args.median_passes),
                                      ("texture_snr", args.texture_snr),
                                      ("coarse_prior", False if args.no_coarse_prior else None),
+                                     ("coarse_prior_levels", args.coarse_prior_levels),
                                      ("visibility_rounds", args.visibility_rounds),
                                      ("max_memory", budget))
                    if v is not None}
@@ -1025,7 +1029,9 @@ def _cmd_batch(args, dest) -> list[Path]:  # noqa: ARG001 - batch writes its own
     for flag, value in (("--labels", args.labels), ("--metric", args.metric),
                         ("--optimizer", args.optimizer), ("--median-radius", args.median_radius),
                         ("--median-passes", args.median_passes),
-                        ("--texture-snr", args.texture_snr), ("--max-memory", args.max_memory),
+                        ("--texture-snr", args.texture_snr),
+                        ("--coarse-prior-levels", args.coarse_prior_levels),
+                        ("--max-memory", args.max_memory),
                         ("--min-confidence", args.min_confidence)):
         if value is not None:
             depth_args += [flag, f"{value:g}" if isinstance(value, float) else str(value)]
@@ -1697,6 +1703,12 @@ def _add_depth_parser(sub) -> None:
                         "towards a half-resolution estimate instead (by default it is, where "
                         "the half-resolution reference is textured: a faint table or wall then "
                         "keeps its own slope rather than one depth from its surroundings)")
+    p.add_argument("--coarse-prior-levels", type=_coarse_levels_arg, default=None, metavar="N",
+                   help="nest that estimate N deep: the half-resolution run is itself pulled "
+                        "towards a quarter-resolution one where it finds no texture, and so "
+                        "on, as long as a level keeps 8 texture windows on its shorter side "
+                        "(default 1; deeper levels see fainter texture, and also each "
+                        "camera's uncorrected vignetting: flat-field such captures first)")
     p.add_argument("--visibility-rounds", type=_visibility_rounds_arg, default=None,
                    metavar="N",
                    help="re-match N times, each candidate depth of a pixel over only the "
@@ -1760,6 +1772,8 @@ def _add_batch_parser(sub) -> None:
     p.add_argument("--texture-snr", type=_texture_snr_arg, default=None, metavar="T",
                    help="as for depth")
     p.add_argument("--no-coarse-prior", action="store_true", help="as for depth")
+    p.add_argument("--coarse-prior-levels", type=_coarse_levels_arg, default=None, metavar="N",
+                   help="as for depth")
     p.add_argument("--min-confidence", type=_min_confidence_arg, default=None, metavar="C",
                    help="as for depth (captures with metric outputs)")
     p.add_argument("--downscale", type=_downscale_arg, default=1, metavar="N",
