@@ -102,23 +102,25 @@ def test_depth_params_check_the_texture_options(bad):
 H, W, D0, BORDER = 96, 128, 1.0, 12
 
 
-def _table_scene(seed, grid=(3, 3), vignetting=True):
+def _table_scene(seed, grid=(3, 3), vignetting=True, zoom=1):
     """A fronto-parallel plane at disparity ``D0``: textured above, a uniform (white-table-like)
     band over the bottom half; per-view gain (the filters), vignetting centred on each
-    camera, white noise, and the outer views' borders invalid (what registration leaves)."""
+    camera, white noise, and the outer views' borders invalid (what registration leaves).
+    ``zoom`` scales the image (not the texture or the disparity)."""
     rng = np.random.default_rng(seed)
     R, C = grid
+    h, w = H * zoom, W * zoom
     rr, cc = R // 2, C // 2
     pad = 8
-    canvas = 0.5 + 0.15 * _fractal(rng, (H + 2 * pad, W + 2 * pad))
-    canvas[pad + H // 2:, :] = 0.5
-    yy, xx = np.mgrid[0:H, 0:W]
-    shading = 1 - 1.4 * (((yy - H / 2) / H) ** 2 + ((xx - W / 2) / W) ** 2) if vignetting else 1
-    views = np.empty((R, C, H, W))
+    canvas = 0.5 + 0.15 * _fractal(rng, (h + 2 * pad, w + 2 * pad))
+    canvas[pad + h // 2:, :] = 0.5
+    yy, xx = np.mgrid[0:h, 0:w]
+    shading = 1 - 1.4 * (((yy - h / 2) / h) ** 2 + ((xx - w / 2) / w) ** 2) if vignetting else 1
+    views = np.empty((R, C, h, w))
     for r in range(R):
         for c in range(C):
             y0, x0 = pad + int(D0 * (r - rr)), pad + int(D0 * (c - cc))
-            views[r, c] = rng.uniform(0.7, 1.3) * shading * canvas[y0:y0 + H, x0:x0 + W]
+            views[r, c] = rng.uniform(0.7, 1.3) * shading * canvas[y0:y0 + h, x0:x0 + w]
     views += 0.005 * rng.standard_normal(views.shape)
     valid = np.ones(views.shape, bool)
     valid[:, :cc, :, :BORDER] = valid[:, cc + 1:, :, -BORDER:] = False
@@ -376,6 +378,36 @@ def test_depth_command_nests_the_coarse_prior(tmp_path, capsys):
                   "-o", str(tmp_path / "bad")])
         assert info.value.code == 2 and "--coarse-prior-levels" in capsys.readouterr().err
     assert not (tmp_path / "bad").exists()
+
+
+def test_nested_coarse_levels_keep_the_label_step(monkeypatch):
+    """Every nested run has the first coarse run's label count, i.e. the same step in full-
+    resolution px; a uniform table then follows its wall two levels down.  Before, the
+    quarter-resolution run had 7 labels, none of them the table's disparity, and its
+    estimate's weak pull over the whole table outweighed the edge to the wall (the whole
+    table 1 px off)."""
+    from hyperlf import hlf
+
+    lf = _table_scene(0, vignetting=False, zoom=2)  # 192 x 256: room for two levels
+    lf = lf.replace(metadata={"calibration": {"mode": "plane"}})
+    calls, real = [], hlf.depth
+
+    def spy(lf_s, *a, **kw):
+        calls.append((lf_s.image_shape, kw.get("n_labels")))
+        return real(lf_s, *a, **kw)
+
+    monkeypatch.setattr(hlf, "depth", spy)
+    res = spy(lf, n_labels=25, params=DepthParams(coarse_prior_levels=2))
+    assert res.config["coarse_prior_levels"] == 2
+    assert calls == [((192, 256), 25), ((96, 128), 13), ((48, 64), 13)]
+    table = np.s_[2 * (H // 2 + 8):, :]
+    assert np.percentile(np.abs(res.disparity[table] - D0), 95) < 0.1
+
+
+@pytest.mark.parametrize("bad", [1, 2.0, True, "13"])
+def test_depth_params_check_the_coarse_labels(bad):
+    with pytest.raises(InvalidInputError, match="coarse_prior_labels"):
+        DepthParams(coarse_prior_labels=bad)
 
 
 def test_a_dense_camera_array_reuses_the_visibility_estimate(monkeypatch):

@@ -1707,8 +1707,8 @@ def _add_depth_parser(sub) -> None:
                    help="nest that estimate N deep: the half-resolution run is itself pulled "
                         "towards a quarter-resolution one where it finds no texture, and so "
                         "on, as long as a level keeps 8 texture windows on its shorter side "
-                        "(default 1; deeper levels see fainter texture, and also each "
-                        "camera's uncorrected vignetting: flat-field such captures first)")
+                        "(default 1; deeper levels see fainter texture, but also more of "
+                        "each camera's vignetting where it was not flat-fielded)")
     p.add_argument("--visibility-rounds", type=_visibility_rounds_arg, default=None,
                    metavar="N",
                    help="re-match N times, each candidate depth of a pixel over only the "

@@ -270,7 +270,12 @@ class DepthParams:
     ``coarse_prior_scale`` (2); with ``coarse_prior_levels`` > 1 (default 1) that run has a
     coarse prior of its own, and so on; a level must keep 8 texture windows on its shorter
     side (shading that spans the image, such as each camera's vignetting, must not count as
-    texture); ``g`` how much of ``d_coarse`` comes from textured pixels at some level; ``width``
+    texture).  Every nested run keeps the first coarse run's label count
+    (``coarse_prior_labels``, None: ``ceil(L / coarse_prior_scale)``), so that each level's
+    estimate has the same step in full-resolution px (halving it again per level left the
+    true depth between two labels, and a weak pull over a large textureless region outweighs
+    the one edge around it).
+    ``g`` how much of ``d_coarse`` comes from textured pixels at some level; ``width``
     ``coarse_prior_width`` disparity px (None: the coarse run's label step, ``scale`` fine
     label steps).
     Aggregation (issue 12 item 2): ``aggregation`` (``"none"``, the default, or ``"guided"``),
@@ -331,6 +336,7 @@ class DepthParams:
     coarse_prior_scale: int = 2
     coarse_prior_width: float | None = None
     coarse_prior_levels: int = 1
+    coarse_prior_labels: int | None = None
     aggregation: str = "none"
     aggregation_radius: int = 4
     aggregation_eps: float = 1e-3
@@ -376,6 +382,11 @@ class DepthParams:
             if 0 < self.texture_snr <= 1:
                 raise InvalidInputError("params.texture_snr must be 0 (off) or > 1, got "
                                         f"{self.texture_snr!r}")
+        n = self.coarse_prior_labels
+        if n is not None and (isinstance(n, bool) or not isinstance(n, (int, np.integer))
+                              or n < 2):
+            raise InvalidInputError("params.coarse_prior_labels must be None or an integer "
+                                    f">= 2, got {n!r}")
         if isinstance(self.texture_window, bool) or int(self.texture_window) != \
                 self.texture_window or self.texture_window < 3 or self.texture_window % 2 == 0:
             raise InvalidInputError("params.texture_window must be an odd integer >= 3, got "
@@ -1306,8 +1317,8 @@ def coarse_disparity(prob: DepthProblem, *, scale: int | None = None,
     :func:`depth` with the same options (a coarse prior only with ``coarse_prior_levels`` > 1,
     one level fewer) and no visibility rounds on the light field downscaled by ``s = scale``
     (default ``params.visibility_scale``; :func:`hyperlf.lightfield.downscale`; ``ceil(L / s)``
-    labels over the range divided by ``s``), its disparity repeated over each ``s x s`` block
-    and multiplied by ``s``.
+    labels, or ``params.coarse_prior_labels``, over the range divided by ``s``), its disparity
+    repeated over each ``s x s`` block and multiplied by ``s``.
     Visibility needs only which surface is in front where; near depth edges the z-test's
     margin errs towards "hidden".
 
@@ -1342,11 +1353,12 @@ def _coarse_problem(prob: DepthProblem, s: int):
         return None
     dmin, dmax = prob.disparity_range
     nested = int(prob.params.coarse_prior_levels) - 1
+    n = prob.params.coarse_prior_labels or max(2, math.ceil(prob.labels.size / s))
     p = replace(prob.params, visibility_rounds=0, tile_rows=None,
                 coarse_prior=prob.params.coarse_prior and nested > 0,
-                coarse_prior_levels=max(nested, 1))
+                coarse_prior_levels=max(nested, 1), coarse_prior_labels=n)
     return downscale(prob.lf, s), dict(
-        disparity_range=(dmin / s, dmax / s), n_labels=max(2, math.ceil(prob.labels.size / s)),
+        disparity_range=(dmin / s, dmax / s), n_labels=n,
         metric=prob.metric, view_selection=prob.view_selection,
         occlusion_split=prob.occlusion_split, defocus=prob.defocus, optimizer=prob.optimizer,
         params=p)
