@@ -372,9 +372,9 @@ def test_depth_command_nests_the_coarse_prior(tmp_path, capsys):
                                              ** 2)))
     assert rmse["2"] < 0.5 < 1.0 < rmse["1"]
     capsys.readouterr()
-    for bad in ("0", "9", "2.5", "two"):
+    for bad in (["0"], ["9"], ["2.5"], ["two"], ["2", "--no-coarse-prior"]):
         with pytest.raises(SystemExit) as info:  # refused while parsing, exit 2
-            main(["-q", "depth", str(tmp_path / "cap"), "--coarse-prior-levels", bad,
+            main(["-q", "depth", str(tmp_path / "cap"), "--coarse-prior-levels", *bad,
                   "-o", str(tmp_path / "bad")])
         assert info.value.code == 2 and "--coarse-prior-levels" in capsys.readouterr().err
     assert not (tmp_path / "bad").exists()
@@ -441,6 +441,10 @@ def test_batch_passes_the_coarse_prior_options_to_each_depth_run(tmp_path, monke
     monkeypatch.setattr(batch, "plan_batch", plan)
     for extra in ((), ("--no-coarse-prior",), ("--coarse-prior-levels", "3")):
         assert main(["-q", "batch", str(tmp_path), *extra, "-o", str(tmp_path / "o")]) == 2
+    with pytest.raises(SystemExit) as info:  # contradictory: refused while parsing
+        main(["-q", "batch", str(tmp_path), "--no-coarse-prior", "--coarse-prior-levels", "2",
+              "-o", str(tmp_path / "o")])
+    assert info.value.code == 2 and len(seen) == 3
     assert "--no-coarse-prior" not in seen[0] and seen[1][-1] == "--no-coarse-prior"
     assert "--coarse-prior-levels" not in seen[0]
     assert seen[2][seen[2].index("--coarse-prior-levels") + 1] == "3"
