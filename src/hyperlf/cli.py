@@ -1486,6 +1486,24 @@ def _add_optimizer_option(p: argparse.ArgumentParser, *, help: str | None = None
                                 "faster)")
 
 
+def _add_coarse_prior_options(p: argparse.ArgumentParser, *, brief: bool = False) -> None:
+    """``--no-coarse-prior`` and ``--coarse-prior-levels``, which contradict each other
+    (``brief``: help that points to ``depth``)."""
+    prior = p.add_mutually_exclusive_group()
+    prior.add_argument("--no-coarse-prior", action="store_true", help="as for depth" if brief else
+                       "where --texture-snr discounts a pixel's data term, do not pull it "
+                       "towards a half-resolution estimate instead (by default it is, where the "
+                       "half-resolution reference is textured: a faint table or wall then keeps "
+                       "its own slope rather than one depth from its surroundings)")
+    prior.add_argument("--coarse-prior-levels", type=_coarse_levels_arg, default=None,
+                       metavar="N", help="as for depth" if brief else
+                       "nest that estimate N deep: the half-resolution run is itself pulled "
+                       "towards a quarter-resolution one where it finds no texture, and so on, "
+                       "as long as a level keeps 8 texture windows on its shorter side (default "
+                       "1; deeper levels see fainter texture, but also more of each camera's "
+                       "vignetting where it was not flat-fielded)")
+
+
 def _add_demo_parser(sub) -> None:
     p = _subcommand(sub, "demo", _cmd_demo,
                     help="build a synthetic H-LF and write pictures and data")
@@ -1698,21 +1716,7 @@ def _add_depth_parser(sub) -> None:
                         "off; default: 2 for captures made by 'hyperlf ingest' from camera "
                         "images, off for rendered and synthetic light fields, whose "
                         "pixel-scale texture one image cannot tell from noise)")
-    prior = p.add_mutually_exclusive_group()
-    prior.add_argument("--no-coarse-prior", action="store_true",
-                       help="where --texture-snr discounts a pixel's data term, do not pull it "
-                            "towards a half-resolution estimate instead (by default it is, "
-                            "where the half-resolution reference is textured: a faint table or "
-                            "wall then keeps its own slope rather than one depth from its "
-                            "surroundings)")
-    prior.add_argument("--coarse-prior-levels", type=_coarse_levels_arg, default=None,
-                       metavar="N",
-                       help="nest that estimate N deep: the half-resolution run is itself "
-                            "pulled towards a quarter-resolution one where it finds no texture, "
-                            "and so on, as long as a level keeps 8 texture windows on its "
-                            "shorter side (default 1; deeper levels see fainter texture, but "
-                            "also more of each camera's vignetting where it was not "
-                            "flat-fielded)")
+    _add_coarse_prior_options(p)
     p.add_argument("--visibility-rounds", type=_visibility_rounds_arg, default=None,
                    metavar="N",
                    help="re-match N times, each candidate depth of a pixel over only the "
@@ -1775,10 +1779,7 @@ def _add_batch_parser(sub) -> None:
                    help="as for depth")
     p.add_argument("--texture-snr", type=_texture_snr_arg, default=None, metavar="T",
                    help="as for depth")
-    prior = p.add_mutually_exclusive_group()
-    prior.add_argument("--no-coarse-prior", action="store_true", help="as for depth")
-    prior.add_argument("--coarse-prior-levels", type=_coarse_levels_arg, default=None,
-                       metavar="N", help="as for depth")
+    _add_coarse_prior_options(p, brief=True)
     p.add_argument("--min-confidence", type=_min_confidence_arg, default=None, metavar="C",
                    help="as for depth (captures with metric outputs)")
     p.add_argument("--downscale", type=_downscale_arg, default=1, metavar="N",
