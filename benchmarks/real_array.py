@@ -1,6 +1,7 @@
 """The real-array benchmark of issue 11 on ``real_arrays/msir_lab`` (or any capture of the kind).
 
     python benchmarks/real_array.py WORK [--data FOLDER] [--labels 41] [--half-resolution]
+                                         [--downscale N]
 
 Runs, with the documented commands only, ``hyperlf calibrate`` on the board shots, ``hyperlf
 ingest`` of the scene shot *and* of the board shot, ``hyperlf depth`` of both, then prints the
@@ -13,6 +14,10 @@ Steps whose output folder already exists in WORK are not run again. Full resolut
 minutes per depth map on 2 cores. ``--half-resolution`` also runs ``hlf.depth`` on a 2 x 2
 area-downscaled copy of the scene capture (35 labels, half the range), with and without the
 textureless-region weight, and prints the range-limit share and the timings of each (~2 min each).
+``--downscale N`` also runs ``hyperlf depth --downscale N`` on both shots (``scene-depth-dN``,
+``board-depth-dN``) and prints the same consistency figures on their 1/N maps, in their own px
+and in full-resolution px (a block is compared where every pixel of it is; ~1 minute per shot
+at N = 2).
 """
 
 from __future__ import annotations
@@ -30,7 +35,7 @@ def hyperlf(*argv) -> None:
     subprocess.run([sys.executable, "-m", "hyperlf", *map(str, argv)], check=True)
 
 
-def run_steps(data: Path, work: Path, labels: int) -> None:
+def run_steps(data: Path, work: Path, labels: int, downscale: int = 1) -> None:
     pattern = "Cam-{index}.png"
     steps = [
         ("cal", ["calibrate", data / "calibration", "--pattern", pattern, "--grid", "3,3",
@@ -42,6 +47,10 @@ def run_steps(data: Path, work: Path, labels: int) -> None:
         ("scene-depth", ["depth", work / "scene", "--labels", labels]),
         ("board-depth", ["depth", work / "board", "--labels", labels]),
     ]
+    if downscale > 1:
+        steps += [(f"{k}-depth-d{downscale}", ["depth", work / k, "--labels", labels,
+                                                "--downscale", downscale])
+                  for k in ("scene", "board")]
     for name, argv in steps:
         if not (work / name).exists():
             hyperlf(*argv, "-o", work / name)
@@ -192,6 +201,31 @@ def consistency_picture(d: dict, compared: np.ndarray, foot: np.ndarray, path: P
           f"of the board footprint; picture: {path}")
 
 
+def downscaled(work: Path, n: int) -> None:
+    """The consistency of ``hyperlf depth --downscale n``'s maps of the two shots, on the
+    blocks whose every pixel :func:`unchanged_pixels` keeps."""
+    from hyperlf.formats import load_lightfield, read_pfm
+    from hyperlf.imageops import block_reduce
+    from hyperlf.metrics import at_range_limit
+
+    lf = {k: load_lightfield(work / k) for k in ("scene", "board")}
+    d = {k: read_pfm(work / f"{k}-depth-d{n}" / "disparity.pfm") for k in lf}
+    same = block_reduce(unchanged_pixels(lf["scene"], lf["board"]), n, np.all)
+    same = same[:d["scene"].shape[0], :d["scene"].shape[1]]
+    lo, hi = (v / n for v in lf["scene"].disparity_range)
+    ref = lf["scene"].reference
+    for k in d:
+        v = block_reduce(lf[k].valid[ref], n, np.all)[:d[k].shape[0], :d[k].shape[1]]
+        print(f"1/{n} resolution, {k}: {100 * at_range_limit(d[k], (lo, hi))[v].mean():.2f} % of "
+              f"the valid reference blocks at a range limit ({lo:g}, {hi:g})")
+    diff = np.abs(d["scene"] - d["board"])[same]
+    p90 = np.percentile(diff, 90)
+    print(f"1/{n} resolution, where the two shots' images agree: {100 * same.mean():.1f} % of "
+          f"the blocks; |difference| median {np.median(diff):.3f} px, 90th percentile "
+          f"{p90:.3f} px of the 1/{n} maps ({n * p90:.3f} full-resolution px), "
+          f"{100 * (diff > 2).mean():.1f} % off by more than 2 px")
+
+
 def half_resolution(work: Path) -> None:
     """Range-limit pixels and timings of ``hlf.depth`` on the scene capture downscaled 2 x 2,
     with the textureless-region weight off and at its default for cameras."""
@@ -229,12 +263,16 @@ def main() -> None:
     ap.add_argument("--labels", type=int, default=41)
     ap.add_argument("--half-resolution", action="store_true",
                     help="also measure the textureless-region weight at half resolution")
+    ap.add_argument("--downscale", type=int, default=1, metavar="N",
+                    help="also run depth --downscale N on both shots and measure them")
     a = ap.parse_args()
     data = a.data or Path(os.environ.get("HYPERLF_DATA", "../shared/data")) / "real_arrays" \
         / "msir_lab"
     a.work.mkdir(parents=True, exist_ok=True)
-    run_steps(data, a.work, a.labels)
+    run_steps(data, a.work, a.labels, a.downscale)
     figures(data, a.work)
+    if a.downscale > 1:
+        downscaled(a.work, a.downscale)
     if a.half_resolution:
         half_resolution(a.work)
 
