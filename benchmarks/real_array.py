@@ -115,7 +115,9 @@ def textured_pixels(lf) -> np.ndarray:
     return texture_snr(ref, window, valid=valid) >= CAMERA_TEXTURE_SNR
 
 
-def figures(data: Path, work: Path) -> None:
+def figures(data: Path, work: Path):
+    """Prints the full-resolution figures; returns both captures and
+    :func:`unchanged_pixels` of them, for :func:`downscaled`."""
     from hyperlf.formats import load_lightfield, read_pfm
     from hyperlf.metrics import at_range_limit
 
@@ -146,6 +148,7 @@ def figures(data: Path, work: Path) -> None:
           f"{np.percentile(diff, 90):.3f} px, {100 * (diff > 2).mean():.1f} % off by more than 2 px")
     confident_in_both(work, d, same)
     consistency_picture(d, off, foot, work / "consistency.png")
+    return lf, same
 
 
 def confident_in_both(work: Path, d: dict, same: np.ndarray, levels=(0.01, 0.05, 0.1)) -> None:
@@ -201,16 +204,16 @@ def consistency_picture(d: dict, compared: np.ndarray, foot: np.ndarray, path: P
           f"of the board footprint; picture: {path}")
 
 
-def downscaled(work: Path, n: int) -> None:
-    """The consistency of ``hyperlf depth --downscale n``'s maps of the two shots, on the
-    blocks whose every pixel :func:`unchanged_pixels` keeps."""
-    from hyperlf.formats import load_lightfield, read_pfm
+def downscaled(work: Path, n: int, lf: dict, same: np.ndarray) -> None:
+    """The consistency of ``hyperlf depth --downscale n``'s maps of the two shots (``lf``, as
+    :func:`figures` loaded them), on the blocks whose every pixel ``same``
+    (:func:`unchanged_pixels`) keeps."""
+    from hyperlf.formats import read_pfm
     from hyperlf.imageops import block_reduce
     from hyperlf.metrics import at_range_limit
 
-    lf = {k: load_lightfield(work / k) for k in ("scene", "board")}
     d = {k: read_pfm(work / f"{k}-depth-d{n}" / "disparity.pfm") for k in lf}
-    same = block_reduce(unchanged_pixels(lf["scene"], lf["board"]), n, np.all)
+    same = block_reduce(same, n, np.all)
     same = same[:d["scene"].shape[0], :d["scene"].shape[1]]
     lo, hi = (v / n for v in lf["scene"].disparity_range)
     ref = lf["scene"].reference
@@ -270,9 +273,9 @@ def main() -> None:
         / "msir_lab"
     a.work.mkdir(parents=True, exist_ok=True)
     run_steps(data, a.work, a.labels, a.downscale)
-    figures(data, a.work)
+    lf, same = figures(data, a.work)
     if a.downscale > 1:
-        downscaled(a.work, a.downscale)
+        downscaled(a.work, a.downscale, lf, same)
     if a.half_resolution:
         half_resolution(a.work)
 
