@@ -124,6 +124,8 @@ ABLATIONS = {
                     "graph cuts coarse to fine, 2 halvings"),
     "no_texture": ({"params": DepthParams(texture_snr=0)},
                    "without the textureless-region weight"),
+    "common_views": ({"params": DepthParams(missing_views="common")},
+                     "each view only where it sees the pixel at every label"),
     # not a single toggle: the two cues that helped most with the stand-in costs, together
     "selection_split": ({"view_selection": True, "occlusion_split": True},
                         "+ view selection + occlusion split"),

@@ -1,6 +1,7 @@
 """Views that cannot see a sample (issue 11, item 3): averaging over the views that do see it
 pulls textureless pixels to the range limits, where fewer, noisier costs are averaged;
-``missing_views="neutral"`` removes that bias."""
+``missing_views="neutral"`` removes that bias, and ``"common"`` averages every label of a
+pixel over the same views."""
 
 from __future__ import annotations
 
@@ -30,6 +31,54 @@ def test_neutral_missing_views_remove_the_pull_to_the_range_limits():
     assert average > neutral + 0.03, (average, neutral)
 
 
+def test_common_views_average_every_label_over_the_same_views():
+    rng = np.random.default_rng(1)
+    views = 0.5 + 0.05 * rng.standard_normal((3, 3, 40, 48)).astype(np.float32)
+    lf = LightField(views=views, disparity_range=(-8.0, 8.0))
+    counts = {}
+    for mode in ("average", "common"):
+        prob = hlf.prepare(lf, n_labels=17, metric="ncc",
+                           params=hlf.DepthParams(missing_views=mode))
+        counts[mode] = hlf.correspondence(prob)[1]
+    average, common = counts["average"], counts["common"]
+    y, x = np.mgrid[:40, :48]
+    corner = ((x < 8) | (x > 39)) & ((y < 8) | (y > 31))  # no view sees every label: all kept
+    np.testing.assert_array_equal(common[:, corner], average[:, corner])
+    assert (common[:, ~corner] == common[:1, ~corner]).all()  # the same count at every label
+    assert (average[:, ~corner] != average[:1, ~corner]).any()  # which the plain mean lacks
+    np.testing.assert_array_equal(common[:, 20, 24], 8)  # the middle: every view
+    np.testing.assert_array_equal(common[:, 36, 24], 2)  # near the bottom: the two beside it
+
+
+def _flat_problem(valid=None):
+    views = np.full((3, 3, 40, 48), 0.5, np.float32)
+    lf = LightField(views=views, disparity_range=(-8.0, 8.0), valid=valid)
+    return lf, hlf.prepare(lf, n_labels=17, metric="ncc",
+                           params=hlf.DepthParams(missing_views="common"))
+
+
+def test_views_at_every_label_follow_the_geometry():
+    lf, prob = _flat_problem()
+    y, x = np.mgrid[:40, :48]
+    # labels -8..8: view v sees p at every label iff p - d o_v stays inside for |d| <= 8
+    inside_x, inside_y = (x >= 8) & (x <= 39), (y >= 8) & (y <= 31)
+    corner = ~inside_x & ~inside_y  # no view sees these at every label: all views kept
+    for v, m in prob.every_label.items():
+        dx, dy = lf.offsets[v]
+        expect = (inside_x if dx else True) & (inside_y if dy else True)
+        np.testing.assert_array_equal(m, expect | corner, err_msg=str(v))
+    assert hlf.prepare(lf, n_labels=17, metric="ncc").every_label is None
+
+
+def test_views_at_every_label_respect_validity_masks():
+    valid = np.ones((3, 3, 40, 48), bool)
+    valid[1, 2, :, 30] = False  # a dead column in the view right of the reference
+    _, prob = _flat_problem(valid)
+    m = prob.every_label[(1, 2)]
+    # that view samples x - d for d in -8..8: the dead column is on the line of x = 22..38
+    assert not m[20, 22:39].any() and m[20, 8:22].all() and m[20, 39]
+
+
 def test_neutral_keeps_labels_every_view_sees():
     C = np.array([[[1.0]], [[2.0]], [[3.0]]], np.float32)
     n = np.array([[[4]], [[4]], [[2]]])
@@ -42,3 +91,43 @@ def test_neutral_keeps_labels_every_view_sees():
 def test_missing_views_option_is_checked():
     with pytest.raises(InvalidInputError, match="missing_views"):
         hlf.DepthParams(missing_views="ignore")
+
+
+def test_depth_and_batch_commands_take_missing_views(tmp_path, monkeypatch, capsys):
+    from hyperlf import batch
+    from hyperlf.cli import main
+    from hyperlf.formats import read_pfm, save_lightfield
+
+    lf, _ = _flat_problem()
+    rng = np.random.default_rng(2)
+    lf.views[:] += 0.05 * rng.standard_normal(lf.views.shape).astype(np.float32)
+    save_lightfield(lf, tmp_path / "cap", bit_depth=32)
+    maps = {}
+    for mode in ("average", "common"):
+        assert main(["-q", "depth", str(tmp_path / "cap"), "--labels", "17", "--metric", "ncc",
+                     "--optimizer", "wta", "--median-radius", "0", "--missing-views", mode,
+                     "-o", str(tmp_path / mode)]) == 0
+        maps[mode] = read_pfm(tmp_path / mode / "disparity.pfm")
+    for mode, m in maps.items():  # the command's map is the library's under that option
+        params = hlf.DepthParams(missing_views=mode, median_radius=0)
+        np.testing.assert_array_equal(
+            m, hlf.depth(lf, n_labels=17, metric="ncc", optimizer="wta",
+                         params=params).disparity)
+    assert (maps["average"] != maps["common"]).any()
+    with pytest.raises(SystemExit) as info:  # refused while parsing, exit 2
+        main(["-q", "depth", str(tmp_path / "cap"), "--missing-views", "ignore",
+              "-o", str(tmp_path / "bad")])
+    assert info.value.code == 2 and "--missing-views" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()
+
+    seen = []
+
+    def plan(inputs, out, *, depth_args=(), **kw):
+        seen.append(list(depth_args))
+        raise InvalidInputError("stop here")
+
+    monkeypatch.setattr(batch, "plan_batch", plan)
+    for extra in ((), ("--missing-views", "common")):
+        assert main(["-q", "batch", str(tmp_path), *extra, "-o", str(tmp_path / "o")]) == 2
+    assert "--missing-views" not in seen[0]
+    assert seen[1][seen[1].index("--missing-views") + 1] == "common"

@@ -109,6 +109,7 @@ OPTIONS = {
     "cues": dict(view_selection=True, occlusion_split=True, defocus="paper"),
     "sgm": dict(optimizer="sgm"),
     "visibility+neutral": dict(params=dict(visibility_rounds=1, missing_views="neutral")),
+    "visibility+common": dict(params=dict(visibility_rounds=1, missing_views="common")),
     "single cost": dict(metric="rsncc"),
 }
 

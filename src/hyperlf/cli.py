@@ -884,6 +884,7 @@ def _cmd_depth(args, dest) -> list[Path]:
                                      ("texture_snr", args.texture_snr),
                                      ("coarse_prior", False if args.no_coarse_prior else None),
                                      ("coarse_prior_levels", args.coarse_prior_levels),
+                                     ("missing_views", args.missing_views),
                                      ("visibility_rounds", args.visibility_rounds),
                                      ("max_memory", budget))
                    if v is not None}
@@ -1031,6 +1032,7 @@ def _cmd_batch(args, dest) -> list[Path]:  # noqa: ARG001 - batch writes its own
                         ("--median-passes", args.median_passes),
                         ("--texture-snr", args.texture_snr),
                         ("--coarse-prior-levels", args.coarse_prior_levels),
+                        ("--missing-views", args.missing_views),
                         ("--max-memory", args.max_memory),
                         ("--min-confidence", args.min_confidence)):
         if value is not None:
@@ -1504,6 +1506,20 @@ def _add_coarse_prior_options(p: argparse.ArgumentParser, *, brief: bool = False
                        "vignetting where it was not flat-fielded)")
 
 
+def _add_missing_views_option(p: argparse.ArgumentParser, *, brief: bool = False) -> None:
+    """``--missing-views`` of depth and batch (``DepthParams.missing_views``)."""
+    from .hlf import MISSING_VIEWS
+
+    p.add_argument("--missing-views", choices=MISSING_VIEWS, default=None,
+                   help="as for depth" if brief else
+                   "near the image border some views cannot see a pixel at every candidate "
+                   "depth: 'average' (default) averages each depth over the views that see "
+                   "it there, 'neutral' counts the missing ones as the pixel's median cost, "
+                   "'common' counts a view at a pixel only where it sees it at every depth, "
+                   "so that all depths compare the same views (removes the pull of "
+                   "textureless regions to the range limits without --texture-snr)")
+
+
 def _add_demo_parser(sub) -> None:
     p = _subcommand(sub, "demo", _cmd_demo,
                     help="build a synthetic H-LF and write pictures and data")
@@ -1717,6 +1733,7 @@ def _add_depth_parser(sub) -> None:
                         "images, off for rendered and synthetic light fields, whose "
                         "pixel-scale texture one image cannot tell from noise)")
     _add_coarse_prior_options(p)
+    _add_missing_views_option(p)
     p.add_argument("--visibility-rounds", type=_visibility_rounds_arg, default=None,
                    metavar="N",
                    help="re-match N times, each candidate depth of a pixel over only the "
@@ -1780,6 +1797,7 @@ def _add_batch_parser(sub) -> None:
     p.add_argument("--texture-snr", type=_texture_snr_arg, default=None, metavar="T",
                    help="as for depth")
     _add_coarse_prior_options(p, brief=True)
+    _add_missing_views_option(p, brief=True)
     p.add_argument("--min-confidence", type=_min_confidence_arg, default=None, metavar="C",
                    help="as for depth (captures with metric outputs)")
     p.add_argument("--downscale", type=_downscale_arg, default=1, metavar="N",
@@ -1995,7 +2013,7 @@ _ONLY_WITH = (("--aggregation-radius", "--aggregation", "guided"),
 #: the labels).
 _HLF_ONLY = ("--metric", "--optimizer", "--view-selection", "--occlusion-split", "--defocus",
              "--median-radius", "--median-passes", "--texture-snr", "--max-memory",
-             "--no-coarse-prior", "--visibility-rounds", "--aggregation", "--aggregation-radius",
+             "--no-coarse-prior", "--missing-views", "--visibility-rounds", "--aggregation", "--aggregation-radius",
              "--aggregation-eps")
 
 

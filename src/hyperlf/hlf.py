@@ -171,6 +171,7 @@ __all__ = [
     "correspondence",
     "defocus_cue",
     "neutral_missing_views",
+    "views_at_every_label",
     "texture_weight",
     "coarse_prior",
     "add_coarse_prior",
@@ -238,7 +239,9 @@ class DepthParams:
     Views that cannot see a sample: ``missing_views`` (``"average"``, the default: average
     over the views that see it; ``"neutral"``: they count the pixel's median cost, see
     :func:`neutral_missing_views`, which removes the pull of textureless border regions to the
-    range limits).
+    range limits; ``"common"``: a view counts at a pixel only if it sees the pixel at every
+    label, see :func:`views_at_every_label`, so that every label of a pixel averages the same
+    views).
     Visibility (SPEC §5.6): ``visibility_rounds`` re-matchings, each over only the views that
     see each reference pixel under the current estimate: z-test with ``visibility_margin`` px
     per baseline, asked at every candidate disparity (``visibility_test="hypothesis"``, the
@@ -426,8 +429,8 @@ class DepthParams:
             pos("coarse_prior_width", self.coarse_prior_width)
         if int(self.min_half_views) < 1:
             raise InvalidInputError(f"params.min_half_views must be >= 1, got {self.min_half_views!r}")
-        if self.missing_views not in ("average", "neutral"):
-            raise InvalidInputError("params.missing_views must be 'average' or 'neutral', got "
+        if self.missing_views not in MISSING_VIEWS:
+            raise InvalidInputError(f"params.missing_views must be one of {MISSING_VIEWS}, got "
                                     f"{self.missing_views!r}")
         if int(self.edge_dilate) < 0:
             raise InvalidInputError(f"params.edge_dilate must be >= 0, got {self.edge_dilate!r}")
@@ -627,6 +630,10 @@ def aggregate_view(acc: dict, Cv, valid, Mq, Mbar, M_ref, use_selection: bool,
                            np.ascontiguousarray(edge_idx, np.int64),
                            np.ascontiguousarray(edge_side, np.int8),
                            acc["E_S_sel"], acc["E_N_sel"], acc["E_S_all"], acc["E_N_all"])
+
+
+#: The values of ``DepthParams.missing_views``.
+MISSING_VIEWS = ("average", "neutral", "common")
 
 
 def neutral_missing_views(C: np.ndarray, n_used: np.ndarray) -> np.ndarray:
@@ -1026,6 +1033,9 @@ class DepthProblem:
     visibility_rounds : int
         ``params.visibility_rounds`` resolved (None: 1 on images at least
         ``params.visibility_min_size`` px on their shorter side, else 0).
+    every_label : dict or None
+        With ``params.missing_views="common"``: per other view, the reference pixels where it
+        counts (:func:`views_at_every_label`); else None.
     """
 
     lf: Any
@@ -1052,6 +1062,7 @@ class DepthProblem:
     valid: dict | None = None
     window: int | None = None
     visibility_rounds: int = 0
+    every_label: dict | None = None
 
     @property
     def impl(self) -> str:
@@ -1206,7 +1217,42 @@ def prepare(lf, *, disparity_range=None, n_labels: int = 64, metric: str = "auto
     if view_selection:
         prob.Mbar = _mean_gradient(prob)
     _prepare_edges(prob)
+    if params.missing_views == "common":
+        prob.every_label = views_at_every_label(prob)
     return prob
+
+
+def views_at_every_label(prob: DepthProblem) -> dict:
+    """Per other view, the reference pixels it sees at every label (``missing_views="common"``).
+
+    A view sees ``p`` at label ``d`` when the sample ``q_v = p - d o_v`` and its bilinear taps
+    are valid (:func:`hyperlf.costs.view_validity`).  The plain aggregate averages each label
+    over the views that see it there, so near a border the labels whose shifts leave some
+    views' images average fewer views, and other ones: in a textureless region a label seen
+    only by the views beside the reference compares the region's shading along its rows
+    alone, costs less, and wins (the lab's table front went to the range limit that way;
+    BENCHMARKS.md, twenty-fifth and twenty-sixth sessions).  Counting a view at ``p`` only
+    where it sees ``p`` at every label gives every label the same views.  A pixel that no
+    view sees at every label (a corner, when the range reaches out of the image in every
+    direction) keeps every view, as the plain aggregate has it.
+
+    Returns
+    -------
+    dict
+        ``(r, c)`` -> bool (H, W) for every other view.
+    """
+    from .costs import view_shifts, view_validity
+
+    shape = prob.lf.image_shape
+    out = {}
+    for v in prob.others:
+        mask = None if prob.valid is None else prob.valid[v]
+        every = np.ones(shape, bool)
+        for shift in view_shifts(prob.offsets[v], prob.labels):
+            every &= view_validity(shape, [shift], mask=mask)[0]
+        out[v] = every
+    none = np.sum(list(out.values()), axis=0) == 0
+    return {v: m | none for v, m in out.items()}
 
 
 def _mask_args(prob: DepthProblem, v) -> dict:
@@ -1437,6 +1483,8 @@ def _strip_correspondence(prob: DepthProblem, rows, scales, sees, cache, bar, cl
                                rows=None if whole else rows,
                                scales=None if scales is None else scales[v],
                                **_mask_args(prob, v))
+        if prob.every_label is not None:
+            valid &= prob.every_label[v][None, a:b]
         if isinstance(sees, LabelVisibility):
             valid &= sees.mask(v, rows)
         elif sees is not None:
