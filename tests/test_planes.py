@@ -1,4 +1,5 @@
-"""Segment-wise plane fill and the occlusion / mismatch split of two-view stereo (issue 12 item 3)."""
+"""Slanted planes: the segment-wise plane fill and the occlusion / mismatch split of two-view
+stereo (issue 12 item 3), and planes fitted to pooled costs (issue 11)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ from hypothesis import strategies as st
 
 from hyperlf import regularisers as reg
 from hyperlf.errors import InvalidInputError
+from hyperlf.regularisers import cost_planes
 from hyperlf.twoview import fill_inconsistent, stereo
 
 H, W = 60, 90
@@ -178,3 +180,77 @@ def test_stereo_from_volumes_lr_plane_needs_the_left_image():
         stereo_from_volumes(cl, cr, 0, "wta", "lr-plane")
     res = stereo_from_volumes(cl, cr, 0, "wta", "lr-fill")
     assert res.extra["plane_filled"] == 0.0
+
+
+# ----------------------------------------------------------------- planes of pooled costs
+def _slanted_volume(seed, noise, L=16, shape=(96, 96), truth=None):
+    """Costs ``|l - truth| + noise`` over ``L`` labels: each pixel's own minimum is lost in
+    the noise at ``noise`` >> 1, the pooled one is not."""
+    rng = np.random.default_rng(seed)
+    y, x = np.mgrid[:shape[0], :shape[1]]
+    if truth is None:
+        truth = 5.0 + 0.04 * y + 0.02 * x
+    labels = np.arange(L)[:, None, None]
+    return np.abs(labels - truth) + noise * rng.random((L, *shape)), truth
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_cost_planes_recover_a_slanted_plane_that_no_pixel_shows(seed):
+    C, truth = _slanted_volume(seed, noise=12.0)
+    own = np.argmin(C, axis=0)
+    assert np.mean(np.abs(own - truth) > 2) > 0.2  # each pixel alone: often far off
+    plane = cost_planes(C, np.ones(truth.shape, bool), tile=48, max_slope=0.1)
+    assert np.isfinite(plane).mean() > 0.8
+    # the search's grid: half labels, slopes in steps of 1/48 (half a label at the tile's edge)
+    assert np.nanmax(np.abs(plane - truth)) < 0.8
+
+
+def test_cost_planes_refuse_noise_and_unbracketed_minima():
+    rng = np.random.default_rng(4)
+    noise = rng.random((16, 96, 96))
+    assert np.isnan(cost_planes(noise, np.ones((96, 96), bool), tile=48, max_slope=0.1)).mean() > 0.9
+    edge, _ = _slanted_volume(0, noise=1.0, truth=np.full((96, 96), 0.2))  # at the range's end
+    assert np.isnan(cost_planes(edge, np.ones((96, 96), bool), tile=48, max_slope=0.1)).all()
+    C, truth = _slanted_volume(1, noise=1.0)
+    mask = np.zeros((96, 96), bool)
+    mask[:, :30] = True  # only tiles with 30 % of their pixels masked are fitted
+    plane = cost_planes(C, mask, tile=48, max_slope=0.1)
+    assert np.isnan(plane[:, 72:]).all() and np.isfinite(plane[:, :24]).all()
+
+
+def test_cost_planes_ignore_a_bias_of_one_pixel_period():
+    """Half-pixel shifts cost less in pure noise (bilinear sampling halves its variance): with
+    labels every half pixel, a bias that alternates must neither become a plane nor move
+    one."""
+    rng = np.random.default_rng(5)
+    bias = 3.0 * (np.arange(16) % 2)[:, None, None]
+    mask = np.ones((96, 96), bool)
+    noise = cost_planes(10 * rng.random((16, 96, 96)) - bias, mask, tile=48, max_slope=0.1,
+                        period=2.0)
+    assert np.isnan(noise).mean() > 0.9
+    C, truth = _slanted_volume(0, noise=10.0)
+    plane = cost_planes(C - bias, mask, tile=48, max_slope=0.1, period=2.0)
+    assert np.isfinite(plane).mean() > 0.8 and np.nanmax(np.abs(plane - truth)) < 0.8
+
+
+def test_plane_scores_numba_matches_numpy():
+    from hyperlf.regularisers import _kernels
+    from hyperlf.regularisers.planes import _plane_scores_numpy
+
+    rng = np.random.default_rng(6)
+    P = rng.standard_normal((200, 12))
+    dx, dy = rng.uniform(-20, 20, 200), rng.uniform(-20, 20, 200)
+    A, B, c = np.linspace(-0.2, 0.2, 5), np.linspace(-0.3, 0.3, 7), np.arange(0, 11.5, 0.5)
+    ref = _plane_scores_numpy(P, dx, dy, A, B, c, 180)
+    out = np.empty_like(ref)
+    _kernels.plane_scores(P, dx, dy, A, B, c, 180.0, out)
+    assert np.isinf(ref).any() and np.isfinite(ref).any()
+    np.testing.assert_allclose(out, ref, rtol=1e-10, atol=1e-12)
+    assert (np.isinf(out) == np.isinf(ref)).all()
+
+
+def test_cost_planes_check_their_input():
+    with pytest.raises(InvalidInputError):
+        cost_planes(np.zeros((4, 8, 8)), np.ones((8, 9), bool), tile=8, max_slope=0.1)
+    with pytest.raises(InvalidInputError):
+        cost_planes(np.zeros((4, 8, 8)), np.ones((8, 8), bool), tile=2, max_slope=0.1)

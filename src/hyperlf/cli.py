@@ -885,6 +885,7 @@ def _cmd_depth(args, dest) -> list[Path]:
                                      ("coarse_prior", False if args.no_coarse_prior else None),
                                      ("coarse_prior_levels", args.coarse_prior_levels),
                                      ("missing_views", args.missing_views),
+                                     ("weak_planes", True if args.weak_planes else None),
                                      ("visibility_rounds", args.visibility_rounds),
                                      ("max_memory", budget))
                    if v is not None}
@@ -1039,6 +1040,8 @@ def _cmd_batch(args, dest) -> list[Path]:  # noqa: ARG001 - batch writes its own
             depth_args += [flag, f"{value:g}" if isinstance(value, float) else str(value)]
     if args.no_coarse_prior:
         depth_args.append("--no-coarse-prior")
+    if args.weak_planes:
+        depth_args.append("--weak-planes")
     new = not os.path.lexists(args.output)
     tasks = plan_batch(args.inputs, args.output, depth_args=depth_args,
                        disparity_range=args.disparity_range, downscale=args.downscale,
@@ -1506,6 +1509,16 @@ def _add_coarse_prior_options(p: argparse.ArgumentParser, *, brief: bool = False
                        "vignetting where it was not flat-fielded)")
 
 
+def _add_weak_planes_option(p: argparse.ArgumentParser, *, brief: bool = False) -> None:
+    """``--weak-planes`` of depth and batch (``DepthParams.weak_planes``)."""
+    p.add_argument("--weak-planes", action="store_true", help="as for depth" if brief else
+                   "where a pixel is weakly textured at full and at half resolution, pull it "
+                   "towards a slanted plane that the pooled costs of such pixels choose, tile "
+                   "by tile, instead of towards the half-resolution estimate (a white table "
+                   "seen at a slant then keeps its slope; needs the coarse prior; with "
+                   "--missing-views common it also pools pixels near the borders)")
+
+
 def _add_missing_views_option(p: argparse.ArgumentParser, *, brief: bool = False) -> None:
     """``--missing-views`` of depth and batch (``DepthParams.missing_views``)."""
     from .hlf import MISSING_VIEWS
@@ -1733,6 +1746,7 @@ def _add_depth_parser(sub) -> None:
                         "images, off for rendered and synthetic light fields, whose "
                         "pixel-scale texture one image cannot tell from noise)")
     _add_coarse_prior_options(p)
+    _add_weak_planes_option(p)
     _add_missing_views_option(p)
     p.add_argument("--visibility-rounds", type=_visibility_rounds_arg, default=None,
                    metavar="N",
@@ -1797,6 +1811,7 @@ def _add_batch_parser(sub) -> None:
     p.add_argument("--texture-snr", type=_texture_snr_arg, default=None, metavar="T",
                    help="as for depth")
     _add_coarse_prior_options(p, brief=True)
+    _add_weak_planes_option(p, brief=True)
     _add_missing_views_option(p, brief=True)
     p.add_argument("--min-confidence", type=_min_confidence_arg, default=None, metavar="C",
                    help="as for depth (captures with metric outputs)")
@@ -2005,6 +2020,10 @@ _EXCLUSIVE = (
     ("stereo", "--no-occlusion", "--occlusion", "--no-occlusion is --occlusion none; give one"),
     ("complete", "--disparity", "--use-ground-truth", "give one source of disparity"),
     ("refocus", "--disparity", "--sweep", "a sweep focuses at its own disparities; give one"),
+    ("depth", "--weak-planes", "--no-coarse-prior", "the planes replace the coarse prior's "
+     "target; give one"),
+    ("batch", "--weak-planes", "--no-coarse-prior", "the planes replace the coarse prior's "
+     "target; give one"),
 )
 #: Options that act only with another option's value: (option, other, value).
 _ONLY_WITH = (("--aggregation-radius", "--aggregation", "guided"),
@@ -2013,7 +2032,8 @@ _ONLY_WITH = (("--aggregation-radius", "--aggregation", "guided"),
 #: the labels).
 _HLF_ONLY = ("--metric", "--optimizer", "--view-selection", "--occlusion-split", "--defocus",
              "--median-radius", "--median-passes", "--texture-snr", "--max-memory",
-             "--no-coarse-prior", "--missing-views", "--visibility-rounds", "--aggregation", "--aggregation-radius",
+             "--no-coarse-prior", "--missing-views", "--weak-planes", "--visibility-rounds",
+             "--aggregation", "--aggregation-radius",
              "--aggregation-eps")
 
 

@@ -172,6 +172,7 @@ __all__ = [
     "defocus_cue",
     "neutral_missing_views",
     "views_at_every_label",
+    "plane_prior",
     "texture_weight",
     "coarse_prior",
     "add_coarse_prior",
@@ -281,6 +282,12 @@ class DepthParams:
     ``g`` how much of ``d_coarse`` comes from textured pixels at some level; ``width``
     ``coarse_prior_width`` disparity px (None: the coarse run's label step, ``scale`` fine
     label steps).
+    ``weak_planes`` (False; acts only where the coarse prior does): on pixels weakly textured
+    at full resolution and at the coarse levels, the pooled costs choose slanted planes,
+    tile by tile (:func:`plane_prior`, :func:`hyperlf.regularisers.cost_planes`: tiles of
+    ``plane_tile`` px, None: 1/8 of the shorter side, at least 48; slopes up to
+    ``plane_max_slope``, 0.12 disparity px per px), and those under an accepted plane are
+    pulled towards it instead of ``d_coarse`` (why not by default: BENCHMARKS.md).
     Aggregation (issue 12 item 2): ``aggregation`` (``"none"``, the default, or ``"guided"``),
     ``aggregation_radius`` (4 px), ``aggregation_eps`` (1e-3): the correspondence volume
     filtered edge-aware with the reference view as the guide before the unary
@@ -340,6 +347,9 @@ class DepthParams:
     coarse_prior_width: float | None = None
     coarse_prior_levels: int = 1
     coarse_prior_labels: int | None = None
+    weak_planes: bool = False
+    plane_tile: int | None = None
+    plane_max_slope: float = 0.12
     aggregation: str = "none"
     aggregation_radius: int = 4
     aggregation_eps: float = 1e-3
@@ -425,6 +435,18 @@ class DepthParams:
         if not isinstance(self.coarse_prior, (bool, np.bool_)):
             raise InvalidInputError(f"params.coarse_prior must be True or False, got "
                                     f"{self.coarse_prior!r}")
+        if not isinstance(self.weak_planes, (bool, np.bool_)):
+            raise InvalidInputError(f"params.weak_planes must be True or False, got "
+                                    f"{self.weak_planes!r}")
+        if self.plane_tile is not None and (isinstance(self.plane_tile, bool) or not isinstance(
+                self.plane_tile, (int, np.integer)) or self.plane_tile < 8):
+            raise InvalidInputError(f"params.plane_tile must be None or an integer >= 8, got "
+                                    f"{self.plane_tile!r}")
+        if isinstance(self.plane_max_slope, bool) or not isinstance(
+                self.plane_max_slope, (int, float, np.integer, np.floating)) or not (
+                0 < self.plane_max_slope <= 1):
+            raise InvalidInputError(f"params.plane_max_slope must be in (0, 1], got "
+                                    f"{self.plane_max_slope!r}")
         if self.coarse_prior_width is not None:
             pos("coarse_prior_width", self.coarse_prior_width)
         if int(self.min_half_views) < 1:
@@ -1241,6 +1263,13 @@ def views_at_every_label(prob: DepthProblem) -> dict:
     dict
         ``(r, c)`` -> bool (H, W) for every other view.
     """
+    out = _seen_at_every_label(prob)
+    none = np.sum(list(out.values()), axis=0) == 0
+    return {v: m | none for v, m in out.items()}
+
+
+def _seen_at_every_label(prob: DepthProblem) -> dict:
+    """Per other view, bool (H, W): it sees the reference pixel at every label."""
     from .costs import view_shifts, view_validity
 
     shape = prob.lf.image_shape
@@ -1251,8 +1280,7 @@ def views_at_every_label(prob: DepthProblem) -> dict:
         for shift in view_shifts(prob.offsets[v], prob.labels):
             every &= view_validity(shape, [shift], mask=mask)[0]
         out[v] = every
-    none = np.sum(list(out.values()), axis=0) == 0
-    return {v: m | none for v, m in out.items()}
+    return out
 
 
 def _mask_args(prob: DepthProblem, v) -> dict:
@@ -1714,6 +1742,73 @@ def coarse_prior(prob: DepthProblem, weight, start=None, *, progress: bool | str
     return coarse, strength.astype(np.float32), width, coarse_conf
 
 
+#: Pixels whose data term the texture weight cut by at least half are pooled by
+#: :func:`plane_prior`.
+PLANE_POOL_WEIGHT = 0.5
+#: The smallest automatic tile of :func:`plane_prior`, px: a tile must pool many matching
+#: windows' worth of pixels.
+PLANE_MIN_TILE = 48
+
+
+def plane_prior(prob: DepthProblem, C: np.ndarray, weight, prior):
+    """Stage 4b of :func:`depth`, after :func:`coarse_prior`: the coarse prior's target on
+    weakly textured pixels replaced by slanted planes that their pooled costs choose
+    (``params.weak_planes``).
+
+    A weakly textured pixel's own costs hardly show their minimum, and the coarse estimate
+    gives a textureless surface one constant, whichever its neighbours lend it: the lab's
+    table front took the objects' disparities in one shot and the board's in the other.
+    Pooled over thousands of such pixels, the costs do show where the surface is, slant
+    included (BENCHMARKS.md, twenty-sixth session).  So the pixels with ``w <``
+    :data:`PLANE_POOL_WEIGHT` that every other view sees at every label (near the borders,
+    the labels that some views cannot see would average fewer views: a bias towards the range
+    limits) are pooled by :func:`hyperlf.regularisers.cost_planes`, and every pixel with
+    ``w < 1`` under an accepted plane is pulled towards it with strength ``1 - w``, instead
+    of towards ``d_coarse``.
+
+    Parameters
+    ----------
+    prob : DepthProblem
+    C : ndarray (L, H, W)
+        The correspondence volume (:func:`correspondence`).
+    weight : ndarray (H, W) or None
+        :func:`texture_weight`.
+    prior : tuple or None
+        :func:`coarse_prior`'s ``(coarse, strength, width, confidence)``.
+
+    Returns
+    -------
+    tuple or None
+        ``prior`` with ``coarse`` and ``strength`` replaced under the planes; ``prior`` itself
+        when there is no prior or ``params.weak_planes`` is off.
+    """
+    from .regularisers import cost_planes
+
+    p = prob.params
+    if prior is None or weight is None or not p.weak_planes:
+        return prior
+    labels = np.asarray(prob.labels, np.float64)
+    step = float(labels[1] - labels[0])
+    w = np.clip(np.asarray(weight, np.float32), 0.0, 1.0)
+    g = _coverage(prob, _prior_levels(prob))
+    weak = (w < PLANE_POOL_WEIGHT) & (g < PLANE_POOL_WEIGHT)
+    seen = list(_seen_at_every_label(prob).values())
+    # unbiased profiles: every label averaged over the same views (missing_views="common":
+    # those that see the pixel at every label, where one does), else over all of them
+    pooled = weak & (np.logical_or.reduce(seen) if prob.every_label is not None
+                     else np.logical_and.reduce(seen))
+    if prob.valid is not None:
+        pooled &= prob.valid[prob.reference]
+    tile = p.plane_tile or max(PLANE_MIN_TILE, min(prob.lf.image_shape) // 8)
+    plane = cost_planes(C, pooled, tile=int(tile), max_slope=float(p.plane_max_slope) / step,
+                        period=1.0 / step, impl=prob.impl)
+    use = np.isfinite(plane) & weak
+    coarse, strength, width, conf = prior
+    coarse = np.where(use, labels[0] + step * np.nan_to_num(plane), coarse).astype(np.float32)
+    strength = np.where(use, 1 - w, strength).astype(np.float32)
+    return coarse, strength, width, conf
+
+
 def _prior_levels(prob: DepthProblem) -> list[int]:
     """The downscaling factors of the coarse prior's levels, finest first."""
     p = prob.params
@@ -1937,7 +2032,7 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
 
     A list of stages, each a public function that can be run and tested alone:
     :func:`prepare` -> :func:`correspondence` -> :func:`defocus_cue` ->
-    :func:`texture_weight` -> :func:`coarse_prior` -> :func:`unary` ->
+    :func:`texture_weight` -> :func:`coarse_prior` -> :func:`plane_prior` -> :func:`unary` ->
     :func:`add_coarse_prior` -> :func:`regularise` -> :func:`refine` ->
     :func:`post_filter`.
 
@@ -1967,7 +2062,7 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
     -------
     DepthResult
         With ``timings`` in seconds per stage (``prepare_s``, ``correspondence_s``,
-        ``selection_split_s``, ``defocus_s``, ``mrf_s``, ``refine_s``, ``median_s``,
+        ``selection_split_s``, ``plane_prior_s``, ``defocus_s``, ``mrf_s``, ``refine_s``, ``median_s``,
         ``total_s``; ``visibility_estimate_s`` when the first visibility round starts from
         :func:`coarse_disparity` (that round is then the main pass above); per further
         visibility round ``k``: ``visibility_round{k}_correspondence_s``,
@@ -2011,6 +2106,9 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
     prior = coarse_prior(prob, w, start, progress=progress)
     clock.lap("coarse_prior_s")
     C, n_used = correspondence(prob, progress=progress, timings=timings, sees=sees, strips=strips)
+    clock.lap()
+    prior = plane_prior(prob, C, w, prior)
+    clock.lap("plane_prior_s")
     seen, n_used = seen_pixels(prob, n_used), (n_used if save_intermediate else None)
     f_c = prob.labels[np.argmin(C, axis=0)].astype(np.float32)
     clock.lap()

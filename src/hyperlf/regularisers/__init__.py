@@ -23,7 +23,8 @@ Modules
 ``edge_weights_from_guide``, ``candidate_labels``), ``postprocess`` (``left_right_check``,
 ``left_occlusions``, ``fill_occlusions``, ``right_cost_from_left``, ``subpixel_refine``,
 ``confidence``, ``weighted_median``) and ``planes`` (``segment``, ``fit_plane``,
-``plane_fill``, ``PlaneFillParams``: the segment-wise slanted-plane fill).  Every public name
+``plane_fill``, ``PlaneFillParams``: the segment-wise slanted-plane fill; ``cost_planes``:
+planes fitted to a cost volume's pooled costs).  Every public name
 is importable from :mod:`hyperlf.regularisers`; the numba kernels (``_kernels``) are compiled
 on first use, so importing the package does not import numba (nor scikit-image, which
 ``segment`` imports when called).
@@ -51,7 +52,7 @@ from .dispatch import OptimiseResult, optimise
 from .graphcuts import (GRAPHCUT_SMOOTHNESS, candidate_labels, edge_weights_from_guide,
                         graphcut, graphcut_multiscale, mrf_energy)
 from .params import OPTIMISERS, GraphCutParams, SGMParams, WTAParams, make_params, params_dict
-from .planes import PlaneFillParams, fit_plane, plane_fill, segment
+from .planes import PlaneFillParams, cost_planes, fit_plane, plane_fill, segment
 from .postprocess import (confidence, fill_occlusions, left_occlusions, left_right_check,
                           right_cost_from_left, subpixel_refine, weighted_median)
 from .semiglobal import SGM_PATHS, SGM_SMOOTHNESS, sgm, sgm_labels
@@ -84,6 +85,7 @@ __all__ = [
     "segment",
     "fit_plane",
     "plane_fill",
+    "cost_planes",
     "fill_occlusions",
     "right_cost_from_left",
     "subpixel_refine",

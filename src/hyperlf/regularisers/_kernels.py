@@ -105,3 +105,30 @@ def weighted_median(d, g, r, sigma, out):  # pragma: no cover - numba
                     res = v[order[i]]
                     break
             out[y, x] = res
+
+
+@numba.njit(parallel=True, cache=True)
+def plane_scores(P, dx, dy, A, B, c, min_inside, out):  # pragma: no cover - numba
+    """Mean cost of every plane ``c_k + A_i dx + B_j dy`` over the samples.
+
+    ``P`` (n, L) the samples' costs per label (label units: label ``l`` at position ``l``);
+    ``dx``, ``dy`` (n,) the samples' offsets from the tile's centre; ``A``, ``B``, ``c`` the
+    hypotheses in label units.  ``out[i, j, k]``: the mean over the samples whose plane value
+    lies within ``0 .. L - 1`` (linear interpolation between labels), ``inf`` when fewer than
+    ``min_inside`` of them do.  Numpy reference: ``planes._plane_scores_numpy``.
+    """
+    n, L = P.shape
+    for i in numba.prange(A.size):
+        for j in range(B.size):
+            for k in range(c.size):
+                s = 0.0
+                m = 0
+                for q in range(n):
+                    f = c[k] + A[i] * dx[q] + B[j] * dy[q]
+                    if f < 0.0 or f > L - 1:
+                        continue
+                    l0 = min(int(f), L - 2)
+                    t = f - l0
+                    s += (1.0 - t) * P[q, l0] + t * P[q, l0 + 1]
+                    m += 1
+                out[i, j, k] = s / m if m >= min_inside and m > 0 else np.inf

@@ -1,4 +1,5 @@
-"""Segment-wise slanted-plane fill of unreliable disparities (SPEC §4 occlusions, issue 12 item 3).
+"""Slanted planes: the segment-wise fill of unreliable disparities (SPEC §4 occlusions, issue 12
+item 3), and planes fitted to a cost volume's pooled costs (:func:`cost_planes`, issue 11).
 
 A pixel whose disparity is not trusted (it failed the left-right check, or its matching window
 held no texture) usually lies on a surface whose other pixels were matched well.  Segmenting the
@@ -28,7 +29,7 @@ import numpy as np
 from ..errors import InvalidInputError
 from .params import _integer, _number, _share
 
-__all__ = ["PlaneFillParams", "segment", "fit_plane", "plane_fill"]
+__all__ = ["PlaneFillParams", "segment", "fit_plane", "plane_fill", "cost_planes"]
 
 
 @dataclass(frozen=True)
@@ -230,3 +231,206 @@ def plane_fill(disparity, reliable, guide, *, targets=None, params: PlaneFillPar
         out_v[t] = a * xs[t] + b * ys[t] + c
         rep_v[t] = True
     return out.astype(np.float32), replaced
+
+
+def _plane_scores_numpy(P, dx, dy, A, B, c, min_inside):
+    """Reference of :func:`hyperlf.regularisers._kernels.plane_scores` (same arguments,
+    returns ``out``)."""
+    n, L = P.shape
+    out = np.empty((A.size, B.size, c.size))
+    rows = np.arange(n)[None]
+    for i, a in enumerate(A):
+        for j, b in enumerate(B):
+            f = c[:, None] + a * dx[None] + b * dy[None]  # (c, n) label positions
+            inside = (f >= 0) & (f <= L - 1)
+            l0 = np.clip(np.floor(f).astype(np.int64), 0, L - 2)
+            t = np.clip(f - l0, 0.0, 1.0)
+            v = (1 - t) * P[rows, l0] + t * P[rows, l0 + 1]
+            m = inside.sum(axis=1)
+            mean = np.where(inside, v, 0.0).sum(axis=1) / np.maximum(m, 1)
+            out[i, j] = np.where((m >= min_inside) & (m > 0), mean, np.inf)
+    return out
+
+
+def _plane_scores(P, dx, dy, A, B, c, min_inside, impl):
+    if impl == "numpy":
+        return _plane_scores_numpy(P, dx, dy, A, B, c, min_inside)
+    from . import _kernels
+
+    out = np.empty((A.size, B.size, c.size))
+    f8 = np.float64
+    _kernels.plane_scores(np.ascontiguousarray(P, f8), np.ascontiguousarray(dx, f8),
+                          np.ascontiguousarray(dy, f8), np.asarray(A, f8), np.asarray(B, f8),
+                          np.asarray(c, f8), float(min_inside), out)
+    return out
+
+
+def _best_plane(P, dx, dy, slopes, c, min_inside, impl):
+    """``(a, b, c, on_edge)`` of the lowest mean cost: slopes on every other step of
+    ``slopes`` first, then the full steps around that best; ``on_edge`` when a slope is an end
+    of ``slopes`` (the search did not bracket it)."""
+    coarse = slopes[::2]
+    s = _plane_scores(P, dx, dy, coarse, coarse, c, min_inside, impl)
+    i, j, _ = np.unravel_index(np.argmin(s), s.shape)
+    k0 = 2 * np.array([i, j])
+    near = [np.arange(max(k - 1, 0), min(k + 2, slopes.size)) for k in k0]
+    s = _plane_scores(P, dx, dy, slopes[near[0]], slopes[near[1]], c, min_inside, impl)
+    i, j, k = np.unravel_index(np.argmin(s), s.shape)
+    if not np.isfinite(s[i, j, k]):
+        return None
+    ia, ib = near[0][i], near[1][j]
+    on_edge = ia in (0, slopes.size - 1) or ib in (0, slopes.size - 1)
+    return slopes[ia], slopes[ib], c[k], on_edge
+
+
+def _located_plane(P, dx, dy, slopes, c, tile, L, impl):
+    """``(a, b, c)`` of the tile's samples, or None when the search does not locate it: a
+    slope at the end of its range, the plane within one label of the range's ends in the
+    tile, or the two halves of the samples (a checkerboard of blocks a quarter of the tile
+    wide, so that both halves span the tile and share no matching window) choosing planes
+    more than one label apart at the tile's centre or two at a corner (noise alone gives a
+    minimum too; half the samples pin the slope less well than the centre)."""
+    half = tile / 2
+    reach = lambda a, b: abs(a) * half + abs(b) * half  # noqa: E731
+    best = _best_plane(P, dx, dy, slopes, c, 0.9 * len(dx), impl)
+    if best is None or best[3] or not 1.0 <= best[2] - reach(*best[:2]) <= \
+            best[2] + reach(*best[:2]) <= L - 2.0:
+        return None
+    block = max(tile // 4, 1)
+    side = ((np.floor((dx + half) / block) + np.floor((dy + half) / block)) % 2).astype(bool)
+    fits = [_best_plane(P[k], dx[k], dy[k], slopes, c, 0.9 * k.sum(), impl) if k.sum() else None
+            for k in (side, ~side)]
+    if any(f is None for f in fits):
+        return None
+    (a1, b1, c1, _), (a2, b2, c2, _) = fits
+    if abs(c1 - c2) > 1.0 or abs(c1 - c2) + reach(a1 - a2, b1 - b2) > 2.0:
+        return None
+    return best[:3]
+
+
+def _standardised(P: np.ndarray) -> np.ndarray:
+    """Each row (a pixel's costs over the labels) to mean 0 and standard deviation 1."""
+    return (P - P.mean(axis=1, keepdims=True)) / (P.std(axis=1, keepdims=True) + 1e-9)
+
+
+def _over_one_pixel(P: np.ndarray, period: float) -> np.ndarray:
+    """Each row averaged over ``period`` labels (one pixel of shift, rounded: a box over an odd
+    count, a trapezoid with half-weight ends over an even one, so that a component of that
+    period averages out), or as it is when ``period`` is below 1.5 labels."""
+    k = int(round(period))
+    if k < 2:
+        return P
+    # centred: an odd period is a box of k labels, an even one a trapezoid over k + 1
+    kernel = np.ones(k) / k if k % 2 else np.r_[0.5, np.ones(k - 1), 0.5] / k
+    r = kernel.size // 2
+    padded = np.pad(P, ((0, 0), (r, r)), mode="edge")
+    out = np.zeros_like(P)
+    for i, wt in enumerate(kernel):
+        out += wt * padded[:, i:i + P.shape[1]]
+    return out
+
+
+def _tent(n: int) -> np.ndarray:
+    r = 1.0 - np.abs(np.arange(n) + 0.5 - n / 2) / (n / 2)
+    return np.outer(r, r)
+
+
+def cost_planes(volume, mask, *, tile: int, max_slope: float, period: float = 1.0,
+                samples: int = 1000, min_share: float = 0.3, impl: str = "auto") -> np.ndarray:
+    """The slanted planes that the pooled costs of the masked pixels choose, tile by tile.
+
+    For every square ``tile`` (overlapping its neighbours by half) in which at least
+    ``min_share`` of the pixels are masked, up to ``samples`` of its masked pixels are pooled:
+    each pixel's costs are standardised over the labels (mean 0, standard deviation 1, so
+    that every pixel weighs the same), and the plane ``l = c + a (x - x_0) + b (y - y_0)``
+    (label units, ``(x_0, y_0)`` the tile's centre) of the lowest mean cost is searched over
+    ``c`` in half labels and ``a``, ``b`` within ``max_slope`` in steps of ``1 / tile`` (half
+    a label at the tile's edges).  A hypothesis counts only when at least 90 % of the samples
+    lie inside the label range.  A tile's plane is refused when a slope lies at the end of its
+    search range or the plane comes within one label of the range's ends inside the tile (a
+    minimum the search does not bracket is not located), and when the two halves of its
+    samples, taken as a checkerboard of blocks a quarter of the tile wide, choose planes
+    more than one label apart at the tile's centre or two at a corner (pure noise has a
+    minimum too, but not the same one in both halves).  Each pixel gets the accepted
+    planes of the tiles over it, weighted by a tent that falls to 0 at the tile's edges.
+
+    Where each pixel's own costs are too weak to show their minimum (a white table, a wall),
+    thousands of them together do; a plane, unlike one constant per region, follows a
+    surface seen at a slant.
+
+    Parameters
+    ----------
+    volume : array_like, shape (L, H, W)
+        Finite costs, lower is better, at evenly spaced labels.
+    mask : array_like of bool, shape (H, W)
+        The pixels whose costs are pooled.
+    tile : int
+        Side of the tiles, px (>= 4).
+    max_slope : float
+        Largest slope searched, labels per px.
+    period : float
+        Labels per pixel of shift.  Each pixel's costs are first averaged over that many
+        labels (when at least 1.5): bilinear sampling halves white noise's variance at
+        half-pixel shifts, so the costs of pure noise are lower there, a bias that pooling
+        would turn into a plane.
+    samples : int
+        Most pixels pooled per tile (every k-th masked pixel).
+    min_share : float
+        Smallest share of masked pixels for a tile to be fitted.
+    impl : {"auto", "numba", "numpy"}
+
+    Returns
+    -------
+    ndarray, float32 (H, W)
+        The plane's label position (fractional), NaN where no accepted tile lies.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> y, x = np.mgrid[:48, :48]
+    >>> truth = 4.0 + 0.05 * y                     # a slanted plane, in labels
+    >>> rng = np.random.default_rng(0)
+    >>> C = np.abs(np.arange(12)[:, None, None] - truth) + 4 * rng.random((12, 48, 48))
+    >>> plane = cost_planes(C, np.ones((48, 48), bool), tile=24, max_slope=0.1)
+    >>> bool(np.nanmax(np.abs(plane - truth)) < 0.5)
+    True
+    """
+    C = np.asarray(volume)
+    m = np.asarray(mask, bool)
+    if C.ndim != 3 or m.shape != C.shape[1:]:
+        raise InvalidInputError(f"cost_planes needs a volume (L, H, W) and a mask (H, W), got "
+                                f"{C.shape} and {m.shape}")
+    if int(tile) < 4 or max_slope <= 0 or int(samples) < 1:
+        raise InvalidInputError("cost_planes needs tile >= 4, max_slope > 0 and samples >= 1")
+    L, H, W = C.shape
+    T = int(tile)
+    n_steps = max(1, int(round(max_slope * T)))
+    slopes = np.arange(-n_steps, n_steps + 1) / T
+    c = np.arange(0.0, L - 1 + 1e-9, 0.5)
+    num = np.zeros((H, W))
+    den = np.zeros((H, W))
+    tent = _tent(T)
+    S = max(T // 2, 1)
+    for y0 in range(0, max(H - T, 0) + 1, S):
+        for x0 in range(0, max(W - T, 0) + 1, S):
+            sub = m[y0:y0 + T, x0:x0 + T]
+            if sub.mean() < min_share:
+                continue
+            ys, xs = np.nonzero(sub)
+            k = max(1, ys.size // int(samples))
+            ys, xs = ys[::k], xs[::k]
+            P = C[:, y0 + ys, x0 + xs].T.astype(np.float64)
+            P = _standardised(_over_one_pixel(P, period))
+            h, w = sub.shape
+            dx, dy = xs - (w - 1) / 2, ys - (h - 1) / 2
+            best = _located_plane(P, dx, dy, slopes, c, T, L, impl)
+            if best is None:
+                continue
+            a, b, c0 = best
+            yy, xx = np.mgrid[:h, :w]
+            pred = c0 + a * (xx - (w - 1) / 2) + b * (yy - (h - 1) / 2)
+            t = tent[:h, :w]
+            num[y0:y0 + h, x0:x0 + w] += t * pred
+            den[y0:y0 + h, x0:x0 + w] += t
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > 0, num / den, np.nan).astype(np.float32)
