@@ -208,7 +208,8 @@ def test_cost_planes_recover_a_slanted_plane_that_no_pixel_shows(seed):
 def test_cost_planes_refuse_noise_and_unbracketed_minima():
     rng = np.random.default_rng(4)
     noise = rng.random((16, 96, 96))
-    assert np.isnan(cost_planes(noise, np.ones((96, 96), bool), tile=48, max_slope=0.1)).mean() > 0.9
+    plane = cost_planes(noise, np.ones((96, 96), bool), tile=48, max_slope=0.1)
+    assert np.isnan(plane).mean() > 0.9
     edge, _ = _slanted_volume(0, noise=1.0, truth=np.full((96, 96), 0.2))  # at the range's end
     assert np.isnan(cost_planes(edge, np.ones((96, 96), bool), tile=48, max_slope=0.1)).all()
     C, truth = _slanted_volume(1, noise=1.0)

@@ -1742,8 +1742,8 @@ def coarse_prior(prob: DepthProblem, weight, start=None, *, progress: bool | str
     return coarse, strength.astype(np.float32), width, coarse_conf
 
 
-#: Pixels whose data term the texture weight cut by at least half are pooled by
-#: :func:`plane_prior`.
+#: :func:`plane_prior` pools the pixels whose texture weight ``w`` and coarse coverage ``g``
+#: are both below this.
 PLANE_POOL_WEIGHT = 0.5
 #: The smallest automatic tile of :func:`plane_prior`, px: a tile must pool many matching
 #: windows' worth of pixels.
@@ -1759,12 +1759,15 @@ def plane_prior(prob: DepthProblem, C: np.ndarray, weight, prior):
     gives a textureless surface one constant, whichever its neighbours lend it: the lab's
     table front took the objects' disparities in one shot and the board's in the other.
     Pooled over thousands of such pixels, the costs do show where the surface is, slant
-    included (BENCHMARKS.md, twenty-sixth session).  So the pixels with ``w <``
-    :data:`PLANE_POOL_WEIGHT` that every other view sees at every label (near the borders,
-    the labels that some views cannot see would average fewer views: a bias towards the range
-    limits) are pooled by :func:`hyperlf.regularisers.cost_planes`, and every pixel with
-    ``w < 1`` under an accepted plane is pulled towards it with strength ``1 - w``, instead
-    of towards ``d_coarse``.
+    included (BENCHMARKS.md, twenty-sixth session).  So the weakly textured pixels (``w`` and
+    the coarse levels' ``g`` both below :data:`PLANE_POOL_WEIGHT`: a pixel textured at a
+    coarse level keeps ``d_coarse``, which that texture located) whose costs have the same
+    views at every label are pooled by :func:`hyperlf.regularisers.cost_planes`: with
+    ``missing_views="common"`` every pixel that some view sees at every label, else only
+    those that every view sees at every label (near the borders the plain average gives the
+    labels that some views cannot see fewer views: a bias towards the range limits, which
+    pooling would turn into a plane).  Every weakly textured pixel under an accepted plane is
+    then pulled towards it with strength ``1 - w``, instead of towards ``d_coarse``.
 
     Parameters
     ----------
@@ -2062,8 +2065,8 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
     -------
     DepthResult
         With ``timings`` in seconds per stage (``prepare_s``, ``correspondence_s``,
-        ``selection_split_s``, ``plane_prior_s``, ``defocus_s``, ``mrf_s``, ``refine_s``, ``median_s``,
-        ``total_s``; ``visibility_estimate_s`` when the first visibility round starts from
+        ``selection_split_s``, ``plane_prior_s``, ``defocus_s``, ``mrf_s``, ``refine_s``,
+        ``median_s``, ``total_s``; ``visibility_estimate_s`` when the first visibility round starts from
         :func:`coarse_disparity` (that round is then the main pass above); per further
         visibility round ``k``: ``visibility_round{k}_correspondence_s``,
         ``mrf_s_round{k}``, ``refine_s_round{k}``, ``median_s_round{k}``).

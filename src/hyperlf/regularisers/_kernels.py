@@ -2,7 +2,7 @@
 
 Each kernel has a numpy reference beside its user that the tests compare it with:
 :func:`sgm_path` <-> ``semiglobal._sgm_numpy_direction``, :func:`weighted_median` <->
-``postprocess._weighted_median_numpy``.
+``postprocess._weighted_median_numpy``, :func:`plane_scores` <-> ``planes._plane_scores_numpy``.
 """
 
 from __future__ import annotations

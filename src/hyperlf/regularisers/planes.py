@@ -330,6 +330,13 @@ def _over_one_pixel(P: np.ndarray, period: float) -> np.ndarray:
     return out
 
 
+def _tile_starts(n: int, tile: int) -> list[int]:
+    """Starts of tiles of ``tile`` px overlapping by half over ``n`` px, the last one flush
+    with the end."""
+    starts = list(range(0, n - tile + 1, max(tile // 2, 1)))
+    return starts if starts[-1] == n - tile else starts + [n - tile]
+
+
 def _tent(n: int) -> np.ndarray:
     r = 1.0 - np.abs(np.arange(n) + 0.5 - n / 2) / (n / 2)
     return np.outer(r, r)
@@ -403,16 +410,15 @@ def cost_planes(volume, mask, *, tile: int, max_slope: float, period: float = 1.
     if int(tile) < 4 or max_slope <= 0 or int(samples) < 1:
         raise InvalidInputError("cost_planes needs tile >= 4, max_slope > 0 and samples >= 1")
     L, H, W = C.shape
-    T = int(tile)
+    T = min(int(tile), H, W)
     n_steps = max(1, int(round(max_slope * T)))
     slopes = np.arange(-n_steps, n_steps + 1) / T
     c = np.arange(0.0, L - 1 + 1e-9, 0.5)
     num = np.zeros((H, W))
     den = np.zeros((H, W))
     tent = _tent(T)
-    S = max(T // 2, 1)
-    for y0 in range(0, max(H - T, 0) + 1, S):
-        for x0 in range(0, max(W - T, 0) + 1, S):
+    for y0 in _tile_starts(H, T):
+        for x0 in _tile_starts(W, T):
             sub = m[y0:y0 + T, x0:x0 + T]
             if sub.mean() < min_share:
                 continue
