@@ -49,6 +49,31 @@ def rng():
     return np.random.default_rng(12345)
 
 
+@pytest.fixture
+def batch_depth_args(monkeypatch, tmp_path):
+    """``run(*options)``: the depth options ``hyperlf batch ... *options`` hands to each capture
+    (``hyperlf.batch.plan_batch`` stubbed to record them and stop with exit 2); ``run.calls``
+    every list recorded so far."""
+    from hyperlf import batch
+    from hyperlf.cli import main
+    from hyperlf.errors import InvalidInputError
+
+    seen = []
+
+    def plan(inputs, out, *, depth_args=(), **kw):
+        seen.append(list(depth_args))
+        raise InvalidInputError("stop here")
+
+    monkeypatch.setattr(batch, "plan_batch", plan)
+
+    def run(*options):
+        assert main(["-q", "batch", str(tmp_path), *options, "-o", str(tmp_path / "o")]) == 2
+        return seen[-1]
+
+    run.calls = seen
+    return run
+
+
 # ----------------------------------------------------------------------------- data marker
 def _called_names(func) -> set[str]:
     """Names of the functions ``func`` calls (decorators included), from its source."""

@@ -428,23 +428,15 @@ def test_a_dense_camera_array_reuses_the_visibility_estimate(monkeypatch):
     assert noprior.config["coarse_prior_scale"] is None
 
 
-def test_batch_passes_the_coarse_prior_options_to_each_depth_run(tmp_path, monkeypatch):
-    from hyperlf import batch
+def test_batch_passes_the_coarse_prior_options_to_each_depth_run(tmp_path, batch_depth_args):
     from hyperlf.cli import main
 
-    seen = []
-
-    def plan(inputs, out, *, depth_args=(), **kw):
-        seen.append(list(depth_args))
-        raise InvalidInputError("stop here")
-
-    monkeypatch.setattr(batch, "plan_batch", plan)
-    for extra in ((), ("--no-coarse-prior",), ("--coarse-prior-levels", "3")):
-        assert main(["-q", "batch", str(tmp_path), *extra, "-o", str(tmp_path / "o")]) == 2
+    seen = [batch_depth_args(*extra)
+            for extra in ((), ("--no-coarse-prior",), ("--coarse-prior-levels", "3"))]
     with pytest.raises(SystemExit) as info:  # contradictory: refused while parsing
         main(["-q", "batch", str(tmp_path), "--no-coarse-prior", "--coarse-prior-levels", "2",
               "-o", str(tmp_path / "o")])
-    assert info.value.code == 2 and len(seen) == 3
+    assert info.value.code == 2 and len(batch_depth_args.calls) == 3
     assert "--no-coarse-prior" not in seen[0] and seen[1][-1] == "--no-coarse-prior"
     assert "--coarse-prior-levels" not in seen[0]
     assert seen[2][seen[2].index("--coarse-prior-levels") + 1] == "3"
