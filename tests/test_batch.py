@@ -77,14 +77,28 @@ def _running_depth(batch_pid: int, timeout: float = 120.0):
     """``(depth pid, its worker's pid, capture)`` of a capture the batch is running."""
     t_end = time.monotonic() + timeout
     while time.monotonic() < t_end:
-        for pid in _descendants(batch_pid):
+        for pid in _depth_processes(batch_pid):
             cmd = _cmdline(pid)
-            if "hyperlf" in cmd and "depth" in cmd:
-                stat = Path(f"/proc/{pid}/stat").read_text()
-                worker = int(stat.rsplit(")", 1)[1].split()[1])
-                return pid, worker, cmd[cmd.index("depth") + 1]
+            stat = Path(f"/proc/{pid}/stat").read_text()
+            worker = int(stat.rsplit(")", 1)[1].split()[1])
+            return pid, worker, cmd[cmd.index("depth") + 1]
         time.sleep(0.02)
     raise AssertionError("the batch never started a depth process")
+
+
+def _depth_processes(batch_pid: int) -> list[int]:
+    """The pids of every depth process the batch is running now."""
+    return [pid for pid in _descendants(batch_pid)
+            if "hyperlf" in (cmd := _cmdline(pid)) and "depth" in cmd]
+
+
+def _alive(pid: int) -> bool:
+    """Whether ``pid`` runs (neither gone nor a zombie)."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
 
 
 def _summary(out: Path) -> list[dict]:
@@ -142,22 +156,24 @@ def test_sigterm_to_a_batch_leaves_no_hidden_staging_folders(captures, tmp_path)
     out = tmp_path / "out"
     proc = _hyperlf("batch", captures, "--labels", LABELS, "--workers", 2, "-o", out)
     try:
-        depth_pid, _, _ = _running_depth(proc.pid)
+        _running_depth(proc.pid)
+        depth_pids = _depth_processes(proc.pid)  # with 2 workers there may be two
         proc.send_signal(signal.SIGTERM)
         _, err = proc.communicate(timeout=120)
     finally:
         proc.kill()
     assert proc.returncode == 143, err
     assert "terminated" in err and "Traceback" not in err
-    t_end = time.monotonic() + 60  # the depth process cleans up after its worker has gone
-    while Path(f"/proc/{depth_pid}").exists() and time.monotonic() < t_end:
-        if "Z" in Path(f"/proc/{depth_pid}/stat").read_text().rsplit(")", 1)[1].split()[0]:
-            break
-        time.sleep(0.05)
+    t_end = time.monotonic() + 60  # each depth process cleans up after its worker has gone
+    for pid in depth_pids:
+        while _alive(pid) and time.monotonic() < t_end:
+            time.sleep(0.05)
     if not out.exists():  # stopped before its first result: the folder it made is gone
         return
-    hidden = [p.name for p in out.iterdir() if p.name.startswith(".hyperlf-")]
-    assert hidden in ([], [".hyperlf-batch.json"]), hidden
+    hidden = lambda: [p.name for p in out.iterdir() if p.name.startswith(".hyperlf-")]  # noqa: E731
+    while hidden() not in ([], [".hyperlf-batch.json"]) and time.monotonic() < t_end:
+        time.sleep(0.05)  # a depth process started just as the signal came
+    assert hidden() in ([], [".hyperlf-batch.json"]), hidden()
     for folder in (p for p in out.iterdir() if p.is_dir()):
         _assert_whole(folder)  # what finished before the signal is whole
 
