@@ -1,7 +1,7 @@
 """The real-array benchmark of issue 11 on ``real_arrays/msir_lab`` (or any capture of the kind).
 
     python benchmarks/real_array.py WORK [--data FOLDER] [--labels 41] [--half-resolution]
-                                         [--downscale N]
+                                         [--downscale N] [--depth-option=--OPTION ...]
 
 Runs, with the documented commands only, ``hyperlf calibrate`` on the board shots, ``hyperlf
 ingest`` of the scene shot *and* of the board shot, ``hyperlf depth`` of both, then prints the
@@ -17,7 +17,8 @@ textureless-region weight, and prints the range-limit share and the timings of e
 ``--downscale N`` also runs ``hyperlf depth --downscale N`` on both shots (``scene-depth-dN``,
 ``board-depth-dN``) and prints the same consistency figures on their 1/N maps, in their own px
 and in full-resolution px (a block is compared where every pixel of it is; ~1 minute per shot
-at N = 2).
+at N = 2).  ``--depth-option=--weak-planes`` (repeatable) passes an option on to both
+depth runs, whose folders then carry it in their names (``scene-depth-weak-planes``).
 """
 
 from __future__ import annotations
@@ -35,7 +36,17 @@ def hyperlf(*argv) -> None:
     subprocess.run([sys.executable, "-m", "hyperlf", *map(str, argv)], check=True)
 
 
-def run_steps(data: Path, work: Path, labels: int, downscale: int = 1) -> None:
+def option_suffix(options=()) -> str:
+    """What the extra depth ``options`` add to the names of their outputs."""
+    return "".join("-" + o.lstrip("-") for o in options)
+
+
+def depth_folder(shot: str, options=()) -> str:
+    """The name of the depth folder of ``shot`` run with the extra depth ``options``."""
+    return f"{shot}-depth{option_suffix(options)}"
+
+
+def run_steps(data: Path, work: Path, labels: int, downscale: int = 1, options=()) -> None:
     pattern = "Cam-{index}.png"
     steps = [
         ("cal", ["calibrate", data / "calibration", "--pattern", pattern, "--grid", "3,3",
@@ -44,8 +55,8 @@ def run_steps(data: Path, work: Path, labels: int, downscale: int = 1) -> None:
                    pattern]),
         ("board", ["ingest", data / "calibration", "--calibration", work / "cal", "--pattern",
                    pattern]),
-        ("scene-depth", ["depth", work / "scene", "--labels", labels]),
-        ("board-depth", ["depth", work / "board", "--labels", labels]),
+        *((depth_folder(k, options), ["depth", work / k, "--labels", labels, *options])
+          for k in ("scene", "board")),
     ]
     if downscale > 1:
         steps += [(f"{k}-depth-d{downscale}", ["depth", work / k, "--labels", labels,
@@ -115,14 +126,14 @@ def textured_pixels(lf) -> np.ndarray:
     return texture_snr(ref, window, valid=valid) >= CAMERA_TEXTURE_SNR
 
 
-def figures(data: Path, work: Path):
+def figures(data: Path, work: Path, options=()):
     """Prints the full-resolution figures; returns both captures and
     :func:`unchanged_pixels` of them, for :func:`downscaled`."""
     from hyperlf.formats import load_lightfield, read_pfm
     from hyperlf.metrics import at_range_limit
 
     lf = {k: load_lightfield(work / k) for k in ("scene", "board")}
-    d = {k: read_pfm(work / f"{k}-depth" / "disparity.pfm") for k in lf}
+    d = {k: read_pfm(work / depth_folder(k, options) / "disparity.pfm") for k in lf}
     ref = lf["scene"].reference
     lo, hi = lf["scene"].disparity_range
     at_limit = {k: at_range_limit(d[k], (lo, hi)) for k in d}
@@ -146,16 +157,17 @@ def figures(data: Path, work: Path):
     print(f"where the two shots' images agree (unchanged_pixels): {100 * same.mean():.1f} % of "
           f"the pixels; |difference| median {np.median(diff):.3f} px, 90th percentile "
           f"{np.percentile(diff, 90):.3f} px, {100 * (diff > 2).mean():.1f} % off by more than 2 px")
-    confident_in_both(work, d, same)
-    consistency_picture(d, off, foot, work / "consistency.png")
+    confident_in_both(work, d, same, options=options)
+    consistency_picture(d, off, foot, work / f"consistency{option_suffix(options)}.png")
     return lf, same
 
 
-def confident_in_both(work: Path, d: dict, same: np.ndarray, levels=(0.01, 0.05, 0.1)) -> None:
+def confident_in_both(work: Path, d: dict, same: np.ndarray, levels=(0.01, 0.05, 0.1), *,
+                      options=()) -> None:
     """The consistency on the pixels that ``depth --min-confidence C`` keeps in both shots."""
     from hyperlf.formats import read_pfm
 
-    paths = {k: work / f"{k}-depth" / "confidence.pfm" for k in d}
+    paths = {k: work / depth_folder(k, options) / "confidence.pfm" for k in d}
     if not all(p.is_file() for p in paths.values()):
         print("no confidence.pfm in the depth folders (made before it was written): "
               "delete them to measure the confident pixels")
@@ -268,12 +280,15 @@ def main() -> None:
                     help="also measure the textureless-region weight at half resolution")
     ap.add_argument("--downscale", type=int, default=1, metavar="N",
                     help="also run depth --downscale N on both shots and measure them")
+    ap.add_argument("--depth-option", action="append", default=[], metavar="--OPTION",
+                    help="an option of both depth runs (repeatable; write it as "
+                         "--depth-option=--weak-planes)")
     a = ap.parse_args()
     data = a.data or Path(os.environ.get("HYPERLF_DATA", "../shared/data")) / "real_arrays" \
         / "msir_lab"
     a.work.mkdir(parents=True, exist_ok=True)
-    run_steps(data, a.work, a.labels, a.downscale)
-    lf, same = figures(data, a.work)
+    run_steps(data, a.work, a.labels, a.downscale, a.depth_option)
+    lf, same = figures(data, a.work, a.depth_option)
     if a.downscale > 1:
         downscaled(a.work, a.downscale, lf, same)
     if a.half_resolution:

@@ -26,37 +26,61 @@ def _grey_capture(size=96, seed=0):
                       metadata={"calibration": {"mode": "plane"}})
 
 
-def test_plane_prior_puts_the_pooled_plane_where_the_coarse_estimate_was():
+def _flat_prior(size=96):
+    return (np.zeros((size, size), np.float32), np.zeros((size, size), np.float32), 1.0, None)
+
+
+def test_plane_prior_carries_the_coarse_levels_plane_up(monkeypatch):
+    """The planes are fitted at the coarse prior's scale (2: 48 x 48 px, labels -2 .. 2 in
+    0.25 px steps) and become full-resolution disparities: twice the coarse level's, on each
+    2 x 2 block."""
     lf = _grey_capture()
     prob = hlf.prepare(lf, n_labels=17, params=hlf.DepthParams(weak_planes=True))
     w = hlf.texture_weight(prob)
     assert w.max() < 0.5
-    labels = prob.labels  # -4 .. 4 in 0.5 px steps
-    y, x = np.mgrid[:96, :96]
-    truth = -1.0 + 0.02 * y + 0.01 * x  # disparity px
+    y, x = np.mgrid[:48, :48]
+    truth = -0.5 + 0.01 * y + 0.005 * x  # coarse-level disparity px
     rng = np.random.default_rng(1)
-    C = (np.abs(labels[:, None, None] - truth) + 6 * rng.random((17, 96, 96))).astype(np.float32)
-    prior = (np.zeros((96, 96), np.float32), np.zeros((96, 96), np.float32), 1.0, None)
-    coarse, strength, width, conf = hlf.plane_prior(prob, C, w, prior)
+    levels = []
+
+    def level_volume(level, **kw):
+        levels.append(level)
+        labels = level.labels[:, None, None]
+        C = np.abs(labels - truth) + 1.5 * rng.random((labels.size, 48, 48))
+        return C.astype(np.float32), None
+
+    monkeypatch.setattr(hlf, "correspondence", level_volume)
+    coarse, strength, width, conf = hlf.plane_prior(prob, w, _flat_prior())
+    (level,) = levels
+    assert level.lf.image_shape == (48, 48) and level.params.missing_views == "common"
+    np.testing.assert_allclose(level.labels, np.linspace(-2, 2, 17))
     assert width == 1.0 and conf is None
     under = coarse != 0
     assert under.mean() > 0.8
-    # the search's grid: half labels (0.25 px), slopes in steps of half a label at tile edges
-    assert np.abs(coarse - truth)[under].max() < 0.5
+    full = 2 * np.repeat(np.repeat(truth, 2, 0), 2, 1)
+    # the search's grid: half labels (0.125 px there), slopes in half-label steps at tile edges
+    assert np.abs(coarse - full)[under].max() < 0.5
     np.testing.assert_allclose(strength[under], 1 - w[under], rtol=1e-6)
-    # off, without a weight or without a prior: the prior as it was
+
+
+def test_plane_prior_is_off_without_its_option_a_weight_or_a_prior(monkeypatch):
+    lf = _grey_capture()
+    prob = hlf.prepare(lf, n_labels=17, params=hlf.DepthParams(weak_planes=True))
+    w, prior = hlf.texture_weight(prob), _flat_prior()
     off = hlf.prepare(lf, n_labels=17, params=hlf.DepthParams(weak_planes=False))
-    assert hlf.plane_prior(off, C, w, prior) is prior
-    assert hlf.plane_prior(prob, C, None, prior) is prior
-    assert hlf.plane_prior(prob, C, w, None) is None
+    monkeypatch.setattr(hlf, "correspondence", None)  # none of these computes a volume
+    assert hlf.plane_prior(off, w, prior) is prior
+    assert hlf.plane_prior(prob, None, prior) is prior
+    assert hlf.plane_prior(prob, w, None) is None
+    small = hlf.prepare(_grey_capture(24), n_labels=17, params=hlf.DepthParams(weak_planes=True))
+    tiny = _flat_prior(24)  # a coarse level of 12 px is too small
+    assert hlf.plane_prior(small, hlf.texture_weight(small), tiny) is tiny
 
 
 def test_plane_prior_pools_only_pixels_whose_labels_share_their_views(monkeypatch):
     from hyperlf import regularisers
 
     lf = _grey_capture()
-    C = np.zeros((17, 96, 96), np.float32)
-    prior = (np.zeros((96, 96), np.float32), np.zeros((96, 96), np.float32), 1.0, None)
     masks = {}
 
     def capture(volume, mask, **kw):
@@ -67,25 +91,22 @@ def test_plane_prior_pools_only_pixels_whose_labels_share_their_views(monkeypatc
     for mode in ("average", "common"):
         prob = hlf.prepare(lf, n_labels=17, params=hlf.DepthParams(weak_planes=True,
                                                                     missing_views=mode))
-        hlf.plane_prior(prob, C, hlf.texture_weight(prob), prior)
-    # labels -4 .. 4 and views one baseline away: within 4 px of a border some views leave
-    # the image at some label, so the plain average gives those labels fewer views
-    inner = np.zeros((96, 96), bool)
-    inner[4:92, 4:92] = True
-    np.testing.assert_array_equal(masks["average"], inner)
-    # every label over the views that see all of them: all pixels but the corners, which
-    # no view sees at every label
-    corner = np.zeros((96, 96), bool)
-    for ys in (slice(0, 4), slice(92, 96)):
-        for xs in (slice(0, 4), slice(92, 96)):
+        hlf.plane_prior(prob, hlf.texture_weight(prob), _flat_prior())
+    # the coarse level (48 x 48, labels -2 .. 2, views one baseline away) averages every
+    # label over the views that see all of them, whatever the main pass does: all pixels but
+    # the corners, which no view sees at every label
+    corner = np.zeros((48, 48), bool)
+    for ys in (slice(0, 2), slice(46, 48)):
+        for xs in (slice(0, 2), slice(46, 48)):
             corner[ys, xs] = True
+    np.testing.assert_array_equal(masks["average"], ~corner)
     np.testing.assert_array_equal(masks["common"], ~corner)
 
 
 @pytest.mark.parametrize("seed", range(2))
 def test_weak_planes_leave_a_textureless_table_to_its_surroundings(seed):
     """No texture at any level: the pooled costs are noise (and the cameras' vignetting),
-    the halves of each tile disagree, and the table keeps its surroundings' depth."""
+    no tile's plane is accepted, and the table keeps its surroundings' depth."""
     lf = _table_scene(seed)
     res = hlf.depth(lf, n_labels=25, params=hlf.DepthParams(texture_snr=2, weak_planes=True))
     err = np.abs(res.disparity[H // 2 + 8:, :] - D0)

@@ -1513,10 +1513,10 @@ def _add_weak_planes_option(p: argparse.ArgumentParser, *, brief: bool = False) 
     """``--weak-planes`` of depth and batch (``DepthParams.weak_planes``)."""
     p.add_argument("--weak-planes", action="store_true", help="as for depth" if brief else
                    "where a pixel is weakly textured at full and at half resolution, pull it "
-                   "towards a slanted plane that the pooled costs of such pixels choose, tile "
-                   "by tile, instead of towards the half-resolution estimate (a white table "
-                   "seen at a slant then keeps its slope; needs the coarse prior; with "
-                   "--missing-views common it also pools pixels near the borders)")
+                   "towards a slanted plane that the pooled half-resolution costs of such "
+                   "pixels choose, tile by tile, instead of towards the half-resolution "
+                   "estimate (a white table seen at a slant then keeps its slope; needs the "
+                   "coarse prior)")
 
 
 def _add_missing_views_option(p: argparse.ArgumentParser, *, brief: bool = False) -> None:

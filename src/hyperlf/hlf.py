@@ -117,7 +117,7 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
    volume holds the pull spread over the paths like every neighbour's vote; its margin is
    kept as it is.)  With ``params.weak_planes`` (off by default) the pull's target on pixels
    weak at every level is a slanted plane that the pooled costs of such pixels choose, tile
-   by tile (:func:`plane_prior`).
+   by tile, at the coarse prior's scale (:func:`plane_prior`).
 
 6. **Post-filter**: the guided weighted median (:func:`post_filter`).
 
@@ -286,8 +286,9 @@ class DepthParams:
     label steps).
     ``weak_planes`` (False; acts only where the coarse prior does): on pixels weakly textured
     at full resolution and at the coarse levels, the pooled costs choose slanted planes,
-    tile by tile (:func:`plane_prior`, :func:`hyperlf.regularisers.cost_planes`: tiles of
-    ``plane_tile`` px, None: 1/8 of the shorter side, at least 48; slopes up to
+    tile by tile, on the light field downscaled by ``coarse_prior_scale``
+    (:func:`plane_prior`, :func:`hyperlf.regularisers.cost_planes`: tiles of ``plane_tile``
+    px of that level, None: 1/8 of its shorter side, at least 48; slopes up to
     ``plane_max_slope``, 0.12 disparity px per px), and those under an accepted plane are
     pulled towards it instead of ``d_coarse`` (why not by default: BENCHMARKS.md).
     Aggregation (issue 12 item 2): ``aggregation`` (``"none"``, the default, or ``"guided"``),
@@ -1744,42 +1745,47 @@ def coarse_prior(prob: DepthProblem, weight, start=None, *, progress: bool | str
     return coarse, strength.astype(np.float32), width, coarse_conf
 
 
-#: :func:`plane_prior` pools the pixels whose texture weight ``w`` and coarse coverage ``g``
-#: are both below this.
+#: :func:`plane_prior` pools the pixels whose texture weight at the coarse level is below
+#: this, and pulls the full-resolution pixels whose coarse coverage ``g`` is below it.
 PLANE_POOL_WEIGHT = 0.5
-#: The smallest automatic tile of :func:`plane_prior`, px: a tile must pool many matching
-#: windows' worth of pixels.
+#: The smallest automatic tile of :func:`plane_prior`, px of the coarse level: a tile must
+#: pool many matching windows' worth of pixels.
 PLANE_MIN_TILE = 48
 
 
-def plane_prior(prob: DepthProblem, C: np.ndarray, weight, prior):
+def plane_prior(prob: DepthProblem, weight, prior, *, progress: bool | str = False):
     """Stage 4b of :func:`depth`, after :func:`coarse_prior`: the coarse prior's target on
-    weakly textured pixels replaced by slanted planes that their pooled costs choose
-    (``params.weak_planes``).
+    weakly textured pixels replaced by slanted planes that their pooled costs choose at the
+    coarse prior's scale (``params.weak_planes``).
 
     A weakly textured pixel's own costs hardly show their minimum, and the coarse estimate
     gives a textureless surface one constant, whichever its neighbours lend it: the lab's
     table front took the objects' disparities in one shot and the board's in the other.
     Pooled over thousands of such pixels, the costs do show where the surface is, slant
-    included (BENCHMARKS.md, twenty-sixth session).  So the weakly textured pixels (``w`` and
-    the coarse levels' ``g`` both below :data:`PLANE_POOL_WEIGHT`: a pixel textured at a
-    coarse level keeps ``d_coarse``, which that texture located) whose costs have the same
-    views at every label are pooled by :func:`hyperlf.regularisers.cost_planes`: with
-    ``missing_views="common"`` every pixel that some view sees at every label, else only
-    those that every view sees at every label (near the borders the plain average gives the
-    labels that some views cannot see fewer views: a bias towards the range limits, which
-    pooling would turn into a plane).  Every weakly textured pixel under an accepted plane is
-    then pulled towards it with strength ``1 - w``, instead of towards ``d_coarse``.
+    included (BENCHMARKS.md, twenty-sixth and twenty-seventh sessions).  They are pooled on
+    the light field downscaled by ``s = params.coarse_prior_scale`` (a matching window there
+    covers ``s^2`` times the area, with ``1/s`` of the noise per pixel), by
+    :func:`hyperlf.regularisers.cost_planes` on a volume of as many labels as the full run's
+    over the range divided by ``s``, each label averaged over the views that see the pixel at
+    every label (``missing_views="common"``, whatever the main pass uses: the plain average
+    gives the labels that some views cannot see fewer views, a bias towards the range limits
+    that pooling would turn into a plane).  Pooled are the pixels of that level whose texture
+    weight is below :data:`PLANE_POOL_WEIGHT` and which some view sees at every label.  The
+    planes, scaled by ``s``, then become the target of the full-resolution pixels that are
+    weakly textured (``w < 1``) and were pooled (the coarse levels' ``g`` below
+    :data:`PLANE_POOL_WEIGHT`: a pixel textured at a coarse level keeps ``d_coarse``, which
+    that texture located), with strength ``1 - w``.  Fitting at full resolution instead left
+    the lab's table front to ``d_coarse`` (BENCHMARKS.md).
 
     Parameters
     ----------
     prob : DepthProblem
-    C : ndarray (L, H, W)
-        The correspondence volume (:func:`correspondence`).
     weight : ndarray (H, W) or None
         :func:`texture_weight`.
     prior : tuple or None
         :func:`coarse_prior`'s ``(coarse, strength, width, confidence)``.
+    progress : bool or str
+        A progress bar for the coarse level's costs.
 
     Returns
     -------
@@ -1787,31 +1793,50 @@ def plane_prior(prob: DepthProblem, C: np.ndarray, weight, prior):
         ``prior`` with ``coarse`` and ``strength`` replaced under the planes; ``prior`` itself
         when there is no prior or ``params.weak_planes`` is off.
     """
-    from .regularisers import cost_planes
-
     p = prob.params
     if prior is None or weight is None or not p.weak_planes:
         return prior
-    labels = np.asarray(prob.labels, np.float64)
-    step = float(labels[1] - labels[0])
+    s = int(p.coarse_prior_scale)
+    plane = _coarse_planes(prob, s, progress=progress)
+    if plane is None:
+        return prior
     w = np.clip(np.asarray(weight, np.float32), 0.0, 1.0)
     g = _coverage(prob, _prior_levels(prob))
-    weak = (w < PLANE_POOL_WEIGHT) & (g < PLANE_POOL_WEIGHT)
-    seen = list(_seen_at_every_label(prob).values())
-    # unbiased profiles: every label averaged over the same views (missing_views="common":
-    # those that see the pixel at every label, where one does), else over all of them
-    pooled = weak & (np.logical_or.reduce(seen) if prob.every_label is not None
-                     else np.logical_and.reduce(seen))
-    if prob.valid is not None:
-        pooled &= prob.valid[prob.reference]
-    tile = p.plane_tile or max(PLANE_MIN_TILE, min(prob.lf.image_shape) // 8)
-    plane = cost_planes(C, pooled, tile=int(tile), max_slope=float(p.plane_max_slope) / step,
-                        period=1.0 / step, impl=prob.impl)
-    use = np.isfinite(plane) & weak
+    use = np.isfinite(plane) & (w < 1) & (g < PLANE_POOL_WEIGHT)
     coarse, strength, width, conf = prior
-    coarse = np.where(use, labels[0] + step * np.nan_to_num(plane), coarse).astype(np.float32)
+    coarse = np.where(use, plane, coarse).astype(np.float32)
     strength = np.where(use, 1 - w, strength).astype(np.float32)
     return coarse, strength, width, conf
+
+
+def _coarse_planes(prob: DepthProblem, s: int, *, progress: bool | str = False):
+    """:func:`plane_prior`'s planes: full-resolution disparity px (NaN where no tile was
+    accepted), or None when the image is too small for the level ``s`` or nothing there is
+    weakly textured."""
+    from .regularisers import cost_planes
+
+    coarse = _coarse_problem(prob, s)
+    if coarse is None:
+        return None
+    lf_s, options = coarse
+    options.update(n_labels=prob.labels.size,
+                   params=replace(options["params"], missing_views="common"))
+    level = prepare(lf_s, **options)
+    w = texture_weight(level)
+    if w is None:
+        return None
+    C, _ = correspondence(level, progress=f"views, planes at 1/{s} resolution" if progress
+                          else False)
+    pooled = np.logical_or.reduce(list(_seen_at_every_label(level).values()))
+    pooled &= w < PLANE_POOL_WEIGHT
+    if level.valid is not None:
+        pooled &= level.valid[level.reference]
+    labels = np.asarray(level.labels, np.float64)
+    step = float(labels[1] - labels[0])
+    tile = prob.params.plane_tile or max(PLANE_MIN_TILE, min(lf_s.image_shape) // 8)
+    plane = cost_planes(C, pooled, tile=int(tile), max_slope=float(prob.params.plane_max_slope)
+                        / step, period=1.0 / step, impl=prob.impl)
+    return _blow_up(s * (labels[0] + step * plane), s, prob.lf.image_shape)
 
 
 def _prior_levels(prob: DepthProblem) -> list[int]:
@@ -2110,10 +2135,10 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
     w = texture_weight(prob)
     prior = coarse_prior(prob, w, start, progress=progress)
     clock.lap("coarse_prior_s")
+    prior = plane_prior(prob, w, prior, progress=progress)
+    clock.lap("plane_prior_s")
     C, n_used = correspondence(prob, progress=progress, timings=timings, sees=sees, strips=strips)
     clock.lap()
-    prior = plane_prior(prob, C, w, prior)
-    clock.lap("plane_prior_s")
     seen, n_used = seen_pixels(prob, n_used), (n_used if save_intermediate else None)
     f_c = prob.labels[np.argmin(C, axis=0)].astype(np.float32)
     clock.lap()
