@@ -123,21 +123,31 @@ def test_depth_params_check_the_plane_options(bad):
         hlf.DepthParams(**bad)
 
 
+def test_weak_planes_are_on_by_default():
+    assert hlf.DepthParams().weak_planes is True
+
+
 def test_depth_and_batch_commands_take_weak_planes(tmp_path, capsys, batch_depth_args):
     from hyperlf.cli import main
     from hyperlf.formats import read_pfm, save_lightfield
 
     lf = _table_scene(0)
     save_lightfield(lf, tmp_path / "cap", bit_depth=32)
-    assert main(["-q", "depth", str(tmp_path / "cap"), "--labels", "25", "--texture-snr", "2",
-                 "--weak-planes", "-o", str(tmp_path / "d")]) == 0
-    ref = hlf.depth(lf, n_labels=25, params=hlf.DepthParams(texture_snr=2, weak_planes=True))
-    np.testing.assert_array_equal(read_pfm(tmp_path / "d" / "disparity.pfm"), ref.disparity)
+    for flag, on in (("--weak-planes", True), ("--no-weak-planes", False)):
+        out = tmp_path / flag
+        assert main(["-q", "depth", str(tmp_path / "cap"), "--labels", "25", "--texture-snr",
+                     "2", flag, "-o", str(out)]) == 0
+        ref = hlf.depth(lf, n_labels=25, params=hlf.DepthParams(texture_snr=2, weak_planes=on))
+        np.testing.assert_array_equal(read_pfm(out / "disparity.pfm"), ref.disparity)
     capsys.readouterr()
     assert main(["-q", "depth", str(tmp_path / "cap"), "--weak-planes", "--no-coarse-prior",
                  "-o", str(tmp_path / "bad")]) == 2
     assert "--weak-planes" in capsys.readouterr().err
     assert not (tmp_path / "bad").exists()
+    # without the coarse prior the default's planes have nothing to act on: no refusal
+    assert main(["-q", "depth", str(tmp_path / "cap"), "--labels", "9", "--no-coarse-prior",
+                 "-o", str(tmp_path / "plain")]) == 0
 
-    assert "--weak-planes" not in batch_depth_args()
+    assert not {"--weak-planes", "--no-weak-planes"} & set(batch_depth_args())
     assert batch_depth_args("--weak-planes")[-1] == "--weak-planes"
+    assert batch_depth_args("--no-weak-planes")[-1] == "--no-weak-planes"

@@ -885,7 +885,7 @@ def _cmd_depth(args, dest) -> list[Path]:
                                      ("coarse_prior", False if args.no_coarse_prior else None),
                                      ("coarse_prior_levels", args.coarse_prior_levels),
                                      ("missing_views", args.missing_views),
-                                     ("weak_planes", True if args.weak_planes else None),
+                                     ("weak_planes", args.weak_planes),
                                      ("visibility_rounds", args.visibility_rounds),
                                      ("max_memory", budget))
                    if v is not None}
@@ -1040,8 +1040,8 @@ def _cmd_batch(args, dest) -> list[Path]:  # noqa: ARG001 - batch writes its own
             depth_args += [flag, f"{value:g}" if isinstance(value, float) else str(value)]
     if args.no_coarse_prior:
         depth_args.append("--no-coarse-prior")
-    if args.weak_planes:
-        depth_args.append("--weak-planes")
+    if args.weak_planes is not None:
+        depth_args.append("--weak-planes" if args.weak_planes else "--no-weak-planes")
     new = not os.path.lexists(args.output)
     tasks = plan_batch(args.inputs, args.output, depth_args=depth_args,
                        disparity_range=args.disparity_range, downscale=args.downscale,
@@ -1510,13 +1510,15 @@ def _add_coarse_prior_options(p: argparse.ArgumentParser, *, brief: bool = False
 
 
 def _add_weak_planes_option(p: argparse.ArgumentParser, *, brief: bool = False) -> None:
-    """``--weak-planes`` of depth and batch (``DepthParams.weak_planes``)."""
-    p.add_argument("--weak-planes", action="store_true", help="as for depth" if brief else
+    """``--weak-planes`` / ``--no-weak-planes`` of depth and batch
+    (``DepthParams.weak_planes``)."""
+    p.add_argument("--weak-planes", action=argparse.BooleanOptionalAction, default=None,
+                   help="as for depth" if brief else
                    "where a pixel is weakly textured at full and at half resolution, pull it "
                    "towards a slanted plane that the pooled half-resolution costs of such "
                    "pixels choose, tile by tile, instead of towards the half-resolution "
-                   "estimate (a white table seen at a slant then keeps its slope; needs the "
-                   "coarse prior)")
+                   "estimate, so that a white table seen at a slant keeps its slope (default: "
+                   "on; it acts with the coarse prior, i.e. on captures from cameras)")
 
 
 def _add_missing_views_option(p: argparse.ArgumentParser, *, brief: bool = False) -> None:
@@ -2032,7 +2034,8 @@ _ONLY_WITH = (("--aggregation-radius", "--aggregation", "guided"),
 #: the labels).
 _HLF_ONLY = ("--metric", "--optimizer", "--view-selection", "--occlusion-split", "--defocus",
              "--median-radius", "--median-passes", "--texture-snr", "--max-memory",
-             "--no-coarse-prior", "--missing-views", "--weak-planes", "--visibility-rounds",
+             "--no-coarse-prior", "--missing-views", "--weak-planes", "--no-weak-planes",
+             "--visibility-rounds",
              "--aggregation", "--aggregation-radius",
              "--aggregation-eps")
 

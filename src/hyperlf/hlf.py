@@ -115,7 +115,7 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
    through ``c_s``, and would otherwise give a weakly textured pixel a clear margin at the
    coarse estimate's label however little its own window says.  (Under SGM the aggregated
    volume holds the pull spread over the paths like every neighbour's vote; its margin is
-   kept as it is.)  With ``params.weak_planes`` (off by default) the pull's target on pixels
+   kept as it is.)  With ``params.weak_planes`` (the default) the pull's target on pixels
    weak at every level is a slanted plane that the pooled costs of such pixels choose, tile
    by tile, at the coarse prior's scale (:func:`plane_prior`).
 
@@ -284,13 +284,14 @@ class DepthParams:
     ``g`` how much of ``d_coarse`` comes from textured pixels at some level; ``width``
     ``coarse_prior_width`` disparity px (None: the coarse run's label step, ``scale`` fine
     label steps).
-    ``weak_planes`` (False; acts only where the coarse prior does): on pixels weakly textured
-    at full resolution and at the coarse levels, the pooled costs choose slanted planes,
-    tile by tile, on the light field downscaled by ``coarse_prior_scale``
+    ``weak_planes`` (True; acts only where the coarse prior does, so by default on captures
+    made from camera images only): on pixels weakly textured at full resolution and at the
+    coarse levels, the pooled costs choose slanted planes, tile by tile, on the light field
+    downscaled by ``coarse_prior_scale``
     (:func:`plane_prior`, :func:`hyperlf.regularisers.cost_planes`: tiles of ``plane_tile``
     px of that level, None: 1/8 of its shorter side, at least 48; slopes up to
     ``plane_max_slope``, 0.12 disparity px per px), and those under an accepted plane are
-    pulled towards it instead of ``d_coarse`` (why not by default: BENCHMARKS.md).
+    pulled towards it instead of ``d_coarse`` (BENCHMARKS.md, twenty-seventh session).
     Aggregation (issue 12 item 2): ``aggregation`` (``"none"``, the default, or ``"guided"``),
     ``aggregation_radius`` (4 px), ``aggregation_eps`` (1e-3): the correspondence volume
     filtered edge-aware with the reference view as the guide before the unary
@@ -350,7 +351,7 @@ class DepthParams:
     coarse_prior_width: float | None = None
     coarse_prior_levels: int = 1
     coarse_prior_labels: int | None = None
-    weak_planes: bool = False
+    weak_planes: bool = True
     plane_tile: int | None = None
     plane_max_slope: float = 0.12
     aggregation: str = "none"
