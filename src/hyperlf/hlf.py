@@ -1755,7 +1755,8 @@ PLANE_MIN_TILE = 48
 
 
 def plane_prior(prob: DepthProblem, weight, prior, *, progress: bool | str = False):
-    """Stage 4b of :func:`depth`, after :func:`coarse_prior`: the coarse prior's target on
+    """Part of stage 4b'' of :func:`depth`, right after :func:`coarse_prior` (before
+    :func:`correspondence`, whose volume it does not need): the coarse prior's target on
     weakly textured pixels replaced by slanted planes that their pooled costs choose at the
     coarse prior's scale (``params.weak_planes``).
 
@@ -2062,8 +2063,8 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
     """Disparity of the reference view of an H-LF (SPEC §5).
 
     A list of stages, each a public function that can be run and tested alone:
-    :func:`prepare` -> :func:`correspondence` -> :func:`defocus_cue` ->
-    :func:`texture_weight` -> :func:`coarse_prior` -> :func:`plane_prior` -> :func:`unary` ->
+    :func:`prepare` -> :func:`texture_weight` -> :func:`coarse_prior` -> :func:`plane_prior`
+    -> :func:`correspondence` -> :func:`defocus_cue` -> :func:`unary` ->
     :func:`add_coarse_prior` -> :func:`regularise` -> :func:`refine` ->
     :func:`post_filter`.
 
