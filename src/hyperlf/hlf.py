@@ -287,9 +287,9 @@ class DepthParams:
     ``weak_planes`` (True; acts only where the coarse prior does, so by default on captures
     made from camera images only): on pixels weakly textured at full resolution and at the
     coarse levels, the pooled costs choose slanted planes, tile by tile, on the light field
-    downscaled by ``coarse_prior_scale``
-    (:func:`plane_prior`, :func:`hyperlf.regularisers.cost_planes`: tiles of ``plane_tile``
-    px of that level, None: 1/8 of its shorter side, at least 48; slopes up to
+    downscaled by ``coarse_prior_scale`` (:func:`plane_prior`,
+    :func:`hyperlf.regularisers.cost_planes`: tiles of ``plane_tile`` px of that level,
+    None: 1/8 of its shorter side, at least 48; slopes up to
     ``plane_max_slope``, 0.12 disparity px per px), and those under an accepted plane are
     pulled towards it instead of ``d_coarse`` (BENCHMARKS.md, twenty-seventh session).
     Aggregation (issue 12 item 2): ``aggregation`` (``"none"``, the default, or ``"guided"``),
