@@ -46,7 +46,7 @@ def test_plane_prior_carries_the_coarse_levels_plane_up(monkeypatch):
     def level_volume(level, **kw):
         levels.append(level)
         labels = level.labels[:, None, None]
-        C = np.abs(labels - truth) + 1.5 * rng.random((labels.size, 48, 48))
+        C = np.abs(labels - truth) + 6 * rng.random((labels.size, 48, 48))
         return C.astype(np.float32), None
 
     monkeypatch.setattr(hlf, "correspondence", level_volume)
