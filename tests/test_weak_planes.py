@@ -103,6 +103,39 @@ def test_plane_prior_pools_only_pixels_whose_labels_share_their_views(monkeypatc
     np.testing.assert_array_equal(masks["common"], ~corner)
 
 
+def test_specks_are_small_islands_of_texture_in_weak_surroundings():
+    weak = np.ones((60, 60), bool)
+    weak[10:14, 10:14] = False  # a speck: 16 px in a 15 px square of weak pixels
+    weak[30:, 30:] = False  # a textured object, 30 x 30 px
+    specks = hlf._specks(weak, 15)
+    assert specks[10:14, 10:14].all() and specks.sum() == 16 + specks[30:, 30:].sum()
+    # the object's pixels are specks only within 7 px of its weak border, where half of the
+    # square is weak: along its edges, not in its inside
+    assert not specks[38:, 38:].any()
+    assert not hlf._specks(weak, 0).any()
+    assert not (hlf._specks(weak, 15) & weak).any()
+
+
+def test_plane_prior_pulls_specks_to_the_plane(monkeypatch):
+    """A pixel that the coarse levels saw textured (``g >= 0.5``) keeps ``d_coarse``, unless it
+    is a speck in weakly textured surroundings (``plane_specks``)."""
+    lf = _grey_capture()
+    g = np.zeros((96, 96), np.float32)
+    g[40:44, 40:44] = 1.0  # a speck
+    g[:, 80:] = 1.0  # a textured region
+    monkeypatch.setattr(hlf, "_coverage", lambda prob, levels: g)
+    monkeypatch.setattr(hlf, "_coarse_planes", lambda prob, s, **kw: np.full(g.shape, 2.5,
+                                                                            np.float32))
+    for window, speck_target in ((15, 2.5), (0, 0.0)):
+        prob = hlf.prepare(lf, n_labels=17, params=hlf.DepthParams(plane_specks=window))
+        w = hlf.texture_weight(prob)
+        coarse, strength, _, _ = hlf.plane_prior(prob, w, _flat_prior())
+        assert (coarse[g == 0] == 2.5).all() and (coarse[40:44, 40:44] == speck_target).all()
+        assert (coarse[:, 88:] == 0).all()  # inside the textured region: d_coarse
+        np.testing.assert_allclose(strength[40:44, 40:44], 1 - w[40:44, 40:44] if window
+                                   else 0.0, rtol=1e-6)
+
+
 @pytest.mark.parametrize("seed", range(2))
 def test_weak_planes_leave_a_textureless_table_to_its_surroundings(seed):
     """No texture at any level: the pooled costs are noise (and the cameras' vignetting),
@@ -117,7 +150,9 @@ def test_weak_planes_leave_a_textureless_table_to_its_surroundings(seed):
 @pytest.mark.parametrize("bad", [{"weak_planes": 1}, {"weak_planes": "yes"},
                                  {"plane_tile": 4}, {"plane_tile": 64.0}, {"plane_tile": True},
                                  {"plane_max_slope": 0}, {"plane_max_slope": 2.0},
-                                 {"plane_max_slope": "0.1"}, {"plane_max_slope": float("nan")}])
+                                 {"plane_max_slope": "0.1"}, {"plane_max_slope": float("nan")},
+                                 {"plane_specks": -1}, {"plane_specks": 15.0},
+                                 {"plane_specks": True}])
 def test_depth_params_check_the_plane_options(bad):
     with pytest.raises(InvalidInputError, match="weak_planes|plane_"):
         hlf.DepthParams(**bad)

@@ -291,7 +291,10 @@ class DepthParams:
     :func:`hyperlf.regularisers.cost_planes`: tiles of ``plane_tile`` px of that level,
     None: 1/8 of its shorter side, at least 48; slopes up to
     ``plane_max_slope``, 0.12 disparity px per px), and those under an accepted plane are
-    pulled towards it instead of ``d_coarse`` (BENCHMARKS.md, twenty-seventh session).
+    pulled towards it instead of ``d_coarse`` (BENCHMARKS.md, twenty-seventh session), as
+    are specks that the coarse levels saw textured in a ``plane_specks`` px square (25; 0:
+    off) that is at least half pooled pixels: islands up to about 17 x 17 px, under two texture
+    windows of the coarse level (twenty-eighth session).
     Aggregation (issue 12 item 2): ``aggregation`` (``"none"``, the default, or ``"guided"``),
     ``aggregation_radius`` (4 px), ``aggregation_eps`` (1e-3): the correspondence volume
     filtered edge-aware with the reference view as the guide before the unary
@@ -354,6 +357,7 @@ class DepthParams:
     weak_planes: bool = True
     plane_tile: int | None = None
     plane_max_slope: float = 0.12
+    plane_specks: int = 25
     aggregation: str = "none"
     aggregation_radius: int = 4
     aggregation_eps: float = 1e-3
@@ -446,6 +450,10 @@ class DepthParams:
                 self.plane_tile, (int, np.integer)) or self.plane_tile < 8):
             raise InvalidInputError(f"params.plane_tile must be None or an integer >= 8, got "
                                     f"{self.plane_tile!r}")
+        if isinstance(self.plane_specks, bool) or not isinstance(
+                self.plane_specks, (int, np.integer)) or self.plane_specks < 0:
+            raise InvalidInputError(f"params.plane_specks must be an integer >= 0, got "
+                                    f"{self.plane_specks!r}")
         if isinstance(self.plane_max_slope, bool) or not isinstance(
                 self.plane_max_slope, (int, float, np.integer, np.floating)) or not (
                 0 < self.plane_max_slope <= 1):
@@ -1777,7 +1785,11 @@ def plane_prior(prob: DepthProblem, weight, prior, *, progress: bool | str = Fal
     weakly textured (``w < 1``) and were pooled (the coarse levels' ``g`` below
     :data:`PLANE_POOL_WEIGHT`: a pixel textured at a coarse level keeps ``d_coarse``, which
     that texture located), with strength ``1 - w``.  Fitting at full resolution instead left
-    the lab's table front to ``d_coarse`` (BENCHMARKS.md).
+    the lab's table front to ``d_coarse`` (BENCHMARKS.md).  Specks are the exception: a pixel
+    textured at a coarse level whose ``params.plane_specks`` px square is at least half pooled
+    pixels takes the plane too (on the lab's table front such specks of faint texture kept
+    the background's ``d_coarse``: a few textured block means do not outweigh the coarse
+    level's regulariser; BENCHMARKS.md).
 
     Parameters
     ----------
@@ -1803,12 +1815,24 @@ def plane_prior(prob: DepthProblem, weight, prior, *, progress: bool | str = Fal
     if plane is None:
         return prior
     w = np.clip(np.asarray(weight, np.float32), 0.0, 1.0)
-    g = _coverage(prob, _prior_levels(prob))
-    use = np.isfinite(plane) & (w < 1) & (g < PLANE_POOL_WEIGHT)
+    weak = _coverage(prob, _prior_levels(prob)) < PLANE_POOL_WEIGHT
+    use = np.isfinite(plane) & (w < 1) & (weak | _specks(weak, int(p.plane_specks)))
     coarse, strength, width, conf = prior
     coarse = np.where(use, plane, coarse).astype(np.float32)
     strength = np.where(use, 1 - w, strength).astype(np.float32)
     return coarse, strength, width, conf
+
+
+def _specks(weak: np.ndarray, window: int) -> np.ndarray:
+    """The pixels of ``~weak`` whose ``window`` px square is at least half ``weak`` pixels
+    (none when ``window`` is 0): specks of texture on a weakly textured surface
+    (:func:`plane_prior`)."""
+    if window == 0:
+        return np.zeros(weak.shape, bool)
+    from scipy.ndimage import uniform_filter
+
+    share = uniform_filter(weak.astype(np.float32), window, mode="nearest")
+    return ~weak & (share >= 0.5)
 
 
 def _coarse_planes(prob: DepthProblem, s: int, *, progress: bool | str = False):
