@@ -116,8 +116,9 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
    coarse estimate's label however little its own window says.  (Under SGM the aggregated
    volume holds the pull spread over the paths like every neighbour's vote; its margin is
    kept as it is.)  With ``params.weak_planes`` (the default) the pull's target on pixels
-   weak at every level is a slanted plane that the pooled costs of such pixels choose, tile
-   by tile, at the coarse prior's scale (:func:`plane_prior`).
+   weak at every level, and on specks of texture among them (``params.plane_specks``), is a
+   slanted plane that the pooled costs of such pixels choose, tile by tile, at the coarse
+   prior's scale (:func:`plane_prior`).
 
 6. **Post-filter**: the guided weighted median (:func:`post_filter`).
 
