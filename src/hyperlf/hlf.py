@@ -1788,9 +1788,8 @@ def plane_prior(prob: DepthProblem, weight, prior, *, progress: bool | str = Fal
     that texture located), with strength ``1 - w``.  Fitting at full resolution instead left
     the lab's table front to ``d_coarse`` (BENCHMARKS.md).  Specks are the exception: a pixel
     textured at a coarse level whose ``params.plane_specks`` px square is at least half pooled
-    pixels takes the plane too (on the lab's table front such specks of faint texture kept
-    the background's ``d_coarse``: a few textured block means do not outweigh the coarse
-    level's regulariser; BENCHMARKS.md).
+    pixels takes the plane too (on the lab's table front such specks of faint texture had
+    kept the background's ``d_coarse``; BENCHMARKS.md).
 
     Parameters
     ----------
