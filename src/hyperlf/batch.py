@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import functools
 import glob
 import html
 import io
@@ -245,17 +246,21 @@ def _done_before(task: CaptureTask) -> CaptureResult | None:
 
 
 # ----------------------------------------------------------------------------- one capture
-def _die_with_parent() -> None:  # pragma: no cover - runs in the child before exec
+def _die_with_parent(parent: int) -> None:  # pragma: no cover - runs in the child before exec
     """Linux: the child gets SIGTERM when the worker thread that started it dies, and so
     removes its staging folder itself, as after any SIGTERM (a batch stopped by SIGTERM or
-    Ctrl-C leaves no hidden folders behind)."""
+    Ctrl-C leaves no hidden folders behind).  A worker ``parent`` that died between the fork
+    and the request sends no signal: the child then exits before it starts (it has made
+    nothing yet), instead of running on unsignalled after the batch is gone."""
     try:
         import ctypes
         import signal
 
         ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
     except (OSError, AttributeError):
-        pass
+        return
+    if os.getppid() != parent:
+        os._exit(143)
 
 
 def run_capture(task: CaptureTask) -> CaptureResult:
@@ -272,7 +277,8 @@ def run_capture(task: CaptureTask) -> CaptureResult:
     t0 = time.perf_counter()
     proc = subprocess.run(argv, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                           stderr=subprocess.PIPE, text=True, errors="replace",
-                          preexec_fn=_die_with_parent if sys.platform == "linux" else None)
+                          preexec_fn=functools.partial(_die_with_parent, os.getpid())
+                          if sys.platform == "linux" else None)
     seconds = time.perf_counter() - t0
     if proc.returncode != 0:
         lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
