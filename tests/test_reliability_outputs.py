@@ -582,3 +582,24 @@ def test_a_sigurg_nobody_asked_for_changes_nothing():
             os.kill(os.getpid(), signal.SIGTERM)
             for _ in range(2000):
                 time.sleep(0.001)
+
+
+def test_a_handler_run_again_inside_a_deferral_does_not_deadlock(monkeypatch):
+    """The handler may run in the main thread while :func:`outputs._defer` holds its lock (a
+    second signal while the timer thread starts): it must defer again, not wait for itself.
+    A plain lock hung a batch's depth process there, with its staging folder (seen in CI)."""
+    import threading
+
+    monkeypatch.setattr(outputs, "_RETRY_S", 60.0)  # no retry fires while this runs
+    finished = []
+
+    def nested():
+        with outputs._retry_lock:  # the outer deferral, interrupted
+            outputs._defer(signal.SIGTERM)
+        finished.append(True)
+
+    t = threading.Thread(target=nested, daemon=True)
+    t.start()
+    t.join(5)
+    assert finished == [True]  # (a deadlocked thread keeps the lock: nothing to clean up)
+    outputs._forget_deferred()

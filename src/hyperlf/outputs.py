@@ -112,7 +112,10 @@ FRAGILE_PACKAGES = frozenset({"numba", "llvmlite", "importlib"})
 
 #: Seconds between two looks at whether the main thread has left the fragile code.
 _RETRY_S = 0.05
-_retry_lock = threading.Lock()
+#: Re-entrant: the handler may run again in the main thread while :func:`_defer` holds it
+#: (a second signal while the timer thread starts); a plain lock deadlocked there, the process
+#: hanging with its staging folder (seen in CI: a batch's depth process under SIGTERM).
+_retry_lock = threading.RLock()
 _deferred: dict[str, object] = {"signum": None, "timer": None, "wake": False}
 
 
