@@ -219,6 +219,32 @@ def test_cost_planes_refuse_noise_and_unbracketed_minima():
     assert np.isnan(plane[:, 72:]).all() and np.isfinite(plane[:, :24]).all()
 
 
+@pytest.mark.parametrize("seed", [0, 1, 4])
+def test_a_refused_tile_takes_the_plane_next_to_it(seed):
+    """Where no surface shows (a textureless corner), the tiles are refused; with ``carry``
+    they continue the plane of the overlapping accepted tiles, whose samples do not contradict
+    it, instead of staying without one."""
+    C, truth = _slanted_volume(seed, noise=6.0, shape=(96, 144))
+    C[:, :, :40] = 6.0 * np.random.default_rng(100 + seed).random((16, 96, 40))
+    mask = np.ones(truth.shape, bool)
+    assert np.isnan(cost_planes(C, mask, tile=48, max_slope=0.1, carry=None)[:, :24]).all()
+    plane = cost_planes(C, mask, tile=48, max_slope=0.1)
+    err = np.abs(plane - truth)[:, :24]
+    # one tile's plane moved by up to a tile: slopes in steps of 1/48, c in half labels
+    assert np.isfinite(err).all() and err.mean() < 1.0 and err.max() < 1.5
+    assert np.nanmax(np.abs(plane - truth)[:, 48:]) < 0.8
+
+
+def test_a_refused_tile_keeps_no_plane_its_costs_contradict():
+    """A tile refused although its costs show their own surface (here at the range's end,
+    a minimum the search does not bracket) is not given its neighbours' plane."""
+    x = np.mgrid[:96, :144][1]
+    C, _ = _slanted_volume(0, noise=6.0, shape=(96, 144), truth=np.where(x < 48, 0.3, 8.0))
+    plane = cost_planes(C, np.ones((96, 144), bool), tile=48, max_slope=0.1)
+    assert np.isnan(plane[:, :24]).all() and np.isfinite(plane[:, 72:]).all()
+    assert np.nanmax(np.abs(plane[:, 72:] - 8.0)) < 0.8
+
+
 def test_cost_planes_ignore_a_bias_of_one_pixel_period():
     """Half-pixel shifts cost less in pure noise (bilinear sampling halves its variance): with
     labels every half pixel, a bias that alternates must neither become a plane nor move
@@ -255,3 +281,6 @@ def test_cost_planes_check_their_input():
         cost_planes(np.zeros((4, 8, 8)), np.ones((8, 9), bool), tile=8, max_slope=0.1)
     with pytest.raises(InvalidInputError):
         cost_planes(np.zeros((4, 8, 8)), np.ones((8, 8), bool), tile=2, max_slope=0.1)
+    with pytest.raises(InvalidInputError):
+        cost_planes(np.zeros((4, 8, 8)), np.ones((8, 8), bool), tile=8, max_slope=0.1,
+                    carry=-1.0)

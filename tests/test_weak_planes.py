@@ -103,6 +103,22 @@ def test_plane_prior_pools_only_pixels_whose_labels_share_their_views(monkeypatc
     np.testing.assert_array_equal(masks["common"], ~corner)
 
 
+def test_plane_prior_passes_the_carry_on(monkeypatch):
+    from hyperlf import regularisers
+
+    seen = []
+
+    def capture(volume, mask, **kw):
+        seen.append(kw["carry"])
+        return np.full(mask.shape, np.nan, np.float32)
+
+    monkeypatch.setattr(regularisers, "cost_planes", capture)
+    for carry in (None, 0, 1.5):
+        prob = hlf.prepare(_grey_capture(), n_labels=17, params=hlf.DepthParams(plane_carry=carry))
+        hlf.plane_prior(prob, hlf.texture_weight(prob), _flat_prior())
+    assert seen == [None, 0.0, 1.5] and hlf.DepthParams().plane_carry == 2.0
+
+
 def test_specks_are_small_islands_of_texture_in_weak_surroundings():
     weak = np.ones((60, 60), bool)
     weak[10:14, 10:14] = False  # a speck of 4 x 4 px amid weak pixels
@@ -152,7 +168,9 @@ def test_weak_planes_leave_a_textureless_table_to_its_surroundings(seed):
                                  {"plane_max_slope": 0}, {"plane_max_slope": 2.0},
                                  {"plane_max_slope": "0.1"}, {"plane_max_slope": float("nan")},
                                  {"plane_specks": -1}, {"plane_specks": 15.0},
-                                 {"plane_specks": True}])
+                                 {"plane_specks": True}, {"plane_carry": -1.0},
+                                 {"plane_carry": float("nan")}, {"plane_carry": float("inf")},
+                                 {"plane_carry": "2"}, {"plane_carry": True}])
 def test_depth_params_check_the_plane_options(bad):
     with pytest.raises(InvalidInputError, match="weak_planes|plane_"):
         hlf.DepthParams(**bad)

@@ -295,7 +295,11 @@ class DepthParams:
     pulled towards it instead of ``d_coarse`` (BENCHMARKS.md, twenty-seventh session), as
     are specks that the coarse levels saw textured in a ``plane_specks`` px square (25; 0:
     off) that is at least half pooled pixels: islands up to about 17 x 17 px, under two texture
-    windows of the coarse level (twenty-eighth session).
+    windows of the coarse level (twenty-eighth session).  A tile whose plane is refused takes
+    an overlapping accepted tile's plane that its own pooled costs do not contradict, by more
+    than ``plane_carry`` standard errors (2.0; None: off; ``cost_planes``'s ``carry``): the
+    lab's textureless table corner and vignetted left border kept no plane, and so
+    ``d_coarse``, in one shot and not in the other (twenty-ninth session).
     Aggregation (issue 12 item 2): ``aggregation`` (``"none"``, the default, or ``"guided"``),
     ``aggregation_radius`` (4 px), ``aggregation_eps`` (1e-3): the correspondence volume
     filtered edge-aware with the reference view as the guide before the unary
@@ -359,6 +363,7 @@ class DepthParams:
     plane_tile: int | None = None
     plane_max_slope: float = 0.12
     plane_specks: int = 25
+    plane_carry: float | None = 2.0
     aggregation: str = "none"
     aggregation_radius: int = 4
     aggregation_eps: float = 1e-3
@@ -455,6 +460,11 @@ class DepthParams:
                 self.plane_specks, (int, np.integer)) or self.plane_specks < 0:
             raise InvalidInputError(f"params.plane_specks must be an integer >= 0, got "
                                     f"{self.plane_specks!r}")
+        if self.plane_carry is not None and (isinstance(self.plane_carry, bool) or not isinstance(
+                self.plane_carry, (int, float, np.integer, np.floating)) or not (
+                0 <= self.plane_carry < np.inf)):
+            raise InvalidInputError(f"params.plane_carry must be None or a finite number >= 0, "
+                                    f"got {self.plane_carry!r}")
         if isinstance(self.plane_max_slope, bool) or not isinstance(
                 self.plane_max_slope, (int, float, np.integer, np.floating)) or not (
                 0 < self.plane_max_slope <= 1):
@@ -1860,8 +1870,10 @@ def _coarse_planes(prob: DepthProblem, s: int, *, progress: bool | str = False):
     labels = np.asarray(level.labels, np.float64)
     step = float(labels[1] - labels[0])
     tile = prob.params.plane_tile or max(PLANE_MIN_TILE, min(lf_s.image_shape) // 8)
+    carry = prob.params.plane_carry
     plane = cost_planes(C, pooled, tile=int(tile), max_slope=float(prob.params.plane_max_slope)
-                        / step, period=1.0 / step, impl=prob.impl)
+                        / step, period=1.0 / step, carry=None if carry is None else float(carry),
+                        impl=prob.impl)
     return _blow_up(s * (labels[0] + step * plane), s, prob.lf.image_shape)
 
 

@@ -284,28 +284,37 @@ def _best_plane(P, dx, dy, slopes, c, min_inside, impl):
 
 
 def _located_plane(P, dx, dy, slopes, c, tile, L, impl):
-    """``(a, b, c)`` of the tile's samples, or None when the search does not locate it: a
-    slope at the end of its range, the plane within one label of the range's ends in the
-    tile, or the two halves of the samples (a checkerboard of blocks a quarter of the tile
-    wide, so that both halves span the tile and share no matching window) choosing planes
-    more than one label apart at the tile's centre or two at a corner (noise alone gives a
-    minimum too; half the samples pin the slope less well than the centre)."""
+    """``(best, located)``: the tile's plane ``(a, b, c)`` of the lowest mean cost (None when
+    no hypothesis has enough samples inside the label range), and whether the search locates
+    it.  It does not when a slope is at the end of its range, the plane comes within one label
+    of the range's ends in the tile, or the two halves of the samples (a checkerboard of blocks
+    a quarter of the tile wide, so that both halves span the tile and share no matching
+    window) choose planes more than one label apart at the tile's centre or two at a corner
+    (noise alone gives a minimum too; half the samples pin the slope less well than the
+    centre)."""
     half = tile / 2
     reach = lambda a, b: abs(a) * half + abs(b) * half  # noqa: E731
     best = _best_plane(P, dx, dy, slopes, c, 0.9 * len(dx), impl)
-    if best is None or best[3] or not 1.0 <= best[2] - reach(*best[:2]) <= \
-            best[2] + reach(*best[:2]) <= L - 2.0:
-        return None
-    block = max(tile // 4, 1)
-    side = ((np.floor((dx + half) / block) + np.floor((dy + half) / block)) % 2).astype(bool)
+    if best is None:
+        return None, False
+    if best[3] or not 1.0 <= best[2] - reach(*best[:2]) <= best[2] + reach(*best[:2]) <= L - 2.0:
+        return best[:3], False
+    side = (sum(_blocks(dx, dy, tile)) % 2).astype(bool)
     fits = [_best_plane(P[k], dx[k], dy[k], slopes, c, 0.9 * k.sum(), impl) if k.sum() else None
             for k in (side, ~side)]
     if any(f is None for f in fits):
-        return None
+        return best[:3], False
     (a1, b1, c1, _), (a2, b2, c2, _) = fits
     if abs(c1 - c2) > 1.0 or abs(c1 - c2) + reach(a1 - a2, b1 - b2) > 2.0:
-        return None
-    return best[:3]
+        return best[:3], False
+    return best[:3], True
+
+
+def _blocks(dx, dy, tile):
+    """Each sample's block column and row, blocks a quarter of the tile wide."""
+    half, block = tile / 2, max(tile // 4, 1)
+    return (np.floor((dx + half) / block).astype(np.int64),
+            np.floor((dy + half) / block).astype(np.int64))
 
 
 def _standardised(P: np.ndarray) -> np.ndarray:
@@ -342,8 +351,71 @@ def _tent(n: int) -> np.ndarray:
     return np.outer(r, r)
 
 
+def _plane_costs(P, dx, dy, plane) -> np.ndarray:
+    """Each sample's cost along ``plane = (a, b, c)`` (linear between labels), NaN where the
+    plane leaves the label range."""
+    a, b, c = plane
+    L = P.shape[1]
+    f = c + a * dx + b * dy
+    l0 = np.clip(np.floor(f).astype(np.int64), 0, L - 2)
+    t = np.clip(f - l0, 0.0, 1.0)
+    rows = np.arange(dx.size)
+    v = (1 - t) * P[rows, l0] + t * P[rows, l0 + 1]
+    return np.where((f >= 0) & (f <= L - 1), v, np.nan)
+
+
+def _excess(P, dx, dy, own, other, tile) -> tuple[float, float]:
+    """``(mean, t)``: how much more the samples cost along ``other`` than along ``own``, as a
+    mean over the samples and in standard errors of the mean over the blocks a quarter of the
+    tile wide (blocks share no matching window: they are the independent measurements; a
+    pixel's own costs are not, its neighbours' windows overlap it).  ``t`` is infinite when
+    ``other`` leaves the label range at more than 10 % of the samples or fewer than 3 blocks
+    hold samples."""
+    d = _plane_costs(P, dx, dy, other) - _plane_costs(P, dx, dy, own)
+    ok = np.isfinite(d)
+    if ok.mean() < 0.9:
+        return np.inf, np.inf
+    i, j = _blocks(dx[ok], dy[ok], tile)
+    _, block = np.unique(64 * i + j, return_inverse=True)
+    means = np.bincount(block, d[ok]) / np.bincount(block)
+    if means.size < 3:
+        return np.inf, np.inf
+    se = means.std(ddof=1) / np.sqrt(means.size)
+    t = means.mean() / se if se > 0 else (0.0 if means.mean() <= 0 else np.inf)
+    return float(d[ok].mean()), float(t)
+
+
+def _carried_plane(P, dx, dy, own, at, accepted, tile, carry):
+    """The plane carried into the refused tile at ``at`` (its top-left corner): of the
+    accepted planes of the tiles that overlap it, moved to its centre, the one its samples
+    cost least along among those they do not contradict (an excess of at most ``carry``
+    standard errors over ``own``, :func:`_excess`); None when there is none."""
+    y0, x0 = at
+    found = []
+    for (yn, xn), (a, b, c) in accepted.items():
+        if abs(yn - y0) >= tile or abs(xn - x0) >= tile:
+            continue
+        plane = (a, b, c + a * (x0 - xn) + b * (y0 - yn))
+        mean, t = _excess(P, dx, dy, own, plane, tile)
+        if t <= carry:
+            found.append((mean, plane))
+    return min(found, key=lambda f: f[0])[1] if found else None
+
+
+def _tile_samples(C, m, y0, x0, tile, samples, period):
+    """Up to ``samples`` masked pixels of the tile at ``(y0, x0)``: their costs (averaged over
+    one pixel of shift, standardised) and offsets from the tile's centre."""
+    sub = m[y0:y0 + tile, x0:x0 + tile]
+    ys, xs = np.nonzero(sub)
+    k = max(1, ys.size // int(samples))
+    ys, xs = ys[::k], xs[::k]
+    P = _standardised(_over_one_pixel(C[:, y0 + ys, x0 + xs].T.astype(np.float64), period))
+    return P, xs - (tile - 1) / 2, ys - (tile - 1) / 2
+
+
 def cost_planes(volume, mask, *, tile: int, max_slope: float, period: float = 1.0,
-                samples: int = 1000, min_share: float = 0.3, impl: str = "auto") -> np.ndarray:
+                samples: int = 1000, min_share: float = 0.3, carry: float | None = 2.0,
+                impl: str = "auto") -> np.ndarray:
     """The slanted planes that the pooled costs of the masked pixels choose, tile by tile.
 
     For every square ``tile`` (overlapping its neighbours by half) in which at least
@@ -358,7 +430,12 @@ def cost_planes(volume, mask, *, tile: int, max_slope: float, period: float = 1.
     minimum the search does not bracket is not located), and when the two halves of its
     samples, taken as a checkerboard of blocks a quarter of the tile wide, choose planes
     more than one label apart at the tile's centre or two at a corner (pure noise has a
-    minimum too, but not the same one in both halves).  Each pixel gets the accepted
+    minimum too, but not the same one in both halves).  A refused tile then takes the plane
+    of an overlapping accepted tile that its own samples do not contradict (``carry``): moved
+    to the refused tile's centre, the plane may cost its samples at most ``carry`` standard
+    errors more than their own lowest-cost plane, the error taken over the blocks of the
+    checkerboard (they share no matching window); of several such, the one that costs least.
+    Refused tiles do not pass carried planes on.  Each pixel gets the accepted and carried
     planes of the tiles over it, weighted by a tent that falls to 0 at the tile's edges.
 
     Where each pixel's own costs are too weak to show their minimum (a white table, a wall),
@@ -384,12 +461,17 @@ def cost_planes(volume, mask, *, tile: int, max_slope: float, period: float = 1.
         Most pixels pooled per tile (every k-th masked pixel).
     min_share : float
         Smallest share of masked pixels for a tile to be fitted.
+    carry : float or None
+        Largest excess, in standard errors, of a refused tile's costs along an overlapping
+        accepted tile's plane over their own lowest, for that plane to be carried into it
+        (None: refused tiles stay without a plane).  A textureless corner or a vignetted
+        border otherwise keeps no plane where the surface next to it has one.
     impl : {"auto", "numba", "numpy"}
 
     Returns
     -------
     ndarray, float32 (H, W)
-        The plane's label position (fractional), NaN where no accepted tile lies.
+        The plane's label position (fractional), NaN where no accepted or carried plane lies.
 
     Examples
     --------
@@ -407,36 +489,42 @@ def cost_planes(volume, mask, *, tile: int, max_slope: float, period: float = 1.
     if C.ndim != 3 or m.shape != C.shape[1:]:
         raise InvalidInputError(f"cost_planes needs a volume (L, H, W) and a mask (H, W), got "
                                 f"{C.shape} and {m.shape}")
-    if int(tile) < 4 or max_slope <= 0 or int(samples) < 1:
-        raise InvalidInputError("cost_planes needs tile >= 4, max_slope > 0 and samples >= 1")
+    if int(tile) < 4 or max_slope <= 0 or int(samples) < 1 or (carry is not None and
+                                                                 not carry >= 0):
+        raise InvalidInputError("cost_planes needs tile >= 4, max_slope > 0, samples >= 1 and "
+                                "carry None or >= 0")
     L, H, W = C.shape
     T = min(int(tile), H, W)
     n_steps = max(1, int(round(max_slope * T)))
     slopes = np.arange(-n_steps, n_steps + 1) / T
     c = np.arange(0.0, L - 1 + 1e-9, 0.5)
-    num = np.zeros((H, W))
-    den = np.zeros((H, W))
-    tent = _tent(T)
+    accepted, refused = {}, {}
     for y0 in _tile_starts(H, T):
         for x0 in _tile_starts(W, T):
-            sub = m[y0:y0 + T, x0:x0 + T]
-            if sub.mean() < min_share:
+            if m[y0:y0 + T, x0:x0 + T].mean() < min_share:
                 continue
-            ys, xs = np.nonzero(sub)
-            k = max(1, ys.size // int(samples))
-            ys, xs = ys[::k], xs[::k]
-            P = C[:, y0 + ys, x0 + xs].T.astype(np.float64)
-            P = _standardised(_over_one_pixel(P, period))
-            h, w = sub.shape
-            dx, dy = xs - (w - 1) / 2, ys - (h - 1) / 2
-            best = _located_plane(P, dx, dy, slopes, c, T, L, impl)
-            if best is None:
-                continue
-            a, b, c0 = best
-            yy, xx = np.mgrid[:h, :w]
-            pred = c0 + a * (xx - (w - 1) / 2) + b * (yy - (h - 1) / 2)
-            t = tent[:h, :w]
-            num[y0:y0 + h, x0:x0 + w] += t * pred
-            den[y0:y0 + h, x0:x0 + w] += t
+            P, dx, dy = _tile_samples(C, m, y0, x0, T, samples, period)
+            best, located = _located_plane(P, dx, dy, slopes, c, T, L, impl)
+            if best is not None:
+                (accepted if located else refused)[(y0, x0)] = best
+    planes = dict(accepted)
+    for at, own in refused.items() if carry is not None else ():
+        P, dx, dy = _tile_samples(C, m, *at, T, samples, period)
+        plane = _carried_plane(P, dx, dy, own, at, accepted, T, carry)
+        if plane is not None:
+            planes[at] = plane
+    return _blend(planes, (H, W), T)
+
+
+def _blend(planes: dict, shape, tile: int) -> np.ndarray:
+    """Each pixel's mean of the planes (label positions, keyed by their tile's top-left
+    corner) of the tiles over it, weighted by a tent that falls to 0 at a tile's edges; NaN
+    under none."""
+    num, den = np.zeros(shape), np.zeros(shape)
+    tent = _tent(tile)
+    yy, xx = np.mgrid[:tile, :tile] - (tile - 1) / 2
+    for (y0, x0), (a, b, c0) in planes.items():
+        num[y0:y0 + tile, x0:x0 + tile] += tent * (c0 + a * xx + b * yy)
+        den[y0:y0 + tile, x0:x0 + tile] += tent
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(den > 0, num / den, np.nan).astype(np.float32)
