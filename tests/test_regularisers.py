@@ -150,6 +150,27 @@ def test_fill_invalid_empty_zero_and_mask():
         R.fill_invalid(c, empty="nan")
 
 
+def test_fill_invalid_median_gives_the_pixels_median(rng):
+    """``value="median"``: an invalid entry of a pixel with valid ones gets the median of those
+    (neutral, where ``"worst"`` rules the label out); a pixel with none follows ``empty``."""
+    c = rng.random((7, 5, 6)).astype(np.float32)
+    invalid = rng.random(c.shape) < 0.4
+    invalid[:, 1, 2] = True  # no valid entry
+    c[invalid & (rng.random(c.shape) < 0.5)] = np.nan  # invalid either way
+    out = R.fill_invalid(c, invalid, value="median")
+    for y, x in np.ndindex(5, 6):
+        ok = ~invalid[:, y, x]
+        if not ok.any():
+            continue
+        want = np.where(ok, c[:, y, x], np.median(c[ok, y, x]))
+        np.testing.assert_allclose(out[:, y, x], want, rtol=1e-6)
+    np.testing.assert_array_equal(out[:, 1, 2], np.nanmax(np.where(invalid, np.nan, c)))
+    zero = R.fill_invalid(c, invalid, value="median", empty="zero")
+    np.testing.assert_array_equal(zero[:, 1, 2], 0.0)
+    with pytest.raises(InvalidInputError, match="value must be one of"):
+        R.fill_invalid(c, value="mean")
+
+
 def test_fill_invalid_zero_matches_the_costs_rule(rng):
     from hyperlf import costs
 

@@ -245,7 +245,13 @@ class DepthParams:
     :func:`neutral_missing_views`, which removes the pull of textureless border regions to the
     range limits; ``"common"``: a view counts at a pixel only if it sees the pixel at every
     label, see :func:`views_at_every_label`, so that every label of a pixel averages the same
-    views).
+    views).  A label that no view sees at a pixel: ``unseen_labels`` (``"worst"``, the
+    default: the pixel's worst cost, ruling the label out; ``"median"``: its median cost, so
+    that the regulariser decides).  Near the image edge of a reference on the border of the
+    array no view may see the true depth: ruled out, the top rows of the synthetic imperfect
+    2 x 3 rig took a wrong one, which ``"median"`` repairs; but ``"median"`` also lets a
+    foreground object spread over background rows where only the background's depth is seen
+    (BENCHMARKS.md, twenty-ninth session).
     Visibility (SPEC §5.6): ``visibility_rounds`` re-matchings, each over only the views that
     see each reference pixel under the current estimate: z-test with ``visibility_margin`` px
     per baseline, asked at every candidate disparity (``visibility_test="hypothesis"``, the
@@ -346,6 +352,7 @@ class DepthParams:
     edge_dilate: int = 1
     min_half_views: int = 2
     missing_views: str = "average"
+    unseen_labels: str = "worst"
     visibility_rounds: int | None = None
     visibility_scale: int = 2
     visibility_min_size: int = 256
@@ -474,6 +481,9 @@ class DepthParams:
             pos("coarse_prior_width", self.coarse_prior_width)
         if int(self.min_half_views) < 1:
             raise InvalidInputError(f"params.min_half_views must be >= 1, got {self.min_half_views!r}")
+        if self.unseen_labels not in UNSEEN_LABELS:
+            raise InvalidInputError(f"params.unseen_labels must be one of {UNSEEN_LABELS}, got "
+                                    f"{self.unseen_labels!r}")
         if self.missing_views not in MISSING_VIEWS:
             raise InvalidInputError(f"params.missing_views must be one of {MISSING_VIEWS}, got "
                                     f"{self.missing_views!r}")
@@ -679,6 +689,9 @@ def aggregate_view(acc: dict, Cv, valid, Mq, Mbar, M_ref, use_selection: bool,
 
 #: The values of ``DepthParams.missing_views``.
 MISSING_VIEWS = ("average", "neutral", "common")
+
+#: The values of ``DepthParams.unseen_labels`` (:func:`hyperlf.regularisers.fill_invalid`'s).
+UNSEEN_LABELS = ("worst", "median")
 
 
 def neutral_missing_views(C: np.ndarray, n_used: np.ndarray) -> np.ndarray:
@@ -1571,7 +1584,8 @@ def correspondence(prob: DepthProblem, *, progress: bool | str = False, timings=
     Returns
     -------
     C : ndarray, float32 (L, H, W)
-        The aggregated correspondence volume (entries no view saw: the pixel's worst cost).
+        The aggregated correspondence volume (entries no view saw: the pixel's worst or
+        median cost, ``params.unseen_labels``).
     n_used : ndarray
         Views used per ``(d, p)`` before the occlusion split.
     """
@@ -1601,7 +1615,7 @@ def correspondence(prob: DepthProblem, *, progress: bool | str = False, timings=
         raise InvalidInputError(
             f"no view overlaps the reference at any disparity in ({dmin:g}, {dmax:g}): "
             "narrow the disparity range")
-    C = _reg.fill_invalid(C)
+    C = _reg.fill_invalid(C, value=prob.params.unseen_labels)
     clock.lap("selection_split_s")
     if prob.params.aggregation != "none":
         C = aggregate_volume(C, prob.In[prob.reference], prob.params.aggregation_params, out=C)

@@ -19,6 +19,8 @@ winner-takes-all picks the best one.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from ..errors import InvalidInputError
@@ -70,8 +72,8 @@ def wta(cost) -> np.ndarray:
     return np.argmin(c, axis=0).astype(np.int32)
 
 
-def fill_invalid(cost, invalid=None, *, empty: str = "global") -> np.ndarray:
-    """Give invalid entries the pixel's worst valid cost (SPEC §4).
+def fill_invalid(cost, invalid=None, *, empty: str = "global", value: str = "worst") -> np.ndarray:
+    """Give invalid entries the pixel's worst valid cost (SPEC §4), or its median.
 
     Parameters
     ----------
@@ -83,6 +85,12 @@ def fill_invalid(cost, invalid=None, *, empty: str = "global") -> np.ndarray:
         Value for a pixel with no valid entry at all: ``"global"`` (default) the worst valid
         cost of the whole volume; ``"zero"`` 0 for every label (the rule of
         :func:`hyperlf.costs.fill_out_of_image`).
+    value : {"worst", "median"}
+        What an invalid entry of a pixel with valid ones gets: the pixel's worst valid cost
+        (default: a candidate no image shows is ruled out), or the median of its valid costs
+        (neutral: the candidate is left to the regulariser, for a light field whose views
+        cannot see the pixel at some depths although the scene is there, e.g. beyond the
+        edge of a view's image).
 
     Returns
     -------
@@ -92,7 +100,8 @@ def fill_invalid(cost, invalid=None, *, empty: str = "global") -> np.ndarray:
     Raises
     ------
     InvalidInputError
-        ``cost`` is not 3-D, ``empty`` is unknown, or (``empty="global"``) no entry is valid.
+        ``cost`` is not 3-D, ``empty`` or ``value`` is unknown, or (``empty="global"``) no
+        entry is valid.
 
     Examples
     --------
@@ -102,11 +111,15 @@ def fill_invalid(cost, invalid=None, *, empty: str = "global") -> np.ndarray:
     [[1.0, 3.0], [3.0, 3.0], [3.0, 3.0]]
     >>> fill_invalid(c, empty="zero")[:, 0, 1].tolist()
     [0.0, 0.0, 0.0]
+    >>> fill_invalid(c, value="median")[:, 0, 0].tolist()
+    [1.0, 3.0, 2.0]
     """
     from ..costs.pair import FILL_EMPTY_MODES, worst_fill
 
     if empty not in FILL_EMPTY_MODES:
         raise InvalidInputError(f"empty must be one of {FILL_EMPTY_MODES}, got {empty!r}")
+    if value not in FILL_VALUES:
+        raise InvalidInputError(f"value must be one of {FILL_VALUES}, got {value!r}")
     c = np.array(cost, dtype=np.float32)
     if c.ndim != 3:
         raise InvalidInputError(f"cost must have shape (L, H, W), got {c.shape}")
@@ -115,4 +128,24 @@ def fill_invalid(cost, invalid=None, *, empty: str = "global") -> np.ndarray:
         bad = bad | np.broadcast_to(np.asarray(invalid, dtype=bool), c.shape)
     if not bad.any():
         return c
+    if value == "median":
+        _median_fill(c, bad)
+        bad = ~np.isfinite(c)  # pixels with no valid entry: the ``empty`` rule
     return worst_fill(c, bad, empty=empty)
+
+
+#: The values of :func:`fill_invalid`'s ``value``.
+FILL_VALUES = ("worst", "median")
+
+
+def _median_fill(c: np.ndarray, bad: np.ndarray) -> None:
+    """In place: the invalid entries of every pixel with valid ones get the median of those
+    (only the pixels with an invalid entry are gathered); the others are set to NaN."""
+    L = c.shape[0]
+    flat, badf = c.reshape(L, -1), bad.reshape(L, -1)
+    cols = np.flatnonzero(badf.any(axis=0))
+    sub = np.where(badf[:, cols], np.nan, flat[:, cols])
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # no valid entry: stays NaN
+        med = np.nanmedian(sub, axis=0)
+    flat[:, cols] = np.where(np.isnan(sub), med[None], sub)
