@@ -140,7 +140,8 @@ FILL_VALUES = ("worst", "median")
 
 def _median_fill(c: np.ndarray, bad: np.ndarray) -> None:
     """In place: the invalid entries of every pixel with valid ones get the median of those
-    (only the pixels with an invalid entry are gathered); the others are set to NaN."""
+    (only the pixels with an invalid entry are gathered); a pixel with no valid entry is set
+    to NaN throughout, for the caller's ``empty`` rule."""
     L = c.shape[0]
     flat, badf = c.reshape(L, -1), bad.reshape(L, -1)
     cols = np.flatnonzero(badf.any(axis=0))

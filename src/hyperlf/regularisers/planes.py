@@ -368,9 +368,9 @@ def _excess(P, dx, dy, own, other, tile) -> tuple[float, float]:
     """``(mean, t)``: how much more the samples cost along ``other`` than along ``own``, as a
     mean over the samples and in standard errors of the mean over the blocks a quarter of the
     tile wide (blocks share no matching window: they are the independent measurements; a
-    pixel's own costs are not, its neighbours' windows overlap it).  ``t`` is infinite when
-    ``other`` leaves the label range at more than 10 % of the samples or fewer than 3 blocks
-    hold samples."""
+    pixel's own costs are not, its neighbours' windows overlap it).  Both are infinite when
+    either plane leaves the label range at more than 10 % of the samples or fewer than 3
+    blocks hold samples."""
     d = _plane_costs(P, dx, dy, other) - _plane_costs(P, dx, dy, own)
     ok = np.isfinite(d)
     if ok.mean() < 0.9:
