@@ -236,13 +236,26 @@ def test_a_refused_tile_takes_the_plane_next_to_it(seed):
 
 
 def test_a_refused_tile_keeps_no_plane_its_costs_contradict():
-    """A tile refused although its costs show their own surface (here at the range's end,
-    a minimum the search does not bracket) is not given its neighbours' plane."""
-    x = np.mgrid[:96, :144][1]
-    C, _ = _slanted_volume(0, noise=6.0, shape=(96, 144), truth=np.where(x < 48, 0.3, 8.0))
-    plane = cost_planes(C, np.ones((96, 144), bool), tile=48, max_slope=0.1)
-    assert np.isnan(plane[:, :24]).all() and np.isfinite(plane[:, 72:]).all()
-    assert np.nanmax(np.abs(plane[:, 72:] - 8.0)) < 0.8
+    """Of the overlapping tiles' planes, a refused tile takes one its samples do not contradict
+    (a surface they show at another depth does), the cheapest of those; none when all are
+    contradicted."""
+    from hyperlf.regularisers.planes import _carried_plane, _standardised, _tile_samples
+
+    C, _ = _slanted_volume(0, noise=6.0, shape=(48, 48), truth=np.full((48, 48), 4.0))
+    P, dx, dy = _tile_samples(C, np.ones((48, 48), bool), 0, 0, 48, 1000, 1.0)
+    np.testing.assert_allclose(P, _standardised(C.reshape(16, -1).T[::2].astype(float)))
+    own = (0.0, 0.0, 4.0)
+    other = {(0, 24): (0.0, 0.0, 9.0)}  # another surface, 5 labels away
+    assert _carried_plane(P, dx, dy, own, (0, 0), other, 48, 2.0) is None
+    near = {(0, 24): (0.0, 0.0, 4.5), (24, 0): (0.0, 0.0, 9.0), (24, 24): (0.0, 0.0, 4.0)}
+    assert _carried_plane(P, dx, dy, own, (0, 0), near, 48, 2.0) == (0.0, 0.0, 4.0)
+    # 1152 samples at noise 6 pin the depth to well under half a label: 4.5 is contradicted
+    # at 2 standard errors; allowed more, the cheaper of 4.5 and 4.0 is taken
+    assert _carried_plane(P, dx, dy, own, (0, 0), {(0, 24): (0.0, 0.0, 4.5)}, 48, 2.0) is None
+    for order in (near, dict(reversed(near.items()))):
+        assert _carried_plane(P, dx, dy, own, (0, 0), order, 48, 30.0) == (0.0, 0.0, 4.0)
+    far = {(0, 48): (0.0, 0.0, 4.0)}  # a tile that does not overlap it
+    assert _carried_plane(P, dx, dy, own, (0, 0), far, 48, 2.0) is None
 
 
 def test_cost_planes_ignore_a_bias_of_one_pixel_period():
