@@ -456,27 +456,7 @@ class DepthParams:
         if not isinstance(self.coarse_prior, (bool, np.bool_)):
             raise InvalidInputError(f"params.coarse_prior must be True or False, got "
                                     f"{self.coarse_prior!r}")
-        if not isinstance(self.weak_planes, (bool, np.bool_)):
-            raise InvalidInputError(f"params.weak_planes must be True or False, got "
-                                    f"{self.weak_planes!r}")
-        if self.plane_tile is not None and (isinstance(self.plane_tile, bool) or not isinstance(
-                self.plane_tile, (int, np.integer)) or self.plane_tile < 8):
-            raise InvalidInputError(f"params.plane_tile must be None or an integer >= 8, got "
-                                    f"{self.plane_tile!r}")
-        if isinstance(self.plane_specks, bool) or not isinstance(
-                self.plane_specks, (int, np.integer)) or self.plane_specks < 0:
-            raise InvalidInputError(f"params.plane_specks must be an integer >= 0, got "
-                                    f"{self.plane_specks!r}")
-        if self.plane_carry is not None and (isinstance(self.plane_carry, bool) or not isinstance(
-                self.plane_carry, (int, float, np.integer, np.floating)) or not (
-                0 <= self.plane_carry < np.inf)):
-            raise InvalidInputError(f"params.plane_carry must be None or a finite number >= 0, "
-                                    f"got {self.plane_carry!r}")
-        if isinstance(self.plane_max_slope, bool) or not isinstance(
-                self.plane_max_slope, (int, float, np.integer, np.floating)) or not (
-                0 < self.plane_max_slope <= 1):
-            raise InvalidInputError(f"params.plane_max_slope must be in (0, 1], got "
-                                    f"{self.plane_max_slope!r}")
+        self._check_plane_options()
         if self.coarse_prior_width is not None:
             pos("coarse_prior_width", self.coarse_prior_width)
         if int(self.min_half_views) < 1:
@@ -520,6 +500,31 @@ class DepthParams:
             if isinstance(self.tile_rows, bool) or int(self.tile_rows) != self.tile_rows:
                 raise InvalidInputError(f"params.tile_rows must be an integer, got {self.tile_rows!r}")
             row_strips(1, self.tile_rows)
+
+
+    def _check_plane_options(self) -> None:
+        """The weak planes' options (``weak_planes``, ``plane_*``)."""
+        if not isinstance(self.weak_planes, (bool, np.bool_)):
+            raise InvalidInputError(f"params.weak_planes must be True or False, got "
+                                    f"{self.weak_planes!r}")
+        if self.plane_tile is not None and (isinstance(self.plane_tile, bool) or not isinstance(
+                self.plane_tile, (int, np.integer)) or self.plane_tile < 8):
+            raise InvalidInputError(f"params.plane_tile must be None or an integer >= 8, got "
+                                    f"{self.plane_tile!r}")
+        if isinstance(self.plane_specks, bool) or not isinstance(
+                self.plane_specks, (int, np.integer)) or self.plane_specks < 0:
+            raise InvalidInputError(f"params.plane_specks must be an integer >= 0, got "
+                                    f"{self.plane_specks!r}")
+        if self.plane_carry is not None and (isinstance(self.plane_carry, bool) or not isinstance(
+                self.plane_carry, (int, float, np.integer, np.floating)) or not (
+                0 <= self.plane_carry < np.inf)):
+            raise InvalidInputError(f"params.plane_carry must be None or a finite number >= 0, "
+                                    f"got {self.plane_carry!r}")
+        if isinstance(self.plane_max_slope, bool) or not isinstance(
+                self.plane_max_slope, (int, float, np.integer, np.floating)) or not (
+                0 < self.plane_max_slope <= 1):
+            raise InvalidInputError(f"params.plane_max_slope must be in (0, 1], got "
+                                    f"{self.plane_max_slope!r}")
 
     @property
     def aggregation_params(self) -> AggregationParams:

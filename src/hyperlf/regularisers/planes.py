@@ -509,6 +509,8 @@ def cost_planes(volume, mask, *, tile: int, max_slope: float, period: float = 1.
                 (accepted if located else refused)[(y0, x0)] = best
     planes = dict(accepted)
     for at, own in refused.items() if carry is not None else ():
+        # gathered again rather than kept from the first pass: a few refused tiles cost a
+        # gather each, every tile's samples kept would cost (samples x L) floats per tile
         P, dx, dy = _tile_samples(C, m, *at, T, samples, period)
         plane = _carried_plane(P, dx, dy, own, at, accepted, T, carry)
         if plane is not None:
