@@ -124,17 +124,22 @@ def test_depth_and_batch_commands_take_missing_views(tmp_path, capsys, batch_dep
     assert common[common.index("--missing-views") + 1] == "common"
 
 
-def test_labels_no_view_sees_get_the_pixels_worst_or_median_cost():
+def test_labels_no_view_sees_get_the_pixels_worst_median_or_graded_cost():
     """``unseen_labels``: near the left edge of a reference at the end of a 1 x 3 array no view
-    sees the larger disparities; those entries get the pixel's worst cost (the default, the
-    label ruled out) or the median of its other costs (left to the regulariser)."""
+    sees the larger disparities; those entries get the pixel's worst cost (the label ruled
+    out), the median of its other costs (left to the regulariser), or between the two by the
+    share of labels seen (the default)."""
     from scipy.ndimage import gaussian_filter
 
     big = gaussian_filter(np.random.default_rng(2).random((24, 80)), 1.2).astype(np.float32)
     views = np.stack([big[:, 6 * k:6 * k + 48] for k in range(3)])[None]  # a plane at d = 6
     lf = LightField(views=views, disparity_range=(0.0, 8.0), reference=(0, 0))
-    assert hlf.DepthParams().unseen_labels == "worst"
-    for mode, rule in (("worst", np.max), ("median", np.median)):
+    assert hlf.DepthParams().unseen_labels == "share"
+
+    def share(c):  # c: the seen costs of one pixel, out of 17 labels
+        return np.median(c) + c.size / 17 * (c.max() - np.median(c))
+
+    for mode, rule in (("worst", np.max), ("median", np.median), ("share", share)):
         prob = hlf.prepare(lf, n_labels=17, params=hlf.DepthParams(unseen_labels=mode))
         C, n_used = hlf.correspondence(prob)
         unseen = n_used == 0

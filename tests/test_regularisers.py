@@ -150,22 +150,30 @@ def test_fill_invalid_empty_zero_and_mask():
         R.fill_invalid(c, empty="nan")
 
 
-def test_fill_invalid_median_gives_the_pixels_median(rng):
-    """``value="median"``: an invalid entry of a pixel with valid ones gets the median of those
-    (neutral, where ``"worst"`` rules the label out); a pixel with none follows ``empty``."""
+@pytest.mark.parametrize("value", ["median", "share"])
+def test_fill_invalid_median_and_share_follow_their_formulas(rng, value):
+    """``value="median"``: an invalid entry of a pixel with valid ones gets the median ``m`` of
+    those (neutral, where ``"worst"`` rules the label out); ``"share"``: ``m + s (worst - m)``
+    with ``s`` the share of the pixel's entries that are valid; a pixel with none follows
+    ``empty``."""
     c = rng.random((7, 5, 6)).astype(np.float32)
     invalid = rng.random(c.shape) < 0.4
     invalid[:, 1, 2] = True  # no valid entry
+    invalid[:, 3, 4] = [True] + [False] * 6  # one invalid entry of seven
     c[invalid & (rng.random(c.shape) < 0.5)] = np.nan  # invalid either way
-    out = R.fill_invalid(c, invalid, value="median")
+    out = R.fill_invalid(c, invalid, value=value)
     for y, x in np.ndindex(5, 6):
         ok = ~invalid[:, y, x]
         if not ok.any():
             continue
-        want = np.where(ok, c[:, y, x], np.median(c[ok, y, x]))
-        np.testing.assert_allclose(out[:, y, x], want, rtol=1e-6)
+        m, worst = np.median(c[ok, y, x]), c[ok, y, x].max()
+        fill = m if value == "median" else m + ok.mean() * (worst - m)
+        np.testing.assert_allclose(out[:, y, x], np.where(ok, c[:, y, x], fill), rtol=1e-6)
     np.testing.assert_array_equal(out[:, 1, 2], np.nanmax(np.where(invalid, np.nan, c)))
-    zero = R.fill_invalid(c, invalid, value="median", empty="zero")
+    if value == "share":  # six of seven valid: 6/7 of the way from the median to the worst
+        m, worst = np.median(c[1:, 3, 4]), c[1:, 3, 4].max()
+        assert out[0, 3, 4] == pytest.approx(worst - (worst - m) / 7, rel=1e-6)
+    zero = R.fill_invalid(c, invalid, value=value, empty="zero")
     np.testing.assert_array_equal(zero[:, 1, 2], 0.0)
     with pytest.raises(InvalidInputError, match="value must be one of"):
         R.fill_invalid(c, value="mean")

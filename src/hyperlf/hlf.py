@@ -245,13 +245,15 @@ class DepthParams:
     :func:`neutral_missing_views`, which removes the pull of textureless border regions to the
     range limits; ``"common"``: a view counts at a pixel only if it sees the pixel at every
     label, see :func:`views_at_every_label`, so that every label of a pixel averages the same
-    views).  A label that no view sees at a pixel: ``unseen_labels`` (``"worst"``, the
-    default: the pixel's worst cost, ruling the label out; ``"median"``: its median cost, so
-    that the regulariser decides).  Near the image edge of a reference on the border of the
-    array no view may see the true depth: ruled out, the top rows of the synthetic imperfect
-    2 x 3 rig took a wrong one, which ``"median"`` repairs; but ``"median"`` also lets a
-    foreground object spread over background rows where only the background's depth is seen
-    (BENCHMARKS.md, twenty-ninth session).
+    views).  A label that no view sees at a pixel: ``unseen_labels`` (``"share"``, the
+    default: between the pixel's median and worst cost, the nearer the worst the larger the
+    share of labels its views do see; ``"worst"``: its worst cost, ruling the label out;
+    ``"median"``: its median cost, so that the regulariser decides;
+    :func:`hyperlf.regularisers.fill_invalid`).  Near the image edge of a reference on the
+    border of the array no view may see the true depth: ruled out, the top rows of the
+    synthetic imperfect 2 x 3 rig took a wrong one and spread it into rows that are seen;
+    ``"median"`` lets a foreground object spread over background rows where only the
+    background's depth is seen; ``"share"`` does neither (BENCHMARKS.md, thirtieth session).
     Visibility (SPEC §5.6): ``visibility_rounds`` re-matchings, each over only the views that
     see each reference pixel under the current estimate: z-test with ``visibility_margin`` px
     per baseline, asked at every candidate disparity (``visibility_test="hypothesis"``, the
@@ -352,7 +354,7 @@ class DepthParams:
     edge_dilate: int = 1
     min_half_views: int = 2
     missing_views: str = "average"
-    unseen_labels: str = "worst"
+    unseen_labels: str = "share"
     visibility_rounds: int | None = None
     visibility_scale: int = 2
     visibility_min_size: int = 256
@@ -696,7 +698,7 @@ def aggregate_view(acc: dict, Cv, valid, Mq, Mbar, M_ref, use_selection: bool,
 MISSING_VIEWS = ("average", "neutral", "common")
 
 #: The values of ``DepthParams.unseen_labels`` (:func:`hyperlf.regularisers.fill_invalid`'s).
-UNSEEN_LABELS = ("worst", "median")
+UNSEEN_LABELS = ("share", "worst", "median")
 
 
 def neutral_missing_views(C: np.ndarray, n_used: np.ndarray) -> np.ndarray:
@@ -1589,8 +1591,8 @@ def correspondence(prob: DepthProblem, *, progress: bool | str = False, timings=
     Returns
     -------
     C : ndarray, float32 (L, H, W)
-        The aggregated correspondence volume (entries no view saw: the pixel's worst or
-        median cost, ``params.unseen_labels``).
+        The aggregated correspondence volume (entries no view saw: filled by
+        ``params.unseen_labels``).
     n_used : ndarray
         Views used per ``(d, p)`` before the occlusion split.
     """

@@ -73,7 +73,7 @@ def wta(cost) -> np.ndarray:
 
 
 def fill_invalid(cost, invalid=None, *, empty: str = "global", value: str = "worst") -> np.ndarray:
-    """Give invalid entries the pixel's worst valid cost (SPEC §4), or its median.
+    """Give invalid entries the pixel's worst valid cost (SPEC §4), its median, or between.
 
     Parameters
     ----------
@@ -85,12 +85,16 @@ def fill_invalid(cost, invalid=None, *, empty: str = "global", value: str = "wor
         Value for a pixel with no valid entry at all: ``"global"`` (default) the worst valid
         cost of the whole volume; ``"zero"`` 0 for every label (the rule of
         :func:`hyperlf.costs.fill_out_of_image`).
-    value : {"worst", "median"}
+    value : {"worst", "median", "share"}
         What an invalid entry of a pixel with valid ones gets: the pixel's worst valid cost
-        (default: a candidate no image shows is ruled out), or the median of its valid costs
+        (default: a candidate no image shows is ruled out), the median of its valid costs
         (neutral: the candidate is left to the regulariser, for a light field whose views
         cannot see the pixel at some depths although the scene is there, e.g. beyond the
-        edge of a view's image).
+        edge of a view's image), or ``median + s (worst - median)`` with ``s`` the share of
+        the pixel's entries that are valid (``"share"``).  The worst-cost rule is only as
+        sound as the chance that the valid candidates hold the answer: a pixel valid at
+        nearly every candidate rules the others out, one valid at few leaves them to the
+        regulariser.
 
     Returns
     -------
@@ -113,6 +117,8 @@ def fill_invalid(cost, invalid=None, *, empty: str = "global", value: str = "wor
     [0.0, 0.0, 0.0]
     >>> fill_invalid(c, value="median")[:, 0, 0].tolist()
     [1.0, 3.0, 2.0]
+    >>> fill_invalid(c, value="share")[:, 0, 0].tolist()  # 2 + (2/3) (3 - 2)
+    [1.0, 3.0, 2.6666667461395264]
     """
     from ..costs.pair import FILL_EMPTY_MODES, worst_fill
 
@@ -128,25 +134,29 @@ def fill_invalid(cost, invalid=None, *, empty: str = "global", value: str = "wor
         bad = bad | np.broadcast_to(np.asarray(invalid, dtype=bool), c.shape)
     if not bad.any():
         return c
-    if value == "median":
-        _median_fill(c, bad)
+    if value != "worst":
+        _graded_fill(c, bad, by_share=value == "share")
         bad = ~np.isfinite(c)  # pixels with no valid entry: the ``empty`` rule
     return worst_fill(c, bad, empty=empty)
 
 
 #: The values of :func:`fill_invalid`'s ``value``.
-FILL_VALUES = ("worst", "median")
+FILL_VALUES = ("worst", "median", "share")
 
 
-def _median_fill(c: np.ndarray, bad: np.ndarray) -> None:
-    """In place: the invalid entries of every pixel with valid ones get the median of those
-    (only the pixels with an invalid entry are gathered); a pixel with no valid entry is set
-    to NaN throughout, for the caller's ``empty`` rule."""
+def _graded_fill(c: np.ndarray, bad: np.ndarray, *, by_share: bool) -> None:
+    """In place: the invalid entries of every pixel with valid ones get the median ``m`` of
+    those, or (``by_share``) ``m + s (worst - m)`` with ``s`` the pixel's share of valid
+    entries; only the pixels with an invalid entry are gathered.  A pixel with no valid entry
+    is set to NaN throughout, for the caller's ``empty`` rule."""
     L = c.shape[0]
     flat, badf = c.reshape(L, -1), bad.reshape(L, -1)
     cols = np.flatnonzero(badf.any(axis=0))
     sub = np.where(badf[:, cols], np.nan, flat[:, cols])
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # no valid entry: stays NaN
-        med = np.nanmedian(sub, axis=0)
-    flat[:, cols] = np.where(np.isnan(sub), med[None], sub)
+        fill = np.nanmedian(sub, axis=0)
+        if by_share:
+            share = 1.0 - badf[:, cols].mean(axis=0)
+            fill += share * (np.nanmax(sub, axis=0) - fill)
+    flat[:, cols] = np.where(np.isnan(sub), fill[None].astype(np.float32), sub)
