@@ -149,3 +149,38 @@ def test_labels_no_view_sees_get_the_pixels_worst_median_or_graded_cost():
             np.testing.assert_allclose(C[~seen, y, x], rule(C[seen, y, x]), rtol=1e-6)
     with pytest.raises(InvalidInputError, match="unseen_labels"):
         hlf.DepthParams(unseen_labels="mean")
+
+
+def test_depth_and_batch_commands_take_unseen_labels(tmp_path, capsys, batch_depth_args):
+    """``--unseen-labels``: the command's map is the library's under that option, and it
+    changes the map of a reference at the end of a row of views (the same 1 x 3 plane as
+    above, its left strip seen by no view at the larger disparities)."""
+    from scipy.ndimage import gaussian_filter
+
+    from hyperlf.cli import main
+    from hyperlf.formats import read_pfm, save_lightfield
+
+    big = gaussian_filter(np.random.default_rng(2).random((24, 80)), 1.2).astype(np.float32)
+    views = np.stack([big[:, 6 * k:6 * k + 48] for k in range(3)])[None]
+    lf = LightField(views=views, disparity_range=(0.0, 8.0), reference=(0, 0))
+    save_lightfield(lf, tmp_path / "cap", bit_depth=32)
+    maps = {}
+    for mode in ("worst", "median"):
+        assert main(["-q", "depth", str(tmp_path / "cap"), "--labels", "17", "--metric", "ncc",
+                     "--optimizer", "wta", "--median-radius", "0", "--unseen-labels", mode,
+                     "-o", str(tmp_path / mode)]) == 0
+        maps[mode] = read_pfm(tmp_path / mode / "disparity.pfm")
+        params = hlf.DepthParams(unseen_labels=mode, median_radius=0)
+        np.testing.assert_array_equal(
+            maps[mode], hlf.depth(lf, n_labels=17, metric="ncc", optimizer="wta",
+                                  params=params).disparity)
+    assert (maps["worst"] != maps["median"]).any()
+    with pytest.raises(SystemExit) as info:  # refused while parsing, exit 2
+        main(["-q", "depth", str(tmp_path / "cap"), "--unseen-labels", "mean",
+              "-o", str(tmp_path / "bad")])
+    assert info.value.code == 2 and "--unseen-labels" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()
+
+    assert "--unseen-labels" not in batch_depth_args()
+    median = batch_depth_args("--unseen-labels", "median")
+    assert median[median.index("--unseen-labels") + 1] == "median"

@@ -885,6 +885,7 @@ def _cmd_depth(args, dest) -> list[Path]:
                                      ("coarse_prior", False if args.no_coarse_prior else None),
                                      ("coarse_prior_levels", args.coarse_prior_levels),
                                      ("missing_views", args.missing_views),
+                                     ("unseen_labels", args.unseen_labels),
                                      ("weak_planes", args.weak_planes),
                                      ("visibility_rounds", args.visibility_rounds),
                                      ("max_memory", budget))
@@ -1034,6 +1035,7 @@ def _cmd_batch(args, dest) -> list[Path]:  # noqa: ARG001 - batch writes its own
                         ("--texture-snr", args.texture_snr),
                         ("--coarse-prior-levels", args.coarse_prior_levels),
                         ("--missing-views", args.missing_views),
+                        ("--unseen-labels", args.unseen_labels),
                         ("--max-memory", args.max_memory),
                         ("--min-confidence", args.min_confidence)):
         if value is not None:
@@ -1521,9 +1523,10 @@ def _add_weak_planes_option(p: argparse.ArgumentParser, *, brief: bool = False) 
                    "on; it acts with the coarse prior, i.e. on captures from cameras)")
 
 
-def _add_missing_views_option(p: argparse.ArgumentParser, *, brief: bool = False) -> None:
-    """``--missing-views`` of depth and batch (``DepthParams.missing_views``)."""
-    from .hlf import MISSING_VIEWS
+def _add_unseen_options(p: argparse.ArgumentParser, *, brief: bool = False) -> None:
+    """``--missing-views`` and ``--unseen-labels`` of depth and batch
+    (``DepthParams.missing_views``, ``DepthParams.unseen_labels``)."""
+    from .hlf import MISSING_VIEWS, UNSEEN_LABELS
 
     p.add_argument("--missing-views", choices=MISSING_VIEWS, default=None,
                    help="as for depth" if brief else
@@ -1533,6 +1536,14 @@ def _add_missing_views_option(p: argparse.ArgumentParser, *, brief: bool = False
                    "'common' counts a view at a pixel only where it sees it at every depth, "
                    "so that all depths compare the same views (removes the pull of "
                    "textureless regions to the range limits without --texture-snr)")
+    p.add_argument("--unseen-labels", choices=UNSEEN_LABELS, default=None,
+                   help="as for depth" if brief else
+                   "a candidate depth that no view sees at a pixel (along the image edge of "
+                   "a reference camera at the border of the array, as wide as the disparity): "
+                   "'share' (default) costs it between the pixel's median and worst cost, "
+                   "the nearer the worst the more of its depths the views do see; 'worst' "
+                   "rules it out; 'median' leaves it to the regulariser (surfaces that run "
+                   "on to the image edge)")
 
 
 def _add_demo_parser(sub) -> None:
@@ -1749,7 +1760,7 @@ def _add_depth_parser(sub) -> None:
                         "pixel-scale texture one image cannot tell from noise)")
     _add_coarse_prior_options(p)
     _add_weak_planes_option(p)
-    _add_missing_views_option(p)
+    _add_unseen_options(p)
     p.add_argument("--visibility-rounds", type=_visibility_rounds_arg, default=None,
                    metavar="N",
                    help="re-match N times, each candidate depth of a pixel over only the "
@@ -1814,7 +1825,7 @@ def _add_batch_parser(sub) -> None:
                    help="as for depth")
     _add_coarse_prior_options(p, brief=True)
     _add_weak_planes_option(p, brief=True)
-    _add_missing_views_option(p, brief=True)
+    _add_unseen_options(p, brief=True)
     p.add_argument("--min-confidence", type=_min_confidence_arg, default=None, metavar="C",
                    help="as for depth (captures with metric outputs)")
     p.add_argument("--downscale", type=_downscale_arg, default=1, metavar="N",
@@ -2034,7 +2045,8 @@ _ONLY_WITH = (("--aggregation-radius", "--aggregation", "guided"),
 #: the labels).
 _HLF_ONLY = ("--metric", "--optimizer", "--view-selection", "--occlusion-split", "--defocus",
              "--median-radius", "--median-passes", "--texture-snr", "--max-memory",
-             "--no-coarse-prior", "--missing-views", "--weak-planes", "--no-weak-planes",
+             "--no-coarse-prior", "--missing-views", "--unseen-labels", "--weak-planes",
+             "--no-weak-planes",
              "--visibility-rounds",
              "--aggregation", "--aggregation-radius",
              "--aggregation-eps")
