@@ -93,35 +93,51 @@ def test_missing_views_option_is_checked():
         hlf.DepthParams(missing_views="ignore")
 
 
-def test_depth_and_batch_commands_take_missing_views(tmp_path, capsys, batch_depth_args):
+def _check_depth_option(tmp_path, capsys, batch_depth_args, lf, option, modes, bad):
+    """``depth OPTION MODE`` writes the library's map under ``DepthParams(name=MODE)`` for
+    each of the two ``modes``, and the two maps differ; ``bad`` is refused while parsing
+    (exit 2, nothing written); ``batch`` hands the option on only when given."""
     from hyperlf.cli import main
     from hyperlf.formats import read_pfm, save_lightfield
 
+    name = option.lstrip("-").replace("-", "_")
+    save_lightfield(lf, tmp_path / "cap", bit_depth=32)
+    maps = {}
+    for mode in modes:
+        assert main(["-q", "depth", str(tmp_path / "cap"), "--labels", "17", "--metric", "ncc",
+                     "--optimizer", "wta", "--median-radius", "0", option, mode,
+                     "-o", str(tmp_path / mode)]) == 0
+        maps[mode] = read_pfm(tmp_path / mode / "disparity.pfm")
+        params = hlf.DepthParams(**{name: mode}, median_radius=0)
+        np.testing.assert_array_equal(
+            maps[mode], hlf.depth(lf, n_labels=17, metric="ncc", optimizer="wta",
+                                  params=params).disparity)
+    assert (maps[modes[0]] != maps[modes[1]]).any()
+    with pytest.raises(SystemExit) as info:
+        main(["-q", "depth", str(tmp_path / "cap"), option, bad, "-o", str(tmp_path / "bad")])
+    assert info.value.code == 2 and option in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()
+    assert option not in batch_depth_args()
+    given = batch_depth_args(option, modes[1])
+    assert given[given.index(option) + 1] == modes[1]
+
+
+def test_depth_and_batch_commands_take_missing_views(tmp_path, capsys, batch_depth_args):
     lf, _ = _flat_problem()
     rng = np.random.default_rng(2)
     lf.views[:] += 0.05 * rng.standard_normal(lf.views.shape).astype(np.float32)
-    save_lightfield(lf, tmp_path / "cap", bit_depth=32)
-    maps = {}
-    for mode in ("average", "common"):
-        assert main(["-q", "depth", str(tmp_path / "cap"), "--labels", "17", "--metric", "ncc",
-                     "--optimizer", "wta", "--median-radius", "0", "--missing-views", mode,
-                     "-o", str(tmp_path / mode)]) == 0
-        maps[mode] = read_pfm(tmp_path / mode / "disparity.pfm")
-    for mode, m in maps.items():  # the command's map is the library's under that option
-        params = hlf.DepthParams(missing_views=mode, median_radius=0)
-        np.testing.assert_array_equal(
-            m, hlf.depth(lf, n_labels=17, metric="ncc", optimizer="wta",
-                         params=params).disparity)
-    assert (maps["average"] != maps["common"]).any()
-    with pytest.raises(SystemExit) as info:  # refused while parsing, exit 2
-        main(["-q", "depth", str(tmp_path / "cap"), "--missing-views", "ignore",
-              "-o", str(tmp_path / "bad")])
-    assert info.value.code == 2 and "--missing-views" in capsys.readouterr().err
-    assert not (tmp_path / "bad").exists()
+    _check_depth_option(tmp_path, capsys, batch_depth_args, lf, "--missing-views",
+                        ("average", "common"), "ignore")
 
-    assert "--missing-views" not in batch_depth_args()
-    common = batch_depth_args("--missing-views", "common")
-    assert common[common.index("--missing-views") + 1] == "common"
+
+def _row_plane() -> LightField:
+    """A textured plane at d = 6 seen by a 1 x 3 row whose reference is its left end: the
+    reference's left strip is seen by no view at the larger disparities."""
+    from scipy.ndimage import gaussian_filter
+
+    big = gaussian_filter(np.random.default_rng(2).random((24, 80)), 1.2).astype(np.float32)
+    views = np.stack([big[:, 6 * k:6 * k + 48] for k in range(3)])[None]
+    return LightField(views=views, disparity_range=(0.0, 8.0), reference=(0, 0))
 
 
 def test_labels_no_view_sees_get_the_pixels_worst_median_or_graded_cost():
@@ -129,11 +145,7 @@ def test_labels_no_view_sees_get_the_pixels_worst_median_or_graded_cost():
     sees the larger disparities; those entries get the pixel's worst cost (the label ruled
     out), the median of its other costs (left to the regulariser), or between the two by the
     share of labels seen (the default)."""
-    from scipy.ndimage import gaussian_filter
-
-    big = gaussian_filter(np.random.default_rng(2).random((24, 80)), 1.2).astype(np.float32)
-    views = np.stack([big[:, 6 * k:6 * k + 48] for k in range(3)])[None]  # a plane at d = 6
-    lf = LightField(views=views, disparity_range=(0.0, 8.0), reference=(0, 0))
+    lf = _row_plane()
     assert hlf.DepthParams().unseen_labels == "share"
 
     def share(c):  # c: the seen costs of one pixel, out of 17 labels
@@ -152,35 +164,5 @@ def test_labels_no_view_sees_get_the_pixels_worst_median_or_graded_cost():
 
 
 def test_depth_and_batch_commands_take_unseen_labels(tmp_path, capsys, batch_depth_args):
-    """``--unseen-labels``: the command's map is the library's under that option, and it
-    changes the map of a reference at the end of a row of views (the same 1 x 3 plane as
-    above, its left strip seen by no view at the larger disparities)."""
-    from scipy.ndimage import gaussian_filter
-
-    from hyperlf.cli import main
-    from hyperlf.formats import read_pfm, save_lightfield
-
-    big = gaussian_filter(np.random.default_rng(2).random((24, 80)), 1.2).astype(np.float32)
-    views = np.stack([big[:, 6 * k:6 * k + 48] for k in range(3)])[None]
-    lf = LightField(views=views, disparity_range=(0.0, 8.0), reference=(0, 0))
-    save_lightfield(lf, tmp_path / "cap", bit_depth=32)
-    maps = {}
-    for mode in ("worst", "median"):
-        assert main(["-q", "depth", str(tmp_path / "cap"), "--labels", "17", "--metric", "ncc",
-                     "--optimizer", "wta", "--median-radius", "0", "--unseen-labels", mode,
-                     "-o", str(tmp_path / mode)]) == 0
-        maps[mode] = read_pfm(tmp_path / mode / "disparity.pfm")
-        params = hlf.DepthParams(unseen_labels=mode, median_radius=0)
-        np.testing.assert_array_equal(
-            maps[mode], hlf.depth(lf, n_labels=17, metric="ncc", optimizer="wta",
-                                  params=params).disparity)
-    assert (maps["worst"] != maps["median"]).any()
-    with pytest.raises(SystemExit) as info:  # refused while parsing, exit 2
-        main(["-q", "depth", str(tmp_path / "cap"), "--unseen-labels", "mean",
-              "-o", str(tmp_path / "bad")])
-    assert info.value.code == 2 and "--unseen-labels" in capsys.readouterr().err
-    assert not (tmp_path / "bad").exists()
-
-    assert "--unseen-labels" not in batch_depth_args()
-    median = batch_depth_args("--unseen-labels", "median")
-    assert median[median.index("--unseen-labels") + 1] == "median"
+    _check_depth_option(tmp_path, capsys, batch_depth_args, _row_plane(), "--unseen-labels",
+                        ("worst", "median"), "mean")
