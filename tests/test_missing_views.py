@@ -166,3 +166,26 @@ def test_labels_no_view_sees_get_the_pixels_worst_median_or_graded_cost():
 def test_depth_and_batch_commands_take_unseen_labels(tmp_path, capsys, batch_depth_args):
     _check_depth_option(tmp_path, capsys, batch_depth_args, _row_plane(), "--unseen-labels",
                         ("worst", "median"), "mean")
+
+
+def test_share_keeps_a_foreground_depth_out_of_the_background_rows_above_it():
+    """A 2 x 3 procedural scene whose side views lose their top 12 rows (as rectification
+    cuts them): above an object at 5.1 px that starts at row 7, the background rows are seen
+    only at the background's depth.  ``"median"`` lets the object spread over them;
+    ``"share"`` keeps them as ``"worst"`` does (BENCHMARKS.md, thirtieth session)."""
+    import dataclasses
+
+    from hyperlf import synthesis
+
+    lf = synthesis.procedural_scene(seed=2, rows=2, cols=3, height=48, width=64,
+                                    disparity_range=(1.0, 6.0),
+                                    reflectance_source="colorchecker")
+    valid = np.ones(lf.views.shape, bool)
+    valid[0, 0, :12] = valid[0, 2, :12] = False
+    lf = dataclasses.replace(lf, valid=valid)
+    err = {}
+    for mode in ("share", "worst", "median"):
+        r = hlf.depth(lf, n_labels=25, params=hlf.DepthParams(unseen_labels=mode))
+        err[mode] = float(np.abs(r.disparity - lf.reference_gt_disparity)[:12].mean())
+    assert err["share"] < 0.4 and err["share"] <= err["worst"] + 0.02, err  # 0.309 each
+    assert err["median"] > 0.5, err  # 0.601: the object spread
