@@ -111,6 +111,7 @@ OPTIONS = {
     "visibility+neutral": dict(params=dict(visibility_rounds=1, missing_views="neutral")),
     "visibility+common": dict(params=dict(visibility_rounds=1, missing_views="common")),
     "single cost": dict(metric="rsncc"),
+    "fusion weights": dict(params=dict(fusion_weights=(1, 4))),
 }
 
 

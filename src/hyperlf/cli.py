@@ -177,6 +177,46 @@ def _range_arg(text: str) -> tuple[float, float]:
     return lo, hi
 
 
+def _fusion_weights_arg(text: str) -> tuple[float, ...]:
+    """``--fusion-weights W1,W2[,...]``: finite numbers >= 0, not all 0 (whether their count
+    fits the cost is checked with ``--metric``, :func:`hyperlf.costs.fusion_weights`)."""
+    try:
+        w = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected numbers separated by commas, like 1,4; got {text!r}") from None
+    if not all(np.isfinite(v) and v >= 0 for v in w) or not any(w):
+        raise argparse.ArgumentTypeError(
+            f"expected finite numbers >= 0, not all 0, like 1,4; got {text!r}")
+    return w
+
+
+def _check_fusion_weights(args) -> None:
+    """Refuse ``--fusion-weights`` that do not fit ``--metric``, before any work."""
+    if args.fusion_weights is not None:
+        from .costs import fusion_weights
+
+        try:
+            fusion_weights(args.metric, args.fusion_weights)
+        except InvalidInputError as e:
+            raise InvalidInputError(f"--fusion-weights: {e}") from None
+
+
+def _join_weights(weights) -> str | None:
+    """``--fusion-weights`` as a depth command line writes it (None stays None)."""
+    return None if weights is None else ",".join(f"{w:g}" for w in weights)
+
+
+def _add_fusion_weights_option(p: argparse.ArgumentParser, *, brief: bool = False) -> None:
+    """``--fusion-weights`` of depth and batch (``DepthParams.fusion_weights``)."""
+    p.add_argument("--fusion-weights", type=_fusion_weights_arg, default=None, metavar="W,W",
+                   help="as for depth" if brief else
+                   "weights of the parts of a fused --metric, in its order (auto = "
+                   "census-rsncc: rsncc,census; default 1,1). E.g. 1,4 leans on census, "
+                   "which held up better on a strongly coloured scene and worse on the "
+                   "procedural test scenes (BENCHMARKS.md)")
+
+
 def _float_within(low: float, high: float, what: str, *, above_low: bool = False):
     """An argparse type: a finite number in ``[low, high]`` (``(low, high]`` with
     ``above_low``)."""
@@ -792,6 +832,7 @@ def _cmd_stereo(args, dest) -> list[Path]:
     from .pipeline import save_disparity_outputs
     from .twoview import stereo
 
+    _check_fusion_weights(args)
     left, right = _read_stereo_image(args.left), _read_stereo_image(args.right)
     if args.disparity_range is None:
         raise InvalidInputError("give --disparity-range MIN,MAX (integers, px; left x matches "
@@ -804,7 +845,9 @@ def _cmd_stereo(args, dest) -> list[Path]:
     res = stereo(left, right, (int(lo), int(hi)), metric=args.metric, optimizer=args.optimizer,
                  occlusion="none" if args.no_occlusion else args.occlusion,
                  subpixel=args.subpixel, aggregation=_aggregation_of(args),
-                 channel=channel, progress=_bars(args))
+                 channel=channel, progress=_bars(args),
+                 cost_params=None if args.fusion_weights is None
+                 else {"weights": args.fusion_weights})
     written = save_disparity_outputs(dest, res.disparity,
                                       f"{res.metric} + {res.optimizer}", confidence=res.confidence,
                                       unit="px")
@@ -860,6 +903,7 @@ def _cmd_depth(args, dest) -> list[Path]:
     from .formats import load_lightfield
     from .pipeline import save_disparity_outputs, save_metric_outputs
 
+    _check_fusion_weights(args)
     lf = load_lightfield(args.input, cube=False)  # a ground-truth cube is not needed here
     _record_input(args, lf)
     out = dest
@@ -888,6 +932,7 @@ def _cmd_depth(args, dest) -> list[Path]:
                                      ("unseen_labels", args.unseen_labels),
                                      ("weak_planes", args.weak_planes),
                                      ("visibility_rounds", args.visibility_rounds),
+                                     ("fusion_weights", args.fusion_weights),
                                      ("max_memory", budget))
                    if v is not None}
         agg = _aggregation_of(args)
@@ -1028,6 +1073,7 @@ def _cmd_batch(args, dest) -> list[Path]:  # noqa: ARG001 - batch writes its own
     """
     from .batch import discard_unused, finish_batch, plan_batch, run_batch, write_summary
 
+    _check_fusion_weights(args)
     depth_args = []
     for flag, value in (("--labels", args.labels), ("--metric", args.metric),
                         ("--optimizer", args.optimizer), ("--median-radius", args.median_radius),
@@ -1036,6 +1082,7 @@ def _cmd_batch(args, dest) -> list[Path]:  # noqa: ARG001 - batch writes its own
                         ("--coarse-prior-levels", args.coarse_prior_levels),
                         ("--missing-views", args.missing_views),
                         ("--unseen-labels", args.unseen_labels),
+                        ("--fusion-weights", _join_weights(args.fusion_weights)),
                         ("--max-memory", args.max_memory),
                         ("--min-confidence", args.min_confidence)):
         if value is not None:
@@ -1715,6 +1762,7 @@ def _add_stereo_parser(sub) -> None:
                         "background (the paper's protocol); none keeps the raw map")
     p.add_argument("--no-occlusion", action="store_true",
                    help="the same as --occlusion none")
+    _add_fusion_weights_option(p, brief=True)
     _add_aggregation_options(p)
     _add_output_folder(p)
 
@@ -1761,6 +1809,7 @@ def _add_depth_parser(sub) -> None:
     _add_coarse_prior_options(p)
     _add_weak_planes_option(p)
     _add_unseen_options(p)
+    _add_fusion_weights_option(p)
     p.add_argument("--visibility-rounds", type=_visibility_rounds_arg, default=None,
                    metavar="N",
                    help="re-match N times, each candidate depth of a pixel over only the "
@@ -1826,6 +1875,7 @@ def _add_batch_parser(sub) -> None:
     _add_coarse_prior_options(p, brief=True)
     _add_weak_planes_option(p, brief=True)
     _add_unseen_options(p, brief=True)
+    _add_fusion_weights_option(p, brief=True)
     p.add_argument("--min-confidence", type=_min_confidence_arg, default=None, metavar="C",
                    help="as for depth (captures with metric outputs)")
     p.add_argument("--downscale", type=_downscale_arg, default=1, metavar="N",

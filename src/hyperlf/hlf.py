@@ -158,8 +158,8 @@ from typing import Any
 import numpy as np
 
 from ._progress import progress_bar
-from .costs import (DENSE_VIEWS, AggregationParams, aggregate_volume, cost_names, get_cost,
-                    light_field_window, tap_validity, view_costs)
+from .costs import (DENSE_VIEWS, AggregationParams, aggregate_volume, cost_names, fusion_weights,
+                    get_cost, light_field_window, tap_validity, view_costs)
 from .imageops import fill_masked, gradient_magnitude, normalise_intensity
 from .warp import shift_map
 from .errors import InvalidInputError
@@ -234,7 +234,11 @@ class DepthParams:
     :func:`hyperlf.costs.light_field_window`: ncc 5, census 7, bwncc per level / 5, rsncc and
     census-rsncc 5, or 3 with at least ``dense_views`` (12) other views), ``tau_rel`` (1e-5),
     ``eps`` (1e-3, BWNCC ``-log`` floor), ``block`` (68 descriptor
-    channels per block).
+    channels per block), ``fusion_weights`` (None = the cost's own, all 1; for a fused cost,
+    one weight per part in its order, e.g. ``(1, 4)`` for census-rsncc's rsncc and census:
+    :func:`hyperlf.costs.fusion_weights`; census weighted 4:1 held up better on a colourful
+    variant of antinous but lost on the procedural scenes, BENCHMARKS.md, thirty-second
+    session).
     Selection: ``selection_normalise`` (M / median M per view), ``selection_include_ref``,
     ``min_selected``.
     Occlusion split: ``canny_sigma``, ``canny_low`` / ``canny_high`` (absolute 8-bit Canny
@@ -345,6 +349,7 @@ class DepthParams:
     tau_rel: float = 1e-5
     eps: float = 1e-3
     block: int = 68
+    fusion_weights: tuple | None = None
     selection_normalise: bool = True
     selection_include_ref: bool = True
     min_selected: int = 3
@@ -413,6 +418,7 @@ class DepthParams:
                                         or self.window % 2 == 0):
             raise InvalidInputError(f"params.window must be None or an odd int >= 1, got {self.window!r}")
         pos("tau_rel", self.tau_rel, True)
+        self._check_fusion_weights()
         if self.texture_snr is not None:
             pos("texture_snr", self.texture_snr, True)
             if 0 < self.texture_snr <= 1:
@@ -503,6 +509,22 @@ class DepthParams:
                 raise InvalidInputError(f"params.tile_rows must be an integer, got {self.tile_rows!r}")
             row_strips(1, self.tile_rows)
 
+
+    def _check_fusion_weights(self) -> None:
+        """``fusion_weights``: None, or finite numbers >= 0, not all 0, kept as a tuple (which
+        cost they fit is checked by :func:`depth`)."""
+        w = self.fusion_weights
+        if w is None:
+            return
+        try:
+            t = () if isinstance(w, (str, bytes)) else tuple(float(x) for x in w)
+        except (TypeError, ValueError):
+            t = ()
+        if not any(t) \
+                or not all(math.isfinite(x) and x >= 0 for x in t):
+            raise InvalidInputError("params.fusion_weights must be None or one finite number "
+                                    f">= 0 per part of the fused cost, not all 0; got {w!r}")
+        object.__setattr__(self, "fusion_weights", t)
 
     def _check_plane_options(self) -> None:
         """The weak planes' options (``weak_planes``, ``plane_*``)."""
@@ -1161,6 +1183,11 @@ def _check_depth_options(lf, metric, view_selection, occlusion_split, defocus, o
     if optimizer not in OPTIMIZERS:
         raise InvalidInputError(f"optimizer must be one of {OPTIMIZERS}, got {optimizer!r}")
     mname = get_cost(metric, light_field=True).name
+    if params.fusion_weights is not None:
+        try:
+            fusion_weights(mname, params.fusion_weights)
+        except InvalidInputError as e:
+            raise InvalidInputError(f"params.fusion_weights: {e}") from None
     if defocus != "off" and not lf.is_spectral:
         raise InvalidInputError(
             "the defocus cue needs a spectral light field with one wavelength per view "
@@ -1553,7 +1580,7 @@ def _strip_correspondence(prob: DepthProblem, rows, scales, sees, cache, bar, cl
                                prob.metric, prob.window, p.tau_rel, p.eps, int(p.block), cache,
                                rows=None if whole else rows,
                                scales=None if scales is None else scales[v],
-                               **_mask_args(prob, v))
+                               weights=p.fusion_weights, **_mask_args(prob, v))
         if prob.every_label is not None:
             valid &= prob.every_label[v][None, a:b]
         if isinstance(sees, LabelVisibility):

@@ -545,7 +545,7 @@ def light_field_window(metric: str, n_other_views: int, *, window: int | None = 
 
 def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | None = None,
                tau_rel: float = 1e-5, eps: float = 1e-3, block: int = 68, _cache=None, *,
-               ref_valid=None, view_valid=None, rows=None, scales=None):
+               ref_valid=None, view_valid=None, rows=None, scales=None, weights=None):
     """Correspondence cost of one view against the reference, and its validity.
 
     Parameters
@@ -577,6 +577,9 @@ def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | 
         fusion's normalisers), the scales of the whole view (:func:`view_moments` over every
         strip, then :func:`hyperlf.costs.moments_std`); needed with ``rows``, since a strip
         alone would give its own.
+    weights : sequence of float, optional
+        For a fused cost (:class:`hyperlf.costs.FusedCost`), one weight per part instead of
+        its own (``census-rsncc``: rsncc, census); None = the cost's.
 
     Returns
     -------
@@ -591,7 +594,8 @@ def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | 
     ------
     InvalidInputError
         Unknown metric, or one without a light-field evaluator (``ssd``); bad ``rows``; a
-        strip of a cost with whole-volume scales without ``scales``.
+        strip of a cost with whole-volume scales without ``scales``; ``weights`` for a cost
+        that is not a fusion, or not one valid weight per part.
 
     Examples
     --------
@@ -605,7 +609,7 @@ def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | 
     1.0
     """
     from ..errors import InvalidInputError
-    from .registry import get_cost
+    from .registry import fusion_weights, get_cost
     cost = get_cost(metric, light_field=True)
     A, B, shifts, valid, rows = _view_inputs(ref_img, img, offset, labels, ref_valid,
                                              view_valid, rows)
@@ -614,6 +618,8 @@ def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | 
             f"a strip of rows of {cost.name!r} needs the whole view's scales (view_moments)")
     cache = {} if _cache is None else _cache
     extra = {} if scales is None else {"scales": scales}
+    if weights is not None:
+        extra["weights"] = fusion_weights(metric, weights)
     C = cost.view_volume(A, B, shifts, window=window, valid=valid, tau_rel=tau_rel, eps=eps,
                          block=block, cache=cache, rows=rows, **extra)
     C = fill_out_of_image(np.ascontiguousarray(C, dtype=np.float32), 0, valid)

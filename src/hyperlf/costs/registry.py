@@ -24,6 +24,7 @@ A cost knows
 from __future__ import annotations
 
 import contextlib
+import math
 from collections.abc import Mapping
 from typing import Any, Iterator, Sequence
 
@@ -43,6 +44,7 @@ __all__ = [
     "get_cost",
     "cost_names",
     "resolve_metric",
+    "fusion_weights",
     "cost_volume",
     "cost_volumes",
     "METRICS",
@@ -185,7 +187,8 @@ class FusedCost(Cost):
     parts : sequence of str
         Names of registered costs.
     weights : sequence of float
-        One per part (default all 1).
+        One per part (default all 1), each finite and >= 0, not all 0; the pair and the
+        light-field volumes also take ``weights=`` per call (:meth:`check_weights`).
     view_window_part : int, optional
         Which part a light-field ``window`` applies to.
     params, windows : dict, optional
@@ -197,7 +200,7 @@ class FusedCost(Cost):
                  params: dict | None = None, windows: dict | None = None):
         self.name = name
         self.parts = tuple(parts)
-        self.weights = tuple(float(w) for w in weights) if weights is not None \
+        self.weights = self.check_weights(weights) if weights is not None \
             else (1.0,) * len(self.parts)
         self.description = description
         self.view_window_part = view_window_part
@@ -218,7 +221,7 @@ class FusedCost(Cost):
     def _part_volumes(self, left, right, dmin, dmax, impl, options):
         opts = dict(options)
         part_windows = [opts.pop(f"{p}_window", get_cost(p).window) for p in self.parts]
-        weights = opts.pop("weights", self.weights)
+        weights = self.check_weights(opts.pop("weights", self.weights))
         vols = []
         for i, (p, w) in enumerate(zip(self.parts, part_windows)):
             extra = opts if i == 0 else {}
@@ -257,13 +260,35 @@ class FusedCost(Cost):
     view_centre = "none"
 
     def view_volume(self, ref_img, img, shifts, *, window=None, valid=None, scales=None,
-                    **options):
+                    weights=None, **options):
         """The fused volume; ``scales`` (one per part): the normalisers' standard deviations
-        when measured on the whole view (a strip of ``rows``), else measured here.  The parts
-        are centred by :attr:`view_centre`."""
+        when measured on the whole view (a strip of ``rows``), else measured here;
+        ``weights`` (one per part): instead of :attr:`weights` (:meth:`check_weights`).  The
+        parts are centred by :attr:`view_centre`."""
+        weights = self.weights if weights is None else self.check_weights(weights)
         vols = list(self._view_parts(ref_img, img, shifts, window, valid, options))
-        return fuse(vols, self.weights, dmin=0, valid=valid, scales=scales, overwrite=True,
+        return fuse(vols, weights, dmin=0, valid=valid, scales=scales, overwrite=True,
                     centre=self.view_centre)
+
+    def check_weights(self, weights) -> tuple:
+        """``weights`` as a tuple of floats, one per part, each finite and >= 0, not all 0.
+
+        Raises
+        ------
+        InvalidInputError
+            Otherwise (the message names the parts).
+        """
+        try:
+            w = () if isinstance(weights, (str, bytes)) else tuple(float(x) for x in weights)
+        except (TypeError, ValueError):
+            w = ()
+        if len(w) != len(self.parts) or not all(math.isfinite(x) and x >= 0 for x in w) \
+                or not any(w):
+            raise InvalidInputError(
+                f"{self.name} needs {len(self.parts)} weights, one per part "
+                f"({', '.join(self.parts)}), each finite and >= 0 and not all 0; got "
+                f"{weights!r}")
+        return w
 
     def view_moments(self, ref_img, img, shifts, *, window=None, valid=None, **options):
         """Per part, :func:`hyperlf.costs.row_moments` of its raw volume on the strip."""
@@ -361,6 +386,29 @@ def get_cost(name: str, *, light_field: bool = False) -> Cost:
 def resolve_metric(name: str) -> str:
     """Return the concrete cost name (``"auto"`` -> :data:`AUTO_METRIC`)."""
     return get_cost(name).name
+
+
+def fusion_weights(name: str, weights) -> tuple:
+    """``weights`` checked for the fused cost ``name``: one float per part, in its order.
+
+    Raises
+    ------
+    InvalidInputError
+        ``name`` is not a fusion (one cost has nothing to weight), or the weights are not
+        one finite number >= 0 per part, not all 0.
+
+    Examples
+    --------
+    >>> from hyperlf.costs import fusion_weights
+    >>> fusion_weights("auto", [1, 4])                    # census-rsncc: rsncc, census
+    (1.0, 4.0)
+    """
+    cost = get_cost(name)
+    if not isinstance(cost, FusedCost):
+        fused = ", ".join(n for n in cost_names() if isinstance(_REGISTRY[n], FusedCost))
+        raise InvalidInputError(f"fusion weights need a fused cost ({fused}), not "
+                                f"{cost.name!r}")
+    return cost.check_weights(weights)
 
 
 class _MetricsView(Mapping):
