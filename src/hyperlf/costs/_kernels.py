@@ -8,7 +8,8 @@ Rectified pair (integer disparities): :func:`xcorr_accum` (NCC cross terms), :fu
 (census), and the BWNCC pipeline :func:`bw_channel_stats`, :func:`bw_inv_sigma`, :func:`bw_pad`,
 :func:`bw_den_add`, :func:`bw_accum`, :func:`bw_finish`.  Light field (sub-pixel shifts):
 :func:`xi_shift` (NCC with the bilinearly shifted view), :func:`census_shift` and
-:func:`shift_average` (census averaged over sub-pixel shifts).  Fusion:
+:func:`shift_average` (census averaged over sub-pixel shifts).  RSNCC's robust function:
+:func:`rho_sum`.  Fusion:
 :func:`valid_std` and :func:`normalise_fill` (``norm(C)`` of
 :func:`hyperlf.costs.pair.normalise_volume`), :func:`fuse_fill` (:func:`hyperlf.costs.pair.fuse`).
 """
@@ -631,6 +632,20 @@ def shift_average(C, w, j0, j1, valid, use_valid, out):  # pragma: no cover
                     den[x] += wk
             for x in range(W):
                 out[k, y, x] = num[x] / den[x] if den[x] > 0 else C[k, y, x]
+
+
+@numba.njit(parallel=True, cache=True)
+def rho_sum(xi, xg, tau, out):  # pragma: no cover
+    """``out = rho(1 - xi) + tau rho(1 - xg)`` entry by entry (1-D arrays; ``xi``, ``xg``
+    float64, ``out`` float32), with ``rho(x) = -log(exp(|x| - 2) + exp(-|x|))`` in float64,
+    the operations of :func:`hyperlf.costs.pair.rho` in its order.  Reference:
+    :func:`hyperlf.costs.pair.rsncc_rho` (``impl="numpy"``)."""
+    for i in prange(out.shape[0]):
+        a = abs(1.0 - xi[i])
+        b = abs(1.0 - xg[i])
+        ra = -math.log(math.exp(a - 2.0) + math.exp(-a))
+        rb = -math.log(math.exp(b - 2.0) + math.exp(-b))
+        out[i] = ra + tau * rb
 
 
 @numba.njit(parallel=True, cache=True)

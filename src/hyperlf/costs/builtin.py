@@ -92,9 +92,9 @@ class RSNCC(_FunctionCost):
         return super().pair_volume(left, right, dmin, dmax, window=window, impl=impl, **options)
 
     def view_volume(self, ref_img, img, shifts, *, window=None, valid=None, tau_rel=1e-5,
-                    rs_tau=1.0, rows=None, **options):
+                    rs_tau=1.0, rows=None, impl="auto", **options):
         return _lf.rsncc_view_volume(ref_img, img, shifts, self.window_for(window), tau_rel,
-                                     rs_tau, rows=rows)
+                                     rs_tau, rows=rows, impl=impl)
 
 
 class Census(_FunctionCost):

@@ -50,7 +50,7 @@ import numpy as np
 from ..imageops import fill_masked, gradient_magnitude, normalise_intensity
 from ..warp import axis_taps, axis_valid, shift_map
 from .pair import (bwncc_finish, census_transform, channel_stats, fill_out_of_image, inv_sigma,
-                   pad_replicate, rho, window_stats)
+                   pad_replicate, rsncc_rho, window_stats)
 from ._validate import check_impl
 
 __all__ = [
@@ -193,14 +193,15 @@ def ncc_view_volume(ref_img, img, shifts, window: int = 5, tau_rel: float = 1e-5
 
 
 def rsncc_view_volume(ref_img, img, shifts, window: int = 5, tau_rel: float = 1e-5,
-                      rs_tau: float = 1.0, *, rows=None) -> np.ndarray:
+                      rs_tau: float = 1.0, *, rows=None, impl: str = "auto") -> np.ndarray:
     """RSNCC (Shen et al. 2014) at each shift:
     ``rho(1 - NCC(In)) + rs_tau * rho(1 - NCC(|grad In|))``.
 
     The gradient term is unchanged by a contrast reversal between bands.  The two NCCs run as
     two channels of one kernel call (one per core), each with its own variance thresholds, so
     the result is that of two separate single-channel NCCs.  Arguments as
-    :func:`ncc_view_volume`; float32 ``(L, H, W)``.
+    :func:`ncc_view_volume`; ``impl``: of ``rho`` (:func:`hyperlf.costs.pair.rsncc_rho`);
+    float32 ``(L, H, W)``.
     """
     L = len(shifts)
     H, W = ref_img.shape
@@ -215,7 +216,7 @@ def rsncc_view_volume(ref_img, img, shifts, window: int = 5, tau_rel: float = 1e
     for k, (sx, sy) in enumerate(shifts):
         xi, _, _ = _xi_terms(ref, B, cb, tauB, sx, sy, weighted=False, per_channel=True,
                              rows=rows)
-        out[k] = rho(1.0 - xi[0]) + float(rs_tau) * rho(1.0 - xi[1])
+        rsncc_rho(xi[0], xi[1], rs_tau, out[k], impl)
     return out
 
 

@@ -24,6 +24,7 @@ __all__ = [
     "fill_out_of_image",
     "worst_fill",
     "rho",
+    "rsncc_rho",
     "pad_replicate",
     "box_mean",
     "window_stats",
@@ -155,6 +156,26 @@ def rho(x):
     a += e
     np.log(a, out=a)
     return np.negative(a, out=a)
+
+
+def rsncc_rho(xi_i, xi_g, rs_tau: float, out: np.ndarray, impl: str = "auto") -> np.ndarray:
+    """RSNCC from its two NCC scores: ``out[...] = rho(1 - xi_i) + rs_tau * rho(1 - xi_g)``.
+
+    ``xi_i``, ``xi_g``: float64 NCC of the intensities and of the gradient magnitudes, the
+    shape of ``out`` (float32, written and returned).  ``impl="numpy"`` is the reference
+    (:func:`rho`); ``"numba"`` (:func:`hyperlf.costs._kernels.rho_sum`) does the same float64
+    operations in one parallel pass, without the temporaries.
+    """
+    impl = check_impl(impl, "rsncc")
+    if impl == "numba" and out.flags.c_contiguous and out.dtype == np.float32 \
+            and xi_i.dtype == np.float64 and xi_g.dtype == np.float64:
+        from ._kernels import rho_sum
+
+        rho_sum(np.ascontiguousarray(xi_i).reshape(-1), np.ascontiguousarray(xi_g).reshape(-1),
+                float(rs_tau), out.reshape(-1))
+        return out
+    out[...] = rho(1.0 - xi_i) + float(rs_tau) * rho(1.0 - xi_g)
+    return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -438,7 +459,7 @@ def rsncc_volume(left, right, dmin, dmax, window: int = 5, impl: str = "auto",
     for sl in _label_blocks(len(ds), L.shape):  # float64 per block, as for the whole volume
         xi_i = _ncc_scores(set_i, ds[sl], n // 2, impl)
         xi_g = _ncc_scores(set_g, ds[sl], n // 2, impl)
-        out[sl] = rho(1.0 - xi_i) + float(rs_tau) * rho(1.0 - xi_g)
+        rsncc_rho(xi_i, xi_g, rs_tau, out[sl], impl)
     return fill_out_of_image(out, dmin)
 
 
