@@ -129,6 +129,8 @@ def _xi_terms(ref: _RefBlock, B: np.ndarray, centre_b, tauB, sx, sy, weighted=Tr
               per_channel: bool = False, rows=None):
     """Sums over channels of ``xi muA``, ``xi muB`` and ``muB`` for one shift: 3 x (h, W).
 
+    ``weighted=False``: the sum of ``xi`` instead of ``xi muA``, and None for the other two
+    (the kernel's sums of them go to scratch that is never zeroed or read).
     ``per_channel=True`` returns ``xi`` (or ``xi muA``) of every channel instead, as
     ``(nc, h, W)`` (one channel per parallel group), and the other two as None.  ``rows``
     ``(a, b)``: only the reference rows ``a .. b - 1`` (``h = b - a``; ``a`` a multiple of
@@ -143,8 +145,9 @@ def _xi_terms(ref: _RefBlock, B: np.ndarray, centre_b, tauB, sx, sy, weighted=Tr
     x0, x1, fx = axis_taps(W, sx, r)
     G = nc if per_channel else max(1, min(nc, numba.get_num_threads()))
     oF = np.zeros((G, b - a, W))
-    oB = np.zeros((G, b - a, W))
-    oM = np.zeros((G, b - a, W))
+    scratch = np.zeros if weighted else np.empty
+    oB = scratch((G, b - a, W))
+    oM = scratch((G, b - a, W))
     tau = np.broadcast_to(np.asarray(tauB, np.float64), (nc,)).copy()
     Bc = np.ascontiguousarray(B, np.float32)
     cb = np.asarray(centre_b, np.float64)
@@ -157,6 +160,8 @@ def _xi_terms(ref: _RefBlock, B: np.ndarray, centre_b, tauB, sx, sy, weighted=Tr
                           oB[:, i - a:j - a], oM[:, i - a:j - a])
     if per_channel:
         return oF, None, None
+    if not weighted:
+        return oF.sum(axis=0), None, None
     return oF.sum(axis=0), oB.sum(axis=0), oM.sum(axis=0)
 
 
