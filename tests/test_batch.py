@@ -175,15 +175,16 @@ def test_sigterm_to_a_batch_leaves_no_hidden_staging_folders(captures, tmp_path)
     # names carry its pid: wait for it too (a fresh clone's first run compiles the numba
     # kernels, so it may react late), up to 120 s more
     t_end = max(t_end, time.monotonic() + 120)
+    writers = lambda names: {int(n.split("-")[1]) for n in names  # noqa: E731
+                             if n.split("-")[1].isdigit()}
     while hidden() not in ([], [".hyperlf-batch.json"]) and time.monotonic() < t_end:
-        writers = {int(n.split("-")[1]) for n in hidden() if n.split("-")[1].isdigit()}
-        if writers and not any(_alive(pid) for pid in writers):
+        pids = writers(hidden())
+        if pids and not any(_alive(pid) for pid in pids):
             time.sleep(0.5)  # gone: give the file system a moment, then judge
             break
         time.sleep(0.05)
     left = hidden()
-    alive = [pid for pid in {int(n.split("-")[1]) for n in left if n.split("-")[1].isdigit()}
-             if _alive(pid)]
+    alive = [pid for pid in writers(left) if _alive(pid)]
     assert left in ([], [".hyperlf-batch.json"]), (left, "writers still running:", alive)
     for folder in (p for p in out.iterdir() if p.is_dir()):
         _assert_whole(folder)  # what finished before the signal is whole

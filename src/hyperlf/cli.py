@@ -180,12 +180,14 @@ def _range_arg(text: str) -> tuple[float, float]:
 def _fusion_weights_arg(text: str) -> tuple[float, ...]:
     """``--fusion-weights W1,W2[,...]``: finite numbers >= 0, not all 0 (whether their count
     fits the cost is checked with ``--metric``, :func:`hyperlf.costs.fusion_weights`)."""
+    from .costs.registry import weights_tuple
+
     try:
-        w = tuple(float(v) for v in text.split(","))
+        w = weights_tuple([float(v) for v in text.split(",")])
     except ValueError:
         raise argparse.ArgumentTypeError(
             f"expected numbers separated by commas, like 1,4; got {text!r}") from None
-    if not all(np.isfinite(v) and v >= 0 for v in w) or not any(w):
+    if w is None:
         raise argparse.ArgumentTypeError(
             f"expected finite numbers >= 0, not all 0, like 1,4; got {text!r}")
     return w

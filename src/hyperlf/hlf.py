@@ -513,15 +513,13 @@ class DepthParams:
     def _check_fusion_weights(self) -> None:
         """``fusion_weights``: None, or finite numbers >= 0, not all 0, kept as a tuple (which
         cost they fit is checked by :func:`depth`)."""
+        from .costs.registry import weights_tuple
+
         w = self.fusion_weights
         if w is None:
             return
-        try:
-            t = () if isinstance(w, (str, bytes)) else tuple(float(x) for x in w)
-        except (TypeError, ValueError):
-            t = ()
-        if not any(t) \
-                or not all(math.isfinite(x) and x >= 0 for x in t):
+        t = weights_tuple(w)
+        if t is None:
             raise InvalidInputError("params.fusion_weights must be None or one finite number "
                                     f">= 0 per part of the fused cost, not all 0; got {w!r}")
         object.__setattr__(self, "fusion_weights", t)

@@ -278,12 +278,8 @@ class FusedCost(Cost):
         InvalidInputError
             Otherwise (the message names the parts).
         """
-        try:
-            w = () if isinstance(weights, (str, bytes)) else tuple(float(x) for x in weights)
-        except (TypeError, ValueError):
-            w = ()
-        if len(w) != len(self.parts) or not all(math.isfinite(x) and x >= 0 for x in w) \
-                or not any(w):
+        w = weights_tuple(weights)
+        if w is None or len(w) != len(self.parts):
             raise InvalidInputError(
                 f"{self.name} needs {len(self.parts)} weights, one per part "
                 f"({', '.join(self.parts)}), each finite and >= 0 and not all 0; got "
@@ -386,6 +382,17 @@ def get_cost(name: str, *, light_field: bool = False) -> Cost:
 def resolve_metric(name: str) -> str:
     """Return the concrete cost name (``"auto"`` -> :data:`AUTO_METRIC`)."""
     return get_cost(name).name
+
+
+def weights_tuple(weights) -> tuple | None:
+    """``weights`` as a tuple of floats if they are a sequence of finite numbers >= 0, not
+    all 0 (of any length), else None: the rule every fusion weight follows (the count is the
+    cost's to check, :meth:`FusedCost.check_weights`)."""
+    try:
+        w = () if isinstance(weights, (str, bytes)) else tuple(float(x) for x in weights)
+    except (TypeError, ValueError):
+        return None
+    return w if any(w) and all(math.isfinite(x) and x >= 0 for x in w) else None
 
 
 def fusion_weights(name: str, weights) -> tuple:
