@@ -782,6 +782,30 @@ def test_pictures_are_written(tmp_path, rig, plane_shots, plane_cal):
         save_residual_picture(tmp_path / "r2.png", back)
 
 
+def test_pictures_of_large_shots_are_subsampled_in_the_shots_coordinates(monkeypatch, tmp_path):
+    """Views are drawn at what the figure shows (a 3 x 3 grid of 1200 x 1600 shots: every
+    third pixel), placed on the full image's pixel grid, so corners and guide lines are drawn
+    where they were measured."""
+    from hyperlf.calibration import pictures
+    from hyperlf.visualise import display_step
+
+    drawn = []
+    monkeypatch.setattr(pictures, "save_figure", lambda fig, path: drawn.append(fig))
+    H, W = 1200, 1600
+    shots = {(r, c): np.full((H, W), float(r + c)) for r in range(3) for c in range(3)}
+    corners = {k: np.array([[10.0, 20.0], [W - 1.0, H - 1.0]]) for k in shots}
+    pictures.save_corner_pictures(tmp_path / "c.png", shots, corners)
+    views = np.stack([np.stack([shots[r, c] for c in range(3)]) for r in range(3)])
+    pictures.save_registration_picture(tmp_path / "r.png", views, views >= 0)
+    assert display_step(3 * H, 3 * W, pictures.MAX_SIDE) == 3
+    for fig in drawn:
+        for ax in fig.axes:
+            (im,) = ax.images
+            assert im.get_array().shape[:2] == (-(-H // 3), -(-W // 3))
+            assert im.get_extent() == [-0.5, W - 0.5, H - 0.5, -0.5]
+    assert [display_step(n, 10, 100) for n in (1, 100, 101, 200, 201)] == [1, 1, 2, 2, 3]
+
+
 @pytest.mark.parametrize("seed,true_range", [(0, (-3.0, 2.0)), (1, (1.0, 4.0))])
 def test_measured_disparity_range_covers_the_scene(seed, true_range):
     """The range ingest measures when the calibration has none (full calibration): it holds

@@ -19,6 +19,7 @@ from .errors import InvalidInputError
 __all__ = [
     "pyplot",
     "save_figure",
+    "display_step",
     "save_disparity_png",
     "save_error_png",
     "save_mosaic_png",
@@ -46,6 +47,13 @@ def save_figure(fig, path) -> Path:
         fig.savefig(tmp, dpi=110, bbox_inches="tight", format=Path(path).suffix.lstrip(".") or "png")
     plt.close(fig)
     return Path(path)
+
+
+def display_step(rows: int, cols: int, max_side: int) -> int:
+    """The stride (1, 2, ...) that brings a picture of ``rows`` x ``cols`` pixels to at most
+    ``max_side`` on its longer side: a grid of views is subsampled to what a figure shows
+    before it is drawn, so that a picture of large images costs what a small one does."""
+    return max(1, int(np.ceil(max(rows, cols) / max_side)))
 
 
 def _robust_range(values: np.ndarray, vmin=None, vmax=None) -> tuple[float, float]:
@@ -215,7 +223,7 @@ def save_mosaic_png(path: str | os.PathLike, views: np.ndarray,
     if v.ndim not in (4, 5):
         raise InvalidInputError(f"views must be (R, C, H, W[, 3]), got {v.shape}")
     R, C, H, W = v.shape[:4]
-    step = max(1, int(np.ceil(max(R * H, C * W) / max_side)))
+    step = display_step(R * H, C * W, max_side)
     v = v[:, :, ::step, ::step]
     if v.ndim == 4:
         peak = float(np.percentile(v, 99.5)) or 1.0
@@ -265,7 +273,7 @@ def save_share_mosaic_png(path: str | os.PathLike, shares: np.ndarray, *, title:
     if v.ndim != 4:
         raise InvalidInputError(f"shares must be (R, C, H, W), got {v.shape}")
     R, C, H, W = v.shape
-    step = max(1, int(np.ceil(max(R * H, C * W) / max_side)))
+    step = display_step(R * H, C * W, max_side)
     plt = pyplot()
     fig, axes = plt.subplots(R, C, figsize=(1.8 * C + 0.8, 1.8 * R * H / W + 0.4),
                              squeeze=False)

@@ -14,7 +14,7 @@ from typing import Mapping
 import numpy as np
 
 from ..errors import InvalidInputError
-from ..visualise import pyplot, save_figure
+from ..visualise import display_step, pyplot, save_figure
 from .board import camera_label
 from .model import Calibration
 
@@ -26,6 +26,17 @@ def _stretch(img: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
     sel = a[valid] if valid is not None and valid.any() else a
     lo, hi = np.percentile(sel, [0.5, 99.5]) if sel.size else (0.0, 1.0)
     return np.clip((a - lo) / max(hi - lo, 1e-12), 0, 1)
+
+
+#: Longest side, in px, of a grid of views as drawn (views are subsampled to it first).
+MAX_SIDE = 1600
+
+
+def _show(ax, img, size, **kw):
+    """``img`` (a view subsampled for display) on ``ax``, placed in the full image's pixel coordinates
+    (``size`` ``(W, H)``), so that corners and guide lines are drawn as measured."""
+    W, H = size
+    ax.imshow(img, extent=(-0.5, W - 0.5, H - 0.5, -0.5), **kw)
 
 
 def _grid_axes(keys, size, title):
@@ -68,9 +79,13 @@ def save_corner_pictures(path: str | os.PathLike, shots: Mapping, corners: Mappi
         raise InvalidInputError("no shots to draw")
     H, W = np.asarray(shots[keys[0]]).shape[:2]
     fig, axes = _grid_axes(keys, (W, H), title)
+    step = display_step(H * (max(k[0] for k in keys) + 1), W * (max(k[1] for k in keys) + 1),
+                        MAX_SIDE)
     for key in keys:
         ax = axes[key[0], key[1]]
-        ax.imshow(_stretch(shots[key]), cmap="gray", interpolation="nearest")
+        shot = np.asarray(shots[key])
+        _show(ax, _stretch(shot[::step, ::step]), shot.shape[1::-1], cmap="gray",
+              interpolation="nearest")
         c = corners.get(key)
         if c is None:
             ax.set_title(f"{camera_label(key, names)}: not found", fontsize=7, color="red")
@@ -114,12 +129,14 @@ def save_registration_picture(path: str | os.PathLike, views: np.ndarray, valid:
     R, C, H, W = v.shape
     keys = [(r, c) for r in range(R) for c in range(C)]
     fig, axes = _grid_axes(keys, (W, H), title)
+    step = display_step(R * H, C * W, MAX_SIDE)
     for r, c in keys:
-        g = _stretch(v[r, c], m[r, c])
+        vv, mm = v[r, c, ::step, ::step], m[r, c, ::step, ::step]
+        g = _stretch(vv, mm)
         rgb = np.stack([g, g, g], -1)
-        rgb[~m[r, c]] = 0.5 * rgb[~m[r, c]] + [0.5, 0.0, 0.0]
+        rgb[~mm] = 0.5 * rgb[~mm] + [0.5, 0.0, 0.0]
         ax = axes[r, c]
-        ax.imshow(rgb, interpolation="nearest")
+        _show(ax, rgb, (W, H), interpolation="nearest")
         for x in np.linspace(0, W - 1, lines + 2)[1:-1]:
             ax.axvline(x, color="cyan", lw=0.4)
         for y in np.linspace(0, H - 1, lines + 2)[1:-1]:
