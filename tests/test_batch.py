@@ -332,6 +332,31 @@ def test_a_batch_that_fails_before_its_first_capture_leaves_no_folder(captures, 
     assert main(["-q", "batch", str(captures / "frame0"), "-o", str(captures / "frame0")]) == 2
 
 
+def test_a_batch_runs_on_a_scheduler_that_is_already_there(captures, tmp_path):
+    """``--scheduler``: a batch runs on a cluster that is already there, and an address
+    nothing listens at is refused at once, not after the client's 20 s of retries."""
+    from dask.distributed import LocalCluster
+
+    from hyperlf.cli import main
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                      dashboard_address=None) as cluster:
+        out = tmp_path / "b"
+        assert main(["-q", "batch", str(captures / "frame1"), "--labels", str(LABELS),
+                     "--scheduler", cluster.scheduler_address, "-o", str(out)]) == 0
+        assert (out / "frame1" / "disparity.pfm").is_file()
+    import socket
+
+    with socket.socket() as free:  # a port nothing listens at
+        free.bind(("127.0.0.1", 0))
+        port = free.getsockname()[1]
+    start = time.monotonic()
+    with pytest.raises(ConnectionRefusedError):
+        batch._connect_once(f"tcp://127.0.0.1:{port}")
+    assert time.monotonic() - start < 5
+    batch._connect_once("inproc://nothing-to-open")  # left to dask
+
+
 def test_a_local_cluster_keeps_its_scratch_inside_the_batch_folder(captures, tmp_path,
                                                                     monkeypatch):
     seen = {}

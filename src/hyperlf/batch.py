@@ -36,6 +36,7 @@ import json
 import os
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import tempfile
@@ -347,6 +348,22 @@ def discard_unused(out: str | os.PathLike) -> None:
             out.rmdir()
 
 
+def _connect_once(scheduler: str) -> None:
+    """Open and close one TCP connection to a ``tcp://`` or ``tls://`` scheduler address:
+    an address nothing listens at fails at once (dask's client retries it for its whole
+    timeout).  Other transports, and addresses dask parses differently, are left to dask."""
+    from distributed.comm import parse_address
+    from distributed.comm.addressing import parse_host_port
+
+    try:
+        scheme, location = parse_address(scheduler)
+        host, port = parse_host_port(location)
+    except ValueError:
+        return
+    if scheme in ("tcp", "tls"):
+        socket.create_connection((host, port), timeout=20).close()
+
+
 def _client(workers: int, scheduler: str | None, scratch: Path | None = None):
     """A dask client of an existing scheduler or of a new LocalCluster (one thread a worker:
     numba parallelises inside each capture) whose scratch files go to ``scratch`` (dask's
@@ -360,6 +377,7 @@ def _client(workers: int, scheduler: str | None, scratch: Path | None = None):
 
     if scheduler:
         try:
+            _connect_once(scheduler)
             return Client(scheduler, timeout="20s"), None
         except (OSError, TimeoutError, ValueError) as exc:
             raise InvalidInputError(f"--scheduler {scheduler}: cannot connect ({exc}); give "
