@@ -363,14 +363,11 @@ def test_depth_command_nests_the_coarse_prior(tmp_path, capsys):
     big, truth = _slanted_table_scene(2, zoom=2)  # blobs textured only at 1/4 resolution
     save_lightfield(big, tmp_path / "cap", bit_depth=32)
     table = np.s_[H + 12:2 * H - 8, 12:-12]
-    rmse = {}
-    for levels in ("1", "2"):
-        out = tmp_path / f"d{levels}"
-        assert main(["-q", "depth", str(tmp_path / "cap"), "--labels", "33",
-                     "--coarse-prior-levels", levels, "-o", str(out)]) == 0
-        rmse[levels] = float(np.sqrt(np.mean((read_pfm(out / "disparity.pfm") - truth)[table]
-                                             ** 2)))
-    assert rmse["2"] < 0.5 < 1.0 < rmse["1"]
+    out = tmp_path / "d2"
+    assert main(["-q", "depth", str(tmp_path / "cap"), "--labels", "33",
+                 "--coarse-prior-levels", "2", "-o", str(out)]) == 0
+    # one level (the default) leaves this table more than 1 px off (the test above)
+    assert np.sqrt(np.mean((read_pfm(out / "disparity.pfm") - truth)[table] ** 2)) < 0.5
     capsys.readouterr()
     for bad in (["0"], ["9"], ["2.5"], ["two"], ["2", "--no-coarse-prior"]):
         with pytest.raises(SystemExit) as info:  # refused while parsing, exit 2
