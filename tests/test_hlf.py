@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.ndimage import gaussian_filter
 
 from hyperlf import InvalidInputError, LightField
@@ -138,6 +140,26 @@ def test_census_view_costs_numba_matches_numpy(rng):
     for window in (3, 7):
         ref = _census_view_costs(a, b, shifts, window, impl="numpy")
         np.testing.assert_array_equal(_census_view_costs(a, b, shifts, window, impl="numba"), ref)
+
+
+
+@settings(max_examples=60, deadline=None)
+@given(h=st.integers(1, 12), w=st.integers(1, 12), window=st.sampled_from([1, 3, 5, 7]),
+       levels=st.sampled_from([3, 256]), seed=st.integers(0, 2 ** 16),
+       shift=st.tuples(st.floats(-9, 9), st.floats(-9, 9)), data=st.data())
+def test_census_view_costs_numba_matches_numpy_on_any_small_image(h, w, window, levels, seed,
+                                                                  shift, data):
+    """Images narrower or shorter than the window (every column a border column), ties
+    between neighbours (3 grey levels), any sub-pixel shift and any strip of rows."""
+    from hyperlf.costs import census_view_volume
+
+    rng = np.random.default_rng(seed)
+    a, b = (np.round(rng.random((h, w)) * (levels - 1)) / (levels - 1) for _ in range(2))
+    lo = data.draw(st.integers(0, h - 1))
+    rows = (lo, data.draw(st.integers(lo + 1, h)))
+    np.testing.assert_array_equal(census_view_volume(a, b, [shift], window, rows=rows),
+                                  census_view_volume(a, b, [shift], window, rows=rows,
+                                                     impl="numpy"))
 
 
 # ----------------------------------------------------------------------------- view selection

@@ -591,23 +591,33 @@ def census_shift(img, cref, y0, y1, fy, x0, x1, fx, r, row0, buf, out):  # pragm
             buf[y, x] = a0 * (1 - wx) + a1 * wx
     for i in prange(h):
         y = row0 + i
-        for x in range(W):
-            c = buf[y, x]
-            code = cref[i, x]
-            k = np.uint64(0)
-            d = 0
-            for dy in range(-r, r + 1):
-                yy = min(max(y + dy, 0), H - 1)
-                for dx in range(-r, r + 1):
-                    if dy == 0 and dx == 0:
-                        continue
-                    xx = min(max(x + dx, 0), W - 1)
-                    bit_s = buf[yy, xx] < c
-                    bit_r = ((code >> k) & np.uint64(1)) == np.uint64(1)
-                    if bit_s != bit_r:
-                        d += 1
+        code = np.zeros(W, np.uint64)
+        k = np.uint64(0)
+        for dy in range(-r, r + 1):
+            nb = buf[min(max(y + dy, 0), H - 1)]
+            for dx in range(-r, r + 1):
+                if dy != 0 or dx != 0:
+                    census_bit(code, nb, buf[y], dx, k)
                     k += np.uint64(1)
-            out[i, x] = d
+        for x in range(W):
+            out[i, x] = np.float32(popcount64(code[x] ^ cref[i, x]))
+
+
+@numba.njit(inline="always")
+def census_bit(code, nb, ce, dx, k):
+    """Bit ``k`` of every ``code[x]``: ``nb[x + dx] < ce[x]``, ``nb`` replicated beyond its
+    ends.  The columns whose neighbour is inside run on slices (no index can be negative), a
+    loop the compiler vectorises; the others clamp."""
+    W = ce.shape[0]
+    a = min(max(-dx, 0), W)  # the first column whose neighbour is inside the row
+    b = max(min(W - dx, W), a)  # one past the last
+    for x in range(a):
+        code[x] |= np.uint64(nb[min(max(x + dx, 0), W - 1)] < ce[x]) << k
+    nbs, ces, cos = nb[a + dx:b + dx], ce[a:b], code[a:b]
+    for t in range(b - a):
+        cos[t] |= np.uint64(nbs[t] < ces[t]) << k
+    for x in range(b, W):
+        code[x] |= np.uint64(nb[min(max(x + dx, 0), W - 1)] < ce[x]) << k
 
 
 @numba.njit(parallel=True, cache=True)
