@@ -151,10 +151,12 @@ def test_cross_spectral_contrast_reversed_regions(rng):
     assert acc["bwncc-paper"] > 0.9, acc
     assert acc["ssd"] < 0.7, acc
     assert acc["census"] < acc["bwncc"] - 0.2, acc
-    # RSNCC's gradient term ignores the reversal; the default fusion keeps most of that (measured
-    # 1.00 / 0.82) where the bwncc + census fusion falls to census's level (0.35)
+    # RSNCC's gradient term ignores the reversal; the default fusion keeps part of that where
+    # the bwncc + census fusion falls to census's level (0.35).  Measured: rsncc 1.00, the
+    # default 0.82 with a plain census part, 0.55 with its adaptive support weights (their
+    # sharper, wrong census minima weigh more in the sum; BENCHMARKS.md, thirty-third session)
     assert acc["rsncc"] > 0.95, acc
-    assert acc["census-rsncc"] > acc["fused"] + 0.3, acc
+    assert acc["census-rsncc"] > acc["fused"] + 0.15, acc
     assert costs.resolve_metric("auto") == "census-rsncc"
 
 
@@ -661,3 +663,82 @@ def test_census_of_a_light_field_averages_over_shift(rng):
     got = get_cost("census", light_field=True).view_volume(a, b, shifts, valid=valid)
     np.testing.assert_array_equal(got, average_over_shift(raw, shifts, 0.5, valid=valid))
     assert not np.array_equal(got, raw)
+
+
+# ---------------------------------------------------------------------------------------------
+# Census with adaptive support weights (two-view)
+# ---------------------------------------------------------------------------------------------
+
+
+def _square_on_a_wall(seed, H=60, W=120, d_wall=2, d_square=10):
+    """A textured square (rows 15-44, columns 50-79 of the left image, disparity 10) before a
+    darker textured wall (disparity 2): left, right, ground truth, and where the right camera
+    sees the left pixel."""
+    rng = np.random.default_rng(seed)
+    wall = 0.2 + 0.2 * rng.random((H, W + 40))
+    square = 0.6 + 0.3 * rng.random((30, 30))
+
+    def view(sw, ss):
+        img = wall[:, np.arange(W) + 20 + sw].copy()
+        img[15:45, 50 - ss:80 - ss] = square
+        return img
+
+    gt = np.full((H, W), d_wall)
+    gt[15:45, 50:80] = d_square
+    seen = np.ones((H, W), bool)
+    seen[15:45, 50 - (d_square - d_wall):50] = False
+    return view(0, 0), view(d_wall, d_square), gt, seen
+
+
+def test_adaptive_support_keeps_the_wall_beside_the_square():
+    """Yoon & Kweon's weights inside the census window: the 7 x 7 windows of wall pixels
+    beside the square, which the plain census matches with the square, follow their centre.
+    Winner-takes-all, pixels the right camera sees: the wrong ones at least halved."""
+    from hyperlf.costs.pair import census_volume
+
+    wrong = {None: 0, 0.1: 0}
+    for seed in range(3):
+        left, right, gt, seen = _square_on_a_wall(seed)
+        for gamma in wrong:
+            d = np.argmin(census_volume(left, right, 0, 14, 7, support_gamma=gamma), axis=0)
+            wrong[gamma] += int(((d != gt) & seen)[5:-5, 20:-5].sum())
+    assert wrong[None] > 60 and 2 * wrong[0.1] < wrong[None], wrong
+
+
+def test_census_without_support_weights_is_the_hamming_distance(rng):
+    """Weights that are all 1 (a huge gamma) give the plain Hamming distance exactly; census
+    alone is the plain one, the fusions weigh their census part (``part_options``), and only
+    theirs; gamma must be a number > 0."""
+    from hyperlf.costs import FusedCost, get_cost
+    from hyperlf.costs.builtin import SUPPORT_GAMMA
+    from hyperlf.costs.pair import census_volume
+
+    left, right = _pair(rng, remap=_cross_spectral_reversed)
+    plain = census_volume(left, right, -2, 7, 7)
+    np.testing.assert_array_equal(census_volume(left, right, -2, 7, 7, support_gamma=1e12), plain)
+    np.testing.assert_array_equal(get_cost("census").pair_volume(left, right, -2, 7), plain)
+    weighted = census_volume(left, right, -2, 7, 7, support_gamma=SUPPORT_GAMMA)
+    assert not np.array_equal(weighted, plain)
+    for name in ("census-rsncc", "fused"):
+        fusion = get_cost(name)
+        assert fusion.part_options == {"census": {"support_gamma": SUPPORT_GAMMA}}
+        parts = [get_cost(p).pair_volume(left, right, -2, 7) for p in fusion.parts]
+        parts[fusion.parts.index("census")] = weighted
+        np.testing.assert_array_equal(fusion.pair_volume(left, right, -2, 7),
+                                      costs.fuse(parts, dmin=-2))
+    with pytest.raises(InvalidInputError, match="not among its parts"):
+        FusedCost("x", ("rsncc", "census"), part_options={"ncc": {}})
+    for bad in (0.0, -1.0, float("nan"), float("inf")):
+        with pytest.raises(InvalidInputError, match="support_gamma"):
+            census_volume(left, right, -2, 7, 5, support_gamma=bad)
+
+
+@pytest.mark.parametrize("window", [3, 7])
+def test_weighted_census_numba_matches_numpy(rng, window):
+    from hyperlf.costs.pair import census_volume
+
+    left, right = _pair(rng, remap=_cross_spectral_reversed)
+    for dmin, dmax in ((-2, 7), (0, 60)):  # the second: most candidates leave the image
+        a = census_volume(left, right, dmin, dmax, window, impl="numpy", support_gamma=0.1)
+        b = census_volume(left, right, dmin, dmax, window, impl="numba", support_gamma=0.1)
+        np.testing.assert_allclose(b, a, rtol=1e-6, atol=1e-6)

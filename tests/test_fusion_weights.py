@@ -22,7 +22,7 @@ def weighted_fusion():
     base = get_cost("census-rsncc")
     name = "test-census-rsncc-1-4"
     register_cost(FusedCost(name, base.parts, weights=(1, 4), view_window_part=0,
-                            params=dict(base.params)))
+                            params=dict(base.params), part_options=base.part_options))
     yield name
     unregister_cost(name)
 

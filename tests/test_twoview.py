@@ -249,8 +249,8 @@ def test_volumes_made_in_place_give_the_same_bits(metric):
     cl, cr = compute_volumes(L, R, 0, 12, metric)
     cost = get_cost(metric)
     if isinstance(cost, FusedCost):  # the reference: every part kept, every fusion fresh
-        parts = [get_cost(p).pair_volume(L, R, 0, 12, window=get_cost(p).window)
-                 for p in cost.parts]
+        parts = [get_cost(p).pair_volume(L, R, 0, 12, window=get_cost(p).window,
+                                         **cost.part_options.get(p, {})) for p in cost.parts]
         np.testing.assert_array_equal(cl, fuse(parts, cost.weights, 0))
         vr = costs.right_validity(cl.shape[1:], 0, 12)
         right = [_right_from_left(v, 0) for v in parts]

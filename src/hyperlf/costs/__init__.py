@@ -39,6 +39,9 @@ Costs (names used by ``--metric``; :func:`cost_names`)
   its Euclidean magnitude.
 * ``census``: Hamming distance of a census transform [2]_, default 7 x 7 (48 bits, bit set
   where a neighbour is strictly less than the centre, replicate border), packed in ``uint64``.
+  Its pair volume takes ``support_gamma``: each bit weighted by adaptive support weights [4]_
+  of both images (:func:`hyperlf.costs.pair.support_weights`), which the two fusions below
+  ask for in two-view stereo (``part_options`` of :class:`FusedCost`).
 * ``bwncc`` / ``bwncc-paper``: SPEC §3 BWNCC [3]_ on the 612-channel descriptor
   (:mod:`hyperlf.descriptor`), see :func:`bwncc_volume`.  ``bwncc`` uses
   ``DescriptorParams.default()`` with NCC patch ``n = w`` for each level's channels;
@@ -82,6 +85,8 @@ References
    correspondence", ECCV 1994.
 .. [3] K. Zhu, Y. Xue, Q. Fu, S. B. Kang, X. Chen, J. Yu, "Hyperspectral Light Field Stereo
    Matching" (the paper this library implements).
+.. [4] K.-J. Yoon, I. S. Kweon, "Adaptive support-weight approach for correspondence search",
+   IEEE TPAMI 28(4), 2006.
 
 The modules and cost classes of this package cite these papers by author and year and point
 here; the list lives only in this docstring.

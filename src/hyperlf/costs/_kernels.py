@@ -5,7 +5,7 @@ Each kernel has a readable numpy reference in :mod:`hyperlf.costs.pair` or
 :mod:`hyperlf.costs.lightfield`; the tests compare the two.
 
 Rectified pair (integer disparities): :func:`xcorr_accum` (NCC cross terms), :func:`hamming_volume`
-(census), and the BWNCC pipeline :func:`bw_channel_stats`, :func:`bw_inv_sigma`, :func:`bw_pad`,
+(census), :func:`weighted_hamming_volume` (census with adaptive support weights), and the BWNCC pipeline :func:`bw_channel_stats`, :func:`bw_inv_sigma`, :func:`bw_pad`,
 :func:`bw_den_add`, :func:`bw_accum`, :func:`bw_finish`.  Light field (sub-pixel shifts):
 :func:`xi_shift` (NCC with the bilinearly shifted view), :func:`census_shift` and
 :func:`shift_average` (census averaged over sub-pixel shifts).  RSNCC's robust function:
@@ -154,6 +154,28 @@ def hamming_volume(cl, cr, ds, out):
         for y in range(H):
             for x in range(x0, x1):
                 out[k, y, x] = np.float32(popcount64(cl[y, x] ^ cr[y, x - d]))
+
+@numba.njit(parallel=True, cache=True)
+def weighted_hamming_volume(cl, cr, wl, wr, ds, out):  # pragma: no cover
+    """``out[k, y, x] = K sum_b w_b [bit b of cl ^ cr differs] / sum_b w_b`` with ``w_b =
+    wl[y, x, b] wr[y, x - d, b]``, ``d = ds[k]``, ``K`` bits, in float64; rows in parallel.
+    Reference: :func:`hyperlf.costs.pair.census_volume` with ``impl="numpy"``."""
+    H, W = cl.shape
+    K = wl.shape[2]
+    for y in prange(H):
+        for k in range(ds.shape[0]):
+            d = ds[k]
+            x0, x1 = overlap(d, W)
+            for x in range(x0, x1):
+                v = cl[y, x] ^ cr[y, x - d]
+                num = 0.0
+                den = 0.0
+                for b in range(K):
+                    w = np.float64(wl[y, x, b]) * wr[y, x - d, b]
+                    den += w
+                    if (v >> np.uint64(b)) & np.uint64(1):
+                        num += w
+                out[k, y, x] = K * num / den
 
 @numba.njit(inline="always")
 def shifted_sum(out, a, b, sb, m):

@@ -97,6 +97,13 @@ class RSNCC(_FunctionCost):
                                      rs_tau, rows=rows, impl=impl)
 
 
+#: The adaptive support weights of the fusions' census part in two-view stereo: ``gamma`` as a
+#: share of each image's 1st-99th percentile range.  Venus (the tuning scene) and six
+#: procedural cross-spectral pairs took it for the fusions; Venus refused it for census alone
+#: under graph cuts (BENCHMARKS.md, thirty-third session).
+SUPPORT_GAMMA = 0.1
+
+
 class Census(_FunctionCost):
     """Hamming distance of census codes (Zabih & Woodfill 1994, :mod:`hyperlf.costs`
     References [2]): one bit per neighbour of the window (48 bits at 7 x 7), set where the
@@ -106,6 +113,11 @@ class Census(_FunctionCost):
     ``shift_average`` px of shift (:func:`hyperlf.costs.lightfield.average_over_shift`):
     census is exact only at whole-pixel shifts, and without it the disparities snap to them
     where every view shifts by a whole pixel at the same labels (sparse arrays).
+
+    The pair volume takes ``support_gamma``: adaptive support weights (Yoon & Kweon 2006) of
+    both images on each bit, so that a window across a depth edge is matched by its centre's
+    side (:func:`hyperlf.costs.pair.census_volume`; default None, every bit counts once).  The
+    fusions ask for it in their census part (:data:`SUPPORT_GAMMA`); census alone does not.
     """
 
     name = "census"
@@ -116,6 +128,7 @@ class Census(_FunctionCost):
     pair_function = _pair.census_volume
     #: Half-width (px of shift) of the average over labels in :meth:`view_volume`.
     shift_average = 0.5
+
 
     def view_volume(self, ref_img, img, shifts, *, window=None, valid=None, rows=None,
                     **options):
@@ -161,11 +174,13 @@ def _register_builtin() -> None:
         BWNCC(paper=True, params={"graphcut": _graphcut(2.0, 8.0), "sgm": _sgm(2.0, 16.0)}),
         FusedCost("fused", ("bwncc", "census"),
                   description="(norm(bwncc) + norm(census 7x7)) / 2",
-                  params={"graphcut": _graphcut(4.0, 8.0), "sgm": _sgm(2.0, 16.0)}),
+                  params={"graphcut": _graphcut(4.0, 8.0), "sgm": _sgm(2.0, 16.0)},
+                  part_options={"census": {"support_gamma": SUPPORT_GAMMA}}),
         FusedCost("census-rsncc", ("rsncc", "census"), view_window_part=0,
                   description="(norm(rsncc 5x5) + norm(census 7x7)) / 2: census for intensity "
                               "order, RSNCC's gradient term where bands reverse contrast",
-                  params={"graphcut": _graphcut(2.0, 4.0), "sgm": _sgm(2.0, 16.0)}),
+                  params={"graphcut": _graphcut(2.0, 4.0), "sgm": _sgm(2.0, 16.0)},
+                  part_options={"census": {"support_gamma": SUPPORT_GAMMA}}),
     ):
         register_cost(cost, replace=True)
 

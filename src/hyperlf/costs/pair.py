@@ -486,8 +486,57 @@ def census_transform(image, window: int = 7) -> np.ndarray:
     return code
 
 
-def census_volume(left, right, dmin, dmax, window: int = 7, impl: str = "auto") -> np.ndarray:
-    """Hamming distance between census codes of ``(y, x)`` and ``(y, x - d)``; float32."""
+def support_weights(image, window: int = 7, gamma: float = 0.1) -> np.ndarray:
+    """Adaptive support weights (Yoon & Kweon 2006) of every pixel's census neighbours,
+    float32 ``(H, W, window**2 - 1)`` in the bit order of :func:`census_transform`:
+    ``exp(-|I(q) - I(p)| / gamma)``, ``I`` the image over its 1st-99th percentile spread (so
+    ``gamma`` is a share of the image's range, whatever its gain and offset), replicate
+    border.  A neighbour across an intensity edge, likely on another surface, weighs little;
+    no weight is below ``1e-6``, so that every window has some support.
+    """
+    n = check_window(window)
+    img = np.asarray(image, dtype=np.float64)
+    lo, hi = np.percentile(img, [1.0, 99.0])
+    a = img / max(hi - lo, 1e-12)
+    r = n // 2
+    p = pad_replicate(a, r)
+    H, W = a.shape
+    out = np.empty((H, W, n * n - 1), np.float32)
+    k = 0
+    for dy in range(-r, r + 1):
+        for dx in range(-r, r + 1):
+            if dy == 0 and dx == 0:
+                continue
+            w = np.exp(-np.abs(p[r + dy:r + dy + H, r + dx:r + dx + W] - a) / gamma)
+            out[:, :, k] = np.maximum(w, 1e-6)
+            k += 1
+    return out
+
+
+def _weighted_hamming_numpy(cl, cr, wl, wr, ds, out) -> None:
+    """The reference of ``_kernels.weighted_hamming_volume``: one disparity at a time."""
+    H, W = cl.shape
+    bits = np.arange(wl.shape[2], dtype=np.uint64)
+    for k, d in enumerate(ds):
+        x0, x1 = max(0, d), min(W, W + d)
+        if x1 <= x0:
+            continue
+        diff = ((cl[:, x0:x1] ^ cr[:, x0 - d:x1 - d])[..., None] >> bits) & np.uint64(1)
+        w = wl[:, x0:x1].astype(np.float64) * wr[:, x0 - d:x1 - d]
+        out[k, :, x0:x1] = len(bits) * (w * diff).sum(-1) / w.sum(-1)
+
+
+def census_volume(left, right, dmin, dmax, window: int = 7, impl: str = "auto", *,
+                  support_gamma: float | None = None) -> np.ndarray:
+    """Hamming distance between census codes of ``(y, x)`` and ``(y, x - d)``; float32.
+
+    ``support_gamma``: None counts every differing bit once; a number weighs bit ``k`` by
+    ``w_L,k(y, x) w_R,k(y, x - d)`` (:func:`support_weights` of each image in its own band)
+    and scales the weighted share of differing bits back to bits (``(n^2 - 1) sum w [bit
+    differs] / sum w``), so that neighbours on another surface than the centre, where
+    foreground and background meet, hardly count.  Symmetric in the two images, so the
+    right-referenced volume is still a shift of this one.
+    """
     L, R = check_pair(left, right)
     dmin, dmax = check_disp(dmin, dmax)
     impl = check_impl(impl, "census")
@@ -496,7 +545,17 @@ def census_volume(left, right, dmin, dmax, window: int = 7, impl: str = "auto") 
     H, W = L.shape
     ds = _ds(dmin, dmax)
     out = np.zeros((len(ds), H, W), np.float32)
-    if impl == "numba":
+    if support_gamma is not None:
+        if not (np.isfinite(support_gamma) and support_gamma > 0):
+            raise InvalidInputError(f"support_gamma must be a number > 0 (or None for the plain "
+                                    f"census), got {support_gamma!r}")
+        wl, wr = (support_weights(im, window, support_gamma) for im in (L, R))
+        if impl == "numba":
+            from . import _kernels
+            _kernels.weighted_hamming_volume(cl, cr, wl, wr, ds, out)
+        else:
+            _weighted_hamming_numpy(cl, cr, wl, wr, ds, out)
+    elif impl == "numba":
         from . import _kernels
         _kernels.hamming_volume(cl, cr, ds, out)
     else:

@@ -173,7 +173,8 @@ class FusedCost(Cost):
 
     ``C = sum_i w_i norm(C_i) / sum_i w_i`` (:func:`hyperlf.costs.fuse`).  Options of
     :meth:`pair_volume`: ``<part>_window`` (each part's window, default the part's
-    ``window``), ``weights``, ``impl``; any other option goes to the first part.  A plain
+    ``window``), ``weights``, ``impl``; any other option goes to the first part, over the
+    fusion's own ``part_options``.  A plain
     ``window`` is ignored by the pair volume; for the light-field volume it sets the window of
     part ``view_window_part`` (None: ignored there too).
 
@@ -191,15 +192,24 @@ class FusedCost(Cost):
         light-field volumes also take ``weights=`` per call (:meth:`check_weights`).
     view_window_part : int, optional
         Which part a light-field ``window`` applies to.
+    part_options : mapping, optional
+        Part name -> options of that part's pair volume (e.g. ``{"census": {"support_gamma":
+        0.1}}``); the light-field volumes take none.
     params, windows : dict, optional
         As :class:`Cost`.
     """
 
     def __init__(self, name: str, parts: Sequence[str], *, weights: Sequence[float] | None = None,
                  description: str = "", view_window_part: int | None = None,
-                 params: dict | None = None, windows: dict | None = None):
+                 params: dict | None = None, windows: dict | None = None,
+                 part_options: Mapping[str, Mapping] | None = None):
         self.name = name
         self.parts = tuple(parts)
+        self.part_options = {p: dict(o) for p, o in (part_options or {}).items()}
+        if not set(self.part_options) <= set(self.parts):
+            raise InvalidInputError(f"{name}: part_options name costs that are not among its "
+                                    f"parts ({', '.join(self.parts)}): "
+                                    f"{', '.join(sorted(set(self.part_options) - set(self.parts)))}")
         self.weights = self.check_weights(weights) if weights is not None \
             else (1.0,) * len(self.parts)
         self.description = description
@@ -224,7 +234,7 @@ class FusedCost(Cost):
         weights = self.check_weights(opts.pop("weights", self.weights))
         vols = []
         for i, (p, w) in enumerate(zip(self.parts, part_windows)):
-            extra = opts if i == 0 else {}
+            extra = {**self.part_options.get(p, {}), **(opts if i == 0 else {})}
             vols.append(get_cost(p).pair_volume(left, right, dmin, dmax, window=w, impl=impl,
                                                 **extra))
         return vols, weights
