@@ -728,7 +728,7 @@ def test_census_without_support_weights_is_the_hamming_distance(rng):
                                       costs.fuse(parts, dmin=-2))
     with pytest.raises(InvalidInputError, match="not among its parts"):
         FusedCost("x", ("rsncc", "census"), part_options={"ncc": {}})
-    for bad in (0.0, -1.0, float("nan"), float("inf")):
+    for bad in (0.0, -1.0, float("nan"), float("inf"), "0.1", True):
         with pytest.raises(InvalidInputError, match="support_gamma"):
             census_volume(left, right, -2, 7, 5, support_gamma=bad)
 

@@ -33,8 +33,8 @@ MAX_SIDE = 1600
 
 
 def _show(ax, img, size, **kw):
-    """``img`` (a view subsampled for display) on ``ax``, placed in the full image's pixel coordinates
-    (``size`` ``(W, H)``), so that corners and guide lines are drawn as measured."""
+    """``img`` (a view subsampled for display) on ``ax``, placed in the full image's pixel
+    coordinates (``size`` ``(W, H)``), so that corners and guide lines land as measured."""
     W, H = size
     ax.imshow(img, extent=(-0.5, W - 0.5, H - 0.5, -0.5), **kw)
 

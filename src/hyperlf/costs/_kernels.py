@@ -5,7 +5,8 @@ Each kernel has a readable numpy reference in :mod:`hyperlf.costs.pair` or
 :mod:`hyperlf.costs.lightfield`; the tests compare the two.
 
 Rectified pair (integer disparities): :func:`xcorr_accum` (NCC cross terms), :func:`hamming_volume`
-(census), :func:`weighted_hamming_volume` (census with adaptive support weights), and the BWNCC pipeline :func:`bw_channel_stats`, :func:`bw_inv_sigma`, :func:`bw_pad`,
+(census), :func:`weighted_hamming_volume` (census with adaptive support weights), and the BWNCC
+pipeline :func:`bw_channel_stats`, :func:`bw_inv_sigma`, :func:`bw_pad`,
 :func:`bw_den_add`, :func:`bw_accum`, :func:`bw_finish`.  Light field (sub-pixel shifts):
 :func:`xi_shift` (NCC with the bilinearly shifted view), :func:`census_shift` and
 :func:`shift_average` (census averaged over sub-pixel shifts).  RSNCC's robust function:

@@ -492,8 +492,13 @@ def support_weights(image, window: int = 7, gamma: float = 0.1) -> np.ndarray:
     ``exp(-|I(q) - I(p)| / gamma)``, ``I`` the image over its 1st-99th percentile spread (so
     ``gamma`` is a share of the image's range, whatever its gain and offset), replicate
     border.  A neighbour across an intensity edge, likely on another surface, weighs little;
-    no weight is below ``1e-6``, so that every window has some support.
+    no weight is below ``1e-6``, so that every window has some support.  ``gamma``: a number
+    > 0, else :class:`~hyperlf.errors.InvalidInputError`.
     """
+    if isinstance(gamma, bool) or not isinstance(gamma, (int, float, np.floating)) \
+            or not (np.isfinite(gamma) and gamma > 0):
+        raise InvalidInputError(f"support_gamma must be a number > 0 (or None for the plain "
+                                f"census), got {gamma!r}")
     n = check_window(window)
     img = np.asarray(image, dtype=np.float64)
     lo, hi = np.percentile(img, [1.0, 99.0])
@@ -546,9 +551,6 @@ def census_volume(left, right, dmin, dmax, window: int = 7, impl: str = "auto", 
     ds = _ds(dmin, dmax)
     out = np.zeros((len(ds), H, W), np.float32)
     if support_gamma is not None:
-        if not (np.isfinite(support_gamma) and support_gamma > 0):
-            raise InvalidInputError(f"support_gamma must be a number > 0 (or None for the plain "
-                                    f"census), got {support_gamma!r}")
         wl, wr = (support_weights(im, window, support_gamma) for im in (L, R))
         if impl == "numba":
             from . import _kernels

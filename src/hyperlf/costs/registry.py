@@ -206,10 +206,10 @@ class FusedCost(Cost):
         self.name = name
         self.parts = tuple(parts)
         self.part_options = {p: dict(o) for p, o in (part_options or {}).items()}
-        if not set(self.part_options) <= set(self.parts):
+        strangers = sorted(set(self.part_options) - set(self.parts))
+        if strangers:
             raise InvalidInputError(f"{name}: part_options name costs that are not among its "
-                                    f"parts ({', '.join(self.parts)}): "
-                                    f"{', '.join(sorted(set(self.part_options) - set(self.parts)))}")
+                                    f"parts ({', '.join(self.parts)}): {', '.join(strangers)}")
         self.weights = self.check_weights(weights) if weights is not None \
             else (1.0,) * len(self.parts)
         self.description = description
