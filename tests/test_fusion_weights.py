@@ -172,7 +172,9 @@ def test_stereo_command_takes_fusion_weights(tmp_path, capsys, weighted_fusion):
 
     rng = np.random.default_rng(5)
     scene = np.clip(rng.random((30, 60)), 0.05, 1)
-    left, right = scene[:, 6:46], scene[:, 2:42] ** 1.5  # left x matches right x - 4
+    # left x matches right x + 4, outside the range 0..8: no label fits, so the weights of
+    # the two parts decide every pixel and show in the map
+    left, right = scene[:, 6:46], scene[:, 2:42] ** 1.5
     write_image(tmp_path / "l.png", left, bit_depth=16)
     write_image(tmp_path / "r.png", right, bit_depth=16)
     argv = ["-q", "stereo", str(tmp_path / "l.png"), str(tmp_path / "r.png"),

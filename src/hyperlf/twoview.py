@@ -532,7 +532,7 @@ def stereo(left, right, disparity_range, *, metric: str = "auto", optimizer: str
     >>> from hyperlf.twoview import stereo
     >>> rng = np.random.default_rng(0)
     >>> scene = rng.random((24, 48)) + 0.1
-    >>> left, right = scene[:, 4:36], scene[:, 1:33]   # left x matches right x - 3
+    >>> left, right = scene[:, 4:36], scene[:, 7:39]   # left x matches right x - 3
     >>> res = stereo(left, right, (0, 6), optimizer="wta", occlusion="none")
     >>> float(np.median(res.disparity))
     3.0
