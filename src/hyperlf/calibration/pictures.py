@@ -40,6 +40,8 @@ def _show(ax, img, size, **kw):
 
 
 def _grid_axes(keys, size, title):
+    """The figure and axes of a grid of views of ``size`` ``(W, H)``, and the stride that
+    subsamples each view to what the grid shows (:data:`MAX_SIDE`)."""
     plt = pyplot()
     R = max(k[0] for k in keys) + 1
     C = max(k[1] for k in keys) + 1
@@ -49,7 +51,7 @@ def _grid_axes(keys, size, title):
         ax.set_axis_off()
     if title:
         fig.suptitle(title)
-    return fig, axes
+    return fig, axes, display_step(R * H, C * W, MAX_SIDE)
 
 
 def save_corner_pictures(path: str | os.PathLike, shots: Mapping, corners: Mapping, *,
@@ -78,9 +80,7 @@ def save_corner_pictures(path: str | os.PathLike, shots: Mapping, corners: Mappi
     if not keys:
         raise InvalidInputError("no shots to draw")
     H, W = np.asarray(shots[keys[0]]).shape[:2]
-    fig, axes = _grid_axes(keys, (W, H), title)
-    step = display_step(H * (max(k[0] for k in keys) + 1), W * (max(k[1] for k in keys) + 1),
-                        MAX_SIDE)
+    fig, axes, step = _grid_axes(keys, (W, H), title)
     for key in keys:
         ax = axes[key[0], key[1]]
         shot = np.asarray(shots[key])
@@ -128,8 +128,7 @@ def save_registration_picture(path: str | os.PathLike, views: np.ndarray, valid:
                                 f"{m.shape}")
     R, C, H, W = v.shape
     keys = [(r, c) for r in range(R) for c in range(C)]
-    fig, axes = _grid_axes(keys, (W, H), title)
-    step = display_step(R * H, C * W, MAX_SIDE)
+    fig, axes, step = _grid_axes(keys, (W, H), title)
     for r, c in keys:
         vv, mm = v[r, c, ::step, ::step], m[r, c, ::step, ::step]
         g = _stretch(vv, mm)
@@ -175,8 +174,8 @@ def save_residual_picture(path: str | os.PathLike, calibration: Calibration, *,
     W, H = calibration.image_size
     peak = max((float(np.abs(v).max()) for _, v in res.values() if len(v)), default=0.0)
     k = scale if scale is not None else (0.05 * W / peak if peak > 0 else 1.0)
-    fig, axes = _grid_axes(list(calibration.cameras), (W, H),
-                           title or f"corner residuals ({calibration.mode} mode, arrows x{k:.0f})")
+    fig, axes, _ = _grid_axes(list(calibration.cameras), (W, H),
+                              title or f"corner residuals ({calibration.mode} mode, arrows x{k:.0f})")
     for key, cam in calibration.cameras.items():
         ax = axes[key[0], key[1]]
         ax.set_axis_on()
