@@ -174,8 +174,8 @@ def save_residual_picture(path: str | os.PathLike, calibration: Calibration, *,
     W, H = calibration.image_size
     peak = max((float(np.abs(v).max()) for _, v in res.values() if len(v)), default=0.0)
     k = scale if scale is not None else (0.05 * W / peak if peak > 0 else 1.0)
-    fig, axes, _ = _grid_axes(list(calibration.cameras), (W, H),
-                              title or f"corner residuals ({calibration.mode} mode, arrows x{k:.0f})")
+    title = title or f"corner residuals ({calibration.mode} mode, arrows x{k:.0f})"
+    fig, axes, _ = _grid_axes(list(calibration.cameras), (W, H), title)
     for key, cam in calibration.cameras.items():
         ax = axes[key[0], key[1]]
         ax.set_axis_on()
