@@ -5,6 +5,7 @@ import csv
 import json
 import os
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -345,8 +346,6 @@ def test_a_batch_runs_on_a_scheduler_that_is_already_there(captures, tmp_path):
         assert main(["-q", "batch", str(captures / "frame1"), "--labels", str(LABELS),
                      "--scheduler", cluster.scheduler_address, "-o", str(out)]) == 0
         assert (out / "frame1" / "disparity.pfm").is_file()
-    import socket
-
     with socket.socket() as free:  # a port nothing listens at
         free.bind(("127.0.0.1", 0))
         port = free.getsockname()[1]
