@@ -667,18 +667,27 @@ def shift_average(C, w, j0, j1, valid, use_valid, out):  # pragma: no cover
                 out[k, y, x] = num[x] / den[x] if den[x] > 0 else C[k, y, x]
 
 
+@numba.njit(inline="always")
+def rho_at(a, table):
+    """Shen et al.'s ``rho`` at ``a = |x|``: linear interpolation of ``table`` (``rho`` at
+    ``N + 1`` evenly spaced values from 0 to 2) where ``a <= 2``, else (and for NaN) the
+    formula ``-log(exp(a - 2) + exp(-a))``."""
+    N = table.shape[0] - 1
+    if a <= 2.0:
+        t = a * (N * 0.5)
+        i = min(int(t), N - 1)
+        return table[i] + (table[i + 1] - table[i]) * (t - i)
+    return -math.log(math.exp(a - 2.0) + math.exp(-a))
+
+
 @numba.njit(parallel=True, cache=True)
-def rho_sum(xi, xg, tau, out):  # pragma: no cover
+def rho_sum(xi, xg, tau, table, out):  # pragma: no cover
     """``out = rho(1 - xi) + tau rho(1 - xg)`` entry by entry (1-D arrays; ``xi``, ``xg``
-    float64, ``out`` float32), with ``rho(x) = -log(exp(|x| - 2) + exp(-|x|))`` in float64,
-    the operations of :func:`hyperlf.costs.pair.rho` in its order.  Reference:
-    :func:`hyperlf.costs.pair.rsncc_rho` (``impl="numpy"``)."""
+    float64, ``out`` float32), ``rho`` by :func:`rho_at` from ``table``
+    (:func:`hyperlf.costs.pair.rho_table`).  Reference: :func:`hyperlf.costs.pair.rsncc_rho`
+    (``impl="numpy"``)."""
     for i in prange(out.shape[0]):
-        a = abs(1.0 - xi[i])
-        b = abs(1.0 - xg[i])
-        ra = -math.log(math.exp(a - 2.0) + math.exp(-a))
-        rb = -math.log(math.exp(b - 2.0) + math.exp(-b))
-        out[i] = ra + tau * rb
+        out[i] = rho_at(abs(1.0 - xi[i]), table) + tau * rho_at(abs(1.0 - xg[i]), table)
 
 
 @numba.njit(parallel=True, cache=True)
