@@ -250,6 +250,13 @@ def test_rsncc_rho_numba_matches_the_numpy_reference(rng, tau):
     far = rsncc_rho(odd, odd, tau, np.empty((1, 2), np.float32), "numba")
     np.testing.assert_allclose(far[0, 0], (1 + tau) * rho(2.5), rtol=1e-6)
     assert np.isnan(far[0, 1])
+    # the interpolation itself, in float64: within h^2 / 8 (h the table's step, |rho''| <= 1)
+    from hyperlf.costs._kernels import rho_at
+    from hyperlf.costs.pair import rho_table
+
+    a = np.concatenate([rng.uniform(0.0, 2.0, 2000), [0.0, 2.0, 1.0, 2.0 - 1e-15]])
+    err = np.abs(np.array([rho_at(v, rho_table()) for v in a]) - rho(a))
+    assert err.max() <= (2.0 / RHO_TABLE_INTERVALS) ** 2 / 8 * 1.01 + 1e-15
     # rho by its definition: a perfect match (xi = 1) and a perfect reversal (xi = -1) cost
     # the same, -log(1 + e^-2), and no correlation (xi = 0) costs the most, 1 - log(2)
     expect = np.array([-np.log(1 + np.exp(-2.0))] * 2 + [1 - np.log(2.0)])

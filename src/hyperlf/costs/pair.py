@@ -182,7 +182,7 @@ def rsncc_rho(xi_i, xi_g, rs_tau: float, out: np.ndarray, impl: str = "auto") ->
     shape of ``out`` (float32, written and returned).  ``impl="numpy"`` is the reference
     (:func:`rho`); ``"numba"`` (:func:`hyperlf.costs._kernels.rho_sum`) reads ``rho`` from
     :func:`rho_table` by linear interpolation in one parallel pass, without temporaries (the
-    formula where ``|1 - xi|`` is beyond 2), six times faster than the formula's three
+    formula where ``|1 - xi|`` is beyond 2), four times faster than the formula's three
     transcendental functions; the float32 results differ from the reference's by at most one
     unit in their last place at the largest costs (``6e-8`` at ``rs_tau <= 1``).
     """
