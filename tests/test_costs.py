@@ -236,7 +236,8 @@ def test_rsncc_rho_numba_matches_the_numpy_reference(rng, tau):
     1, i.e. ``rs_tau <= 1``; the interpolation's own error is below 2e-10), mostly to the last
     bit, on every NCC value including the ends, 0 and the table's nodes; beyond the table's
     range (``|1 - xi| > 2``, not an NCC) and for NaN it is the formula."""
-    from hyperlf.costs.pair import RHO_TABLE_INTERVALS, rho, rsncc_rho
+    from hyperlf.costs._kernels import rho_at
+    from hyperlf.costs.pair import RHO_TABLE_INTERVALS, rho, rho_table, rsncc_rho
 
     xi = rng.uniform(-1, 1, (2, 5, 40, 37))
     xi[:, 0, 0, :5] = [-1.0, 1.0, 0.0, 1 - 1e-12, -1 + 1e-12]
@@ -251,9 +252,6 @@ def test_rsncc_rho_numba_matches_the_numpy_reference(rng, tau):
     np.testing.assert_allclose(far[0, 0], (1 + tau) * rho(2.5), rtol=1e-6)
     assert np.isnan(far[0, 1])
     # the interpolation itself, in float64: within h^2 / 8 (h the table's step, |rho''| <= 1)
-    from hyperlf.costs._kernels import rho_at
-    from hyperlf.costs.pair import rho_table
-
     a = np.concatenate([rng.uniform(0.0, 2.0, 2000), [0.0, 2.0, 1.0, 2.0 - 1e-15]])
     err = np.abs(np.array([rho_at(v, rho_table()) for v in a]) - rho(a))
     assert err.max() <= (2.0 / RHO_TABLE_INTERVALS) ** 2 / 8 * 1.01 + 1e-15
