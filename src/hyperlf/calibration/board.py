@@ -25,12 +25,14 @@ from typing import Mapping
 
 import numpy as np
 
+from .._parallel import map_threads
 from ..errors import InvalidInputError
 
 __all__ = ["BoardSpec", "normalise_for_detection", "detect_board", "detect_boards",
            "check_board_size", "largest_grid", "canonical_order", "refine_corners",
            "camera_label", "place_partial_grid", "grid_symmetries", "order_like",
-           "orders_like", "image_turn", "turn_report", "MIN_PARTIAL_SIDE"]
+           "orders_like", "image_turn", "turn_report", "MIN_PARTIAL_SIDE",
+           "DETECT_THREADS"]
 
 
 #: The most inner corners along one side of a checkerboard (OpenCV needs at least 3).
@@ -38,6 +40,10 @@ MAX_CORNERS = 200
 
 #: Fewest inner corners along each side of the seen part of a board partly out of view.
 MIN_PARTIAL_SIDE = 3
+
+#: Most shots searched for the board at once (threads; each holds a few full-size float64
+#: copies of its shot while its corners are refined).
+DETECT_THREADS = 8
 
 
 @dataclass(frozen=True)
@@ -504,13 +510,11 @@ def detect_boards(images: Mapping, board: BoardSpec, *, names: Mapping | None = 
     InvalidInputError
         The board was not found in at least one camera (all of them are named).
     """
-    found, missing = {}, []
-    for key, img in images.items():
-        c = detect_board(img, board, partial=partial)
-        if c is None:
-            missing.append(key)
-        else:
-            found[key] = c
+    keys = list(images)
+    corners = map_threads(lambda k: detect_board(images[k], board, partial=partial), keys,
+                          cap=DETECT_THREADS)
+    found = {k: c for k, c in zip(keys, corners) if c is not None}
+    missing = [k for k, c in zip(keys, corners) if c is None]
     whole = [k for k, c in found.items() if np.isfinite(c).all()]
     if whole:  # a part of a larger board is found first; say so before any other error
         check_board_size(images[whole[0]], board, found[whole[0]],

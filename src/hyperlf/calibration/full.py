@@ -26,9 +26,10 @@ from typing import Mapping
 
 import numpy as np
 
+from .._parallel import map_threads
 from ..errors import InvalidInputError
-from .board import (BoardSpec, camera_label, check_board_size, detect_board, grid_symmetries,
-                    orders_like, turn_report)
+from .board import (DETECT_THREADS, BoardSpec, camera_label, check_board_size, detect_board,
+                    grid_symmetries, orders_like, turn_report)
 from .grid import check_grid, check_images
 from .model import Calibration, CameraCalibration
 
@@ -47,13 +48,13 @@ def detect_poses(shots: Mapping, board: BoardSpec, *, names=None, min_poses: int
     InvalidInputError
         Cameras with fewer than ``min_poses`` detections (all named, with their counts).
     """
-    found, short = {}, []
+    jobs = [(key, i, img) for key, imgs in shots.items() for i, img in enumerate(imgs)]
+    corners = map_threads(lambda job: detect_board(job[2], board), jobs, cap=DETECT_THREADS)
+    found, short = {key: {} for key in shots}, []
+    for (key, i, _), c in zip(jobs, corners):
+        if c is not None:
+            found[key][i] = c
     for key, imgs in shots.items():
-        found[key] = {}
-        for i, img in enumerate(imgs):
-            c = detect_board(img, board)
-            if c is not None:
-                found[key][i] = c
         if len(found[key]) < min_poses:
             short.append(f"{camera_label(key, names)} ({len(found[key])} of {len(imgs)})")
     if short:
