@@ -720,7 +720,12 @@ class _MemStore:
 
 
 class _H5Store:
-    """Uncompressed scratch HDF5 with the working cube and mask (chunks: one band image)."""
+    """Uncompressed scratch HDF5 with the working cube and mask, one chunk per band image.
+
+    Every read and write moves whole chunks (``read_direct_chunk`` / ``write_direct_chunk``):
+    the chunks are uncompressed, so a chunk's bytes are its band image, and this skips h5py's
+    selection machinery, which costs more than the copy on small images (propagation reads
+    one neighbour band at a time)."""
 
     def __init__(self, path: Path, shape):
         import h5py
@@ -728,23 +733,35 @@ class _H5Store:
         self.path = path
         self.f = h5py.File(path, "w")
         R, C, B, H, W = shape
+        self.image_shape = (H, W)
+        self.n_bands = B
         self.cube = self.f.create_dataset("cube", shape=shape, dtype=np.float32,
                                           chunks=(1, 1, 1, H, W))
-        self.mask = self.f.create_dataset("mask", shape=shape, dtype=bool, chunks=(1, 1, 1, H, W))
+        self.mask = self.f.create_dataset("mask", shape=shape, dtype=np.uint8,
+                                          chunks=(1, 1, 1, H, W))
 
     def put(self, v, cube, mask):
-        self.cube[v[0], v[1]] = np.where(mask, cube, 0.0).astype(np.float32)
-        self.mask[v[0], v[1]] = mask
+        cube = np.where(mask, cube, 0.0)
+        for b in range(self.n_bands):
+            self.put_band(v, b, cube[b], mask[b])
 
     def get(self, v):
-        return np.asarray(self.cube[v[0], v[1]]), np.asarray(self.mask[v[0], v[1]])
+        cube = np.empty((self.n_bands, *self.image_shape), np.float32)
+        mask = np.empty(cube.shape, bool)
+        for b in range(self.n_bands):
+            cube[b], mask[b] = self.get_band(v, b)
+        return cube, mask
 
     def get_band(self, v, b):
-        return np.asarray(self.cube[v[0], v[1], b]), np.asarray(self.mask[v[0], v[1], b])
+        at = (v[0], v[1], b, 0, 0)
+        cube = np.frombuffer(self.cube.id.read_direct_chunk(at)[1], np.float32)
+        mask = np.frombuffer(self.mask.id.read_direct_chunk(at)[1], np.uint8)
+        return cube.reshape(self.image_shape).copy(), mask.reshape(self.image_shape) != 0
 
     def put_band(self, v, b, img, m):
-        self.cube[v[0], v[1], b] = img
-        self.mask[v[0], v[1], b] = m
+        at = (v[0], v[1], b, 0, 0)
+        self.cube.id.write_direct_chunk(at, np.ascontiguousarray(img, np.float32).tobytes())
+        self.mask.id.write_direct_chunk(at, np.ascontiguousarray(m, np.uint8).tobytes())
 
     def close(self):
         try:
