@@ -302,12 +302,14 @@ def test_bwncc_fast_path_matches_reference_cross_spectral(rng):
 
 
 def test_bwncc_matches_direct_formula(rng):
-    """Brute-force SPEC §3 at a few (p, d): per-channel NCC of replicate-padded patches."""
+    """Brute-force SPEC §3 at a few (p, d): per-channel NCC of replicate-padded patches, in
+    float64 from the float32 stacks the descriptors are (so the kernel compiled for them)."""
     nc, h, w = 4, 14, 16
-    A = rng.random((nc, h, w)) ** 2
-    B = rng.random((nc, h, w)) ** 2
+    A = (rng.random((nc, h, w)) ** 2).astype(np.float32)
+    B = (rng.random((nc, h, w)) ** 2).astype(np.float32)
     n = [3, 5, 3, 5]
     _, sf, sb, bw = costs.bwncc_from_descriptors(A, B, 0, 3, n=n, tau_rel=0.0, return_scores=True)
+    A, B = A.astype(np.float64), B.astype(np.float64)
     for (y, x, d) in [(0, 5, 2), (7, 8, 1), (13, 15, 3), (5, 3, 0)]:
         num_f = num_b = den_f = den_b = 0.0
         for c in range(nc):
@@ -536,6 +538,25 @@ def test_fuse_overwrite_gives_the_same_bits_in_the_inputs_memory(rng, weights, m
     got = costs.fuse([a, b], weights, -2, valid, impl="numba", overwrite=True)
     np.testing.assert_array_equal(got, expect)
     assert got is first
+
+
+def test_normalise_kernels_compile_once_whatever_the_callers_flags(rng):
+    """A read-only or writable volume, a full or broadcast, read-only or writable mask: the
+    kernels see one signature for float32 volumes (each compilation costs seconds)."""
+    from hyperlf.costs import _kernels
+
+    cost = (5 * rng.random((6, 9, 11))).astype(np.float32)
+    frozen = cost.copy()
+    frozen.flags.writeable = False
+    full = rng.random(cost.shape) > 0.3
+    masks = [None, full, np.broadcast_to(full[:, :1], cost.shape), full[:, :1]]
+    for volume in (cost, frozen):
+        for valid in masks:
+            costs.normalise_volume(volume, 0, valid, impl="numba")
+            costs.fuse([volume, volume], dmin=0, valid=valid, impl="numba")
+    for kernel in (_kernels.normalise_fill, _kernels.row_moments):
+        assert len([s for s in kernel.signatures if s[0].dtype.name == "float32"]) == 1, kernel
+    assert len([s for s in _kernels.fuse_fill.signatures if s[0].count == 2]) == 1
 
 
 def test_normalise_overwrite_only_writes_over_float32_volumes(rng):

@@ -157,6 +157,7 @@ from typing import Any
 
 import numpy as np
 
+from ._kernel_args import kernel_input
 from ._progress import progress_bar
 from .costs import (DENSE_VIEWS, AggregationParams, aggregate_volume, cost_names, fusion_weights,
                     get_cost, light_field_window, tap_validity, view_costs)
@@ -903,11 +904,11 @@ def defocus_cost(P, valid, wl, lam_r, prior: str = "gaussian", sigma_d: float = 
     P = np.ascontiguousarray(P, np.float64)
     N, H, W = P.shape
     wl = np.asarray(wl, np.float64)
-    lr = np.ascontiguousarray(np.broadcast_to(np.asarray(lam_r, np.float64), (H, W)))
+    lr = kernel_input(np.broadcast_to(np.asarray(lam_r, np.float64), (H, W)))
     out = np.empty((H, W))
     from . import _hlf_kernels
 
-    _hlf_kernels.defocus(P, np.ascontiguousarray(np.broadcast_to(valid, P.shape), np.bool_),
+    _hlf_kernels.defocus(P, kernel_input(np.broadcast_to(valid, P.shape), np.bool_),
                          np.argsort(wl, kind="stable").astype(np.int64), wl, lr,
                          _PRIOR_CODE[prior], float(sigma_d), float(p_eps), out)
     return out

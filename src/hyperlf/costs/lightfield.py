@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._kernel_args import kernel_input
 from ..imageops import fill_masked, gradient_magnitude, normalise_intensity
 from ..warp import axis_taps, axis_valid, shift_map
 from .pair import (bwncc_finish, census_transform, channel_stats, fill_out_of_image, inv_sigma,
@@ -339,10 +340,10 @@ def _average_over_shift_numba(C: np.ndarray, w: np.ndarray, valid) -> np.ndarray
     j0 = np.argmax(nz, axis=1).astype(np.int64)
     j1 = (len(w) - np.argmax(nz[:, ::-1], axis=1)).astype(np.int64)
     use = valid is not None
-    v = np.ascontiguousarray(np.broadcast_to(valid, C.shape)) if use else np.ones((1, 1, 1), bool)
+    v = np.broadcast_to(valid, C.shape) if use else np.ones((1, 1, 1), bool)
     out = np.empty(C.shape, np.float32)
-    _kernels.shift_average(np.ascontiguousarray(C), np.ascontiguousarray(w, np.float64), j0, j1,
-                           v, use, out)
+    _kernels.shift_average(kernel_input(C), kernel_input(w, np.float64), j0, j1,
+                           kernel_input(v), use, out)
     return out
 
 

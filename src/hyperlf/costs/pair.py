@@ -15,6 +15,7 @@ from typing import Sequence
 
 import numpy as np
 
+from .._kernel_args import kernel_input
 from ..errors import InvalidInputError
 from ..imageops import gradient_magnitude, normalise_intensity
 from ._validate import check_disp, check_impl, check_pair, check_window
@@ -885,10 +886,9 @@ def row_moments(cost, valid) -> tuple:
     """
     from ._kernels import row_moments as kernel
 
-    C = np.ascontiguousarray(cost)
-    if C.dtype not in (np.float32, np.float64):
-        C = C.astype(np.float64)
-    ok = np.ascontiguousarray(np.broadcast_to(np.asarray(valid, bool), C.shape))
+    C = np.asarray(cost)
+    C = kernel_input(C, C.dtype if C.dtype in (np.float32, np.float64) else np.float64)
+    ok = kernel_input(np.broadcast_to(np.asarray(valid, bool), C.shape))
     h = C.shape[1]
     n, mean, m2 = np.zeros(h, np.int64), np.zeros(h), np.zeros(h)
     kernel(C, ok, n, mean, m2)
@@ -941,12 +941,12 @@ def normalise_volume(cost, dmin: int, valid=None, *, sd: float | None = None,
         C = np.ascontiguousarray(cost)
         if C.dtype not in (np.float32, np.float64):
             C = C.astype(np.float64)
-        ok = np.ascontiguousarray(np.broadcast_to(np.asarray(valid, bool), C.shape))
+        ok = kernel_input(np.broadcast_to(np.asarray(valid, bool), C.shape))
         if sd is None:
             sd = moments_std(*row_moments(C, ok))
         out = C if overwrite and _own_float32(cost, C) else np.empty(C.shape, np.float32)
         # reads a pixel's costs before writing them
-        normalise_fill(C, ok, float(sd), NORMALISE_CENTRES.index(centre), out)
+        normalise_fill(kernel_input(C), ok, float(sd), NORMALISE_CENTRES.index(centre), out)
         return out
     C = np.array(cost, dtype=np.float64)
     ok = np.broadcast_to(np.asarray(valid, bool), C.shape)
@@ -1003,7 +1003,7 @@ def fuse(volumes: Sequence[np.ndarray], weights: Sequence[float] | None = None, 
         Lc, H, W = shape
         if valid is None:
             valid = candidate_validity((H, W), dmin, dmin + Lc - 1)
-        ok = np.ascontiguousarray(np.broadcast_to(np.asarray(valid, bool), shape))
+        ok = kernel_input(np.broadcast_to(np.asarray(valid, bool), shape))
         keep = [i for i in range(len(vols)) if w[i]]
         parts = tuple(normalise_volume(vols[i], dmin, ok, sd=sds[i], impl="numba",
                                        overwrite=overwrite, centre=centre) for i in keep)

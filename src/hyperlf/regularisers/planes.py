@@ -260,8 +260,9 @@ def _plane_scores(P, dx, dy, A, B, c, min_inside, impl):
     out = np.empty((A.size, B.size, c.size))
     f8 = np.float64
     _kernels.plane_scores(np.ascontiguousarray(P, f8), np.ascontiguousarray(dx, f8),
-                          np.ascontiguousarray(dy, f8), np.asarray(A, f8), np.asarray(B, f8),
-                          np.asarray(c, f8), float(min_inside), out)
+                          np.ascontiguousarray(dy, f8), np.ascontiguousarray(A, f8),
+                          np.ascontiguousarray(B, f8), np.ascontiguousarray(c, f8),
+                          float(min_inside), out)
     return out
 
 
