@@ -215,6 +215,60 @@ def test_random_scene_respects_range_and_kinds():
     assert kinds[0] == "plane" and {"box", "sphere"} <= set(kinds)
 
 
+def test_a_ring_shows_the_background_through_its_hole_and_a_stick_is_thin():
+    """Explicit ring and stick planes over a background at 0: the ring's band (between the
+    hole's ellipse and the outer one, both inscribed in its rect) and nothing else is at its
+    disparity, the hole shows the background; the stick covers exactly the pixels within half
+    its width of its segment; in the other view both are shifted by their disparity."""
+    H, W = 60, 80
+    ring = {"kind": "plane", "disparity": 4.0, "rect": [0.1, 0.1, 0.6, 0.9],
+            "shape": {"kind": "ring", "hole": 0.5}}
+    stick = {"kind": "plane", "disparity": 2.0, "rect": [0.6, 0.0, 1.0, 1.0],
+             "shape": {"kind": "stick", "ends": [[0.7, 0.1], [0.9, 0.9]], "width": 0.1}}
+    lf = S.procedural_scene(rows=1, cols=2, height=H, width=W, layout=[1, 0],
+                            disparity_range=(0.0, 4.0), lambda_min=460.0, lambda_max=630.0,
+                            objects=[{"kind": "plane", "disparity": 0.0}, ring, stick])
+    g = lf.gt_disparity[0, 0]
+    y, x = np.mgrid[0:H, 0:W].astype(float)
+    q = ((x - (0.35 * W - 0.5)) / (0.25 * W)) ** 2 + ((y - (0.5 * H - 0.5)) / (0.4 * H)) ** 2
+    x0, y0, x1, y1 = 0.7 * W - 0.5, 0.1 * H - 0.5, 0.9 * W - 0.5, 0.9 * H - 0.5
+    t = np.clip(((x - x0) * (x1 - x0) + (y - y0) * (y1 - y0))
+                / ((x1 - x0) ** 2 + (y1 - y0) ** 2), 0, 1)
+    dist = np.hypot(x - x0 - t * (x1 - x0), y - y0 - t * (y1 - y0))
+    np.testing.assert_array_equal(g == 4.0, (q < 1) & (q >= 0.25))
+    np.testing.assert_array_equal(g == 2.0, dist <= 0.1 * H / 2)
+    assert (g[q < 0.25] == 0.0).all() and (q < 0.25).sum() > 100  # the hole: background
+    assert 2 <= (g == 2.0)[30].sum() <= 8  # a stick a few pixels wide
+    # the right view (one baseline to the right) sees everything d px further left
+    right = lf.gt_disparity[0, 1]
+    np.testing.assert_array_equal(right[:, :W - 4] == 4.0, (g == 4.0)[:, 4:])
+
+
+def test_thin_kinds_are_random_rings_and_sticks_and_leave_the_default_scenes_alone():
+    lf = S.procedural_scene(seed=2, **SMALL, n_objects=4, kinds=("ring", "stick"),
+                            disparity_range=(0.0, 8.0))
+    shapes = [o.get("shape", {}).get("kind") for o in lf.metadata["objects"]]
+    assert shapes[0] is None and sorted(shapes[1:]) == ["ring", "ring", "stick", "stick"]
+    g = lf.gt_disparity[lf.reference]
+    near = [o["disparity"] for o in lf.metadata["objects"][1:]]
+    assert all((np.abs(g - d) < 1e-4).any() for d in near)  # every object is seen
+    json.dumps(lf.metadata)
+    # the default kinds draw no ring or stick (the pinned figures of the default scenes in
+    # other tests guard the rest of their draws)
+    a = S.procedural_scene(seed=3, **SMALL, n_objects=4)
+    assert [o["kind"] for o in a.metadata["objects"]].count("plane") == 3
+    assert all("shape" not in o for o in a.metadata["objects"])
+
+
+@pytest.mark.parametrize("shape", [{"kind": "star"}, {"kind": "ring", "hole": 1.0},
+                                   {"kind": "stick", "ends": [[0, 0], [1, 1]], "width": 0.0}])
+def test_bad_shapes_are_named(shape):
+    obj = {"kind": "plane", "disparity": 1.0, "rect": [0.2, 0.2, 0.8, 0.8], "shape": shape}
+    with pytest.raises(InvalidInputError, match=str(shape["kind"])):
+        S.procedural_scene(**SMALL, objects=[{"kind": "plane", "disparity": 0.0}, obj],
+                           disparity_range=(0.0, 1.0))
+
+
 def test_metadata_records_parameters_and_is_json(scenes):
     lf = S.procedural_scene(seed=5, **SMALL, n_objects=2, noise_sigma=0.01, layout="serpentine")
     md = lf.metadata

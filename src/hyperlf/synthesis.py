@@ -725,6 +725,8 @@ class _Plane(_Surface):
             xr = cx + f * P[:, 0] / P[:, 2]
             yr = cy + f * P[:, 1] / P[:, 2]
             inside = (xr >= rect[0]) & (xr < rect[2]) & (yr >= rect[1]) & (yr < rect[3])
+            if self.g.get("shape") is not None:
+                inside &= _shape_inside(self.g["shape"], xr, yr)
             t = np.where(inside, t, np.inf)
         return t, None
 
@@ -787,6 +789,50 @@ class _Box(_Surface):
 
 _PATTERNS = ("checker", "stripes", "noise", "patches")
 _KINDS = ("fronto", "slanted", "box", "sphere")
+#: Object kinds with thin parts and holes (``procedural_scene(kinds=...)``; not in the
+#: default :data:`_KINDS`, so the default scenes stay what they were): a fronto-parallel ring
+#: whose hole shows what lies behind it, and a thin stick at any angle.
+_THIN_KINDS = ("ring", "stick")
+_SHAPES = ("ring", "stick")
+
+
+def _shape_inside(shape: dict, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Inside a plane's shape, in reference-image pixel coordinates (``shape`` in pixels as
+    :func:`_shape_px` makes it): a ring (elliptic annulus) or a stick (a segment's
+    neighbourhood of half its width)."""
+    if shape["kind"] == "ring":
+        (xc, yc), (a, b) = shape["centre"], shape["axes"]
+        q = ((x - xc) / a) ** 2 + ((y - yc) / b) ** 2
+        return (q < 1.0) & (q >= shape["hole"] ** 2)
+    (x0, y0), (x1, y1) = shape["ends"]
+    dx, dy = x1 - x0, y1 - y0
+    t = np.clip(((x - x0) * dx + (y - y0) * dy) / max(dx * dx + dy * dy, _EPS), 0.0, 1.0)
+    return np.hypot(x - x0 - t * dx, y - y0 - t * dy) <= shape["width"] / 2.0
+
+
+def _shape_px(shape: Mapping[str, Any], rect_px: list, H: int, W: int) -> dict:
+    """A plane's ``shape`` (fractions of the image) in pixels, checked: ``{"kind": "ring",
+    "hole": h}`` is the ellipse inscribed in the plane's rect with a hole of ``h`` (0-1) times
+    its size; ``{"kind": "stick", "ends": [[u0, v0], [u1, v1]], "width": w}`` the points within
+    ``w / 2`` (a fraction of ``min(H, W)``) of the segment between the two ends."""
+    kind = shape.get("kind")
+    if kind not in _SHAPES:
+        raise InvalidInputError(f"unknown plane shape {kind!r}; use one of {', '.join(_SHAPES)}")
+    if rect_px is None:
+        raise InvalidInputError(f"a {kind} plane needs a rect")
+    if kind == "ring":
+        hole = float(shape.get("hole", 0.6))
+        if not 0.0 <= hole < 1.0:
+            raise InvalidInputError(f"a ring's hole must be in [0, 1), got {hole}")
+        x0, y0, x1, y1 = rect_px
+        return {"kind": kind, "hole": hole, "centre": ((x0 + x1) / 2, (y0 + y1) / 2),
+                "axes": ((x1 - x0) / 2, (y1 - y0) / 2)}
+    (u0, v0), (u1, v1) = shape["ends"]
+    width = float(shape.get("width", 0.02)) * min(H, W)
+    if not width > 0:
+        raise InvalidInputError(f"a stick's width must be > 0, got {shape.get('width')}")
+    return {"kind": kind, "width": width,
+            "ends": ((u0 * W - 0.5, v0 * H - 0.5), (u1 * W - 0.5, v1 * H - 0.5))}
 
 
 def _pick_chips(rng: np.random.Generator, refl_mean: np.ndarray, k: int) -> list[int]:
@@ -866,11 +912,31 @@ def _random_objects(rng: np.random.Generator, n_objects: int, kinds: Sequence[st
         elif kind == "sphere":
             objs.append({"kind": "sphere", "center": [cu, cv],
                          "radius": float(rng.uniform(0.1, 0.18)), "disparity": d})
+        elif kind in _THIN_KINDS:
+            objs.append(_thin_object(rng, kind, cu, cv, d))
         else:
             raise InvalidInputError(
                 f"unknown object kind {kind!r}; use one of {', '.join(_KINDS)}"
             )
     return objs
+
+
+def _thin_object(rng: np.random.Generator, kind: str, cu: float, cv: float, d: float) -> dict:
+    """A random ring (outer size 0.2-0.4 of the image, hole 0.5-0.8 of that) or stick
+    (length 0.3-0.6, width 0.01-0.03 of the image, any angle) centred at ``(cu, cv)``."""
+    if kind == "ring":
+        size = float(rng.uniform(0.2, 0.4))
+        return {"kind": "plane", "disparity": d,
+                "rect": [cu - size / 2, cv - size / 2, cu + size / 2, cv + size / 2],
+                "shape": {"kind": "ring", "hole": float(rng.uniform(0.5, 0.8))}}
+    half = float(rng.uniform(0.15, 0.3))
+    ang = float(rng.uniform(0.0, np.pi))
+    du, dv = half * math.cos(ang), half * math.sin(ang)
+    width = float(rng.uniform(0.01, 0.03))
+    eu, ev = abs(du) + width, abs(dv) + width  # the rect bounds the stick with room to spare
+    return {"kind": "plane", "disparity": d, "rect": [cu - eu, cv - ev, cu + eu, cv + ev],
+            "shape": {"kind": "stick", "ends": [[cu - du, cv - dv], [cu + du, cv + dv]],
+                      "width": width}}
 
 
 def _build_surface(o: dict, H: int, W: int, f: float, d0: float) -> _Surface:
@@ -892,7 +958,9 @@ def _build_surface(o: dict, H: int, W: int, f: float, d0: float) -> _Surface:
             raise InvalidInputError(
                 f"plane disparity {d} is below the scene's disparity range; widen disparity_range"
             )
-        return _Plane(o, dict(base, n=np.array([a, b, (c + d0) / f]), rect_px=rect_px))
+        shape = None if o.get("shape") is None else _shape_px(o["shape"], rect_px, H, W)
+        return _Plane(o, dict(base, n=np.array([a, b, (c + d0) / f]), rect_px=rect_px,
+                              shape=shape))
     if kind == "sphere":
         u, v = o["center"]
         rpx = float(o["radius"]) * min(H, W)
@@ -926,8 +994,9 @@ def _check_procedural_args(H: int, W: int, supersample: int, texture_scale: floa
         raise InvalidInputError(f"texture_scale must be > 0, got {texture_scale}")
     dmin, dmax = check_disparity_range(disparity_range)
     for k in kinds:
-        if k not in _KINDS:
-            raise InvalidInputError(f"unknown object kind {k!r}; use one of {', '.join(_KINDS)}")
+        if k not in _KINDS + _THIN_KINDS:
+            raise InvalidInputError(
+                f"unknown object kind {k!r}; use one of {', '.join(_KINDS + _THIN_KINDS)}")
     return dmin, dmax
 
 
@@ -1161,7 +1230,9 @@ def procedural_scene(seed: int = 0, *, rows: int = 5, cols: int = 6, height: int
         resolution shows the same scene.
     n_objects, kinds :
         Number of random objects in front of the background, drawn cycling through ``kinds``
-        (``"fronto"``, ``"slanted"``, ``"box"``, ``"sphere"``). Ignored with ``objects``.
+        (``"fronto"``, ``"slanted"``, ``"box"``, ``"sphere"``, the default four; also
+        ``"ring"``, a fronto-parallel ring whose hole shows what lies behind, and ``"stick"``,
+        a thin bar at any angle). Ignored with ``objects``.
     disparity_range : (float, float)
         Disparities (px per baseline) of the scene; random objects stay inside. The returned
         ``disparity_range`` is this, widened if explicit objects go beyond it.
@@ -1171,7 +1242,11 @@ def procedural_scene(seed: int = 0, *, rows: int = 5, cols: int = 6, height: int
         Explicit scene (overrides ``n_objects``/``kinds``; include a background). Entries:
         ``{"kind": "plane", "disparity": d, "gradient": (gx, gy), "rect": (x0, y0, x1, y1),
         "texture": {...}}`` (``gradient``: disparity change across the full image width/height,
-        relative to the rect centre; no ``rect``: infinite plane), ``{"kind": "box", "rect":
+        relative to the rect centre; no ``rect``: infinite plane; optional ``"shape"``:
+        ``{"kind": "ring", "hole": h}``, the ellipse inscribed in the rect with a hole of ``h``
+        times its size, or ``{"kind": "stick", "ends": [[u0, v0], [u1, v1]], "width": w}``, the
+        points within ``w / 2`` (a fraction of the image's smaller side) of the segment, inside
+        the rect), ``{"kind": "box", "rect":
         ..., "disparity": front-face d, "depth": disparity drop to the back face}``,
         ``{"kind": "sphere", "center": (u, v), "radius": fraction of min(H, W), "disparity":
         d of the nearest point}``; rect/centre in fractions of the image. ``texture``:
