@@ -24,13 +24,13 @@ import numpy as np
 from numba import prange
 
 
-@numba.njit(cache=True)
+@numba.njit(inline="always")
 def overlap(d, W):
     """Columns ``x0 <= x < x1`` of a row of width ``W`` whose match ``x - d`` is in the image."""
     return max(0, d), min(W, W + d)
 
 
-@numba.njit(cache=True)
+@numba.njit(inline="always")
 def window_geometry(Ap, mA, r):
     """Sizes for the cross-term kernels: channels ``nc``, image ``H``, ``W`` (of the patch
     means ``mA``), window side ``n = 2r + 1``, ``1 / n^2`` and the padded width ``W + 2r``."""
@@ -39,7 +39,7 @@ def window_geometry(Ap, mA, r):
     return Ap.shape[0], mA.shape[1], W, n, 1.0 / (n * n), W + 2 * r
 
 
-@numba.njit(cache=True)
+@numba.njit(inline="always")
 def products_init(Ap, Bp, c, y0, n, a0, b0, m, ca, cb, V):
     """``V[j] = sum_{v < n} (Ap[c, y0 + v, a0 + j] - ca) (Bp[c, y0 + v, b0 + j] - cb)`` for
     ``j < m``: the vertical window sums of centred products at the top row of a band (float64,
@@ -53,7 +53,7 @@ def products_init(Ap, Bp, c, y0, n, a0, b0, m, ca, cb, V):
             V[j] += (np.float64(ar[j]) - ca) * (np.float64(br[j]) - cb)
 
 
-@numba.njit(cache=True)
+@numba.njit(inline="always")
 def products_slide(Ap, Bp, c, yin, yout, a0, b0, m, ca, cb, V):
     """Move the window sums of :func:`products_init` down one row: add row ``yin``'s centred
     products and remove row ``yout``'s (one update per column)."""
@@ -66,7 +66,7 @@ def products_slide(Ap, Bp, c, yin, yout, a0, b0, m, ca, cb, V):
                  - (np.float64(ao[j]) - ca) * (np.float64(bo[j]) - cb))
 
 
-@numba.njit(cache=True)
+@numba.njit(inline="always")
 def band_columns_active(s, c, y0, y1, fl):
     """``fl[x]`` = some row ``y0 <= y < y1`` of channel ``c`` of ``s`` is non-zero at ``x``."""
     fl[:] = False
@@ -139,7 +139,7 @@ def xcorr_accum(Ap, Bp, ca, cb, mA, isA, mB, isB, ds, r, weighted, accF, accB):
                     if weighted:
                         accB[k, y, x] += bB[y - y0, x]
 
-@numba.njit(cache=True)
+@numba.njit(inline="always")
 def popcount64(v):
     v = v - ((v >> np.uint64(1)) & np.uint64(0x5555555555555555))
     v = (v & np.uint64(0x3333333333333333)) + ((v >> np.uint64(2)) & np.uint64(0x3333333333333333))
@@ -626,7 +626,7 @@ def census_shift(img, cref, y0, y1, fy, x0, x1, fx, r, row0, buf, out):  # pragm
             out[i, x] = np.float32(popcount64(code[x] ^ cref[i, x]))
 
 
-@numba.njit(cache=True)
+@numba.njit(inline="always")
 def census_bit(code, nb, ce, dx, k):
     """Bit ``k`` of every ``code[x]``: ``nb[x + dx] < ce[x]``, ``nb`` replicated beyond its
     ends.  The columns whose neighbour is inside run on slices (no index can be negative), a
@@ -667,7 +667,7 @@ def shift_average(C, w, j0, j1, valid, use_valid, out):  # pragma: no cover
                 out[k, y, x] = num[x] / den[x] if den[x] > 0 else C[k, y, x]
 
 
-@numba.njit(cache=True)
+@numba.njit(inline="always")
 def rho_at(a, table):
     """Shen et al.'s ``rho`` at ``a = |x|``: linear interpolation of ``table`` (``rho`` at
     ``N + 1`` evenly spaced values from 0 to 2) where ``a <= 2``, else (and for NaN) the
