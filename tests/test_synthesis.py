@@ -261,7 +261,8 @@ def test_thin_kinds_are_random_rings_and_sticks_and_leave_the_default_scenes_alo
 
 
 @pytest.mark.parametrize("shape", [{"kind": "star"}, {"kind": "ring", "hole": 1.0},
-                                   {"kind": "stick", "ends": [[0, 0], [1, 1]], "width": 0.0}])
+                                   {"kind": "stick", "ends": [[0, 0], [1, 1]], "width": 0.0},
+                                   {"kind": "stick", "width": 0.1}])
 def test_bad_shapes_are_named(shape):
     obj = {"kind": "plane", "disparity": 1.0, "rect": [0.2, 0.2, 0.8, 0.8], "shape": shape}
     with pytest.raises(InvalidInputError, match=str(shape["kind"])):

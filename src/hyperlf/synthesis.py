@@ -827,7 +827,11 @@ def _shape_px(shape: Mapping[str, Any], rect_px: list, H: int, W: int) -> dict:
         x0, y0, x1, y1 = rect_px
         return {"kind": kind, "hole": hole, "centre": ((x0 + x1) / 2, (y0 + y1) / 2),
                 "axes": ((x1 - x0) / 2, (y1 - y0) / 2)}
-    (u0, v0), (u1, v1) = shape["ends"]
+    ends = np.asarray(shape.get("ends", ()), float)
+    if ends.shape != (2, 2) or not np.isfinite(ends).all():
+        raise InvalidInputError(f"a stick needs 'ends': [[u0, v0], [u1, v1]], got "
+                                f"{shape.get('ends')!r}")
+    (u0, v0), (u1, v1) = ends
     width = float(shape.get("width", 0.02)) * min(H, W)
     if not width > 0:
         raise InvalidInputError(f"a stick's width must be > 0, got {shape.get('width')}")
