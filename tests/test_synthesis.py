@@ -262,10 +262,11 @@ def test_thin_kinds_are_random_rings_and_sticks_and_leave_the_default_scenes_alo
 
 @pytest.mark.parametrize("shape", [{"kind": "star"}, {"kind": "ring", "hole": 1.0},
                                    {"kind": "stick", "ends": [[0, 0], [1, 1]], "width": 0.0},
-                                   {"kind": "stick", "width": 0.1}])
+                                   {"kind": "stick", "width": 0.1}, "ring"])
 def test_bad_shapes_are_named(shape):
     obj = {"kind": "plane", "disparity": 1.0, "rect": [0.2, 0.2, 0.8, 0.8], "shape": shape}
-    with pytest.raises(InvalidInputError, match=str(shape["kind"])):
+    name = shape["kind"] if isinstance(shape, dict) else shape
+    with pytest.raises(InvalidInputError, match=name):
         S.procedural_scene(**SMALL, objects=[{"kind": "plane", "disparity": 0.0}, obj],
                            disparity_range=(0.0, 1.0))
 

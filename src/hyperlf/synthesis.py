@@ -812,12 +812,14 @@ def _shape_inside(shape: dict, x: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 def _shape_px(shape: Mapping[str, Any], rect_px: list, H: int, W: int) -> dict:
     """A plane's ``shape`` (fractions of the image) in pixels, checked: ``{"kind": "ring",
-    "hole": h}`` is the ellipse inscribed in the plane's rect with a hole of ``h`` (0-1) times
-    its size; ``{"kind": "stick", "ends": [[u0, v0], [u1, v1]], "width": w}`` the points within
-    ``w / 2`` (a fraction of ``min(H, W)``) of the segment between the two ends."""
-    kind = shape.get("kind")
+    "hole": h}`` is the ellipse inscribed in the plane's rect with a hole of ``h`` (0-1,
+    default 0.6) times its size; ``{"kind": "stick", "ends": [[u0, v0], [u1, v1]], "width":
+    w}`` the points within ``w / 2`` (a fraction of ``min(H, W)``, default 0.02) of the segment
+    between the two ends."""
+    kind = shape.get("kind") if isinstance(shape, Mapping) else None
     if kind not in _SHAPES:
-        raise InvalidInputError(f"unknown plane shape {kind!r}; use one of {', '.join(_SHAPES)}")
+        raise InvalidInputError(f"unknown plane shape {shape!r}; give a dict whose 'kind' is one "
+                                f"of {', '.join(_SHAPES)}")
     if rect_px is None:
         raise InvalidInputError(f"a {kind} plane needs a rect")
     if kind == "ring":
@@ -920,7 +922,7 @@ def _random_objects(rng: np.random.Generator, n_objects: int, kinds: Sequence[st
             objs.append(_thin_object(rng, kind, cu, cv, d))
         else:
             raise InvalidInputError(
-                f"unknown object kind {kind!r}; use one of {', '.join(_KINDS)}"
+                f"unknown object kind {kind!r}; use one of {', '.join(_KINDS + _THIN_KINDS)}"
             )
     return objs
 
@@ -1248,9 +1250,9 @@ def procedural_scene(seed: int = 0, *, rows: int = 5, cols: int = 6, height: int
         "texture": {...}}`` (``gradient``: disparity change across the full image width/height,
         relative to the rect centre; no ``rect``: infinite plane; optional ``"shape"``:
         ``{"kind": "ring", "hole": h}``, the ellipse inscribed in the rect with a hole of ``h``
-        times its size, or ``{"kind": "stick", "ends": [[u0, v0], [u1, v1]], "width": w}``, the
-        points within ``w / 2`` (a fraction of the image's smaller side) of the segment, inside
-        the rect), ``{"kind": "box", "rect":
+        (default 0.6) times its size, or ``{"kind": "stick", "ends": [[u0, v0], [u1, v1]],
+        "width": w}``, the points within ``w / 2`` (a fraction of the image's smaller side,
+        default 0.02) of the segment, inside the rect), ``{"kind": "box", "rect":
         ..., "disparity": front-face d, "depth": disparity drop to the back face}``,
         ``{"kind": "sphere", "center": (u, v), "radius": fraction of min(H, W), "disparity":
         d of the nearest point}``; rect/centre in fractions of the image. ``texture``:
