@@ -19,8 +19,9 @@ truth):
 Every pair runs ``twoview.stereo`` with graph cuts and the library's defaults (nothing is
 tuned here); HYPERLF_DATA gives the Munsell reflectances (without it the ColorChecker's, and
 other scenes). Besides bad5.0 / bad2.0 each pair's bad5.0 is split into the points on ring
-holes, on other pixels hidden from the right camera, and on pixels whose match leaves the
-right image. Writes ``procedural_pairs.md`` / ``.json``.
+holes, on other pixels hidden from the right camera (Table 1's z-test of the left ground
+truth), and on pixels whose match leaves the right image. Writes ``procedural_pairs.md`` /
+``.json``.
 """
 
 from __future__ import annotations
@@ -33,7 +34,9 @@ import numpy as np
 
 from _common import log, write_report
 from hyperlf import synthesis
+from hyperlf.synthesis import _shape_inside, _shape_px
 from hyperlf.twoview import stereo
+from hyperlf.warp import visible_in_view
 
 #: Object kinds of each set, cycled through by the generator.
 SETS = {"plain": (10, ("fronto", "slanted", "box", "sphere")),
@@ -50,34 +53,30 @@ def pair_scene(seed: int, which: str):
 
 
 def ring_holes(lf) -> np.ndarray:
-    """Left-view pixels seen through a ring's hole (behind the ring, inside its hole)."""
+    """Left-view pixels seen through a ring's hole (inside the ring's outer ellipse, not on
+    the ring, and behind it), by the generator's own shape test."""
     gt = lf.gt_disparity[0, 0]
     H, W = gt.shape
     y, x = np.mgrid[0:H, 0:W].astype(float)
     holes = np.zeros((H, W), bool)
     for o in lf.metadata["objects"]:
-        shape = o.get("shape") or {}
-        if shape.get("kind") != "ring":
+        if (o.get("shape") or {}).get("kind") != "ring":
             continue
-        x0, y0, x1, y1 = (o["rect"][0] * W - 0.5, o["rect"][1] * H - 0.5,
-                          o["rect"][2] * W - 0.5, o["rect"][3] * H - 0.5)
-        q = (((x - (x0 + x1) / 2) / ((x1 - x0) / 2)) ** 2
-             + ((y - (y0 + y1) / 2) / ((y1 - y0) / 2)) ** 2)
-        holes |= (q < shape["hole"] ** 2) & (gt < o["disparity"] - 0.5)
+        rect = [o["rect"][0] * W - 0.5, o["rect"][1] * H - 0.5,
+                o["rect"][2] * W - 0.5, o["rect"][3] * H - 0.5]
+        ring = _shape_px(o["shape"], rect, H, W)
+        disc = _shape_inside(dict(ring, hole=0.0), x, y)
+        holes |= disc & ~_shape_inside(ring, x, y) & (gt < o["disparity"] - 0.5)
     return holes
 
 
 def hidden(lf) -> tuple[np.ndarray, np.ndarray]:
-    """Left-view pixels the right camera does not see (a nearer surface where they land) and
-    those whose match leaves the right image."""
-    gt, gr = lf.gt_disparity[0, 0], lf.gt_disparity[0, 1]
-    H, W = gt.shape
-    xr = np.round(np.arange(W)[None, :] - gt).astype(int)
-    outside = xr < 0
-    rows = np.broadcast_to(np.arange(H)[:, None], (H, W))
-    covered = np.zeros((H, W), bool)
-    covered[~outside] = gr[rows[~outside], xr[~outside]] > gt[~outside] + 0.5
-    return covered, outside
+    """Left-view pixels the right camera does not see, by the z-test Table 1 uses
+    (``warp.visible_in_view``, margin 1 px; ``table1.visible_mask``), apart from those whose
+    match leaves the right image, which are returned second."""
+    gt = lf.gt_disparity[0, 0]
+    outside = np.arange(gt.shape[1])[None, :] - gt < -0.5
+    return ~visible_in_view(gt, (1.0, 0.0), margin=1.0) & ~outside, outside
 
 
 def run_pair(seed: int, which: str, metric: str, occlusion: str | None = None) -> dict:

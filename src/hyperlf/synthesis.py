@@ -1235,10 +1235,8 @@ def procedural_scene(seed: int = 0, *, rows: int = 5, cols: int = 6, height: int
         Grid and image size; the layout is given in fractions of the image, so any
         resolution shows the same scene.
     n_objects, kinds :
-        Number of random objects in front of the background, drawn cycling through ``kinds``
-        (``"fronto"``, ``"slanted"``, ``"box"``, ``"sphere"``, the default four; also
-        ``"ring"``, a fronto-parallel ring whose hole shows what lies behind, and ``"stick"``,
-        a thin bar at any angle). Ignored with ``objects``.
+        Random objects in front of the background, cycling through ``kinds`` (default fronto,
+        slanted, box, sphere; also ring, stick: planes of that shape). Ignored with ``objects``.
     disparity_range : (float, float)
         Disparities (px per baseline) of the scene; random objects stay inside. The returned
         ``disparity_range`` is this, widened if explicit objects go beyond it.
@@ -1248,11 +1246,9 @@ def procedural_scene(seed: int = 0, *, rows: int = 5, cols: int = 6, height: int
         Explicit scene (overrides ``n_objects``/``kinds``; include a background). Entries:
         ``{"kind": "plane", "disparity": d, "gradient": (gx, gy), "rect": (x0, y0, x1, y1),
         "texture": {...}}`` (``gradient``: disparity change across the full image width/height,
-        relative to the rect centre; no ``rect``: infinite plane; optional ``"shape"``:
-        ``{"kind": "ring", "hole": h}``, the ellipse inscribed in the rect with a hole of ``h``
-        (default 0.6) times its size, or ``{"kind": "stick", "ends": [[u0, v0], [u1, v1]],
-        "width": w}``, the points within ``w / 2`` (a fraction of the image's smaller side,
-        default 0.02) of the segment, inside the rect), ``{"kind": "box", "rect":
+        relative to the rect centre; no ``rect``: infinite plane; optional ``"shape"``, a ring
+        ``{"kind": "ring", "hole": h}`` or a stick ``{"kind": "stick", "ends": [[u0, v0], [u1,
+        v1]], "width": w}`` inside the rect, as :func:`_shape_px`), ``{"kind": "box", "rect":
         ..., "disparity": front-face d, "depth": disparity drop to the back face}``,
         ``{"kind": "sphere", "center": (u, v), "radius": fraction of min(H, W), "disparity":
         d of the nearest point}``; rect/centre in fractions of the image. ``texture``:
