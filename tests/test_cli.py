@@ -18,6 +18,19 @@ def test_help_teaches(capsys):
         assert word in out
 
 
+def test_help_does_not_import_the_numerical_stack():
+    # `--help` builds every subcommand's parser (the `--method` choices come from
+    # hyperlf.baselines); scipy was 0.4 of its 0.8 s before the baselines imported it lazily.
+    code = ("import sys\nfrom hyperlf.cli import main\n"
+            "try:\n    main(['depth', '--help'])\nexcept SystemExit:\n    pass\n"
+            "print('LOADED', ' '.join(m for m in ('scipy', 'numba', 'cv2', 'h5py', 'matplotlib')"
+            " if m in sys.modules) or 'none')")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert "tao2013" in out  # the choices were built
+    assert out.strip().splitlines()[-1] == "LOADED none"
+
+
 def test_no_command_prints_help_and_fails(capsys):
     assert main([]) == 2
     assert "usage" in capsys.readouterr().out

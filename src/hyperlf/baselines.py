@@ -145,7 +145,6 @@ from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import numpy as np
-from scipy import ndimage
 
 from . import regularisers as _reg
 from ._progress import progress_bar
@@ -320,6 +319,7 @@ def _view_list(lf: LightField, views: np.ndarray):
 
 
 def _box(a: np.ndarray, w: int) -> np.ndarray:
+    from scipy import ndimage
     return ndimage.uniform_filter(a, size=w, mode="nearest") if w > 1 else a
 
 
@@ -479,6 +479,7 @@ def _tao_params(params: dict) -> dict:
 def _tao_responses(run: _Run):
     """Defocus response (contrast of the refocused image) and correspondence response (angular
     standard deviation) per label, both box-averaged over the window."""
+    from scipy import ndimage
     w = int(run.p["window"])
     laplacian = run.p["defocus_operator"] == "laplacian"
     n = len(run.vl)
@@ -579,6 +580,7 @@ def tao2013(lf: LightField, *, n_labels: int = 64, disparity_range=None,
 
 def _canny(ref: np.ndarray, sigma: float, non_edge: float, low_ratio: float):
     """Canny edges (MATLAB-style automatic thresholds) and the Sobel gradients of ``ref``."""
+    from scipy import ndimage
     import cv2
 
     g = ndimage.gaussian_filter(ref.astype(np.float64), sigma, mode="nearest") if sigma > 0 else ref
@@ -684,6 +686,7 @@ class _WangSplit:
 
 def _wang_split(ref: np.ndarray, vl, p: dict) -> _WangSplit:
     """Canny edges, their orientation spread to a band, the two half-planes of views."""
+    from scipy import ndimage
     H, W = ref.shape
     edges, gx, gy = _canny(ref, float(p["canny_sigma"]), float(p["canny_non_edge"]),
                            float(p["canny_low_ratio"]))
@@ -785,6 +788,7 @@ def _wang_confidence(cost: np.ndarray, labels: np.ndarray):
 
 def _wang_occlusion(vl, initial: np.ndarray, sp: _WangSplit) -> np.ndarray:
     """Occlusion map from the two halves' statistics at the initial depth."""
+    from scipy import ndimage
     _, _, mean_p, var_p, mean_m, var_m = _angular_stats(
         ((_warp_clamped(img, initial, dx, dy), mp, mm)
          for (img, dx, dy), mp, mm in zip(vl, sp.side_p, sp.side_m)), len(vl), sp)
@@ -810,6 +814,7 @@ def _wang_occlusion(vl, initial: np.ndarray, sp: _WangSplit) -> np.ndarray:
 
 def _wang_mrf(l0, conf, ref, edges, occ, labels: np.ndarray, p: dict) -> np.ndarray:
     """Alpha-expansion with the Gaussian-shaped unary and edge/occlusion-aware pairwise terms."""
+    from scipy import ndimage
     L = labels.size
     lab_idx = np.arange(L, dtype=np.float64)[:, None, None]
     sig = 0.1 * L * np.clip(1.0 - conf, 0.01, 1.0)
@@ -863,6 +868,7 @@ def wang2015(lf: LightField, *, n_labels: int = 64, disparity_range=None,
     .. [1] T.-C. Wang, A. A. Efros, R. Ramamoorthi, "Occlusion-aware depth estimation using
        light-field cameras", ICCV 2015.
     """
+    from scipy import ndimage
     run = _start("wang2015", lf, n_labels, disparity_range, params, progress)
     p, labels, ref = run.p, run.labels, run.ref
     with run.stage("edges"):
