@@ -288,7 +288,7 @@ CASES = {
                    lambda w, v, o: ["synth", "procedural", "--size=12,16", "--grid=2,2",
                                     f"--seed={v}", "--no-pictures", "-o", o],
                    _lightfield_written),
-    "synth-scene": (names_or(["planes", "slanted", "occlusion", "solids"]),
+    "synth-scene": (names_or(["planes", "slanted", "occlusion", "solids", "rings"]),
                     lambda w, v, o: ["synth", "procedural", "--size=12,16", "--grid=2,2",
                                      f"--scene={v}", "--no-pictures", "-o", o],
                     _lightfield_written),

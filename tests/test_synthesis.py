@@ -54,6 +54,22 @@ def test_procedural_shapes_and_dtypes(scenes):
     assert lf.is_spectral
 
 
+def test_rings_scene_holes_show_what_lies_behind(scenes):
+    """The named scene of thin structures: each ring's hole shows the surface its description
+    puts behind it, and the vertical stick is seen through the first ring's hole."""
+    g = scenes["rings"].gt_disparity[2, 2]
+    H, W = g.shape
+
+    def at(u, v):
+        return float(g[int(v * H), int(u * W)])
+
+    assert at(0.26, 0.39) == pytest.approx(-1.5)   # ring at 1.4, the background behind
+    assert at(0.74, 0.34) == pytest.approx(-0.3)   # ring at 0.9, the plane at -0.3 behind
+    assert at(0.74 + 0.8 * 0.16, 0.34) == pytest.approx(0.9)   # on that ring
+    assert at(0.35, 0.39) == pytest.approx(0.5)    # the vertical stick, inside that hole
+    assert (np.abs(g - 0.5) < 0.01).mean() < 0.04  # and thin: 0.025 of the width
+
+
 def test_raster_layout_puts_550_at_reference(scenes):
     lf = scenes["planes"]
     assert lf.wavelengths[2, 2] == pytest.approx(550.0)
@@ -101,7 +117,9 @@ def test_every_view_gt_disparity_by_warping_the_cube(scenes, name):
     g = lf.gt_disparity[ref]
     for (r, c) in [(2, 3), (2, 5), (0, 2), (4, 2), (0, 0), (4, 5), (1, 4)]:
         vis = _visible(lf, r, c)
-        assert vis.mean() > 0.6
+        # enough seen pixels for the statistics below (rings' far corner view sees 58 % at
+        # this size: two sticks and two rings hide much of a 48 x 64 image)
+        assert vis.mean() > 0.5
         for b in (0, _band(lf, r, c), 29):
             w, _ = warp_to_reference(lf.gt_cube[r, c, b], g, tuple(lf.offsets[r, c]))
             err = np.abs(w - lf.gt_cube[ref][b])[vis]

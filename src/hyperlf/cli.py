@@ -1639,8 +1639,8 @@ def _add_synth_parser(sub) -> None:
         epilog="examples:\n  hyperlf synth procedural --seed 3 -o scene3\n"
                "  hyperlf synth procedural --scene occlusion --size 128,160 --grid 3,4 -o occ")
     pp.add_argument("--scene", dest="scene_name", default=None,
-                    help="a named scene: planes, slanted, occlusion, solids (default: random "
-                         "from the seed)")
+                    help="a named scene: planes, slanted, occlusion, solids, rings (default: "
+                         "random from the seed)")
     pp.add_argument("--size", type=_pair_of_ints, default=(256, 256), metavar="H,W",
                     help="view size in pixels (default 256,256)")
     for q in (ph, pp):

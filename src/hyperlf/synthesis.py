@@ -1355,6 +1355,20 @@ SCENES: dict[str, dict[str, Any]] = {scene["name"]: scene for scene in (
                      depth=1.0),
            _textured("sphere", "stripes", 0.06, 60.0, center=[0.68, 0.55], radius=0.2,
                      disparity=1.4)),
+    # Thin structures and holes (issue 12's held-out risk): one ring's hole shows the
+    # background, the other's a plane between; two sticks, one of them in front of everything.
+    _scene("rings", 505,
+           _textured("plane", "patches", 0.07, disparity=-1.5, name="background"),
+           _textured("plane", "noise", 0.08, disparity=-0.3, rect=[0.52, 0.08, 0.96, 0.62]),
+           _textured("plane", "checker", 0.05, disparity=1.4, rect=[0.06, 0.12, 0.46, 0.66],
+                     shape={"kind": "ring", "hole": 0.6}),
+           _textured("plane", "stripes", 0.05, 45.0, disparity=0.9, rect=[0.58, 0.16, 0.90, 0.52],
+                     shape={"kind": "ring", "hole": 0.55}),
+           _textured("plane", "noise", 0.08, disparity=1.8, rect=[0.10, 0.55, 0.95, 0.80],
+                     shape={"kind": "stick", "ends": [[0.12, 0.78], [0.92, 0.58]], "width": 0.03}),
+           _textured("plane", "stripes", 0.04, 0.0, disparity=0.5, rect=[0.30, 0.02, 0.40, 0.98],
+                     shape={"kind": "stick", "ends": [[0.36, 0.04], [0.33, 0.96]],
+                            "width": 0.025})),
 )}
 
 
