@@ -31,6 +31,16 @@ def test_help_does_not_import_the_numerical_stack():
     assert out.strip().splitlines()[-1] == "LOADED none"
 
 
+def test_synth_help_names_every_named_scene(capsys):
+    from hyperlf.synthesis import SCENES
+
+    with pytest.raises(SystemExit):
+        main(["synth", "procedural", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    listed = out.split("a named scene:")[1].split("(default")[0]
+    assert sorted(n.strip() for n in listed.split(",")) == sorted(SCENES)
+
+
 def test_no_command_prints_help_and_fails(capsys):
     assert main([]) == 2
     assert "usage" in capsys.readouterr().out

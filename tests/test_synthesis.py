@@ -119,7 +119,7 @@ def test_every_view_gt_disparity_by_warping_the_cube(scenes, name):
         vis = _visible(lf, r, c)
         # enough seen pixels for the statistics below (rings' far corner view sees 58 % at
         # this size: two sticks and two rings hide much of a 48 x 64 image)
-        assert vis.mean() > 0.5
+        assert vis.mean() > (0.55 if name == "rings" else 0.6)
         for b in (0, _band(lf, r, c), 29):
             w, _ = warp_to_reference(lf.gt_cube[r, c, b], g, tuple(lf.offsets[r, c]))
             err = np.abs(w - lf.gt_cube[ref][b])[vis]
