@@ -34,7 +34,7 @@ import numpy as np
 
 from _common import log, write_report
 from hyperlf import synthesis
-from hyperlf.synthesis import _shape_inside, _shape_px
+from hyperlf.synthesis import _plane_shape_px, _shape_inside
 from hyperlf.twoview import stereo
 from hyperlf.warp import visible_in_view
 
@@ -62,9 +62,7 @@ def ring_holes(lf) -> np.ndarray:
     for o in lf.metadata["objects"]:
         if (o.get("shape") or {}).get("kind") != "ring":
             continue
-        rect = [o["rect"][0] * W - 0.5, o["rect"][1] * H - 0.5,
-                o["rect"][2] * W - 0.5, o["rect"][3] * H - 0.5]
-        ring = _shape_px(o["shape"], rect, H, W)
+        ring = _plane_shape_px(o, H, W)
         disc = _shape_inside(dict(ring, hole=0.0), x, y)
         holes |= disc & ~_shape_inside(ring, x, y) & (gt < o["disparity"] - 0.5)
     return holes

@@ -789,11 +789,14 @@ class _Box(_Surface):
 
 _PATTERNS = ("checker", "stripes", "noise", "patches")
 _KINDS = ("fronto", "slanted", "box", "sphere")
-#: Object kinds with thin parts and holes (``procedural_scene(kinds=...)``; not in the
-#: default :data:`_KINDS`, so the default scenes stay what they were): a fronto-parallel ring
-#: whose hole shows what lies behind it, and a thin stick at any angle.
-_THIN_KINDS = ("ring", "stick")
+#: Shapes a plane may take (its ``"shape"``): a ring, whose hole shows what lies behind it,
+#: and a thin stick at any angle.
 _SHAPES = ("ring", "stick")
+#: Object kinds with thin parts and holes (``procedural_scene(kinds=...)``), each a
+#: fronto-parallel plane of that shape (:func:`_thin_object`); not in the default
+#: :data:`_KINDS`, so the default scenes stay what they were.
+_THIN_KINDS = _SHAPES
+_ALL_KINDS = _KINDS + _THIN_KINDS
 
 
 def _shape_inside(shape: dict, x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -808,6 +811,20 @@ def _shape_inside(shape: dict, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     dx, dy = x1 - x0, y1 - y0
     t = np.clip(((x - x0) * dx + (y - y0) * dy) / max(dx * dx + dy * dy, _EPS), 0.0, 1.0)
     return np.hypot(x - x0 - t * dx, y - y0 - t * dy) <= shape["width"] / 2.0
+
+
+def _rect_px(rect, H: int, W: int) -> list[float]:
+    """A rect ``[u0, v0, u1, v1]`` in fractions of the image as pixel coordinates (pixel
+    centres at integers)."""
+    return [rect[0] * W - 0.5, rect[1] * H - 0.5, rect[2] * W - 0.5, rect[3] * H - 0.5]
+
+
+def _plane_shape_px(o: Mapping[str, Any], H: int, W: int) -> dict | None:
+    """The pixel shape (:func:`_shape_px`) of plane object ``o``, None without one."""
+    if o.get("shape") is None:
+        return None
+    rect = o.get("rect")
+    return _shape_px(o["shape"], None if rect is None else _rect_px(rect, H, W), H, W)
 
 
 def _shape_px(shape: Mapping[str, Any], rect_px: list, H: int, W: int) -> dict:
@@ -922,7 +939,7 @@ def _random_objects(rng: np.random.Generator, n_objects: int, kinds: Sequence[st
             objs.append(_thin_object(rng, kind, cu, cv, d))
         else:
             raise InvalidInputError(
-                f"unknown object kind {kind!r}; use one of {', '.join(_KINDS + _THIN_KINDS)}"
+                f"unknown object kind {kind!r}; use one of {', '.join(_ALL_KINDS)}"
             )
     return objs
 
@@ -955,7 +972,7 @@ def _build_surface(o: dict, H: int, W: int, f: float, d0: float) -> _Surface:
         d = float(o["disparity"])
         if rect is not None:
             xr, yr = (rect[0] + rect[2]) / 2 * W - 0.5, (rect[1] + rect[3]) / 2 * H - 0.5
-            rect_px = [rect[0] * W - 0.5, rect[1] * H - 0.5, rect[2] * W - 0.5, rect[3] * H - 0.5]
+            rect_px = _rect_px(rect, H, W)
         else:
             xr, yr, rect_px = cx, cy, None
         a, b = gx / W, gy / H
@@ -964,9 +981,8 @@ def _build_surface(o: dict, H: int, W: int, f: float, d0: float) -> _Surface:
             raise InvalidInputError(
                 f"plane disparity {d} is below the scene's disparity range; widen disparity_range"
             )
-        shape = None if o.get("shape") is None else _shape_px(o["shape"], rect_px, H, W)
         return _Plane(o, dict(base, n=np.array([a, b, (c + d0) / f]), rect_px=rect_px,
-                              shape=shape))
+                              shape=_plane_shape_px(o, H, W)))
     if kind == "sphere":
         u, v = o["center"]
         rpx = float(o["radius"]) * min(H, W)
@@ -1000,9 +1016,9 @@ def _check_procedural_args(H: int, W: int, supersample: int, texture_scale: floa
         raise InvalidInputError(f"texture_scale must be > 0, got {texture_scale}")
     dmin, dmax = check_disparity_range(disparity_range)
     for k in kinds:
-        if k not in _KINDS + _THIN_KINDS:
+        if k not in _ALL_KINDS:
             raise InvalidInputError(
-                f"unknown object kind {k!r}; use one of {', '.join(_KINDS + _THIN_KINDS)}")
+                f"unknown object kind {k!r}; use one of {', '.join(_ALL_KINDS)}")
     return dmin, dmax
 
 

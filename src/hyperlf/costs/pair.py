@@ -886,13 +886,19 @@ def row_moments(cost, valid) -> tuple:
     """
     from ._kernels import row_moments as kernel
 
-    C = np.asarray(cost)
-    C = kernel_input(C, C.dtype if C.dtype in (np.float32, np.float64) else np.float64)
+    C = kernel_input(_kernel_float(cost))
     ok = kernel_input(np.broadcast_to(np.asarray(valid, bool), C.shape))
     h = C.shape[1]
     n, mean, m2 = np.zeros(h, np.int64), np.zeros(h), np.zeros(h)
     kernel(C, ok, n, mean, m2)
     return n, mean, m2
+
+
+def _kernel_float(cost) -> np.ndarray:
+    """``cost`` C-contiguous as float32 or float64 (float64 for any other dtype), the dtypes
+    the normalisation kernels are compiled for; a copy only where needed."""
+    C = np.ascontiguousarray(cost)
+    return C if C.dtype in (np.float32, np.float64) else C.astype(np.float64)
 
 
 def moments_std(n, mean, m2) -> float:
@@ -938,9 +944,7 @@ def normalise_volume(cost, dmin: int, valid=None, *, sd: float | None = None,
     if impl == "numba":
         from ._kernels import normalise_fill
 
-        C = np.ascontiguousarray(cost)
-        if C.dtype not in (np.float32, np.float64):
-            C = C.astype(np.float64)
+        C = _kernel_float(cost)
         ok = kernel_input(np.broadcast_to(np.asarray(valid, bool), C.shape))
         if sd is None:
             sd = moments_std(*row_moments(C, ok))
