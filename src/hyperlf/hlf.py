@@ -131,7 +131,10 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
    ``params.visibility_test="estimate"`` at the estimate's disparity only,
    :func:`visible_views`), and stages 2 and 4-6 run again on that volume; the defocus
    volume and the texture weight are kept.
-   The first round starts from a quick depth run at half resolution
+   The first round starts from the full-resolution pass, whose per-view costs are kept
+   (:class:`ViewCostStore`, when they fit in ``params.reuse_memory``): a round then only
+   averages them again over the views that see each sample, and runs stages 4-6.  When they
+   do not fit (the paper's 1200 x 900), it starts from a quick depth run at half resolution
    (:func:`coarse_disparity`), so that one round costs about 1/8 of a pass more than none.
 
 Defaults
@@ -272,6 +275,14 @@ class DepthParams:
     run on the light field downscaled by this factor (:func:`coarse_disparity`, about 1/8 of
     the work at 2), instead of a full-resolution pass (1); it is used where both downscaled
     sides keep at least 16 px.
+    ``reuse_memory`` (3e9 bytes; 0 = never): when every other view's costs of the
+    full-resolution pass fit in this many bytes (5 per entry: the float32 cost and its
+    validity; 512 x 512, 64 labels, 30 views: 2.4 GB), the first estimate is that pass
+    itself instead of the downscaled run, and its costs are kept, so that each round only
+    averages them again over the views that now see each sample (:class:`ViewCostStore`);
+    where they do not also fit in half the ``max_memory`` budget, each round computes them
+    again (the same maps, slower).  A full-resolution start gives sharper masks than a
+    half-resolution one (BENCHMARKS.md, thirty-seventh session).
     Textureless regions: ``texture_snr`` (None, the default: 2 for a capture made from camera
     images by ``hyperlf ingest``, i.e. with ``"calibration"`` metadata, else off; 0 = off;
     else > 1) and ``texture_window`` (5 px):
@@ -363,6 +374,7 @@ class DepthParams:
     unseen_labels: str = "share"
     visibility_rounds: int | None = None
     visibility_scale: int = 2
+    reuse_memory: float = 3e9
     visibility_min_size: int = 256
     visibility_margin: float = 0.5
     min_visible_views: int = 2
@@ -503,6 +515,7 @@ class DepthParams:
         pos("median_blur_step", self.median_blur_step)
         if self.max_memory is not None:
             pos("max_memory", self.max_memory)
+        pos("reuse_memory", self.reuse_memory, True)
         if self.tile_rows is not None:
             from .tiling import row_strips
 
@@ -1561,7 +1574,74 @@ def view_scales(prob: DepthProblem, strips) -> dict | None:
     return out
 
 
-def _strip_correspondence(prob: DepthProblem, rows, scales, sees, cache, bar, clock):
+class ViewCostStore:
+    """Every other view's costs of one correspondence pass, kept for the visibility rounds
+    (``DepthParams.reuse_memory``): per view and strip of rows, the cost volume and where the
+    view's samples are valid, before any visibility mask.  A round then only averages them
+    again (:func:`correspondence` with ``store``), with the same result as computing them
+    again."""
+
+    #: Bytes kept per (view, label, pixel): a float32 cost and a bool validity.
+    BYTES_PER_ENTRY = 5
+
+    def __init__(self):
+        self._kept: dict = {}
+
+    def get(self, v, rows):
+        """``(Cv, valid)`` of view ``v`` on the strip ``rows``, or None."""
+        return self._kept.get((v, tuple(rows)))
+
+    def put(self, v, rows, Cv, valid) -> None:
+        self._kept[(v, tuple(rows))] = (Cv, valid)
+
+    @classmethod
+    def bytes_needed(cls, prob: DepthProblem) -> int:
+        """Bytes that one pass's costs take."""
+        H, W = prob.lf.image_shape
+        return cls.BYTES_PER_ENTRY * len(prob.others) * prob.labels.size * H * W
+
+    @classmethod
+    def full_start(cls, prob: DepthProblem) -> bool:
+        """Whether the rounds start from the full-resolution pass: its costs fit in
+        ``params.reuse_memory`` (what the maps depend on)."""
+        return cls.bytes_needed(prob) <= float(prob.params.reuse_memory)
+
+    @classmethod
+    def fits(cls, prob: DepthProblem) -> bool:
+        """Whether they also fit in half the memory budget (``params.max_memory``, None:
+        :data:`hyperlf.tiling.DEFAULT_MAX_MEMORY`), so that they are kept rather than
+        computed again in every round (the same maps, SPEC §12)."""
+        from .tiling import DEFAULT_MAX_MEMORY
+
+        p = prob.params
+        budget = DEFAULT_MAX_MEMORY if p.max_memory is None else p.max_memory
+        return cls.full_start(prob) and cls.bytes_needed(prob) <= 0.5 * float(budget)
+
+
+def _view_strip_costs(prob: DepthProblem, v, rows, scales, cache, store):
+    """View ``v``'s costs on the strip ``rows`` and where its samples are valid, before any
+    visibility mask: from ``store`` when it holds them, else computed (and put there when
+    there is a store)."""
+    kept = None if store is None else store.get(v, rows)
+    if kept is not None:
+        return kept
+    p = prob.params
+    a, b = rows
+    whole = (a, b) == (0, prob.lf.image_shape[0])
+    Cv, valid = view_costs(prob.ref_img, prob.lf.views[v], prob.offsets[v], prob.labels,
+                           prob.metric, prob.window, p.tau_rel, p.eps, int(p.block), cache,
+                           rows=None if whole else rows,
+                           scales=None if scales is None else scales[v],
+                           weights=p.fusion_weights, **_mask_args(prob, v))
+    if prob.every_label is not None:
+        valid &= prob.every_label[v][None, a:b]
+    if store is not None:
+        store.put(v, rows, Cv, valid)
+    return Cv, valid
+
+
+def _strip_correspondence(prob: DepthProblem, rows, scales, sees, cache, bar, clock,
+                          store=None):
     """Aggregate every other view's costs over the strip ``rows``: ``(C, n_used)`` of the
     strip, (L, h, W), before the whole-volume fill."""
     p = prob.params
@@ -1575,17 +1655,11 @@ def _strip_correspondence(prob: DepthProblem, rows, scales, sees, cache, bar, cl
     for i, v in enumerate(prob.others):
         next(bar, None)
         clock.lap()
-        Cv, valid = view_costs(prob.ref_img, prob.lf.views[v], prob.offsets[v], prob.labels,
-                               prob.metric, prob.window, p.tau_rel, p.eps, int(p.block), cache,
-                               rows=None if whole else rows,
-                               scales=None if scales is None else scales[v],
-                               weights=p.fusion_weights, **_mask_args(prob, v))
-        if prob.every_label is not None:
-            valid &= prob.every_label[v][None, a:b]
-        if isinstance(sees, LabelVisibility):
-            valid &= sees.mask(v, rows)
+        Cv, valid = _view_strip_costs(prob, v, rows, scales, cache, store)
+        if isinstance(sees, LabelVisibility):  # a new array: a kept validity stays as it is
+            valid = valid & sees.mask(v, rows)
         elif sees is not None:
-            valid &= sees[v][None, a:b]
+            valid = valid & sees[v][None, a:b]
         clock.lap("correspondence_s")
         sides = None if prob.sides is None else prob.sides[i][inside]
         aggregate_view(acc, Cv, valid, _strip_selection(prob, v, rows), Mbar, M_ref,
@@ -1602,7 +1676,7 @@ def _strip_correspondence(prob: DepthProblem, rows, scales, sees, cache, bar, cl
 
 
 def correspondence(prob: DepthProblem, *, progress: bool | str = False, timings=None,
-                   sees: dict | None = None, strips=None):
+                   sees: dict | None = None, strips=None, store: ViewCostStore | None = None):
     """Stage 2 of :func:`depth`: per-view costs streamed into the aggregation (SPEC §5.1-5.2).
 
     ``progress``: a bar over the views on stderr (a string: the bar's label, else "views").
@@ -1612,7 +1686,8 @@ def correspondence(prob: DepthProblem, *, progress: bool | str = False, timings=
     full-width strips of rows ``[(a, b), ...]`` covering the image in order, each aggregated
     alone (memory for its rows only; SPEC §12 tiles); bit for bit the result of one strip.
     A cost with whole-view scales (the fusions) then takes one more pass over the views to
-    measure them (:func:`view_scales`).
+    measure them (:func:`view_scales`).  ``store`` (optional): every view's costs are taken
+    from it where it holds them and put into it where it does not (:class:`ViewCostStore`).
 
     Returns
     -------
@@ -1628,20 +1703,22 @@ def correspondence(prob: DepthProblem, *, progress: bool | str = False, timings=
     H, W = prob.lf.image_shape
     strips = check_strips(strips, H)
     clock = _Clock({"correspondence_s": 0.0, "selection_split_s": 0.0})
-    scales = view_scales(prob, strips)
+    scales = None if store is not None and store.get(prob.others[0], strips[0]) is not None \
+        else view_scales(prob, strips)
     clock.lap("scales_s")
     cache: dict = {}
     n = len(prob.others) * len(strips)
     desc = progress if isinstance(progress, str) else "views"
     bar = progress_bar(range(n), desc, total=n, enabled=bool(progress), unit="view")
     if len(strips) == 1:
-        C, n_used = _strip_correspondence(prob, strips[0], scales, sees, cache, bar, clock)
+        C, n_used = _strip_correspondence(prob, strips[0], scales, sees, cache, bar, clock,
+                                          store)
     else:
         C = np.empty((L, H, W), np.float32)
         n_used = np.empty((L, H, W), np.float32)
         for a, b in strips:
             C[:, a:b], n_used[:, a:b] = _strip_correspondence(prob, (a, b), scales, sees,
-                                                              cache, bar, clock)
+                                                              cache, bar, clock, store)
     next(bar, None)  # closes the bar
     if not np.isfinite(C).any():
         dmin, dmax = prob.disparity_range
@@ -2084,7 +2161,8 @@ def strips_for(prob: DepthProblem) -> list:
                 selection=prob.view_selection, tile_rows=p.tile_rows)
 
 
-def _config(prob: DepthProblem, sC, sD, *, strips, start, prior, w, passes, blur) -> dict:
+def _config(prob: DepthProblem, sC, sD, *, strips, start, prior, w, passes, blur,
+            kept=False) -> dict:
     """``DepthResult.config``: the problem's settings and what the run decided."""
     p = prob.params
     return dict(metric=prob.metric, n_labels=prob.labels.size,
@@ -2096,6 +2174,7 @@ def _config(prob: DepthProblem, sC, sD, *, strips, start, prior, w, passes, blur
                 n_edge_pixels=int(prob.edges.sum()), reference=tuple(prob.reference),
                 strips=strips, median_passes=passes, edge_blur_px=blur,
                 visibility_estimate_scale=None if start is None else int(p.visibility_scale),
+                visibility_costs_kept=bool(kept),
                 coarse_prior_scale=None if prior is None else int(p.coarse_prior_scale),
                 coarse_prior_levels=0 if prior is None else len(_prior_levels(prob)),
                 weak_data_share=0.0 if w is None else float(np.mean(1.0 - w)),
@@ -2212,7 +2291,11 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
     clock.lap("prepare_s")
     strips = strips_for(prob)
     rounds, first = prob.visibility_rounds, 0
-    start = coarse_disparity(prob, progress=progress, return_confidence=True) if rounds else None
+    full = bool(rounds) and ViewCostStore.full_start(prob)
+    store = ViewCostStore() if full and ViewCostStore.fits(prob) else None
+    kept = store is not None
+    start = None if not rounds or full else \
+        coarse_disparity(prob, progress=progress, return_confidence=True)
     sees = None if start is None else visibility(prob, start[0])
     if start is not None:
         rounds, first = rounds - 1, 1
@@ -2222,7 +2305,8 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
     clock.lap("coarse_prior_s")
     prior = plane_prior(prob, w, prior, progress=progress)
     clock.lap("plane_prior_s")
-    C, n_used = correspondence(prob, progress=progress, timings=timings, sees=sees, strips=strips)
+    C, n_used = correspondence(prob, progress=progress, timings=timings, sees=sees, strips=strips,
+                               store=store)
     clock.lap()
     seen, n_used = seen_pixels(prob, n_used), (n_used if save_intermediate else None)
     f_c = prob.labels[np.argmin(C, axis=0)].astype(np.float32)
@@ -2237,7 +2321,9 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
         sees = visibility(prob, disp)
         C = U = None  # the new round's volumes replace them: not both at once
         C, n_used = correspondence(prob, progress=f"views, visibility round {k}" if progress
-                                   else False, sees=sees, strips=strips)
+                                   else False, sees=sees, strips=strips, store=store)
+        if k == first + rounds:
+            store = None  # the last round's: the MRF's memory
         seen, n_used = seen_pixels(prob, n_used), (n_used if save_intermediate else None)
         f_c = prob.labels[np.argmin(C, axis=0)].astype(np.float32)
         clock.lap(f"visibility_round{k}_correspondence_s")
@@ -2252,5 +2338,5 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
     return DepthResult(disparity=np.asarray(disp, np.float32), confidence=conf, f_c=f_c,
                        f_d=f_d, labels=prob.labels, timings=timings,
                        config=_config(prob, sC, sD, strips=strips, start=start, prior=prior,
-                                      w=w, passes=passes, blur=blur),
+                                      w=w, passes=passes, blur=blur, kept=kept),
                        intermediate=inter)
