@@ -279,11 +279,10 @@ def test_visibility_estimate_does_not_see_what_is_under_the_mask():
     valid[3, :, -BAND:, :] = False
     valid[1, 1, 17:24, 19:28] = False  # odd offsets: blocks half in, half out of the mask
     blank = np.where(valid, lf.views, 0.0)
-    for reuse, scale in ((0, 2), (DepthParams.reuse_memory, None)):  # both starts
-        params = DepthParams(visibility_min_size=32, reuse_memory=reuse)
-        a = depth(lf.replace(views=blank, valid=valid), disparity_range=(-4, 4), n_labels=17,
-                  params=params)
-        b = depth(lf.replace(valid=valid), disparity_range=(-4, 4), n_labels=17, params=params)
-        assert a.config["visibility_estimate_scale"] == scale
-        np.testing.assert_array_equal(a.disparity, b.disparity)
-        np.testing.assert_array_equal(a.confidence, b.confidence)
+    params = DepthParams(visibility_min_size=32)
+    a = depth(lf.replace(views=blank, valid=valid), disparity_range=(-4, 4), n_labels=17,
+              params=params)
+    b = depth(lf.replace(valid=valid), disparity_range=(-4, 4), n_labels=17, params=params)
+    assert a.config["visibility_estimate_scale"] == 2
+    np.testing.assert_array_equal(a.disparity, b.disparity)
+    np.testing.assert_array_equal(a.confidence, b.confidence)

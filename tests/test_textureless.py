@@ -417,13 +417,10 @@ def test_a_dense_camera_array_reuses_the_visibility_estimate(monkeypatch):
     real = hlf.coarse_disparity
     monkeypatch.setattr(hlf, "coarse_disparity",
                         lambda prob, **kw: calls.append(kw.get("scale")) or real(prob, **kw))
-    params = DepthParams(visibility_min_size=32, visibility_rounds=1, reuse_memory=0)
+    params = DepthParams(visibility_min_size=32, visibility_rounds=1)
     res = depth(lf, n_labels=17, params=params)
     assert res.config["visibility_estimate_scale"] == res.config["coarse_prior_scale"] == 2
     assert calls == [None]  # one coarse run (the visibility round's) serves both
-    kept = depth(lf, n_labels=17, params=replace(params, reuse_memory=1e9))
-    assert kept.config["visibility_costs_kept"] and kept.config["coarse_prior_scale"] == 2
-    assert calls == [None, 2]  # the full pass starts the round; the prior has its own run
     noprior = depth(lf, n_labels=17, params=replace(params, coarse_prior=False))
     assert noprior.config["coarse_prior_scale"] is None
 

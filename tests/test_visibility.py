@@ -215,11 +215,12 @@ def test_depth_params_check_the_visibility_options(bad):
         DepthParams(**bad)
 
 
-@pytest.mark.parametrize("rounds, tile_rows", [(1, None), (2, None), (2, 32)])
-def test_kept_costs_give_the_maps_of_computing_them_again(monkeypatch, rounds, tile_rows):
-    """The rounds average the full pass's kept costs again: every view's costs are computed
-    once (per strip), and the maps are those of a full-resolution start that computes them
-    again in every round."""
+@pytest.mark.parametrize("rounds, scale, tile_rows", [(2, 2, None), (2, 2, 32), (1, 1, None)])
+def test_kept_costs_give_the_maps_of_computing_them_again(monkeypatch, rounds, scale,
+                                                          tile_rows):
+    """A round after the main pass averages that pass's kept costs again: each view's costs
+    are computed once fewer per strip and round, and the maps are those of computing them
+    again."""
     from hyperlf import hlf
 
     lf = synthesis.procedural_scene(**{k: v for k, v in synthesis.SCENES["occlusion"].items()
@@ -227,25 +228,23 @@ def test_kept_costs_give_the_maps_of_computing_them_again(monkeypatch, rounds, t
     calls = []
     real = hlf.view_costs
     monkeypatch.setattr(hlf, "view_costs", lambda *a, **kw: calls.append(1) or real(*a, **kw))
-    common = dict(visibility_rounds=rounds, tile_rows=tile_rows)
+    common = dict(visibility_rounds=rounds, visibility_scale=scale, tile_rows=tile_rows)
     kept = depth(lf, n_labels=12, params=DepthParams(**common))
     n_kept = len(calls)
-    again = depth(lf, n_labels=12, params=DepthParams(**common, visibility_scale=1,
-                                                      reuse_memory=0))
+    again = depth(lf, n_labels=12, params=DepthParams(**common, reuse_memory=0))
     strips = len(kept.config["strips"])
     assert strips == (1 if tile_rows is None else 2)
-    assert n_kept == 15 * strips and len(calls) - n_kept == 15 * strips * (rounds + 1)
+    assert (len(calls) - n_kept) - n_kept == 15 * strips  # one pass fewer
     assert kept.config["visibility_costs_kept"] and not again.config["visibility_costs_kept"]
-    assert kept.config["visibility_estimate_scale"] is None
+    assert kept.config["visibility_estimate_scale"] == (None if scale == 1 else 2)
     np.testing.assert_array_equal(kept.disparity, again.disparity)
     np.testing.assert_array_equal(kept.confidence, again.confidence)
     assert f"visibility_round{rounds}_correspondence_s" in kept.timings
 
 
 def test_costs_are_kept_only_when_they_fit(monkeypatch):
-    """5 bytes per (view, label, pixel): within ``reuse_memory`` the rounds start from the
-    full pass, and its costs are kept when they also fit in half the memory budget; else
-    they are computed again, with the same maps (SPEC §12: the budget changes no result)."""
+    """5 bytes per (view, label, pixel), within ``reuse_memory`` and half the memory budget;
+    costs that do not fit are computed again, with the same maps (SPEC §12)."""
     from hyperlf.hlf import ViewCostStore
 
     lf = synthesis.procedural_scene(seed=0, rows=3, cols=3, height=40, width=48)
@@ -254,19 +253,16 @@ def test_costs_are_kept_only_when_they_fit(monkeypatch):
              {"max_memory": 2 * need}, {"max_memory": 2 * need - 2})
     probs = [prepare(lf, n_labels=10, params=DepthParams(**kw)) for kw in cases]
     assert ViewCostStore.bytes_needed(probs[0]) == need
-    assert [ViewCostStore.full_start(p) for p in probs] == [True, True, False, False, True, True]
     assert [ViewCostStore.fits(p) for p in probs] == [True, True, False, False, True, False]
-    res = {name: depth(lf, n_labels=10, params=DepthParams(visibility_rounds=1, **kw))
-           for name, kw in (("kept", {}), ("half", {"reuse_memory": need - 1}))}
+    two = DepthParams(visibility_rounds=2)
+    kept = depth(lf, n_labels=10, params=two)
     # a budget that cannot hold them (a real one that small could not run depth at all)
     monkeypatch.setattr(ViewCostStore, "fits", classmethod(lambda cls, prob: False))
-    res["again"] = depth(lf, n_labels=10, params=DepthParams(visibility_rounds=1))
-    assert res["kept"].config["visibility_costs_kept"]
-    assert not res["again"].config["visibility_costs_kept"]
-    np.testing.assert_array_equal(res["kept"].disparity, res["again"].disparity)
-    assert res["again"].config["visibility_estimate_scale"] is None
-    assert res["half"].config["visibility_estimate_scale"] == 2  # too big: the 1/2 start
-    assert not res["half"].config["visibility_costs_kept"]
+    again = depth(lf, n_labels=10, params=two)
+    assert kept.config["visibility_costs_kept"] and not again.config["visibility_costs_kept"]
+    np.testing.assert_array_equal(kept.disparity, again.disparity)
+    one = depth(lf, n_labels=10, params=DepthParams(visibility_rounds=1))
+    assert not one.config["visibility_costs_kept"]  # no later round needs them
 
 
 @pytest.mark.parametrize("scene, scale, test", [("occlusion", 1, "hypothesis"),
@@ -294,7 +290,7 @@ def test_rematching_lowers_the_error_at_depth_edges(scene, scale, test):
     for rounds in (0, 1):
         res = depth(lf, n_labels=32, params=DepthParams(visibility_rounds=rounds,
                                                         visibility_scale=scale, window=5,
-                                                        visibility_test=test, reuse_memory=0))
+                                                        visibility_test=test))
         err[rounds] = float(np.sqrt(np.mean((res.disparity - gt)[near] ** 2)))
         if rounds:
             key = "visibility_round1_correspondence_s" if scale == 1 else "visibility_estimate_s"
@@ -337,12 +333,11 @@ def test_visibility_rounds_default_to_one_on_large_images():
     two = DepthParams(visibility_rounds=2)
     assert prepare(sparse, n_labels=8, params=two).visibility_rounds == 2
     res = depth(dense, n_labels=8, params=small)
-    assert res.config["visibility_rounds"] == 1 and res.config["visibility_costs_kept"]
-    assert res.config["visibility_estimate_scale"] is None  # the start: the full pass itself
-    same = depth(dense, n_labels=8, params=DepthParams(visibility_rounds=1, visibility_scale=1,
-                                                       reuse_memory=0))
+    assert res.config["visibility_rounds"] == 1 and res.config["visibility_estimate_scale"] == 2
+    assert not res.config["visibility_costs_kept"]  # no later round needs them
+    same = depth(dense, n_labels=8, params=DepthParams(visibility_rounds=1, visibility_scale=2))
     assert np.array_equal(res.disparity, same.disparity)
-    assert "visibility_round1_correspondence_s" in res.timings
+    assert "visibility_estimate_s" in res.timings
     assert depth(sparse, n_labels=8).config["visibility_estimate_scale"] is None
     assert depth(dense, n_labels=8).config["visibility_rounds"] == 0
 
@@ -369,13 +364,8 @@ def test_coarse_disparity_is_the_half_resolution_run_blown_up():
 
 def test_progress_bars_name_the_half_resolution_pass(capsys):
     lf = synthesis.procedural_scene(seed=0, rows=4, cols=4, height=40, width=48)
-    depth(lf, n_labels=8, params=DepthParams(visibility_min_size=32, visibility_rounds=2,
-                                             reuse_memory=0), progress=True)
+    depth(lf, n_labels=8, params=DepthParams(visibility_min_size=32, visibility_rounds=2),
+          progress=True)
     err = capsys.readouterr().err
     assert "views, 1/2 resolution" in err and "views, visibility round 2" in err
     assert "views:" in err  # the main pass
-    depth(lf, n_labels=8, params=DepthParams(visibility_min_size=32, visibility_rounds=2),
-          progress=True)  # the kept costs: the full pass starts the rounds
-    err = capsys.readouterr().err
-    assert "views, visibility round 1" in err and "views, visibility round 2" in err
-    assert "1/2 resolution" not in err

@@ -1816,11 +1816,12 @@ def _add_depth_parser(sub) -> None:
                    metavar="N",
                    help="re-match N times, each candidate depth of a pixel over only the "
                         "views that see it there under the previous estimate (sharper depth "
-                        "edges; the first round starts "
-                        "from a quick half-resolution run, each further one costs about one "
-                        "more correspondence pass; default: 1 on images at least 256 px on "
-                        "their shorter side, else 0; 2 sharpens the edges further where a "
-                        "scene has many of them, for about 80 %% more time)")
+                        "edges; the first round starts from a quick half-resolution run, and "
+                        "a further one averages the previous pass's per-view costs again "
+                        "when they fit in memory, else computes them again; default: 1 on "
+                        "images at least 256 px on their shorter side, else 0; 2 sharpens the "
+                        "edges further where a scene has many of them, for about a quarter "
+                        "more time)")
     p.add_argument("--max-memory", type=_memory_arg, default=None, metavar="SIZE",
                    help="memory budget of the hlf method, e.g. 6G or 512M (default 16G, which "
                         "leaves room on a 24 GB machine, or the memory available now when that "

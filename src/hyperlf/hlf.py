@@ -131,11 +131,10 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
    ``params.visibility_test="estimate"`` at the estimate's disparity only,
    :func:`visible_views`), and stages 2 and 4-6 run again on that volume; the defocus
    volume and the texture weight are kept.
-   The first round starts from the full-resolution pass, whose per-view costs are kept
-   (:class:`ViewCostStore`, when they fit in ``params.reuse_memory``): a round then only
-   averages them again over the views that see each sample, and runs stages 4-6.  When they
-   do not fit (the paper's 1200 x 900), it starts from a quick depth run at half resolution
+   The first round starts from a quick depth run at half resolution
    (:func:`coarse_disparity`), so that one round costs about 1/8 of a pass more than none.
+   A further round averages the kept per-view costs of the pass before again
+   (:class:`ViewCostStore`, when they fit in ``params.reuse_memory``) and runs stages 4-6.
 
 Defaults
 --------
@@ -275,14 +274,14 @@ class DepthParams:
     run on the light field downscaled by this factor (:func:`coarse_disparity`, about 1/8 of
     the work at 2), instead of a full-resolution pass (1); it is used where both downscaled
     sides keep at least 16 px.
-    ``reuse_memory`` (3e9 bytes; 0 = never): when every other view's costs of the
-    full-resolution pass fit in this many bytes (5 per entry: the float32 cost and its
-    validity; 512 x 512, 64 labels, 30 views: 2.4 GB), the first estimate is that pass
-    itself instead of the downscaled run, and its costs are kept, so that each round only
-    averages them again over the views that now see each sample (:class:`ViewCostStore`);
-    where they do not also fit in half the ``max_memory`` budget, each round computes them
-    again (the same maps, slower).  A full-resolution start gives sharper masks than a
-    half-resolution one (BENCHMARKS.md, thirty-seventh session).
+    ``reuse_memory`` (3e9 bytes; 0 = never): a round after the main pass (a second one,
+    or the first with ``visibility_scale=1``) needs every other view's costs of that pass
+    again; when they fit in this many bytes (5 per entry: the float32 cost and its
+    validity; 512 x 512, 64 labels, 30 views: 2.4 GB) and in half the ``max_memory``
+    budget, they are kept and the round only averages them again over the views that now
+    see each sample (:class:`ViewCostStore`), else it computes them again: the same maps,
+    only slower (a second round at 512 x 512: +27 % of the time instead of +80 %;
+    BENCHMARKS.md, thirty-seventh session).
     Textureless regions: ``texture_snr`` (None, the default: 2 for a capture made from camera
     images by ``hyperlf ingest``, i.e. with ``"calibration"`` metadata, else off; 0 = off;
     else > 1) and ``texture_window`` (5 px):
@@ -1601,21 +1600,15 @@ class ViewCostStore:
         return cls.BYTES_PER_ENTRY * len(prob.others) * prob.labels.size * H * W
 
     @classmethod
-    def full_start(cls, prob: DepthProblem) -> bool:
-        """Whether the rounds start from the full-resolution pass: its costs fit in
-        ``params.reuse_memory`` (what the maps depend on)."""
-        return cls.bytes_needed(prob) <= float(prob.params.reuse_memory)
-
-    @classmethod
     def fits(cls, prob: DepthProblem) -> bool:
-        """Whether they also fit in half the memory budget (``params.max_memory``, None:
-        :data:`hyperlf.tiling.DEFAULT_MAX_MEMORY`), so that they are kept rather than
-        computed again in every round (the same maps, SPEC §12)."""
+        """Whether one pass's costs fit in ``params.reuse_memory`` and in half the memory
+        budget (``params.max_memory``, None: :data:`hyperlf.tiling.DEFAULT_MAX_MEMORY`).
+        Only the time depends on it: costs that do not fit are computed again (SPEC §12)."""
         from .tiling import DEFAULT_MAX_MEMORY
 
         p = prob.params
         budget = DEFAULT_MAX_MEMORY if p.max_memory is None else p.max_memory
-        return cls.full_start(prob) and cls.bytes_needed(prob) <= 0.5 * float(budget)
+        return cls.bytes_needed(prob) <= min(float(p.reuse_memory), 0.5 * float(budget))
 
 
 def _view_strip_costs(prob: DepthProblem, v, rows, scales, cache, store):
@@ -2291,15 +2284,14 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
     clock.lap("prepare_s")
     strips = strips_for(prob)
     rounds, first = prob.visibility_rounds, 0
-    full = bool(rounds) and ViewCostStore.full_start(prob)
-    store = ViewCostStore() if full and ViewCostStore.fits(prob) else None
-    kept = store is not None
-    start = None if not rounds or full else \
-        coarse_disparity(prob, progress=progress, return_confidence=True)
+    start = coarse_disparity(prob, progress=progress, return_confidence=True) if rounds else None
     sees = None if start is None else visibility(prob, start[0])
     if start is not None:
         rounds, first = rounds - 1, 1
         clock.lap("visibility_estimate_s")
+    # later rounds average the main pass's costs again: kept when they fit
+    store = ViewCostStore() if rounds and ViewCostStore.fits(prob) else None
+    kept = store is not None
     w = texture_weight(prob)
     prior = coarse_prior(prob, w, start, progress=progress)
     clock.lap("coarse_prior_s")
