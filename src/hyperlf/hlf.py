@@ -280,8 +280,8 @@ class DepthParams:
     validity; 512 x 512, 64 labels, 30 views: 2.4 GB) and in half the ``max_memory``
     budget, they are kept and the round only averages them again over the views that now
     see each sample (:class:`ViewCostStore`), else it computes them again: the same maps,
-    only slower (a second round at 512 x 512: +27 % of the time instead of +80 %;
-    BENCHMARKS.md, thirty-seventh session).
+    only slower (what a second round costs either way: BENCHMARKS.md, thirty-seventh
+    session).
     Textureless regions: ``texture_snr`` (None, the default: 2 for a capture made from camera
     images by ``hyperlf ingest``, i.e. with ``"calibration"`` metadata, else off; 0 = off;
     else > 1) and ``texture_window`` (5 px):
@@ -1696,6 +1696,7 @@ def correspondence(prob: DepthProblem, *, progress: bool | str = False, timings=
     H, W = prob.lf.image_shape
     strips = check_strips(strips, H)
     clock = _Clock({"correspondence_s": 0.0, "selection_split_s": 0.0})
+    # kept costs were made with the whole-view scales already
     scales = None if store is not None and store.get(prob.others[0], strips[0]) is not None \
         else view_scales(prob, strips)
     clock.lap("scales_s")
