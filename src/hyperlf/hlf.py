@@ -1593,6 +1593,10 @@ class ViewCostStore:
     def put(self, v, rows, Cv, valid) -> None:
         self._kept[(v, tuple(rows))] = (Cv, valid)
 
+    def clear(self) -> None:
+        """Let the kept costs go (after the last round that reads them)."""
+        self._kept.clear()
+
     @classmethod
     def bytes_needed(cls, prob: DepthProblem) -> int:
         """Bytes that one pass's costs take."""
@@ -2212,6 +2216,22 @@ def _solve(prob: DepthProblem, C, D, seen, f_c, w, prior, clock, passes: int,
     return U, sC, sD, disp, conf
 
 
+def _visibility_start(prob: DepthProblem, clock: _Clock, progress):
+    """What the visibility rounds of :func:`depth` start from: ``(start, sees, first, rounds,
+    store)``, the half-resolution estimate (None without one), its visibility for the main
+    pass, the number of the main pass's round (1 when it is the first round, else 0), the
+    rounds after it, and the :class:`ViewCostStore` that those rounds reuse (None when there
+    are none, or the costs do not fit)."""
+    rounds, first = prob.visibility_rounds, 0
+    start = coarse_disparity(prob, progress=progress, return_confidence=True) if rounds else None
+    sees = None if start is None else visibility(prob, start[0])
+    if start is not None:
+        rounds, first = rounds - 1, 1
+        clock.lap("visibility_estimate_s")
+    store = ViewCostStore() if rounds and ViewCostStore.fits(prob) else None
+    return start, sees, first, rounds, store
+
+
 def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
           view_selection: bool = False, occlusion_split: bool = False, defocus: str = "off",
           optimizer: str = "graphcut", params: DepthParams | None = None,
@@ -2284,15 +2304,7 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
                    defocus=defocus, optimizer=optimizer, params=params)
     clock.lap("prepare_s")
     strips = strips_for(prob)
-    rounds, first = prob.visibility_rounds, 0
-    start = coarse_disparity(prob, progress=progress, return_confidence=True) if rounds else None
-    sees = None if start is None else visibility(prob, start[0])
-    if start is not None:
-        rounds, first = rounds - 1, 1
-        clock.lap("visibility_estimate_s")
-    # later rounds average the main pass's costs again: kept when they fit
-    store = ViewCostStore() if rounds and ViewCostStore.fits(prob) else None
-    kept = store is not None
+    start, sees, first, rounds, store = _visibility_start(prob, clock, progress)
     w = texture_weight(prob)
     prior = coarse_prior(prob, w, start, progress=progress)
     clock.lap("coarse_prior_s")
@@ -2315,8 +2327,8 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
         C = U = None  # the new round's volumes replace them: not both at once
         C, n_used = correspondence(prob, progress=f"views, visibility round {k}" if progress
                                    else False, sees=sees, strips=strips, store=store)
-        if k == first + rounds:
-            store = None  # the last round's: the MRF's memory
+        if store is not None and k == first + rounds:
+            store.clear()  # the last round's: the MRF's memory
         seen, n_used = seen_pixels(prob, n_used), (n_used if save_intermediate else None)
         f_c = prob.labels[np.argmin(C, axis=0)].astype(np.float32)
         clock.lap(f"visibility_round{k}_correspondence_s")
@@ -2331,5 +2343,6 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
     return DepthResult(disparity=np.asarray(disp, np.float32), confidence=conf, f_c=f_c,
                        f_d=f_d, labels=prob.labels, timings=timings,
                        config=_config(prob, sC, sD, strips=strips, start=start, prior=prior,
-                                      w=w, passes=passes, blur=blur, kept=kept),
+                                      w=w, passes=passes, blur=blur,
+                                      kept=store is not None),
                        intermediate=inter)
