@@ -221,6 +221,33 @@ def test_sgm_impls_agree_on_any_shape(L, H, W, paths, smoothness, seed, p1, p2):
     assert np.all(a >= paths * c - 1e-4)   # each path term is >= the data cost
 
 
+@settings(max_examples=30, deadline=None)
+@given(L=st.integers(1, 6), H=st.integers(1, 9), W=st.integers(1, 9), seed=st.integers(0, 2**16),
+       weight=st.floats(0.0, 3.0), potts=st.booleans(), guided=st.booleans())
+def test_expansion_terms_kernel_is_the_numpy_reference_bit_for_bit(L, H, W, seed, weight, potts,
+                                                                  guided):
+    """The numba terms of an expansion move equal the numpy reference exactly, for every label
+    of any labelling, on any shape (one row or column included)."""
+    from hyperlf.regularisers import graphcuts as G
+
+    rng = np.random.default_rng(seed)
+    c = rng.random((L, H, W)).astype(np.float32)
+    f = rng.integers(0, L, (H, W)).astype(np.intp)
+    Vm = G._smoothness_matrix("potts" if potts else "truncated_linear", L,
+                              np.sort(rng.random(L) * 5), 2.0)
+    wx, wy = G._pair_weights(H, W, weight, rng.random((H, W)) if guided else None, None, None)
+    unary_f = G.gather(c, f)
+    for alpha in range(L):
+        caps = [np.full((H, W), -1.0) for _ in range(4)]
+        du_ref = G._move_terms_numpy(c, alpha, f, unary_f, Vm, wx, wy, caps[0], caps[1])
+        du = G._move_terms(c, alpha, f, unary_f, Vm, wx, wy, caps[2], caps[3])
+        np.testing.assert_array_equal(du, du_ref)
+        np.testing.assert_array_equal(caps[2], caps[0])
+        np.testing.assert_array_equal(caps[3], caps[1])
+        if W > 1 and H > 1:
+            assert (caps[0][:, :-1] >= 0).all() and (caps[1][:-1] >= 0).all()
+
+
 @settings(max_examples=15, deadline=None)
 @given(L=st.integers(1, 4), H=st.integers(1, 5), W=st.integers(1, 5), seed=st.integers(0, 2**16),
        weight=st.floats(0.0, 3.0), potts=st.booleans())

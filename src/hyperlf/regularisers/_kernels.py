@@ -2,7 +2,8 @@
 
 Each kernel has a numpy reference beside its user that the tests compare it with:
 :func:`sgm_path` <-> ``semiglobal._sgm_numpy_direction``, :func:`weighted_median` <->
-``postprocess._weighted_median_numpy``, :func:`plane_scores` <-> ``planes._plane_scores_numpy``.
+``postprocess._weighted_median_numpy``, :func:`plane_scores` <-> ``planes._plane_scores_numpy``,
+:func:`expansion_terms` <-> ``graphcuts._move_terms_numpy``.
 """
 
 from __future__ import annotations
@@ -132,3 +133,36 @@ def plane_scores(P, dx, dy, A, B, c, min_inside, out):  # pragma: no cover - num
                     s += (1.0 - t) * P[q, l0] + t * P[q, l0 + 1]
                     m += 1
                 out[i, j, k] = s / m if m >= min_inside and m > 0 else np.inf
+
+
+@numba.njit(parallel=True, cache=True, fastmath=False)
+def expansion_terms(c_alpha, alpha, f, unary_f, Vm, wx, wy, du, capx, capy):  # pragma: no cover
+    """One alpha-expansion move's terms into ``du``, ``capx`` and ``capy`` (float64 (H, W)):
+    ``graphcuts._move_terms_numpy``, the same operations in the same order per pixel."""
+    H, W = f.shape
+    for y in numba.prange(H):
+        for x in range(W):
+            fp = f[y, x]
+            vpa = Vm[fp, alpha]
+            d = np.float64(c_alpha[y, x]) - unary_f[y, x]
+            if x + 1 < W:
+                w = wx[y, x]
+                fq = f[y, x + 1]
+                a = w * Vm[fp, fq]
+                cq = w * Vm[fq, alpha]
+                d += cq - a
+                cap = w * vpa + cq - a
+                capx[y, x] = cap if cap > 0.0 else 0.0
+            if x > 0:
+                d -= wx[y, x - 1] * vpa
+            if y + 1 < H:
+                w = wy[y, x]
+                fq = f[y + 1, x]
+                a = w * Vm[fp, fq]
+                cq = w * Vm[fq, alpha]
+                d += cq - a
+                cap = w * vpa + cq - a
+                capy[y, x] = cap if cap > 0.0 else 0.0
+            if y > 0:
+                d -= wy[y - 1, x] * vpa
+            du[y, x] = d

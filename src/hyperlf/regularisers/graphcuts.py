@@ -197,8 +197,19 @@ def _move_terms(c, alpha, f, unary_f, Vm, wx, wy, capx, capy):
     """The expansion move for ``alpha`` as if every pixel were a variable (graphcut's Notes).
 
     Returns ``du`` = cost(switch) - cost(stay) per pixel; writes the pairwise capacities of the
-    right and down pairs into ``capx`` and ``capy``.
+    right and down pairs into ``capx`` and ``capy``.  The numba kernel
+    :func:`hyperlf.regularisers._kernels.expansion_terms`; :func:`_move_terms_numpy` is its
+    reference, bit for bit.
     """
+    from . import _kernels
+
+    du = np.empty(f.shape, dtype=np.float64)
+    _kernels.expansion_terms(c[alpha], int(alpha), f, unary_f, Vm, wx, wy, du, capx, capy)
+    return du
+
+
+def _move_terms_numpy(c, alpha, f, unary_f, Vm, wx, wy, capx, capy):
+    """The numpy reference of :func:`_move_terms`."""
     H, W = f.shape
     u1 = c[alpha].astype(np.float64)       # cost of x_p = 1 (take alpha)
     du = u1 - unary_f                        # cost(1) - cost(0)
