@@ -131,13 +131,32 @@ def test_optimise_coarse_to_fine_graphcut(rng):
     assert not np.array_equal(res.labels, plain)
 
 
+def test_optimise_starts_graph_cuts_from_init(rng):
+    """``init`` is graph cuts' starting labelling: with no cycles it comes back unchanged, and
+    with some it gives exactly :func:`graphcut`'s answer from the same start."""
+    c = rng.random((6, 20, 24)).astype(np.float32)
+    init = rng.integers(0, 6, (20, 24)).astype(np.int32)
+    none = R.optimise(c, R.GraphCutParams(weight=0.3, max_cycles=0), init=init)
+    np.testing.assert_array_equal(none.labels, init)
+    res = R.optimise(c, R.GraphCutParams(weight=0.3, max_cycles=1), init=init)
+    np.testing.assert_array_equal(res.labels, R.graphcut(c, weight=0.3, max_cycles=1, init=init))
+    tie = np.zeros((2, 5, 7), np.float32)  # a tie: no move lowers the energy, the start stays
+    ones = np.ones((5, 7), np.int32)
+    assert (R.optimise(tie, R.GraphCutParams(), init=ones).labels == 1).all()
+    assert (R.optimise(tie, R.GraphCutParams()).labels == 0).all()
+
+
 def test_optimise_rejects_what_it_cannot_use(volume):
     H, W = volume.shape[1:]
     ew = (np.ones((H, W - 1)), np.ones((H - 1, W)))
-    with pytest.raises(InvalidInputError, match="edge_weights are a graph-cut option"):
-        R.optimise(volume, R.SGMParams(), edge_weights=ew)
-    with pytest.raises(InvalidInputError, match="levels=0"):
-        R.optimise(volume, R.GraphCutParams(levels=1), edge_weights=ew)
+    init = np.zeros((H, W), np.int32)
+    for kw in (dict(edge_weights=ew), dict(init=init)):
+        name = next(iter(kw))
+        for p in (R.SGMParams(), R.WTAParams()):
+            with pytest.raises(InvalidInputError, match=f"{name} is a graph-cut option"):
+                R.optimise(volume, p, **kw)
+        with pytest.raises(InvalidInputError, match=f"{name} is an option of .*levels=0"):
+            R.optimise(volume, R.GraphCutParams(levels=1), **kw)
     with pytest.raises(InvalidInputError, match="params must be one of"):
         R.optimise(volume, {"p1": 1.0})
     with pytest.raises(InvalidInputError, match="NaN"):

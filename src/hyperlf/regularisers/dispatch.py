@@ -32,25 +32,26 @@ class OptimiseResult:
     volume: np.ndarray
 
 
-def _run_wta(volume, params, guide, labels, edge_weights, progress):
+def _run_wta(volume, params, guide, labels, edge_weights, init, progress):
     return wta(volume), volume
 
 
-def _run_sgm(volume, params: SGMParams, guide, labels, edge_weights, progress):
+def _run_sgm(volume, params: SGMParams, guide, labels, edge_weights, init, progress):
     vol = sgm(volume, params.p1, params.p2, paths=params.paths,
               guide=guide if params.adaptive_p2 else None, impl=params.impl,
               smoothness=params.smoothness, guide_scale=params.guide_scale)
     return wta(vol), vol
 
 
-def _run_graphcut(volume, params: GraphCutParams, guide, labels, edge_weights, progress):
+def _run_graphcut(volume, params: GraphCutParams, guide, labels, edge_weights, init, progress):
     common = dict(smoothness=params.smoothness, weight=params.weight,
                   truncation=params.truncation, guide=guide, edge_sigma=params.edge_sigma,
                   max_cycles=params.max_cycles, labels=labels, progress=bool(progress) or None)
     if params.levels == 0:
-        return graphcut(volume, edge_weights=edge_weights, **common), volume
-    if edge_weights is not None:
-        raise InvalidInputError("edge_weights need plain graph cuts (GraphCutParams levels=0)")
+        return graphcut(volume, edge_weights=edge_weights, init=init, **common), volume
+    for name, given in (("edge_weights", edge_weights), ("init", init)):
+        if given is not None:
+            raise InvalidInputError(f"{name} is an option of plain graph cuts (GraphCutParams levels=0)")
     f = graphcut_multiscale(volume, levels=params.levels, band=params.band,
                             radius=params.radius, min_size=params.min_size, **common)
     return f, volume
@@ -59,7 +60,7 @@ def _run_graphcut(volume, params: GraphCutParams, guide, labels, edge_weights, p
 _RUNNERS = {WTAParams: _run_wta, SGMParams: _run_sgm, GraphCutParams: _run_graphcut}
 
 
-def optimise(volume, params, *, guide=None, labels=None, edge_weights=None,
+def optimise(volume, params, *, guide=None, labels=None, edge_weights=None, init=None,
              progress: bool = False) -> OptimiseResult:
     """Choose one label per pixel of a cost volume with the optimiser ``params`` describes.
 
@@ -76,6 +77,10 @@ def optimise(volume, params, *, guide=None, labels=None, edge_weights=None,
         Disparity of each label (default ``0..L-1``), for graph cuts' truncated-linear term.
     edge_weights : (wx (H, W-1), wy (H-1, W)), optional
         Extra pairwise factors; plain graph cuts only.
+    init : array_like of int, shape (H, W), optional
+        The label map plain graph cuts start from (default: winner-takes-all), e.g. an earlier
+        solution of a similar volume; with few ``max_cycles`` it then only moves what the new
+        volume changes.
     progress : bool
         A progress bar over graph-cut expansion moves.
 
@@ -87,8 +92,8 @@ def optimise(volume, params, *, guide=None, labels=None, edge_weights=None,
     Raises
     ------
     InvalidInputError
-        ``params`` is not an optimiser's parameters, ``edge_weights`` with an optimiser that
-        has no pairwise weights, or any error of the optimiser itself.
+        ``params`` is not an optimiser's parameters, ``edge_weights`` or ``init`` with an
+        optimiser other than plain graph cuts, or any error of the optimiser itself.
 
     See Also
     --------
@@ -109,7 +114,8 @@ def optimise(volume, params, *, guide=None, labels=None, edge_weights=None,
         raise InvalidInputError(
             f"params must be one of {', '.join(c.__name__ for c in OPTIMISERS.values())}, "
             f"got {type(params).__name__}")
-    if edge_weights is not None and not isinstance(params, GraphCutParams):
-        raise InvalidInputError(f"edge_weights are a graph-cut option, not {params.name}'s")
-    f, vol = run(volume, params, guide, labels, edge_weights, progress)
+    for name, given in (("edge_weights", edge_weights), ("init", init)):
+        if given is not None and not isinstance(params, GraphCutParams):
+            raise InvalidInputError(f"{name} is a graph-cut option, not {params.name}'s")
+    f, vol = run(volume, params, guide, labels, edge_weights, init, progress)
     return OptimiseResult(labels=f, volume=vol)
