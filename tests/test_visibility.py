@@ -321,25 +321,69 @@ def test_depth_command_takes_the_visibility_option(tmp_path, capsys):
     assert info.value.code == 2 and "--visibility-rounds" in capsys.readouterr().err
 
 
-def test_visibility_rounds_default_to_one_on_large_images():
+def test_visibility_rounds_default_to_two_on_large_images():
+    from hyperlf.hlf import DEFAULT_ROUNDS
+
+    assert DEFAULT_ROUNDS == 2
     dense = synthesis.procedural_scene(seed=0, rows=4, cols=4, height=40, width=48)
     sparse = synthesis.procedural_scene(seed=0, rows=3, cols=3, height=40, width=48)
     small = DepthParams(visibility_min_size=40)  # these images count as large enough
-    assert prepare(dense, n_labels=8, params=small).visibility_rounds == 1
+    assert prepare(dense, n_labels=8, params=small).visibility_rounds == 2
     assert prepare(dense, n_labels=8).visibility_rounds == 0  # 40 px < 256 px
-    # since the per-hypothesis test, a sparse array gets its round too (BENCHMARKS.md)
-    assert prepare(sparse, n_labels=8, params=small).visibility_rounds == 1
+    # since the per-hypothesis test, a sparse array gets its rounds too (BENCHMARKS.md)
+    assert prepare(sparse, n_labels=8, params=small).visibility_rounds == 2
     assert prepare(sparse, n_labels=8).visibility_rounds == 0
-    two = DepthParams(visibility_rounds=2)
-    assert prepare(sparse, n_labels=8, params=two).visibility_rounds == 2
+    one = DepthParams(visibility_rounds=1)
+    assert prepare(sparse, n_labels=8, params=one).visibility_rounds == 1
+    # a second round only where the first round's costs can be kept (5 bytes per entry):
+    # computed again it costs most of a pass; the memory budget decides nothing
+    need = 5 * 15 * 8 * 40 * 48
+    for keep, budget, rounds in ((need, None, 2), (need - 1, None, 1), (need, 1e6, 2)):
+        p = DepthParams(visibility_min_size=40, reuse_memory=keep, max_memory=budget)
+        assert prepare(dense, n_labels=8, params=p).visibility_rounds == rounds
     res = depth(dense, n_labels=8, params=small)
-    assert res.config["visibility_rounds"] == 1 and res.config["visibility_estimate_scale"] == 2
-    assert not res.config["visibility_costs_kept"]  # no later round needs them
-    same = depth(dense, n_labels=8, params=DepthParams(visibility_rounds=1, visibility_scale=2))
+    assert res.config["visibility_rounds"] == 2 and res.config["visibility_estimate_scale"] == 2
+    assert res.config["visibility_costs_kept"]  # for the second round
+    same = depth(dense, n_labels=8, params=DepthParams(visibility_rounds=2, visibility_scale=2,
+                                                        round_cycles=1))
     assert np.array_equal(res.disparity, same.disparity)
-    assert "visibility_estimate_s" in res.timings
+    assert "visibility_estimate_s" in res.timings and "mrf_s_round2" in res.timings
     assert depth(sparse, n_labels=8).config["visibility_estimate_scale"] is None
     assert depth(dense, n_labels=8).config["visibility_rounds"] == 0
+
+
+def test_a_later_round_starts_its_graph_cut_from_the_labels_before(monkeypatch):
+    """The main pass's graph cut starts afresh with ``max_cycles``; each later round from the
+    labels the pass before chose, with ``round_cycles``; None starts every one afresh; SGM
+    takes no start."""
+    from hyperlf import regularisers
+    from hyperlf.hlf import DEFAULT_ROUNDS
+
+    lf = synthesis.procedural_scene(seed=0, rows=3, cols=3, height=40, width=48)
+    calls = []
+    real = regularisers.optimise
+
+    def spy(volume, params, **kw):
+        res = real(volume, params, **kw)
+        if volume.shape[1:] == (40, 48):  # not the half-resolution start's
+            calls.append((getattr(params, "max_cycles", None), kw.get("init"), res.labels))
+        return res
+
+    monkeypatch.setattr(regularisers, "optimise", spy)
+    for cycles in (1, 2, None):
+        calls.clear()
+        depth(lf, n_labels=8, params=DepthParams(visibility_min_size=40, visibility_rounds=3,
+                                                 round_cycles=cycles))
+        assert len(calls) == 3 and DEFAULT_ROUNDS == 2
+        assert calls[0][:2] == (3, None)
+        for before, (n, init, _) in zip(calls, calls[1:]):
+            if cycles is None:
+                assert (n, init) == (3, None)
+            else:
+                assert n == cycles and np.array_equal(init, before[2])
+    calls.clear()
+    depth(lf, n_labels=8, optimizer="sgm", params=DepthParams(visibility_min_size=40))
+    assert len(calls) == 2 and all(init is None for _, init, _ in calls)
 
 
 def test_coarse_disparity_is_the_half_resolution_run_blown_up():

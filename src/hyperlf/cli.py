@@ -1818,10 +1818,11 @@ def _add_depth_parser(sub) -> None:
                         "views that see it there under the previous estimate (sharper depth "
                         "edges; the first round starts from a quick half-resolution run, and "
                         "a further one averages the previous pass's per-view costs again "
-                        "when they fit in memory, else computes them again; default: 1 on "
-                        "images at least 256 px on their shorter side, else 0; 2 sharpens the "
-                        "edges further where a scene has many of them, for about a quarter "
-                        "more time)")
+                        "when they fit in memory, else computes them again, and moves the "
+                        "previous labels with one cycle of graph cuts; default: 2 on images "
+                        "at least 256 px on their shorter side whose costs fit in 3 GB "
+                        "(512 x 512, 64 labels, 30 views), 1 on larger ones, else 0; 1 saves "
+                        "about a sixth of the time where a scene has few depth edges)")
     p.add_argument("--max-memory", type=_memory_arg, default=None, metavar="SIZE",
                    help="memory budget of the hlf method, e.g. 6G or 512M (default 16G, which "
                         "leaves room on a 24 GB machine, or the memory available now when that "

@@ -122,9 +122,9 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
 
 6. **Post-filter**: the guided weighted median (:func:`post_filter`).
 
-7. **Visibility-aware re-matching** (SPEC §5.6, ``params.visibility_rounds``; default 1 round
-   on images at least ``params.visibility_min_size`` px on their shorter side, none on
-   smaller ones): the
+7. **Visibility-aware re-matching** (SPEC §5.6, ``params.visibility_rounds``; default
+   :data:`DEFAULT_ROUNDS` rounds on images at least ``params.visibility_min_size`` px on
+   their shorter side, none on smaller ones): the
    disparity so far is forward-warped into every view (z-buffer,
    :func:`hyperlf.warp.occlusion_zbuffer`), each view counts only at the reference pixels
    and candidate disparities at which it sees them (:class:`LabelVisibility`; with
@@ -134,7 +134,8 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
    The first round starts from a quick depth run at half resolution
    (:func:`coarse_disparity`), so that one round costs about 1/8 of a pass more than none.
    A further round averages the kept per-view costs of the pass before again
-   (:class:`ViewCostStore`, when they fit in ``params.reuse_memory``) and runs stages 4-6.
+   (:class:`ViewCostStore`, when they fit in ``params.reuse_memory``) and runs stages 4-6,
+   its graph cut starting from the labels of the pass before (``params.round_cycles``).
 
 Defaults
 --------
@@ -193,6 +194,7 @@ __all__ = [
     "LabelVisibility",
     "visibility",
     "VISIBILITY_TESTS",
+    "DEFAULT_ROUNDS",
     "make_labels",
     "view_costs",
     "shift_map",
@@ -215,6 +217,10 @@ DEFOCUS_MODES = ("off", "paper", "gaussian", "flat", "tv")
 #: (``DepthParams.visibility_test``): at every candidate disparity (:class:`LabelVisibility`)
 #: or at the current estimate's only (:func:`visible_views`).
 VISIBILITY_TESTS = ("hypothesis", "estimate")
+#: Visibility rounds on images at least ``DepthParams.visibility_min_size`` px on their
+#: shorter side, when ``DepthParams.visibility_rounds`` is None (BENCHMARKS.md, thirty-eighth
+#: session).
+DEFAULT_ROUNDS = 2
 OPTIMIZERS = tuple(_reg.OPTIMISERS)
 #: The costs available for H-LF matching (those of the registry with a light-field evaluator;
 #: :func:`hyperlf.costs.cost_names` with ``light_field=True`` is the live list).
@@ -266,10 +272,17 @@ class DepthParams:
     per baseline, asked at every candidate disparity (``visibility_test="hypothesis"``, the
     default, :class:`LabelVisibility`) or at the estimate's own (``"estimate"``,
     :func:`visible_views`); a pixel (or pixel and disparity) seen by fewer than
-    ``min_visible_views`` other views keeps them all.  None (the default): 1 on images at
-    least ``visibility_min_size`` (256) px on their shorter side, else 0 (on small images the
+    ``min_visible_views`` other views keeps them all.  None (the default):
+    :data:`DEFAULT_ROUNDS` (2) on images at least ``visibility_min_size`` (256) px on their
+    shorter side whose pass's costs fit in ``reuse_memory`` (below), 1 on larger captures,
+    else 0 (on small images the
     first estimate is too rough near edges; until the per-hypothesis test, arrays with fewer
     than ``dense_views`` other views had none either: BENCHMARKS.md); 0 = off.
+    ``round_cycles`` (1; None = afresh): the graph cut of a round after the main pass starts
+    from the labels of the pass before it and runs this many cycles of alpha-expansion
+    (``max_cycles`` is the main pass's), instead of starting afresh from winner-takes-all;
+    only what the new visibility changes has to move (plain graph cuts, ``mrf_levels`` 0;
+    SGM has no start).
     ``visibility_scale`` (2): the estimate that the first round starts from is a whole depth
     run on the light field downscaled by this factor (:func:`coarse_disparity`, about 1/8 of
     the work at 2), instead of a full-resolution pass (1); it is used where both downscaled
@@ -280,8 +293,9 @@ class DepthParams:
     validity; 512 x 512, 64 labels, 30 views: 2.4 GB) and in half the ``max_memory``
     budget, they are kept and the round only averages them again over the views that now
     see each sample (:class:`ViewCostStore`), else it computes them again: the same maps,
-    only slower (what a second round costs either way: BENCHMARKS.md, thirty-seventh
-    session).
+    only slower (what a second round costs either way: BENCHMARKS.md, thirty-seventh and
+    thirty-eighth sessions).  The default number of rounds follows ``reuse_memory``
+    alone, so ``max_memory`` changes no map.
     Textureless regions: ``texture_snr`` (None, the default: 2 for a capture made from camera
     images by ``hyperlf ingest``, i.e. with ``"calibration"`` metadata, else off; 0 = off;
     else > 1) and ``texture_window`` (5 px):
@@ -372,6 +386,7 @@ class DepthParams:
     missing_views: str = "average"
     unseen_labels: str = "share"
     visibility_rounds: int | None = None
+    round_cycles: int | None = 1
     visibility_scale: int = 2
     reuse_memory: float = 3e9
     visibility_min_size: int = 256
@@ -457,11 +472,11 @@ class DepthParams:
         pos("occlusion_weight", self.occlusion_weight, True)
         if int(self.min_selected) < 1:
             raise InvalidInputError(f"params.min_selected must be >= 1, got {self.min_selected!r}")
-        for name, low in (("visibility_rounds", 0), ("min_visible_views", 1), ("dense_views", 1),
-                          ("visibility_scale", 1), ("visibility_min_size", 1),
+        for name, low in (("visibility_rounds", 0), ("round_cycles", 1), ("min_visible_views", 1),
+                          ("dense_views", 1), ("visibility_scale", 1), ("visibility_min_size", 1),
                           ("coarse_prior_scale", 2), ("coarse_prior_levels", 1)):
             v = getattr(self, name)
-            if v is None and name == "visibility_rounds":
+            if v is None and name in ("visibility_rounds", "round_cycles"):
                 continue
             if isinstance(v, bool) or int(v) != v or v < low:
                 raise InvalidInputError(f"params.{name} must be an integer >= {low}, got {v!r}")
@@ -1129,8 +1144,7 @@ class DepthProblem:
         The correspondence window (:func:`hyperlf.costs.light_field_window`; None: the
         cost's own).
     visibility_rounds : int
-        ``params.visibility_rounds`` resolved (None: 1 on images at least
-        ``params.visibility_min_size`` px on their shorter side, else 0).
+        ``params.visibility_rounds`` resolved (None: :func:`_default_rounds`).
     every_label : dict or None
         With ``params.missing_views="common"``: per other view, the reference pixels where it
         counts (:func:`views_at_every_label`); else None.
@@ -1310,9 +1324,8 @@ def prepare(lf, *, disparity_range=None, n_labels: int = 64, metric: str = "auto
             for v in views}, valid=masks)
     prob.window = light_field_window(mname, len(prob.others), window=params.window,
                                      dense_views=params.dense_views)
-    big = min(lf.image_shape) >= int(params.visibility_min_size)
-    prob.visibility_rounds = int(big if params.visibility_rounds is None
-                                 else params.visibility_rounds)
+    prob.visibility_rounds = _default_rounds(prob) if params.visibility_rounds is None \
+        else int(params.visibility_rounds)
     # every view's map only for the selection; without it the reference's alone
     prob.Mn = _selection_maps(prob.In if view_selection else {ref: prob.In[ref]},
                               params.selection_normalise, masks)
@@ -1323,6 +1336,18 @@ def prepare(lf, *, disparity_range=None, n_labels: int = 64, metric: str = "auto
     if params.missing_views == "common":
         prob.every_label = views_at_every_label(prob)
     return prob
+
+
+def _default_rounds(prob: DepthProblem) -> int:
+    """``params.visibility_rounds`` None: none on images under ``visibility_min_size`` px on
+    their shorter side; :data:`DEFAULT_ROUNDS` where one pass's costs fit in
+    ``reuse_memory`` (the later rounds then only average them again: a budget never decides
+    it); else 1, as a further round would compute every cost again."""
+    p = prob.params
+    if min(prob.lf.image_shape) < int(p.visibility_min_size):
+        return 0
+    cheap = ViewCostStore.bytes_needed(prob) <= float(p.reuse_memory)
+    return DEFAULT_ROUNDS if cheap else 1
 
 
 def views_at_every_label(prob: DepthProblem) -> dict:
@@ -2026,8 +2051,12 @@ def _coverage(prob: DepthProblem, levels) -> np.ndarray:
     return g
 
 
-def regularise(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray):
+def regularise(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray, *, init=None):
     """Stage 4c of :func:`depth`: optimise the MRF on ``U`` (SPEC §5.4).
+
+    ``init``: the label map of the pass before, for a visibility round's plain graph cuts to
+    start from (``params.round_cycles`` cycles; ignored when that is None, and by other
+    optimisers).
 
     Returns
     -------
@@ -2045,7 +2074,12 @@ def regularise(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray):
     if isinstance(mrf, _reg.GraphCutParams) and p.occlusion_weight != 1.0 and prob.edges.any():
         ew = _occlusion_edge_weights(prob.edges, f_c, p.truncation / 2.0, p.occlusion_weight)
         mrf = replace(mrf, levels=0)  # explicit edge weights need the plain moves
-    res = _reg.optimise(U, mrf, guide=guide, labels=labels, edge_weights=ew)
+    warm = init is not None and p.round_cycles is not None \
+        and isinstance(mrf, _reg.GraphCutParams) and mrf.levels == 0
+    if warm:
+        mrf = replace(mrf, max_cycles=int(p.round_cycles))
+    res = _reg.optimise(U, mrf, guide=guide, labels=labels, edge_weights=ew,
+                        init=init if warm else None)
     return res.labels, res.volume
 
 
@@ -2194,14 +2228,14 @@ class _Clock:
 
 
 def _solve(prob: DepthProblem, C, D, seen, f_c, w, prior, clock, passes: int,
-           suffix: str = ""):
+           suffix: str = "", init=None):
     """Stages 4-6 of :func:`depth` on one correspondence volume: unary (with the coarse
-    prior), MRF, refinement and the post-filter.  Returns ``(U, scale_C, scale_D, disparity,
-    confidence)``."""
+    prior), MRF (from the labels ``init`` of the pass before, if any), refinement and the
+    post-filter.  Returns ``(U, scale_C, scale_D, disparity, confidence, labels)``."""
     U, sC, sD = unary(C, D, prob.params, informative=seen, weight=w)
     if prior is not None:
         add_coarse_prior(U, prob.labels, *prior[:3])
-    lab, vol = regularise(prob, U, f_c)
+    lab, vol = regularise(prob, U, f_c, init=init)
     clock.lap("mrf_s" + suffix)
     disp, conf = refine(vol, lab, prob.labels, prob.params, informative=seen, weight=w,
                         prior=prior if vol is U else None)  # graph cuts: vol is U
@@ -2213,7 +2247,7 @@ def _solve(prob: DepthProblem, C, D, seen, f_c, w, prior, clock, passes: int,
     disp = post_filter(disp, prob.In[prob.reference].astype(np.float32), prob.params,
                        passes=passes)
     clock.lap("median_s" + suffix)
-    return U, sC, sD, disp, conf
+    return U, sC, sD, disp, conf, lab
 
 
 def _visibility_start(prob: DepthProblem, clock: _Clock, progress):
@@ -2321,7 +2355,7 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
     clock.lap("defocus_s")
     passes, blur = median_passes(prob.In[prob.reference], prob.params,
                                  valid=None if prob.valid is None else prob.valid[prob.reference])
-    U, sC, sD, disp, conf = _solve(prob, C, D, seen, f_c, w, prior, clock, passes)
+    U, sC, sD, disp, conf, lab = _solve(prob, C, D, seen, f_c, w, prior, clock, passes)
     for k in range(first + 1, first + rounds + 1):
         sees = visibility(prob, disp)
         C = U = None  # the new round's volumes replace them: not both at once
@@ -2332,8 +2366,8 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
         seen, n_used = seen_pixels(prob, n_used), (n_used if save_intermediate else None)
         f_c = prob.labels[np.argmin(C, axis=0)].astype(np.float32)
         clock.lap(f"visibility_round{k}_correspondence_s")
-        U, sC, sD, disp, conf = _solve(prob, C, D, seen, f_c, w, prior, clock, passes,
-                                       suffix=f"_round{k}")
+        U, sC, sD, disp, conf, lab = _solve(prob, C, D, seen, f_c, w, prior, clock, passes,
+                                            suffix=f"_round{k}", init=lab)
     timings["total_s"] = time.perf_counter() - t0
     inter = None
     if save_intermediate:
