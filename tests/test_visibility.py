@@ -321,33 +321,33 @@ def test_depth_command_takes_the_visibility_option(tmp_path, capsys):
     assert info.value.code == 2 and "--visibility-rounds" in capsys.readouterr().err
 
 
-def test_visibility_rounds_default_to_two_on_large_images():
+def test_visibility_rounds_default_to_three_on_large_images():
     from hyperlf.hlf import DEFAULT_ROUNDS
 
-    assert DEFAULT_ROUNDS == 2
+    assert DEFAULT_ROUNDS == 3
     dense = synthesis.procedural_scene(seed=0, rows=4, cols=4, height=40, width=48)
     sparse = synthesis.procedural_scene(seed=0, rows=3, cols=3, height=40, width=48)
     small = DepthParams(visibility_min_size=40)  # these images count as large enough
-    assert prepare(dense, n_labels=8, params=small).visibility_rounds == 2
+    assert prepare(dense, n_labels=8, params=small).visibility_rounds == 3
     assert prepare(dense, n_labels=8).visibility_rounds == 0  # 40 px < 256 px
     # since the per-hypothesis test, a sparse array gets its rounds too (BENCHMARKS.md)
-    assert prepare(sparse, n_labels=8, params=small).visibility_rounds == 2
+    assert prepare(sparse, n_labels=8, params=small).visibility_rounds == 3
     assert prepare(sparse, n_labels=8).visibility_rounds == 0
     one = DepthParams(visibility_rounds=1)
     assert prepare(sparse, n_labels=8, params=one).visibility_rounds == 1
-    # a second round only where the first round's costs can be kept (5 bytes per entry):
-    # computed again it costs most of a pass; the memory budget decides nothing
+    # further rounds only where the first round's costs can be kept (5 bytes per entry):
+    # computed again they cost most of a pass each; the memory budget decides nothing
     need = 5 * 15 * 8 * 40 * 48
-    for keep, budget, rounds in ((need, None, 2), (need - 1, None, 1), (need, 1e6, 2)):
+    for keep, budget, rounds in ((need, None, 3), (need - 1, None, 1), (need, 1e6, 3)):
         p = DepthParams(visibility_min_size=40, reuse_memory=keep, max_memory=budget)
         assert prepare(dense, n_labels=8, params=p).visibility_rounds == rounds
     res = depth(dense, n_labels=8, params=small)
-    assert res.config["visibility_rounds"] == 2 and res.config["visibility_estimate_scale"] == 2
-    assert res.config["visibility_costs_kept"]  # for the second round
-    same = depth(dense, n_labels=8, params=DepthParams(visibility_rounds=2, visibility_scale=2,
+    assert res.config["visibility_rounds"] == 3 and res.config["visibility_estimate_scale"] == 2
+    assert res.config["visibility_costs_kept"]  # for the later rounds
+    same = depth(dense, n_labels=8, params=DepthParams(visibility_rounds=3, visibility_scale=2,
                                                         round_cycles=1))
     assert np.array_equal(res.disparity, same.disparity)
-    assert "visibility_estimate_s" in res.timings and "mrf_s_round2" in res.timings
+    assert "visibility_estimate_s" in res.timings and "mrf_s_round3" in res.timings
     assert depth(sparse, n_labels=8).config["visibility_estimate_scale"] is None
     assert depth(dense, n_labels=8).config["visibility_rounds"] == 0
 
@@ -355,9 +355,8 @@ def test_visibility_rounds_default_to_two_on_large_images():
 def test_a_later_round_starts_its_graph_cut_from_the_labels_before(monkeypatch):
     """The main pass's graph cut starts afresh with ``max_cycles``; each later round from the
     labels the pass before chose, with ``round_cycles``; None starts every one afresh; SGM
-    takes no start."""
+    and coarse-to-fine graph cuts take no start."""
     from hyperlf import regularisers
-    from hyperlf.hlf import DEFAULT_ROUNDS
 
     lf = synthesis.procedural_scene(seed=0, rows=3, cols=3, height=40, width=48)
     calls = []
@@ -372,18 +371,20 @@ def test_a_later_round_starts_its_graph_cut_from_the_labels_before(monkeypatch):
     monkeypatch.setattr(regularisers, "optimise", spy)
     for cycles in (1, 2, None):
         calls.clear()
-        depth(lf, n_labels=8, params=DepthParams(visibility_min_size=40, visibility_rounds=3,
-                                                 round_cycles=cycles))
-        assert len(calls) == 3 and DEFAULT_ROUNDS == 2
+        depth(lf, n_labels=8, params=DepthParams(visibility_min_size=40, round_cycles=cycles))
+        assert len(calls) == 3
         assert calls[0][:2] == (3, None)
         for before, (n, init, _) in zip(calls, calls[1:]):
             if cycles is None:
                 assert (n, init) == (3, None)
             else:
                 assert n == cycles and np.array_equal(init, before[2])
-    calls.clear()
-    depth(lf, n_labels=8, optimizer="sgm", params=DepthParams(visibility_min_size=40))
-    assert len(calls) == 2 and all(init is None for _, init, _ in calls)
+    for options in (dict(optimizer="sgm"), dict(params=DepthParams(visibility_min_size=40,
+                                                                   mrf_levels=1))):
+        calls.clear()
+        options.setdefault("params", DepthParams(visibility_min_size=40))
+        depth(lf, n_labels=8, **options)
+        assert len(calls) == 3 and all(init is None for _, init, _ in calls)
 
 
 def test_coarse_disparity_is_the_half_resolution_run_blown_up():

@@ -1819,7 +1819,7 @@ def _add_depth_parser(sub) -> None:
                         "edges; the first round starts from a quick half-resolution run, and "
                         "a further one averages the previous pass's per-view costs again "
                         "when they fit in memory, else computes them again, and moves the "
-                        "previous labels with one cycle of graph cuts; default: 2 on images "
+                        "previous labels with one cycle of graph cuts; default: 3 on images "
                         "at least 256 px on their shorter side whose costs fit in 3 GB "
                         "(512 x 512, 64 labels, 30 views), 1 on larger ones, else 0; 1 saves "
                         "about a sixth of the time where a scene has few depth edges)")

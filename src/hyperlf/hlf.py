@@ -220,7 +220,7 @@ VISIBILITY_TESTS = ("hypothesis", "estimate")
 #: Visibility rounds on images at least ``DepthParams.visibility_min_size`` px on their
 #: shorter side, when ``DepthParams.visibility_rounds`` is None (BENCHMARKS.md, thirty-eighth
 #: session).
-DEFAULT_ROUNDS = 2
+DEFAULT_ROUNDS = 3
 OPTIMIZERS = tuple(_reg.OPTIMISERS)
 #: The costs available for H-LF matching (those of the registry with a light-field evaluator;
 #: :func:`hyperlf.costs.cost_names` with ``light_field=True`` is the live list).
@@ -273,7 +273,7 @@ class DepthParams:
     default, :class:`LabelVisibility`) or at the estimate's own (``"estimate"``,
     :func:`visible_views`); a pixel (or pixel and disparity) seen by fewer than
     ``min_visible_views`` other views keeps them all.  None (the default):
-    :data:`DEFAULT_ROUNDS` (2) on images at least ``visibility_min_size`` (256) px on their
+    :data:`DEFAULT_ROUNDS` (3) on images at least ``visibility_min_size`` (256) px on their
     shorter side whose pass's costs fit in ``reuse_memory`` (below), 1 on larger captures,
     else 0 (on small images the
     first estimate is too rough near edges; until the per-hypothesis test, arrays with fewer
