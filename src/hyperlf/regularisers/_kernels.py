@@ -135,6 +135,16 @@ def plane_scores(P, dx, dy, A, B, c, min_inside, out):  # pragma: no cover - num
                 out[i, j, k] = s / m if m >= min_inside and m > 0 else np.inf
 
 
+@numba.njit(cache=True, inline="always")
+def _pair_terms(w, v_pq, v_qa, v_pa):  # pragma: no cover - numba
+    """A pair's share of ``du[p]`` and its capacity (clipped at 0): with ``A = w V(f_p, f_q)``,
+    ``B = w V(f_p, alpha)``, ``C = w V(f_q, alpha)``, ``C - A`` and ``B + C - A``."""
+    a = w * v_pq
+    c = w * v_qa
+    cap = w * v_pa + c - a
+    return c - a, (cap if cap > 0.0 else 0.0)
+
+
 @numba.njit(parallel=True, cache=True, fastmath=False)
 def expansion_terms(c_alpha, alpha, f, unary_f, Vm, wx, wy, du, capx, capy):  # pragma: no cover
     """One alpha-expansion move's terms into ``du``, ``capx`` and ``capy`` (float64 (H, W)):
@@ -146,23 +156,15 @@ def expansion_terms(c_alpha, alpha, f, unary_f, Vm, wx, wy, du, capx, capy):  # 
             vpa = Vm[fp, alpha]
             d = np.float64(c_alpha[y, x]) - unary_f[y, x]
             if x + 1 < W:
-                w = wx[y, x]
                 fq = f[y, x + 1]
-                a = w * Vm[fp, fq]
-                cq = w * Vm[fq, alpha]
-                d += cq - a
-                cap = w * vpa + cq - a
-                capx[y, x] = cap if cap > 0.0 else 0.0
+                share, capx[y, x] = _pair_terms(wx[y, x], Vm[fp, fq], Vm[fq, alpha], vpa)
+                d += share
             if x > 0:
                 d -= wx[y, x - 1] * vpa
             if y + 1 < H:
-                w = wy[y, x]
                 fq = f[y + 1, x]
-                a = w * Vm[fp, fq]
-                cq = w * Vm[fq, alpha]
-                d += cq - a
-                cap = w * vpa + cq - a
-                capy[y, x] = cap if cap > 0.0 else 0.0
+                share, capy[y, x] = _pair_terms(wy[y, x], Vm[fp, fq], Vm[fq, alpha], vpa)
+                d += share
             if y > 0:
                 d -= wy[y - 1, x] * vpa
             du[y, x] = d
