@@ -209,9 +209,11 @@ def test_hypothesis_visibility_gives_a_fattened_edge_back_to_the_background(scen
                                  {"visibility_scale": 1.5}, {"visibility_scale": True},
                                  {"visibility_margin": float("nan")},
                                  {"visibility_test": "zbuffer"}, {"reuse_memory": -1.0},
-                                 {"reuse_memory": float("inf")}, {"reuse_memory": "3G"}])
+                                 {"reuse_memory": float("inf")}, {"reuse_memory": "3G"},
+                                 {"round_cycles": 0}, {"round_cycles": 1.5},
+                                 {"round_cycles": True}])
 def test_depth_params_check_the_visibility_options(bad):
-    with pytest.raises(InvalidInputError, match="visibility|visible|reuse_memory"):
+    with pytest.raises(InvalidInputError, match="visibility|visible|reuse_memory|round_cycles"):
         DepthParams(**bad)
 
 

@@ -217,9 +217,9 @@ DEFOCUS_MODES = ("off", "paper", "gaussian", "flat", "tv")
 #: (``DepthParams.visibility_test``): at every candidate disparity (:class:`LabelVisibility`)
 #: or at the current estimate's only (:func:`visible_views`).
 VISIBILITY_TESTS = ("hypothesis", "estimate")
-#: Visibility rounds on images at least ``DepthParams.visibility_min_size`` px on their
-#: shorter side, when ``DepthParams.visibility_rounds`` is None (BENCHMARKS.md, thirty-eighth
-#: session).
+#: Visibility rounds when ``DepthParams.visibility_rounds`` is None, on images at least
+#: ``DepthParams.visibility_min_size`` px on their shorter side whose costs can be kept
+#: (:func:`_default_rounds`; BENCHMARKS.md, thirty-eighth session).
 DEFAULT_ROUNDS = 3
 OPTIMIZERS = tuple(_reg.OPTIMISERS)
 #: The costs available for H-LF matching (those of the registry with a light-field evaluator;
