@@ -105,9 +105,10 @@ ABLATIONS = {
     "bwncc_paper": ({"metric": "bwncc-paper"}, "cost bwncc-paper"),
     "no_median": ({"params": DepthParams(median_radius=0)}, "without the weighted-median post-filter"),
     "visibility": ({"params": DepthParams(visibility_rounds=1)},
-                   "+ visibility-aware re-matching, 1 round (§5.6)"),
+                   "visibility-aware re-matching, 1 round (§5.6; the default before "
+                   "2026-11-29)"),
     "visibility2": ({"params": DepthParams(visibility_rounds=2)},
-                    "+ visibility-aware re-matching, 2 rounds (§5.6)"),
+                    "visibility-aware re-matching, 2 rounds (§5.6)"),
     "no_visibility": ({"params": DepthParams(visibility_rounds=0)},
                       "without visibility-aware re-matching (§5.6)"),
     "visibility_estimate": ({"params": DepthParams(visibility_test="estimate")},
