@@ -5,8 +5,8 @@ import pytest
 
 from hyperlf import synthesis
 from hyperlf.errors import InvalidInputError
-from hyperlf.hlf import (DepthParams, correspondence, defocus_cue, depth, post_filter, prepare,
-                         refine, regularise, unary)
+from hyperlf.hlf import (DepthParams, correspondence, defocus_cue, depth, edge_discount,
+                         post_filter, prepare, refine, regularise, unary)
 
 
 @pytest.fixture(scope="module")
@@ -28,6 +28,7 @@ def test_stages_compose_to_depth(lf, kw):
     lab, vol = regularise(prob, U, f_c)
     disp, conf = refine(vol, lab, prob.labels, prob.params)
     disp = post_filter(disp, prob.In[prob.reference].astype(np.float32), prob.params)
+    conf = edge_discount(conf, disp, prob.params)
     np.testing.assert_array_equal(disp, res.disparity)
     np.testing.assert_array_equal(conf, res.confidence)
     np.testing.assert_array_equal(f_c, res.f_c)

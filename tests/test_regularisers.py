@@ -687,3 +687,40 @@ def test_weighted_median_snaps_fattened_edges_and_keeps_ramps():
     out = R.weighted_median(ramp, np.ones((H, W)), 3, 0.05)
     np.testing.assert_allclose(out[3:-3, 3:-3], ramp[3:-3, 3:-3], atol=1e-6)
     assert np.isfinite(R.weighted_median(ramp, tex, 3, 0.05)).all()
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 10_000), width=st.sampled_from([0.5, 2.0, 4.0]),
+       jump=st.sampled_from([0.25, 0.5, 1.5]))
+def test_edge_confidence_is_the_distance_to_the_depth_edges(seed, width, jump):
+    rng = np.random.default_rng(seed)
+    d = np.repeat(np.repeat(rng.integers(0, 3, (4, 5)).astype(float), 4, 0), 3, 1)
+    d += rng.random(d.shape) * 0.1  # noise below every jump
+    H, W = d.shape
+    edge = np.zeros((H, W), bool)
+    for y, x in itertools.product(range(H), range(W)):
+        win = d[max(y - 1, 0):y + 2, max(x - 1, 0):x + 2]
+        edge[y, x] = win.max() - win.min() > jump
+    ys, xs = np.nonzero(edge)
+    out = R.edge_confidence(d, width=width, jump=jump)
+    assert out.dtype == np.float32 and out.shape == d.shape
+    for y, x in itertools.product(range(H), range(W)):
+        dist = np.hypot(ys - y, xs - x).min() if ys.size else np.inf
+        assert out[y, x] == pytest.approx(min(1.0, dist / width), abs=1e-6)
+
+
+def test_edge_confidence_options_and_unknowns():
+    d = np.zeros((5, 6))
+    d[:, 3:] = 1.0
+    np.testing.assert_array_equal(R.edge_confidence(d, width=0), np.ones((5, 6), np.float32))
+    np.testing.assert_array_equal(R.edge_confidence(np.zeros((5, 6))), np.ones((5, 6)))
+    assert (R.edge_confidence(d, jump=2.0) == 1).all()  # the step is below the jump
+    d2 = np.zeros((5, 6))
+    d2[2, 2] = np.nan  # unknown: an edge
+    out = R.edge_confidence(d2, width=2.0)
+    assert out[2, 2] == 0 and out[2, 3] == pytest.approx(0.5) and out[2, 4] == 1
+    for bad in (dict(width=-1), dict(width=np.inf), dict(jump=0), dict(jump="a")):
+        with pytest.raises(InvalidInputError):
+            R.edge_confidence(d, **bad)
+    with pytest.raises(InvalidInputError, match="H, W"):
+        R.edge_confidence(np.zeros(5))

@@ -137,6 +137,11 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
    (:class:`ViewCostStore`, when they fit in ``params.reuse_memory``) and runs stages 4-6,
    its graph cut starting from the labels of the pass before (``params.round_cycles``).
 
+8. **Confidence at depth edges** (:func:`edge_discount`, after the last round): the
+   confidence is scaled by :func:`hyperlf.regularisers.edge_confidence` of the final
+   disparity, 0 on an estimated depth edge and 1 from ``params.confidence_edge_px`` px away.
+   The cost margin does not see the depth edges, where nearly all of the error gathers.
+
 Defaults
 --------
 Every cue of 2-4 has an on/off switch, and a cue that did not lower the error on the tuning
@@ -188,6 +193,7 @@ __all__ = [
     "refine",
     "prior_free_confidence",
     "post_filter",
+    "edge_discount",
     "median_passes",
     "seen_pixels",
     "visible_views",
@@ -362,6 +368,14 @@ class DepthParams:
     the window costs carry the foreground further over the background the softer the image
     is.  Default 0.8 / 0.4 px: sharp and rendered views (0.6-0.85 px) get one pass, views
     blurred by a Gaussian of 1 px two.
+    Confidence: ``confidence_edge_px`` (4 px; 0 = off) and ``confidence_edge_jump`` (0.5
+    disparity units): the result's confidence is scaled by
+    :func:`hyperlf.regularisers.edge_confidence` of the final disparity, 0 on an estimated
+    depth edge (a 3 x 3 neighbourhood spanning more than the jump) rising to 1 at that many
+    px from it.  The cost margin alone does not see depth edges, where nearly all of the
+    error is; with the distance the confidence orders the errors 3-58 % better on the
+    tuning scenes (BENCHMARKS.md, thirty-ninth session).  The disparity does not depend on
+    them.
     ``impl``: ``"auto"``/``"numba"``/``"numpy"`` for the selection and defocus kernels.
     Memory (SPEC §12; results do not depend on them): ``max_memory`` (bytes; None =
     :data:`hyperlf.tiling.DEFAULT_MAX_MEMORY`), the budget by which the correspondence stage is
@@ -428,6 +442,8 @@ class DepthParams:
     median_passes: int | str = "auto"
     median_blur_sharp: float = 0.8
     median_blur_step: float = 0.4
+    confidence_edge_px: float = 4.0
+    confidence_edge_jump: float = 0.5
     impl: str = "auto"
     max_memory: float | None = None
     tile_rows: int | None = None
@@ -527,6 +543,8 @@ class DepthParams:
                 f"params.median_passes must be 'auto' or an integer >= 1, got {mp!r}")
         pos("median_blur_sharp", self.median_blur_sharp, zero=True)
         pos("median_blur_step", self.median_blur_step)
+        pos("confidence_edge_px", self.confidence_edge_px, zero=True)
+        pos("confidence_edge_jump", self.confidence_edge_jump)
         if self.max_memory is not None:
             pos("max_memory", self.max_memory)
         pos("reuse_memory", self.reuse_memory, True)
@@ -590,7 +608,8 @@ class DepthResult:
     confidence : float32 (H, W) in [0, 1] (cost-margin of the optimised volume, without
         the coarse prior's pull under graph cuts; where the texture weight discounted a
         pixel's data term, that share is the coarse prior's confidence instead, or 0
-        without one).
+        without one; scaled down within ``params.confidence_edge_px`` px of the depth
+        edges, :func:`hyperlf.regularisers.edge_confidence`).
     f_c : float32 (H, W), correspondence-only WTA disparity (``argmin_d C``).
     f_d : float32 (H, W) defocus-only WTA disparity, or None when ``defocus="off"``.
     labels : float64 (L,) the disparity of every label.
@@ -2250,6 +2269,18 @@ def _solve(prob: DepthProblem, C, D, seen, f_c, w, prior, clock, passes: int,
     return U, sC, sD, disp, conf, lab
 
 
+def edge_discount(conf: np.ndarray, disparity: np.ndarray, params: DepthParams) -> np.ndarray:
+    """Stage 8 of :func:`depth`: the result's confidence, ``conf`` (:func:`refine`'s) scaled
+    by the distance to the depth edges of the final ``disparity``
+    (:func:`hyperlf.regularisers.edge_confidence` with ``params.confidence_edge_px`` and
+    ``params.confidence_edge_jump``; ``conf`` as it is when the width is 0)."""
+    from .regularisers import edge_confidence
+
+    w = edge_confidence(disparity, width=params.confidence_edge_px,
+                        jump=params.confidence_edge_jump)
+    return (np.asarray(conf, np.float32) * w).astype(np.float32)
+
+
 def _visibility_start(prob: DepthProblem, clock: _Clock, progress):
     """What the visibility rounds of :func:`depth` start from: ``(start, sees, first, rounds,
     store)``, the half-resolution estimate (None without one), its visibility for the main
@@ -2276,7 +2307,7 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
     :func:`prepare` -> :func:`texture_weight` -> :func:`coarse_prior` -> :func:`plane_prior`
     -> :func:`correspondence` -> :func:`defocus_cue` -> :func:`unary` ->
     :func:`add_coarse_prior` -> :func:`regularise` -> :func:`refine` ->
-    :func:`post_filter`.
+    :func:`post_filter` -> :func:`edge_discount`.
 
     Parameters
     ----------
@@ -2368,6 +2399,7 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
         clock.lap(f"visibility_round{k}_correspondence_s")
         U, sC, sD, disp, conf, lab = _solve(prob, C, D, seen, f_c, w, prior, clock, passes,
                                             suffix=f"_round{k}", init=lab)
+    conf = edge_discount(conf, disp, prob.params)
     timings["total_s"] = time.perf_counter() - t0
     inter = None
     if save_intermediate:

@@ -316,6 +316,56 @@ def confidence(cost, labels_map=None) -> np.ndarray:
     return np.clip(conf, 0.0, 1.0).astype(np.float32)
 
 
+
+def edge_confidence(disparity, *, width: float = 4.0, jump: float = 0.5) -> np.ndarray:
+    """How far each pixel is from a depth edge of ``disparity``, as a weight in [0, 1].
+
+    ``min(1, dist / width)``, ``dist`` the Euclidean distance (px) to the nearest pixel whose
+    3 x 3 neighbourhood spans more than ``jump`` (disparity units): 0 on an estimated depth
+    edge, 1 from ``width`` px away.  Window costs spread the foreground over the background
+    there and a post-filter can take the foreground's edge to the background, so that is where
+    a disparity map's errors gather (BENCHMARKS.md, thirty-ninth session); the cost margin of
+    :func:`confidence` does not see it.  Non-finite disparities count as depth edges.
+
+    Parameters
+    ----------
+    disparity : array_like, shape (H, W)
+    width : float
+        Distance (px) from which a pixel is not discounted; 0 returns ones.
+    jump : float
+        The smallest span of a 3 x 3 neighbourhood that counts as a depth edge (> 0).
+
+    Returns
+    -------
+    ndarray, float32, shape (H, W)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> d = np.zeros((1, 7)); d[0, 4:] = 2.0              # a step between columns 3 and 4
+    >>> edge_confidence(d, width=2.0).round(2).tolist()
+    [[1.0, 1.0, 0.5, 0.0, 0.0, 0.5, 1.0]]
+    """
+    from scipy import ndimage as ndi
+
+    d = np.asarray(disparity, np.float64)
+    if d.ndim != 2:
+        raise InvalidInputError(f"disparity must be (H, W), got shape {d.shape}")
+    width = check_positive(width, "width")
+    jump = check_positive(jump, "jump", allow_zero=False)
+    if width == 0.0:
+        return np.ones(d.shape, np.float32)
+    bad = ~np.isfinite(d)
+    f = np.where(bad, 0.0, d)
+    span = ndi.maximum_filter(f, size=3, mode="nearest") - ndi.minimum_filter(f, size=3,
+                                                                               mode="nearest")
+    edge = (span > jump) | bad
+    if not edge.any():
+        return np.ones(d.shape, np.float32)
+    dist = ndi.distance_transform_edt(~edge)
+    return np.minimum(1.0, dist / width).astype(np.float32)
+
+
 # ----------------------------------------------------------------------------------------------
 # edge-aware post-filter
 # ----------------------------------------------------------------------------------------------
