@@ -325,7 +325,8 @@ def edge_confidence(disparity, *, width: float = 4.0, jump: float = 0.5) -> np.n
     edge, 1 from ``width`` px away.  Window costs spread the foreground over the background
     there and a post-filter can take the foreground's edge to the background, so that is where
     a disparity map's errors gather (BENCHMARKS.md, thirty-ninth session); the cost margin of
-    :func:`confidence` does not see it.  Non-finite disparities count as depth edges.
+    :func:`confidence` does not see it.  Non-finite disparities count as depth edges (and as
+    0 in their neighbours' spans).
 
     Parameters
     ----------
