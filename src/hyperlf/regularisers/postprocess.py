@@ -316,7 +316,6 @@ def confidence(cost, labels_map=None) -> np.ndarray:
     return np.clip(conf, 0.0, 1.0).astype(np.float32)
 
 
-
 def edge_confidence(disparity, *, width: float = 4.0, jump: float = 0.5) -> np.ndarray:
     """How far each pixel is from a depth edge of ``disparity``, as a weight in [0, 1].
 
