@@ -885,8 +885,9 @@ def _downscaled(args, lf, rng):
 def _cmd_depth(args, dest) -> list[Path]:
     """Estimate the reference view's disparity of a hyperspectral light field (SPEC §5) or run
     a baseline light-field method on the views as plain intensities. Writes disparity.pfm,
-    disparity_16bit.png, a colour-mapped disparity.png, confidence.pfm/png (0: ambiguous, or
-    the depth was filled in from the surroundings; up to 1: unique), and an error map when
+    disparity_16bit.png, a colour-mapped disparity.png, confidence.pfm/png (0: ambiguous, on a
+    depth edge, or the depth was filled in from the surroundings; up to 1: unique, and 4 px or
+    more from the map's depth edges), and an error map when
     the input has ground truth; the scores against it skip a 15 px border, so views of 30 px or
     less are written but not scored. A capture made by 'hyperlf ingest' also gets depth.pfm /
     depth.png (in the unit of the calibration's --square) and points.ply, a point cloud
