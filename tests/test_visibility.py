@@ -450,6 +450,16 @@ def _sparsification(conf, err) -> float:
     return float(np.mean(np.sqrt(sq[(np.linspace(0.05, 1, 20) * err.size).astype(int) - 1])))
 
 
+@pytest.mark.parametrize("bad", [{"confidence_edge_px": -1.0},
+                                 {"confidence_edge_px": float("inf")},
+                                 {"confidence_edge_px": "4 px"}, {"confidence_edge_jump": 0.0},
+                                 {"confidence_edge_jump": float("nan")}])
+def test_depth_params_check_the_confidence_options(bad):
+    with pytest.raises(InvalidInputError, match=next(iter(bad))):
+        DepthParams(**bad)
+    DepthParams(confidence_edge_px=0)  # off is allowed
+
+
 @pytest.mark.parametrize("scene", ["occlusion", "solids", "rings"])
 def test_confidence_at_the_depth_edges_orders_the_errors_better(scene):
     """The confidence scaled by the distance to the estimated depth edges
