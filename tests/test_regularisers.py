@@ -652,6 +652,33 @@ def test_confidence_range_and_ordering():
     assert conf[0, 1] == 0.0 and conf[0, 2] == 0.0
 
 
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 10_000), floor=st.sampled_from([0.0, 0.05, 0.1, 0.5, 0.99]))
+def test_confidence_floor_lifts_the_margin_and_keeps_flat_curves_at_zero(seed, floor):
+    rng = np.random.default_rng(seed)
+    c = rng.random((7, 4, 5)).astype(np.float32)
+    c[:, 0, 0] = 0.3  # a flat curve: no data
+    f = rng.integers(0, 7, (4, 5))
+    margin = R.confidence(c, f)
+    out = R.confidence(c, f, floor=floor)
+    expected = floor + (1 - floor) * margin.astype(np.float64)
+    expected[0, 0] = 0.0
+    np.testing.assert_allclose(out, expected, atol=1e-6)
+    assert out.dtype == np.float32 and out[0, 0] == 0
+
+
+@pytest.mark.parametrize("bad", [-0.1, 1.0, float("nan"), None])
+def test_confidence_floor_and_its_params_refuse_bad_values(bad):
+    c = np.random.default_rng(0).random((5, 3, 3)).astype(np.float32)
+    with pytest.raises(InvalidInputError, match="floor"):
+        R.confidence(c, floor=bad)
+    with pytest.raises(InvalidInputError, match="floor"):
+        R.ConfidenceParams(floor=bad)
+    for kw in (dict(edge_px=-1.0), dict(edge_jump=0.0), dict(edge_px=float("inf"))):
+        with pytest.raises(InvalidInputError, match="confidence edge_"):
+            R.ConfidenceParams(**kw)
+
+
 # ----------------------------------------------------------------------------------------------
 # guided weighted median
 # ----------------------------------------------------------------------------------------------

@@ -22,8 +22,9 @@ Modules
 ``graphcuts`` (``graphcut``, ``graphcut_multiscale``, ``mrf_energy``,
 ``edge_weights_from_guide``, ``candidate_labels``), ``postprocess`` (``left_right_check``,
 ``left_occlusions``, ``fill_occlusions``, ``right_cost_from_left``, ``subpixel_refine``,
-``confidence``, ``edge_confidence``, ``weighted_median``) and ``planes`` (``segment``,
-``fit_plane``, ``plane_fill``, ``PlaneFillParams``: the segment-wise slanted-plane fill;
+``confidence``, ``edge_confidence``, ``ConfidenceParams``, ``weighted_median``) and
+``planes`` (``segment``, ``fit_plane``, ``plane_fill``, ``PlaneFillParams``: the segment-wise
+slanted-plane fill;
 ``cost_planes``: planes fitted to a cost volume's pooled costs).  Every public name
 is importable from :mod:`hyperlf.regularisers`; the numba kernels (``_kernels``) are compiled
 on first use, so importing the package does not import numba (nor scikit-image, which
@@ -53,9 +54,9 @@ from .graphcuts import (GRAPHCUT_SMOOTHNESS, candidate_labels, edge_weights_from
                         graphcut, graphcut_multiscale, mrf_energy)
 from .params import OPTIMISERS, GraphCutParams, SGMParams, WTAParams, make_params, params_dict
 from .planes import PlaneFillParams, cost_planes, fit_plane, plane_fill, segment
-from .postprocess import (confidence, edge_confidence, fill_occlusions, left_occlusions,
-                          left_right_check, right_cost_from_left, subpixel_refine,
-                          weighted_median)
+from .postprocess import (ConfidenceParams, confidence, edge_confidence, fill_occlusions,
+                          left_occlusions, left_right_check, right_cost_from_left,
+                          subpixel_refine, weighted_median)
 from .semiglobal import SGM_PATHS, SGM_SMOOTHNESS, sgm, sgm_labels
 
 __all__ = [
@@ -92,5 +93,6 @@ __all__ = [
     "subpixel_refine",
     "confidence",
     "edge_confidence",
+    "ConfidenceParams",
     "weighted_median",
 ]

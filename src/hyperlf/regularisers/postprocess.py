@@ -2,15 +2,19 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import ClassVar
+
 import numpy as np
 
 from ..errors import InvalidInputError
 from ..warp import coordinate_taps
 from ._checks import check_cost, check_label_map, check_labels, check_positive, gather
+from .params import _number
 
 __all__ = ["left_right_check", "left_occlusions", "fill_occlusions", "right_cost_from_left",
            "subpixel_refine",
-           "confidence", "weighted_median"]
+           "confidence", "edge_confidence", "ConfidenceParams", "weighted_median"]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -277,14 +281,20 @@ def subpixel_refine(cost, labels_map, labels=None) -> np.ndarray:
     return (base + off * step).astype(np.float32)
 
 
-def confidence(cost, labels_map=None) -> np.ndarray:
+def confidence(cost, labels_map=None, *, floor: float = 0.0) -> np.ndarray:
     """Cost-margin confidence in [0, 1].
 
-    ``(c2 - c(l)) / (max_l c - min_l c)`` clipped to [0, 1], where ``l`` is the chosen label
-    and ``c2`` the lowest cost among labels more than one step away from ``l`` (so a broad
-    minimum is not penalised).  0 for flat cost curves and where a distant label is as good as
-    the chosen one; 1 when the chosen label is the minimum and everything away from it is the
-    maximum.
+    ``floor + (1 - floor) m``, ``m = (c2 - c(l)) / (max_l c - min_l c)`` clipped to [0, 1],
+    where ``l`` is the chosen label and ``c2`` the lowest cost among labels more than one step
+    away from ``l`` (so a broad minimum is not penalised).  ``m`` is 0 where a distant label is
+    as good as the chosen one, and 1 when the chosen label is the minimum and everything away
+    from it is the maximum.  A flat cost curve (no data) gives 0 whatever the floor.
+
+    ``m`` is 0 on a large share of the pixels that a regulariser decides right: a repeated
+    texture or a weak one gives some distant label as low a cost, or the regulariser overrides
+    the pixel's own minimum.  Callers that set the confidence to 0 where a check fails (the
+    left-right check, an unseen pixel) pass a ``floor`` so that the pixels which pass rank above
+    those which do not (BENCHMARKS.md, fortieth session).
 
     Parameters
     ----------
@@ -292,16 +302,29 @@ def confidence(cost, labels_map=None) -> np.ndarray:
         The volume that chose the labels.
     labels_map : array_like of int, shape (H, W), optional
         Chosen label indices (default: WTA of ``cost``).
+    floor : float
+        The confidence of a chosen label whose margin is 0, in [0, 1) (default 0).
 
     Returns
     -------
     ndarray, float32, shape (H, W)
-        The cost margin of each pixel's label, 0 (ambiguous) to 1 (unique).
+        The cost margin of each pixel's label, ``floor`` (ambiguous) to 1 (unique).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> c = np.array([[[0.0]], [[1.0]], [[0.0]]], np.float32)   # labels 0 and 2 tie
+    >>> lab = np.zeros((1, 1), int)
+    >>> float(confidence(c, lab)[0, 0]), round(float(confidence(c, lab, floor=0.1)[0, 0]), 6)
+    (0.0, 0.1)
     """
     c = check_cost(cost)
     L, H, W = c.shape
     f = np.argmin(c, axis=0) if labels_map is None else check_label_map(labels_map, L, H, W,
                                                                           "labels_map")
+    floor = check_positive(floor, "floor")
+    if floor >= 1.0:
+        raise InvalidInputError(f"floor must be below 1, got {floor!r}")
     if L < 2:
         return np.zeros((H, W), dtype=np.float32)
     c2 = np.full((H, W), np.inf, np.float32)
@@ -313,7 +336,10 @@ def confidence(cost, labels_map=None) -> np.ndarray:
     c2 = np.where(np.isfinite(c2), c2, c.max(axis=0))  # L <= 3: no far label
     with np.errstate(divide="ignore", invalid="ignore"):
         conf = np.where(rng > 0, (c2 - cf) / np.where(rng > 0, rng, 1.0), 0.0)
-    return np.clip(conf, 0.0, 1.0).astype(np.float32)
+    conf = np.clip(conf, 0.0, 1.0)
+    if floor > 0:
+        conf = np.where(rng > 0, floor + (1.0 - floor) * conf, 0.0)
+    return conf.astype(np.float32)
 
 
 def edge_confidence(disparity, *, width: float = 4.0, jump: float = 0.5) -> np.ndarray:
@@ -364,6 +390,40 @@ def edge_confidence(disparity, *, width: float = 4.0, jump: float = 0.5) -> np.n
         return np.ones(d.shape, np.float32)
     dist = ndi.distance_transform_edt(~edge)
     return np.minimum(1.0, dist / width).astype(np.float32)
+
+
+@dataclass(frozen=True)
+class ConfidenceParams:
+    """Constants of a disparity map's confidence: ``confidence(cost, labels, floor=floor)``
+    times ``edge_confidence(disparity, width=edge_px, jump=edge_jump)``, 0 where the caller's
+    checks fail.
+
+    The defaults are two-view stereo's (:func:`hyperlf.twoview.stereo`; disparities in px),
+    chosen on Venus and then the procedural pairs (BENCHMARKS.md, fortieth session).  The
+    light field's are fields of :class:`hyperlf.hlf.DepthParams` (``confidence_floor``,
+    ``confidence_edge_px``, ``confidence_edge_jump``), in its own disparity units.
+
+    Attributes
+    ----------
+    floor : float
+        :func:`confidence`'s ``floor``, in [0, 1).
+    edge_px : float
+        :func:`edge_confidence`'s ``width``, px (0: no discount at depth edges).
+    edge_jump : float
+        :func:`edge_confidence`'s ``jump``, disparity units (> 0).
+    """
+
+    name: ClassVar[str] = "confidence"
+    floor: float = 0.1
+    edge_px: float = 8.0
+    edge_jump: float = 1.5
+
+    def __post_init__(self):
+        _number(self, "floor")
+        if self.floor >= 1:
+            raise InvalidInputError(f"confidence floor must be below 1, got {self.floor!r}")
+        _number(self, "edge_px")
+        _number(self, "edge_jump", positive=True)
 
 
 # ----------------------------------------------------------------------------------------------
