@@ -144,7 +144,9 @@ def test_a_textureless_region_follows_its_surroundings(seed):
     err_prior = np.abs(prior.disparity[inner] - D0)
     assert np.percentile(err_prior, 95) < 0.25 and err_prior.max() <= 0.55
     # no level saw texture there: filled in from the surroundings, so (nearly) no confidence
-    assert np.mean(prior.confidence[inner] == 0) > 0.8 and prior.confidence[inner].mean() < 0.02
+    # (the noise leaves some pixels a small texture weight w, and those get w times the
+    # confidence floor; measured 74-83 % zeros and a mean of 0.012-0.018 over three seeds)
+    assert np.mean(prior.confidence[inner] == 0) > 0.7 and prior.confidence[inner].mean() < 0.02
     assert np.median(np.abs(off.disparity[inner] - D0)) >= 0.4  # the scene needs the weight
     textured = np.s_[BORDER:H // 2 - 8, BORDER:-BORDER]
     err_tex = [np.percentile(np.abs(r.disparity[textured] - D0), 95) for r in (on, off)]
@@ -252,10 +254,11 @@ def test_a_faint_slanted_table_follows_the_coarse_estimate(seed):
     assert rmse[False]["table"] > 1.0  # filled with one constant from the wall
     assert rmse[True]["table"] < 0.5  # the table's own slope, from the half-resolution run
     assert rmse[True]["wall"] <= rmse[False]["wall"] + 0.01
-    # the confidence: none where the wall's depth was carried over the table, the coarse
-    # run's where the table's came from it
+    # the confidence: (nearly) none where the wall's depth was carried over the table (a
+    # pixel that the noise leaves a small texture weight w gets w times the confidence floor:
+    # measured 94-99 % below 0.01), the coarse run's where the table's came from it
     conf = {cp: r.confidence for cp, r in res.items()}
-    assert np.mean(conf[False][table] == 0) > 0.9
+    assert np.mean(conf[False][table] < 0.01) > 0.9
     assert 0.03 < np.median(conf[True][table]) < 0.25
     # the prior's pull is not counted as the pixel's own evidence: the wall's weakly textured
     # pixels are not made several times as sure as its textured ones (3.1-3.8 x when the
@@ -290,7 +293,8 @@ def test_refine_reads_the_confidence_without_the_coarse_prior(seed):
     d_plain, c_plain = refine(U, lab, labels, params)
     assert np.array_equal(U, kept)
     assert np.array_equal(d_prior, d_plain)  # the estimate itself is unchanged
-    np.testing.assert_allclose(c_prior, confidence(data, lab), atol=1e-5)
+    np.testing.assert_allclose(c_prior, confidence(data, lab, floor=params.confidence_floor),
+                               atol=1e-5)
     assert np.array_equal(prior_free_confidence(U, lab, labels, prior, rows=5),
                           prior_free_confidence(U, lab, labels, prior))  # strips: same
     assert not np.allclose(c_plain, c_prior)  # with the pull read in, the margin differs

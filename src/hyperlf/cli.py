@@ -822,7 +822,9 @@ def _cmd_stereo(args, dest) -> list[Path]:
     """Disparity of the left image of a rectified pair whose images may see different spectra
     (SPEC §4). Left x matches right x - d. Writes disparity.pfm (exact), disparity_16bit.png
     (value/256 + offset, see the .txt beside it), a colour-mapped disparity.png and the
-    confidence (confidence.pfm, exact, and confidence.png; 0 ambiguous to 1 unique). Matching
+    confidence (confidence.pfm, exact, and confidence.png; 0: the left-right check failed or on
+    a depth edge, 0.1: ambiguous costs, up to 1: unique; scaled down within 8 px of the map's
+    depth edges). Matching
     holds about 20-70 bytes per pixel and disparity; a pair and range that cannot fit in the
     memory available are refused before any matching.
 
@@ -885,9 +887,10 @@ def _downscaled(args, lf, rng):
 def _cmd_depth(args, dest) -> list[Path]:
     """Estimate the reference view's disparity of a hyperspectral light field (SPEC §5) or run
     a baseline light-field method on the views as plain intensities. Writes disparity.pfm,
-    disparity_16bit.png, a colour-mapped disparity.png, confidence.pfm/png (0: ambiguous, on a
-    depth edge, or the depth was filled in from the surroundings; up to 1: unique, and 4 px or
-    more from the map's depth edges), and an error map when
+    disparity_16bit.png, a colour-mapped disparity.png, confidence.pfm/png (0: on a depth
+    edge, or the depth was filled in from the surroundings; 0.1: the pixel's own costs left
+    its depth ambiguous and the regulariser chose; up to 1: unique; scaled down within 4 px of
+    the map's depth edges), and an error map when
     the input has ground truth; the scores against it skip a 15 px border, so views of 30 px or
     less are written but not scored. A capture made by 'hyperlf ingest' also gets depth.pfm /
     depth.png (in the unit of the calibration's --square) and points.ply, a point cloud
@@ -1844,8 +1847,9 @@ def _add_depth_parser(sub) -> None:
                         "the metric outputs: NaN in depth.pfm, no point in points.ply, whose "
                         "points carry their confidence as a property either way. E.g. 0.05 "
                         "drops the textureless pixels whose depth was filled in from their "
-                        "surroundings (confidence 0); disparity.pfm stays whole (default 0: "
-                        "keep every pixel)")
+                        "surroundings (confidence 0) and those within 2 px of a depth edge, "
+                        "0.15 also those whose own costs were ambiguous (0.1); disparity.pfm "
+                        "stays whole (default 0: keep every pixel)")
     _add_aggregation_options(p)
     p.add_argument("--save-intermediate", action="store_true",
                    help="also write correspondence-only and defocus-only maps, and the "

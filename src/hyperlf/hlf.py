@@ -374,8 +374,12 @@ class DepthParams:
     depth edge (a 3 x 3 neighbourhood spanning more than the jump) rising to 1 at that many
     px from it.  The cost margin alone does not see depth edges, where nearly all of the
     error is; with the distance the confidence orders the errors 3-58 % better on the
-    tuning scenes (BENCHMARKS.md, thirty-ninth session).  The disparity does not depend on
-    them.
+    tuning scenes (BENCHMARKS.md, thirty-ninth session).  ``confidence_floor`` (0.1, in
+    [0, 1)): the confidence of a seen pixel whose cost margin is 0
+    (:func:`hyperlf.regularisers.confidence`); a repeated or weak texture gives most of a
+    scene's pixels a margin of 0, although the regulariser decides most of them right, and
+    without the floor they ranked with the unseen pixels (BENCHMARKS.md, fortieth session).
+    The disparity does not depend on these three.
     ``impl``: ``"auto"``/``"numba"``/``"numpy"`` for the selection and defocus kernels.
     Memory (SPEC §12; results do not depend on them): ``max_memory`` (bytes; None =
     :data:`hyperlf.tiling.DEFAULT_MAX_MEMORY`), the budget by which the correspondence stage is
@@ -444,6 +448,7 @@ class DepthParams:
     median_blur_step: float = 0.4
     confidence_edge_px: float = 4.0
     confidence_edge_jump: float = 0.5
+    confidence_floor: float = 0.1
     impl: str = "auto"
     max_memory: float | None = None
     tile_rows: int | None = None
@@ -545,6 +550,10 @@ class DepthParams:
         pos("median_blur_step", self.median_blur_step)
         pos("confidence_edge_px", self.confidence_edge_px, zero=True)
         pos("confidence_edge_jump", self.confidence_edge_jump)
+        pos("confidence_floor", self.confidence_floor, zero=True)
+        if self.confidence_floor >= 1:
+            raise InvalidInputError("params.confidence_floor must be below 1, got "
+                                    f"{self.confidence_floor!r}")
         if self.max_memory is not None:
             pos("max_memory", self.max_memory)
         pos("reuse_memory", self.reuse_memory, True)
@@ -605,11 +614,12 @@ class DepthResult:
     """Output of :func:`depth`.
 
     disparity : float32 (H, W), sub-pixel (parabola) unless ``params.refine`` is False.
-    confidence : float32 (H, W) in [0, 1] (cost-margin of the optimised volume, without
-        the coarse prior's pull under graph cuts; where the texture weight discounted a
-        pixel's data term, that share is the coarse prior's confidence instead, or 0
-        without one; scaled down within ``params.confidence_edge_px`` px of the depth
-        edges, :func:`hyperlf.regularisers.edge_confidence`).
+    confidence : float32 (H, W) in [0, 1] (cost-margin of the optimised volume, from
+        ``params.confidence_floor`` up, without the coarse prior's pull under graph cuts;
+        where the texture weight discounted a pixel's data term, that share is the coarse
+        prior's confidence instead, or 0 without one; scaled down within
+        ``params.confidence_edge_px`` px of the depth edges,
+        :func:`hyperlf.regularisers.edge_confidence`).
     f_c : float32 (H, W), correspondence-only WTA disparity (``argmin_d C``).
     f_d : float32 (H, W) defocus-only WTA disparity, or None when ``defocus="off"``.
     labels : float64 (L,) the disparity of every label.
@@ -2127,10 +2137,11 @@ def refine(volume: np.ndarray, labels_map: np.ndarray, labels: np.ndarray,
         disp = subpixel_refine(volume, labels_map, labels)
     else:
         disp = labels[labels_map].astype(np.float32)
+    floor = params.confidence_floor
     if prior is None:
-        conf = confidence(volume, labels_map)
+        conf = confidence(volume, labels_map, floor=floor)
     else:
-        conf = prior_free_confidence(volume, labels_map, labels, prior)
+        conf = prior_free_confidence(volume, labels_map, labels, prior, floor=floor)
     if informative is not None:
         conf = np.where(np.asarray(informative, bool), conf, np.float32(0)).astype(np.float32)
     if weight is not None:
@@ -2139,8 +2150,8 @@ def refine(volume: np.ndarray, labels_map: np.ndarray, labels: np.ndarray,
 
 
 def prior_free_confidence(volume: np.ndarray, labels_map: np.ndarray, labels: np.ndarray,
-                          prior, *, rows: int = 64) -> np.ndarray:
-    """:func:`hyperlf.regularisers.confidence` of ``volume`` less the pull
+                          prior, *, rows: int = 64, floor: float = 0.0) -> np.ndarray:
+    """:func:`hyperlf.regularisers.confidence` (with ``floor``) of ``volume`` less the pull
     :func:`add_coarse_prior` added to it, ``rows`` rows at a time (no second volume).
 
     Examples
@@ -2163,7 +2174,7 @@ def prior_free_confidence(volume: np.ndarray, labels_map: np.ndarray, labels: np
         rs = slice(r0, r0 + int(rows))
         strip = np.array(volume[:, rs], np.float32)  # a copy: the caller's volume stays
         add_coarse_prior(strip, labels, coarse[rs], -strength[rs], float(width))
-        out[rs] = confidence(strip, labels_map[rs])
+        out[rs] = confidence(strip, labels_map[rs], floor=floor)
     return out
 
 
