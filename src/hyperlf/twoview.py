@@ -58,8 +58,15 @@ Pipeline
 7. **Sub-pixel** (optional): parabola through the optimised volume (SGM: the aggregated
    volume; WTA/graphcut: the data term) at the chosen label, before the fill.
 
-Confidence is :func:`hyperlf.regularisers.confidence` of the volume that chose the labels,
-set to 0 where the left-right check failed.
+Confidence (:class:`hyperlf.regularisers.ConfidenceParams`): the cost margin of the volume
+that chose the labels (:func:`hyperlf.regularisers.confidence`) from a floor of 0.1 up, 0 where
+the left-right check failed, scaled by the distance to the final map's depth edges
+(:func:`hyperlf.regularisers.edge_confidence`, 0 on a jump of more than 1.5 px, 1 from 8 px
+away).  The margin alone is 0 on 15-65 % of the consistent pixels (weak and repeated
+textures), where it ranked them with the inconsistent ones, and it does not see the depth
+edges, where most of the error is; with the floor and the edge factor the most confident
+pixels hold half the error they held under the margin alone (BENCHMARKS.md, fortieth
+session).
 """
 
 from __future__ import annotations
@@ -149,7 +156,8 @@ class StereoResult:
     valid : bool (H, W)
         Left-right consistent pixels (all True with ``occlusion="none"``).
     confidence : float32 (H, W)
-        Cost-margin confidence in [0, 1] (0 where not LR-consistent).
+        Confidence in [0, 1] (module docstring; 0 where not LR-consistent and on the map's
+        depth edges).
     timings : dict
         Seconds: ``cost`` (both volumes), ``optimiser`` (both references), ``total``.
     metric, optimizer, occlusion : str
@@ -351,6 +359,16 @@ def _optimise(D: np.ndarray, params, guide, labels, subpixel: bool, progress: bo
     return res.labels, disp, res.volume
 
 
+def _check_confidence_params(cp) -> _reg.ConfidenceParams:
+    """``cp`` (None: the defaults) as :class:`hyperlf.regularisers.ConfidenceParams`."""
+    if cp is None:
+        return _reg.ConfidenceParams()
+    if not isinstance(cp, _reg.ConfidenceParams):
+        raise InvalidInputError("confidence_params must be a hyperlf.regularisers."
+                                f"ConfidenceParams, got {type(cp).__name__}")
+    return cp
+
+
 def fill_inconsistent(disp_l, disp_r, valid, occlusion: str, guide, plane_params=None,
                       drange=(-np.inf, np.inf)):
     """Step 6 after the left-right check (module docstring): the background fill, and for
@@ -391,6 +409,7 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
                         guide_left=None, guide_right=None, subpixel: bool = False,
                         metric: str = "auto", progress: bool = False,
                         plane_params: _reg.PlaneFillParams | None = None,
+                        confidence_params: _reg.ConfidenceParams | None = None,
                         overwrite: bool = False) -> StereoResult:
     """Steps 4-7 of the pipeline on precomputed volumes (see :func:`compute_volumes`).
 
@@ -410,6 +429,9 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
         Recorded, and used to look up the default parameters.
     plane_params : PlaneFillParams, optional
         Constants of the ``"lr-plane"`` fill (:class:`hyperlf.regularisers.PlaneFillParams`).
+    confidence_params : ConfidenceParams, optional
+        Constants of the confidence (:class:`hyperlf.regularisers.ConfidenceParams`; default
+        its defaults).
     overwrite : bool
         The volumes are not used again: float32 ones then hold the data terms (two
         volume-sized copies fewer; the result is the same).
@@ -422,6 +444,7 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
     """
     optimizer = _check_optimizer(optimizer)
     occlusion = _check_occlusion(occlusion)
+    cp = _check_confidence_params(confidence_params)
     name = _costs.resolve_metric(metric)
     p = _merge_params(name, optimizer, params)
     opt = _reg.make_params(optimizer, p)
@@ -435,7 +458,7 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
     DL = _reg.data_term(cl, overwrite=overwrite)
     DL /= np.float32(s)  # in place: one volume-sized temporary fewer
     fl, disp_l, vol_l = _optimise(DL, opt, guide_left, labels, subpixel, progress)
-    conf = _reg.confidence(vol_l, fl)
+    conf = _reg.confidence(vol_l, fl, floor=cp.floor)
     disp_r = None
     replaced = np.zeros(disp_l.shape, dtype=bool)
     if occlusion != "none":
@@ -458,6 +481,7 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
     else:
         valid = np.ones(disp_l.shape, dtype=bool)
         final = disp_l.copy()
+    conf *= _reg.edge_confidence(final, width=cp.edge_px, jump=cp.edge_jump)
     t_opt = time.perf_counter() - t0
     return StereoResult(disparity=np.asarray(final, np.float32), raw=np.asarray(disp_l, np.float32),
                         valid=valid, confidence=conf, timings={"optimiser": t_opt}, metric=name,
@@ -471,7 +495,8 @@ def stereo(left, right, disparity_range, *, metric: str = "auto", optimizer: str
            window: int | None = None, channel=None, progress: bool = False,
            cost_params: dict | None = None,
            plane_params: _reg.PlaneFillParams | None = None,
-           aggregation: _costs.AggregationParams | str | None = None) -> StereoResult:
+           aggregation: _costs.AggregationParams | str | None = None,
+           confidence_params: _reg.ConfidenceParams | None = None) -> StereoResult:
     """Disparity of the left view of a rectified pair (SPEC §4; module docstring).
 
     Parameters
@@ -509,6 +534,9 @@ def stereo(left, right, disparity_range, *, metric: str = "auto", optimizer: str
     aggregation : AggregationParams or str, optional
         Edge-aware aggregation of both volumes (:class:`hyperlf.costs.AggregationParams`, or a
         method name of :data:`hyperlf.costs.AGGREGATION_METHODS`); default ``"none"``.
+    confidence_params : ConfidenceParams, optional
+        Constants of the result's confidence (:class:`hyperlf.regularisers.ConfidenceParams`;
+        default its defaults).
 
     Returns
     -------
@@ -543,6 +571,7 @@ def stereo(left, right, disparity_range, *, metric: str = "auto", optimizer: str
     occlusion = _check_occlusion(occlusion)
     L, R = select_channels(left, right, channel)
     dmin, dmax = _check_range(disparity_range, L.shape[1])
+    _check_confidence_params(confidence_params)
     p = _merge_params(name, optimizer, params)
     if window is None:
         window = default_window(name, optimizer)
@@ -559,7 +588,8 @@ def stereo(left, right, disparity_range, *, metric: str = "auto", optimizer: str
     t_cost = time.perf_counter() - t0
     res = stereo_from_volumes(cl, cr, dmin, optimizer, occlusion, params=p, guide_left=L,
                               guide_right=R, subpixel=bool(subpixel), metric=name, progress=progress,
-                              plane_params=plane_params, overwrite=True)
+                              plane_params=plane_params, confidence_params=confidence_params,
+                              overwrite=True)
     res.window = window
     res.extra["aggregation"] = {"method": agg.method, "radius": agg.radius, "eps": agg.eps}
     res.timings = {"cost": t_cost, "optimiser": res.timings["optimiser"],
