@@ -88,7 +88,8 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
    ``"graphcut"`` (alpha-expansion), ``"sgm"`` (8 paths, truncated linear, P1 = lambda x
    label step, P2 = lambda T) or ``"wta"``.  Sub-pixel: parabola through the optimised volume
    (``U``; the SGM-aggregated volume for SGM) around the winning label.  Confidence:
-   :func:`hyperlf.regularisers.confidence` of that volume.
+   :func:`hyperlf.regularisers.confidence` of that volume, from ``params.confidence_floor``
+   up (a seen pixel whose margin is 0 still ranks above the unseen ones).
 
    **Textureless regions** (:func:`texture_weight`, ``params.texture_snr``): a reference pixel
    whose matching window holds less texture than ``texture_snr`` times the sensor noise
