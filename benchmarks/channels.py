@@ -10,8 +10,9 @@ the right one); the other five ordered pairs of distinct RGB channels of the sam
 the nearest stand-in for held-out pairs that this data offers (different spectra, same
 geometry).  Every registered two-view cost is run with graph cuts and the default occlusion
 handling at its Venus-tuned parameters (nothing is tuned here).  Besides bad5.0 / bad2.0 the
-script records the share of left-right consistent pixels, to see whether that unsupervised
-figure would pick the best cost per pair.  Writes ``channels.md`` / ``channels.json``.
+script records the share of left-right consistent pixels and the mean confidence
+(``StereoResult.confidence``), to see whether either unsupervised figure would pick the best
+cost per pair.  Writes ``channels.md`` / ``channels.json``.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ def run_pair(pair, drange, mask, mask_name, a: int, b: int, metrics) -> dict:
                      optimizer="graphcut")
         s = score(res.disparity, pair, mask, mask_name)
         row[m] = {"bad5": s["bad5"], "bad2": s["bad2"], "consistent": float(res.valid.mean()),
+                  "confidence": float(res.confidence.mean()),
                   "seconds": time.perf_counter() - t0}
     return row
 
@@ -48,15 +50,17 @@ def lowest(row: dict, metrics) -> str:
 
 
 def _table(scene: str, rows: dict, metrics) -> list[str]:
-    head = "| pair | " + " | ".join(metrics) + " | lowest | most consistent |"
+    head = ("| pair | " + " | ".join(metrics)
+            + " | lowest | most consistent | most confident |")
     out = [f"**{scene}** (bad5.0 %, graph cuts, default fill)", "", head,
-           "|" + "---|" * (len(metrics) + 3)]
+           "|" + "---|" * (len(metrics) + 4)]
     for key, row in rows.items():
         best = lowest(row, metrics)
         lr = max(metrics, key=lambda m: row[m]["consistent"])
+        sure = max(metrics, key=lambda m: row[m]["confidence"])
         cells = [f"**{row[m]['bad5']:.2f}**" if m == best else f"{row[m]['bad5']:.2f}"
                  for m in metrics]
-        out.append(f"| {key} | " + " | ".join(cells) + f" | {best} | {lr} |")
+        out.append(f"| {key} | " + " | ".join(cells) + f" | {best} | {lr} | {sure} |")
     return out + [""]
 
 
