@@ -2290,7 +2290,7 @@ def edge_discount(conf: np.ndarray, disparity: np.ndarray, params: DepthParams) 
 
     w = edge_confidence(disparity, width=params.confidence_edge_px,
                         jump=params.confidence_edge_jump)
-    return (np.asarray(conf, np.float32) * w).astype(np.float32)
+    return np.asarray(conf, np.float32) * w
 
 
 def _visibility_start(prob: DepthProblem, clock: _Clock, progress):
