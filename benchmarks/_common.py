@@ -31,3 +31,45 @@ def write_report(folder: Path, stem: str, markdown: str, report: dict) -> None:
     print(markdown)
     atomic_write_text(folder / f"{stem}.md", markdown)
     atomic_write_text(folder / f"{stem}.json", json.dumps(report, indent=2, default=float))
+
+
+def json_object(text: str) -> dict:
+    """An argparse ``type``: a JSON object (``'{"weight": 3}'``), or the script exits with a
+    one-line message that says what was wrong."""
+    import argparse
+
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise argparse.ArgumentTypeError(f"not JSON ({exc.msg}): {text!r}") from None
+    if not isinstance(value, dict):
+        raise argparse.ArgumentTypeError(f"expected a JSON object such as "
+                                         f"'{{\"weight\": 3}}', got {text!r}")
+    return value
+
+
+def add_stereo_options(ap) -> None:
+    """``--params`` and ``--cost-params`` of the two-view benchmarks: keyword options passed
+    to :func:`hyperlf.twoview.stereo` for every cost, so that a candidate default is measured
+    on the tuning sets by the scripts that report them, not by a throw-away copy."""
+    ap.add_argument("--params", type=json_object, default=None, metavar="JSON",
+                    help="optimiser parameters over each cost's defaults, e.g. "
+                         "'{\"weight\": 3, \"truncation\": 4}' (twoview.stereo's params)")
+    ap.add_argument("--cost-params", type=json_object, default=None, metavar="JSON",
+                    help="cost options, e.g. '{\"weights\": [1, 3]}' for a fusion's part "
+                         "weights (twoview.stereo's cost_params)")
+
+
+def stereo_options(args) -> dict:
+    """The keyword options of :func:`hyperlf.twoview.stereo` that :func:`add_stereo_options`
+    parsed (empty when neither was given)."""
+    return {k: v for k, v in (("params", args.params), ("cost_params", args.cost_params))
+            if v is not None}
+
+
+def check_candidate_out(ap, args, default_out: str) -> None:
+    """A run with ``--params`` / ``--cost-params`` measures a candidate, not the defaults
+    that ``default_out`` records: it must name its own ``--out``."""
+    if stereo_options(args) and args.out == default_out:
+        ap.error(f"--params / --cost-params measure a candidate: give it its own --out "
+                 f"instead of {default_out}, which records the defaults")

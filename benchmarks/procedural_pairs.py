@@ -2,8 +2,8 @@
 """Two-view stereo on procedural cross-spectral pairs: the second tuning set of issue 12.
 
     HYPERLF_DATA=../shared/data python benchmarks/procedural_pairs.py [--sets plain,thin]
-        [--seeds 0,1,2,3,4,5] [--metric auto] [--occlusion MODE]
-        [--out benchmarks/results/procedural_pairs]
+        [--seeds 0,1,2,3,4,5] [--metric auto] [--occlusion MODE] [--params JSON]
+        [--cost-params JSON] [--out benchmarks/results/procedural_pairs]
 
 Table 1's rule is that no parameter is chosen by looking at Tsukuba, Teddy or Art: Venus
 decides, and these pairs are the second tuning set. Each pair is the left and right view of a
@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from _common import log, write_report
+from _common import add_stereo_options, check_candidate_out, log, stereo_options, write_report
 from hyperlf import synthesis
 from hyperlf.synthesis import _plane_shape_px, _shape_inside
 from hyperlf.twoview import stereo
@@ -77,11 +77,13 @@ def hidden(lf) -> tuple[np.ndarray, np.ndarray]:
     return ~visible_in_view(gt, (1.0, 0.0), margin=1.0) & ~outside, outside
 
 
-def run_pair(seed: int, which: str, metric: str, occlusion: str | None = None) -> dict:
+def run_pair(seed: int, which: str, metric: str, occlusion: str | None = None,
+             **options) -> dict:
+    """Scores of one pair; ``options`` go to ``twoview.stereo`` (e.g. ``params``)."""
     lf = pair_scene(seed, which)
     gt = lf.gt_disparity[0, 0]
     t0 = time.perf_counter()
-    opts = {} if occlusion is None else {"occlusion": occlusion}
+    opts = dict(options) if occlusion is None else {**options, "occlusion": occlusion}
     res = stereo(lf.views[0, 0], lf.views[0, 1], (0, int(np.ceil(gt.max()))), metric=metric,
                  optimizer="graphcut", **opts)
     seconds = time.perf_counter() - t0
@@ -96,8 +98,8 @@ def run_pair(seed: int, which: str, metric: str, occlusion: str | None = None) -
             "seconds": seconds}
 
 
-def _table(which: str, rows: dict) -> list[str]:
-    out = [f"**{which}** (bad5.0 / bad2.0 %, graph cuts, the library's defaults)", "",
+def _table(which: str, rows: dict, settings: str = "the library's defaults") -> list[str]:
+    out = [f"**{which}** (bad5.0 / bad2.0 %, graph cuts, {settings})", "",
            "| seed | bad5.0 | bad2.0 | ring holes, % of pixels | bad5.0 points on holes | "
            "on other hidden pixels | outside the right image | s |",
            "|---|---|---|---|---|---|---|---|"]
@@ -117,16 +119,22 @@ def main() -> None:
     ap.add_argument("--metric", default="auto")
     ap.add_argument("--occlusion", default=None, help="twoview.stereo's occlusion handling "
                     "(default: the library's)")
+    add_stereo_options(ap)
     ap.add_argument("--out", default="benchmarks/results/procedural_pairs")
     args = ap.parse_args()
+    check_candidate_out(ap, args, "benchmarks/results/procedural_pairs")
     report, lines = {}, []
+    if stereo_options(args):
+        lines += [f"Options of twoview.stereo over the defaults: {stereo_options(args)}", ""]
     for which in args.sets.split(","):
         rows = {}
         for seed in (int(s) for s in args.seeds.split(",")):
             log(f"{which} seed {seed}")
-            rows[seed] = run_pair(seed, which, args.metric, args.occlusion)
+            rows[seed] = run_pair(seed, which, args.metric, args.occlusion,
+                                  **stereo_options(args))
         report[which] = rows
-        lines += _table(which, rows)
+        lines += _table(which, rows, "the options above" if stereo_options(args)
+                        else "the library's defaults")
     folder = Path(args.out)
     folder.mkdir(parents=True, exist_ok=True)
     write_report(folder, "procedural_pairs", "\n".join(lines) + "\n", report)

@@ -1,0 +1,99 @@
+"""The two-view benchmarks' candidate options (``benchmarks/_common.py``): ``--params`` and
+``--cost-params`` take JSON objects, refuse anything else in one line, and a candidate's run
+must not write over the results that record the defaults."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import sys
+from pathlib import Path
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+
+
+def _script(name: str):
+    if str(BENCHMARKS) not in sys.path:
+        sys.path.insert(0, str(BENCHMARKS))
+    return importlib.import_module(name)
+
+
+_json = st.recursive(st.none() | st.booleans() | st.integers() | st.text(max_size=5)
+                     | st.floats(allow_nan=False, allow_infinity=False),
+                     lambda inner: st.lists(inner, max_size=3)
+                     | st.dictionaries(st.text(max_size=5), inner, max_size=3), max_leaves=8)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.dictionaries(st.text(max_size=8), _json, max_size=4))
+def test_a_json_object_is_read_as_it_was_written(value):
+    assert _script("_common").json_object(json.dumps(value)) == value
+
+
+@settings(max_examples=60, deadline=None)
+@given(_json.filter(lambda v: not isinstance(v, dict)))
+def test_json_that_is_not_an_object_is_refused(value):
+    with pytest.raises(argparse.ArgumentTypeError, match="expected a JSON object"):
+        _script("_common").json_object(json.dumps(value))
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.text(max_size=20))
+def test_any_text_is_an_object_or_one_message(text):
+    common = _script("_common")
+    try:
+        value = common.json_object(text)
+    except argparse.ArgumentTypeError as exc:
+        assert "\n" not in str(exc)
+    else:
+        assert isinstance(value, dict)
+
+
+def _parser():
+    common = _script("_common")
+    ap = argparse.ArgumentParser(prog="bench")
+    common.add_stereo_options(ap)
+    ap.add_argument("--out", default="results/x")
+    return common, ap
+
+
+def test_the_options_become_stereo_keywords():
+    common, ap = _parser()
+    args = ap.parse_args(["--params", '{"weight": 3}', "--cost-params", '{"weights": [1, 3]}',
+                          "--out", "elsewhere"])
+    assert common.stereo_options(args) == {"params": {"weight": 3},
+                                           "cost_params": {"weights": [1, 3]}}
+    common.check_candidate_out(ap, args, "results/x")  # its own --out: accepted
+    assert common.stereo_options(ap.parse_args([])) == {}
+
+
+def test_a_candidate_may_not_write_over_the_defaults_results(capsys):
+    common, ap = _parser()
+    args = ap.parse_args(["--params", '{"weight": 3}'])
+    with pytest.raises(SystemExit) as exc:
+        common.check_candidate_out(ap, args, "results/x")
+    assert exc.value.code == 2
+    assert "give it its own --out" in capsys.readouterr().err
+    common.check_candidate_out(ap, ap.parse_args([]), "results/x")  # the defaults: accepted
+
+
+@pytest.mark.parametrize("script, argv", [
+    ("channels", ["--params", "[1]"]),
+    ("channels", ["--cost-params", '{"weights": [1, 3]}']),
+    ("channels", ["--metrics", "auto,nosuchcost", "--out", "elsewhere"]),
+    ("procedural_pairs", ["--params", "{weight: 3}"]),
+    ("procedural_pairs", ["--cost-params", '{"weights": [1, 3]}']),
+])
+def test_the_scripts_refuse_bad_options_before_any_work(script, argv, monkeypatch, capsys):
+    mod = _script(script)
+    monkeypatch.setattr(sys, "argv", [f"{script}.py", *argv])
+    with pytest.raises(SystemExit) as exc:
+        mod.main()
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith(f"{script}.py: error:")
