@@ -268,6 +268,36 @@ def _texture_snr_arg(text: str) -> float:
 
 #: ``--min-confidence``: a confidence in [0, 1].
 _min_confidence_arg = _float_within(0.0, 1.0, "--min-confidence")
+#: ``--confidence-edge-px``: 0 (no edge factor) up to a width no image needs.
+_confidence_edge_px_arg = _float_within(0.0, 1000.0, "--confidence-edge-px")
+
+
+def _confidence_floor_arg(text: str) -> float:
+    """``--confidence-floor``: a number in [0, 1)."""
+    v = _float_within(0.0, 1.0, "--confidence-floor")(text)
+    if v == 1.0:
+        raise argparse.ArgumentTypeError(f"--confidence-floor must be in [0, 1), got {text!r}")
+    return v
+
+
+def _add_confidence_options(p: argparse.ArgumentParser, *, floor: float, edge_px: float,
+                            brief: bool = False) -> None:
+    """``--confidence-floor`` and ``--confidence-edge-px``: what the confidence map gives an
+    ambiguous pixel and how far from a depth edge it is discounted (default None: the
+    library's; ``floor`` and ``edge_px`` are the command's, for the help)."""
+    p.add_argument("--confidence-floor", type=_confidence_floor_arg, default=None,
+                   metavar="F",
+                   help="as for depth" if brief else
+                   "the confidence of a pixel whose own costs left its depth ambiguous, "
+                   "the regulariser having chosen; a unique cost minimum rises from F to 1 "
+                   f"(in [0, 1), default {floor:g}; 0 gives the cost margin alone, so that "
+                   "ambiguous pixels rank with the filled-in ones)")
+    p.add_argument("--confidence-edge-px", type=_confidence_edge_px_arg, default=None,
+                   metavar="PX",
+                   help="as for depth" if brief else
+                   f"scale the confidence down within PX px of the map's depth edges, from 0 "
+                   f"on the edge to full at PX px, since the depth error gathers there "
+                   f"(default {edge_px:g}; 0: no edge factor)")
 
 
 def _say(args, msg: str) -> None:
@@ -851,13 +881,26 @@ def _cmd_stereo(args, dest) -> list[Path]:
                  subpixel=args.subpixel, aggregation=_aggregation_of(args),
                  channel=channel, progress=_bars(args),
                  cost_params=None if args.fusion_weights is None
-                 else {"weights": args.fusion_weights})
+                 else {"weights": args.fusion_weights},
+                 confidence_params=_stereo_confidence_params(args))
     written = save_disparity_outputs(dest, res.disparity,
                                       f"{res.metric} + {res.optimizer}", confidence=res.confidence,
                                       unit="px")
     t = res.timings
     _say(args, f"cost {t['cost']:.1f} s, optimiser {t['optimiser']:.1f} s, total {t['total']:.1f} s")
     return written
+
+
+def _stereo_confidence_params(args):
+    """``stereo``'s confidence: the library's, with ``--confidence-floor`` and
+    ``--confidence-edge-px`` where given."""
+    from dataclasses import replace
+
+    from .regularisers import ConfidenceParams
+
+    given = {k: v for k, v in (("floor", args.confidence_floor),
+                               ("edge_px", args.confidence_edge_px)) if v is not None}
+    return replace(ConfidenceParams(), **given)
 
 
 #: ``--downscale`` keeps at least this many pixels on the shorter side of the views.
@@ -939,6 +982,8 @@ def _cmd_depth(args, dest) -> list[Path]:
                                      ("weak_planes", args.weak_planes),
                                      ("visibility_rounds", args.visibility_rounds),
                                      ("fusion_weights", args.fusion_weights),
+                                     ("confidence_floor", args.confidence_floor),
+                                     ("confidence_edge_px", args.confidence_edge_px),
                                      ("max_memory", budget))
                    if v is not None}
         agg = _aggregation_of(args)
@@ -1089,6 +1134,8 @@ def _cmd_batch(args, dest) -> list[Path]:  # noqa: ARG001 - batch writes its own
                         ("--missing-views", args.missing_views),
                         ("--unseen-labels", args.unseen_labels),
                         ("--fusion-weights", _join_weights(args.fusion_weights)),
+                        ("--confidence-floor", args.confidence_floor),
+                        ("--confidence-edge-px", args.confidence_edge_px),
                         ("--max-memory", args.max_memory),
                         ("--min-confidence", args.min_confidence)):
         if value is not None:
@@ -1770,7 +1817,21 @@ def _add_stereo_parser(sub) -> None:
                    help="the same as --occlusion none")
     _add_fusion_weights_option(p, brief=True)
     _add_aggregation_options(p)
+    _add_confidence_options(p, **_stereo_confidence_defaults())
     _add_output_folder(p)
+
+
+def _stereo_confidence_defaults() -> dict:
+    from .regularisers import ConfidenceParams
+
+    d = ConfidenceParams()
+    return {"floor": d.floor, "edge_px": d.edge_px}
+
+
+def _depth_confidence_defaults() -> dict:
+    from .hlf import DepthParams
+
+    return {"floor": DepthParams.confidence_floor, "edge_px": DepthParams.confidence_edge_px}
 
 
 def _add_depth_parser(sub) -> None:
@@ -1850,6 +1911,7 @@ def _add_depth_parser(sub) -> None:
                         "surroundings (confidence 0) and those within 2 px of a depth edge, "
                         "0.15 also those whose own costs were ambiguous (0.1); disparity.pfm "
                         "stays whole (default 0: keep every pixel)")
+    _add_confidence_options(p, **_depth_confidence_defaults())
     _add_aggregation_options(p)
     p.add_argument("--save-intermediate", action="store_true",
                    help="also write correspondence-only and defocus-only maps, and the "
@@ -1888,6 +1950,7 @@ def _add_batch_parser(sub) -> None:
     _add_fusion_weights_option(p, brief=True)
     p.add_argument("--min-confidence", type=_min_confidence_arg, default=None, metavar="C",
                    help="as for depth (captures with metric outputs)")
+    _add_confidence_options(p, **_depth_confidence_defaults(), brief=True)
     p.add_argument("--downscale", type=_downscale_arg, default=1, metavar="N",
                    help="as for depth: every capture matched at 1/N resolution, and its "
                         "scores taken at that resolution (default 1)")
@@ -2107,7 +2170,7 @@ _HLF_ONLY = ("--metric", "--optimizer", "--view-selection", "--occlusion-split",
              "--median-radius", "--median-passes", "--texture-snr", "--max-memory",
              "--no-coarse-prior", "--missing-views", "--unseen-labels", "--weak-planes",
              "--no-weak-planes",
-             "--visibility-rounds",
+             "--visibility-rounds", "--confidence-floor", "--confidence-edge-px",
              "--aggregation", "--aggregation-radius",
              "--aggregation-eps")
 
