@@ -44,6 +44,19 @@ def require_dataset(name: str):
     return dataset_path(name)
 
 
+def write_shifted_pair(folder, *, seed: int = 0, rows: int = 30, width: int = 40,
+                       start: int = 5, shift: int = 3):
+    """A rectified pair of 16-bit PNGs cut from one random texture, the right one ``shift``
+    px further along it (left x matches right x - shift); returns their paths."""
+    from hyperlf.formats import write_image
+
+    tex = np.random.default_rng(seed).random((rows, start + width + shift)).astype(np.float32)
+    left, right = folder / "l.png", folder / "r.png"
+    write_image(left, tex[:, start:start + width], bit_depth=16)
+    write_image(right, tex[:, start + shift:start + shift + width], bit_depth=16)
+    return left, right
+
+
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)

@@ -13,50 +13,39 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hyperlf.cli import _confidence_edge_px_arg, _confidence_floor_arg, main
-from hyperlf.formats import read_pfm, write_image
+from hyperlf.formats import read_pfm
+
+from conftest import write_shifted_pair
 
 _numbers = st.one_of(st.floats(allow_nan=True, allow_infinity=True),
                      st.integers(-10**6, 10**6)).map(str)
 _texts = st.one_of(_numbers, st.text(max_size=8))
 
 
+@pytest.mark.parametrize("parse, accepts", [
+    (_confidence_floor_arg, lambda v: 0.0 <= v < 1.0),
+    (_confidence_edge_px_arg, lambda v: 0.0 <= v <= 1000.0),
+])
 @settings(max_examples=200, deadline=None)
-@given(_texts)
-def test_the_floor_is_a_number_in_0_to_1_or_one_line_that_says_so(text):
+@given(text=_texts)
+def test_a_value_is_a_number_in_its_interval_or_one_line_that_says_so(parse, accepts, text):
     try:
         v = float(text)
     except ValueError:
         v = math.nan
-    if math.isfinite(v) and 0.0 <= v < 1.0:
-        assert _confidence_floor_arg(text) == v
+    if math.isfinite(v) and accepts(v):
+        assert parse(text) == v
     else:
         with pytest.raises(argparse.ArgumentTypeError) as exc:
-            _confidence_floor_arg(text)
+            parse(text)
         assert str(exc.value) and "\n" not in str(exc.value)  # argparse names the option
-
-
-@settings(max_examples=200, deadline=None)
-@given(_texts)
-def test_the_edge_width_is_a_number_in_0_to_1000_or_one_line_that_says_so(text):
-    try:
-        v = float(text)
-    except ValueError:
-        v = math.nan
-    if math.isfinite(v) and 0.0 <= v <= 1000.0:
-        assert _confidence_edge_px_arg(text) == v
-    else:
-        with pytest.raises(argparse.ArgumentTypeError) as exc:
-            _confidence_edge_px_arg(text)
-        assert str(exc.value) and "\n" not in str(exc.value)
 
 
 @pytest.fixture(scope="module")
 def pair(tmp_path_factory):
     """A textured pair whose right image is the left one shifted by 3 px."""
     folder = tmp_path_factory.mktemp("pair")
-    tex = np.random.default_rng(5).random((40, 60)).astype(np.float32)
-    write_image(folder / "l.png", tex[:, 3:53], bit_depth=16)
-    write_image(folder / "r.png", tex[:, 6:56], bit_depth=16)
+    write_shifted_pair(folder, seed=5, rows=40, width=50, start=3)
     return folder
 
 

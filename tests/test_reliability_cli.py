@@ -7,8 +7,9 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
+
+from conftest import write_shifted_pair
 
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 
@@ -51,13 +52,7 @@ def capture(tmp_path_factory):
 @pytest.fixture(scope="module")
 def pair(tmp_path_factory):
     """A rectified stereo pair (left x matches right x - 3)."""
-    from hyperlf.formats import write_image
-
-    d = tmp_path_factory.mktemp("pair")
-    tex = np.random.default_rng(0).random((30, 50)).astype(np.float32)
-    write_image(d / "l.png", tex[:, 5:45], bit_depth=16)
-    write_image(d / "r.png", tex[:, 8:48], bit_depth=16)
-    return d / "l.png", d / "r.png"
+    return write_shifted_pair(tmp_path_factory.mktemp("pair"))
 
 
 def _folder_commands(capture, pair):
