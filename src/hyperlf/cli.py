@@ -1906,7 +1906,8 @@ def _add_depth_parser(sub) -> None:
     p.add_argument("--min-confidence", type=_min_confidence_arg, default=0.0, metavar="C",
                    help="leave pixels whose confidence (confidence.pfm/png) is below C out of "
                         "the metric outputs: NaN in depth.pfm, no point in points.ply, whose "
-                        "points carry their confidence as a property either way. E.g. 0.05 "
+                        "points carry their confidence as a property either way. With the "
+                        "default confidence options, 0.05 "
                         "drops the textureless pixels whose depth was filled in from their "
                         "surroundings (confidence 0) and those within 2 px of a depth edge, "
                         "0.15 also those whose own costs were ambiguous (0.1); disparity.pfm "
