@@ -92,22 +92,27 @@ def test_depth_passes_both_options_and_the_map_follows(capture, tmp_path, monkey
 
     monkeypatch.setattr(hlf, "depth", spy)
     run = ["-q", "depth", str(capture), "--labels", "8", "--optimizer", "wta"]
-    assert main([*run, "--confidence-floor", "0.4", "--confidence-edge-px", "0",
-                 "-o", str(tmp_path / "a")]) == 0
-    p = seen["params"]
+
+    def confidence(name, *options):
+        assert main([*run, *options, "-o", str(tmp_path / name)]) == 0
+        return read_pfm(tmp_path / name / "confidence.pfm"), seen["params"]
+
+    high, p = confidence("a", "--confidence-floor", "0.4", "--confidence-edge-px", "0")
     assert (p.confidence_floor, p.confidence_edge_px) == (0.4, 0.0)
-    conf = read_pfm(tmp_path / "a" / "confidence.pfm")
     # no edge factor: a pixel is 0 (unseen or filled in) or at least the floor
-    assert ((conf == 0) | (conf >= 0.4 - 1e-6)).all() and (conf >= 0.4 - 1e-6).mean() > 0.5
-    assert main([*run, "--confidence-edge-px", "6", "-o", str(tmp_path / "b")]) == 0
-    assert seen["params"].confidence_edge_px == 6.0
-    assert seen["params"].confidence_floor == hlf.DepthParams().confidence_floor
-    wide = read_pfm(tmp_path / "b" / "confidence.pfm")
-    assert wide.mean() < conf.mean()
+    assert ((high == 0) | (high >= 0.4 - 1e-6)).all() and (high >= 0.4 - 1e-6).mean() > 0.5
+    plain, p = confidence("b", "--confidence-edge-px", "0")
+    assert p.confidence_floor == hlf.DepthParams().confidence_floor
+    assert (high >= plain - 1e-6).all() and high.mean() > plain.mean()  # the floor lifts
+    banded, p = confidence("c", "--confidence-edge-px", "6")
+    assert p.confidence_edge_px == 6.0
+    assert (banded <= plain + 1e-6).all() and banded.mean() < plain.mean()  # the band lowers
 
 
 @pytest.mark.parametrize("argv, words", [
     (["depth", "CAP", "--confidence-floor", "1"], "--confidence-floor must be in [0, 1)"),
+    (["stereo", "L", "R", "--disparity-range", "0,4", "--confidence-floor", "2"],
+     "--confidence-floor must be in [0, 1)"),
     (["stereo", "L", "R", "--disparity-range", "0,4", "--confidence-edge-px", "-1"],
      "--confidence-edge-px must be in [0, 1000]"),
     (["depth", "CAP", "--method", "tao2013", "--confidence-floor", "0.2"],

@@ -274,8 +274,8 @@ _confidence_edge_px_arg = _float_within(0.0, 1000.0, "--confidence-edge-px")
 
 def _confidence_floor_arg(text: str) -> float:
     """``--confidence-floor``: a number in [0, 1)."""
-    v = _float_within(0.0, 1.0, "--confidence-floor")(text)
-    if v == 1.0:
+    v = _finite_float(text)
+    if not 0.0 <= v < 1.0:
         raise argparse.ArgumentTypeError(f"--confidence-floor must be in [0, 1), got {text!r}")
     return v
 
