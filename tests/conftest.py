@@ -57,6 +57,15 @@ def write_shifted_pair(folder, *, seed: int = 0, rows: int = 30, width: int = 40
     return left, right
 
 
+def sparsification(conf, loss, *, rmse: bool = False) -> float:
+    """The mean ``loss`` of the most confident 5, 10, ..., 100 % of the pixels, averaged (ties
+    kept in raster order); with ``rmse`` the loss is a squared error and each mean its root."""
+    order = np.argsort(-np.asarray(conf).ravel(), kind="stable")
+    running = np.cumsum(np.asarray(loss).ravel()[order]) / np.arange(1, np.size(loss) + 1)
+    picked = running[(np.linspace(0.05, 1, 20) * np.size(loss)).astype(int) - 1]
+    return float(np.mean(np.sqrt(picked) if rmse else picked))
+
+
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)

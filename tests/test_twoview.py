@@ -12,6 +12,8 @@ from hyperlf.errors import InvalidInputError
 from hyperlf.twoview import (StereoResult, compute_volumes, default_params, default_window,
                             select_channels, stereo)
 
+from conftest import sparsification
+
 DB, DF = 2, 8                      # background / foreground disparity
 SQ = (16, 48, 36, 68)              # foreground square (y0, y1, x0, x1) in the left view
 H, W = 64, 96
@@ -271,13 +273,6 @@ def test_volumes_made_in_place_give_the_same_bits(metric):
                                   fresh.disparity)
 
 
-def _sparsification_bad(conf, bad) -> float:
-    """Share of bad pixels among the most confident 5, 10, ..., 100 %, averaged."""
-    order = np.argsort(-conf.ravel(), kind="stable")
-    share = np.cumsum(bad.ravel()[order]) / np.arange(1, bad.size + 1)
-    return float(np.mean(share[(np.linspace(0.05, 1, 20) * bad.size).astype(int) - 1]))
-
-
 def test_confidence_ranks_the_consistent_pixels_first_and_the_depth_edges_last():
     """The default confidence (:class:`hyperlf.regularisers.ConfidenceParams`: the margin from
     a floor of 0.1 up on the consistent pixels, scaled by the distance to the map's depth
@@ -305,6 +300,5 @@ def test_confidence_ranks_the_consistent_pixels_first_and_the_depth_edges_last()
         assert not new.confidence[reg.edge_confidence(new.disparity, jump=1.5) == 0].any()
         assert (new.confidence[new.valid] > 0).mean() > (old.confidence[old.valid] > 0).mean()
         bad = np.abs(new.disparity - gt) > 2
-        ratios.append(_sparsification_bad(new.confidence, bad)
-                      / _sparsification_bad(old.confidence, bad))
+        ratios.append(sparsification(new.confidence, bad) / sparsification(old.confidence, bad))
     assert np.mean(ratios) < 0.85, ratios

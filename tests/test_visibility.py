@@ -12,6 +12,8 @@ from hyperlf.hlf import DepthParams, LabelVisibility, depth, prepare, visibility
 from hyperlf.warp import (forward_warp_disparity, occlusion_zbuffer, visible_at_labels,
                           visible_in_view)
 
+from conftest import sparsification
+
 
 def _brute_force(d, offset, margin):
     """Every pair of reference pixels compared directly: p (landing at the nearest pixel t)
@@ -442,14 +444,6 @@ def test_progress_bars_name_the_half_resolution_pass(capsys):
     assert "views:" in err  # the main pass
 
 
-def _sparsification(conf, err) -> float:
-    """RMSE of the most confident 5, 10, ..., 100 % of the pixels, averaged (ties kept in
-    raster order)."""
-    order = np.argsort(-conf.ravel(), kind="stable")
-    sq = np.cumsum(err.ravel()[order] ** 2) / np.arange(1, err.size + 1)
-    return float(np.mean(np.sqrt(sq[(np.linspace(0.05, 1, 20) * err.size).astype(int) - 1])))
-
-
 @pytest.mark.parametrize("bad", [{"confidence_edge_px": -1.0},
                                  {"confidence_edge_px": float("inf")},
                                  {"confidence_edge_px": "4 px"}, {"confidence_edge_jump": 0.0},
@@ -483,5 +477,6 @@ def test_confidence_at_the_depth_edges_orders_the_errors_better(scene):
     assert (on.confidence > 0).mean() > (off.confidence > 0).mean()
     sl = (slice(6, -6), slice(6, -6))
     err = (on.disparity - lf.reference_gt_disparity)[sl]
-    ratio = _sparsification(on.confidence[sl], err) / _sparsification(off.confidence[sl], err)
+    ratio = (sparsification(on.confidence[sl], err ** 2, rmse=True)
+             / sparsification(off.confidence[sl], err ** 2, rmse=True))
     assert ratio < 0.9, ratio

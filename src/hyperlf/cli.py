@@ -219,13 +219,15 @@ def _add_fusion_weights_option(p: argparse.ArgumentParser, *, brief: bool = Fals
                    "procedural test scenes (BENCHMARKS.md)")
 
 
-def _float_within(low: float, high: float, what: str, *, above_low: bool = False):
-    """An argparse type: a finite number in ``[low, high]`` (``(low, high]`` with
-    ``above_low``)."""
+def _float_within(low: float, high: float, what: str, *, above_low: bool = False,
+                  below_high: bool = False):
+    """An argparse type: a finite number in ``[low, high]`` (the bound left out with
+    ``above_low`` / ``below_high``)."""
     def parse(text: str) -> float:
         v = _finite_float(text)
-        if v < low or v > high or (above_low and v == low):
-            interval = f"{'(' if above_low else '['}{low:g}, {high:g}]"
+        if v < low or v > high or (above_low and v == low) or (below_high and v == high):
+            interval = (f"{'(' if above_low else '['}{low:g}, {high:g}"
+                        f"{')' if below_high else ']'}")
             raise argparse.ArgumentTypeError(f"{what} must be in {interval}, got {text!r}")
         return v
     return parse
@@ -270,14 +272,8 @@ def _texture_snr_arg(text: str) -> float:
 _min_confidence_arg = _float_within(0.0, 1.0, "--min-confidence")
 #: ``--confidence-edge-px``: 0 (no edge factor) up to a width no image needs.
 _confidence_edge_px_arg = _float_within(0.0, 1000.0, "--confidence-edge-px")
-
-
-def _confidence_floor_arg(text: str) -> float:
-    """``--confidence-floor``: a number in [0, 1)."""
-    v = _finite_float(text)
-    if not 0.0 <= v < 1.0:
-        raise argparse.ArgumentTypeError(f"--confidence-floor must be in [0, 1), got {text!r}")
-    return v
+#: ``--confidence-floor``: below 1, which would leave no room for the cost margin.
+_confidence_floor_arg = _float_within(0.0, 1.0, "--confidence-floor", below_high=True)
 
 
 def _add_confidence_options(p: argparse.ArgumentParser, *, floor: float, edge_px: float,
