@@ -67,9 +67,11 @@ def stereo_options(args) -> dict:
             if v is not None}
 
 
-def check_candidate_out(ap, args, default_out: str) -> None:
-    """A run with ``--params`` / ``--cost-params`` measures a candidate, not the defaults
-    that ``default_out`` records: it must name its own ``--out``."""
-    if stereo_options(args) and args.out == default_out:
-        ap.error(f"--params / --cost-params measure a candidate: give it its own --out "
+def check_candidate_out(ap, args, default_out: str, *, departures=()) -> None:
+    """A run with ``--params`` / ``--cost-params``, or with any of ``departures`` (the names
+    of a script's other options given off their defaults), measures a candidate, not the
+    defaults that ``default_out`` records: it must name its own ``--out``."""
+    given = [f"--{k.replace('_', '-')}" for k in stereo_options(args)] + list(departures)
+    if given and args.out == default_out:
+        ap.error(f"{' / '.join(given)} measure a candidate: give it its own --out "
                  f"instead of {default_out}, which records the defaults")

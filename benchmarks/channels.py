@@ -82,7 +82,8 @@ def main() -> None:
     add_stereo_options(ap)
     ap.add_argument("--out", default="benchmarks/results/channels")
     args = ap.parse_args()
-    check_candidate_out(ap, args, "benchmarks/results/channels")
+    check_candidate_out(ap, args, "benchmarks/results/channels",
+                        departures=["--metrics"] if args.metrics else [])
     metrics = (args.metrics.split(",") if args.metrics else
                ["auto"] + [m for m in cost_names() if m != resolve_metric("auto")])
     unknown = [m for m in metrics if m != "auto" and m not in cost_names()]

@@ -122,7 +122,9 @@ def main() -> None:
     add_stereo_options(ap)
     ap.add_argument("--out", default="benchmarks/results/procedural_pairs")
     args = ap.parse_args()
-    check_candidate_out(ap, args, "benchmarks/results/procedural_pairs")
+    check_candidate_out(ap, args, "benchmarks/results/procedural_pairs", departures=[
+        name for name, off in (("--metric", args.metric != "auto"),
+                               ("--occlusion", args.occlusion is not None)) if off])
     report, lines = {}, []
     if stereo_options(args):
         lines += [f"Options of twoview.stereo over the defaults: {stereo_options(args)}", ""]

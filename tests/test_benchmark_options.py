@@ -1,6 +1,7 @@
 """The two-view benchmarks' candidate options (``benchmarks/_common.py``): ``--params`` and
 ``--cost-params`` take JSON objects, refuse anything else in one line, and a candidate's run
-must not write over the results that record the defaults."""
+(those options, or a script's other options off their defaults) must not write over the
+results that record the defaults."""
 
 from __future__ import annotations
 
@@ -82,12 +83,25 @@ def test_a_candidate_may_not_write_over_the_defaults_results(capsys):
     common.check_candidate_out(ap, ap.parse_args([]), "results/x")  # the defaults: accepted
 
 
+def test_a_script_s_other_departures_need_their_own_out_too(capsys):
+    common, ap = _parser()
+    with pytest.raises(SystemExit):
+        common.check_candidate_out(ap, ap.parse_args([]), "results/x",
+                                   departures=["--occlusion"])
+    assert "--occlusion measure a candidate" in capsys.readouterr().err
+    common.check_candidate_out(ap, ap.parse_args(["--out", "elsewhere"]), "results/x",
+                               departures=["--occlusion"])
+
+
 @pytest.mark.parametrize("script, argv", [
     ("channels", ["--params", "[1]"]),
     ("channels", ["--cost-params", '{"weights": [1, 3]}']),
     ("channels", ["--metrics", "auto,nosuchcost", "--out", "elsewhere"]),
     ("procedural_pairs", ["--params", "{weight: 3}"]),
     ("procedural_pairs", ["--cost-params", '{"weights": [1, 3]}']),
+    ("procedural_pairs", ["--metric", "rsncc"]),
+    ("procedural_pairs", ["--occlusion", "lr-fill"]),
+    ("channels", ["--metrics", "auto"]),
 ])
 def test_the_scripts_refuse_bad_options_before_any_work(script, argv, monkeypatch, capsys):
     mod = _script(script)
