@@ -9,12 +9,32 @@ from __future__ import annotations
 
 import ast
 import inspect
+import os
 import textwrap
 
-import numpy as np
-import pytest
 
-from hyperlf.datasets import ENV_VAR, has_data, dataset_path
+def _share_the_cores_among_workers() -> None:
+    """Under pytest-xdist (``-n N``, the README's test command) each of the N workers runs
+    numba's kernels and hyperlf's thread pools. With a full core count of threads each, they
+    oversubscribe the machine, and numba's OpenMP threads spin while they wait. So each worker
+    gets ``cores // N`` threads, unless ``NUMBA_NUM_THREADS`` or ``HYPERLF_THREADS`` is set
+    already. This runs before anything imports numba, which reads the variable once."""
+    workers = os.environ.get("PYTEST_XDIST_WORKER_COUNT", "")
+    if workers.isdigit() and int(workers) > 1:
+        try:
+            cores = len(os.sched_getaffinity(0))
+        except AttributeError:  # pragma: no cover - not Linux
+            cores = os.cpu_count() or 1
+        for var in ("NUMBA_NUM_THREADS", "HYPERLF_THREADS"):
+            os.environ.setdefault(var, str(max(1, cores // int(workers))))
+
+
+_share_the_cores_among_workers()  # before numpy, hyperlf and numba are imported
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from hyperlf.datasets import ENV_VAR, has_data, dataset_path  # noqa: E402
 
 def pytest_sessionstart(session):
     """Give the test process the signal dispositions of a terminal.
