@@ -405,10 +405,11 @@ def test_nested_coarse_levels_keep_the_label_step(monkeypatch):
     assert np.percentile(np.abs(res.disparity[table] - D0), 95) < 0.1
 
 
-@pytest.mark.parametrize("bad", [1, 2.0, True, "13"])
+@pytest.mark.parametrize("bad", [1, 2.5, True, "13"])
 def test_depth_params_check_the_coarse_labels(bad):
     with pytest.raises(InvalidInputError, match="coarse_prior_labels"):
         DepthParams(coarse_prior_labels=bad)
+    assert DepthParams(coarse_prior_labels=13.0).coarse_prior_labels == 13  # kept as an int
 
 
 def test_a_dense_camera_array_reuses_the_visibility_estimate(monkeypatch):

@@ -164,10 +164,10 @@ def test_weak_planes_leave_a_textureless_table_to_its_surroundings(seed):
 
 
 @pytest.mark.parametrize("bad", [{"weak_planes": 1}, {"weak_planes": "yes"},
-                                 {"plane_tile": 4}, {"plane_tile": 64.0}, {"plane_tile": True},
+                                 {"plane_tile": 4}, {"plane_tile": 64.5}, {"plane_tile": True},
                                  {"plane_max_slope": 0}, {"plane_max_slope": 2.0},
                                  {"plane_max_slope": "0.1"}, {"plane_max_slope": float("nan")},
-                                 {"plane_specks": -1}, {"plane_specks": 15.0},
+                                 {"plane_specks": -1}, {"plane_specks": 15.5},
                                  {"plane_specks": True}, {"plane_carry": -1.0},
                                  {"plane_carry": float("nan")}, {"plane_carry": float("inf")},
                                  {"plane_carry": "2"}, {"plane_carry": True}])

@@ -147,6 +147,7 @@ from typing import Any, Callable
 import numpy as np
 
 from . import regularisers as _reg
+from ._options import integer, number
 from ._progress import progress_bar
 from .errors import InvalidInputError
 from .lightfield import LightField, resolve_disparity_range
@@ -262,10 +263,9 @@ def label_disparities(lf: LightField, n_labels, disparity_range=None) -> np.ndar
     InvalidInputError
         When ``n_labels`` is not an integer >= 3.
     """
-    if isinstance(n_labels, bool) or not isinstance(n_labels, (int, np.integer)) or n_labels < 3:
-        raise InvalidInputError(f"n_labels must be an integer >= 3, got {n_labels!r}")
+    n_labels = integer(n_labels, "n_labels", 3)
     dmin, dmax = resolve_disparity_range(lf, disparity_range)
-    return np.linspace(dmin, dmax, int(n_labels))
+    return np.linspace(dmin, dmax, n_labels)
 
 
 def _merge(method: str, params: dict) -> dict:
@@ -280,21 +280,12 @@ def _merge(method: str, params: dict) -> dict:
 
 
 def _positive(p: dict, name: str, allow_zero: bool = False) -> float:
-    v = p[name]
-    try:
-        f = float(v)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{name} must be a number, got {v!r}") from None
-    if not np.isfinite(f) or f < 0 or (f == 0 and not allow_zero):
-        raise InvalidInputError(f"{name} must be finite and {'>=' if allow_zero else '>'} 0, got {v!r}")
-    return f
+    return number(p[name], name, positive=not allow_zero)
 
 
 def _odd_window(p: dict, name: str = "window") -> int:
-    w = p[name]
-    if isinstance(w, bool) or not isinstance(w, (int, np.integer)) or w < 1 or w % 2 == 0:
-        raise InvalidInputError(f"{name} must be an odd integer >= 1, got {w!r}")
-    return int(w)
+    p[name] = integer(p[name], name, 1, odd=True)
+    return p[name]
 
 
 def _shift(img: np.ndarray, sx: float, sy: float) -> np.ndarray:
@@ -658,14 +649,10 @@ def _wang_params(params: dict) -> dict:
         _positive(p, k, allow_zero=True)
     _positive(p, "bilateral_sigma")
     _odd_window(p, "orientation_window")
-    br = p["bilateral_radius"]
-    if isinstance(br, bool) or not isinstance(br, (int, np.integer)) or br < 0:
-        raise InvalidInputError(f"bilateral_radius must be an integer >= 0, got {br!r}")
-    if not (0 < float(p["canny_non_edge"]) < 1) or not (0 < float(p["canny_low_ratio"]) <= 1):
-        raise InvalidInputError("canny_non_edge must be in (0, 1) and canny_low_ratio in (0, 1]")
-    med = p["median"]
-    if isinstance(med, bool) or not isinstance(med, (int, np.integer)) or med < 0:
-        raise InvalidInputError(f"median must be an integer >= 0, got {med!r}")
+    for k in ("bilateral_radius", "median"):
+        p[k] = integer(p[k], k)
+    number(p["canny_non_edge"], "canny_non_edge", positive=True, below=1)
+    number(p["canny_low_ratio"], "canny_low_ratio", positive=True, at_most=1)
     return p
 
 

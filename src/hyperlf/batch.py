@@ -47,8 +47,6 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Sequence
 
-import numpy as np
-
 from .errors import DataNotFoundError, HyperLFError, InvalidInputError
 
 __all__ = ["BATCH_FILE", "CaptureTask", "find_captures", "plan_batch", "run_capture",

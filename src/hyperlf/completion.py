@@ -129,6 +129,7 @@ from typing import Any
 
 import numpy as np
 
+from ._options import integer, number
 from ._parallel import map_threads
 from ._progress import grid_views, progress_bar
 from .errors import InvalidInputError
@@ -915,14 +916,10 @@ def _interpolate_bands(out: np.ndarray, m: np.ndarray, wl: np.ndarray) -> np.nda
 
 
 def _infer_params(radius, sigma_d, sigma_g, min_weight, rounds):
-    if isinstance(radius, bool) or not isinstance(radius, (int, np.integer)) or radius < 1:
-        raise InvalidInputError(f"infer radius must be an integer >= 1, got {radius!r}")
-    if isinstance(rounds, bool) or not isinstance(rounds, (int, np.integer)) or rounds < 0:
-        raise InvalidInputError(f"infer rounds must be an integer >= 0, got {rounds!r}")
-    for v, name in ((sigma_d, "sigma_d"), (sigma_g, "sigma_g"), (min_weight, "min_weight")):
-        if not np.isfinite(v) or v <= 0:
-            raise InvalidInputError(f"infer {name} must be a positive number, got {v!r}")
-    return int(radius), float(sigma_d), float(sigma_g), float(min_weight), int(rounds)
+    return (integer(radius, "infer radius", 1),
+            *(number(v, f"infer {name}", positive=True) for v, name in
+              ((sigma_d, "sigma_d"), (sigma_g, "sigma_g"), (min_weight, "min_weight"))),
+            integer(rounds, "infer rounds"))
 
 
 def _infer_round_numpy(cube, src, disp, guide, radius, sigma_d, sigma_g, min_weight):

@@ -103,6 +103,7 @@ from typing import Iterator, Union
 import numpy as np
 from scipy import ndimage
 
+from ._options import check_fields, choice, integer, number, rule, word_or
 from .errors import InvalidInputError
 
 __all__ = [
@@ -129,6 +130,18 @@ _IMPLS = ("auto", "numpy", "numba")
 # --------------------------------------------------------------------------------------------
 # Parameters
 # --------------------------------------------------------------------------------------------
+
+
+def _odd_windows(value, label) -> tuple:
+    """One odd window width or several, as a tuple of ints."""
+    items = value.ravel().tolist() if isinstance(value, np.ndarray) else (
+        list(value) if isinstance(value, (tuple, list)) else [value])
+    try:
+        if not items:
+            raise InvalidInputError("no window")
+        return tuple(integer(w, label, 1, odd=True) for w in items)
+    except InvalidInputError:
+        raise InvalidInputError(f"{label} must be odd integers >= 1, got {value!r}") from None
 
 
 @dataclass(frozen=True)
@@ -171,39 +184,13 @@ class DescriptorParams:
     presmooth_sigma: float = 0.0
 
     def __post_init__(self):
-        try:
-            windows = tuple(int(w) for w in np.atleast_1d(self.windows))
-        except (TypeError, ValueError):
-            raise InvalidInputError(f"windows must be odd positive integers, got {self.windows!r}")
-        if not windows or any(w < 1 or w % 2 == 0 for w in windows) or any(
-                float(w) != float(x) for w, x in zip(windows, np.atleast_1d(self.windows))):
-            raise InvalidInputError(f"windows must be odd positive integers, got {self.windows!r}")
-        object.__setattr__(self, "windows", windows)
-        if not (np.isfinite(self.bin_width) and self.bin_width > 0):
-            raise InvalidInputError(f"bin_width must be > 0, got {self.bin_width!r}")
-        if not (0.0 <= self.overlap < 0.5):
-            raise InvalidInputError(
-                f"overlap must be in [0, 0.5) (a fraction of the bin width), got {self.overlap!r}")
-        if int(self.n_bins) != self.n_bins or self.n_bins < 1:
-            raise InvalidInputError(f"n_bins must be a positive integer, got {self.n_bins!r}")
-        object.__setattr__(self, "n_bins", int(self.n_bins))
-        if not (np.isfinite(self.sigma_g_factor) and self.sigma_g_factor > 0):
-            raise InvalidInputError(f"sigma_g_factor must be > 0, got {self.sigma_g_factor!r}")
-        if not (0.0 <= self.beta <= 0.5):
-            raise InvalidInputError(f"beta must be in [0, 0.5] so that a3 >= 0, got {self.beta!r}")
-        if self.sigma_w != "auto":
-            try:
-                ok = math.isfinite(float(self.sigma_w)) and float(self.sigma_w) > 0
-            except (TypeError, ValueError):
-                ok = False
-            if not ok or isinstance(self.sigma_w, str):
-                raise InvalidInputError(
-                    f"sigma_w must be a positive float or 'auto', got {self.sigma_w!r}")
-            object.__setattr__(self, "sigma_w", float(self.sigma_w))
-        if self.gradient not in _GRADIENTS:
-            raise InvalidInputError(f"gradient must be one of {_GRADIENTS}, got {self.gradient!r}")
-        if not (np.isfinite(self.presmooth_sigma) and self.presmooth_sigma >= 0):
-            raise InvalidInputError(f"presmooth_sigma must be >= 0, got {self.presmooth_sigma!r}")
+        check_fields(self, {
+            "windows": _odd_windows, "bin_width": rule(number, positive=True),
+            "overlap": rule(number, below=0.5), "n_bins": rule(integer, minimum=1),
+            "sigma_g_factor": rule(number, positive=True), "beta": rule(number, at_most=0.5),
+            "sigma_w": word_or(rule(number, positive=True), ("auto",),
+                               "'auto' or a finite number > 0"),
+            "gradient": rule(choice, choices=_GRADIENTS), "presmooth_sigma": number})
 
     # -- variants ------------------------------------------------------------------------
     @classmethod

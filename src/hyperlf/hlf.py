@@ -168,8 +168,9 @@ import numpy as np
 
 from ._kernel_args import kernel_input
 from ._progress import progress_bar
-from .costs import (DENSE_VIEWS, AggregationParams, aggregate_volume, cost_names, fusion_weights,
-                    get_cost, light_field_window, tap_validity, view_costs)
+from . import _options as _opt
+from .costs import (DENSE_VIEWS, ROW_BLOCK, AggregationParams, aggregate_volume, cost_names,
+                    fusion_weights, get_cost, light_field_window, tap_validity, view_costs)
 from .imageops import fill_masked, gradient_magnitude, normalise_intensity
 from .warp import shift_map
 from .errors import InvalidInputError
@@ -224,6 +225,10 @@ DEFOCUS_MODES = ("off", "paper", "gaussian", "flat", "tv")
 #: (``DepthParams.visibility_test``): at every candidate disparity (:class:`LabelVisibility`)
 #: or at the current estimate's only (:func:`visible_views`).
 VISIBILITY_TESTS = ("hypothesis", "estimate")
+#: The values of ``DepthParams.missing_views``.
+MISSING_VIEWS = ("average", "neutral", "common")
+#: The values of ``DepthParams.unseen_labels`` (:func:`hyperlf.regularisers.fill_invalid`'s).
+UNSEEN_LABELS = ("share", "worst", "median")
 #: Visibility rounds when ``DepthParams.visibility_rounds`` is None, on images at least
 #: ``DepthParams.visibility_min_size`` px on their shorter side whose costs can be kept
 #: (:func:`_default_rounds`; BENCHMARKS.md, thirty-eighth session).
@@ -240,6 +245,94 @@ CAMERA_TEXTURE_SNR = 2.0
 # ============================================================================================
 # Parameters and result
 # ============================================================================================
+
+_rule = _opt.rule
+_number, _count, _flag = _opt.number, _opt.integer, _opt.flag
+_positive = _rule(_opt.number, positive=True)
+
+
+def _texture_snr(value, label):
+    """None, 0 (off) or a number > 1."""
+    if value is not None and not (_number(value, label) == 0 or value > 1):
+        raise InvalidInputError(f"{label} must be None, 0 (off) or > 1, got {value!r}")
+    return None if value is None else float(value)
+
+
+def _tile_rows(value, label):
+    """None (chosen by the memory budget) or a multiple of :data:`hyperlf.costs.ROW_BLOCK`."""
+    rows = _opt.integer(value, label, ROW_BLOCK, optional=True)
+    if rows is not None and rows % ROW_BLOCK:
+        raise InvalidInputError(f"{label} must be a multiple of {ROW_BLOCK}, got {value!r}")
+    return rows
+
+
+#: How :class:`DepthParams` checks each option, and the type it keeps (``fusion_weights``:
+#: ``_check_fusion_weights``; ``aggregation*``: :class:`hyperlf.costs.AggregationParams`;
+#: ``camera`` is checked where its table is read).
+_DEPTH_RULES = {
+    "window": _rule(_opt.integer, minimum=1, odd=True, optional=True),
+    "dense_views": _rule(_opt.integer, minimum=1),
+    "tau_rel": _number,
+    "eps": _positive,
+    "block": _rule(_opt.integer, minimum=1),
+    "selection_normalise": _flag,
+    "selection_include_ref": _flag,
+    "min_selected": _rule(_opt.integer, minimum=1),
+    "canny_sigma": _number,
+    "canny_low": _rule(_opt.number, optional=True),
+    "canny_high": _rule(_opt.number, optional=True),
+    "edge_dilate": _count,
+    "min_half_views": _rule(_opt.integer, minimum=1),
+    "missing_views": _rule(_opt.choice, choices=MISSING_VIEWS),
+    "unseen_labels": _rule(_opt.choice, choices=UNSEEN_LABELS),
+    "visibility_rounds": _rule(_opt.integer, optional=True),
+    "round_cycles": _rule(_opt.integer, minimum=1, optional=True),
+    "visibility_scale": _rule(_opt.integer, minimum=1),
+    "reuse_memory": _number,
+    "visibility_min_size": _rule(_opt.integer, minimum=1),
+    "visibility_margin": _number,
+    "min_visible_views": _rule(_opt.integer, minimum=1),
+    "visibility_test": _rule(_opt.choice, choices=VISIBILITY_TESTS),
+    "texture_window": _rule(_opt.integer, minimum=3, odd=True),
+    "coarse_prior": _flag,
+    "coarse_prior_scale": _rule(_opt.integer, minimum=2),
+    "coarse_prior_width": _rule(_opt.number, positive=True, optional=True),
+    "coarse_prior_levels": _rule(_opt.integer, minimum=1),
+    "coarse_prior_labels": _rule(_opt.integer, minimum=2, optional=True),
+    "weak_planes": _flag,
+    "plane_tile": _rule(_opt.integer, minimum=8, optional=True),
+    "plane_max_slope": _rule(_opt.number, positive=True, at_most=1),
+    "plane_specks": _count,
+    "plane_carry": _rule(_opt.number, optional=True),
+    "sigma_d": _positive,
+    "achromatic_radius": _number,
+    "p_eps": _positive,
+    "gamma_c": _number,
+    "normalise_costs": _flag,
+    "smoothness": _number,
+    "truncation": _positive,
+    "occlusion_weight": _number,
+    "edge_sigma": _rule(_opt.number, positive=True, optional=True),
+    "max_cycles": _count,
+    "mrf_levels": _rule(_opt.integer, maximum=4),
+    "sgm_paths": _rule(_opt.choice, choices=_reg.SGM_PATHS),
+    "refine": _flag,
+    "median_radius": _count,
+    "median_sigma": _positive,
+    "median_blur_sharp": _number,
+    "median_blur_step": _positive,
+    "confidence_edge_px": _number,
+    "confidence_edge_jump": _positive,
+    "confidence_floor": _rule(_opt.number, below=1),
+    "impl": _rule(_opt.choice, choices=("auto", "numba", "numpy")),
+    "max_memory": _rule(_opt.number, positive=True, optional=True),
+    "tile_rows": _tile_rows,
+    "texture_snr": _texture_snr,
+    "lambda_r": _opt.word_or(_positive, (None, "per_label", "per_pixel"),
+                             "None, 'per_label', 'per_pixel' or a finite number > 0"),
+    "median_passes": _opt.word_or(_rule(_opt.integer, minimum=1), ("auto",),
+                                  "'auto' or an integer >= 1"),
+}
 
 
 @dataclass(frozen=True)
@@ -455,116 +548,12 @@ class DepthParams:
     tile_rows: int | None = None
 
     def __post_init__(self):
-        def pos(name, v, zero=False):
-            try:
-                ok = math.isfinite(float(v)) and (float(v) >= 0 if zero else float(v) > 0)
-            except (TypeError, ValueError):
-                ok = False
-            if not ok:
-                raise InvalidInputError(f"params.{name} must be {'>= 0' if zero else '> 0'}, got {v!r}")
-
-        if self.window is not None and (int(self.window) != self.window or self.window < 1
-                                        or self.window % 2 == 0):
-            raise InvalidInputError(f"params.window must be None or an odd int >= 1, got {self.window!r}")
-        pos("tau_rel", self.tau_rel, True)
+        _opt.check_fields(self, _DEPTH_RULES, "params.")
         self._check_fusion_weights()
-        if self.texture_snr is not None:
-            pos("texture_snr", self.texture_snr, True)
-            if 0 < self.texture_snr <= 1:
-                raise InvalidInputError("params.texture_snr must be 0 (off) or > 1, got "
-                                        f"{self.texture_snr!r}")
-        n = self.coarse_prior_labels
-        if n is not None and (isinstance(n, bool) or not isinstance(n, (int, np.integer))
-                              or n < 2):
-            raise InvalidInputError("params.coarse_prior_labels must be None or an integer "
-                                    f">= 2, got {n!r}")
-        if isinstance(self.texture_window, bool) or int(self.texture_window) != \
-                self.texture_window or self.texture_window < 3 or self.texture_window % 2 == 0:
-            raise InvalidInputError("params.texture_window must be an odd integer >= 3, got "
-                                    f"{self.texture_window!r}")
-        pos("eps", self.eps)
-        pos("block", self.block)
-        pos("canny_sigma", self.canny_sigma, True)
-        pos("sigma_d", self.sigma_d)
-        pos("achromatic_radius", self.achromatic_radius, True)
-        pos("p_eps", self.p_eps)
-        pos("gamma_c", self.gamma_c, True)
-        pos("smoothness", self.smoothness, True)
-        pos("truncation", self.truncation)
-        pos("occlusion_weight", self.occlusion_weight, True)
-        if int(self.min_selected) < 1:
-            raise InvalidInputError(f"params.min_selected must be >= 1, got {self.min_selected!r}")
-        for name, low in (("visibility_rounds", 0), ("round_cycles", 1), ("min_visible_views", 1),
-                          ("dense_views", 1), ("visibility_scale", 1), ("visibility_min_size", 1),
-                          ("coarse_prior_scale", 2), ("coarse_prior_levels", 1)):
-            v = getattr(self, name)
-            if v is None and name in ("visibility_rounds", "round_cycles"):
-                continue
-            if isinstance(v, bool) or int(v) != v or v < low:
-                raise InvalidInputError(f"params.{name} must be an integer >= {low}, got {v!r}")
-        pos("visibility_margin", self.visibility_margin, True)
-        if self.visibility_test not in VISIBILITY_TESTS:
-            raise InvalidInputError(f"params.visibility_test must be one of {VISIBILITY_TESTS}, "
-                                    f"got {self.visibility_test!r}")
         try:
             self.aggregation_params
         except InvalidInputError as e:
             raise InvalidInputError(f"params.{e}") from None
-        if not isinstance(self.coarse_prior, (bool, np.bool_)):
-            raise InvalidInputError(f"params.coarse_prior must be True or False, got "
-                                    f"{self.coarse_prior!r}")
-        self._check_plane_options()
-        if self.coarse_prior_width is not None:
-            pos("coarse_prior_width", self.coarse_prior_width)
-        if int(self.min_half_views) < 1:
-            raise InvalidInputError(f"params.min_half_views must be >= 1, got {self.min_half_views!r}")
-        if self.unseen_labels not in UNSEEN_LABELS:
-            raise InvalidInputError(f"params.unseen_labels must be one of {UNSEEN_LABELS}, got "
-                                    f"{self.unseen_labels!r}")
-        if self.missing_views not in MISSING_VIEWS:
-            raise InvalidInputError(f"params.missing_views must be one of {MISSING_VIEWS}, got "
-                                    f"{self.missing_views!r}")
-        if int(self.edge_dilate) < 0:
-            raise InvalidInputError(f"params.edge_dilate must be >= 0, got {self.edge_dilate!r}")
-        if self.impl not in ("auto", "numba", "numpy"):
-            raise InvalidInputError(f"params.impl must be 'auto', 'numba' or 'numpy', got {self.impl!r}")
-        lr = self.lambda_r
-        if lr is not None and lr not in ("per_label", "per_pixel"):
-            pos("lambda_r", lr)
-        if isinstance(self.mrf_levels, bool) or int(self.mrf_levels) != self.mrf_levels \
-                or not 0 <= self.mrf_levels <= 4:
-            raise InvalidInputError(f"params.mrf_levels must be an integer 0..4, got {self.mrf_levels!r}")
-        if int(self.max_cycles) < 0:
-            raise InvalidInputError(f"params.max_cycles must be >= 0, got {self.max_cycles!r}")
-        if isinstance(self.median_radius, bool) or int(self.median_radius) != self.median_radius \
-                or self.median_radius < 0:
-            raise InvalidInputError(
-                f"params.median_radius must be an integer >= 0, got {self.median_radius!r}")
-        pos("median_sigma", self.median_sigma)
-        mp = self.median_passes
-        if mp != "auto" and not (isinstance(mp, (int, float, np.integer, np.floating))
-                                 and not isinstance(mp, bool) and np.isfinite(mp)
-                                 and int(mp) == mp and mp >= 1):
-            raise InvalidInputError(
-                f"params.median_passes must be 'auto' or an integer >= 1, got {mp!r}")
-        pos("median_blur_sharp", self.median_blur_sharp, zero=True)
-        pos("median_blur_step", self.median_blur_step)
-        pos("confidence_edge_px", self.confidence_edge_px, zero=True)
-        pos("confidence_edge_jump", self.confidence_edge_jump)
-        pos("confidence_floor", self.confidence_floor, zero=True)
-        if self.confidence_floor >= 1:
-            raise InvalidInputError("params.confidence_floor must be below 1, got "
-                                    f"{self.confidence_floor!r}")
-        if self.max_memory is not None:
-            pos("max_memory", self.max_memory)
-        pos("reuse_memory", self.reuse_memory, True)
-        if self.tile_rows is not None:
-            from .tiling import row_strips
-
-            if isinstance(self.tile_rows, bool) or int(self.tile_rows) != self.tile_rows:
-                raise InvalidInputError(f"params.tile_rows must be an integer, got {self.tile_rows!r}")
-            row_strips(1, self.tile_rows)
-
 
     def _check_fusion_weights(self) -> None:
         """``fusion_weights``: None, or finite numbers >= 0, not all 0, kept as a tuple (which
@@ -579,30 +568,6 @@ class DepthParams:
             raise InvalidInputError("params.fusion_weights must be None or one finite number "
                                     f">= 0 per part of the fused cost, not all 0; got {w!r}")
         object.__setattr__(self, "fusion_weights", t)
-
-    def _check_plane_options(self) -> None:
-        """The weak planes' options (``weak_planes``, ``plane_*``)."""
-        if not isinstance(self.weak_planes, (bool, np.bool_)):
-            raise InvalidInputError(f"params.weak_planes must be True or False, got "
-                                    f"{self.weak_planes!r}")
-        if self.plane_tile is not None and (isinstance(self.plane_tile, bool) or not isinstance(
-                self.plane_tile, (int, np.integer)) or self.plane_tile < 8):
-            raise InvalidInputError(f"params.plane_tile must be None or an integer >= 8, got "
-                                    f"{self.plane_tile!r}")
-        if isinstance(self.plane_specks, bool) or not isinstance(
-                self.plane_specks, (int, np.integer)) or self.plane_specks < 0:
-            raise InvalidInputError(f"params.plane_specks must be an integer >= 0, got "
-                                    f"{self.plane_specks!r}")
-        if self.plane_carry is not None and (isinstance(self.plane_carry, bool) or not isinstance(
-                self.plane_carry, (int, float, np.integer, np.floating)) or not (
-                0 <= self.plane_carry < np.inf)):
-            raise InvalidInputError(f"params.plane_carry must be None or a finite number >= 0, "
-                                    f"got {self.plane_carry!r}")
-        if isinstance(self.plane_max_slope, bool) or not isinstance(
-                self.plane_max_slope, (int, float, np.integer, np.floating)) or not (
-                0 < self.plane_max_slope <= 1):
-            raise InvalidInputError(f"params.plane_max_slope must be in (0, 1], got "
-                                    f"{self.plane_max_slope!r}")
 
     @property
     def aggregation_params(self) -> AggregationParams:
@@ -771,12 +736,6 @@ def aggregate_view(acc: dict, Cv, valid, Mq, Mbar, M_ref, use_selection: bool,
                            np.ascontiguousarray(edge_side, np.int8),
                            acc["E_S_sel"], acc["E_N_sel"], acc["E_S_all"], acc["E_N_all"])
 
-
-#: The values of ``DepthParams.missing_views``.
-MISSING_VIEWS = ("average", "neutral", "common")
-
-#: The values of ``DepthParams.unseen_labels`` (:func:`hyperlf.regularisers.fill_invalid`'s).
-UNSEEN_LABELS = ("share", "worst", "median")
 
 
 def neutral_missing_views(C: np.ndarray, n_used: np.ndarray) -> np.ndarray:

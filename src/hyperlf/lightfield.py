@@ -22,6 +22,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ._options import integer
 from .errors import InvalidInputError
 from .imageops import block_reduce
 
@@ -593,9 +594,7 @@ def downscale(lf: LightField, factor: int = 2, *, truth: bool = False) -> LightF
     >>> small.image_shape, small.disparity_range
     ((3, 4), (-1.0, 2.0))
     """
-    if isinstance(factor, bool) or not isinstance(factor, (int, np.integer)) or factor < 1:
-        raise InvalidInputError(f"factor must be an integer >= 1, got {factor!r}")
-    factor = int(factor)
+    factor = integer(factor, "factor", 1)
     if factor == 1:
         return lf
     rng = lf.disparity_range

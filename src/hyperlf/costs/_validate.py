@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._options import integer
 from ..errors import InvalidInputError
 
 __all__ = ["IMPLS", "AUTO_IMPL", "check_pair", "check_disp", "check_window", "check_impl"]
@@ -48,14 +49,8 @@ def check_disp(dmin, dmax) -> tuple[int, int]:
 
 
 def check_window(n, name="window") -> int:
-    """An odd positive integer window size."""
-    try:
-        k = int(n)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{name} must be an odd positive integer, got {n!r}")
-    if k != n or k < 1 or k % 2 == 0:
-        raise InvalidInputError(f"{name} must be an odd positive integer, got {n!r}")
-    return k
+    """An odd integer window size ``>= 1``."""
+    return integer(n, name, 1, odd=True)
 
 
 def check_impl(impl, evaluator) -> str:

@@ -38,6 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._options import choice, integer, number
 from ..errors import InvalidInputError
 from .pair import box_mean, candidate_validity, right_validity, worst_fill
 
@@ -71,17 +72,9 @@ class AggregationParams:
     eps: float = 1e-3
 
     def __post_init__(self):
-        if self.method not in AGGREGATION_METHODS:
-            raise InvalidInputError(f"aggregation must be one of {tuple(AGGREGATION_METHODS)}, "
-                                    f"got {self.method!r}")
-        if isinstance(self.radius, bool) or not isinstance(self.radius, (int, np.integer)) \
-                or self.radius < 1:
-            raise InvalidInputError(f"aggregation_radius must be an integer >= 1, "
-                                    f"got {self.radius!r}")
-        if isinstance(self.eps, bool) or not isinstance(self.eps, (int, float, np.floating)) \
-                or not np.isfinite(self.eps) or self.eps <= 0:
-            raise InvalidInputError(f"aggregation_eps must be a finite number > 0, "
-                                    f"got {self.eps!r}")
+        choice(self.method, "aggregation", tuple(AGGREGATION_METHODS))
+        object.__setattr__(self, "radius", integer(self.radius, "aggregation_radius", 1))
+        number(self.eps, "aggregation_eps", positive=True)
 
     @classmethod
     def of(cls, value) -> "AggregationParams":

@@ -16,6 +16,7 @@ from typing import Sequence
 import numpy as np
 
 from .._kernel_args import kernel_input
+from .._options import number
 from ..errors import InvalidInputError
 from ..imageops import gradient_magnitude, normalise_intensity
 from ._validate import check_disp, check_impl, check_pair, check_window
@@ -517,10 +518,7 @@ def support_weights(image, window: int = 7, gamma: float = 0.1) -> np.ndarray:
     no weight is below ``1e-6``, so that every window has some support.  ``gamma``: a number
     > 0, else :class:`~hyperlf.errors.InvalidInputError`.
     """
-    if isinstance(gamma, bool) or not isinstance(gamma, (int, float, np.floating)) \
-            or not (np.isfinite(gamma) and gamma > 0):
-        raise InvalidInputError(f"support_gamma must be a number > 0 (or None for the plain "
-                                f"census), got {gamma!r}")
+    gamma = number(gamma, "support_gamma (None for the plain census)", positive=True)
     n = check_window(window)
     img = np.asarray(image, dtype=np.float64)
     lo, hi = np.percentile(img, [1.0, 99.0])

@@ -71,25 +71,6 @@ def check_guide(guide, H: int, W: int) -> np.ndarray:
     return g
 
 
-def check_positive(value, name: str, allow_zero: bool = True) -> float:
-    """``value`` as a finite float ``>= 0`` (``> 0`` unless ``allow_zero``)."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{name} must be a number, got {value!r}") from None
-    if not np.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
-        bound = ">= 0" if allow_zero else "> 0"
-        raise InvalidInputError(f"{name} must be finite and {bound}, got {value!r}")
-    return v
-
-
-def check_count(value, name: str) -> int:
-    """``value`` as an integer ``>= 0`` (bools refused)."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-        raise InvalidInputError(f"{name} must be an integer >= 0, got {value!r}")
-    return int(value)
-
-
 def gather(c: np.ndarray, f: np.ndarray) -> np.ndarray:
     """``c[f[y, x], y, x]`` as float64 ``(H, W)``."""
     return np.take_along_axis(c, f[None], axis=0)[0].astype(np.float64)

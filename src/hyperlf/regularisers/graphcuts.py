@@ -16,8 +16,8 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from ..imageops import block_reduce
-from ._checks import (check_cost, check_count, check_guide, check_label_map, check_labels,
-                      check_positive, gather)
+from .._options import integer, number
+from ._checks import check_cost, check_guide, check_label_map, check_labels, gather
 
 __all__ = ["edge_weights_from_guide", "mrf_energy", "graphcut", "candidate_labels",
            "graphcut_multiscale", "GRAPHCUT_SMOOTHNESS"]
@@ -55,7 +55,7 @@ def edge_weights_from_guide(guide, edge_sigma: float | None = None):
         ms = (dx2.sum() + dy2.sum()) / n if n else 0.0
         edge_sigma = float(np.sqrt(ms)) if ms > 0 else 1.0
     else:
-        edge_sigma = check_positive(edge_sigma, "edge_sigma", allow_zero=False)
+        edge_sigma = number(edge_sigma, "edge_sigma", positive=True)
     s2 = 2.0 * edge_sigma ** 2
     return np.exp(-dx2 / s2), np.exp(-dy2 / s2)
 
@@ -79,7 +79,7 @@ def _check_edge_weights(edge_weights, shape_x, shape_y):
 
 def _pair_weights(H, W, weight, guide, edge_sigma, edge_weights):
     """Final (wx, wy) = weight * guide factors * explicit edge weights (float64)."""
-    weight = check_positive(weight, "weight")
+    weight = number(weight, "weight")
     wx = np.full((H, W - 1), weight, dtype=np.float64)
     wy = np.full((H - 1, W), weight, dtype=np.float64)
     if guide is not None:
@@ -103,7 +103,7 @@ def _smoothness_matrix(smoothness, L, labels_values, truncation) -> np.ndarray:
         lv = check_labels(labels_values, L)
         V = np.abs(lv[:, None] - lv[None, :])
         if truncation is not None:
-            T = check_positive(truncation, "truncation")
+            T = number(truncation, "truncation")
             V = np.minimum(V, T)
         return V
     raise InvalidInputError(
@@ -168,9 +168,7 @@ def candidate_labels(volume, k: int, spread: int = 1) -> np.ndarray:
     """
     c = check_cost(volume, "volume")
     L = c.shape[0]
-    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
-        raise InvalidInputError(f"k must be an integer >= 1, got {k!r}")
-    spread = check_count(spread, "spread")
+    k, spread = integer(k, "k", 1), integer(spread, "spread")
     if k >= L:
         return np.ones(c.shape, dtype=bool)
     top = np.argpartition(c, k - 1, axis=0)[:k]
@@ -333,9 +331,7 @@ def _progress_hooks(progress, n_moves: int):
     return None, None
 
 
-def _check_graphcut_options(c, max_cycles, order, candidates):
-    if isinstance(max_cycles, bool) or not isinstance(max_cycles, (int, np.integer)) or max_cycles < 0:
-        raise InvalidInputError(f"max_cycles must be an integer >= 0, got {max_cycles!r}")
+def _check_graphcut_options(c, order, candidates):
     if order not in ("sequential", "random"):
         raise InvalidInputError(f"order must be 'sequential' or 'random', got {order!r}")
     if candidates is not None:
@@ -459,7 +455,8 @@ def graphcut(cost, smoothness: str = "truncated_linear", weight: float = 1.0,
     L, H, W = c.shape
     Vm = _smoothness_matrix(smoothness, L, labels, truncation)
     wx, wy = _pair_weights(H, W, weight, guide, edge_sigma, edge_weights)
-    candidates = _check_graphcut_options(c, max_cycles, order, candidates)
+    max_cycles = integer(max_cycles, "max_cycles")
+    candidates = _check_graphcut_options(c, order, candidates)
     f = np.argmin(c, axis=0).astype(np.intp) if init is None else \
         check_label_map(init, L, H, W, "init").copy()
     state = _Expansion(c, f, Vm, wx, wy, candidates)
@@ -566,8 +563,8 @@ def graphcut_multiscale(cost, smoothness: str = "truncated_linear", weight: floa
     """
     c = check_cost(cost)
     L, H, W = c.shape
-    for v, name in ((levels, "levels"), (band, "band"), (radius, "radius")):
-        check_count(v, name)
+    levels, band, radius = (integer(v, name) for v, name in
+                            ((levels, "levels"), (band, "band"), (radius, "radius")))
     lv = check_labels(labels, L)
     g = None if guide is None else check_guide(guide, H, W)
     common = dict(smoothness=smoothness, truncation=truncation, edge_sigma=edge_sigma,

@@ -7,12 +7,10 @@ from a name and a dict.  :func:`hyperlf.regularisers.optimise` runs any of them.
 
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass, fields
 from typing import Any, ClassVar
 
-import numpy as np
-
+from .._options import check_fields, choice, flag, integer, number, rule
 from ..errors import InvalidInputError
 from .graphcuts import GRAPHCUT_SMOOTHNESS
 from .semiglobal import SGM_PATHS, SGM_SMOOTHNESS
@@ -23,51 +21,8 @@ __all__ = ["WTAParams", "SGMParams", "GraphCutParams", "OPTIMISERS", "make_param
 _IMPLS = ("auto", "numba", "numpy")
 
 
-def _number(obj, name: str, *, positive: bool = False, optional: bool = False) -> None:
-    """Check ``obj.name`` is a finite real ``>= 0`` (``> 0`` if ``positive``; None if optional)."""
-    v = getattr(obj, name)
-    if v is None and optional:
-        return
-    ok = not isinstance(v, (bool, np.bool_)) and isinstance(v, (int, float, np.integer,
-                                                                 np.floating))
-    ok = ok and math.isfinite(v) and (v > 0 if positive else v >= 0)
-    if not ok:
-        bound = "> 0" if positive else ">= 0"
-        none = " or None" if optional else ""
-        raise InvalidInputError(f"{obj.name} {name} must be a finite number {bound}{none}, got {v!r}")
-
-
-def _integer(obj, name: str, minimum: int = 0) -> None:
-    """Check ``obj.name`` is an integer ``>= minimum`` (an integral float is converted)."""
-    v = getattr(obj, name)
-    ok = not isinstance(v, (bool, np.bool_)) and isinstance(v, (int, float, np.integer,
-                                                                 np.floating))
-    ok = ok and math.isfinite(v) and float(v).is_integer() and v >= minimum
-    if not ok:
-        raise InvalidInputError(f"{obj.name} {name} must be an integer >= {minimum}, got {v!r}")
-    object.__setattr__(obj, name, int(v))
-
-
-def _share(obj, name: str) -> None:
-    """Check ``obj.name`` is a finite real in ``[0, 1]``."""
-    _number(obj, name)
-    if getattr(obj, name) > 1:
-        raise InvalidInputError(f"{obj.name} {name} must be a share in [0, 1], "
-                                f"got {getattr(obj, name)!r}")
-
-
-def _flag(obj, name: str) -> None:
-    v = getattr(obj, name)
-    if not isinstance(v, (bool, np.bool_)):
-        raise InvalidInputError(f"{obj.name} {name} must be True or False, got {v!r}")
-    object.__setattr__(obj, name, bool(v))
-
-
-def _choice(obj, name: str, choices) -> None:
-    v = getattr(obj, name)
-    if v not in choices:
-        raise InvalidInputError(f"{obj.name} {name} must be one of {', '.join(map(str, choices))}, "
-                                f"got {v!r}")
+def _paths(value, label):
+    return choice(integer(value, label), label, SGM_PATHS)
 
 
 @dataclass(frozen=True)
@@ -108,14 +63,11 @@ class SGMParams:
     impl: str = "auto"
 
     def __post_init__(self):
-        _number(self, "p1")
-        _number(self, "p2")
-        _integer(self, "paths")
-        _choice(self, "paths", SGM_PATHS)
-        _choice(self, "smoothness", SGM_SMOOTHNESS)
-        _flag(self, "adaptive_p2")
-        _number(self, "guide_scale", positive=True, optional=True)
-        _choice(self, "impl", _IMPLS)
+        check_fields(self, {
+            "p1": number, "p2": number, "paths": _paths,
+            "smoothness": rule(choice, choices=SGM_SMOOTHNESS), "adaptive_p2": flag,
+            "guide_scale": rule(number, positive=True, optional=True),
+            "impl": rule(choice, choices=_IMPLS)}, f"{self.name} ")
 
 
 @dataclass(frozen=True)
@@ -154,13 +106,12 @@ class GraphCutParams:
     min_size: int = 16
 
     def __post_init__(self):
-        _number(self, "weight")
-        _choice(self, "smoothness", GRAPHCUT_SMOOTHNESS)
-        _number(self, "truncation", optional=True)
-        _number(self, "edge_sigma", positive=True, optional=True)
-        for name in ("max_cycles", "levels", "band", "radius"):
-            _integer(self, name)
-        _integer(self, "min_size", 1)
+        check_fields(self, {
+            "weight": number, "smoothness": rule(choice, choices=GRAPHCUT_SMOOTHNESS),
+            "truncation": rule(number, optional=True),
+            "edge_sigma": rule(number, positive=True, optional=True),
+            "max_cycles": integer, "levels": integer, "band": integer, "radius": integer,
+            "min_size": rule(integer, minimum=1)}, f"{self.name} ")
 
 
 #: Optimiser name -> its parameter dataclass (the one list of optimiser names).
@@ -189,7 +140,7 @@ def make_params(name: str, values: dict[str, Any] | None = None):
     Examples
     --------
     >>> make_params("sgm", {"p1": 2})
-    SGMParams(p1=2, p2=2.0, paths=8, smoothness='p1p2', adaptive_p2=False, guide_scale=None, impl='auto')
+    SGMParams(p1=2.0, p2=2.0, paths=8, smoothness='p1p2', adaptive_p2=False, guide_scale=None, impl='auto')
     """
     cls = OPTIMISERS.get(name) if isinstance(name, str) else None
     if cls is None:

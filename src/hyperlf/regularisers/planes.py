@@ -27,7 +27,7 @@ from typing import ClassVar
 import numpy as np
 
 from ..errors import InvalidInputError
-from .params import _integer, _number, _share
+from .._options import check_fields, integer, number, rule, share
 
 __all__ = ["PlaneFillParams", "segment", "fit_plane", "plane_fill", "cost_planes"]
 
@@ -65,13 +65,10 @@ class PlaneFillParams:
     min_inliers: float = 0.8
 
     def __post_init__(self):
-        for name in ("scale", "inlier_tol"):
-            _number(self, name, positive=True)
-        _number(self, "sigma")
-        for name in ("min_size", "min_support"):
-            _integer(self, name, 1)
-        for name in ("min_reliable", "min_inliers"):
-            _share(self, name)
+        positive, count = rule(number, positive=True), rule(integer, minimum=1)
+        check_fields(self, {"scale": positive, "inlier_tol": positive, "sigma": number,
+                            "min_size": count, "min_support": count, "min_reliable": share,
+                            "min_inliers": share}, f"{self.name} ")
 
 
 def _unit_range(guide: np.ndarray) -> np.ndarray:

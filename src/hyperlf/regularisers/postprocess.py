@@ -9,8 +9,8 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from ..warp import coordinate_taps
-from ._checks import check_cost, check_label_map, check_labels, check_positive, gather
-from .params import _number
+from .._options import check_fields, integer, number, rule
+from ._checks import check_cost, check_label_map, check_labels, gather
 
 __all__ = ["left_right_check", "left_occlusions", "fill_occlusions", "right_cost_from_left",
            "subpixel_refine",
@@ -60,7 +60,7 @@ def left_right_check(disp_left, disp_right, tol: float = 1.0) -> np.ndarray:
     if dl.shape != dr.shape:
         raise InvalidInputError(
             f"disp_left and disp_right must have the same shape, got {dl.shape} and {dr.shape}")
-    tol = check_positive(tol, "tol")
+    tol = number(tol, "tol")
     H, W = dl.shape
     xs = np.arange(W)[None, :]
     with np.errstate(invalid="ignore"):
@@ -322,7 +322,7 @@ def confidence(cost, labels_map=None, *, floor: float = 0.0) -> np.ndarray:
     L, H, W = c.shape
     f = np.argmin(c, axis=0) if labels_map is None else check_label_map(labels_map, L, H, W,
                                                                           "labels_map")
-    floor = check_positive(floor, "floor")
+    floor = number(floor, "floor")
     if floor >= 1.0:
         raise InvalidInputError(f"floor must be below 1, got {floor!r}")
     if L < 2:
@@ -377,8 +377,8 @@ def edge_confidence(disparity, *, width: float = 4.0, jump: float = 0.5) -> np.n
     d = np.asarray(disparity, np.float64)
     if d.ndim != 2:
         raise InvalidInputError(f"disparity must be (H, W), got shape {d.shape}")
-    width = check_positive(width, "width")
-    jump = check_positive(jump, "jump", allow_zero=False)
+    width = number(width, "width")
+    jump = number(jump, "jump", positive=True)
     if width == 0.0:
         return np.ones(d.shape, np.float32)
     bad = ~np.isfinite(d)
@@ -419,11 +419,8 @@ class ConfidenceParams:
     edge_jump: float = 1.5
 
     def __post_init__(self):
-        _number(self, "floor")
-        if self.floor >= 1:
-            raise InvalidInputError(f"confidence floor must be below 1, got {self.floor!r}")
-        _number(self, "edge_px")
-        _number(self, "edge_jump", positive=True)
+        check_fields(self, {"floor": rule(number, below=1), "edge_px": number,
+                            "edge_jump": rule(number, positive=True)}, f"{self.name} ")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -437,12 +434,11 @@ def _wmf_args(disp, guide, radius, sigma):
     g = np.asarray(guide, dtype=np.float64)
     if g.shape != d.shape or not np.all(np.isfinite(g)):
         raise InvalidInputError(f"guide must be a finite image of shape {d.shape}, got {g.shape}")
-    if isinstance(radius, bool) or not isinstance(radius, (int, np.integer)) or radius < 0:
-        raise InvalidInputError(f"radius must be an integer >= 0, got {radius!r}")
+    radius = integer(radius, "radius")
     if radius > max(d.shape):
         raise InvalidInputError(f"radius {radius} is larger than the {d.shape[1]} x "
                                 f"{d.shape[0]} px image; use at most {max(d.shape)}")
-    sigma = check_positive(sigma, "sigma", allow_zero=False)
+    sigma = number(sigma, "sigma", positive=True)
     m = float(np.mean(np.abs(g)))
     return d, (g / m if m > 0 else g), int(radius), float(sigma)
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InvalidInputError
-from ._checks import check_cost, check_guide, check_positive
+from .._options import number
+from ._checks import check_cost, check_guide
 from .basic import wta
 
 __all__ = ["sgm", "sgm_labels", "SGM_SMOOTHNESS", "SGM_PATHS"]
@@ -57,7 +58,7 @@ def _sgm_p2_maps(H, W, directions, p1, p2, guide, guide_scale):
         s = float(np.concatenate(parts).mean()) if parts else 0.0
         guide_scale = s if s > 0 else 1.0
     else:
-        guide_scale = check_positive(guide_scale, "guide_scale", allow_zero=False)
+        guide_scale = number(guide_scale, "guide_scale", positive=True)
     return [np.maximum(p1, p2 / (1.0 + d / guide_scale)) for d in diffs]
 
 
@@ -206,8 +207,8 @@ def sgm(cost, p1: float, p2: float, paths: int = 8, guide=None, impl: str = "aut
     ([2.8, 0.6, 0.8], [1, 1, 1, 1, 1, 1, 1])
     """
     c = check_cost(cost)
-    p1 = check_positive(p1, "p1")
-    p2 = check_positive(p2, "p2")
+    p1 = number(p1, "p1")
+    p2 = number(p2, "p2")
     if smoothness not in _SMOOTH_CODES:
         raise InvalidInputError(
             f"smoothness must be one of {sorted(_SMOOTH_CODES)}, got {smoothness!r}")

@@ -1,0 +1,142 @@
+"""Checking the value of one option: the one home of these rules.
+
+Every parameter class (:class:`hyperlf.hlf.DepthParams`, the optimisers' parameters in
+:mod:`hyperlf.regularisers.params`, the plane fill's) and every function that takes a number
+checks it here, so that a wrong value gets the same one-line :class:`InvalidInputError`
+everywhere, never a ``TypeError`` or ``ValueError`` from deep inside. Each checker takes the
+value and the label the message names it by (``"params.eps"``, ``"graphcut weight"``), and
+returns the value in its canonical type.
+
+Examples
+--------
+>>> number(0.5, "eps", positive=True)
+0.5
+>>> integer(4.0, "radius")
+4
+>>> integer(2.5, "radius")
+Traceback (most recent call last):
+...
+hyperlf.errors.InvalidInputError: radius must be an integer >= 0, got 2.5
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .errors import InvalidInputError
+
+__all__ = ["number", "integer", "share", "flag", "choice", "rule", "word_or", "check_fields"]
+
+_REAL = (int, float, np.integer, np.floating)
+
+
+def _is_real(value) -> bool:
+    """A finite real number, bools excluded (``True`` is an int to Python, not to a user)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, _REAL):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:  # an int too large for a float
+        return False
+
+
+def number(value, label: str, *, positive: bool = False, optional: bool = False,
+           below: float | None = None, at_most: float | None = None) -> float | None:
+    """``value`` as a float, finite and ``>= 0`` (``> 0`` if ``positive``), below ``below`` /
+    at most ``at_most`` where given; None passes when ``optional``."""
+    if value is None and optional:
+        return None
+    low = "> 0" if positive else ">= 0"
+    ok = _is_real(value) and (value > 0 if positive else value >= 0)
+    if below is not None:
+        low = f"in {'(' if positive else '['}0, {below:g})"
+        ok = ok and value < below
+    elif at_most is not None:
+        low = f"in {'(' if positive else '['}0, {at_most:g}]"
+        ok = ok and value <= at_most
+    if not ok:
+        none = " or None" if optional else ""
+        raise InvalidInputError(f"{label} must be a finite number {low}{none}, got {value!r}")
+    return float(value)
+
+
+def integer(value, label: str, minimum: int = 0, *, maximum: int | None = None,
+            odd: bool = False, optional: bool = False) -> int | None:
+    """``value`` as an int ``>= minimum`` (and ``<= maximum``, odd where asked); an integral
+    float such as ``4.0`` is taken, a bool or ``4.5`` is not; None passes when ``optional``."""
+    if value is None and optional:
+        return None
+    ok = _is_real(value) and float(value).is_integer() and minimum <= value
+    ok = ok and (maximum is None or value <= maximum) and (not odd or int(value) % 2 == 1)
+    if not ok:
+        kind = f"an {'odd ' if odd else ''}integer"
+        bound = f"in {minimum}..{maximum}" if maximum is not None else f">= {minimum}"
+        none = "None or " if optional else ""
+        raise InvalidInputError(f"{label} must be {none}{kind} {bound}, got {value!r}")
+    return int(value)
+
+
+def share(value, label: str) -> float:
+    """``value`` as a float in ``[0, 1]``."""
+    if _is_real(value) and value > 1:
+        raise InvalidInputError(f"{label} must be a share in [0, 1], got {value!r}")
+    return number(value, label)
+
+
+def flag(value, label: str) -> bool:
+    """``value`` as a bool; only ``True`` and ``False`` (numpy's too) are flags."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise InvalidInputError(f"{label} must be True or False, got {value!r}")
+    return bool(value)
+
+
+def choice(value, label: str, choices):
+    """``value`` itself, when it is one of ``choices``."""
+    try:
+        ok = value in choices
+    except (TypeError, ValueError):  # unhashable, or an array with no single truth value
+        ok = False
+    if not ok:
+        raise InvalidInputError(f"{label} must be one of {', '.join(map(str, choices))}, "
+                                f"got {value!r}")
+    return value
+
+
+def rule(check, **options):
+    """``check`` with ``options`` fixed, called as ``rule(value, label)``.
+
+    Examples
+    --------
+    >>> rule(integer, minimum=1, odd=True)(5.0, "window")
+    5
+    """
+    return lambda value, label: check(value, label, **options)
+
+
+def word_or(check, words, what: str):
+    """A rule that keeps any of ``words`` (None among them, or strings such as ``"auto"``) as
+    it is and checks anything else by the rule ``check``; a refusal says ``what`` it takes.
+
+    Examples
+    --------
+    >>> passes = word_or(rule(integer, minimum=1), ("auto",), "'auto' or an integer >= 1")
+    >>> passes("auto", "passes"), passes(2.0, "passes")
+    ('auto', 2)
+    """
+    def checked(value, label):
+        if any(value is w or (isinstance(value, str) and value == w) for w in words):
+            return value
+        try:
+            return check(value, label)
+        except InvalidInputError:
+            raise InvalidInputError(f"{label} must be {what}, got {value!r}") from None
+    return checked
+
+
+def check_fields(obj, rules: dict, prefix: str = "") -> None:
+    """Check every field ``name`` of the dataclass ``obj`` (frozen or not) by ``rules[name]``,
+    naming it ``prefix + name``, and keep the value the rule returns."""
+    for name, check in rules.items():
+        object.__setattr__(obj, name, check(getattr(obj, name), prefix + name))

@@ -1,0 +1,112 @@
+"""Option values (``hyperlf._options``, the one home of those checks): every parameter class
+takes what it documents, keeps it in its canonical type, and refuses anything else with one
+line of :class:`InvalidInputError`, never a ``TypeError``, ``ValueError`` or
+``OverflowError`` from deep inside."""
+
+from __future__ import annotations
+
+import dataclasses
+import doctest
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from hyperlf import _options as opt
+from hyperlf.costs import AggregationParams
+from hyperlf.descriptor import DescriptorParams
+from hyperlf.errors import InvalidInputError
+from hyperlf.hlf import DepthParams
+from hyperlf.regularisers import ConfidenceParams, GraphCutParams, PlaneFillParams, SGMParams
+
+#: What a user might pass by mistake: strings, NaN, infinities, huge and negative numbers,
+#: bools, containers, arrays, numpy scalars.
+JUNK = (st.none() | st.booleans() | st.text(max_size=6) | st.integers()
+        | st.integers(min_value=10 ** 300, max_value=10 ** 400) | st.floats()
+        | st.lists(st.integers(), max_size=2) | st.dictionaries(st.text(max_size=2), st.none())
+        | st.floats(width=32).map(np.float32) | st.integers(-9, 9).map(np.int64)
+        | st.just(np.zeros(2)) | st.just(np.bool_(True)))
+
+
+def _build_or_refuse(cls, **kwargs):
+    try:
+        return cls(**kwargs)
+    except InvalidInputError as exc:
+        assert "\n" not in str(exc) and str(exc)
+        return None
+
+
+def test_the_module_examples_run():
+    assert doctest.testmod(opt, optionflags=doctest.ELLIPSIS).failed == 0
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.sampled_from([f.name for f in dataclasses.fields(DepthParams)]), JUNK)
+def test_depth_params_take_any_value_or_refuse_it_in_one_line(name, value):
+    params = _build_or_refuse(DepthParams, **{name: value})
+    if params is not None and name in ("window", "dense_views", "block", "max_cycles",
+                                       "mrf_levels", "median_radius", "tile_rows",
+                                       "texture_window", "visibility_rounds"):
+        kept = getattr(params, name)
+        assert kept is None or type(kept) is int  # an integral float is kept as an int
+
+
+OTHERS = (GraphCutParams, SGMParams, AggregationParams, PlaneFillParams, ConfidenceParams,
+          DescriptorParams)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.sampled_from([(cls, f.name) for cls in OTHERS for f in dataclasses.fields(cls)]),
+       JUNK)
+def test_the_other_parameter_classes_too(cls_name, value):
+    cls, name = cls_name
+    _build_or_refuse(cls, **{name: value})
+
+
+@pytest.mark.parametrize("cls", (DepthParams,) + OTHERS)
+def test_the_defaults_are_kept_as_they_are_written(cls):
+    params = cls()
+    for f in dataclasses.fields(cls):
+        value = getattr(params, f.name)
+        assert value == f.default and type(value) is type(f.default), f.name
+
+
+@pytest.mark.parametrize("name, value, words", [
+    ("window", 4, "params.window must be None or an odd integer >= 1, got 4"),
+    ("block", 2.5, "params.block must be an integer >= 1"),
+    ("min_selected", "3", "params.min_selected must be an integer >= 1, got '3'"),
+    ("mrf_levels", 5, "params.mrf_levels must be an integer in 0..4"),
+    ("max_cycles", float("inf"), "params.max_cycles must be an integer >= 0, got inf"),
+    ("confidence_floor", 1.0, "params.confidence_floor must be a finite number in [0, 1)"),
+    ("plane_max_slope", 0.0, "params.plane_max_slope must be a finite number in (0, 1]"),
+    ("texture_snr", 0.5, "params.texture_snr must be None, 0 (off) or > 1"),
+    ("lambda_r", "per_view", "params.lambda_r must be None, 'per_label', 'per_pixel' or"),
+    ("median_passes", 0, "params.median_passes must be 'auto' or an integer >= 1, got 0"),
+    ("tile_rows", 100, "params.tile_rows must be a multiple of 32, got 100"),
+    ("refine", 1, "params.refine must be True or False, got 1"),
+    ("missing_views", ["average"], "params.missing_views must be one of average, neutral"),
+    ("sgm_paths", 6, "params.sgm_paths must be one of 2, 4, 8"),
+])
+def test_depth_params_name_the_option_and_what_it_takes(name, value, words):
+    with pytest.raises(InvalidInputError) as exc:
+        DepthParams(**{name: value})
+    assert str(exc.value).startswith(words)
+
+
+def test_integers_and_numbers_in_their_canonical_types():
+    assert opt.integer(np.int64(4), "n") == 4 and type(opt.integer(4.0, "n")) is int
+    assert opt.integer(None, "n", optional=True) is None
+    assert type(opt.number(np.float32(0.5), "x")) is float
+    assert opt.share(1, "s") == 1.0 and opt.flag(np.bool_(False), "f") is False
+    for bad in (True, 4.5, float("nan"), 10 ** 400, "4", -1, None):
+        with pytest.raises(InvalidInputError, match="^n must be an integer >= 0, got "):
+            opt.integer(bad, "n")
+    for bad, kw in ((0, {"positive": True}), (1.0, {"below": 1}), (1.5, {"at_most": 1}),
+                    (-0.1, {}), (float("inf"), {}), (True, {})):
+        with pytest.raises(InvalidInputError, match="^x must be a finite number "):
+            opt.number(bad, "x", **kw)
+    with pytest.raises(InvalidInputError, match=r"^s must be a share in \[0, 1\], got 1.5"):
+        opt.share(1.5, "s")
+    with pytest.raises(InvalidInputError, match="^c must be one of a, b, got"):
+        opt.choice(np.zeros(2), "c", ("a", "b"))
