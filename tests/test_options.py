@@ -110,3 +110,13 @@ def test_integers_and_numbers_in_their_canonical_types():
         opt.share(1.5, "s")
     with pytest.raises(InvalidInputError, match="^c must be one of a, b, got"):
         opt.choice(np.zeros(2), "c", ("a", "b"))
+
+
+def test_an_unknown_camera_is_refused_before_any_matching(monkeypatch):
+    from hyperlf import hlf, synthesis
+
+    lf = synthesis.procedural_scene(seed=1, rows=2, cols=2, height=24, width=24,
+                                    disparity_range=(-1.0, 1.0))
+    monkeypatch.setattr(hlf, "correspondence", lambda *a, **k: pytest.fail("matched"))
+    with pytest.raises(InvalidInputError, match="unknown camera 'nosuchcam'"):
+        hlf.depth(lf, n_labels=8, defocus="paper", params=DepthParams(camera="nosuchcam"))

@@ -268,7 +268,7 @@ def _tile_rows(value, label):
 
 #: How :class:`DepthParams` checks each option, and the type it keeps (``fusion_weights``:
 #: ``_check_fusion_weights``; ``aggregation*``: :class:`hyperlf.costs.AggregationParams`;
-#: ``camera`` is checked where its table is read).
+#: ``camera`` by :func:`depth` before any work, where the defocus cue reads its table).
 _DEPTH_RULES = {
     "window": _rule(_opt.integer, minimum=1, odd=True, optional=True),
     "dense_views": _rule(_opt.integer, minimum=1),
@@ -1206,6 +1206,8 @@ def _check_depth_options(lf, metric, view_selection, occlusion_split, defocus, o
         raise InvalidInputError(
             "the defocus cue needs a spectral light field with one wavelength per view "
             "(lf.wavelengths); pass defocus='off' or set the wavelengths")
+    if defocus in ("paper", "gaussian"):  # the camera's table, read before any long work
+        _camera_matrix(params.camera, np.ravel(lf.wavelengths))
     return mname, view_selection, occlusion_split, params
 
 
