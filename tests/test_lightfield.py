@@ -269,3 +269,27 @@ def test_capture_signature_uses_valid_pixels_only(rng):
                                        reference=(0, 0)))
     assert sig["thumbnail"][:8] == [None] * 8
     assert sig["thumbnail"][8] == pytest.approx(float(view[8:16, :10].mean()), rel=1e-6)
+
+
+_LF_JUNK = (st.none() | st.booleans() | st.text(max_size=4) | st.floats() | st.integers()
+            | st.lists(st.floats(), max_size=3) | st.lists(st.lists(st.integers(), max_size=3),
+                                                          max_size=3)
+            | st.dictionaries(st.text(max_size=2), st.none(), max_size=1)
+            | st.tuples(st.floats(), st.floats())
+            | st.sampled_from([np.zeros((2, 3)), np.full((2, 3), "a"), np.zeros((2, 3, 2)),
+                               np.zeros((2, 3, 8, 8)), np.full((2, 3), np.nan)]))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.sampled_from(["views", "wavelengths", "positions", "reference", "disparity_range",
+                        "gt_disparity", "gt_cube", "cube_wavelengths", "metadata", "valid"]),
+       _LF_JUNK)
+def test_any_field_is_taken_or_refused_in_one_line(name, value):
+    """Text, mappings, ragged lists and arrays of the wrong shape in any field of a light field
+    end in one line of InvalidInputError (text in ``wavelengths`` was a ValueError, an
+    array as ``reference`` a message over two lines)."""
+    fields = {"views": np.ones((2, 3, 8, 8), np.float32), name: value}
+    try:
+        LightField(**fields)
+    except InvalidInputError as exc:
+        assert "\n" not in str(exc) and str(exc)

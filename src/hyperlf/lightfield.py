@@ -32,6 +32,22 @@ __all__ = ["LightField", "raster_wavelengths", "filter_layout", "view_offsets",
            "capture_signature", "signature_mismatch"]
 
 
+def _shown(value, limit: int = 60) -> str:
+    """``repr(value)`` on one line, cut at ``limit`` characters (for one-line messages)."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def _real(name: str, value, dtype=np.float64) -> np.ndarray:
+    """``value`` as an array of ``dtype``; text, mappings and ragged lists are refused."""
+    try:
+        with np.errstate(over="ignore"):  # too large for float32: inf, which _finite names
+            return np.asarray(value, dtype=dtype)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{name} must be an array of real numbers, got "
+                                f"{_shown(value)}") from None
+
+
 def _finite(name: str, arr: np.ndarray) -> None:
     if not np.all(np.isfinite(arr)):
         bad = int(np.size(arr) - np.count_nonzero(np.isfinite(arr)))
@@ -205,10 +221,10 @@ def check_disparity_range(disparity_range) -> tuple[float, float]:
         dmin, dmax = (float(v) for v in disparity_range)
     except (TypeError, ValueError):
         raise InvalidInputError(
-            f"disparity_range must be (dmin, dmax), got {disparity_range!r}") from None
+            f"disparity_range must be (dmin, dmax), got {_shown(disparity_range)}") from None
     if not (np.isfinite(dmin) and np.isfinite(dmax) and dmin < dmax):
         raise InvalidInputError(
-            f"disparity_range must be finite with min < max, got {disparity_range!r}")
+            f"disparity_range must be finite with min < max, got {_shown(disparity_range)}")
     return dmin, dmax
 
 
@@ -349,6 +365,21 @@ class LightField:
     valid: np.ndarray | None = None
 
     def __post_init__(self) -> None:
+        self._check_views()
+        R, C, H, W = self.views.shape[:4]
+        self._check_wavelengths(R, C)
+        self._check_positions(R, C)
+        self._check_reference(R, C)
+        if self.disparity_range is not None:
+            self.disparity_range = check_disparity_range(self.disparity_range)
+        self._check_truth(R, C, H, W)
+        if not isinstance(self.metadata, dict):
+            raise InvalidInputError("metadata must be a dict")
+        if self.valid is not None:
+            self.valid = _check_valid(self.valid, (R, C, H, W))
+
+    def _check_views(self) -> None:
+        """``views`` as a regular, non-empty, finite float32 array of 4 or 5 dimensions."""
         try:
             views = np.asarray(self.views)
         except (TypeError, ValueError) as exc:  # ragged lists
@@ -369,57 +400,59 @@ class LightField:
         views = views.astype(np.float32, copy=False)
         _finite("views", views)
         self.views = views
-        R, C, H, W = views.shape[:4]
 
-        if self.wavelengths is not None:
-            wl = np.asarray(self.wavelengths, dtype=np.float64)
-            if wl.shape != (R, C):
-                raise InvalidInputError(
-                    f"wavelengths must have one value per view, shape ({R}, {C}); got {wl.shape}"
-                )
-            _finite("wavelengths", wl)
-            if np.any(wl <= 0):
-                raise InvalidInputError("wavelengths must be positive (nm)")
-            self.wavelengths = wl
-        elif views.ndim == 4 and R * C > 1:
-            # A monochrome light field without wavelengths is allowed (plain grey LF), but it is
-            # not spectral. Nothing to check.
-            pass
+    def _check_wavelengths(self, R: int, C: int) -> None:
+        """One positive centre wavelength per view; None is a grey or colour light field (not
+        spectral)."""
+        if self.wavelengths is None:
+            return
+        wl = _real("wavelengths", self.wavelengths)
+        if wl.shape != (R, C):
+            raise InvalidInputError(
+                f"wavelengths must have one value per view, shape ({R}, {C}); got {wl.shape}"
+            )
+        _finite("wavelengths", wl)
+        if np.any(wl <= 0):
+            raise InvalidInputError("wavelengths must be positive (nm)")
+        self.wavelengths = wl
 
+    def _check_positions(self, R: int, C: int) -> None:
+        """Camera positions ``(R, C, 2)``; None: the grid's own."""
         if self.positions is None:
             self.positions = grid_positions(R, C)
-        else:
-            pos = np.asarray(self.positions, dtype=np.float64)
-            if pos.shape != (R, C, 2):
-                raise InvalidInputError(
-                    f"positions must have shape ({R}, {C}, 2) as (px, py); got {pos.shape}"
-                )
-            _finite("positions", pos)
-            self.positions = pos
+            return
+        pos = _real("positions", self.positions)
+        if pos.shape != (R, C, 2):
+            raise InvalidInputError(
+                f"positions must have shape ({R}, {C}, 2) as (px, py); got {pos.shape}"
+            )
+        _finite("positions", pos)
+        self.positions = pos
 
+    def _check_reference(self, R: int, C: int) -> None:
+        """The reference view as ``(row, col)`` inside the grid; None: the centre view."""
         if self.reference is None:
             self.reference = centre_view(R, C)
-        else:
-            try:
-                r0, c0 = (int(v) for v in self.reference)
-                exact = all(float(v) == int(v) for v in self.reference)
-            except (TypeError, ValueError):
-                exact = False
-            if not exact:
-                raise InvalidInputError(
-                    f"reference must be a pair of integers (row, col), got {self.reference!r}")
-            if not (0 <= r0 < R and 0 <= c0 < C):
-                raise InvalidInputError(
-                    f"reference view ({r0}, {c0}) is outside the {R} x {C} grid; "
-                    f"rows run 0..{R - 1}, columns 0..{C - 1}"
-                )
-            self.reference = (r0, c0)
+            return
+        try:
+            r0, c0 = (int(v) for v in self.reference)
+            exact = all(float(v) == int(v) for v in self.reference)
+        except (TypeError, ValueError, OverflowError):
+            exact = False
+        if not exact:
+            raise InvalidInputError(
+                f"reference must be a pair of integers (row, col), got {_shown(self.reference)}")
+        if not (0 <= r0 < R and 0 <= c0 < C):
+            raise InvalidInputError(
+                f"reference view ({r0}, {c0}) is outside the {R} x {C} grid; "
+                f"rows run 0..{R - 1}, columns 0..{C - 1}"
+            )
+        self.reference = (r0, c0)
 
-        if self.disparity_range is not None:
-            self.disparity_range = check_disparity_range(self.disparity_range)
-
+    def _check_truth(self, R: int, C: int, H: int, W: int) -> None:
+        """``gt_disparity``, ``gt_cube`` and ``cube_wavelengths``."""
         if self.gt_disparity is not None:
-            gt = np.asarray(self.gt_disparity, dtype=np.float32)
+            gt = _real("gt_disparity", self.gt_disparity, np.float32)
             if gt.shape not in ((H, W), (R, C, H, W)):
                 raise InvalidInputError(
                     f"gt_disparity must have shape ({H}, {W}) or ({R}, {C}, {H}, {W}); "
@@ -428,7 +461,7 @@ class LightField:
             self.gt_disparity = gt  # may hold NaN/inf for unknown pixels by convention
 
         if self.gt_cube is not None:
-            cube = np.asarray(self.gt_cube, dtype=np.float32)
+            cube = _real("gt_cube", self.gt_cube, np.float32)
             if cube.ndim != 5 or cube.shape[:2] != (R, C) or cube.shape[3:] != (H, W):
                 raise InvalidInputError(
                     f"gt_cube must have shape ({R}, {C}, B, {H}, {W}); got {cube.shape}"
@@ -438,7 +471,7 @@ class LightField:
                 raise InvalidInputError("gt_cube needs cube_wavelengths (one per band)")
             self.gt_cube = cube
         if self.cube_wavelengths is not None:
-            cw = np.asarray(self.cube_wavelengths, dtype=np.float64).ravel()
+            cw = _real("cube_wavelengths", self.cube_wavelengths).ravel()
             _finite("cube_wavelengths", cw)
             if np.any(cw <= 0) or len(np.unique(cw)) != cw.size:
                 raise InvalidInputError("cube_wavelengths must be positive and distinct (nm)")
@@ -448,10 +481,6 @@ class LightField:
                     f"{self.gt_cube.shape[2]} bands"
                 )
             self.cube_wavelengths = cw
-        if not isinstance(self.metadata, dict):
-            raise InvalidInputError("metadata must be a dict")
-        if self.valid is not None:
-            self.valid = _check_valid(self.valid, (R, C, H, W))
 
     # ------------------------------------------------------------------ shape helpers
     @property
