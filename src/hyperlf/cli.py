@@ -923,6 +923,71 @@ def _downscaled(args, lf, rng):
     return small
 
 
+def _hlf_depth_params(args, budget):
+    """The DepthParams of ``hyperlf depth``'s options (None: every default)."""
+    from .hlf import DepthParams
+
+    options = {k: v for k, v in (("median_radius", args.median_radius),
+                                 ("median_passes", args.median_passes),
+                                 ("texture_snr", args.texture_snr),
+                                 ("coarse_prior", False if args.no_coarse_prior else None),
+                                 ("coarse_prior_levels", args.coarse_prior_levels),
+                                 ("missing_views", args.missing_views),
+                                 ("unseen_labels", args.unseen_labels),
+                                 ("weak_planes", args.weak_planes),
+                                 ("visibility_rounds", args.visibility_rounds),
+                                 ("fusion_weights", args.fusion_weights),
+                                 ("confidence_floor", args.confidence_floor),
+                                 ("confidence_edge_px", args.confidence_edge_px),
+                                 ("max_memory", budget))
+               if v is not None}
+    agg = _aggregation_of(args)
+    if agg.method != "none":
+        options.update(aggregation=agg.method, aggregation_radius=agg.radius,
+                       aggregation_eps=agg.eps)
+    return DepthParams(**options) if options else None
+
+
+def _run_hlf_depth(args, lf, rng):
+    """``hyperlf depth --method hlf``: the result, its extra maps, texture weight and coarse
+    prior strength (the last three for --save-intermediate)."""
+    from .hlf import depth
+    from .tiling import DEFAULT_MAX_MEMORY, plan
+
+    budget = args.max_memory  # default: 16 GiB, or less when less is available
+    if budget is None and _available_memory() < DEFAULT_MAX_MEMORY:
+        budget = _available_memory()
+    params = _hlf_depth_params(args, budget)
+    if lf.views.ndim != 4:
+        raise InvalidInputError("the hlf method needs monochrome spectral views; use "
+                                "--method tao2013|wang2015|lin2015 for colour light fields "
+                                "or 'hyperlf synth hci' to make an H-LF")
+    strips = plan(lf.image_shape, args.labels, lf.n_views, budget,
+                  selection=args.view_selection)  # refuses a budget too small, now
+    if len(strips) > 1:
+        _say(args, f"correspondence in {len(strips)} strips of {strips[0][1]} rows "
+                   "(--max-memory)")
+    res = depth(lf, disparity_range=rng, n_labels=args.labels, metric=args.metric,
+                view_selection=args.view_selection, occlusion_split=args.occlusion_split,
+                defocus=args.defocus, optimizer=args.optimizer, params=params,
+                save_intermediate=args.save_intermediate, progress=_bars(args))
+    inter = res.intermediate or {}
+    extra = {"correspondence_only": res.f_c, "defocus_only": res.f_d,
+             "coarse_disparity": inter.get("coarse_disparity")}
+    return res, extra, inter.get("texture_weight"), inter.get("coarse_prior_strength")
+
+
+def _run_baseline_depth(args, lf, rng):
+    """``hyperlf depth --method tao2013|wang2015|lin2015``, returned as :func:`_run_hlf_depth`."""
+    from .baselines import METHODS
+
+    res = METHODS[args.method](lf, n_labels=args.labels, disparity_range=rng,
+                               progress=_bars(args))
+    extra = {k: v for k, v in res.maps.items()
+             if isinstance(v, np.ndarray) and v.shape == res.disparity.shape}
+    return res, extra, None, None
+
+
 def _cmd_depth(args, dest) -> list[Path]:
     """Estimate the reference view's disparity of a hyperspectral light field (SPEC §5) or run
     a baseline light-field method on the views as plain intensities. Writes disparity.pfm,
@@ -960,59 +1025,8 @@ def _cmd_depth(args, dest) -> list[Path]:
         lf, rng = _downscaled(args, lf, rng), None  # the range now travels with lf
     _check_labels_memory(args.labels, lf.image_shape)
     t0 = time.perf_counter()
-    if args.method == "hlf":
-        from .hlf import DepthParams, depth
-
-        from .tiling import DEFAULT_MAX_MEMORY, plan
-
-        budget = args.max_memory  # default: 16 GiB, or less when less is available
-        if budget is None and _available_memory() < DEFAULT_MAX_MEMORY:
-            budget = _available_memory()
-        options = {k: v for k, v in (("median_radius", args.median_radius),
-                                     ("median_passes", args.median_passes),
-                                     ("texture_snr", args.texture_snr),
-                                     ("coarse_prior", False if args.no_coarse_prior else None),
-                                     ("coarse_prior_levels", args.coarse_prior_levels),
-                                     ("missing_views", args.missing_views),
-                                     ("unseen_labels", args.unseen_labels),
-                                     ("weak_planes", args.weak_planes),
-                                     ("visibility_rounds", args.visibility_rounds),
-                                     ("fusion_weights", args.fusion_weights),
-                                     ("confidence_floor", args.confidence_floor),
-                                     ("confidence_edge_px", args.confidence_edge_px),
-                                     ("max_memory", budget))
-                   if v is not None}
-        agg = _aggregation_of(args)
-        if agg.method != "none":
-            options.update(aggregation=agg.method, aggregation_radius=agg.radius,
-                           aggregation_eps=agg.eps)
-        params = DepthParams(**options) if options else None
-        if lf.views.ndim != 4:
-            raise InvalidInputError("the hlf method needs monochrome spectral views; use "
-                                    "--method tao2013|wang2015|lin2015 for colour light fields "
-                                    "or 'hyperlf synth hci' to make an H-LF")
-        strips = plan(lf.image_shape, args.labels, lf.n_views, budget,
-                      selection=args.view_selection)  # refuses a budget too small, now
-        if len(strips) > 1:
-            _say(args, f"correspondence in {len(strips)} strips of {strips[0][1]} rows "
-                       "(--max-memory)")
-        res = depth(lf, disparity_range=rng, n_labels=args.labels, metric=args.metric,
-                    view_selection=args.view_selection, occlusion_split=args.occlusion_split,
-                    defocus=args.defocus, optimizer=args.optimizer, params=params,
-                    save_intermediate=args.save_intermediate, progress=_bars(args))
-        extra = {"correspondence_only": res.f_c, "defocus_only": res.f_d,
-                 "coarse_disparity": res.intermediate.get("coarse_disparity")
-                 if res.intermediate else None}
-        weight = res.intermediate["texture_weight"] if res.intermediate else None
-        strength = res.intermediate.get("coarse_prior_strength") if res.intermediate else None
-    else:
-        from .baselines import METHODS
-
-        res = METHODS[args.method](lf, n_labels=args.labels, disparity_range=rng,
-                                   progress=_bars(args))
-        extra = {k: v for k, v in res.maps.items()
-                 if isinstance(v, np.ndarray) and v.shape == res.disparity.shape}
-        weight = strength = None
+    run = _run_hlf_depth if args.method == "hlf" else _run_baseline_depth
+    res, extra, weight, strength = run(args, lf, rng)
     gt = lf.reference_gt_disparity
     small = "" if args.downscale == 1 else f" (1/{args.downscale} resolution)"
     written = save_disparity_outputs(out, res.disparity, f"{args.method} disparity{small}",
