@@ -120,3 +120,25 @@ def test_an_unknown_camera_is_refused_before_any_matching(monkeypatch):
     monkeypatch.setattr(hlf, "correspondence", lambda *a, **k: pytest.fail("matched"))
     with pytest.raises(InvalidInputError, match="unknown camera 'nosuchcam'"):
         hlf.depth(lf, n_labels=8, defocus="paper", params=DepthParams(camera="nosuchcam"))
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.sampled_from(["metric", "optimizer", "occlusion", "subpixel", "params", "window",
+                        "channel", "cost_params", "plane_params", "aggregation",
+                        "confidence_params"]), JUNK)
+def test_stereo_options_are_taken_or_refused_in_one_line(name, value):
+    """``twoview.stereo``'s keyword options (``cost_params=1.5`` was a TypeError)."""
+    from hyperlf import twoview
+
+    rng = np.random.default_rng(0)
+    left = rng.random((20, 28)).astype(np.float32)
+    _build_or_refuse(lambda **kw: twoview.stereo(left, np.roll(left, -2, axis=1), (0, 4), **kw),
+                     **{name: value})
+
+
+@pytest.mark.parametrize("n", [1, 2.5, float("inf"), 10 ** 400, "8", True, None])
+def test_a_label_count_is_an_integer_of_at_least_two(n):
+    from hyperlf.hlf import make_labels
+
+    with pytest.raises(InvalidInputError, match="n_labels must be an integer >= 2"):
+        make_labels(-1.0, 1.0, n)

@@ -617,12 +617,7 @@ def make_labels(dmin: float, dmax: float, n_labels: int) -> np.ndarray:
     >>> make_labels(-1, 1, 5).tolist()
     [-1.0, -0.5, 0.0, 0.5, 1.0]
     """
-    try:
-        n = int(n_labels)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"n_labels must be an integer >= 2, got {n_labels!r}") from None
-    if n != n_labels or n < 2:
-        raise InvalidInputError(f"n_labels must be an integer >= 2, got {n_labels!r}")
+    n = _opt.integer(n_labels, "n_labels", 2)
     if not (np.isfinite(dmin) and np.isfinite(dmax) and dmin < dmax):
         raise InvalidInputError(f"disparity range must be finite with min < max, got ({dmin}, {dmax})")
     return np.linspace(float(dmin), float(dmax), n)

@@ -337,8 +337,11 @@ def compute_volumes(left, right, dmin: int, dmax: int, metric: str = "auto", *, 
         float32 ``(dmax - dmin + 1, H, W)`` volumes, lower is better.  Why the re-referencing
         is exact: the module docstring (step 3) and :meth:`hyperlf.costs.Cost.pair_volumes`.
     """
+    if cost_params is not None and not isinstance(cost_params, dict):
+        raise InvalidInputError(f"cost_params must be a dict of the cost's options, got "
+                                f"{cost_params!r}")
     return _costs.cost_volumes(left, right, dmin, dmax, metric, window=window,
-                               need_right=need_right, **dict(cost_params or {}))
+                               need_right=need_right, **(cost_params or {}))
 
 
 def _data_scale(cost_left: np.ndarray, dmin: int) -> float:
