@@ -27,7 +27,8 @@ import numpy as np
 
 from .errors import InvalidInputError
 
-__all__ = ["number", "integer", "share", "flag", "choice", "rule", "word_or", "check_fields"]
+__all__ = ["number", "integer", "share", "flag", "choice", "real_array", "shown", "rule", "word_or",
+           "check_fields", "check_values", "params_of"]
 
 _REAL = (int, float, np.integer, np.floating)
 
@@ -104,6 +105,23 @@ def choice(value, label: str, choices):
     return value
 
 
+def shown(value, limit: int = 60) -> str:
+    """``repr(value)`` on one line, cut at ``limit`` characters (for one-line messages)."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def real_array(value, label: str, dtype=np.float64) -> np.ndarray:
+    """``value`` as an array of ``dtype``; text, mappings and ragged lists are refused (values
+    too large for ``dtype`` become inf, for the caller's own finiteness rule)."""
+    try:
+        with np.errstate(over="ignore"):
+            return np.asarray(value, dtype=dtype)
+    except (TypeError, ValueError, OverflowError):
+        raise InvalidInputError(f"{label} must be an array of real numbers, got "
+                                f"{shown(value)}") from None
+
+
 def rule(check, **options):
     """``check`` with ``options`` fixed, called as ``rule(value, label)``.
 
@@ -140,3 +158,20 @@ def check_fields(obj, rules: dict, prefix: str = "") -> None:
     naming it ``prefix + name``, and keep the value the rule returns."""
     for name, check in rules.items():
         object.__setattr__(obj, name, check(getattr(obj, name), prefix + name))
+
+
+def check_values(values: dict, rules: dict, prefix: str = "") -> dict:
+    """``values`` with each ``name`` in ``rules`` checked by its rule (named ``prefix + name``)
+    and kept as the rule returns it: a function's keyword options."""
+    return {**values, **{name: check(values[name], prefix + name)
+                         for name, check in rules.items() if name in values}}
+
+
+def params_of(value, label: str, cls):
+    """``value`` as parameters of the class ``cls`` (None: its defaults)."""
+    if value is None:
+        return cls()
+    if not isinstance(value, cls):
+        raise InvalidInputError(f"{label} must be a {cls.__name__} (or None for its "
+                                f"defaults), got {type(value).__name__}")
+    return value

@@ -129,7 +129,7 @@ from typing import Any
 
 import numpy as np
 
-from ._options import integer, number
+from ._options import check_values, choice, flag, integer, number, real_array, rule
 from ._parallel import map_threads
 from ._progress import grid_views, progress_bar
 from .errors import InvalidInputError
@@ -431,6 +431,34 @@ _OPTIMISER_DEFAULTS: dict[str, dict[str, Any]] = {
     "sgm": {"p1": 0.5, "p2": 2.0, "paths": 8, "smoothness": "p1p2", "adaptive_p2": False},
     "graphcut": {"smoothness": "truncated_linear", "weight": 1.0, "truncation": 2.0,
                  "edge_sigma": None, "max_cycles": 3, "levels": 0},
+}
+
+
+def _dict_or_none(value, label):
+    if value is not None and not isinstance(value, dict):
+        raise InvalidInputError(f"{label} must be a dict of the optimiser's options, got "
+                                f"{value!r}")
+    return value
+
+
+def _path_or_none(value, label):
+    if value is None:
+        return None
+    if not isinstance(value, (str, os.PathLike)) or not os.fspath(value) \
+            or os.path.isdir(value):
+        raise InvalidInputError(f"{label} must name a file (or be None), got {value!r}")
+    return value
+
+
+#: How :func:`complete` checks its options before any work.
+_COMPLETE_RULES = {
+    "out_path": _path_or_none,
+    "optimizer": rule(choice, choices=(None, *_OPTIMISER_DEFAULTS)),
+    "band": rule(number, positive=True), "guidance": number,
+    "window": rule(integer, minimum=1, odd=True, optional=True), "params": _dict_or_none,
+    "wls_lambda": number, "edge_sigma": rule(number, positive=True),
+    "init_confidence": number, "stereo_confidence": number, "fill_confidence": number,
+    "keep_initial": flag, "occlusion_tol": number, "max_iter": integer,
 }
 
 
@@ -1200,6 +1228,21 @@ def complete(lf, disparity=None, out_path=None, *, metric: str = "rsncc",
     ((3, 3, 9, 24, 32), (3, 3, 9, 24, 32))
     """
     lf = _filled(_check_lf(lf))
+    o = check_values(dict(out_path=out_path, optimizer=optimizer, band=band, guidance=guidance,
+                          window=window, params=params, wls_lambda=wls_lambda,
+                          edge_sigma=edge_sigma, init_confidence=init_confidence,
+                          stereo_confidence=stereo_confidence, fill_confidence=fill_confidence,
+                          keep_initial=keep_initial, occlusion_tol=occlusion_tol,
+                          max_iter=max_iter), _COMPLETE_RULES)
+    window, keep_initial, max_iter = o["window"], o["keep_initial"], o["max_iter"]
+    if band > max(lf.image_shape):  # labels beyond any view's reach, and memory for them
+        raise InvalidInputError(f"band {band} px is wider than the {lf.image_shape[1]} x "
+                                f"{lf.image_shape[0]} px views; use at most "
+                                f"{max(lf.image_shape)}")
+    if optimizer is not None:  # its params, before a depth run that may take minutes
+        _optimiser_params(optimizer, params)
+    if disparity is not None:
+        disparity = real_array(disparity, "disparity", np.float32)
     wl, bidx = band_order(lf)
     fill = _fill_mode(fill, wl)
     infer_kw = _check_infer(infer)

@@ -22,7 +22,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ._options import integer
+from ._options import integer, real_array, shown
 from .errors import InvalidInputError
 from .imageops import block_reduce
 
@@ -30,22 +30,6 @@ __all__ = ["LightField", "raster_wavelengths", "filter_layout", "view_offsets",
            "grid_positions", "centre_view", "check_disparity_range", "resolve_disparity_range",
            "check_disparity_reach", "downscale", "downscale_disparity", "BlockMeanCube",
            "capture_signature", "signature_mismatch"]
-
-
-def _shown(value, limit: int = 60) -> str:
-    """``repr(value)`` on one line, cut at ``limit`` characters (for one-line messages)."""
-    text = " ".join(repr(value).split())
-    return text if len(text) <= limit else text[:limit - 3] + "..."
-
-
-def _real(name: str, value, dtype=np.float64) -> np.ndarray:
-    """``value`` as an array of ``dtype``; text, mappings and ragged lists are refused."""
-    try:
-        with np.errstate(over="ignore"):  # too large for float32: inf, which _finite names
-            return np.asarray(value, dtype=dtype)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{name} must be an array of real numbers, got "
-                                f"{_shown(value)}") from None
 
 
 def _finite(name: str, arr: np.ndarray) -> None:
@@ -221,10 +205,10 @@ def check_disparity_range(disparity_range) -> tuple[float, float]:
         dmin, dmax = (float(v) for v in disparity_range)
     except (TypeError, ValueError):
         raise InvalidInputError(
-            f"disparity_range must be (dmin, dmax), got {_shown(disparity_range)}") from None
+            f"disparity_range must be (dmin, dmax), got {shown(disparity_range)}") from None
     if not (np.isfinite(dmin) and np.isfinite(dmax) and dmin < dmax):
         raise InvalidInputError(
-            f"disparity_range must be finite with min < max, got {_shown(disparity_range)}")
+            f"disparity_range must be finite with min < max, got {shown(disparity_range)}")
     return dmin, dmax
 
 
@@ -406,7 +390,7 @@ class LightField:
         spectral)."""
         if self.wavelengths is None:
             return
-        wl = _real("wavelengths", self.wavelengths)
+        wl = real_array(self.wavelengths, "wavelengths")
         if wl.shape != (R, C):
             raise InvalidInputError(
                 f"wavelengths must have one value per view, shape ({R}, {C}); got {wl.shape}"
@@ -421,7 +405,7 @@ class LightField:
         if self.positions is None:
             self.positions = grid_positions(R, C)
             return
-        pos = _real("positions", self.positions)
+        pos = real_array(self.positions, "positions")
         if pos.shape != (R, C, 2):
             raise InvalidInputError(
                 f"positions must have shape ({R}, {C}, 2) as (px, py); got {pos.shape}"
@@ -441,7 +425,7 @@ class LightField:
             exact = False
         if not exact:
             raise InvalidInputError(
-                f"reference must be a pair of integers (row, col), got {_shown(self.reference)}")
+                f"reference must be a pair of integers (row, col), got {shown(self.reference)}")
         if not (0 <= r0 < R and 0 <= c0 < C):
             raise InvalidInputError(
                 f"reference view ({r0}, {c0}) is outside the {R} x {C} grid; "
@@ -452,7 +436,7 @@ class LightField:
     def _check_truth(self, R: int, C: int, H: int, W: int) -> None:
         """``gt_disparity``, ``gt_cube`` and ``cube_wavelengths``."""
         if self.gt_disparity is not None:
-            gt = _real("gt_disparity", self.gt_disparity, np.float32)
+            gt = real_array(self.gt_disparity, "gt_disparity", np.float32)
             if gt.shape not in ((H, W), (R, C, H, W)):
                 raise InvalidInputError(
                     f"gt_disparity must have shape ({H}, {W}) or ({R}, {C}, {H}, {W}); "
@@ -461,7 +445,7 @@ class LightField:
             self.gt_disparity = gt  # may hold NaN/inf for unknown pixels by convention
 
         if self.gt_cube is not None:
-            cube = _real("gt_cube", self.gt_cube, np.float32)
+            cube = real_array(self.gt_cube, "gt_cube", np.float32)
             if cube.ndim != 5 or cube.shape[:2] != (R, C) or cube.shape[3:] != (H, W):
                 raise InvalidInputError(
                     f"gt_cube must have shape ({R}, {C}, B, {H}, {W}); got {cube.shape}"
@@ -471,7 +455,7 @@ class LightField:
                 raise InvalidInputError("gt_cube needs cube_wavelengths (one per band)")
             self.gt_cube = cube
         if self.cube_wavelengths is not None:
-            cw = _real("cube_wavelengths", self.cube_wavelengths).ravel()
+            cw = real_array(self.cube_wavelengths, "cube_wavelengths").ravel()
             _finite("cube_wavelengths", cw)
             if np.any(cw <= 0) or len(np.unique(cw)) != cw.size:
                 raise InvalidInputError("cube_wavelengths must be positive and distinct (nm)")

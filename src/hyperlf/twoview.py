@@ -79,6 +79,7 @@ import numpy as np
 
 from . import costs as _costs
 from . import regularisers as _reg
+from ._options import params_of
 from .errors import InvalidInputError
 
 __all__ = [
@@ -362,16 +363,6 @@ def _optimise(D: np.ndarray, params, guide, labels, subpixel: bool, progress: bo
     return res.labels, disp, res.volume
 
 
-def _check_confidence_params(cp) -> _reg.ConfidenceParams:
-    """``cp`` (None: the defaults) as :class:`hyperlf.regularisers.ConfidenceParams`."""
-    if cp is None:
-        return _reg.ConfidenceParams()
-    if not isinstance(cp, _reg.ConfidenceParams):
-        raise InvalidInputError("confidence_params must be a hyperlf.regularisers."
-                                f"ConfidenceParams, got {type(cp).__name__}")
-    return cp
-
-
 def fill_inconsistent(disp_l, disp_r, valid, occlusion: str, guide, plane_params=None,
                       drange=(-np.inf, np.inf)):
     """Step 6 after the left-right check (module docstring): the background fill, and for
@@ -447,7 +438,8 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
     """
     optimizer = _check_optimizer(optimizer)
     occlusion = _check_occlusion(occlusion)
-    cp = _check_confidence_params(confidence_params)
+    cp = params_of(confidence_params, "confidence_params", _reg.ConfidenceParams)
+    plane_params = params_of(plane_params, "plane_params", _reg.PlaneFillParams)
     name = _costs.resolve_metric(metric)
     p = _merge_params(name, optimizer, params)
     opt = _reg.make_params(optimizer, p)
@@ -574,7 +566,8 @@ def stereo(left, right, disparity_range, *, metric: str = "auto", optimizer: str
     occlusion = _check_occlusion(occlusion)
     L, R = select_channels(left, right, channel)
     dmin, dmax = _check_range(disparity_range, L.shape[1])
-    _check_confidence_params(confidence_params)
+    params_of(confidence_params, "confidence_params", _reg.ConfidenceParams)
+    params_of(plane_params, "plane_params", _reg.PlaneFillParams)
     p = _merge_params(name, optimizer, params)
     if window is None:
         window = default_window(name, optimizer)

@@ -455,10 +455,14 @@ def _bad_parameters(name: str):
         raise InvalidInputError(f"bad parameter for metric {name!r}: {e}") from None
 
 
-def _checked(metric, window, impl) -> tuple[Cost, int | None]:
+def _checked(metric, window, impl, image) -> tuple[Cost, int | None]:
     cost = get_cost(metric)
     if window is not None:
         window = check_window(window)
+        side = max(np.shape(image)[:2], default=0)
+        if window > max(side, 1):  # a window wider than the image: memory, and no meaning
+            raise InvalidInputError(f"window {window} px is wider than the image ({side} px "
+                                    f"on its longer side)")
     if impl not in IMPLS:
         raise InvalidInputError(f"impl must be one of {IMPLS}, got {impl!r}")
     return cost, window
@@ -500,7 +504,7 @@ def cost_volume(left, right, dmin: int, dmax: int, metric: str = "auto", window:
     ((7, 20, 30), 3)
     """
     from .pair import candidate_validity
-    cost, window = _checked(metric, window, impl)
+    cost, window = _checked(metric, window, impl, left)
     with _bad_parameters(cost.name):
         vol = cost.pair_volume(left, right, dmin, dmax, window=window, impl=impl, **params)
     if return_valid:
@@ -516,7 +520,7 @@ def cost_volumes(left, right, dmin: int, dmax: int, metric: str = "auto", *,
     As :func:`cost_volume`; ``C_R[d, y, x_r]`` compares right ``x_r`` with left ``x_r + d``
     (:meth:`Cost.pair_volumes`), None unless ``need_right``.
     """
-    cost, window = _checked(metric, window, impl)
+    cost, window = _checked(metric, window, impl, left)
     with _bad_parameters(cost.name):
         return cost.pair_volumes(left, right, dmin, dmax, window=window, impl=impl,
                                  need_right=need_right, **params)
