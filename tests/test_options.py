@@ -175,20 +175,22 @@ def test_real_arrays_and_keyword_values():
     assert checked == {"n": 4, "other": "kept"} and type(checked["n"]) is int
 
 
-def test_windows_and_bands_wider_than_the_image_are_refused():
-    """They asked for terabytes (a 100001 px window on a 28 px image) before any message."""
+def test_windows_and_bands_beyond_the_image_are_refused():
+    """They asked for terabytes (a 100001 px window on a 28 px image) before any message. A
+    window may reach past the image on one side (a default window on a tiny image)."""
     from hyperlf import completion, hlf, synthesis, twoview
 
     lf = synthesis.procedural_scene(seed=1, rows=2, cols=2, height=12, width=12,
                                     disparity_range=(-1.0, 1.0))
     left = np.random.default_rng(0).random((20, 28)).astype(np.float32)
-    with pytest.raises(InvalidInputError, match="window 101 px is wider than the image"):
-        twoview.stereo(left, left, (0, 4), window=101)
-    with pytest.raises(InvalidInputError, match="params.window 13 px is wider than the views"):
-        hlf.depth(lf, n_labels=8, params=DepthParams(window=13))
+    with pytest.raises(InvalidInputError, match="window 59 px reaches past the image on both"):
+        twoview.stereo(left, left, (0, 4), window=59)
+    twoview.stereo(left, left, (0, 4), window=57, optimizer="wta")
+    with pytest.raises(InvalidInputError, match="params.window 27 px reaches past the views"):
+        hlf.depth(lf, n_labels=8, params=DepthParams(window=27))
     truth = lf.gt_disparity[lf.reference]
-    with pytest.raises(InvalidInputError, match="window 13 px is wider than the image"):
-        completion.complete(lf, truth, window=13)
+    with pytest.raises(InvalidInputError, match="window 27 px reaches past the image"):
+        completion.complete(lf, truth, window=27)
     with pytest.raises(InvalidInputError, match="band 13 px is wider than the 12 x 12 px"):
         completion.complete(lf, truth, band=13)
 

@@ -1,9 +1,10 @@
 """Checking the value of one option: the one home of these rules.
 
-Every parameter class (:class:`hyperlf.hlf.DepthParams`, the optimisers' parameters in
-:mod:`hyperlf.regularisers.params`, the plane fill's) and every function that takes a number
-checks it here, so that a wrong value gets the same one-line :class:`InvalidInputError`
-everywhere, never a ``TypeError`` or ``ValueError`` from deep inside. Each checker takes the
+The parameter classes (:class:`hyperlf.hlf.DepthParams`, the optimisers' parameters in
+:mod:`hyperlf.regularisers.params`, the plane fill's, ...) and the library functions' keyword
+options (:func:`hyperlf.completion.complete`, the regularisers, the baselines) are checked
+here, so that a wrong value gets the same one-line :class:`InvalidInputError` everywhere,
+never a ``TypeError`` or ``ValueError`` from deep inside. Each checker takes the
 value and the label the message names it by (``"params.eps"``, ``"graphcut weight"``), and
 returns the value in its canonical type.
 

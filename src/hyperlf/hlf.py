@@ -1201,9 +1201,11 @@ def _check_depth_options(lf, metric, view_selection, occlusion_split, defocus, o
         raise InvalidInputError(
             "the defocus cue needs a spectral light field with one wavelength per view "
             "(lf.wavelengths); pass defocus='off' or set the wavelengths")
-    if params.window is not None and params.window > max(lf.image_shape):
-        raise InvalidInputError(f"params.window {params.window} px is wider than the views "
-                                f"({max(lf.image_shape)} px on their longer side)")
+    side = max(lf.image_shape)
+    if params.window is not None and params.window > 2 * side + 1:
+        raise InvalidInputError(f"params.window {params.window} px reaches past the views on "
+                                f"both sides ({side} px on their longer side); use at most "
+                                f"{2 * side + 1}")
     if defocus in ("paper", "gaussian"):  # the camera's table, read before any long work
         _camera_matrix(params.camera, np.ravel(lf.wavelengths))
     return mname, view_selection, occlusion_split, params

@@ -460,9 +460,9 @@ def _checked(metric, window, impl, image) -> tuple[Cost, int | None]:
     if window is not None:
         window = check_window(window)
         side = max(np.shape(image)[:2], default=0)
-        if window > max(side, 1):  # a window wider than the image: memory, and no meaning
-            raise InvalidInputError(f"window {window} px is wider than the image ({side} px "
-                                    f"on its longer side)")
+        if window > 2 * side + 1:  # it reaches past the image on both sides: memory, no use
+            raise InvalidInputError(f"window {window} px reaches past the image on both sides "
+                                    f"({side} px on its longer side); use at most {2 * side + 1}")
     if impl not in IMPLS:
         raise InvalidInputError(f"impl must be one of {IMPLS}, got {impl!r}")
     return cost, window
