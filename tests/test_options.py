@@ -26,7 +26,7 @@ JUNK = (st.none() | st.booleans() | st.text(max_size=6) | st.integers()
         | st.integers(min_value=10 ** 300, max_value=10 ** 400) | st.floats()
         | st.lists(st.integers(), max_size=2) | st.dictionaries(st.text(max_size=2), st.none())
         | st.floats(width=32).map(np.float32) | st.integers(-9, 9).map(np.int64)
-        | st.just(np.zeros(2)) | st.just(np.bool_(True)))
+        | st.just(np.zeros(2)) | st.just(np.zeros((3, 3))) | st.just(np.bool_(True)))
 
 
 def _build_or_refuse(cls, **kwargs):

@@ -60,7 +60,7 @@ def number(value, label: str, *, positive: bool = False, optional: bool = False,
         ok = ok and value <= at_most
     if not ok:
         none = " or None" if optional else ""
-        raise InvalidInputError(f"{label} must be a finite number {low}{none}, got {value!r}")
+        raise InvalidInputError(f"{label} must be a finite number {low}{none}, got {shown(value)}")
     return float(value)
 
 
@@ -76,21 +76,21 @@ def integer(value, label: str, minimum: int = 0, *, maximum: int | None = None,
         kind = f"an {'odd ' if odd else ''}integer"
         bound = f"in {minimum}..{maximum}" if maximum is not None else f">= {minimum}"
         none = "None or " if optional else ""
-        raise InvalidInputError(f"{label} must be {none}{kind} {bound}, got {value!r}")
+        raise InvalidInputError(f"{label} must be {none}{kind} {bound}, got {shown(value)}")
     return int(value)
 
 
 def share(value, label: str) -> float:
     """``value`` as a float in ``[0, 1]``."""
     if _is_real(value) and value > 1:
-        raise InvalidInputError(f"{label} must be a share in [0, 1], got {value!r}")
+        raise InvalidInputError(f"{label} must be a share in [0, 1], got {shown(value)}")
     return number(value, label)
 
 
 def flag(value, label: str) -> bool:
     """``value`` as a bool; only ``True`` and ``False`` (numpy's too) are flags."""
     if not isinstance(value, (bool, np.bool_)):
-        raise InvalidInputError(f"{label} must be True or False, got {value!r}")
+        raise InvalidInputError(f"{label} must be True or False, got {shown(value)}")
     return bool(value)
 
 
@@ -102,7 +102,7 @@ def choice(value, label: str, choices):
         ok = False
     if not ok:
         raise InvalidInputError(f"{label} must be one of {', '.join(map(str, choices))}, "
-                                f"got {value!r}")
+                                f"got {shown(value)}")
     return value
 
 
@@ -150,7 +150,7 @@ def word_or(check, words, what: str):
         try:
             return check(value, label)
         except InvalidInputError:
-            raise InvalidInputError(f"{label} must be {what}, got {value!r}") from None
+            raise InvalidInputError(f"{label} must be {what}, got {shown(value)}") from None
     return checked
 
 

@@ -129,7 +129,7 @@ from typing import Any
 
 import numpy as np
 
-from ._options import check_values, choice, flag, integer, number, real_array, rule
+from ._options import check_values, choice, flag, integer, number, real_array, rule, shown
 from ._parallel import map_threads
 from ._progress import grid_views, progress_bar
 from .errors import InvalidInputError
@@ -437,7 +437,7 @@ _OPTIMISER_DEFAULTS: dict[str, dict[str, Any]] = {
 def _dict_or_none(value, label):
     if value is not None and not isinstance(value, dict):
         raise InvalidInputError(f"{label} must be a dict of the optimiser's options, got "
-                                f"{value!r}")
+                                f"{shown(value)}")
     return value
 
 
@@ -446,7 +446,7 @@ def _path_or_none(value, label):
         return None
     if not isinstance(value, (str, os.PathLike)) or not os.fspath(value) \
             or os.path.isdir(value):
-        raise InvalidInputError(f"{label} must name a file (or be None), got {value!r}")
+        raise InvalidInputError(f"{label} must name a file (or be None), got {shown(value)}")
     return value
 
 

@@ -103,7 +103,7 @@ from typing import Iterator, Union
 import numpy as np
 from scipy import ndimage
 
-from ._options import check_fields, choice, integer, number, rule, word_or
+from ._options import check_fields, choice, integer, number, rule, shown, word_or
 from .errors import InvalidInputError
 
 __all__ = [
@@ -141,7 +141,7 @@ def _odd_windows(value, label) -> tuple:
             raise InvalidInputError("no window")
         return tuple(integer(w, label, 1, odd=True) for w in items)
     except InvalidInputError:
-        raise InvalidInputError(f"{label} must be odd integers >= 1, got {value!r}") from None
+        raise InvalidInputError(f"{label} must be odd integers >= 1, got {shown(value)}") from None
 
 
 @dataclass(frozen=True)

@@ -13,10 +13,22 @@ __all__ = ["HyperLFError", "InvalidInputError", "FormatError", "DataNotFoundErro
 class HyperLFError(Exception):
     """Base class of every error hyperlf raises on purpose.
 
-    ``exit_code`` is the process exit status the CLI uses for this kind of error.
+    ``exit_code`` is the process exit status the CLI uses for this kind of error. A message
+    that quotes a value whose ``repr`` spans lines (a 2-D array) is joined into one line.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> str(HyperLFError(f"bad value {np.zeros((2, 2))!r}"))
+    'bad value array([[0., 0.], [0., 0.]])'
     """
 
     exit_code = 1
+
+    def __init__(self, *args):
+        if len(args) == 1 and isinstance(args[0], str) and "\n" in args[0]:
+            args = (" ".join(args[0].split()),)
+        super().__init__(*args)
 
 
 class InvalidInputError(HyperLFError, ValueError):

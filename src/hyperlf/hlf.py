@@ -254,7 +254,7 @@ _positive = _rule(_opt.number, positive=True)
 def _texture_snr(value, label):
     """None, 0 (off) or a number > 1."""
     if value is not None and not (_number(value, label) == 0 or value > 1):
-        raise InvalidInputError(f"{label} must be None, 0 (off) or > 1, got {value!r}")
+        raise InvalidInputError(f"{label} must be None, 0 (off) or > 1, got {_opt.shown(value)}")
     return None if value is None else float(value)
 
 
@@ -262,7 +262,8 @@ def _tile_rows(value, label):
     """None (chosen by the memory budget) or a multiple of :data:`hyperlf.costs.ROW_BLOCK`."""
     rows = _opt.integer(value, label, ROW_BLOCK, optional=True)
     if rows is not None and rows % ROW_BLOCK:
-        raise InvalidInputError(f"{label} must be a multiple of {ROW_BLOCK}, got {value!r}")
+        raise InvalidInputError(f"{label} must be a multiple of {ROW_BLOCK}, got "
+                                f"{_opt.shown(value)}")
     return rows
 
 

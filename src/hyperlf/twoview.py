@@ -79,7 +79,7 @@ import numpy as np
 
 from . import costs as _costs
 from . import regularisers as _reg
-from ._options import params_of
+from ._options import params_of, shown
 from .errors import InvalidInputError
 
 __all__ = [
@@ -289,7 +289,7 @@ def select_channels(left, right, channel=None) -> tuple[np.ndarray, np.ndarray]:
             cl, cr = channel
         except (TypeError, ValueError):
             raise InvalidInputError(
-                f"channel must be None, an int or a pair (left, right), got {channel!r}") from None
+                f"channel must be None, an int or a pair (left, right), got {shown(channel)}") from None
     L = _pick(left, cl, "left")
     R = _pick(right, cr, "right")
     if L.shape != R.shape:
@@ -340,7 +340,7 @@ def compute_volumes(left, right, dmin: int, dmax: int, metric: str = "auto", *, 
     """
     if cost_params is not None and not isinstance(cost_params, dict):
         raise InvalidInputError(f"cost_params must be a dict of the cost's options, got "
-                                f"{cost_params!r}")
+                                f"{shown(cost_params)}")
     return _costs.cost_volumes(left, right, dmin, dmax, metric, window=window,
                                need_right=need_right, **(cost_params or {}))
 

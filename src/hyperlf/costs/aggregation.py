@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._options import choice, integer, number
+from .._options import choice, integer, number, shown
 from ..errors import InvalidInputError
 from .pair import box_mean, candidate_validity, right_validity, worst_fill
 
@@ -86,7 +86,7 @@ class AggregationParams:
         if isinstance(value, str):
             return cls(method=value)
         raise InvalidInputError(f"aggregation must be a method name {tuple(AGGREGATION_METHODS)} "
-                                f"or AggregationParams, got {value!r}")
+                                f"or AggregationParams, got {shown(value)}")
 
 
 def guide_image(image) -> np.ndarray:
