@@ -1,6 +1,7 @@
-"""Option values (``hyperlf._options``, the one home of those checks): every parameter class
-takes what it documents, keeps it in its canonical type, and refuses anything else with one
-line of :class:`InvalidInputError`, never a ``TypeError``, ``ValueError`` or
+"""Option values (``hyperlf._options``, the one home of those checks): every parameter class,
+and every keyword option of ``twoview.stereo`` and ``completion.complete``, takes what it
+documents, keeps it in its canonical type, and refuses anything else with one line of
+:class:`InvalidInputError` before any work, never a ``TypeError``, ``ValueError`` or
 ``OverflowError`` from deep inside."""
 
 from __future__ import annotations
