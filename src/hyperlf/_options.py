@@ -29,7 +29,7 @@ import numpy as np
 from .errors import InvalidInputError
 
 __all__ = ["number", "integer", "share", "flag", "choice", "real_array", "shown", "rule", "word_or",
-           "check_fields", "check_values", "params_of"]
+           "check_fields", "check_values", "params_of", "window", "mapping"]
 
 _REAL = (int, float, np.integer, np.floating)
 
@@ -175,4 +175,22 @@ def params_of(value, label: str, cls):
     if not isinstance(value, cls):
         raise InvalidInputError(f"{label} must be a {cls.__name__} (or None for its "
                                 f"defaults), got {type(value).__name__}")
+    return value
+
+
+def window(value, label: str, *, side: int | None = None, of: str = "the image") -> int:
+    """An odd window width ``>= 1`` that does not reach past ``of`` (``side`` px on its
+    longer side) on both sides, i.e. at most ``2 side + 1``: wider asks for memory to no use.
+    """
+    n = integer(value, label, 1, odd=True)
+    if side is not None and n > 2 * side + 1:
+        raise InvalidInputError(f"{label} {n} px reaches past {of} on both sides ({side} px "
+                                f"on its longer side); use at most {2 * side + 1}")
+    return n
+
+
+def mapping(value, label: str) -> dict | None:
+    """``value`` when it is a dict of options, or None."""
+    if value is not None and not isinstance(value, dict):
+        raise InvalidInputError(f"{label} must be a dict (or None), got {type(value).__name__}")
     return value

@@ -129,7 +129,8 @@ from typing import Any
 
 import numpy as np
 
-from ._options import check_values, choice, flag, integer, number, real_array, rule, shown
+from ._options import (check_values, choice, flag, integer, mapping, number, real_array, rule,
+                       shown)
 from ._parallel import map_threads
 from ._progress import grid_views, progress_bar
 from .errors import InvalidInputError
@@ -434,13 +435,6 @@ _OPTIMISER_DEFAULTS: dict[str, dict[str, Any]] = {
 }
 
 
-def _dict_or_none(value, label):
-    if value is not None and not isinstance(value, dict):
-        raise InvalidInputError(f"{label} must be a dict of the optimiser's options, got "
-                                f"{shown(value)}")
-    return value
-
-
 def _path_or_none(value, label):
     if value is None:
         return None
@@ -455,7 +449,7 @@ _COMPLETE_RULES = {
     "out_path": _path_or_none,
     "optimizer": rule(choice, choices=(None, *_OPTIMISER_DEFAULTS)),
     "band": rule(number, positive=True), "guidance": number,
-    "window": rule(integer, minimum=1, odd=True, optional=True), "params": _dict_or_none,
+    "window": rule(integer, minimum=1, odd=True, optional=True), "params": mapping,
     "wls_lambda": number, "edge_sigma": rule(number, positive=True),
     "init_confidence": number, "stereo_confidence": number, "fill_confidence": number,
     "keep_initial": flag, "occlusion_tol": number, "max_iter": integer,

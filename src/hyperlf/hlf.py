@@ -271,7 +271,7 @@ def _tile_rows(value, label):
 #: ``_check_fusion_weights``; ``aggregation*``: :class:`hyperlf.costs.AggregationParams`;
 #: ``camera`` by :func:`depth` before any work, where the defocus cue reads its table).
 _DEPTH_RULES = {
-    "window": _rule(_opt.integer, minimum=1, odd=True, optional=True),
+    "window": _opt.word_or(_opt.window, (None,), "None or an odd integer >= 1"),
     "dense_views": _rule(_opt.integer, minimum=1),
     "tau_rel": _number,
     "eps": _positive,
@@ -1202,11 +1202,8 @@ def _check_depth_options(lf, metric, view_selection, occlusion_split, defocus, o
         raise InvalidInputError(
             "the defocus cue needs a spectral light field with one wavelength per view "
             "(lf.wavelengths); pass defocus='off' or set the wavelengths")
-    side = max(lf.image_shape)
-    if params.window is not None and params.window > 2 * side + 1:
-        raise InvalidInputError(f"params.window {params.window} px reaches past the views on "
-                                f"both sides ({side} px on their longer side); use at most "
-                                f"{2 * side + 1}")
+    if params.window is not None:
+        _opt.window(params.window, "params.window", side=max(lf.image_shape), of="the views")
     if defocus in ("paper", "gaussian"):  # the camera's table, read before any long work
         _camera_matrix(params.camera, np.ravel(lf.wavelengths))
     return mname, view_selection, occlusion_split, params

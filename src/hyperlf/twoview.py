@@ -79,7 +79,7 @@ import numpy as np
 
 from . import costs as _costs
 from . import regularisers as _reg
-from ._options import params_of, shown
+from ._options import mapping, params_of, shown
 from .errors import InvalidInputError
 
 __all__ = [
@@ -303,9 +303,7 @@ def _merge_params(metric: str, optimizer: str, params) -> dict:
     parameter dataclass (unknown keys and invalid values raise InvalidInputError)."""
     p = default_params(metric, optimizer)
     if params is not None:
-        if not isinstance(params, dict):
-            raise InvalidInputError(f"params must be a dict, got {type(params).__name__}")
-        p.update(params)
+        p.update(mapping(params, "params"))
     _reg.make_params(optimizer, p)
     return p
 
@@ -338,9 +336,7 @@ def compute_volumes(left, right, dmin: int, dmax: int, metric: str = "auto", *, 
         float32 ``(dmax - dmin + 1, H, W)`` volumes, lower is better.  Why the re-referencing
         is exact: the module docstring (step 3) and :meth:`hyperlf.costs.Cost.pair_volumes`.
     """
-    if cost_params is not None and not isinstance(cost_params, dict):
-        raise InvalidInputError(f"cost_params must be a dict of the cost's options, got "
-                                f"{shown(cost_params)}")
+    mapping(cost_params, "cost_params")
     return _costs.cost_volumes(left, right, dmin, dmax, metric, window=window,
                                need_right=need_right, **(cost_params or {}))
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._options import integer
+from .._options import window
 from ..errors import InvalidInputError
 
 __all__ = ["IMPLS", "AUTO_IMPL", "check_pair", "check_disp", "check_window", "check_impl"]
@@ -48,9 +48,10 @@ def check_disp(dmin, dmax) -> tuple[int, int]:
     return a, b
 
 
-def check_window(n, name="window") -> int:
-    """An odd integer window size ``>= 1``."""
-    return integer(n, name, 1, odd=True)
+def check_window(n, name="window", *, side: int | None = None) -> int:
+    """An odd integer window size ``>= 1`` (at most ``2 side + 1`` for an image of ``side``
+    px on its longer side)."""
+    return window(n, name, side=side)
 
 
 def check_impl(impl, evaluator) -> str:

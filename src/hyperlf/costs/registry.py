@@ -458,11 +458,7 @@ def _bad_parameters(name: str):
 def _checked(metric, window, impl, image) -> tuple[Cost, int | None]:
     cost = get_cost(metric)
     if window is not None:
-        window = check_window(window)
-        side = max(np.shape(image)[:2], default=0)
-        if window > 2 * side + 1:  # it reaches past the image on both sides: memory, no use
-            raise InvalidInputError(f"window {window} px reaches past the image on both sides "
-                                    f"({side} px on its longer side); use at most {2 * side + 1}")
+        window = check_window(window, side=max(np.shape(image)[:2], default=0))
     if impl not in IMPLS:
         raise InvalidInputError(f"impl must be one of {IMPLS}, got {impl!r}")
     return cost, window

@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, fields
 from typing import Any, ClassVar
 
-from .._options import check_fields, choice, flag, integer, number, rule
+from .._options import check_fields, choice, flag, integer, mapping, number, rule
 from ..errors import InvalidInputError
 from .graphcuts import GRAPHCUT_SMOOTHNESS
 from .semiglobal import SGM_PATHS, SGM_SMOOTHNESS
@@ -146,9 +146,7 @@ def make_params(name: str, values: dict[str, Any] | None = None):
     if cls is None:
         raise InvalidInputError(
             f"optimizer must be one of {', '.join(OPTIMISERS)}, got {name!r}")
-    values = {} if values is None else values
-    if not isinstance(values, dict):
-        raise InvalidInputError(f"params must be a dict, got {type(values).__name__}")
+    values = mapping(values, "params") or {}
     allowed = [f.name for f in fields(cls)]
     unknown = sorted(set(values) - set(allowed))
     if unknown:
