@@ -1,8 +1,8 @@
 """Option values (``hyperlf._options``, the one home of those checks): every parameter class,
-and every keyword option of ``twoview.stereo`` and ``completion.complete``, takes what it
-documents, keeps it in its canonical type, and refuses anything else with one line of
-:class:`InvalidInputError` before any work, never a ``TypeError``, ``ValueError`` or
-``OverflowError`` from deep inside."""
+and every keyword option of ``twoview.stereo``, ``completion.complete`` and the rendering
+functions, takes what it documents, keeps it in its canonical type, and refuses anything else
+with one line of :class:`InvalidInputError` before any work, never a ``TypeError``,
+``ValueError`` or ``OverflowError`` from deep inside."""
 
 from __future__ import annotations
 
@@ -210,3 +210,87 @@ def test_parameter_objects_and_output_paths_are_refused_in_one_line(tmp_path):
     for bad in ("", tmp_path):
         with pytest.raises(InvalidInputError, match="^out_path must name a file"):
             completion.complete(lf, lf.gt_disparity[lf.reference], out_path=bad)
+
+
+def _render_calls():
+    """Each public function of :mod:`hyperlf.render` on a tiny cube (or H-LF views), with
+    its required arguments, as ``name -> (function, call)``; the fuzzers set one keyword."""
+    from hyperlf import render
+
+    rng = np.random.default_rng(0)
+    cube = rng.random((2, 3, 4, 10, 12)).astype(np.float32)
+    views = cube[:, :, 0]
+    wl, view_wl = np.array([450.0, 520.0, 590.0, 650.0]), np.linspace(420, 680, 6).reshape(2, 3)
+    base = {"offsets": np.stack(np.meshgrid(np.arange(3) - 1.0, np.arange(2) - 0.5), -1),
+            "wavelengths": wl}
+    return {
+        "refocus": (render.refocus, lambda **kw: render.refocus(cube, **{**base, **kw})),
+        "refocus of views": (render.refocus, lambda **kw: render.refocus(
+            views, **{**base, "wavelengths": view_wl, "profile": "band:500", **kw})),
+        "focal_stack": (render.focal_stack, lambda **kw: render.focal_stack(
+            cube, **{**base, "disparities": (0.0, 1.0), **kw})),
+        "all_focus": (render.all_focus, lambda **kw: render.all_focus(
+            cube, **{**base, "disparity": np.zeros((10, 12)), **kw})),
+        "emulate_camera": (render.emulate_camera, lambda **kw: render.emulate_camera(
+            cube[0], **{"wavelengths": wl, **kw})),
+        "spectrum_at": (render.spectrum_at, lambda **kw: render.spectrum_at(
+            cube, **{"wavelengths": wl, "x": 3, "y": 4, **kw})),
+        "camera_matrix": (render.camera_matrix, lambda **kw: render.camera_matrix(
+            **{"camera": "CIE 1931", "wavelengths": wl, **kw})),
+        "fit_ccm": (render.fit_ccm, lambda **kw: render.fit_ccm(
+            **{"camera": "CIE 1931", "wavelengths": wl, **kw})),
+    }
+
+
+def _keywords(function, leave=("views_or_cube", "cube_or_views", "cube", "kwargs", "out_dir",
+                                "path")):
+    import inspect
+
+    return [p for p in inspect.signature(function).parameters if p not in leave]
+
+
+_RENDER = _render_calls()
+_RENDER_OPTIONS = [(name, p) for name, (f, _) in _RENDER.items() for p in _keywords(f)]
+
+
+@settings(max_examples=400, deadline=None, derandomize=True)
+@given(st.sampled_from(_RENDER_OPTIONS), JUNK)
+def test_rendering_takes_any_option_or_refuses_it_in_one_line(option, value):
+    """Every keyword of refocusing, the focal stack, all-focus, camera emulation and the
+    spectra (``white_balance`` as an array was numpy's ambiguous truth value, ``fill='x'``,
+    ``aperture=10**400``, ``reference=True``, ``view=''`` and some 60 more were tracebacks)."""
+    name, keyword = option
+    _build_or_refuse(_RENDER[name][1], **{keyword: value})
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(st.sampled_from(["disparities", "fps", "formats", "output", "exposure", "annotate",
+                        "stem", "bit_depth", "points", "labels", "view", "title"]), JUNK)
+def test_the_sweep_and_the_spectrum_figure_too(keyword, value):
+    """``formats=None``, ``stem=10**400``, ``points=None`` and ``labels=True`` were
+    tracebacks; the files go into a temporary folder."""
+    import tempfile
+
+    from hyperlf import render
+
+    cube = np.random.default_rng(0).random((2, 3, 4, 10, 12)).astype(np.float32)
+    wl = np.array([450.0, 520.0, 590.0, 650.0])
+    with tempfile.TemporaryDirectory() as folder:
+        if keyword in _keywords(render.focal_sweep):
+            _build_or_refuse(render.focal_sweep, views_or_cube=cube, out_dir=folder,
+                             **{"wavelengths": wl, "disparities": [0.0, 1.0],
+                                "formats": ("gif",), keyword: value})
+        if keyword in _keywords(render.save_spectrum_figure):
+            _build_or_refuse(render.save_spectrum_figure, path=f"{folder}/s.png", cube=cube,
+                             **{"wavelengths": wl, "points": [(2, 3)], keyword: value})
+
+
+def test_indices_and_fill_values():
+    assert opt.index(np.array([1, 0]), "view", (2, 2)) == (1, 0)
+    for bad in (True, "ab", (1,), (1, 2.5), (2, 0), (0, -1), None, {0: 1}):
+        with pytest.raises(InvalidInputError, match=r"^view must be 2 integers within \(2, 2\)"):
+            opt.index(bad, "view", (2, 2))
+    assert np.isnan(opt.real(np.float32("nan"), "fill", nan=True))
+    for bad in (float("nan"), float("inf"), 10 ** 400, "0", True):
+        with pytest.raises(InvalidInputError, match="^fill must be a finite number, got"):
+            opt.real(bad, "fill")

@@ -28,8 +28,9 @@ import numpy as np
 
 from .errors import InvalidInputError
 
-__all__ = ["number", "integer", "share", "flag", "choice", "real_array", "shown", "rule", "word_or",
-           "check_fields", "check_values", "params_of", "window", "mapping"]
+__all__ = ["number", "real", "integer", "share", "flag", "choice", "real_array", "index",
+           "shown", "rule", "word_or", "check_fields", "check_values", "params_of", "window",
+           "mapping"]
 
 _REAL = (int, float, np.integer, np.floating)
 
@@ -61,6 +62,23 @@ def number(value, label: str, *, positive: bool = False, optional: bool = False,
     if not ok:
         none = " or None" if optional else ""
         raise InvalidInputError(f"{label} must be a finite number {low}{none}, got {shown(value)}")
+    return float(value)
+
+
+def real(value, label: str, *, nan: bool = False) -> float:
+    """``value`` as a float of any sign, finite (or NaN where ``nan`` allows it: a fill value
+    that marks what has none).
+
+    Examples
+    --------
+    >>> real(-2, "fill"), real(float("nan"), "fill", nan=True)
+    (-2.0, nan)
+    """
+    if nan and isinstance(value, (float, np.floating)) and math.isnan(value):
+        return float(value)
+    if not _is_real(value):
+        what = "a finite number or NaN" if nan else "a finite number"
+        raise InvalidInputError(f"{label} must be {what}, got {shown(value)}")
     return float(value)
 
 
@@ -104,6 +122,32 @@ def choice(value, label: str, choices):
         raise InvalidInputError(f"{label} must be one of {', '.join(map(str, choices))}, "
                                 f"got {shown(value)}")
     return value
+
+
+def index(value, label: str, shape: tuple[int, ...]) -> tuple[int, ...]:
+    """``value`` as a tuple of ``len(shape)`` integers, each within its axis of ``shape``: a
+    view of a camera grid, say.
+
+    Examples
+    --------
+    >>> index((1, 2.0), "view", (3, 3))
+    (1, 2)
+    >>> index((3, 0), "view", (3, 3))
+    Traceback (most recent call last):
+    ...
+    hyperlf.errors.InvalidInputError: view must be 2 integers within (3, 3) (from 0), got (3, 0)
+    """
+    shape = tuple(int(n) for n in shape)
+    try:
+        items = tuple(value) if not isinstance(value, (str, bytes, dict)) else None
+    except TypeError:  # not iterable
+        items = None
+    ok = items is not None and len(items) == len(shape) and all(
+        _is_real(v) and float(v).is_integer() and 0 <= v < n for v, n in zip(items, shape))
+    if not ok:
+        raise InvalidInputError(f"{label} must be {len(shape)} integers within {shape} (from "
+                                f"0), got {shown(value)}")
+    return tuple(int(v) for v in items)
 
 
 def shown(value, limit: int = 60) -> str:

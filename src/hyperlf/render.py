@@ -100,6 +100,7 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
+from . import _options as _opt
 from . import spectral
 from ._atomic import atomic_path
 from ._progress import progress_bar
@@ -191,6 +192,26 @@ class _Source:
         return np.asarray(self.mask[r, c], dtype=bool)
 
 
+#: The keyword options of this module's functions that take one value, checked before any
+#: work (:mod:`hyperlf._options`); ``exposure`` and ``profile``, which take words or numbers,
+#: are checked where they are read.
+_RULES = {
+    "output": _opt.rule(_opt.choice, choices=_OUTPUTS),
+    "white_balance": _opt.flag, "white_preserving": _opt.flag, "return_counts": _opt.flag,
+    "progress": _opt.flag, "annotate": _opt.flag,
+    "exposure_percentile": _opt.rule(_opt.number, positive=True, at_most=100),
+    "fill": _opt.rule(_opt.real, nan=True),
+    "tol": _opt.number,
+    "fps": _opt.rule(_opt.number, positive=True),
+    "bit_depth": _opt.rule(_opt.choice, choices=(8, 16)),
+}
+
+
+def _checked(**options) -> dict:
+    """``options`` checked by :data:`_RULES`, in their canonical types."""
+    return _opt.check_values(options, _RULES)
+
+
 def _check_mask(mask, shape: tuple[int, ...], name: str = "mask"):
     if mask is None:
         return None
@@ -205,9 +226,7 @@ def _check_mask(mask, shape: tuple[int, ...], name: str = "mask"):
 
 
 def _default_offsets(R: int, C: int, reference=None) -> tuple[np.ndarray, tuple[int, int]]:
-    ref = centre_view(R, C) if reference is None else tuple(int(v) for v in reference)
-    if not (0 <= ref[0] < R and 0 <= ref[1] < C):
-        raise InvalidInputError(f"reference {ref} is outside the {R} x {C} grid")
+    ref = centre_view(R, C) if reference is None else _opt.index(reference, "reference", (R, C))
     pos = grid_positions(R, C)
     return pos - pos[ref][None, None, :], ref
 
@@ -222,7 +241,7 @@ def _make_source(obj, wavelengths=None, offsets=None, mask=None, reference=None)
                 "pass lf.gt_cube with lf.cube_wavelengths to refocus a cube")
         data, wl = lf.views, np.asarray(lf.wavelengths, dtype=np.float64)
         if wavelengths is not None:
-            wl = np.asarray(wavelengths, dtype=np.float64)
+            wl = _opt.real_array(wavelengths, "wavelengths")
         if offsets is None:
             offsets = lf.offsets
         if reference is None:
@@ -230,7 +249,8 @@ def _make_source(obj, wavelengths=None, offsets=None, mask=None, reference=None)
         kind = "views"
     elif _is_cubefile(obj):
         data = obj.cube
-        wl = np.asarray(obj.wavelengths if wavelengths is None else wavelengths, dtype=np.float64)
+        wl = _opt.real_array(obj.wavelengths if wavelengths is None else wavelengths,
+                             "wavelengths")
         if mask is None:
             mask = obj.mask
         elif mask is False:
@@ -254,7 +274,7 @@ def _make_source(obj, wavelengths=None, offsets=None, mask=None, reference=None)
             raise InvalidInputError(
                 "wavelengths are required: (B,) band centres for a cube, (R, C) filter "
                 "wavelengths for H-LF views")
-        wl = np.asarray(wavelengths, dtype=np.float64)
+        wl = _opt.real_array(wavelengths, "wavelengths")
     if mask is False:
         mask = None
     shape = tuple(int(s) for s in data.shape)
@@ -277,7 +297,7 @@ def _make_source(obj, wavelengths=None, offsets=None, mask=None, reference=None)
     if offsets is None:
         offsets, reference = _default_offsets(R, C, reference)
     else:
-        offsets = np.asarray(offsets, dtype=np.float64)
+        offsets = _opt.real_array(offsets, "offsets")
         if offsets.shape != (R, C, 2):
             raise InvalidInputError(
                 f"offsets must have shape ({R}, {C}, 2) as (dx, dy) per view, got {offsets.shape}")
@@ -286,7 +306,8 @@ def _make_source(obj, wavelengths=None, offsets=None, mask=None, reference=None)
         if reference is None:
             zero = np.argwhere(np.all(np.abs(offsets) < 1e-9, axis=-1))
             reference = tuple(int(v) for v in zero[0]) if len(zero) else _default_offsets(R, C)[1]
-    return _Source(data, kind, wl, mask=mask, offsets=offsets, reference=tuple(reference))
+        reference = _opt.index(reference, "reference", (R, C))
+    return _Source(data, kind, wl, mask=mask, offsets=offsets, reference=reference)
 
 
 # ============================================================================ profiles
@@ -316,7 +337,7 @@ def _white_spd(white, wl: np.ndarray) -> np.ndarray:
         return np.ones(wl.size)
     if isinstance(white, str):
         return spectral.illuminant_spd(white, wl)
-    w = np.asarray(white, dtype=np.float64)
+    w = _opt.real_array(white, "white")
     if w.shape != wl.shape or not np.all(np.isfinite(w)):
         raise InvalidInputError(
             f"white must be an illuminant name or a finite array of shape {wl.shape} (one "
@@ -327,7 +348,7 @@ def _white_spd(white, wl: np.ndarray) -> np.ndarray:
 def _camera_S(camera, wl: np.ndarray) -> np.ndarray:
     if isinstance(camera, (str, os.PathLike)):
         return np.asarray(spectral.camera_sensitivities(camera, wl), dtype=np.float64)
-    S = np.asarray(camera, dtype=np.float64)
+    S = _opt.real_array(camera, "camera sensitivities")
     if S.shape != (wl.size, 3):
         raise InvalidInputError(
             f"camera sensitivities must have shape ({wl.size}, 3) (one row per band), "
@@ -383,6 +404,7 @@ def fit_ccm(camera, wavelengths, *, illuminant=None, white=None, source: str = "
     ndarray, shape (3, 3)
         ``srgb_linear = rgb @ M``.
     """
+    _checked(white_preserving=white_preserving)
     wl = spectral.as_wavelengths(wavelengths)
     S, Wraw, _ = _camera_stage(camera, wl, True, illuminant, white)
     _, refl = spectral.reflectance_library(source, wl)
@@ -440,6 +462,7 @@ def camera_matrix(camera, wavelengths, *, white_balance: bool = True, illuminant
     >>> camera_matrix("CIE 1931", lf.cube_wavelengths).shape
     (9, 3)
     """
+    _checked(white_balance=white_balance, output=output)
     wl = spectral.as_wavelengths(wavelengths)
     plan = _camera_plan(camera, wl, white_balance, illuminant, white, output, ccm, ccm_source,
                         kind="cube")
@@ -471,7 +494,7 @@ def _camera_plan(camera, wl_bands: np.ndarray, white_balance: bool, illuminant, 
             post = fit_ccm(camera, wl_bands, illuminant=illuminant, white=white,
                            source=ccm_source)
         else:
-            post = np.asarray(ccm, dtype=np.float64)
+            post = _opt.real_array(ccm, "ccm")
             if post.shape != (3, 3) or not np.all(np.isfinite(post)):
                 raise InvalidInputError(
                     f"ccm must be 'fit', None or a finite (3, 3) array, got {ccm!r}")
@@ -542,7 +565,7 @@ def _make_plan(profile, src: _Source, white_balance: bool = True, illuminant=Non
         vw[np.arange(src.R)[:, None], np.arange(src.C)[None, :], idx] = 1.0
         return _Plan(B, None, vw, None, np.ones(B), None, np.ones(B), encode, "khw", "all bands")
     if _is_number(profile):
-        lam = float(profile)
+        lam = _opt.real(profile, "a band profile's wavelength (nm)")
         b = band_index(wl_bands, lam)
         if src.kind == "cube":
             M = np.zeros((B, 1))
@@ -554,7 +577,7 @@ def _make_plan(profile, src: _Source, white_balance: bool = True, illuminant=Non
     if isinstance(profile, (str, os.PathLike)):
         return _camera_plan(profile, wl_bands, white_balance, illuminant, white, output, ccm,
                             ccm_source, src.kind, view_wl)
-    arr = np.asarray(profile, dtype=np.float64)
+    arr = _opt.real_array(profile, "profile")
     if arr.shape == (B, 3):
         return _camera_plan(arr, wl_bands, white_balance, illuminant, white, output, ccm,
                             ccm_source, src.kind, view_wl)
@@ -597,10 +620,7 @@ def _apply_post(x: np.ndarray, plan: _Plan, channel_axis: int = -1) -> np.ndarra
 def _exposure_scale(values: Iterable[np.ndarray], plan: _Plan, exposure, percentile: float
                     ) -> float:
     if _is_number(exposure):
-        g = float(exposure)
-        if not (np.isfinite(g) and g > 0):
-            raise InvalidInputError(f"an exposure gain must be > 0, got {exposure}")
-        return g
+        return _opt.number(exposure, "an exposure gain", positive=True)
     e = str(exposure).lower() if exposure is not None else "none"
     if e == "none":
         return 1.0
@@ -659,16 +679,16 @@ def _select_views(views, lead: tuple[int, ...]) -> tuple[list[tuple[int, ...]], 
         if len(lead) != 2:
             raise InvalidInputError("views='reference' needs a 5-D cube (R, C, B, H, W)")
         return [((lead[0] - 1) // 2, (lead[1] - 1) // 2)], True
-    single = False
-    v = views
-    if isinstance(v, tuple) and all(_is_number(i) for i in v):
-        sel, single = [tuple(int(i) for i in v)], True
-    else:
-        sel = [tuple(int(i) for i in t) for t in v]
-    for t in sel:
-        if len(t) != len(lead) or any(not (0 <= i < n) for i, n in zip(t, lead)):
-            raise InvalidInputError(f"view index {t} is outside the cube's leading axes {lead}")
-    return sel, single
+    if isinstance(views, tuple) and all(_is_number(i) for i in views):
+        return [_opt.index(views, "views", lead)], True
+    try:
+        several = None if isinstance(views, (str, dict)) else list(views)
+    except TypeError:  # not iterable
+        several = None
+    if not several:
+        raise InvalidInputError("views must be None, 'all', 'reference', one index (i, j) or a "
+                                f"list of them, got {_opt.shown(views)}")
+    return [_opt.index(t, "views", lead) for t in several], False
 
 
 def _emulate_views(data, sel, idx: np.ndarray, B: int, M: np.ndarray, plan: _Plan, mask,
@@ -762,6 +782,8 @@ def emulate_camera(cube, wavelengths=None, camera="CIE 1931", *, white_balance: 
     >>> emulate_camera(lf.gt_cube[lf.reference], lf.cube_wavelengths).shape
     (24, 32, 3)
     """
+    _checked(white_balance=white_balance, output=output, exposure_percentile=exposure_percentile,
+             fill=fill, progress=progress)
     if _is_cubefile(cube):
         data = cube.cube
         if wavelengths is None:
@@ -808,15 +830,12 @@ def _aperture_weights(aperture, src: _Source) -> np.ndarray:
     if aperture is None:
         return np.ones((R, C))
     if _is_number(aperture):
-        rad = float(aperture)
-        if not rad >= 0:
-            raise InvalidInputError(f"aperture radius must be >= 0 baselines, got {aperture}")
+        rad = _opt.number(aperture, "aperture radius (baselines)")
         return (np.hypot(src.offsets[..., 0], src.offsets[..., 1]) <= rad + 1e-9).astype(float)
-    a = np.asarray(aperture)
+    a = _opt.real_array(aperture, "aperture")
     if a.shape != (R, C):
         raise InvalidInputError(
             f"aperture must be a radius (baselines), or a ({R}, {C}) mask/weights, got {a.shape}")
-    a = a.astype(np.float64)
     if not np.all(np.isfinite(a)) or np.any(a < 0):
         raise InvalidInputError("aperture weights must be finite and non-negative")
     if not np.any(a > 0):
@@ -825,12 +844,9 @@ def _aperture_weights(aperture, src: _Source) -> np.ndarray:
 
 
 def _as_disparity(d, H: int, W: int, name: str = "disparity") -> np.ndarray | float:
-    if _is_number(d) or (np.ndim(d) == 0):
-        v = float(np.asarray(d))
-        if not np.isfinite(v):
-            raise InvalidInputError(f"{name} must be finite, got {v}")
-        return v
-    a = np.asarray(d, dtype=np.float64)
+    a = _opt.real_array(d, name)
+    if a.ndim == 0:
+        return _opt.real(a.item(), name)
     if a.shape != (H, W):
         raise InvalidInputError(f"{name} must be a scalar or an ({H}, {W}) map, got {a.shape}")
     return a
@@ -1016,11 +1032,18 @@ def focal_stack(views_or_cube, offsets=None, disparities=(0.0,), profile="CIE 19
     >>> [im.shape for im in focal_stack(lf, disparities=(0.0, 1.0))]
     [(24, 32, 3), (24, 32, 3)]
     """
+    _checked(output=output, exposure_percentile=exposure_percentile,
+             white_balance=white_balance, fill=fill, return_counts=return_counts,
+             progress=progress)
     src = _make_source(views_or_cube, wavelengths, offsets, mask, reference)
     plan = _make_plan(profile, src, white_balance, illuminant, white, output, ccm, ccm_source)
-    ds = list(disparities) if not (np.ndim(disparities) == 2) else [disparities]
+    try:
+        ds = [disparities] if np.ndim(disparities) == 2 else list(disparities)
+    except (TypeError, ValueError):  # not a sequence, or a ragged one
+        ds = None
     if not ds:
-        raise InvalidInputError("disparities is empty")
+        raise InvalidInputError("disparities must be a non-empty sequence of disparities "
+                                f"(scalars or (H, W) maps), got {_opt.shown(disparities)}")
     num, den, cnt = _accumulate(src, plan, ds, aperture=aperture, progress=progress)
     frames = [_average(n, d, plan) for n, d in zip(num, den)]
     out = _finish_frames(frames, plan, exposure, exposure_percentile, fill)
@@ -1083,6 +1106,7 @@ def refocus(views_or_cube, offsets=None, disparity=0.0, profile="CIE 1931", *, w
     >>> refocus(lf, None, 0.5).shape
     (24, 32, 3)
     """
+    _checked(return_counts=return_counts)
     if np.ndim(disparity) not in (0, 2):
         raise InvalidInputError(
             f"disparity must be a scalar or an (H, W) map, got shape {np.shape(disparity)}")
@@ -1138,13 +1162,14 @@ def all_focus(cube_or_views, offsets=None, disparity=None, profile="CIE 1931", *
     """
     if disparity is None:
         raise InvalidInputError("all_focus needs the reference view's disparity map (H, W)")
+    _checked(tol=tol, output=output, exposure_percentile=exposure_percentile,
+             white_balance=white_balance, fill=fill, return_counts=return_counts,
+             progress=progress)
     src = _make_source(cube_or_views, wavelengths, offsets, mask, reference)
-    d = np.asarray(disparity, dtype=np.float64)
+    d = _opt.real_array(disparity, "disparity")
     if d.shape != (src.H, src.W):
         raise InvalidInputError(
             f"disparity must be the reference's ({src.H}, {src.W}) map, got {d.shape}")
-    if not (np.isfinite(tol) and tol >= 0):
-        raise InvalidInputError(f"tol must be >= 0, got {tol}")
     occ, vd = _check_occlusion(occlusion, view_disparities, src)
     plan = _make_plan(profile, src, white_balance, illuminant, white, output, ccm, ccm_source)
     num, den, cnt = _accumulate(src, plan, [d], aperture=aperture, occlusion=occ,
@@ -1313,11 +1338,19 @@ def focal_sweep(views_or_cube, offsets=None, disparities=None, profile="CIE 1931
         raise InvalidInputError("focal_sweep needs out_dir, the folder to write the frames to")
     if disparities is None:
         raise InvalidInputError("focal_sweep needs disparities (n,)")
-    ds = np.atleast_1d(np.asarray(disparities, dtype=np.float64))
+    ds = np.atleast_1d(_opt.real_array(disparities, "disparities"))
     if ds.ndim != 1 or ds.size == 0 or not np.all(np.isfinite(ds)):
         raise InvalidInputError(f"disparities must be a non-empty 1-D finite array, got {ds!r}")
-    if not (np.isfinite(fps) and fps > 0):
-        raise InvalidInputError(f"fps must be > 0, got {fps}")
+    _checked(fps=fps, output=output, exposure_percentile=exposure_percentile,
+             annotate=annotate, bit_depth=bit_depth, progress=progress)
+    if not isinstance(stem, str) or not stem or os.sep in stem or "/" in stem:
+        raise InvalidInputError("stem must be a file name without a folder, e.g. 'refocus', "
+                                f"got {_opt.shown(stem)}")  # the frames go into out_dir
+    if isinstance(formats, str):
+        formats = (formats,)
+    if not isinstance(formats, Iterable) or isinstance(formats, dict):
+        raise InvalidInputError(f"formats must be a sequence of 'gif', 'mp4' and 'webm', got "
+                                f"{_opt.shown(formats)}")
     fmts = [str(f).lower().lstrip(".") for f in formats]
     for f in fmts:
         if f != "gif" and f not in _VIDEOS:
@@ -1383,10 +1416,7 @@ def spectrum_at(cube, wavelengths=None, x=None, y=None, view=None) -> np.ndarray
     shape = tuple(int(s) for s in data.shape)
     if len(shape) == 5:
         R, C = shape[:2]
-        r, c = centre_view(R, C) if view is None else (int(view[0]), int(view[1]))
-        if not (0 <= r < R and 0 <= c < C):
-            raise InvalidInputError(f"view {(r, c)} is outside the {R} x {C} grid")
-        lead = (r, c)
+        lead = centre_view(R, C) if view is None else _opt.index(view, "view", (R, C))
     elif len(shape) == 3:
         lead = ()
     else:
@@ -1395,8 +1425,8 @@ def spectrum_at(cube, wavelengths=None, x=None, y=None, view=None) -> np.ndarray
     if wavelengths is not None and (np.size(wavelengths) if spectral.wavelengths_unknown(
             wavelengths) else spectral.as_wavelengths(wavelengths).size) != B:
         raise InvalidInputError(f"the cube has {B} bands but {np.size(wavelengths)} wavelengths")
-    xs = np.atleast_1d(np.asarray(x, dtype=np.float64))
-    ys = np.atleast_1d(np.asarray(y, dtype=np.float64))
+    xs = np.atleast_1d(_opt.real_array(x, "x"))
+    ys = np.atleast_1d(_opt.real_array(y, "y"))
     if xs.shape != ys.shape or xs.ndim != 1:
         raise InvalidInputError("x and y must be scalars or 1-D arrays of the same length")
     out = np.full((xs.size, B), np.nan)
@@ -1436,19 +1466,21 @@ def save_spectrum_figure(path, cube, wavelengths=None, *, points: Sequence[tuple
     """
     from . import visualise
 
-    pts = [tuple(p) for p in points]
-    if not pts or any(len(p) != 2 for p in pts):
-        raise InvalidInputError("points must be a non-empty sequence of (x, y)")
+    pts = _opt.real_array(points, "points")
+    if pts.ndim != 2 or pts.shape[1] != 2 or not pts.size:
+        raise InvalidInputError(f"points must be a non-empty sequence of (x, y), got "
+                                f"{_opt.shown(points)}")
     if wavelengths is None and _is_cubefile(cube):
         wavelengths = cube.wavelengths
     if wavelengths is None:
         raise InvalidInputError("wavelengths (B,) are required")
-    xs = np.array([p[0] for p in pts], dtype=np.float64)
-    ys = np.array([p[1] for p in pts], dtype=np.float64)
-    spectra = spectrum_at(cube, wavelengths, xs, ys, view=view)
+    spectra = spectrum_at(cube, wavelengths, pts[:, 0], pts[:, 1], view=view)
     if labels is None:
-        labels = [f"({p[0]:g}, {p[1]:g})" for p in pts]
-    elif len(labels) != len(pts):
+        labels = [f"({x:g}, {y:g})" for x, y in pts]
+    elif isinstance(labels, (str, dict)) or not isinstance(labels, Iterable):
+        raise InvalidInputError(f"labels must be a sequence of texts, one per point, got "
+                                f"{_opt.shown(labels)}")
+    elif len(labels := [str(t) for t in labels]) != len(pts):
         raise InvalidInputError(f"{len(labels)} labels for {len(pts)} points")
     return visualise.save_spectrum_plot(path, np.asarray(wavelengths, dtype=np.float64), spectra,
                                         labels=list(labels), title=title, ylabel=ylabel)

@@ -111,7 +111,7 @@ def wavelengths_unknown(wavelengths) -> bool:
         return False
     try:
         wl = np.asarray(wavelengths, dtype=np.float64)
-    except (TypeError, ValueError):  # not numbers: as_wavelengths says what is wrong
+    except (TypeError, ValueError, OverflowError):  # not numbers: as_wavelengths says so
         return False
     return bool(wl.size) and bool(np.isnan(wl).all())
 
@@ -143,8 +143,9 @@ def as_wavelengths(wavelengths, name: str = "wavelengths") -> np.ndarray:
     array([550.])
     """
     try:
-        wl = np.asarray(wavelengths, dtype=np.float64)
-    except (TypeError, ValueError):
+        with np.errstate(over="ignore"):  # too large for a float: inf, refused below
+            wl = np.asarray(wavelengths, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
         raise InvalidInputError(
             f"{name} must be a sequence of numbers in nm, got {type(wavelengths).__name__}"
         ) from None
