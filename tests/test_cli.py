@@ -183,12 +183,13 @@ def test_stereo_command_writes_disparity_products(tmp_path):
 def test_refocus_refuses_a_sweep_the_memory_cannot_hold(tmp_path, capsys, monkeypatch):
     """Every frame of a sweep is held until the animations are written: 100000 frames ran the
     machine out of memory; a sweep above the memory available is refused in one line."""
-    from hyperlf import cli
+    from hyperlf import cli, tiling
 
     cap = tmp_path / "planes"
     assert main(["-q", "synth", "procedural", "--scene", "planes", "--size", "40,48",
                  "--grid", "2,2", "-o", str(cap), "--no-pictures"]) == 0
-    monkeypatch.setattr(cli, "_available_memory", lambda: cli.SWEEP_BYTES_AT_LEAST * 40 * 48 * 5)
+    monkeypatch.setattr(tiling, "available_memory",
+                        lambda: cli.SWEEP_BYTES_AT_LEAST * 40 * 48 * 5)
     capsys.readouterr()
     assert main(["-q", "refocus", str(cap), "--sweep=-1,1,6", "-o", str(tmp_path / "f")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -201,14 +202,14 @@ def test_stereo_refuses_a_range_the_memory_cannot_hold_before_any_work(tmp_path,
                                                                        monkeypatch):
     """Cost volumes of 16 B per pixel and disparity at least: a pair and range above the memory
     available is refused at once (one line, exit 2, nothing written), a smaller one runs."""
-    from hyperlf import cli
+    from hyperlf import tiling
     from hyperlf.formats import write_image
 
     tex = np.random.default_rng(5).random((30, 50)).astype(np.float32)
     write_image(tmp_path / "l.png", tex[:, 3:43], bit_depth=16)
     write_image(tmp_path / "r.png", tex[:, 6:46], bit_depth=16)
     need = 16 * 11 * 30 * 40  # --disparity-range 0,10 on 40 x 30 px
-    monkeypatch.setattr(cli, "_available_memory", lambda: need - 1)
+    monkeypatch.setattr(tiling, "available_memory", lambda: need - 1)
     args = ["stereo", str(tmp_path / "l.png"), str(tmp_path / "r.png"), "--optimizer", "wta"]
     assert main([*args, "--disparity-range", "0,10", "-o", str(tmp_path / "a")]) == 2
     err = capsys.readouterr().err.strip().splitlines()

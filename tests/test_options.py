@@ -294,3 +294,73 @@ def test_indices_and_fill_values():
     for bad in (float("nan"), float("inf"), 10 ** 400, "0", True):
         with pytest.raises(InvalidInputError, match="^fill must be a finite number, got"):
             opt.real(bad, "fill")
+
+
+def _library_calls():
+    """The spectra, metrics and synthetic scenes, as :func:`_render_calls`."""
+    from hyperlf import metrics, spectral, synthesis
+
+    rng = np.random.default_rng(0)
+    wl, truth, cube = np.array([450.0, 520.0, 590.0, 650.0]), rng.random((8, 8)), rng.random(
+        (4, 8, 8))
+    pair = {"estimate": truth + 0.1, "truth": truth}
+    cubes = {"estimate": cube + 0.1, "truth": cube}
+    spectra = {"spectra": rng.random((3, 4)), "wavelengths": wl}
+    xy = {"xy": np.array([0.4, 0.4])}
+    calls = {
+        "procedural_scene": (synthesis.procedural_scene, {"rows": 2, "cols": 2, "height": 12,
+                                                          "width": 12}),
+        "band_grid": (synthesis.band_grid, {"rows": 2, "cols": 3}),
+        "add_noise": (synthesis.add_noise, {"views": rng.random((2, 2, 8, 8)), "sigma": 0.01}),
+        "view_disparity_from_reference": (synthesis.view_disparity_from_reference,
+                                          {"gt_ref": truth, "offset": (1.0, 0.0)}),
+        "cmfs": (spectral.cmfs, {"wavelengths": wl}),
+        "camera_sensitivities": (spectral.camera_sensitivities,
+                                 {"name_or_path": "CIE 1931", "wavelengths": wl}),
+        "spectrum_to_xyz": (spectral.spectrum_to_xyz, spectra),
+        "spectrum_to_rgb": (spectral.spectrum_to_rgb, spectra),
+        "dominant_wavelength": (spectral.dominant_wavelength, xy),
+        "dominant_wavelength_for_filters": (spectral.dominant_wavelength_for_filters,
+                                            {**xy, "lambda_min": 410.0, "lambda_max": 700.0}),
+        "filter_response": (spectral.filter_response, {"center_nm": 500.0, "wavelengths": wl}),
+        "xyz_to_srgb": (spectral.xyz_to_srgb, {"xyz": rng.random((3, 3))}),
+        "xyz_to_xy": (spectral.xyz_to_xy, {"xyz": rng.random((3, 3))}),
+        "bad_pixels": (metrics.bad_pixels, {**pair, "tau": 1.0}),
+        "badpix": (metrics.badpix, pair),
+        "disparity_scores": (metrics.disparity_scores, pair),
+        "psnr": (metrics.psnr, pair),
+        "psnr_per_band": (metrics.psnr_per_band, cubes),
+        "sam": (metrics.sam, cubes),
+        "range_limit_shares": (metrics.range_limit_shares,
+                               {"disparity": truth, "disparity_range": (0, 2)}),
+    }
+    return {name: (f, lambda f=f, base=base, **kw: f(**{**base, **kw}))
+            for name, (f, base) in calls.items()}
+
+
+_LIBRARY = _library_calls()
+_LIBRARY_OPTIONS = [(name, p) for name, (f, _) in _LIBRARY.items()
+                    for p in _keywords(f, leave=("progress",))]
+
+
+@settings(max_examples=600, deadline=None, derandomize=True)
+@given(st.sampled_from(_LIBRARY_OPTIONS), JUNK)
+def test_spectra_metrics_and_scenes_take_any_option_or_refuse_it_in_one_line(option, value):
+    """Every argument of the spectral conversions, the metrics and the synthetic scenes
+    (``observer=None``, ``axis=None``, ``band_axis=''``, ``data_range=1e300``,
+    ``lut_size=1e300``, ``rows='x'``, ``kinds=''``, ``quantum_efficiency={}`` and some 150 more
+    were tracebacks, a division by zero among them)."""
+    name, keyword = option
+    _build_or_refuse(_LIBRARY[name][1], **{keyword: value})
+
+
+def test_a_scene_beyond_the_memory_is_refused_before_any_work(monkeypatch):
+    from hyperlf import synthesis, tiling
+
+    monkeypatch.setattr(tiling, "available_memory", lambda: 4 * 16 * 12 * 12 - 1)
+    with pytest.raises(InvalidInputError, match="^a 2 x 2 scene of 12 x 12 px with 4 bands "
+                                                "would need about"):
+        synthesis.procedural_scene(rows=2, cols=2, height=12, width=12)
+    with pytest.raises(InvalidInputError, match=f"got {synthesis.MAX_SUPERSAMPLE + 1}$"):
+        synthesis.procedural_scene(rows=2, cols=2, height=12, width=12,
+                                   supersample=synthesis.MAX_SUPERSAMPLE + 1)

@@ -254,7 +254,7 @@ def test_depth_command_honours_max_memory(tmp_path, capsys):
 
 def test_depth_command_fits_the_memory_available_when_no_budget_is_given(tmp_path, capsys,
                                                                           monkeypatch):
-    from hyperlf import cli
+    from hyperlf import tiling
     from hyperlf.formats import read_pfm
 
     cap = tmp_path / "cap"
@@ -262,7 +262,7 @@ def test_depth_command_fits_the_memory_available_when_no_budget_is_given(tmp_pat
                  "--grid", "3,3", "-o", str(cap), "--no-pictures"]) == 0
     assert main(["-q", "depth", str(cap), "--labels", "12", "-o", str(tmp_path / "a")]) == 0
     little = int(depth_memory((72, 40), 12, 9, strip_rows=32) + 1)
-    monkeypatch.setattr(cli, "_available_memory", lambda: little)
+    monkeypatch.setattr(tiling, "available_memory", lambda: little)
     assert main(["depth", str(cap), "--labels", "12", "-o", str(tmp_path / "b")]) == 0
     assert "in 3 strips of 32 rows" in capsys.readouterr().err
     np.testing.assert_array_equal(read_pfm(tmp_path / "b" / "disparity.pfm"),

@@ -20,7 +20,7 @@ from typing import Sequence
 
 import numpy as np
 
-from . import __version__
+from . import __version__, tiling
 from .errors import DataNotFoundError, HyperLFError, InvalidInputError, Terminated
 
 __all__ = ["main", "build_parser"]
@@ -477,30 +477,10 @@ def _check_disparity_source(args, lf) -> None:
             "out of its result folder to use it anyway)")
 
 
-def _available_memory() -> int:
-    """Bytes of memory available now (``MemAvailable`` on Linux, else the physical memory)."""
-    try:
-        with open("/proc/meminfo", encoding="ascii") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-
-
-def _check_memory(nbytes: float, what: str, remedy: str) -> None:
-    """Refuse (exit 2) work whose arrays would need more than the available memory."""
-    avail = _available_memory()
-    if nbytes > avail:
-        raise InvalidInputError(f"{what} would need about {nbytes / 2**30:.3g} GiB of memory, "
-                                f"more than the {avail / 2**30:.3g} GiB available; {remedy}")
-
-
 def _check_views_memory(grid, size) -> None:
     """A synthetic capture: R x C views of H x W px, each with the R*C-band float32 cube."""
     (R, C), (H, W) = grid, size
-    _check_memory(4.0 * (R * C) ** 2 * H * W,
+    tiling.check_memory(4.0 * (R * C) ** 2 * H * W,
                   f"{R} x {C} views of {W} x {H} px with {R * C} bands",
                   "reduce --size or --grid")
 
@@ -508,7 +488,7 @@ def _check_views_memory(grid, size) -> None:
 def _check_labels_memory(labels: int, shape) -> None:
     """Depth: a few float32 cost volumes of ``labels`` x H x W (a lower bound)."""
     H, W = shape
-    _check_memory(4.0 * 4 * labels * H * W, f"--labels {labels} on {W} x {H} px views",
+    tiling.check_memory(4.0 * 4 * labels * H * W, f"--labels {labels} on {W} x {H} px views",
                   "use fewer --labels")
 
 
@@ -521,7 +501,7 @@ PAIR_BYTES_AT_LEAST = 16.0
 def _check_pair_memory(disparity_range, shape) -> None:
     """Stereo: refuse a pair and range whose cost volumes alone exceed the available memory."""
     (lo, hi), (H, W) = disparity_range, shape
-    _check_memory(PAIR_BYTES_AT_LEAST * (hi - lo + 1) * H * W,
+    tiling.check_memory(PAIR_BYTES_AT_LEAST * (hi - lo + 1) * H * W,
                   f"--disparity-range {lo},{hi} on {W} x {H} px images",
                   "narrow the range, or match the pair downscaled (half the size and half the "
                   "range need an eighth)")
@@ -536,7 +516,7 @@ SWEEP_BYTES_AT_LEAST = 72.0
 def _check_sweep_memory(n_frames: int, shape) -> None:
     """Refocus: refuse a sweep whose frames alone exceed the available memory."""
     H, W = shape
-    _check_memory(SWEEP_BYTES_AT_LEAST * n_frames * H * W,
+    tiling.check_memory(SWEEP_BYTES_AT_LEAST * n_frames * H * W,
                   f"--sweep with {n_frames} frames of {W} x {H} px", "use fewer frames (N)")
 
 
@@ -955,8 +935,8 @@ def _run_hlf_depth(args, lf, rng):
     from .tiling import DEFAULT_MAX_MEMORY, plan
 
     budget = args.max_memory  # default: 16 GiB, or less when less is available
-    if budget is None and _available_memory() < DEFAULT_MAX_MEMORY:
-        budget = _available_memory()
+    if budget is None and tiling.available_memory() < DEFAULT_MAX_MEMORY:
+        budget = tiling.available_memory()
     params = _hlf_depth_params(args, budget)
     if lf.views.ndim != 4:
         raise InvalidInputError("the hlf method needs monochrome spectral views; use "

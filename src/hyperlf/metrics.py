@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import _options as _opt
 from .errors import InvalidInputError
 
 __all__ = [
@@ -40,8 +41,8 @@ HCI_BORDER = 15
 
 
 def _pair(estimate, truth) -> tuple[np.ndarray, np.ndarray]:
-    est = np.asarray(estimate, dtype=np.float64)
-    gt = np.asarray(truth, dtype=np.float64)
+    est = _opt.real_array(estimate, "estimate")
+    gt = _opt.real_array(truth, "truth")
     if est.shape != gt.shape:
         raise InvalidInputError(
             f"estimate has shape {est.shape} but ground truth has {gt.shape}; they must match"
@@ -73,20 +74,34 @@ def evaluation_mask(truth: np.ndarray, mask: np.ndarray | None = None,
     >>> evaluation_mask(gt).tolist()
     [[True, False], [True, True]]
     """
-    gt = np.asarray(truth)
+    gt = _opt.real_array(truth, "truth")
+    border = _opt.integer(border, "border")
     m = np.isfinite(gt)
     if mask is not None:
-        mk = np.asarray(mask, dtype=bool)
-        if mk.shape != gt.shape:
-            raise InvalidInputError(f"mask has shape {mk.shape}, ground truth {gt.shape}")
-        m &= mk
-    if border < 0:
-        raise InvalidInputError(f"border must be >= 0, got {border}")
+        m &= _mask(mask, gt.shape, broadcast=False)
     if border > 0:
         frame = np.zeros_like(m)
         frame[border:-border, border:-border] = True
         m &= frame
     return m
+
+
+def _mask(mask, shape: tuple[int, ...], *, broadcast: bool = True) -> np.ndarray:
+    """``mask`` as bool of ``shape``, or broadcast to it where ``broadcast``."""
+    mk = _opt.real_array(mask, "mask").astype(bool)  # numbers or bools, not text
+    if mk.shape == shape:
+        return mk
+    if broadcast:
+        try:
+            return np.broadcast_to(mk, shape)
+        except ValueError:
+            pass
+    raise InvalidInputError(f"mask has shape {mk.shape}, the data {shape}")
+
+
+def _axis(band_axis, cube: np.ndarray) -> int:
+    """``band_axis`` as an axis of ``cube`` (negative ones count from the end)."""
+    return _opt.integer(band_axis, "band_axis", -cube.ndim, maximum=cube.ndim - 1)
 
 
 def _masked_error(estimate, truth, mask, border) -> np.ndarray:
@@ -124,6 +139,7 @@ def bad_pixels(estimate, truth, tau: float, *, mask=None, border: int = 0) -> fl
     >>> bad_pixels([[0.0, 1.0]], [[0.0, 0.0]], tau=0.5)
     50.0
     """
+    tau = _opt.number(tau, "tau")
     err = _masked_error(estimate, truth, mask, border)
     return float(100.0 * np.mean(np.abs(err) > tau))
 
@@ -281,6 +297,14 @@ def hci_scores(estimate, truth) -> DisparityScores | None:
     return disparity_scores(estimate, truth, border=HCI_BORDER, mask_name="all-15px-border")
 
 
+def _range(disparity_range) -> tuple[float, float]:
+    lo_hi = _opt.real_array(disparity_range, "disparity_range")
+    if lo_hi.shape != (2,) or not np.isfinite(lo_hi).all():
+        raise InvalidInputError(f"disparity_range must be (low, high), finite, got "
+                                f"{_opt.shown(disparity_range)}")
+    return float(lo_hi[0]), float(lo_hi[1])
+
+
 def at_range_limit(disparity, disparity_range, tol: float = 1e-3) -> np.ndarray:
     """Pixels whose disparity sits at either end of ``disparity_range`` (within ``tol``): the
     labels a cost minimum lands on by chance where nothing can be matched.
@@ -290,8 +314,9 @@ def at_range_limit(disparity, disparity_range, tol: float = 1e-3) -> np.ndarray:
     >>> at_range_limit([[-2.0, 0.3, 2.0]], (-2, 2)).tolist()
     [[True, False, True]]
     """
-    d = np.asarray(disparity, np.float64)
-    lo, hi = disparity_range
+    d = _opt.real_array(disparity, "disparity")
+    lo, hi = _range(disparity_range)
+    tol = _opt.number(tol, "tol")
     return (np.abs(d - lo) < tol) | (np.abs(d - hi) < tol)
 
 
@@ -304,11 +329,11 @@ def range_limit_shares(disparity, disparity_range, mask=None) -> tuple[float, fl
     >>> range_limit_shares([[-2.0, 0.3, 2.0, 2.0]], (-2, 2))
     (25.0, 50.0)
     """
-    d = np.asarray(disparity, np.float64)
-    ok = np.isfinite(d) if mask is None else np.isfinite(d) & np.asarray(mask, bool)
+    d = _opt.real_array(disparity, "disparity")
+    lo, hi = _range(disparity_range)
+    ok = np.isfinite(d) if mask is None else np.isfinite(d) & _mask(mask, d.shape)
     if not ok.any():
         return None
-    lo, hi = disparity_range
     return (100.0 * float(np.mean(at_range_limit(d[ok], (lo, lo)))),
             100.0 * float(np.mean(at_range_limit(d[ok], (hi, hi)))))
 
@@ -336,10 +361,9 @@ def psnr(estimate, truth, *, data_range: float = 1.0, mask=None) -> float:
     20.0
     """
     est, gt = _pair(estimate, truth)
-    if data_range <= 0:
-        raise InvalidInputError(f"data_range must be positive, got {data_range}")
+    data_range = _opt.number(data_range, "data_range", positive=True)
     if mask is not None:
-        m = np.broadcast_to(np.asarray(mask, dtype=bool), gt.shape)
+        m = _mask(mask, gt.shape)
         if not m.any():
             raise InvalidInputError("psnr: the mask excludes every entry")
         est, gt = est[m], gt[m]
@@ -349,7 +373,7 @@ def psnr(estimate, truth, *, data_range: float = 1.0, mask=None) -> float:
 def _psnr_of_mse(mse: float, data_range: float) -> float:
     if mse == 0:
         return float("inf")
-    return float(10.0 * np.log10(data_range ** 2 / mse))
+    return float(20.0 * np.log10(data_range) - 10.0 * np.log10(mse))  # no overflow of range²
 
 
 def psnr_per_band(estimate, truth, *, band_axis: int = -3, data_range: float = 1.0,
@@ -369,10 +393,10 @@ def psnr_per_band(estimate, truth, *, band_axis: int = -3, data_range: float = 1
         PSNR of every band, dB.
     """
     est, gt = _pair(estimate, truth)
+    band_axis = _axis(band_axis, est)
     est = np.moveaxis(est, band_axis, 0)
     gt = np.moveaxis(gt, band_axis, 0)
-    m = None if mask is None else np.moveaxis(
-        np.broadcast_to(np.asarray(mask, dtype=bool), np.asarray(truth).shape), band_axis, 0)
+    m = None if mask is None else np.moveaxis(_mask(mask, np.shape(truth)), band_axis, 0)
     return np.array([psnr(est[b], gt[b], data_range=data_range,
                           mask=None if m is None else m[b])
                      for b in range(est.shape[0])])
@@ -420,16 +444,15 @@ def sam(estimate, truth, *, band_axis: int = -3, mask=None, eps: float = 1e-12) 
 def _spectral_angles(estimate, truth, band_axis: int, mask=None, eps: float = 1e-12):
     """Angles (radians) of the spectra :func:`sam` averages (zero-norm spectra skipped)."""
     est, gt = _pair(estimate, truth)
+    band_axis = _axis(band_axis, est)
+    eps = _opt.number(eps, "eps")
     est = np.moveaxis(est, band_axis, -1)
     gt = np.moveaxis(gt, band_axis, -1)
     num = np.sum(est * gt, axis=-1)
     den = np.linalg.norm(est, axis=-1) * np.linalg.norm(gt, axis=-1)
     ok = den > eps
     if mask is not None:
-        mk = np.asarray(mask, dtype=bool)
-        if mk.shape != ok.shape:
-            raise InvalidInputError(f"sam: mask has shape {mk.shape}, expected {ok.shape}")
-        ok &= mk
+        ok &= _mask(mask, ok.shape, broadcast=False)
     return np.arccos(np.clip(num[ok] / den[ok], -1.0, 1.0))
 
 

@@ -36,6 +36,7 @@ from typing import Sequence
 
 import numpy as np
 
+from . import _options as _opt
 from .errors import DataNotFoundError, FormatError, InvalidInputError
 
 __all__ = [
@@ -242,10 +243,17 @@ def _colour():
 # colour matching functions
 # ---------------------------------------------------------------------------------------------
 
+def _observer(observer) -> str:
+    """``observer`` when it is text (a name; the tables are cached by it)."""
+    if not isinstance(observer, str):
+        raise InvalidInputError(f"observer must be a name such as {CIE1931!r}, got "
+                                f"{_opt.shown(observer)}")
+    return observer
+
+
 @lru_cache(maxsize=8)
 def _cmf_table(observer: str) -> tuple[np.ndarray, np.ndarray]:
     colour = _colour()
-
     try:
         msds = colour.MSDS_CMFS[observer]
     except KeyError:
@@ -289,7 +297,7 @@ def cmfs(wavelengths, observer: str = CIE1931) -> np.ndarray:
         x̄ȳz̄ linearly interpolated from the 1 nm table; zero outside the table.
     """
     wl = as_wavelengths(wavelengths)
-    table_wl, table = _cmf_table(observer)
+    table_wl, table = _cmf_table(_observer(observer))
     return _interp_table(wl, table_wl, table, outside="zero")
 
 
@@ -566,7 +574,9 @@ def _match_camera(name: str, names: Sequence[str]) -> str:
 def _looks_like_path(name_or_path) -> bool:
     if isinstance(name_or_path, os.PathLike):
         return True
-    s = str(name_or_path)
+    if not isinstance(name_or_path, str):
+        return False  # a name or a path is text; camera_sensitivities says what is wrong
+    s = name_or_path
     return (s.lower().endswith((".csv", ".txt", ".tsv", ".dat")) or os.sep in s
             or (os.altsep is not None and os.altsep in s) or s.startswith("~")
             or Path(s).is_file())
@@ -725,7 +735,7 @@ def xyz_to_srgb_linear(xyz, white=None) -> np.ndarray:
     a = _float(_as_array(xyz, "xyz", last=3))
     M = _M_XYZ_TO_RGB
     if white is not None:
-        M = M @ _adaptation_matrix(white, (0.3127, 0.3290))
+        M = M @ _adaptation_matrix(_white_tuple(white), (0.3127, 0.3290))
     return (a @ M.T.astype(a.dtype)).astype(a.dtype, copy=False)
 
 
@@ -755,7 +765,7 @@ def xyz_to_srgb(xyz, white=None, *, clip: bool = False) -> np.ndarray:
     ndarray, shape (..., 3)
     """
     lin = xyz_to_srgb_linear(xyz, white=white)
-    if clip:
+    if _opt.flag(clip, "clip"):
         lin = np.clip(lin, 0.0, 1.0)
     return linear_to_srgb(lin)
 
@@ -775,6 +785,10 @@ def xyz_to_xy(xyz, fallback=(1 / 3, 1 / 3)) -> np.ndarray:
     ndarray, shape (..., 2)
     """
     a = _float(_as_array(xyz, "xyz", last=3))
+    fallback = _opt.real_array(fallback, "fallback")
+    if fallback.shape != (2,):
+        raise InvalidInputError(f"fallback must be an xy pair like (1/3, 1/3), got "
+                                f"{_opt.shown(fallback)}")
     s = a.sum(axis=-1, keepdims=True)
     ok = np.isfinite(s) & (np.abs(s) > np.finfo(a.dtype).tiny)
     safe = np.where(ok, s, 1)
@@ -875,6 +889,7 @@ def illuminant_values(illuminant, wl: np.ndarray) -> np.ndarray | None:
 def _spectral_axis(arr: np.ndarray, n: int, axis: int, name: str) -> np.ndarray:
     if arr.ndim == 0:
         raise InvalidInputError(f"{name} must have a spectral axis of length {n}, got a scalar")
+    axis = _opt.integer(axis, "axis", -arr.ndim, maximum=arr.ndim - 1)
     try:
         moved = np.moveaxis(arr, axis, -1)
     except (ValueError, IndexError):
@@ -894,7 +909,8 @@ def _spectra_last(spectra, n: int, axis: int) -> np.ndarray:
 
 def _weigh_spectra(moved: np.ndarray, weights: np.ndarray, axis: int) -> np.ndarray:
     """``moved`` (spectral axis last) times ``weights`` (N, k), in the spectra's dtype; the
-    k-axis takes the spectral axis' place ``axis``."""
+    k-axis takes the spectral axis' place ``axis`` (checked by :func:`_spectral_axis`)."""
+    axis = int(axis)
     out = moved @ weights.astype(moved.dtype)
     return np.moveaxis(out, -1, axis) if axis not in (-1, moved.ndim - 1) else out
 
@@ -934,6 +950,7 @@ def spectrum_to_xyz(spectra, wavelengths, *, illuminant=None, normalise: str | N
     InvalidInputError
         Shape mismatch, or the wavelengths lie outside the CMFs (no luminance).
     """
+    _opt.choice(normalise, "normalise", ("equal-energy", "white", None, "none"))
     wl = as_wavelengths(wavelengths)
     moved = _spectra_last(spectra, wl.size, axis)
     weights = cmfs(wl, observer) * sample_widths(wl)[:, None]  # (N, 3)
@@ -989,6 +1006,7 @@ def spectrum_to_rgb(spectra, wavelengths, *, camera="CIE 1931", white_balance: b
     InvalidInputError
         Shape mismatch, or a channel with zero response over the bands while white-balancing.
     """
+    _opt.flag(white_balance, "white_balance")
     wl = as_wavelengths(wavelengths)
     moved = _spectra_last(spectra, wl.size, axis)
     if isinstance(camera, (str, os.PathLike)):
@@ -1068,6 +1086,8 @@ def rgb_to_spectrum(rgb_linear, wavelengths) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------
 
 _DW_LUT_SIZE = 1 << 18
+#: The largest table ``lut_size`` may ask for (128 MiB); far finer than the locus' 0.1 nm.
+_DW_LUT_MAX = 1 << 24
 
 
 @lru_cache(maxsize=16)
@@ -1120,9 +1140,10 @@ def _dominant_lut(white: tuple, lut_size: int, observer: str, step: float = 0.1)
 
 
 def _white_tuple(white) -> tuple:
-    w = np.asarray(white, dtype=np.float64).reshape(-1)
+    w = _opt.real_array(white, "white").reshape(-1)
     if w.size != 2 or not np.all(np.isfinite(w)):
-        raise InvalidInputError(f"white must be an xy pair like (1/3, 1/3), got {white!r}")
+        raise InvalidInputError(f"white must be an xy pair like (1/3, 1/3), got "
+                                f"{_opt.shown(white)}")
     return (float(w[0]), float(w[1]))
 
 
@@ -1186,9 +1207,8 @@ def dominant_wavelength(xy, white=(1 / 3, 1 / 3), *, lut_size: int = _DW_LUT_SIZ
     """
     a = _check_xy(xy)
     w = _white_tuple(white)
-    if int(lut_size) < 16:
-        raise InvalidInputError(f"lut_size must be at least 16, got {lut_size}")
-    theta0, span, lut, _ = _dominant_lut(w, int(lut_size), observer)
+    lut_size = _opt.integer(lut_size, "lut_size", 16, maximum=_DW_LUT_MAX)
+    theta0, span, lut, _ = _dominant_lut(w, lut_size, _observer(observer))
     phi, r = _hue_phi(a, w, theta0)
     purple = phi > span
     phi_c = np.where(purple, np.mod(phi + np.pi, 2 * np.pi), phi)
@@ -1228,16 +1248,17 @@ def dominant_wavelength_for_filters(xy, lambda_min: float, lambda_max: float,
     ndarray, shape (...)
         nm, always within ``[lambda_min, lambda_max]``.
     """
-    lo, hi = float(lambda_min), float(lambda_max)
-    if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
+    lo, hi = _opt.real(lambda_min, "lambda_min"), _opt.real(lambda_max, "lambda_max")
+    if not lo <= hi:
         raise InvalidInputError(
             f"filter range must satisfy lambda_min <= lambda_max (finite nm), got {lo}, {hi}"
         )
-    if not (np.isfinite(achromatic_radius) and achromatic_radius >= 0):
-        raise InvalidInputError(f"achromatic_radius must be >= 0, got {achromatic_radius}")
+    achromatic_radius = _opt.number(achromatic_radius, "achromatic_radius")
+    lut_size = _opt.integer(lut_size, "lut_size", 16, maximum=_DW_LUT_MAX)
+    observer = _observer(observer)
     a = _check_xy(xy)
     w = _white_tuple(white)
-    theta0, span, lut, _ = _dominant_lut(w, int(lut_size), observer)
+    theta0, span, lut, _ = _dominant_lut(w, lut_size, observer)
     wl, purple = dominant_wavelength(a, w, lut_size=lut_size, observer=observer)
     phi, r = _hue_phi(a, w, theta0)
     # hue angles of the range ends on the locus (phi grows with wavelength)
@@ -1460,7 +1481,7 @@ def filter_response(center_nm, wavelengths, shape: str = "dirac", *, fwhm: float
         not overlap the wavelengths.
     """
     wl = as_wavelengths(wavelengths)
-    c_arr = np.asarray(center_nm, dtype=np.float64)
+    c_arr = _opt.real_array(center_nm, "center_nm")
     scalar = c_arr.ndim == 0
     c = c_arr.reshape(-1)
     if not np.all(np.isfinite(c)):

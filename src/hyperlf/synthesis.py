@@ -33,6 +33,8 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from . import _options as _opt
+from . import tiling
 from ._progress import grid_views
 from .errors import InvalidInputError
 from .lightfield import (LightField, centre_view, check_disparity_range, filter_layout,
@@ -48,6 +50,8 @@ __all__ = [
     "view_disparity_from_reference",
     "SCENES",
     "named_scene",
+    "MAX_OBJECTS",
+    "MAX_SUPERSAMPLE",
 ]
 
 
@@ -68,13 +72,17 @@ def add_noise(views: np.ndarray, sigma: float, seed: Any = 0) -> np.ndarray:
     -------
     ndarray of float32, same shape, in [0, 1].
     """
-    v = np.asarray(views, dtype=np.float32)
-    sigma = float(sigma)
-    if not np.isfinite(sigma) or sigma < 0:
-        raise InvalidInputError(f"noise sigma must be a finite number >= 0, got {sigma}")
+    v = _opt.real_array(views, "views", np.float32)
+    if v.ndim == 0:
+        raise InvalidInputError(f"views must be an array of intensities, got {_opt.shown(views)}")
+    sigma = _opt.number(sigma, "noise sigma")
     if sigma == 0:
         return v.copy()
-    rng = np.random.default_rng(seed)
+    try:
+        rng = np.random.default_rng(seed)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"seed must be an integer >= 0 (or a sequence of them), got "
+                                f"{_opt.shown(seed)}") from None
     noisy = v + rng.normal(0.0, sigma, size=v.shape).astype(np.float32)
     return np.clip(noisy, 0.0, 1.0, out=noisy)
 
@@ -107,9 +115,11 @@ def band_grid(rows: int, cols: int, lambda_min: float = 410.0,
     >>> band_grid(1, 3, 400.0, 600.0).tolist()
     [400.0, 500.0, 600.0]
     """
-    if rows < 1 or cols < 1:
-        raise InvalidInputError(f"grid must have at least one view, got {rows} x {cols}")
-    if not (0 < lambda_min <= lambda_max) or not np.isfinite(lambda_max):
+    rows, cols = _opt.integer(rows, "rows", 1), _opt.integer(cols, "cols", 1)
+    lambda_min = _opt.number(lambda_min, "lambda_min", positive=True)
+    lambda_max = _opt.number(lambda_max, "lambda_max", positive=True)
+    tiling.check_memory(8 * rows * cols, f"a {rows} x {cols} grid of bands", "use a smaller grid")
+    if not lambda_min <= lambda_max:
         raise InvalidInputError(
             f"band range must satisfy 0 < lambda_min <= lambda_max, got {lambda_min}..{lambda_max}"
         )
@@ -118,6 +128,14 @@ def band_grid(rows: int, cols: int, lambda_min: float = 410.0,
         raise InvalidInputError("lambda_min == lambda_max gives identical bands; widen the range")
     return np.linspace(float(lambda_min), float(lambda_max), n) if n > 1 else np.array(
         [float(lambda_min)])
+
+
+def _pair_of_reals(value, label: str) -> tuple[float, float]:
+    pair = _opt.real_array(value, label)
+    if pair.shape != (2,) or not np.isfinite(pair).all():
+        raise InvalidInputError(f"{label} must be two finite numbers (dx, dy), got "
+                                f"{_opt.shown(value)}")
+    return float(pair[0]), float(pair[1])
 
 
 def view_disparity_from_reference(gt_ref: np.ndarray, offset: tuple[float, float],
@@ -147,9 +165,13 @@ def view_disparity_from_reference(gt_ref: np.ndarray, offset: tuple[float, float
     import cv2
     from scipy import ndimage
 
-    g = np.ascontiguousarray(gt_ref, dtype=np.float32)
+    g = np.ascontiguousarray(_opt.real_array(gt_ref, "gt_ref", np.float32))
+    if g.ndim != 2:
+        raise InvalidInputError(f"gt_ref must be an (H, W) map, got shape {g.shape}")
     H, W = g.shape
-    dx, dy = (float(v) for v in offset)
+    dx, dy = _pair_of_reals(offset, "offset")
+    tol = _opt.number(tol, "tol")
+    iterations = _opt.integer(iterations, "iterations", maximum=100)
     fw = forward_warp_disparity(g, (dx, dy))
     if dx == 0 and dy == 0:
         return g.copy()
@@ -186,11 +208,11 @@ def _qe_on(quantum_efficiency: Any, wl: np.ndarray, cube_wl: np.ndarray) -> np.n
     if quantum_efficiency is None:
         return np.ones_like(wl)
     if callable(quantum_efficiency):
-        q = np.asarray(quantum_efficiency(wl), dtype=np.float64)
+        q = _opt.real_array(quantum_efficiency(wl), "quantum_efficiency(wavelengths)")
     elif (isinstance(quantum_efficiency, (tuple, list)) and len(quantum_efficiency) == 2
           and np.ndim(quantum_efficiency[0]) == 1 and np.ndim(quantum_efficiency[1]) == 1):
-        qw = np.asarray(quantum_efficiency[0], dtype=np.float64)
-        qv = np.asarray(quantum_efficiency[1], dtype=np.float64)
+        qw = _opt.real_array(quantum_efficiency[0], "quantum_efficiency's wavelengths")
+        qv = _opt.real_array(quantum_efficiency[1], "quantum_efficiency's values")
         if qw.shape != qv.shape or qw.size < 2:
             raise InvalidInputError(
                 "quantum_efficiency as (wavelengths, values) needs two 1-D arrays of equal length"
@@ -198,7 +220,7 @@ def _qe_on(quantum_efficiency: Any, wl: np.ndarray, cube_wl: np.ndarray) -> np.n
         order = np.argsort(qw)
         q = np.interp(wl, qw[order], qv[order])
     else:
-        qv = np.asarray(quantum_efficiency, dtype=np.float64).ravel()
+        qv = _opt.real_array(quantum_efficiency, "quantum_efficiency").ravel()
         if qv.size != cube_wl.size:
             raise InvalidInputError(
                 f"quantum_efficiency must be a callable, a (wavelengths, values) pair or one "
@@ -1006,6 +1028,57 @@ def _build_surface(o: dict, H: int, W: int, f: float, d0: float) -> _Surface:
     raise InvalidInputError(f"unknown object kind {kind!r}; use plane, fronto, slanted, box, sphere")
 
 
+def _kinds(value, label: str) -> tuple[str, ...]:
+    """A non-empty sequence of object kinds (:data:`_ALL_KINDS`)."""
+    kinds = tuple(value) if isinstance(value, (list, tuple)) else None
+    if not kinds or not all(isinstance(k, str) and k in _ALL_KINDS for k in kinds):
+        raise InvalidInputError(f"{label} must be a non-empty list of object kinds out of "
+                                f"{', '.join(_ALL_KINDS)}, got {_opt.shown(value)}")
+    return kinds
+
+
+def _objects(value, label: str):
+    """None, or a sequence of object descriptions (mappings)."""
+    if value is not None and not (isinstance(value, (list, tuple))
+                                  and all(isinstance(o, Mapping) for o in value)):
+        raise InvalidInputError(f"{label} must be None or a list of object descriptions "
+                                f"(dicts), got {_opt.shown(value)}")
+    return value
+
+
+def _text_or_none(value, label: str):
+    if value is not None and not isinstance(value, str):
+        raise InvalidInputError(f"{label} must be text or None, got {_opt.shown(value)}")
+    return value
+
+
+#: The most random objects :func:`procedural_scene` places (each is ray-cast in every view):
+#: far more than a scene of the image's size can show apart.
+MAX_OBJECTS = 256
+#: The most rays per pixel side :func:`procedural_scene` casts: 16 x 16 rays already average
+#: any texture period the generator draws.
+MAX_SUPERSAMPLE = 16
+
+#: The options of :func:`procedural_scene` that take one value, checked before any work
+#: (:mod:`hyperlf._options`); the others (layout, disparity range, reflectances, illuminant,
+#: filter shape, quantum efficiency) are checked where they are read.
+_SCENE_RULES = {
+    "seed": _opt.integer, "rows": _opt.rule(_opt.integer, minimum=1),
+    "cols": _opt.rule(_opt.integer, minimum=1), "height": _opt.rule(_opt.integer, minimum=2),
+    "width": _opt.rule(_opt.integer, minimum=2),
+    "lambda_min": _opt.rule(_opt.number, positive=True),
+    "lambda_max": _opt.rule(_opt.number, positive=True),
+    "n_objects": _opt.rule(_opt.integer, maximum=MAX_OBJECTS), "kinds": _kinds, "noise_sigma": _opt.number,
+    "texture_scale": _opt.rule(_opt.number, positive=True),
+    "supersample": _opt.rule(_opt.integer, minimum=1, maximum=MAX_SUPERSAMPLE),
+    "objects": _objects,
+    "filter_shape": _opt.rule(_opt.choice, choices=("dirac", "gaussian", "thorlabs")),
+    "fwhm": _opt.rule(_opt.number, positive=True),
+    "focal_length": _opt.rule(_opt.number, positive=True, optional=True),
+    "shading": _opt.flag, "name": _text_or_none, "progress": _opt.flag,
+}
+
+
 def _check_procedural_args(H: int, W: int, supersample: int, texture_scale: float,
                            disparity_range: Any, kinds: Sequence[str]) -> tuple[float, float]:
     if H < 2 or W < 2:
@@ -1241,7 +1314,8 @@ def procedural_scene(seed: int = 0, *, rows: int = 5, cols: int = 6, height: int
     every pixel centre of every view; ``gt_cube (R, C, B, H, W)`` every band of every view
     (radiance = shading x reflectance x illuminant, filtered, x QE: in [0, 1] by construction,
     no further normalisation). With ``supersample = s > 1`` each pixel averages s x s rays
-    (anti-aliased cube and views; disparity stays the pixel-centre value).
+    (anti-aliased cube and views; disparity stays the pixel-centre value), ``s`` at most
+    :data:`MAX_SUPERSAMPLE`.
 
     Parameters
     ----------
@@ -1249,10 +1323,12 @@ def procedural_scene(seed: int = 0, *, rows: int = 5, cols: int = 6, height: int
         Everything random (object placement, textures, chips, noise) derives from it.
     rows, cols, height, width : int
         Grid and image size; the layout is given in fractions of the image, so any
-        resolution shows the same scene.
+        resolution shows the same scene. A scene whose cubes (``4 (R C)² H W`` bytes) exceed
+        the memory available is refused before any work.
     n_objects, kinds :
-        Random objects in front of the background, cycling through ``kinds`` (default fronto,
-        slanted, box, sphere; also ring, stick: planes of that shape). Ignored with ``objects``.
+        Random objects (at most :data:`MAX_OBJECTS`) in front of the background, cycling
+        through ``kinds`` (default fronto, slanted, box, sphere; also ring, stick: planes of
+        that shape). Ignored with ``objects``.
     disparity_range : (float, float)
         Disparities (px per baseline) of the scene; random objects stay inside. The returned
         ``disparity_range`` is this, widened if explicit objects go beyond it.
@@ -1292,7 +1368,15 @@ def procedural_scene(seed: int = 0, *, rows: int = 5, cols: int = 6, height: int
     ((3, 3, 24, 32), (3, 3, 9, 24, 32))
     """
     t_start = time.perf_counter()
+    _opt.check_values(dict(
+        seed=seed, rows=rows, cols=cols, height=height, width=width, lambda_min=lambda_min,
+        lambda_max=lambda_max, n_objects=n_objects, kinds=kinds, noise_sigma=noise_sigma,
+        texture_scale=texture_scale, supersample=supersample, objects=objects,
+        filter_shape=filter_shape, fwhm=fwhm, focal_length=focal_length, shading=shading,
+        name=name, progress=progress), _SCENE_RULES)
     rows, cols, H, W = int(rows), int(cols), int(height), int(width)
+    tiling.check_memory(4 * (rows * cols) ** 2 * H * W, f"a {rows} x {cols} scene of {W} x {H} "
+                        f"px with {rows * cols} bands", "use a smaller grid or image")
     supersample = int(supersample)
     dmin, dmax = _check_procedural_args(H, W, supersample, texture_scale, disparity_range,
                                         kinds)

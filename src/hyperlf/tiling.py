@@ -29,6 +29,7 @@ True
 from __future__ import annotations
 
 import math
+import os
 import re
 
 from .errors import InvalidInputError
@@ -37,6 +38,8 @@ __all__ = [
     "DEFAULT_MAX_MEMORY",
     "parse_memory",
     "format_memory",
+    "available_memory",
+    "check_memory",
     "check_strips",
     "row_strips",
     "depth_memory",
@@ -112,6 +115,33 @@ def format_memory(nbytes: float) -> str:
         if nbytes >= scale:
             return f"{nbytes / scale:.3g} {unit}"
     return f"{int(nbytes)} B"
+
+
+def available_memory() -> int:
+    """Bytes of memory available now (``MemAvailable`` on Linux, else the physical memory)."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+
+
+def check_memory(nbytes: float, what: str, remedy: str) -> None:
+    """Refuse, before any work, work whose arrays would need more than the available memory.
+
+    Raises
+    ------
+    InvalidInputError
+        ``"{what} would need about ... of memory, more than the ... available; {remedy}"``.
+    """
+    avail = available_memory()
+    if nbytes > avail:
+        need = f"{float(nbytes) / 2 ** 30:.3g} GiB" if nbytes < 2 ** 1000 else "more GiB than"
+        raise InvalidInputError(f"{what} would need about {need} of memory, more than the "
+                                f"{avail / 2 ** 30:.3g} GiB available; {remedy}")
 
 
 def row_strips(height: int, rows: int) -> list[tuple[int, int]]:
