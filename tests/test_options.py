@@ -7,6 +7,7 @@ with one line of :class:`InvalidInputError` before any work, never a ``TypeError
 from __future__ import annotations
 
 import dataclasses
+import functools
 import doctest
 
 import numpy as np
@@ -364,3 +365,60 @@ def test_a_scene_beyond_the_memory_is_refused_before_any_work(monkeypatch):
     with pytest.raises(InvalidInputError, match=f"got {synthesis.MAX_SUPERSAMPLE + 1}$"):
         synthesis.procedural_scene(rows=2, cols=2, height=12, width=12,
                                    supersample=synthesis.MAX_SUPERSAMPLE + 1)
+
+
+@functools.lru_cache(maxsize=1)
+def _calibration_calls():
+    """Calibration on the synthetic rig's board shots, as :func:`_render_calls`."""
+    from hyperlf import calibration
+    from hyperlf.calibration.rig import make_rig
+
+    rig = make_rig(seed=5)
+    shots = rig.render(rig.board_pose(450.0, tilt=(4.0, -3.0, 2.0)))
+    cal = calibration.register_plane(shots, rig.board)
+    calls = {
+        "BoardSpec": (calibration.BoardSpec, {"cols": rig.board.cols, "rows": rig.board.rows}),
+        "detect_board": (calibration.detect_board, {"image": shots[(0, 0)], "board": rig.board}),
+        "register_plane": (calibration.register_plane, {"shots": shots, "board": rig.board}),
+        "calibrate": (calibration.calibrate, {"shots": shots, "board": rig.board}),
+        "apply_calibration": (calibration.apply_calibration,
+                              {"calibration": cal, "images": shots}),
+        "view_maps": (calibration.view_maps, {"calibration": cal, "key": (0, 0)}),
+    }
+    return {name: (f, lambda f=f, base=base, **kw: f(**{**base, **kw}))
+            for name, (f, base) in calls.items()}
+
+
+_CALIBRATION_OPTIONS = [
+    ("BoardSpec", "cols"), ("BoardSpec", "rows"), ("BoardSpec", "square"),
+    ("detect_board", "image"), ("detect_board", "board"), ("detect_board", "detect_size"),
+    ("detect_board", "partial"), ("register_plane", "shots"), ("register_plane", "board"),
+    ("register_plane", "names"), ("register_plane", "focal_px"),
+    ("register_plane", "positions_from"), ("register_plane", "work_size"),
+    ("register_plane", "max_parallax"), ("register_plane", "min_parallax_px"),
+    ("calibrate", "shots"), ("calibrate", "mode"), ("calibrate", "names"),
+    ("apply_calibration", "calibration"), ("apply_calibration", "images"),
+    ("apply_calibration", "names"), ("apply_calibration", "saturation"),
+    ("view_maps", "calibration"), ("view_maps", "key")]
+
+
+@settings(max_examples=150, deadline=None, derandomize=True)
+@given(st.sampled_from(_CALIBRATION_OPTIONS), JUNK)
+def test_calibration_takes_any_option_or_refuses_it_in_one_line(option, value):
+    """The board, its detection, plane registration, calibration and its application
+    (``detect_size=2`` and an 8 px shot were OpenCV assertion errors, ``names=True``,
+    ``shots=None``, ``positions_from`` as an array, ``focal_px=1e300``, ``view_maps`` of an
+    unknown camera and some 100 more were tracebacks)."""
+    name, keyword = option
+    _build_or_refuse(_calibration_calls()[name][1], **{keyword: value})
+
+
+def test_a_reference_camera_outside_the_grid_is_refused_in_one_line():
+    from hyperlf import calibration
+
+    board = calibration.BoardSpec(7, 5)
+    shots = {(r, c): np.zeros((40, 40)) for r in range(2) for c in range(2)}
+    for bad in ((2, 0), (0, -1), True, "ab", (0.5, 0)):
+        with pytest.raises(InvalidInputError, match=r"^the reference camera must be 2 integers "
+                                                    r"within \(2, 2\)"):
+            calibration.register_plane(shots, board, reference=bad)

@@ -23,6 +23,7 @@ hyperlf.errors.InvalidInputError: radius must be an integer >= 0, got 2.5
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -233,8 +234,10 @@ def window(value, label: str, *, side: int | None = None, of: str = "the image")
     return n
 
 
-def mapping(value, label: str) -> dict | None:
-    """``value`` when it is a dict of options, or None."""
-    if value is not None and not isinstance(value, dict):
-        raise InvalidInputError(f"{label} must be a dict (or None), got {type(value).__name__}")
+def mapping(value, label: str, *, optional: bool = True) -> Mapping | None:
+    """``value`` when it is a mapping (a dict of options, images by camera), or None where
+    ``optional``."""
+    if not isinstance(value, Mapping) and not (value is None and optional):
+        none = " (or None)" if optional else ""
+        raise InvalidInputError(f"{label} must be a dict{none}, got {type(value).__name__}")
     return value

@@ -28,9 +28,10 @@ from typing import Iterator, Mapping
 
 import numpy as np
 
+from .. import _options as _opt
 from ..errors import InvalidInputError
 from .apply import apply_calibration, check_fits, view_maps
-from .board import BoardSpec, detect_board, detect_boards
+from .board import BoardSpec, camera_label, check_board, detect_board, detect_boards
 from .full import calibrate_full
 from .io import read_calibration, write_calibration
 from .model import Calibration, CameraCalibration
@@ -74,10 +75,11 @@ def calibrate(shots: Mapping, board: BoardSpec, *, mode: str = "auto", reference
     >>> cal.mode
     'plane'
     """
-    if mode not in ("auto", "plane", "full"):
-        raise InvalidInputError(f"mode must be 'auto', 'plane' or 'full', got {mode!r}")
-    per = {k: ([v] if isinstance(v, np.ndarray) and np.ndim(v) == 2 else list(v))
-           for k, v in shots.items()}
+    _opt.choice(mode, "mode", ("auto", "plane", "full"))
+    check_board(board)
+    _opt.mapping(names, "names")
+    per = {k: _shots_of(v, k, names) for k, v in _opt.mapping(shots, "shots",
+                                                               optional=False).items()}
     n = min((len(v) for v in per.values()), default=0)
     with _reproducible_opencv():
         if mode == "full" or (mode == "auto" and n >= 3):
@@ -85,6 +87,16 @@ def calibrate(shots: Mapping, board: BoardSpec, *, mode: str = "auto", reference
             return calibrate_full(per, board, reference=reference, names=names, **options)
         return register_plane({k: v[0] for k, v in per.items()}, board, reference=reference,
                               names=names, **options)
+
+
+def _shots_of(value, key, names) -> list:
+    """One camera's board shots as a list (one image, or a sequence of them)."""
+    if isinstance(value, np.ndarray) and value.ndim == 2:
+        return [value]
+    if isinstance(value, (str, bytes, Mapping)) or not hasattr(value, "__iter__"):
+        raise InvalidInputError(f"the board shots of camera {camera_label(key, names)} must be "
+                                f"an image or a list of images, got {_opt.shown(value)}")
+    return list(value)
 
 
 @contextlib.contextmanager

@@ -12,11 +12,19 @@ from typing import Mapping
 
 import numpy as np
 
+from .. import _options as _opt
 from ..errors import InvalidInputError
 from .board import camera_label
 from .model import Calibration
 
 __all__ = ["view_maps", "apply_calibration", "check_fits"]
+
+
+def _calibration(value) -> Calibration:
+    if not isinstance(value, Calibration):
+        raise InvalidInputError(f"calibration must be a Calibration (read_calibration reads "
+                                f"one), got {_opt.shown(value)}")
+    return value
 
 
 def view_maps(calibration: Calibration, key) -> tuple[np.ndarray, np.ndarray]:
@@ -28,7 +36,11 @@ def view_maps(calibration: Calibration, key) -> tuple[np.ndarray, np.ndarray]:
     """
     import cv2
 
-    cam = calibration.cameras[key]
+    cam = _calibration(calibration).cameras.get(key) if isinstance(key, tuple) else None
+    if cam is None:
+        raise InvalidInputError(f"no camera {_opt.shown(key)} in the calibration; its cameras "
+                                f"are (row, col) in a {calibration.grid[0]} x "
+                                f"{calibration.grid[1]} grid")
     W, H = calibration.output_size
     if calibration.mode == "plane":
         yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
@@ -45,8 +57,9 @@ def view_maps(calibration: Calibration, key) -> tuple[np.ndarray, np.ndarray]:
 def check_fits(calibration: Calibration, images: Mapping, names: Mapping | None = None) -> None:
     """Raise InvalidInputError unless ``images`` has one grey image of the calibrated size for
     every camera of the calibration's grid."""
-    want = set(calibration.cameras)
-    got = set(images)
+    want = set(_calibration(calibration).cameras)
+    got = set(_opt.mapping(images, "images", optional=False))
+    _opt.mapping(names, "names")
     if want != got:
         extra = sorted(got - want, key=str)
         miss = sorted(want - got)
@@ -92,6 +105,7 @@ def apply_calibration(calibration: Calibration, images: Mapping, *, names=None,
     import cv2
 
     check_fits(calibration, images, names)
+    saturation = _opt.real(saturation, "saturation") if saturation is not None else None
     R, C = calibration.grid
     W, H = calibration.output_size
     views = np.zeros((R, C, H, W), np.float32)

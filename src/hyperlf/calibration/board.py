@@ -25,6 +25,7 @@ from typing import Mapping
 
 import numpy as np
 
+from .. import _options as _opt
 from .._parallel import map_threads
 from ..errors import InvalidInputError
 
@@ -62,12 +63,11 @@ class BoardSpec:
     square: float = 1.0
 
     def __post_init__(self):
-        if not (3 <= int(self.cols) <= MAX_CORNERS and 3 <= int(self.rows) <= MAX_CORNERS):
+        _opt.check_fields(self, _BOARD_RULES, "board ")
+        if not (3 <= self.cols <= MAX_CORNERS and 3 <= self.rows <= MAX_CORNERS):
             raise InvalidInputError(
                 f"a board has 3 to {MAX_CORNERS} inner corners per side (a board of 12 x 9 "
                 f"squares has 11 x 8), got {self.cols} x {self.rows}")
-        if not (np.isfinite(self.square) and self.square > 0):
-            raise InvalidInputError(f"board square size must be > 0, got {self.square}")
 
     @property
     def n_corners(self) -> int:
@@ -79,6 +79,23 @@ class BoardSpec:
         j, i = np.mgrid[0:self.rows, 0:self.cols]
         return np.stack([i.ravel() * self.square, j.ravel() * self.square,
                          np.zeros(self.n_corners)], axis=1).astype(np.float64)
+
+
+#: What a board's fields take (the corner counts' range is checked with its own message).
+_BOARD_RULES = {"cols": _opt.integer, "rows": _opt.integer,
+                "square": _opt.rule(_opt.number, positive=True)}
+
+#: The smallest side (px) of an image in which a board is searched for; OpenCV's detectors
+#: fail on less.
+MIN_SHOT_SIDE = 16
+
+
+def check_board(board) -> BoardSpec:
+    """``board`` when it is a :class:`BoardSpec`."""
+    if not isinstance(board, BoardSpec):
+        raise InvalidInputError(f"board must be a BoardSpec(cols, rows, square), got "
+                                f"{_opt.shown(board)}")
+    return board
 
 
 def camera_label(key, names: Mapping | None = None) -> str:
@@ -104,9 +121,12 @@ def normalise_for_detection(image: np.ndarray, *, clahe: bool = True) -> np.ndar
     """
     import cv2
 
-    img = np.asarray(image, dtype=np.float64)
+    img = _opt.real_array(image, "a board shot")
     if img.ndim != 2:
         raise InvalidInputError(f"board shots must be grey images (H, W), got shape {img.shape}")
+    if min(img.shape) < MIN_SHOT_SIDE:
+        raise InvalidInputError(f"a board shot of {img.shape[1]} x {img.shape[0]} px is too "
+                                f"small to find a board in; at least {MIN_SHOT_SIDE} px a side")
     finite = img[np.isfinite(img)]
     lo, hi = (np.percentile(finite, [0.5, 99.5]) if finite.size else (0.0, 1.0))
     if hi <= lo:
@@ -438,8 +458,8 @@ def detect_board(image: np.ndarray, board: BoardSpec, *, detect_size: int = 800,
     >>> detect_board(shots[(0, 0)], rig.board).shape
     (48, 2)
     """
-    import cv2
-
+    check_board(board)
+    detect_size = _opt.integer(detect_size, "detect_size", 64)
     small, scale = _detection_image(image, detect_size)
     size = (int(board.cols), int(board.rows))
     for detector in (_detect_sb, _detect_classic):
@@ -510,7 +530,9 @@ def detect_boards(images: Mapping, board: BoardSpec, *, names: Mapping | None = 
     InvalidInputError
         The board was not found in at least one camera (all of them are named).
     """
-    keys = list(images)
+    check_board(board)
+    keys = list(_opt.mapping(images, "images", optional=False))
+    _opt.mapping(names, "names")
     corners = map_threads(lambda k: detect_board(images[k], board, partial=partial), keys,
                           cap=DETECT_THREADS)
     found = {k: c for k, c in zip(keys, corners) if c is not None}

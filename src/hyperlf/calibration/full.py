@@ -26,10 +26,11 @@ from typing import Mapping
 
 import numpy as np
 
+from .. import _options as _opt
 from .._parallel import map_threads
 from ..errors import InvalidInputError
-from .board import (DETECT_THREADS, BoardSpec, camera_label, check_board_size, detect_board,
-                    grid_symmetries, orders_like, turn_report)
+from .board import (DETECT_THREADS, BoardSpec, camera_label, check_board, check_board_size,
+                    detect_board, grid_symmetries, orders_like, turn_report)
 from .grid import check_grid, check_images
 from .model import Calibration, CameraCalibration
 
@@ -300,7 +301,11 @@ def calibrate_full(shots: Mapping, board: BoardSpec, *, reference=None, names=No
         Different numbers of poses per camera, images of different sizes, a grid with holes, or
         a camera with too few detections (named).
     """
-    grid, ref = check_grid(shots.keys(), reference)
+    min_poses = _opt.integer(min_poses, "min_poses", 3)
+    refine = _opt.flag(refine, "refine")
+    check_board(board)
+    _opt.mapping(names, "names")
+    grid, ref = check_grid(_opt.mapping(shots, "shots", optional=False).keys(), reference)
     counts = {len(v) for v in shots.values()}
     if len(counts) != 1:
         per = ", ".join(f"{camera_label(k, names)}: {len(v)}" for k, v in shots.items())

@@ -6,6 +6,7 @@ from typing import Mapping
 
 import numpy as np
 
+from .. import _options as _opt
 from ..errors import InvalidInputError
 from .board import camera_label
 
@@ -39,9 +40,8 @@ def check_grid(keys, reference=None) -> tuple[tuple[int, int], tuple[int, int]]:
         raise InvalidInputError(
             f"the cameras do not fill a {R} x {C} grid: no image for "
             f"{', '.join(camera_label(k) for k in missing)}; give every camera of the grid")
-    ref = ((R - 1) // 2, (C - 1) // 2) if reference is None else tuple(int(i) for i in reference)
-    if ref not in set(keys):
-        raise InvalidInputError(f"reference camera {ref} is not in the {R} x {C} grid")
+    ref = ((R - 1) // 2, (C - 1) // 2) if reference is None else _opt.index(
+        reference, "the reference camera", (R, C))
     return (R, C), ref
 
 

@@ -31,8 +31,9 @@ from typing import Mapping
 
 import numpy as np
 
+from .. import _options as _opt
 from ..errors import InvalidInputError
-from .board import (BoardSpec, camera_label, detect_boards, grid_symmetries, image_turn,
+from .board import (BoardSpec, camera_label, check_board, detect_boards, grid_symmetries, image_turn,
                     orders_like, turn_report)
 from .grid import check_grid, check_images
 from .model import Calibration, CameraCalibration
@@ -307,6 +308,20 @@ def resolve_positions(offsets: Mapping, pose_centres: Mapping, reference) -> tup
     return {k: sign * o[i] / b for i, k in enumerate(keys)}, abs(cos)
 
 
+#: The longest focal length (px) a plane registration takes: a thousand times a large
+#: sensor's side; OpenCV's solver fails far beyond it.
+MAX_FOCAL_PX = 1e7
+
+#: What :func:`register_plane`'s options take (:mod:`hyperlf._options`).
+_PLANE_RULES = {
+    "focal_px": _opt.rule(_opt.number, positive=True, optional=True, at_most=MAX_FOCAL_PX),
+    "positions_from": _opt.rule(_opt.choice, choices=("auto", "parallax", "board")),
+    "work_size": _opt.rule(_opt.integer, minimum=64),
+    "max_parallax": _opt.rule(_opt.number, positive=True, at_most=1),
+    "min_parallax_px": _opt.number,
+}
+
+
 def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=None,
                    focal_px: float | None = None, positions_from: str = "auto",
                    work_size: int = 800, max_parallax: float = 0.08,
@@ -360,10 +375,12 @@ def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=No
     >>> cal.mode, cal.grid
     ('plane', (3, 3))
     """
-    if positions_from not in ("auto", "parallax", "board"):
-        raise InvalidInputError(
-            f"positions_from must be 'auto', 'parallax' or 'board', got {positions_from!r}")
-    grid, ref = check_grid(shots.keys(), reference)
+    _opt.check_values(dict(focal_px=focal_px, positions_from=positions_from,
+                           work_size=work_size, max_parallax=max_parallax,
+                           min_parallax_px=min_parallax_px), _PLANE_RULES)
+    check_board(board)
+    _opt.mapping(names, "names")
+    grid, ref = check_grid(_opt.mapping(shots, "shots", optional=False).keys(), reference)
     size = check_images(shots, names, what="board shot")
     corners = orders_like(detect_boards(shots, board, names=names, partial=True), ref, board)
     par = None
