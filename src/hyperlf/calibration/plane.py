@@ -159,9 +159,23 @@ def _registered(images: Mapping, Hs: Mapping, scale: float, size) -> tuple[dict,
     return feats, valid
 
 
+def _hub(keys, reference):
+    """The camera to match the parallax from: the reference, unless another is nearer (in
+    grid places) to its farthest camera. From a corner the farthest view moves twice as far
+    as from the centre, beyond a search radius that suits the centre's neighbours."""
+    reach = {k: max(np.hypot(k[0] - j[0], k[1] - j[1]) for j in keys) for k in keys}
+    if reach[reference] <= min(reach.values()) + 1e-9:
+        return reference
+    return min(keys, key=reach.get)
+
+
 def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, board: BoardSpec,
                      reference, *, work_size: int = 800, max_parallax: float = 0.08) -> dict:
     """Offsets ``p_v - p_ref`` (px per unit ``d``, common scale and sign free) from parallax.
+
+    The flows are matched from the camera nearest the grid's centre (:func:`_hub`; the
+    reference unless it lies off-centre) to every other, all registered onto the reference,
+    and the offsets then shifted so that the reference's is zero.
 
     Parameters
     ----------
@@ -187,24 +201,28 @@ def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, boar
     W, H = np.asarray(images[reference]).shape[::-1]
     scale = min(1.0, work_size / max(W, H))
     feats, valid = _registered(images, Hs, scale, (W, H))
-    h, w = feats[reference].shape
+    hub = _hub(images, reference)  # matched from: the reference unless it is off-centre
+    h, w = feats[hub].shape
     allowed = np.ones((h, w), np.uint8)
     cv2.fillConvexPoly(allowed, np.round(board_outline(corners_ref, board) * scale)
                        .astype(np.int32), 0)
-    allowed &= valid[reference].astype(np.uint8)
+    allowed &= valid[hub].astype(np.uint8)
     half = max(5, int(round(max(h, w) / 60)))
     radius = max(6, int(round(max_parallax * max(h, w))))
-    pts = select_points(feats[reference], allowed > 0, spacing=half)
-    others = [k for k in images if k != reference]
-    flows = np.stack([match_flows(feats[reference], feats[k], pts, valid[k], half=half,
+    pts = select_points(feats[hub], allowed > 0, spacing=half)
+    others = [k for k in images if k != hub]
+    flows = np.stack([match_flows(feats[hub], feats[k], pts, valid[k], half=half,
                                   radius=radius)[0] for k in others]) if len(pts) else \
         np.zeros((len(others), 0, 2))
     fac = factor_rank1(flows)
-    consistent = {reference: len(pts)}
+    consistent = {hub: len(pts)}
     consistent.update({k: int(n) for k, n in zip(others, fac.inliers.sum(1))})
+    found = dict(zip(others, fac.offsets))   # p_k - p_hub, in the reference's axes
+    found[hub] = np.zeros(2)
     offsets = {reference: np.zeros(2)}
-    for k, o in zip(others, fac.offsets):
-        offsets[k] = o / scale
+    for k in images:
+        if k != reference:
+            offsets[k] = (found[k] - found[reference]) / scale
     used = fac.inliers.any(0)
     med = float(np.median(np.abs(flows[fac.inliers]))) / scale if fac.inliers.any() else 0.0
     spacing = nearest_spacing(np.stack(list(offsets.values())))
