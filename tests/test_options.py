@@ -299,7 +299,8 @@ def test_indices_and_fill_values():
 
 def _library_calls():
     """The spectra, metrics and synthetic scenes, as :func:`_render_calls`."""
-    from hyperlf import metrics, spectral, synthesis
+    from hyperlf import imageops, metrics, spectral, synthesis, warp
+    from hyperlf import regularisers as reg
 
     rng = np.random.default_rng(0)
     wl, truth, cube = np.array([450.0, 520.0, 590.0, 650.0]), rng.random((8, 8)), rng.random(
@@ -334,6 +335,29 @@ def _library_calls():
         "sam": (metrics.sam, cubes),
         "range_limit_shares": (metrics.range_limit_shares,
                                {"disparity": truth, "disparity_range": (0, 2)}),
+        "shift_image": (warp.shift_image, {"image": truth, "dx": 1.0, "dy": 0.5}),
+        "warp_to_reference": (warp.warp_to_reference,
+                              {"image": truth, "disparity": truth, "offset": (1.0, 0.0)}),
+        "forward_warp_disparity": (warp.forward_warp_disparity,
+                                   {"disparity": truth, "offset": (1.0, 0.0)}),
+        "visible_in_view": (warp.visible_in_view, {"disparity": truth, "offset": (1.0, 0.0)}),
+        "shift_map": (warp.shift_map, {"img": truth, "sx": 1.0, "sy": 0.5}),
+        "sample_bilinear": (warp.sample_bilinear, {"image": truth, "x": 5 * truth,
+                                                   "y": 5 * truth}),
+        "normalise_intensity": (imageops.normalise_intensity, {"image": truth}),
+        "gradient_magnitude": (imageops.gradient_magnitude, {"image": truth}),
+        "noise_sigma": (imageops.noise_sigma, {"image": truth}),
+        "texture_snr": (imageops.texture_snr, {"image": truth}),
+        "edge_blur": (imageops.edge_blur, {"image": truth}),
+        "block_reduce": (imageops.block_reduce, {"a": truth}),
+        "graphcut": (reg.graphcut, {"cost": cube}),
+        "graphcut_multiscale": (reg.graphcut_multiscale, {"cost": cube}),
+        "sgm": (reg.sgm, {"cost": cube, "p1": 0.1, "p2": 1.0}),
+        "fill_invalid": (reg.fill_invalid, {"cost": cube}),
+        "segment": (reg.segment, {"guide": truth}),
+        "edge_confidence": (reg.edge_confidence, {"disparity": truth}),
+        "weighted_median": (reg.weighted_median, {"disparity": truth, "guide": truth}),
+        "candidate_labels": (reg.candidate_labels, {"volume": cube, "k": 2}),
     }
     return {name: (f, lambda f=f, base=base, **kw: f(**{**base, **kw}))
             for name, (f, base) in calls.items()}
@@ -344,15 +368,22 @@ _LIBRARY_OPTIONS = [(name, p) for name, (f, _) in _LIBRARY.items()
                     for p in _keywords(f, leave=("progress",))]
 
 
-@settings(max_examples=600, deadline=None, derandomize=True)
+@settings(max_examples=1200, deadline=None, derandomize=True)
 @given(st.sampled_from(_LIBRARY_OPTIONS), JUNK)
 def test_spectra_metrics_and_scenes_take_any_option_or_refuse_it_in_one_line(option, value):
-    """Every argument of the spectral conversions, the metrics and the synthetic scenes
-    (``observer=None``, ``axis=None``, ``band_axis=''``, ``data_range=1e300``,
-    ``lut_size=1e300``, ``rows='x'``, ``kinds=''``, ``quantum_efficiency={}`` and some 150 more
-    were tracebacks, a division by zero among them)."""
+    """Every argument of the spectral conversions, the metrics, the synthetic scenes, the
+    warps, the image operations and the regularisers (``observer=None``, ``axis=None``,
+    ``band_axis=''``, ``data_range=1e300``, ``lut_size=1e300``, ``rows='x'``, ``kinds=''``,
+    ``quantum_efficiency={}``, ``offset='x'``, ``fill={}``, ``factor=0``, ``paths`` as an
+    array, ``seed='x'`` and some 300 more were tracebacks, divisions by zero among them). The
+    memory available is taken as 256 MiB, so that a valid but huge scene (``rows=1689``:
+    6.6 GB, 77 s) is refused as too large."""
+    from hyperlf import tiling
+
     name, keyword = option
-    _build_or_refuse(_LIBRARY[name][1], **{keyword: value})
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(tiling, "available_memory", lambda: 2 ** 28)
+        _build_or_refuse(_LIBRARY[name][1], **{keyword: value})
 
 
 def test_a_scene_beyond_the_memory_is_refused_before_any_work(monkeypatch):

@@ -29,7 +29,8 @@ import numpy as np
 
 from .errors import InvalidInputError
 
-__all__ = ["number", "real", "integer", "share", "flag", "choice", "real_array", "index",
+__all__ = ["number", "real", "integer", "share", "flag", "choice", "real_array", "real_pair",
+           "index", "float_dtype",
            "shown", "rule", "word_or", "check_fields", "check_values", "params_of", "window",
            "mapping"]
 
@@ -123,6 +124,35 @@ def choice(value, label: str, choices):
         raise InvalidInputError(f"{label} must be one of {', '.join(map(str, choices))}, "
                                 f"got {shown(value)}")
     return value
+
+
+def real_pair(value, label: str, what: str = "two finite numbers") -> tuple[float, float]:
+    """``value`` as two finite floats: an offset ``(dx, dy)``, a range ``(low, high)``, a
+    chromaticity ``(x, y)``; a refusal says ``what`` it takes.
+
+    Examples
+    --------
+    >>> real_pair([1, 0.5], "offset")
+    (1.0, 0.5)
+    """
+    pair = real_array(value, label)
+    if pair.shape != (2,) or not np.isfinite(pair).all():
+        raise InvalidInputError(f"{label} must be {what}, got {shown(value)}")
+    return float(pair[0]), float(pair[1])
+
+
+def float_dtype(value, label: str = "dtype") -> np.dtype:
+    """``value`` as numpy's float32 or float64 dtype (the precisions of the sampling and
+    normalising helpers)."""
+    try:
+        dtype = np.dtype(value)
+        ok = dtype in (np.float32, np.float64)
+    except TypeError:
+        ok = False
+    if not ok:
+        raise InvalidInputError(f"{label} must be numpy.float32 or numpy.float64, got "
+                                f"{shown(value)}")
+    return dtype
 
 
 def index(value, label: str, shape: tuple[int, ...]) -> tuple[int, ...]:

@@ -19,7 +19,25 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import _options as _opt
 from .errors import InvalidInputError
+
+
+def _grey(image, dtype=np.float64) -> np.ndarray:
+    """``image`` as a 2-D array of ``dtype``."""
+    a = _opt.real_array(image, "image", dtype)
+    if a.ndim != 2:
+        raise InvalidInputError(f"image must be a grey (H, W) array, got shape {a.shape}")
+    return a
+
+
+def _valid(valid, shape: tuple[int, ...]) -> np.ndarray:
+    """``valid`` as a bool mask of ``shape`` (True = valid)."""
+    v = _opt.real_array(valid, "valid").astype(bool)
+    if v.shape != shape:
+        raise InvalidInputError(f"valid must be a mask of the image's shape {shape}, got "
+                                f"{v.shape}")
+    return v
 
 __all__ = ["normalise_intensity", "gradient_magnitude", "fill_masked", "noise_sigma",
            "texture_snr", "edge_blur", "block_reduce"]
@@ -57,9 +75,14 @@ def normalise_intensity(image, dtype=np.float64, *, valid=None) -> np.ndarray:
     >>> normalise_intensity(np.array([[1.0, 3.0]])).tolist()
     [[0.5, 1.5]]
     """
-    a = np.asarray(image, dtype=dtype)
-    if valid is not None and np.any(valid):
-        m = float(a[np.broadcast_to(np.asarray(valid, bool), a.shape)].mean())
+    a = _opt.real_array(image, "image", _opt.float_dtype(dtype))
+    if valid is not None and np.any(valid := _opt.real_array(valid, "valid").astype(bool)):
+        try:
+            valid = np.broadcast_to(valid, a.shape)
+        except ValueError:
+            raise InvalidInputError(f"valid of shape {valid.shape} does not fit the image's "
+                                    f"{a.shape}") from None
+        m = float(a[valid].mean())
     elif valid is not None:
         m = float(a.mean()) if float(a.mean()) > 0 else 1.0
     else:
@@ -89,7 +112,11 @@ def gradient_magnitude(image) -> np.ndarray:
 
 def _central_gradient(image) -> tuple[np.ndarray, np.ndarray]:
     """``(d/dx, d/dy)`` by central differences, borders replicated."""
-    p = np.pad(image, 1, mode="edge")
+    a = np.asarray(image)
+    if a.ndim != 2 or not (np.issubdtype(a.dtype, np.number) or a.dtype == bool):
+        raise InvalidInputError(f"image must be a grey (H, W) array of numbers, got "
+                                f"{_opt.shown(image)}")
+    p = np.pad(a, 1, mode="edge")
     return (p[1:-1, 2:] - p[1:-1, :-2]) / 2.0, (p[2:, 1:-1] - p[:-2, 1:-1]) / 2.0
 
 
@@ -119,8 +146,8 @@ def fill_masked(image, valid) -> np.ndarray:
     """
     from scipy.ndimage import distance_transform_edt
 
-    a = np.array(image, dtype=np.float64)
-    v = np.asarray(valid, bool)
+    a = np.array(_opt.real_array(image, "image"))
+    v = _opt.real_array(valid, "valid").astype(bool)
     if v.shape != a.shape:
         raise InvalidInputError(f"mask shape {v.shape} does not match the image {a.shape}")
     if v.all() or not v.any():
@@ -170,10 +197,10 @@ def noise_sigma(image, *, valid=None) -> float:
     >>> round(noise_sigma(img), 3)
     0.01
     """
-    a = np.asarray(image, np.float64)
-    if a.ndim != 2 or min(a.shape) < 6:
+    a = _grey(image)
+    v = np.ones(a.shape, bool) if valid is None else _valid(valid, a.shape)
+    if min(a.shape) < 6:
         return 0.0
-    v = np.ones(a.shape, bool) if valid is None else np.asarray(valid, bool)
     H, W = (a.shape[0] // 2) * 2, (a.shape[1] // 2) * 2
     binned = a[:H, :W].reshape(H // 2, 2, W // 2, 2).mean(axis=(1, 3))
     v2 = v[:H, :W].reshape(H // 2, 2, W // 2, 2).all(axis=(1, 3))
@@ -234,11 +261,9 @@ def texture_snr(image, window: int = 5, *, sigma: float | None = None, valid=Non
     """
     from scipy.ndimage import correlate, uniform_filter
 
-    a = np.asarray(image, np.float64)
-    if isinstance(window, bool) or int(window) != window or window < 3 or window % 2 == 0:
-        raise InvalidInputError(f"window must be an odd integer >= 3, got {window!r}")
-    w = int(window)
-    s = noise_sigma(a, valid=valid) if sigma is None else float(sigma)
+    a = _grey(image)
+    w = _opt.window(_opt.integer(window, "window", 3, odd=True), "window", side=max(a.shape))
+    s = noise_sigma(a, valid=valid) if sigma is None else _opt.number(sigma, "sigma")
     if not s > 0:
         return np.full(a.shape, np.inf)
     n = w * w
@@ -251,6 +276,10 @@ def texture_snr(image, window: int = 5, *, sigma: float | None = None, valid=Non
         var = var - cov * cov / var_ramp
     ratio = np.maximum(var, 0.0) * n / ((n - 3) * s * s)
     return np.sqrt(np.maximum(ratio - 1.0, 0.0))
+
+
+#: The largest re-blur (px) :func:`edge_blur` takes: far beyond any edge it can measure.
+MAX_REBLUR = 50.0
 
 
 def edge_blur(image, *, valid=None, reblur: float = 1.0, share: float = 0.1,
@@ -300,13 +329,14 @@ def edge_blur(image, *, valid=None, reblur: float = 1.0, share: float = 0.1,
     """
     from scipy.ndimage import binary_erosion, gaussian_filter
 
-    if not (reblur > 0 and 0 < share <= 1):
-        raise InvalidInputError(f"edge_blur needs reblur > 0 and 0 < share <= 1, got "
-                                f"{reblur!r}, {share!r}")
-    a = np.asarray(image, dtype=np.float64)
+    reblur = _opt.number(reblur, "edge_blur's reblur", positive=True, at_most=MAX_REBLUR)
+    if not _opt.share(share, "edge_blur's share") > 0:
+        raise InvalidInputError("edge_blur's share must be in (0, 1], got 0")
+    min_edges = _opt.integer(min_edges, "edge_blur's min_edges", 1)
+    a = _grey(image)
     keep = np.ones(a.shape, bool)
     if valid is not None:
-        v = np.asarray(valid, bool)
+        v = _valid(valid, a.shape)
         a = fill_masked(a, v)
         keep = binary_erosion(v, iterations=int(3 * reblur) + 1, border_value=1)
         if not keep.any():
@@ -358,7 +388,12 @@ def block_reduce(a, factor: int = 2, how=np.mean) -> np.ndarray:
     [[2.0, 3.5]]
     """
     a = np.asarray(a)
+    if a.ndim < 2 or not callable(how):
+        raise InvalidInputError(f"block_reduce needs an (..., H, W) array and a callable how, "
+                                f"got shape {a.shape} and {_opt.shown(how)}")
     H, W = a.shape[-2:]
+    # a larger factor only repeats the edges into a 1 x 1 block, at (H + f)(W + f) memory
+    factor = _opt.integer(factor, "factor", 1, maximum=4 * max(H, W) + 4)
     ph, pw = -H % factor, -W % factor
     if ph or pw:
         a = np.pad(a, [(0, 0)] * (a.ndim - 2) + [(0, ph), (0, pw)], mode="edge")

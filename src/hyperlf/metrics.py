@@ -297,14 +297,6 @@ def hci_scores(estimate, truth) -> DisparityScores | None:
     return disparity_scores(estimate, truth, border=HCI_BORDER, mask_name="all-15px-border")
 
 
-def _range(disparity_range) -> tuple[float, float]:
-    lo_hi = _opt.real_array(disparity_range, "disparity_range")
-    if lo_hi.shape != (2,) or not np.isfinite(lo_hi).all():
-        raise InvalidInputError(f"disparity_range must be (low, high), finite, got "
-                                f"{_opt.shown(disparity_range)}")
-    return float(lo_hi[0]), float(lo_hi[1])
-
-
 def at_range_limit(disparity, disparity_range, tol: float = 1e-3) -> np.ndarray:
     """Pixels whose disparity sits at either end of ``disparity_range`` (within ``tol``): the
     labels a cost minimum lands on by chance where nothing can be matched.
@@ -315,7 +307,7 @@ def at_range_limit(disparity, disparity_range, tol: float = 1e-3) -> np.ndarray:
     [[True, False, True]]
     """
     d = _opt.real_array(disparity, "disparity")
-    lo, hi = _range(disparity_range)
+    lo, hi = _opt.real_pair(disparity_range, "disparity_range", "(low, high), finite")
     tol = _opt.number(tol, "tol")
     return (np.abs(d - lo) < tol) | (np.abs(d - hi) < tol)
 
@@ -330,7 +322,7 @@ def range_limit_shares(disparity, disparity_range, mask=None) -> tuple[float, fl
     (25.0, 50.0)
     """
     d = _opt.real_array(disparity, "disparity")
-    lo, hi = _range(disparity_range)
+    lo, hi = _opt.real_pair(disparity_range, "disparity_range", "(low, high), finite")
     ok = np.isfinite(d) if mask is None else np.isfinite(d) & _mask(mask, d.shape)
     if not ok.any():
         return None

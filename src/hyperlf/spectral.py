@@ -785,7 +785,7 @@ def xyz_to_xy(xyz, fallback=(1 / 3, 1 / 3)) -> np.ndarray:
     ndarray, shape (..., 2)
     """
     a = _float(_as_array(xyz, "xyz", last=3))
-    fallback = _opt.real_array(fallback, "fallback")
+    fallback = _opt.real_array(fallback, "fallback")  # NaN may mark black as unknown
     if fallback.shape != (2,):
         raise InvalidInputError(f"fallback must be an xy pair like (1/3, 1/3), got "
                                 f"{_opt.shown(fallback)}")
@@ -1140,11 +1140,8 @@ def _dominant_lut(white: tuple, lut_size: int, observer: str, step: float = 0.1)
 
 
 def _white_tuple(white) -> tuple:
-    w = _opt.real_array(white, "white").reshape(-1)
-    if w.size != 2 or not np.all(np.isfinite(w)):
-        raise InvalidInputError(f"white must be an xy pair like (1/3, 1/3), got "
-                                f"{_opt.shown(white)}")
-    return (float(w[0]), float(w[1]))
+    return _opt.real_pair(np.ravel(_opt.real_array(white, "white")), "white",
+                          "an xy pair like (1/3, 1/3)")
 
 
 def _hue_phi(xy: np.ndarray, white: tuple, theta0: float) -> tuple[np.ndarray, np.ndarray]:

@@ -130,14 +130,6 @@ def band_grid(rows: int, cols: int, lambda_min: float = 410.0,
         [float(lambda_min)])
 
 
-def _pair_of_reals(value, label: str) -> tuple[float, float]:
-    pair = _opt.real_array(value, label)
-    if pair.shape != (2,) or not np.isfinite(pair).all():
-        raise InvalidInputError(f"{label} must be two finite numbers (dx, dy), got "
-                                f"{_opt.shown(value)}")
-    return float(pair[0]), float(pair[1])
-
-
 def view_disparity_from_reference(gt_ref: np.ndarray, offset: tuple[float, float],
                                   *, tol: float = 0.05, iterations: int = 2) -> np.ndarray:
     """Ground-truth disparity of another view from the reference's ground truth.
@@ -169,7 +161,7 @@ def view_disparity_from_reference(gt_ref: np.ndarray, offset: tuple[float, float
     if g.ndim != 2:
         raise InvalidInputError(f"gt_ref must be an (H, W) map, got shape {g.shape}")
     H, W = g.shape
-    dx, dy = _pair_of_reals(offset, "offset")
+    dx, dy = _opt.real_pair(offset, "offset", "two finite numbers (dx, dy)")
     tol = _opt.number(tol, "tol")
     iterations = _opt.integer(iterations, "iterations", maximum=100)
     fw = forward_warp_disparity(g, (dx, dy))

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import _options as _opt
 from .errors import InvalidInputError
 
 __all__ = [
@@ -60,9 +61,34 @@ EDGE_RULES = ("mask", "clamp")
 
 
 def _check_edge(edge: str) -> str:
-    if edge not in EDGE_RULES:
-        raise InvalidInputError(f"edge must be one of {EDGE_RULES}, got {edge!r}")
-    return edge
+    return _opt.choice(edge, "edge", EDGE_RULES)
+
+
+def _disparity_map(disparity) -> np.ndarray:
+    """``disparity`` as an ``(H, W)`` float64 map (NaN allowed: unknown)."""
+    d = _opt.real_array(disparity, "disparity")
+    if d.ndim != 2:
+        raise InvalidInputError(f"disparity must be an (H, W) map, got shape {d.shape}")
+    return d
+
+
+def _offset_px(sx, sy) -> tuple[float, float]:
+    return _opt.real(sx, "sx (px)"), _opt.real(sy, "sy (px)")
+
+
+#: The widest ``pad`` (px) :func:`shift_map` adds on each side.
+MAX_PAD = 4096
+
+
+def _offset(offset) -> tuple[float, float]:
+    return _opt.real_pair(offset, "offset", "(dx, dy) in baselines, finite")
+
+
+def _image(image) -> np.ndarray:
+    img = np.asarray(image)
+    if img.ndim not in (2, 3):
+        raise InvalidInputError(f"image must be (H, W) or (H, W, K), got shape {img.shape}")
+    return img
 
 
 def coordinate_taps(coord, n: int, *, dtype=np.float64):
@@ -93,7 +119,7 @@ def coordinate_taps(coord, n: int, *, dtype=np.float64):
     >>> i0.tolist(), i1.tolist(), f.tolist(), valid.tolist()
     ([0, 0, 2], [1, 1, 3], [0.0, 0.25, 1.0], [False, True, True])
     """
-    c = np.asarray(coord, dtype=np.float64)
+    c = _opt.real_array(coord, "coordinates")
     finite = np.isfinite(c)
     valid = finite & (c >= -INSIDE_EPS) & (c <= n - 1 + INSIDE_EPS)
     cc = np.clip(c, 0.0, n - 1)
@@ -207,10 +233,16 @@ def shift_map(img, sx: float, sy: float, pad: int = 0, *, edge: str = "clamp",
     """
     _check_edge(edge)
     a = np.asarray(img)
-    if channel_axis not in (None, -1):
-        raise InvalidInputError(f"channel_axis must be None or -1, got {channel_axis!r}")
-    if order not in ("yx", "xy"):
-        raise InvalidInputError(f"order must be 'yx' or 'xy', got {order!r}")
+    _opt.choice(channel_axis, "channel_axis", (None, -1))
+    _opt.choice(order, "order", ("yx", "xy"))
+    sx, sy = _offset_px(sx, sy)
+    fill = _opt.real(fill, "fill", nan=True)
+    pad = _opt.integer(pad, "pad", maximum=MAX_PAD)
+    _opt.flag(skip_zero, "skip_zero")
+    _opt.float_dtype(dtype)
+    if a.ndim < (3 if channel_axis == -1 else 2):
+        raise InvalidInputError(f"img must be (..., H, W){' x K' if channel_axis == -1 else ''}"
+                                f", got shape {a.shape}")
     if edge == "mask" and pad:
         raise InvalidInputError("pad needs edge='clamp' (the padded samples are outside)")
     ay, ax = (a.ndim - 3, a.ndim - 2) if channel_axis == -1 else (a.ndim - 2, a.ndim - 1)
@@ -262,9 +294,12 @@ def sample_bilinear(image: np.ndarray, x: np.ndarray, y: np.ndarray,
     ([1.5, nan], [True, False])
     """
     _check_edge(edge)
-    img = np.asarray(image)
-    if img.ndim not in (2, 3):
-        raise InvalidInputError(f"image must be (H, W) or (H, W, K), got shape {img.shape}")
+    fill = _opt.real(fill, "fill", nan=True)
+    _opt.float_dtype(dtype)
+    if np.shape(x) != np.shape(y):
+        raise InvalidInputError(f"x and y must have one shape, got {np.shape(x)} and "
+                                f"{np.shape(y)}")
+    img = _image(image)
     H, W = img.shape[:2]
     x0, x1, fx, vx = coordinate_taps(x, W, dtype=dtype)
     y0, y1, fy, vy = coordinate_taps(y, H, dtype=dtype)
@@ -366,7 +401,8 @@ def shift_image(image: np.ndarray, dx: float, dy: float, fill: float = np.nan, *
     >>> shift_image(np.array([[0.0, 1.0, 2.0]]), 1.0, 0.0)[0].tolist()
     [[1.0, 2.0, nan]]
     """
-    H, W = np.asarray(image).shape[:2]
+    H, W = _image(image).shape[:2]
+    dx, dy = _offset((dx, dy))
     yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
     return sample_bilinear(image, xx + dx, yy + dy, fill=fill, edge=edge)
 
@@ -403,11 +439,15 @@ def warp_to_reference(image: np.ndarray, disparity: np.ndarray, offset: tuple[fl
     >>> warped[0].tolist()
     [nan, 0.0, 1.0, 2.0, 3.0]
     """
-    img = np.asarray(image)
+    img = _image(image)
     H, W = img.shape[:2]
-    d = np.broadcast_to(np.asarray(disparity, dtype=np.float64), (H, W))
+    d = _opt.real_array(disparity, "disparity")
+    if d.shape not in ((), (H, W)):
+        raise InvalidInputError(f"disparity must be a scalar or an ({H}, {W}) map, got shape "
+                                f"{d.shape}")
+    d = np.broadcast_to(d, (H, W))
     yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
-    dx, dy = offset
+    dx, dy = _offset(offset)
     valid_d = np.isfinite(d)
     d = np.where(valid_d, d, 0.0)
     out, valid = sample_bilinear(img, xx - d * dx, yy - d * dy, fill=fill, edge=edge)
@@ -440,7 +480,7 @@ def forward_warp_disparity(disparity: np.ndarray, offset: tuple[float, float]) -
     >>> forward_warp_disparity(np.ones((1, 3)), (1.0, 0.0)).tolist()
     [[1.0, 1.0, nan]]
     """
-    d = np.asarray(disparity, dtype=np.float64)
+    d = _disparity_map(disparity)
     H, W = d.shape
     ok, idx = _forward_targets(d, offset)
     out = np.full(H * W, -np.inf)
@@ -455,7 +495,7 @@ def _forward_targets(d: np.ndarray, offset, rounding=(np.rint, np.rint)):
     landings outside the image)."""
     H, W = d.shape
     yy, xx = np.mgrid[0:H, 0:W]
-    dx, dy = offset
+    dx, dy = _offset(offset)
     ok = np.isfinite(d)
     with np.errstate(invalid="ignore"):
         tx = rounding[0](xx - d * dx)
@@ -490,7 +530,7 @@ def occlusion_zbuffer(disparity: np.ndarray, offset: tuple[float, float]) -> np.
     >>> occlusion_zbuffer(np.array([[0.0, 2.0, 0.0]]), (0.25, 0.0)).tolist()  # lands at 0.5
     [[2.0, 2.0, 0.0]]
     """
-    d = np.asarray(disparity, dtype=np.float64)
+    d = _disparity_map(disparity)
     H, W = d.shape
     z = np.full(H * W, -np.inf)
     for rounding in ((np.floor, np.floor), (np.floor, np.ceil), (np.ceil, np.floor),
@@ -533,7 +573,8 @@ def visible_in_view(disparity: np.ndarray, offset: tuple[float, float], *,
     >>> visible_in_view(d, (1.0, 0.0)).tolist()   # the view 1 baseline right: x - d
     [[True, False, True, True]]
     """
-    d = np.asarray(disparity, dtype=np.float64)
+    d = _disparity_map(disparity)
+    margin = _opt.real(margin, "margin")
     H, W = d.shape
     z = occlusion_zbuffer(d, offset).ravel()
     ok, idx = _forward_targets(d, offset)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._options import window
+from .._options import choice, window
 from ..errors import InvalidInputError
 
 __all__ = ["IMPLS", "AUTO_IMPL", "check_pair", "check_disp", "check_window", "check_impl"]
@@ -56,8 +56,7 @@ def check_window(n, name="window", *, side: int | None = None) -> int:
 
 def check_impl(impl, evaluator) -> str:
     """``"numpy"`` or ``"numba"`` (``"auto"`` resolved by :data:`AUTO_IMPL` for ``evaluator``)."""
-    if impl not in IMPLS:
-        raise InvalidInputError(f"impl must be one of {IMPLS}, got {impl!r}")
+    choice(impl, "impl", IMPLS)
     if impl == "auto":
         return AUTO_IMPL.get(evaluator, "numpy")
     return impl

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._options import real_array
 from ..errors import InvalidInputError
 
 
@@ -49,7 +50,7 @@ def check_labels(labels, L: int) -> np.ndarray:
     """The ``(L,)`` label disparities as float64 (default ``0..L-1``)."""
     if labels is None:
         return np.arange(L, dtype=np.float64)
-    lv = np.asarray(labels, dtype=np.float64)
+    lv = real_array(labels, "labels")
     if lv.ndim != 1 or lv.shape[0] != L:
         raise InvalidInputError(
             f"labels must be a 1-D array of the {L} label disparities, got shape {lv.shape}")
@@ -60,7 +61,7 @@ def check_labels(labels, L: int) -> np.ndarray:
 
 def check_guide(guide, H: int, W: int) -> np.ndarray:
     """A finite guide image as float64 ``(H, W, K)``."""
-    g = np.asarray(guide, dtype=np.float64)
+    g = real_array(guide, "guide")
     if g.ndim == 2:
         g = g[:, :, None]
     if g.ndim != 3 or g.shape[:2] != (H, W):

@@ -24,6 +24,7 @@ import warnings
 import numpy as np
 
 from ..errors import InvalidInputError
+from .._options import choice, real_array
 from ._checks import check_cost
 
 __all__ = ["data_term", "wta", "fill_invalid"]
@@ -122,16 +123,18 @@ def fill_invalid(cost, invalid=None, *, empty: str = "global", value: str = "wor
     """
     from ..costs.pair import FILL_EMPTY_MODES, worst_fill
 
-    if empty not in FILL_EMPTY_MODES:
-        raise InvalidInputError(f"empty must be one of {FILL_EMPTY_MODES}, got {empty!r}")
-    if value not in FILL_VALUES:
-        raise InvalidInputError(f"value must be one of {FILL_VALUES}, got {value!r}")
-    c = np.array(cost, dtype=np.float32)
+    choice(empty, "empty", FILL_EMPTY_MODES)
+    choice(value, "value", FILL_VALUES)
+    c = np.array(real_array(cost, "cost", np.float32))
     if c.ndim != 3:
         raise InvalidInputError(f"cost must have shape (L, H, W), got {c.shape}")
     bad = ~np.isfinite(c)
     if invalid is not None:
-        bad = bad | np.broadcast_to(np.asarray(invalid, dtype=bool), c.shape)
+        try:
+            bad = bad | np.broadcast_to(real_array(invalid, "invalid").astype(bool), c.shape)
+        except ValueError:
+            raise InvalidInputError(f"invalid of shape {np.shape(invalid)} does not fit the "
+                                    f"cost's {c.shape}") from None
     if not bad.any():
         return c
     if value != "worst":

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from ..imageops import block_reduce
-from .._options import integer, number
+from .._options import choice, flag, integer, number
 from ._checks import check_cost, check_guide, check_label_map, check_labels, gather
 
 __all__ = ["edge_weights_from_guide", "mrf_energy", "graphcut", "candidate_labels",
@@ -56,7 +56,8 @@ def edge_weights_from_guide(guide, edge_sigma: float | None = None):
         edge_sigma = float(np.sqrt(ms)) if ms > 0 else 1.0
     else:
         edge_sigma = number(edge_sigma, "edge_sigma", positive=True)
-    s2 = 2.0 * edge_sigma ** 2
+    with np.errstate(over="ignore"):  # a huge sigma: no edge weighs less (s2 = inf)
+        s2 = 2.0 * np.float64(edge_sigma) ** 2
     return np.exp(-dx2 / s2), np.exp(-dy2 / s2)
 
 
@@ -97,6 +98,7 @@ def _pair_weights(H, W, weight, guide, edge_sigma, edge_weights):
 
 
 def _smoothness_matrix(smoothness, L, labels_values, truncation) -> np.ndarray:
+    choice(smoothness, "smoothness", GRAPHCUT_SMOOTHNESS)
     if smoothness == "potts":
         return 1.0 - np.eye(L)
     if smoothness == "truncated_linear":
@@ -168,7 +170,7 @@ def candidate_labels(volume, k: int, spread: int = 1) -> np.ndarray:
     """
     c = check_cost(volume, "volume")
     L = c.shape[0]
-    k, spread = integer(k, "k", 1), integer(spread, "spread")
+    k, spread = integer(k, "k", 1), integer(spread, "spread", maximum=volume.shape[0])
     if k >= L:
         return np.ones(c.shape, dtype=bool)
     top = np.argpartition(c, k - 1, axis=0)[:k]
@@ -332,8 +334,7 @@ def _progress_hooks(progress, n_moves: int):
 
 
 def _check_graphcut_options(c, order, candidates):
-    if order not in ("sequential", "random"):
-        raise InvalidInputError(f"order must be 'sequential' or 'random', got {order!r}")
+    choice(order, "order", ("sequential", "random"))
     if candidates is not None:
         candidates = np.asarray(candidates)
         if candidates.dtype != bool or candidates.shape != c.shape:
@@ -457,6 +458,7 @@ def graphcut(cost, smoothness: str = "truncated_linear", weight: float = 1.0,
     wx, wy = _pair_weights(H, W, weight, guide, edge_sigma, edge_weights)
     max_cycles = integer(max_cycles, "max_cycles")
     candidates = _check_graphcut_options(c, order, candidates)
+    seed, return_energy = integer(seed, "seed"), flag(return_energy, "return_energy")
     f = np.argmin(c, axis=0).astype(np.intp) if init is None else \
         check_label_map(init, L, H, W, "init").copy()
     state = _Expansion(c, f, Vm, wx, wy, candidates)
@@ -563,8 +565,9 @@ def graphcut_multiscale(cost, smoothness: str = "truncated_linear", weight: floa
     """
     c = check_cost(cost)
     L, H, W = c.shape
-    levels, band, radius = (integer(v, name) for v, name in
-                            ((levels, "levels"), (band, "band"), (radius, "radius")))
+    levels, band, radius, min_size = (integer(v, name) for v, name in (
+        (levels, "levels"), (band, "band"), (radius, "radius"), (min_size, "min_size")))
+    flag(return_energy, "return_energy")
     lv = check_labels(labels, L)
     g = None if guide is None else check_guide(guide, H, W)
     common = dict(smoothness=smoothness, truncation=truncation, edge_sigma=edge_sigma,

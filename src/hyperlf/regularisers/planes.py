@@ -27,7 +27,7 @@ from typing import ClassVar
 import numpy as np
 
 from ..errors import InvalidInputError
-from .._options import check_fields, integer, number, rule, share
+from .._options import check_fields, integer, number, real_array, rule, share
 
 __all__ = ["PlaneFillParams", "segment", "fit_plane", "plane_fill", "cost_planes"]
 
@@ -108,11 +108,13 @@ def segment(guide, *, scale: float = 300.0, sigma: float = 0.8, min_size: int = 
     """
     from skimage.segmentation import felzenszwalb
 
-    g = np.asarray(guide, dtype=np.float64)
+    g = real_array(guide, "guide")
     if g.ndim != 2 or not np.all(np.isfinite(g)):
         raise InvalidInputError(f"guide must be a finite (H, W) image, got shape {g.shape}")
-    return felzenszwalb(_unit_range(g), scale=float(scale), sigma=float(sigma),
-                        min_size=int(min_size), channel_axis=None)
+    scale, sigma = number(scale, "scale"), number(sigma, "sigma", at_most=max(g.shape))
+    return felzenszwalb(_unit_range(g), scale=scale, sigma=sigma,
+                        min_size=integer(min_size, "min_size", maximum=g.size),
+                        channel_axis=None)
 
 
 def fit_plane(x, y, d, *, iterations: int = 4, floor: float = 0.5):

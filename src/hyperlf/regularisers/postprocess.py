@@ -9,7 +9,7 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from ..warp import coordinate_taps
-from .._options import check_fields, integer, number, rule
+from .._options import check_fields, choice, integer, number, real_array, rule
 from ._checks import check_cost, check_label_map, check_labels, gather
 
 __all__ = ["left_right_check", "left_occlusions", "fill_occlusions", "right_cost_from_left",
@@ -374,7 +374,7 @@ def edge_confidence(disparity, *, width: float = 4.0, jump: float = 0.5) -> np.n
     """
     from scipy import ndimage as ndi
 
-    d = np.asarray(disparity, np.float64)
+    d = real_array(disparity, "disparity")
     if d.ndim != 2:
         raise InvalidInputError(f"disparity must be (H, W), got shape {d.shape}")
     width = number(width, "width")
@@ -428,10 +428,10 @@ class ConfidenceParams:
 # ----------------------------------------------------------------------------------------------
 
 def _wmf_args(disp, guide, radius, sigma):
-    d = np.asarray(disp, dtype=np.float64)
+    d = real_array(disp, "disparity")
     if d.ndim != 2 or not np.all(np.isfinite(d)):
         raise InvalidInputError(f"disparity must be a finite (H, W) map, got shape {d.shape}")
-    g = np.asarray(guide, dtype=np.float64)
+    g = real_array(guide, "guide")
     if g.shape != d.shape or not np.all(np.isfinite(g)):
         raise InvalidInputError(f"guide must be a finite image of shape {d.shape}, got {g.shape}")
     radius = integer(radius, "radius")
@@ -502,8 +502,7 @@ def weighted_median(disparity, guide, radius: int = 7, sigma: float = 0.1,
     0.0
     """
     d, g, r, sigma = _wmf_args(disparity, guide, radius, sigma)
-    if impl not in ("auto", "numpy", "numba"):
-        raise InvalidInputError(f"impl must be 'auto', 'numpy' or 'numba', got {impl!r}")
+    choice(impl, "impl", ("auto", "numpy", "numba"))
     if r == 0:
         return d.astype(np.float32)
     if impl == "numpy":

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InvalidInputError
-from .._options import number
+from .._options import choice, number
 from ._checks import check_cost, check_guide
 from .basic import wta
 
@@ -129,8 +129,7 @@ def _sgm_numpy_direction(C, acc, dy, dx, p1, p2map, mode):
 
 def _path_kernel(impl: str):
     """The numba path kernel for ``impl`` ("auto"/"numba"), or None for the numpy reference."""
-    if impl not in ("auto", "numba", "numpy"):
-        raise InvalidInputError(f"impl must be 'auto', 'numba' or 'numpy', got {impl!r}")
+    choice(impl, "impl", ("auto", "numba", "numpy"))
     if impl == "numpy":
         return None
     try:
@@ -209,13 +208,11 @@ def sgm(cost, p1: float, p2: float, paths: int = 8, guide=None, impl: str = "aut
     c = check_cost(cost)
     p1 = number(p1, "p1")
     p2 = number(p2, "p2")
-    if smoothness not in _SMOOTH_CODES:
-        raise InvalidInputError(
-            f"smoothness must be one of {sorted(_SMOOTH_CODES)}, got {smoothness!r}")
+    choice(smoothness, "smoothness", sorted(_SMOOTH_CODES))
     mode = _SMOOTH_CODES[smoothness]
     p2 = max(p1, p2)
     kernel = _path_kernel(impl)
-    directions = _sgm_directions(int(paths) if isinstance(paths, (int, np.integer)) else paths)
+    directions = _sgm_directions(choice(paths, "paths", SGM_PATHS))
     L, H, W = c.shape
     p2maps = _sgm_p2_maps(H, W, directions, p1, p2, guide, guide_scale)
     C = np.ascontiguousarray(c.transpose(1, 2, 0))
