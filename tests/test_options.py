@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 from hyperlf import _options as opt
 from hyperlf.costs import AggregationParams
 from hyperlf.descriptor import DescriptorParams
-from hyperlf.errors import InvalidInputError
+from hyperlf.errors import HyperLFError, InvalidInputError
 from hyperlf.hlf import DepthParams
 from hyperlf.regularisers import ConfidenceParams, GraphCutParams, PlaneFillParams, SGMParams
 
@@ -32,9 +32,11 @@ JUNK = (st.none() | st.booleans() | st.text(max_size=6) | st.integers()
 
 
 def _build_or_refuse(cls, **kwargs):
+    """Build or call ``cls``; a refusal must be one line of a hyperlf error (an invalid value,
+    or a camera name read as a path that does not exist), never another exception."""
     try:
         return cls(**kwargs)
-    except InvalidInputError as exc:
+    except HyperLFError as exc:
         assert "\n" not in str(exc) and str(exc)
         return None
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from ..imageops import block_reduce
-from .._options import choice, flag, integer, number
+from .._options import choice, flag, integer, number, real_array
 from ._checks import check_cost, check_guide, check_label_map, check_labels, gather
 
 __all__ = ["edge_weights_from_guide", "mrf_energy", "graphcut", "candidate_labels",
@@ -67,8 +67,7 @@ def _check_edge_weights(edge_weights, shape_x, shape_y):
     except (TypeError, ValueError):
         raise InvalidInputError(
             "edge_weights must be a pair (wx of shape (H, W-1), wy of shape (H-1, W))") from None
-    ex = np.asarray(ex, dtype=np.float64)
-    ey = np.asarray(ey, dtype=np.float64)
+    ex, ey = real_array(ex, "edge_weights' wx"), real_array(ey, "edge_weights' wy")
     if ex.shape != shape_x or ey.shape != shape_y:
         raise InvalidInputError(
             f"edge_weights must have shapes {shape_x} and {shape_y}, got {ex.shape} and {ey.shape}")

@@ -427,6 +427,11 @@ class ConfidenceParams:
 # edge-aware post-filter
 # ----------------------------------------------------------------------------------------------
 
+#: The smallest guide sigma of :func:`weighted_median`: far below any difference of a guide
+#: scaled to its maximum, far above where its square underflows.
+MIN_WMF_SIGMA = 1e-6
+
+
 def _wmf_args(disp, guide, radius, sigma):
     d = real_array(disp, "disparity")
     if d.ndim != 2 or not np.all(np.isfinite(d)):
@@ -439,6 +444,9 @@ def _wmf_args(disp, guide, radius, sigma):
         raise InvalidInputError(f"radius {radius} is larger than the {d.shape[1]} x "
                                 f"{d.shape[0]} px image; use at most {max(d.shape)}")
     sigma = number(sigma, "sigma", positive=True)
+    if sigma < MIN_WMF_SIGMA:  # its square would underflow in the weights
+        raise InvalidInputError(f"sigma must be at least {MIN_WMF_SIGMA:g} (the guide is scaled "
+                                f"to its maximum), got {sigma:g}")
     m = float(np.mean(np.abs(g)))
     return d, (g / m if m > 0 else g), int(radius), float(sigma)
 
