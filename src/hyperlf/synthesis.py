@@ -149,6 +149,10 @@ def view_disparity_from_reference(gt_ref: np.ndarray, offset: tuple[float, float
         Reference ground truth (NaN allowed).
     offset : (dx, dy)
         View position minus reference position (baselines).
+    tol : float
+        Largest ``|gt_ref(p + d * offset) - d|`` of a consistent candidate (px per baseline).
+    iterations : int
+        Fixed-point steps per candidate, at most 100.
 
     Returns
     -------
@@ -1060,7 +1064,8 @@ _SCENE_RULES = {
     "width": _opt.rule(_opt.integer, minimum=2),
     "lambda_min": _opt.rule(_opt.number, positive=True),
     "lambda_max": _opt.rule(_opt.number, positive=True),
-    "n_objects": _opt.rule(_opt.integer, maximum=MAX_OBJECTS), "kinds": _kinds, "noise_sigma": _opt.number,
+    "n_objects": _opt.rule(_opt.integer, maximum=MAX_OBJECTS), "kinds": _kinds,
+    "noise_sigma": _opt.number,
     "texture_scale": _opt.rule(_opt.number, positive=True),
     "supersample": _opt.rule(_opt.integer, minimum=1, maximum=MAX_SUPERSAMPLE),
     "objects": _objects,

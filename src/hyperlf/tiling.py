@@ -139,9 +139,9 @@ def check_memory(nbytes: float, what: str, remedy: str) -> None:
     """
     avail = available_memory()
     if nbytes > avail:
-        need = f"{float(nbytes) / 2 ** 30:.3g} GiB" if nbytes < 2 ** 1000 else "more GiB than"
-        raise InvalidInputError(f"{what} would need about {need} of memory, more than the "
-                                f"{avail / 2 ** 30:.3g} GiB available; {remedy}")
+        gib = float(min(nbytes, 2 ** 1000)) / 2 ** 30  # an int beyond a float: at least this
+        raise InvalidInputError(f"{what} would need about {gib:.3g} GiB of memory, more than "
+                                f"the {avail / 2 ** 30:.3g} GiB available; {remedy}")
 
 
 def row_strips(height: int, rows: int) -> list[tuple[int, int]]:

@@ -296,9 +296,11 @@ def sample_bilinear(image: np.ndarray, x: np.ndarray, y: np.ndarray,
     _check_edge(edge)
     fill = _opt.real(fill, "fill", nan=True)
     _opt.float_dtype(dtype)
-    if np.shape(x) != np.shape(y):
-        raise InvalidInputError(f"x and y must have one shape, got {np.shape(x)} and "
-                                f"{np.shape(y)}")
+    try:
+        np.broadcast_shapes(np.shape(x), np.shape(y))
+    except ValueError:
+        raise InvalidInputError(f"x and y must broadcast to one shape, got {np.shape(x)} and "
+                                f"{np.shape(y)}") from None
     img = _image(image)
     H, W = img.shape[:2]
     x0, x1, fx, vx = coordinate_taps(x, W, dtype=dtype)

@@ -36,7 +36,8 @@ def view_maps(calibration: Calibration, key) -> tuple[np.ndarray, np.ndarray]:
     """
     import cv2
 
-    cam = _calibration(calibration).cameras.get(key) if isinstance(key, tuple) else None
+    _calibration(calibration)
+    cam = calibration.cameras.get(key) if isinstance(key, tuple) else None
     if cam is None:
         raise InvalidInputError(f"no camera {_opt.shown(key)} in the calibration; its cameras "
                                 f"are (row, col) in a {calibration.grid[0]} x "

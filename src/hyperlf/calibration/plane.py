@@ -33,8 +33,8 @@ import numpy as np
 
 from .. import _options as _opt
 from ..errors import InvalidInputError
-from .board import (BoardSpec, camera_label, check_board, detect_boards, grid_symmetries, image_turn,
-                    orders_like, turn_report)
+from .board import (BoardSpec, camera_label, check_board, detect_boards, grid_symmetries,
+                    image_turn, orders_like, turn_report)
 from .grid import check_grid, check_images
 from .model import Calibration, CameraCalibration
 from .parallax import factor_rank1, feature_image, match_flows, select_points

@@ -169,7 +169,7 @@ def candidate_labels(volume, k: int, spread: int = 1) -> np.ndarray:
     """
     c = check_cost(volume, "volume")
     L = c.shape[0]
-    k, spread = integer(k, "k", 1), integer(spread, "spread", maximum=volume.shape[0])
+    k, spread = integer(k, "k", 1), integer(spread, "spread", maximum=c.shape[0])
     if k >= L:
         return np.ones(c.shape, dtype=bool)
     top = np.argpartition(c, k - 1, axis=0)[:k]
