@@ -30,7 +30,7 @@ import numpy as np
 from .errors import InvalidInputError
 
 __all__ = ["number", "real", "integer", "share", "flag", "choice", "real_array", "real_pair",
-           "index", "float_dtype",
+           "index", "float_dtype", "bool_mask",
            "shown", "rule", "word_or", "check_fields", "check_values", "params_of", "window",
            "mapping"]
 
@@ -153,6 +153,29 @@ def float_dtype(value, label: str = "dtype") -> np.dtype:
         raise InvalidInputError(f"{label} must be numpy.float32 or numpy.float64, got "
                                 f"{shown(value)}")
     return dtype
+
+
+def bool_mask(value, label: str, shape: tuple[int, ...], *, broadcast: bool = False,
+              of: str = "the data") -> np.ndarray:
+    """``value`` (bools or numbers, not text) as a bool mask of ``shape``, or broadcast to it
+    where ``broadcast``.
+
+    Examples
+    --------
+    >>> bool_mask([1, 0], "valid", (2,)).tolist()
+    [True, False]
+    """
+    mask = real_array(value, label).astype(bool)
+    if mask.shape == shape:
+        return mask
+    if broadcast:
+        try:
+            return np.broadcast_to(mask, shape)
+        except ValueError:
+            pass
+    fits = "broadcast to" if broadcast else "match"
+    raise InvalidInputError(f"{label} has shape {mask.shape}, which does not {fits} {of}'s "
+                            f"{shape}")
 
 
 def index(value, label: str, shape: tuple[int, ...]) -> tuple[int, ...]:

@@ -31,18 +31,6 @@ def _grey(image, dtype=np.float64) -> np.ndarray:
     return a
 
 
-def _valid(valid, shape: tuple[int, ...]) -> np.ndarray:
-    """``valid`` as a bool mask of ``shape`` (True = valid)."""
-    v = _opt.real_array(valid, "valid").astype(bool)
-    if v.shape != shape:
-        raise InvalidInputError(f"valid must be a mask of the image's shape {shape}, got "
-                                f"{v.shape}")
-    return v
-
-__all__ = ["normalise_intensity", "gradient_magnitude", "fill_masked", "noise_sigma",
-           "texture_snr", "edge_blur", "block_reduce"]
-
-
 def normalise_intensity(image, dtype=np.float64, *, valid=None) -> np.ndarray:
     """Return ``image / mean(image)`` as ``dtype``.
 
@@ -76,12 +64,8 @@ def normalise_intensity(image, dtype=np.float64, *, valid=None) -> np.ndarray:
     [[0.5, 1.5]]
     """
     a = _opt.real_array(image, "image", _opt.float_dtype(dtype))
-    if valid is not None and np.any(valid := _opt.real_array(valid, "valid").astype(bool)):
-        try:
-            valid = np.broadcast_to(valid, a.shape)
-        except ValueError:
-            raise InvalidInputError(f"valid of shape {valid.shape} does not fit the image's "
-                                    f"{a.shape}") from None
+    if valid is not None and np.any(
+            valid := _opt.bool_mask(valid, "valid", a.shape, broadcast=True, of="the image")):
         m = float(a[valid].mean())
     elif valid is not None:
         m = float(a.mean()) if float(a.mean()) > 0 else 1.0
@@ -147,9 +131,7 @@ def fill_masked(image, valid) -> np.ndarray:
     from scipy.ndimage import distance_transform_edt
 
     a = np.array(_opt.real_array(image, "image"))
-    v = _opt.real_array(valid, "valid").astype(bool)
-    if v.shape != a.shape:
-        raise InvalidInputError(f"mask shape {v.shape} does not match the image {a.shape}")
+    v = _opt.bool_mask(valid, "valid", a.shape, of="the image")
     if v.all() or not v.any():
         return a
     idx = distance_transform_edt(~v, return_distances=False, return_indices=True)
@@ -198,7 +180,8 @@ def noise_sigma(image, *, valid=None) -> float:
     0.01
     """
     a = _grey(image)
-    v = np.ones(a.shape, bool) if valid is None else _valid(valid, a.shape)
+    v = np.ones(a.shape, bool) if valid is None else _opt.bool_mask(valid, "valid", a.shape,
+                                                                      of="the image")
     if min(a.shape) < 6:
         return 0.0
     H, W = (a.shape[0] // 2) * 2, (a.shape[1] // 2) * 2
@@ -336,7 +319,7 @@ def edge_blur(image, *, valid=None, reblur: float = 1.0, share: float = 0.1,
     a = _grey(image)
     keep = np.ones(a.shape, bool)
     if valid is not None:
-        v = _valid(valid, a.shape)
+        v = _opt.bool_mask(valid, "valid", a.shape, of="the image")
         a = fill_masked(a, v)
         keep = binary_erosion(v, iterations=int(3 * reblur) + 1, border_value=1)
         if not keep.any():

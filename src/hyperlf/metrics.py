@@ -78,25 +78,12 @@ def evaluation_mask(truth: np.ndarray, mask: np.ndarray | None = None,
     border = _opt.integer(border, "border")
     m = np.isfinite(gt)
     if mask is not None:
-        m &= _mask(mask, gt.shape, broadcast=False)
+        m &= _opt.bool_mask(mask, "mask", gt.shape)
     if border > 0:
         frame = np.zeros_like(m)
         frame[border:-border, border:-border] = True
         m &= frame
     return m
-
-
-def _mask(mask, shape: tuple[int, ...], *, broadcast: bool = True) -> np.ndarray:
-    """``mask`` as bool of ``shape``, or broadcast to it where ``broadcast``."""
-    mk = _opt.real_array(mask, "mask").astype(bool)  # numbers or bools, not text
-    if mk.shape == shape:
-        return mk
-    if broadcast:
-        try:
-            return np.broadcast_to(mk, shape)
-        except ValueError:
-            pass
-    raise InvalidInputError(f"mask has shape {mk.shape}, the data {shape}")
 
 
 def _axis(band_axis, cube: np.ndarray) -> int:
@@ -323,7 +310,9 @@ def range_limit_shares(disparity, disparity_range, mask=None) -> tuple[float, fl
     """
     d = _opt.real_array(disparity, "disparity")
     lo, hi = _opt.real_pair(disparity_range, "disparity_range", "(low, high), finite")
-    ok = np.isfinite(d) if mask is None else np.isfinite(d) & _mask(mask, d.shape)
+    ok = np.isfinite(d)
+    if mask is not None:
+        ok &= _opt.bool_mask(mask, "mask", d.shape, broadcast=True)
     if not ok.any():
         return None
     return (100.0 * float(np.mean(at_range_limit(d[ok], (lo, lo)))),
@@ -355,7 +344,7 @@ def psnr(estimate, truth, *, data_range: float = 1.0, mask=None) -> float:
     est, gt = _pair(estimate, truth)
     data_range = _opt.number(data_range, "data_range", positive=True)
     if mask is not None:
-        m = _mask(mask, gt.shape)
+        m = _opt.bool_mask(mask, "mask", gt.shape, broadcast=True)
         if not m.any():
             raise InvalidInputError("psnr: the mask excludes every entry")
         est, gt = est[m], gt[m]
@@ -386,9 +375,10 @@ def psnr_per_band(estimate, truth, *, band_axis: int = -3, data_range: float = 1
     """
     est, gt = _pair(estimate, truth)
     band_axis = _axis(band_axis, est)
+    m = None if mask is None else np.moveaxis(
+        _opt.bool_mask(mask, "mask", gt.shape, broadcast=True), band_axis, 0)
     est = np.moveaxis(est, band_axis, 0)
     gt = np.moveaxis(gt, band_axis, 0)
-    m = None if mask is None else np.moveaxis(_mask(mask, np.shape(truth)), band_axis, 0)
     return np.array([psnr(est[b], gt[b], data_range=data_range,
                           mask=None if m is None else m[b])
                      for b in range(est.shape[0])])
@@ -444,7 +434,7 @@ def _spectral_angles(estimate, truth, band_axis: int, mask=None, eps: float = 1e
     den = np.linalg.norm(est, axis=-1) * np.linalg.norm(gt, axis=-1)
     ok = den > eps
     if mask is not None:
-        ok &= _mask(mask, ok.shape, broadcast=False)
+        ok &= _opt.bool_mask(mask, "mask", ok.shape)
     return np.arccos(np.clip(num[ok] / den[ok], -1.0, 1.0))
 
 

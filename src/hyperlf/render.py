@@ -207,9 +207,9 @@ _RULES = {
 }
 
 
-def _checked(**options) -> dict:
-    """``options`` checked by :data:`_RULES`, in their canonical types."""
-    return _opt.check_values(options, _RULES)
+def _checked(**options) -> None:
+    """Refuse any of ``options`` that :data:`_RULES` does not take."""
+    _opt.check_values(options, _RULES)
 
 
 def _check_mask(mask, shape: tuple[int, ...], name: str = "mask"):

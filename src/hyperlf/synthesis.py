@@ -1056,8 +1056,8 @@ MAX_OBJECTS = 256
 MAX_SUPERSAMPLE = 16
 
 #: The options of :func:`procedural_scene` that take one value, checked before any work
-#: (:mod:`hyperlf._options`); the others (layout, disparity range, reflectances, illuminant,
-#: filter shape, quantum efficiency) are checked where they are read.
+#: (:mod:`hyperlf._options`, by :func:`_check_scene`); the others (layout, disparity range,
+#: reflectances, illuminant, quantum efficiency) are checked where they are read.
 _SCENE_RULES = {
     "seed": _opt.integer, "rows": _opt.rule(_opt.integer, minimum=1),
     "cols": _opt.rule(_opt.integer, minimum=1), "height": _opt.rule(_opt.integer, minimum=2),
@@ -1076,20 +1076,14 @@ _SCENE_RULES = {
 }
 
 
-def _check_procedural_args(H: int, W: int, supersample: int, texture_scale: float,
-                           disparity_range: Any, kinds: Sequence[str]) -> tuple[float, float]:
-    if H < 2 or W < 2:
-        raise InvalidInputError(f"image must be at least 2 x 2 pixels, got {W} x {H} (W x H)")
-    if supersample < 1:
-        raise InvalidInputError(f"supersample must be >= 1, got {supersample}")
-    if not (np.isfinite(texture_scale) and texture_scale > 0):
-        raise InvalidInputError(f"texture_scale must be > 0, got {texture_scale}")
-    dmin, dmax = check_disparity_range(disparity_range)
-    for k in kinds:
-        if k not in _ALL_KINDS:
-            raise InvalidInputError(
-                f"unknown object kind {k!r}; use one of {', '.join(_ALL_KINDS)}")
-    return dmin, dmax
+def _check_scene(given: dict) -> tuple[float, float]:
+    """:func:`procedural_scene`'s arguments ``given`` checked by :data:`_SCENE_RULES` and
+    against the memory available, before any work; returns the disparity range."""
+    _opt.check_values(given, _SCENE_RULES)
+    R, C, H, W = (int(given[k]) for k in ("rows", "cols", "height", "width"))
+    tiling.check_memory(4 * (R * C) ** 2 * H * W, f"a {R} x {C} scene of {W} x {H} px with "
+                        f"{R * C} bands", "use a smaller grid or image")
+    return check_disparity_range(given["disparity_range"])
 
 
 def _focal_length(focal_length: float | None, H: int, W: int) -> float:
@@ -1364,19 +1358,10 @@ def procedural_scene(seed: int = 0, *, rows: int = 5, cols: int = 6, height: int
     >>> lf.views.shape, lf.gt_cube.shape
     ((3, 3, 24, 32), (3, 3, 9, 24, 32))
     """
+    given = dict(locals())  # the arguments, as given
+    dmin, dmax = _check_scene(given)
     t_start = time.perf_counter()
-    _opt.check_values(dict(
-        seed=seed, rows=rows, cols=cols, height=height, width=width, lambda_min=lambda_min,
-        lambda_max=lambda_max, n_objects=n_objects, kinds=kinds, noise_sigma=noise_sigma,
-        texture_scale=texture_scale, supersample=supersample, objects=objects,
-        filter_shape=filter_shape, fwhm=fwhm, focal_length=focal_length, shading=shading,
-        name=name, progress=progress), _SCENE_RULES)
-    rows, cols, H, W = int(rows), int(cols), int(height), int(width)
-    tiling.check_memory(4 * (rows * cols) ** 2 * H * W, f"a {rows} x {cols} scene of {W} x {H} "
-                        f"px with {rows * cols} bands", "use a smaller grid or image")
-    supersample = int(supersample)
-    dmin, dmax = _check_procedural_args(H, W, supersample, texture_scale, disparity_range,
-                                        kinds)
+    rows, cols, H, W, supersample = (int(v) for v in (rows, cols, height, width, supersample))
 
     cube_wl = band_grid(rows, cols, lambda_min, lambda_max)
     kmap = filter_layout(rows, cols, layout, seed=seed)
@@ -1399,12 +1384,8 @@ def procedural_scene(seed: int = 0, *, rows: int = 5, cols: int = 6, height: int
     views = _observe(cube, kmap, noise_sigma, seed)
     gmin, gmax = _finite_range(gt, default=(dmin, dmax))
 
-    opts = dict(name=name, seed=seed, rows=rows, cols=cols, height=H, width=W,
-                lambda_min=lambda_min, lambda_max=lambda_max, layout=layout, objects=objects,
-                kinds=kinds, reflectance_source=reflectance_source, illuminant=illuminant,
-                filter_shape=filter_shape, fwhm=fwhm, quantum_efficiency=quantum_efficiency,
-                noise_sigma=noise_sigma, texture_scale=texture_scale, supersample=supersample,
-                shading=shading)
+    opts = {**given, "rows": rows, "cols": cols, "height": H, "width": W,
+            "supersample": supersample}
     metadata = _procedural_metadata(opts, objs, kmap, dmin, dmax, gmin, gmax,
                                     int(lib_refl.shape[0]), f, d0, pscale, missed)
     metadata["runtime_s"] = round(time.perf_counter() - t_start, 3)

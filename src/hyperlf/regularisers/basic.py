@@ -24,7 +24,7 @@ import warnings
 import numpy as np
 
 from ..errors import InvalidInputError
-from .._options import choice, real_array
+from .._options import bool_mask, choice, real_array
 from ._checks import check_cost
 
 __all__ = ["data_term", "wta", "fill_invalid"]
@@ -130,11 +130,7 @@ def fill_invalid(cost, invalid=None, *, empty: str = "global", value: str = "wor
         raise InvalidInputError(f"cost must have shape (L, H, W), got {c.shape}")
     bad = ~np.isfinite(c)
     if invalid is not None:
-        try:
-            bad = bad | np.broadcast_to(real_array(invalid, "invalid").astype(bool), c.shape)
-        except ValueError:
-            raise InvalidInputError(f"invalid of shape {np.shape(invalid)} does not fit the "
-                                    f"cost's {c.shape}") from None
+        bad = bad | bool_mask(invalid, "invalid", c.shape, broadcast=True, of="the cost")
     if not bad.any():
         return c
     if value != "worst":
