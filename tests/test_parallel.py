@@ -1,4 +1,5 @@
-"""hyperlf's own thread pools (`hyperlf._parallel`): the thread count and `map_threads`."""
+"""hyperlf's own thread pools (`hyperlf._parallel`): the thread count, `map_threads`, and
+`thread_pool`, whose threads have all ended when its block is left."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hyperlf._parallel import map_threads, threads
+from hyperlf._parallel import map_threads, thread_pool, threads
 
 CPUS = len(os.sched_getaffinity(0))
 
@@ -67,3 +68,64 @@ def test_a_failing_task_cancels_the_rest(monkeypatch):
     with pytest.raises(ValueError, match="task 0"):
         map_threads(work, range(40))
     assert len(started) < 40  # the queued ones never ran
+
+
+def interrupt_the_first_start(monkeypatch, began):
+    """Make an interrupt land in the first ``Thread.start`` of a pool, once the thread runs (and
+    has begun its task, ``began``) but before the executor has recorded it: where a real Ctrl-C
+    or SIGTERM landed in CI."""
+    start = threading.Thread.start
+    calls = []
+
+    def start_then_interrupt(self):
+        start(self)
+        if not calls:
+            calls.append(self)
+            began.wait(5)
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(threading.Thread, "start", start_then_interrupt)
+    return calls
+
+
+def slow_task(began, done):
+    def task(x):
+        began.set()
+        time.sleep(0.2)
+        done.append(x)
+    return task
+
+
+def test_an_interrupt_while_a_pool_thread_starts_leaves_no_thread_running(monkeypatch):
+    began, done = threading.Event(), []
+    calls = interrupt_the_first_start(monkeypatch, began)
+    with pytest.raises(KeyboardInterrupt):
+        with thread_pool(4) as pool:
+            list(pool.map(slow_task(began, done), range(8)))
+    # the thread the executor never recorded ran its task to the end before the block was left
+    assert not calls[0].is_alive() and done == [0]
+    time.sleep(0.3)
+    assert done == [0]  # and nothing ran afterwards
+
+
+def test_the_executors_own_shutdown_misses_that_thread(monkeypatch):
+    # the failure thread_pool exists for: with the plain executor the task outlives the block
+    from concurrent.futures import ThreadPoolExecutor
+
+    began, done = threading.Event(), []
+    calls = interrupt_the_first_start(monkeypatch, began)
+    with pytest.raises(KeyboardInterrupt):
+        with ThreadPoolExecutor(4) as pool:
+            list(pool.map(slow_task(began, done), range(8)))
+    assert calls[0].is_alive() and done == []
+    calls[0].join()
+    assert done == [0]
+
+
+def test_a_pool_finishes_every_task_on_a_normal_exit():
+    done = []
+    with thread_pool(3) as pool:
+        for k in range(9):
+            pool.submit(lambda k=k: (time.sleep(0.01), done.append(k)))
+    assert sorted(done) == list(range(9))
+    assert not [t for t in threading.enumerate() if t.name.startswith("hyperlf-pool-")]

@@ -196,6 +196,50 @@ def test_a_signal_wrapped_by_python_still_ends_as_the_signal(monkeypatch, capsys
         main(["info", "anything"])
 
 
+# ----------------------------------------------------------------------------- a pool's thread
+CUT_START = """\
+import os, signal, sys, threading, time
+import hyperlf.formats.capture as capture
+
+write, start, write_views = capture.write_image, threading.Thread.start, capture._write_views
+writing, began, sent = threading.Event(), threading.Event(), []
+
+def slow_write(*args, **kwargs):
+    began.set()
+    time.sleep(0.3)
+    return write(*args, **kwargs)
+
+def start_then_signal(self):  # the signal lands as Thread.start returns to the executor
+    start(self)
+    if writing.is_set() and not sent:
+        sent.append(began.wait(5))
+        os.kill(os.getpid(), signal.SIGTERM)
+
+def marked_write_views(*args, **kwargs):
+    writing.set()
+    return write_views(*args, **kwargs)
+
+capture.write_image, capture._write_views = slow_write, marked_write_views
+threading.Thread.start = start_then_signal
+from hyperlf.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_sigterm_as_a_pool_thread_starts_leaves_the_previous_set(tmp_path):
+    # CI: SIGTERM landed in Thread.start, before the executor had recorded the thread, which
+    # then wrote a view into the staging folder as the command removed it (exit 1, "Directory
+    # not empty", or a staging folder left behind)
+    argv = ["-q", "synth", "procedural", "--size", "24,32", "--grid", "2,2", "--no-pictures",
+            "-o", str(tmp_path / "out"), "--overwrite"]
+    assert main(argv) == 0
+    before = snapshot(tmp_path)
+    proc = subprocess.run([sys.executable, "-c", CUT_START, *argv], capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 143, proc.stderr
+    assert sorted(os.listdir(tmp_path)) == ["out"] and snapshot(tmp_path) == before
+
+
 # ----------------------------------------------------------------------------- numba compiling
 COMPILING = """\
 import sys, time

@@ -5,22 +5,35 @@ zlib, which release the GIL, and is independent item by item: the chunks of an H
 (:mod:`hyperlf.formats._h5chunks`) and the source views registered into one view
 (:func:`hyperlf.completion.register_view`). That work runs in Python threads, as many as the
 CPUs the process may use, or ``HYPERLF_THREADS``.
+
+Every pool is made by :func:`thread_pool`, whose threads have all ended when its block is left,
+also when an interrupt (Ctrl-C, SIGTERM) ends the block: a task still writing into a result
+set's staging folder while the command removes it would leave files behind.
 """
 
 from __future__ import annotations
 
+import contextlib
+import itertools
 import os
+import threading
+import time
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor
-from typing import Callable, Iterable, TypeVar
+from typing import Callable, Iterable, Iterator, TypeVar
 
 T = TypeVar("T")
 R = TypeVar("R")
 
-__all__ = ["threads", "map_threads", "pipeline"]
+__all__ = ["threads", "thread_pool", "map_threads", "pipeline"]
 
 #: Tasks :func:`pipeline` keeps in flight per thread: bounds the results waiting in memory.
 DEPTH_PER_THREAD = 2
+
+#: Seconds to wait for a pool thread that was being started when an interrupt came to run.
+START_WAIT_S = 1.0
+
+_POOL_NUMBERS = itertools.count()
 
 
 def threads(cap: int | None = None) -> int:
@@ -46,6 +59,56 @@ def threads(cap: int | None = None) -> int:
     return max(1, min(n, cap) if cap else n)
 
 
+@contextlib.contextmanager
+def thread_pool(n: int) -> Iterator[ThreadPoolExecutor]:
+    """A :class:`~concurrent.futures.ThreadPoolExecutor` of ``n`` threads, every one of which
+    has ended when the block is left.
+
+    On a normal exit every submitted task runs to its end, as with the executor's own ``with``.
+    When the block raises (an error, Ctrl-C, :class:`~hyperlf.errors.Terminated`) the tasks not
+    yet started are cancelled and the running ones finish, with SIGINT, SIGTERM and SIGHUP held
+    back meanwhile (:func:`hyperlf.outputs.deferred_signals`): a task still writing into a
+    staging folder as the command removes it would leave files behind.
+
+    The executor's own ``shutdown`` waits only for the threads it has recorded; a thread whose
+    start an interrupt cut short (in ``Thread.start``, before the executor records it) runs on
+    unrecorded, and its first task with it. Here every thread of the pool is found by its name.
+
+    Examples
+    --------
+    >>> with thread_pool(2) as pool:
+    ...     list(pool.map(abs, [-1, 2, -3]))
+    [1, 2, 3]
+    """
+    prefix = f"hyperlf-pool-{os.getpid()}-{next(_POOL_NUMBERS)}"
+    pool = ThreadPoolExecutor(max(int(n), 1), thread_name_prefix=prefix)
+    try:
+        yield pool
+    except BaseException:
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    finally:
+        pool.shutdown(wait=False)
+        _join_threads(prefix + "_")
+
+
+def _join_threads(prefix: str) -> None:
+    """Wait, with interrupts held back, for every thread whose name starts with ``prefix``."""
+    from .outputs import deferred_signals
+
+    with deferred_signals():
+        for t in [t for t in threading.enumerate() if t.name.startswith(prefix)]:
+            deadline = time.monotonic() + START_WAIT_S
+            while True:
+                try:
+                    t.join()
+                    break
+                except RuntimeError:  # not started yet, or its start never came
+                    if time.monotonic() > deadline:
+                        break
+                    time.sleep(0.001)
+
+
 def map_threads(fn: Callable[[T], R], items: Iterable[T], *, cap: int | None = None) -> list[R]:
     """``[fn(x) for x in items]``, on :func:`threads` threads (inline with one).
 
@@ -61,11 +124,8 @@ def map_threads(fn: Callable[[T], R], items: Iterable[T], *, cap: int | None = N
     n = min(threads(cap), max(len(items), 1))
     if n == 1:
         return [fn(x) for x in items]
-    pool = ThreadPoolExecutor(n)
-    try:
+    with thread_pool(n) as pool:
         return list(pool.map(fn, items))
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def pipeline(tasks: Iterable[Callable[[], R]], n_tasks: int,
@@ -88,7 +148,7 @@ def pipeline(tasks: Iterable[Callable[[], R]], n_tasks: int,
         for task in tasks:
             then(task())
         return
-    with ThreadPoolExecutor(n) as pool:
+    with thread_pool(n) as pool:
         pending: deque = deque()
         for task in tasks:
             pending.append(pool.submit(task))

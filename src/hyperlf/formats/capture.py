@@ -52,13 +52,13 @@ import math
 import os
 import stat
 import sys
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path, PurePosixPath
 from typing import Any
 
 import numpy as np
 
 from .._atomic import atomic_write_bytes
+from .._parallel import thread_pool
 from .._paths import leads_outside
 from .._progress import progress_bar
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
@@ -570,7 +570,7 @@ def _write_views(lf: LightField, root: Path, ext: str, bit_depth: int, progress:
             entries.append(e)
             jobs.append((root / name, lf.views[r, c]))
             new_files.add(name)
-    with ThreadPoolExecutor(max_workers=min(8, len(jobs))) as pool:
+    with thread_pool(min(8, len(jobs))) as pool:
         results = pool.map(lambda j: write_image(j[0], j[1], bit_depth=bit_depth), jobs)
         list(progress_bar(results, "writing views", total=len(jobs), enabled=progress,
                           unit="view"))

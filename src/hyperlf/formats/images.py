@@ -420,7 +420,7 @@ def read_images_same_size(paths, read, where: str, labels=None) -> np.ndarray:
     -------
     ndarray of float32, shape (N, ...)
     """
-    from concurrent.futures import ThreadPoolExecutor
+    from .._parallel import thread_pool
 
     paths = list(paths)
     labels = [Path(p).name for p in paths] if labels is None else list(labels)
@@ -438,6 +438,6 @@ def read_images_same_size(paths, read, where: str, labels=None) -> np.ndarray:
         stack[i] = im
 
     if len(paths) > 1:
-        with ThreadPoolExecutor(max_workers=min(8, len(paths) - 1)) as pool:
+        with thread_pool(min(8, len(paths) - 1)) as pool:
             list(pool.map(load, range(1, len(paths))))
     return stack
