@@ -825,6 +825,27 @@ def test_measured_disparity_range_covers_the_scene(seed, true_range):
     assert measured_disparity_range(blank, valid, lf.positions, lf.reference) is None
 
 
+@pytest.mark.parametrize("seed,true_range", [(0, (-9.0, 0.0)), (1, (2.0, 9.5))])
+def test_measured_disparity_range_is_the_same_from_every_reference(seed, true_range):
+    """From a corner the farthest view moves 2.8 baselines: out of the search radius for the
+    largest disparities here (it underestimated the range by 1 px per baseline); the range is
+    now measured from the centre camera whatever the reference."""
+    from hyperlf.calibration.parallax import measured_disparity_range
+    from hyperlf.synthesis import procedural_scene
+
+    lf = procedural_scene(seed=seed, rows=3, cols=3, height=120, width=160,
+                          disparity_range=true_range)
+    valid = np.ones(lf.views.shape, bool)
+    ranges = {ref: measured_disparity_range(lf.views, valid, lf.positions, ref)
+              for ref in [(1, 1), (0, 0), (2, 2), (0, 2), (2, 0)]}
+    assert len(set(ranges.values())) == 1, ranges
+    lo, hi = ranges[(1, 1)]
+    gt = lf.reference_gt_disparity
+    assert lo <= min(0.0, gt.min()) and hi >= max(0.0, gt.max())
+    valid[1, 1] = False  # the centre view missing: the reference's neighbours serve
+    assert measured_disparity_range(lf.views, valid, lf.positions, (0, 0)) is not None
+
+
 @pytest.mark.parametrize("reference", [(0, 0), (2, 2), (0, 2)])
 def test_plane_registration_with_a_corner_camera_as_the_reference(rig, plane_shots, reference):
     """The parallax was matched from the reference camera, within a radius that suits the

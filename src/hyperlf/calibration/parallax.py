@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["feature_image", "select_points", "match_flows", "factor_rank1", "Rank1",
-           "measured_disparity_range"]
+           "hub_camera", "measured_disparity_range"]
 
 
 def feature_image(image: np.ndarray, *, sigma: float = 1.0) -> np.ndarray:
@@ -252,6 +252,36 @@ def factor_rank1(flows: np.ndarray, *, min_views: int = 2, floor: float = 0.25,
     return Rank1(o, d, w, rms)
 
 
+def hub_camera(keys, reference):
+    """The camera to match parallax from: ``reference``, unless another is nearer (in grid
+    places) to its farthest camera.
+
+    From a corner the farthest view moves twice as far as from the centre, beyond a search
+    radius that suits the centre's neighbours.
+
+    Parameters
+    ----------
+    keys : iterable of (int, int)
+        The cameras' grid places.
+    reference : (int, int)
+
+    Returns
+    -------
+    (int, int)
+
+    Examples
+    --------
+    >>> grid = [(r, c) for r in range(3) for c in range(3)]
+    >>> hub_camera(grid, (0, 0)), hub_camera(grid, (1, 1))
+    ((1, 1), (1, 1))
+    """
+    keys = [tuple(k) for k in keys]
+    reach = {k: max(np.hypot(k[0] - j[0], k[1] - j[1]) for j in keys) for k in keys}
+    if reach[tuple(reference)] <= min(reach.values()) + 1e-9:
+        return tuple(reference)
+    return min(keys, key=reach.get)
+
+
 def _grid_points(image: np.ndarray, allowed: np.ndarray, *, cell: int) -> np.ndarray:
     """The most corner-like pixel (Shi-Tomasi response) of every ``cell`` x ``cell`` block
     inside ``allowed``, ``(N, 2)`` as ``x, y``: every textured region gets points, also where
@@ -277,12 +307,12 @@ def measured_disparity_range(views: np.ndarray, valid: np.ndarray, positions: np
                              max_residual: float = 1.0):
     """A disparity range for registered or rectified views, measured from the scene.
 
-    The most textured point of every block of the reference is matched in every other view
-    (gradient images, NCC: cross-spectral, :func:`match_flows`); each point's disparity is the
-    least-squares ``d`` of ``flow_v = -d (p_v - p_ref)`` over the views that matched it (two
-    at least; points the fit leaves more than ``max_residual`` px off on average are
-    mismatches). The
-    range is ``margin`` times the 1st and 99th percentiles, widened to include 0 and rounded
+    The most textured point of every block of the camera nearest the grid's centre (the
+    reference unless it lies off-centre, :func:`hub_camera`, among the views mostly valid) is
+    matched in every other view (gradient images, NCC: cross-spectral, :func:`match_flows`);
+    each point's disparity is the least-squares ``d`` of ``flow_v = -d (p_v - p_hub)`` over the
+    views that matched it (two at least; points the fit leaves more than ``max_residual`` px
+    off on average are mismatches). The range is ``margin`` times the 1st and 99th percentiles, widened to include 0 and rounded
     outwards to whole px per baseline.
 
     Parameters
@@ -315,7 +345,8 @@ def measured_disparity_range(views: np.ndarray, valid: np.ndarray, positions: np
     def small(img):
         return cv2.resize(np.asarray(img, np.float32), size, interpolation=cv2.INTER_AREA)
 
-    ref = tuple(reference)
+    present = [(r, c) for r in range(R) for c in range(C) if valid[r, c].mean() >= 0.5]
+    ref = hub_camera(set(present) | {tuple(reference)}, reference)
     feat_ref = feature_image(small(views[ref]))
     allowed = small(valid[ref].astype(np.float32)) > 0.999
     half = max(5, int(round(max(size) / 60)))

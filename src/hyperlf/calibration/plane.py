@@ -37,7 +37,7 @@ from .board import (BoardSpec, camera_label, check_board, detect_boards, grid_sy
                     image_turn, orders_like, turn_report)
 from .grid import check_grid, check_images
 from .model import Calibration, CameraCalibration
-from .parallax import factor_rank1, feature_image, match_flows, select_points
+from .parallax import factor_rank1, feature_image, hub_camera, match_flows, select_points
 
 __all__ = ["register_plane", "board_homographies", "board_geometry", "parallax_offsets",
            "turned_cameras", "resolve_positions", "board_outline"]
@@ -159,21 +159,11 @@ def _registered(images: Mapping, Hs: Mapping, scale: float, size) -> tuple[dict,
     return feats, valid
 
 
-def _hub(keys, reference):
-    """The camera to match the parallax from: the reference, unless another is nearer (in
-    grid places) to its farthest camera. From a corner the farthest view moves twice as far
-    as from the centre, beyond a search radius that suits the centre's neighbours."""
-    reach = {k: max(np.hypot(k[0] - j[0], k[1] - j[1]) for j in keys) for k in keys}
-    if reach[reference] <= min(reach.values()) + 1e-9:
-        return reference
-    return min(keys, key=reach.get)
-
-
 def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, board: BoardSpec,
                      reference, *, work_size: int = 800, max_parallax: float = 0.08) -> dict:
     """Offsets ``p_v - p_ref`` (px per unit ``d``, common scale and sign free) from parallax.
 
-    The flows are matched from the camera nearest the grid's centre (:func:`_hub`; the
+    The flows are matched from the camera nearest the grid's centre (:func:`~hyperlf.calibration.parallax.hub_camera`; the
     reference unless it lies off-centre) to every other, all registered onto the reference,
     and the offsets then shifted so that the reference's is zero.
 
@@ -201,7 +191,7 @@ def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, boar
     W, H = np.asarray(images[reference]).shape[::-1]
     scale = min(1.0, work_size / max(W, H))
     feats, valid = _registered(images, Hs, scale, (W, H))
-    hub = _hub(images, reference)  # matched from: the reference unless it is off-centre
+    hub = hub_camera(images, reference)  # matched from: the reference unless it is off-centre
     h, w = feats[hub].shape
     allowed = np.ones((h, w), np.uint8)
     cv2.fillConvexPoly(allowed, np.round(board_outline(corners_ref, board) * scale)
