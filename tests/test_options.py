@@ -149,7 +149,7 @@ def test_a_label_count_is_an_integer_of_at_least_two(n):
 
 
 @settings(max_examples=80, deadline=None, derandomize=True)
-@given(st.sampled_from(["disparity", "out_path", "optimizer", "band", "guidance", "window",
+@given(st.sampled_from(["disparity", "out_path", "metric", "optimizer", "band", "guidance", "window",
                         "params", "wls_lambda", "edge_sigma", "init_confidence",
                         "stereo_confidence", "fill_confidence", "keep_initial", "occlusion_tol",
                         "max_iter"]), JUNK)
@@ -286,6 +286,41 @@ def test_the_sweep_and_the_spectrum_figure_too(keyword, value):
         if keyword in _keywords(render.save_spectrum_figure):
             _build_or_refuse(render.save_spectrum_figure, path=f"{folder}/s.png", cube=cube,
                              **{"wavelengths": wl, "points": [(2, 3)], keyword: value})
+
+
+@functools.lru_cache(maxsize=1)
+def _completion_stage_calls():
+    """:func:`completion.pairwise_disparities` and :func:`completion.refine_disparity` on a
+    tiny capture, as :func:`_render_calls`."""
+    from hyperlf import completion, synthesis
+
+    lf = synthesis.procedural_scene(seed=1, rows=2, cols=2, height=12, width=16,
+                                    disparity_range=(-1.0, 1.0))
+    init = completion.propagate_disparity(lf, lf.gt_disparity[lf.reference])
+    z = init[0, 0]
+    return {
+        "pairwise_disparities": (completion.pairwise_disparities, lambda **kw:
+                                 completion.pairwise_disparities(**{"lf": lf, "initial": init,
+                                                                    **kw})),
+        "refine_disparity": (completion.refine_disparity, lambda **kw:
+                             completion.refine_disparity(**{"image": lf.views[0, 0], "z": z,
+                                                            "c": np.ones_like(z), **kw})),
+    }
+
+
+@settings(max_examples=160, deadline=None, derandomize=True)
+@given(st.sampled_from([(name, p) for name, (f, _) in _completion_stage_calls().items()
+                        for p in _keywords(f, leave=("lf", "progress"))]), JUNK)
+def test_completion_stages_take_any_option_or_refuse_it_in_one_line(option, value):
+    """The stages of completion called on their own (``guidance=None``, ``band=nan``,
+    ``params='x'``, ``lam={}``, ``edge_sigma=1e300`` and some 60 more were tracebacks or
+    overflows; ``wls_lambda``, ``guidance`` and the confidences are at most 1e6)."""
+    import warnings
+
+    name, keyword = option
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # an overflow on the way is a failure too
+        _build_or_refuse(_completion_stage_calls()[name][1], **{keyword: value})
 
 
 def test_indices_and_fill_values():

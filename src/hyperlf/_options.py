@@ -48,19 +48,30 @@ def _is_real(value) -> bool:
 
 
 def number(value, label: str, *, positive: bool = False, optional: bool = False,
-           below: float | None = None, at_most: float | None = None) -> float | None:
-    """``value`` as a float, finite and ``>= 0`` (``> 0`` if ``positive``), below ``below`` /
-    at most ``at_most`` where given; None passes when ``optional``."""
+           below: float | None = None, at_most: float | None = None,
+           at_least: float | None = None) -> float | None:
+    """``value`` as a float, finite and ``>= 0`` (``> 0`` if ``positive``, ``>= at_least``
+    where given), below ``below`` / at most ``at_most`` where given; None passes when
+    ``optional``.
+
+    Examples
+    --------
+    >>> number(2, "sigma", at_least=1e-6, at_most=1e6)
+    2.0
+    """
     if value is None and optional:
         return None
-    low = "> 0" if positive else ">= 0"
     ok = _is_real(value) and (value > 0 if positive else value >= 0)
+    ok = ok and (at_least is None or value >= at_least)
+    start = f"[{at_least:g}" if at_least is not None else "(0" if positive else "[0"
     if below is not None:
-        low = f"in {'(' if positive else '['}0, {below:g})"
+        low = f"in {start}, {below:g})"
         ok = ok and value < below
     elif at_most is not None:
-        low = f"in {'(' if positive else '['}0, {at_most:g}]"
+        low = f"in {start}, {at_most:g}]"
         ok = ok and value <= at_most
+    else:
+        low = f">= {at_least:g}" if at_least is not None else "> 0" if positive else ">= 0"
     if not ok:
         none = " or None" if optional else ""
         raise InvalidInputError(f"{label} must be a finite number {low}{none}, got {shown(value)}")

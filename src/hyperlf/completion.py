@@ -129,8 +129,8 @@ from typing import Any
 
 import numpy as np
 
-from ._options import (check_values, choice, flag, integer, mapping, number, real_array, rule,
-                       shown)
+from ._options import (check_values, choice, flag, integer, mapping, number, real_array,
+                       real_pair, rule, shown, word_or)
 from ._parallel import map_threads
 from ._progress import grid_views, progress_bar
 from .errors import InvalidInputError
@@ -444,16 +444,39 @@ def _path_or_none(value, label):
     return value
 
 
-#: How :func:`complete` checks its options before any work.
+#: Largest weight of the refinement and of the guidance (``wls_lambda`` / ``lam``,
+#: ``guidance``, the confidences): the data and smoothness terms are of order 1, so far beyond
+#: it the float32 result no longer changes, and near 1e300 the solver overflows.
+MAX_WEIGHT = 1e6
+#: Bounds of ``edge_sigma``: the guide is divided by its mean, so its steps are of order 1;
+#: below the lower bound every edge weight is the floor, above the upper one none differs.
+EDGE_SIGMA_RANGE = (1e-6, 1e6)
+
+_weight = rule(number, at_most=MAX_WEIGHT)
+
+#: How :func:`complete`, :func:`pairwise_disparities` and :func:`refine_disparity` check their
+#: options before any work.
 _COMPLETE_RULES = {
     "out_path": _path_or_none,
     "optimizer": rule(choice, choices=(None, *_OPTIMISER_DEFAULTS)),
-    "band": rule(number, positive=True), "guidance": number,
+    "band": rule(number, positive=True), "guidance": _weight,
     "window": rule(integer, minimum=1, odd=True, optional=True), "params": mapping,
-    "wls_lambda": number, "edge_sigma": rule(number, positive=True),
-    "init_confidence": number, "stereo_confidence": number, "fill_confidence": number,
+    "wls_lambda": _weight, "lam": _weight,
+    "edge_sigma": rule(number, at_least=EDGE_SIGMA_RANGE[0], at_most=EDGE_SIGMA_RANGE[1]),
+    "min_weight": rule(number, at_most=1.0),
+    "init_confidence": _weight, "stereo_confidence": _weight, "fill_confidence": _weight,
     "keep_initial": flag, "occlusion_tol": number, "max_iter": integer,
+    "disparity_range": word_or(real_pair, (None,), "two finite numbers (low, high) or None"),
+    "progress": flag,
 }
+
+
+def _check_band(band: float, lf) -> None:
+    """A band no wider than the views (labels beyond any view's reach, and memory for them)."""
+    if band > max(lf.image_shape):
+        raise InvalidInputError(f"band {band} px is wider than the {lf.image_shape[1]} x "
+                                f"{lf.image_shape[0]} px views; use at most "
+                                f"{max(lf.image_shape)}")
 
 
 def _optimiser_params(optimizer, params):
@@ -492,13 +515,20 @@ def pairwise_disparities(lf, initial: np.ndarray, *, metric: str = "rsncc", opti
         Confidence-weighted mean of the consistent estimates; NaN where there is none.
     confidence : ndarray of float32 (R, C, H, W)
     """
+    from . import costs as _costs
     from . import regularisers as _reg
     from . import twoview as _stereo
 
     lf = _check_lf(lf)
     R, C = lf.grid_shape
     H, W = lf.image_shape
-    init = np.asarray(initial, dtype=np.float32)
+    o = check_values(dict(band=band, guidance=guidance, window=window, params=params,
+                          disparity_range=disparity_range, progress=progress), _COMPLETE_RULES)
+    band, guidance, window, drange = o["band"], o["guidance"], o["window"], o["disparity_range"]
+    _check_band(band, lf)
+    choice(optimizer, "optimizer", tuple(_OPTIMISER_DEFAULTS))
+    _costs.get_cost(metric)  # a known name, before any matching
+    init = real_array(initial, "initial", np.float32)
     if init.shape != (R, C, H, W):
         raise InvalidInputError(f"initial must have shape {(R, C, H, W)}, got {init.shape}")
     opt = _optimiser_params(optimizer, params)
@@ -507,7 +537,7 @@ def pairwise_disparities(lf, initial: np.ndarray, *, metric: str = "rsncc", opti
     cnt = np.zeros((R, C, H, W), dtype=np.uint8)
     pairs = [((r, c), (r, c + 1), "h") for r in range(R) for c in range(C - 1)]
     pairs += [((r, c), (r + 1, c), "v") for r in range(R - 1) for c in range(C)]
-    drange = disparity_range if disparity_range is not None else lf.disparity_range
+    drange = drange if drange is not None else lf.disparity_range
     for a, b, kind in progress_bar(pairs, "pairwise stereo", total=len(pairs), enabled=progress):
         off = _offset(lf, b, a)
         base = off[0] if kind == "h" else off[1]
@@ -569,9 +599,10 @@ def refine_disparity(image, z, c, *, lam: float = 1.0, edge_sigma: float = 0.1,
     z : ndarray (H, W)
         Data term (NaN = none).
     c : ndarray (H, W)
-        Confidences >= 0.
+        Confidences in ``[0, MAX_WEIGHT ** 2]`` where ``z`` has data.
     lam, edge_sigma, min_weight : float
-        Smoothness weight, edge sigma and weight floor (module docstring, stage 3).
+        Smoothness weight (at most :data:`MAX_WEIGHT`), edge sigma (within
+        :data:`EDGE_SIGMA_RANGE`) and weight floor (in (0, 1]) (module docstring, stage 3).
 
     Returns
     -------
@@ -585,11 +616,15 @@ def refine_disparity(image, z, c, *, lam: float = 1.0, edge_sigma: float = 0.1,
     """
     import scipy.sparse as sp
 
-    g = np.asarray(image, dtype=np.float64)
+    o = check_values(dict(lam=lam, edge_sigma=edge_sigma, min_weight=min_weight),
+                     _COMPLETE_RULES)
+    lam, edge_sigma, min_weight = o["lam"], o["edge_sigma"], o["min_weight"]
+    g, z, c = _same_shape_maps(image=image, z=z, c=c)
     H, W = g.shape
-    z = np.asarray(z, dtype=np.float64)
-    c = np.where(np.isfinite(z), np.asarray(c, dtype=np.float64), 0.0)
-    c = np.clip(c, 0.0, None)
+    c = np.where(np.isfinite(z), c, 0.0)
+    if not np.isfinite(g).all() or not (np.isfinite(c) & (c >= 0) & (c <= MAX_WEIGHT ** 2)).all():
+        raise InvalidInputError(f"image must be finite and c in [0, {MAX_WEIGHT ** 2:g}] where z "
+                                "has data (NaN in z marks none)")
     z = np.where(np.isfinite(z), z, 0.0)
     if not (c > 0).any():
         return np.zeros((H, W), dtype=np.float32)
@@ -616,6 +651,15 @@ def refine_disparity(image, z, c, *, lam: float = 1.0, edge_sigma: float = 0.1,
     vals = np.concatenate([-wx.ravel(), -wx.ravel(), -wy.ravel(), -wy.ravel(), diag.ravel()])
     A = sp.csr_matrix((vals, (rows, cols)), shape=(N, N))
     return np.asarray(_solve_spd(A, rhs.ravel()), dtype=np.float32).reshape(H, W)
+
+
+def _same_shape_maps(**maps) -> list[np.ndarray]:
+    """The 2-D float64 maps ``maps`` (name -> array), all of one shape."""
+    out = [real_array(a, name) for name, a in maps.items()]
+    if out[0].ndim != 2 or any(a.shape != out[0].shape for a in out):
+        shapes = ", ".join(f"{name} {a.shape}" for name, a in zip(maps, out))
+        raise InvalidInputError(f"{', '.join(maps)} must be 2-D maps of one shape, got {shapes}")
+    return out
 
 
 def _solve_spd(A, b, *, rtol: float = 1e-10, maxiter: int = 1000) -> np.ndarray:
@@ -1186,8 +1230,9 @@ def complete(lf, disparity=None, out_path=None, *, metric: str = "rsncc",
         Pairwise stereo (stage 2).  ``optimizer``: ``"sgm"`` (default), ``"graphcut"``,
         ``"wta"`` or None (skip the stereo; holes are filled by the WLS from the initial
         disparity alone).
-    wls_lambda, edge_sigma, init_confidence, stereo_confidence, keep_initial :
-        Refinement (stage 3).
+    wls_lambda, edge_sigma, init_confidence, stereo_confidence, fill_confidence, keep_initial :
+        Refinement (stage 3). The weights (and ``guidance``) are at most :data:`MAX_WEIGHT`,
+        ``edge_sigma`` within :data:`EDGE_SIGMA_RANGE`.
     occlusion_tol : float
         Re-projection tolerance in px of the occlusion check (stage 4).
     max_iter : int
@@ -1229,12 +1274,12 @@ def complete(lf, disparity=None, out_path=None, *, metric: str = "rsncc",
                           keep_initial=keep_initial, occlusion_tol=occlusion_tol,
                           max_iter=max_iter), _COMPLETE_RULES)
     window, keep_initial, max_iter = o["window"], o["keep_initial"], o["max_iter"]
-    if band > max(lf.image_shape):  # labels beyond any view's reach, and memory for them
-        raise InvalidInputError(f"band {band} px is wider than the {lf.image_shape[1]} x "
-                                f"{lf.image_shape[0]} px views; use at most "
-                                f"{max(lf.image_shape)}")
-    if optimizer is not None:  # its params, before a depth run that may take minutes
+    _check_band(band, lf)
+    if optimizer is not None:  # its params and metric, before a depth run that may take minutes
+        from . import costs as _costs
+
         _optimiser_params(optimizer, params)
+        _costs.get_cost(metric)
     if disparity is not None:
         disparity = real_array(disparity, "disparity", np.float32)
     wl, bidx = band_order(lf)

@@ -30,6 +30,7 @@ from typing import Any, Iterator, Sequence
 
 import numpy as np
 
+from .._options import shown
 from ..errors import InvalidInputError
 from ._validate import IMPLS, check_window
 from .pair import fuse, right_validity, row_moments
@@ -375,7 +376,7 @@ def get_cost(name: str, *, light_field: bool = False) -> Cost:
     """
     if not isinstance(name, str):
         raise InvalidInputError(
-            f"metric must be a string, one of {cost_names() + ('auto',)}, got {name!r}")
+            f"metric must be a string, one of {cost_names() + ('auto',)}, got {shown(name)}")
     key = name.strip().lower()
     if key == "auto":
         key = AUTO_METRIC
