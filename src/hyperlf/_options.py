@@ -23,6 +23,7 @@ hyperlf.errors.InvalidInputError: radius must be an integer >= 0, got 2.5
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping
 
 import numpy as np
@@ -95,19 +96,29 @@ def real(value, label: str, *, nan: bool = False) -> float:
     return float(value)
 
 
-def integer(value, label: str, minimum: int = 0, *, maximum: int | None = None,
+def integer(value, label: str, minimum: int | None = 0, *, maximum: int | None = None,
             odd: bool = False, optional: bool = False) -> int | None:
-    """``value`` as an int ``>= minimum`` (and ``<= maximum``, odd where asked); an integral
-    float such as ``4.0`` is taken, a bool or ``4.5`` is not; None passes when ``optional``."""
+    """``value`` as an int ``>= minimum`` (of any sign when ``minimum`` is None; and
+    ``<= maximum``, odd where asked); an integral float such as ``4.0`` is taken, a bool or
+    ``4.5`` is not; None passes when ``optional``.
+
+    Examples
+    --------
+    >>> integer(4.0, "n"), integer(-3, "dmin", minimum=None)
+    (4, -3)
+    """
     if value is None and optional:
         return None
-    ok = _is_real(value) and float(value).is_integer() and minimum <= value
-    ok = ok and (maximum is None or value <= maximum) and (not odd or int(value) % 2 == 1)
+    ok = _is_real(value) and float(value).is_integer()
+    ok = ok and (minimum is None or minimum <= value) and (maximum is None or value <= maximum)
+    ok = ok and (not odd or int(value) % 2 == 1)
     if not ok:
         kind = f"an {'odd ' if odd else ''}integer"
-        bound = f"in {minimum}..{maximum}" if maximum is not None else f">= {minimum}"
+        bound = (f" in {minimum}..{maximum}" if maximum is not None and minimum is not None
+                 else f" <= {maximum}" if maximum is not None
+                 else f" >= {minimum}" if minimum is not None else "")
         none = "None or " if optional else ""
-        raise InvalidInputError(f"{label} must be {none}{kind} {bound}, got {shown(value)}")
+        raise InvalidInputError(f"{label} must be {none}{kind}{bound}, got {shown(value)}")
     return int(value)
 
 
@@ -158,7 +169,7 @@ def float_dtype(value, label: str = "dtype") -> np.dtype:
     try:
         dtype = np.dtype(value)
         ok = dtype in (np.float32, np.float64)
-    except TypeError:
+    except (TypeError, ValueError, SyntaxError):  # numpy parses text: '0:', '01'
         ok = False
     if not ok:
         raise InvalidInputError(f"{label} must be numpy.float32 or numpy.float64, got "
@@ -222,8 +233,9 @@ def shown(value, limit: int = 60) -> str:
 
 
 def real_array(value, label: str, dtype=np.float64) -> np.ndarray:
-    """``value`` as an array of ``dtype``; text, mappings and ragged lists are refused (values
-    too large for ``dtype`` become inf, for the caller's own finiteness rule)."""
+    """``value`` as an array of ``dtype`` (its own where ``dtype`` is None); text, mappings and
+    ragged lists are refused (values too large for ``dtype`` become inf, for the caller's own
+    finiteness rule)."""
     try:
         with np.errstate(over="ignore"):
             return np.asarray(value, dtype=dtype)
@@ -304,4 +316,25 @@ def mapping(value, label: str, *, optional: bool = True) -> Mapping | None:
     if not isinstance(value, Mapping) and not (value is None and optional):
         none = " (or None)" if optional else ""
         raise InvalidInputError(f"{label} must be a dict{none}, got {type(value).__name__}")
+    return value
+
+
+def path_like(value, label: str = "path", *, folder: bool | None = False):
+    """``value`` when it names a file (a folder where ``folder``; either where None) to write:
+    a non-empty ``str`` or ``os.PathLike`` without NUL characters, not an existing folder (not
+    an existing file where ``folder``).
+
+    Examples
+    --------
+    >>> path_like("out.pfm")
+    'out.pfm'
+    """
+    text = os.fspath(value) if isinstance(value, (str, os.PathLike)) else None
+    if not isinstance(text, str) or not text or "\0" in text:
+        raise InvalidInputError(f"{label} must be a path (a non-empty str or os.PathLike), got "
+                                f"{shown(value)}")
+    if folder is True and os.path.exists(text) and not os.path.isdir(text):
+        raise InvalidInputError(f"{label} {text} exists and is not a folder")
+    if folder is False and os.path.isdir(text):
+        raise InvalidInputError(f"{label} {text} is a folder; it must name a file")
     return value

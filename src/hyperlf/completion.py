@@ -129,11 +129,11 @@ from typing import Any
 
 import numpy as np
 
-from ._options import (check_values, choice, flag, integer, mapping, number, real_array,
-                       real_pair, rule, shown, word_or)
+from ._options import (bool_mask, check_values, choice, flag, index, integer, mapping, number,
+                       path_like, real_array, real_pair, rule, shown, word_or)
 from ._parallel import map_threads
 from ._progress import grid_views, progress_bar
-from .errors import InvalidInputError
+from .errors import DataNotFoundError, FormatError, InvalidInputError
 from .warp import bilinear_taps, forward_warp_disparity, gather_taps
 
 __all__ = [
@@ -198,12 +198,17 @@ class CompletionResult:
 
 
 # ----------------------------------------------------------------------------- helpers
-def _check_lf(lf):
+def _light_field(lf):
+    """``lf`` when it is a :class:`~hyperlf.lightfield.LightField`."""
     from .lightfield import LightField
 
     if not isinstance(lf, LightField):
         raise InvalidInputError(f"lf must be a hyperlf.LightField, got {type(lf).__name__}")
-    if lf.views.ndim != 4:
+    return lf
+
+
+def _check_lf(lf):
+    if _light_field(lf).views.ndim != 4:
         raise InvalidInputError("cube completion needs a spectral capture, one band per view "
                                 "(R, C, H, W); from an RGB light field make one with "
                                 "'hyperlf synth hci'")
@@ -215,8 +220,7 @@ def _fill_mode(fill, wavelengths: np.ndarray) -> str:
     known = bool(np.isfinite(wavelengths).all())
     if fill is None:
         return "spectral" if known else "zero"
-    if fill not in ("spectral", "zero"):
-        raise InvalidInputError(f"fill must be 'spectral' or 'zero', got {fill!r}")
+    choice(fill, "fill", ("spectral", "zero"))
     if fill == "spectral" and not known:
         raise InvalidInputError("fill='spectral' interpolates over wavelength, and the views' "
                                 "wavelengths are unknown: use fill='zero', or give the capture "
@@ -251,7 +255,7 @@ def band_order(lf) -> tuple[np.ndarray, np.ndarray]:
     >>> band_order(lf.replace(wavelengths=None))[1].tolist()
     [[0, 1], [2, 3]]
     """
-    if lf.wavelengths is None:
+    if _light_field(lf).wavelengths is None:
         R, C = lf.grid_shape
         return np.full(R * C, np.nan), np.arange(R * C, dtype=np.intp).reshape(R, C)
     wl = np.asarray(lf.wavelengths, dtype=np.float64)
@@ -289,7 +293,7 @@ def _offset(lf, src, dst) -> tuple[float, float]:
 
 
 def _as_ref_disparity(lf, d) -> np.ndarray:
-    a = np.asarray(d, dtype=np.float32)
+    a = real_array(d, "ref_disparity", np.float32)
     if a.shape != lf.image_shape:
         raise InvalidInputError(f"reference disparity must have shape {lf.image_shape}, got {a.shape}")
     return a
@@ -370,7 +374,9 @@ def background_fill(disparity: np.ndarray) -> np.ndarray:
     >>> background_fill(np.array([[1.0, np.nan, 3.0]])).tolist()
     [[1.0, 1.0, 3.0]]
     """
-    d = np.asarray(disparity, dtype=np.float32)
+    d = real_array(disparity, "disparity", np.float32)
+    if d.ndim != 2:
+        raise InvalidInputError(f"disparity must be a 2-D map, got shape {d.shape}")
     v = np.isfinite(d)
     if v.all() or not v.any():
         return d.copy()
@@ -435,15 +441,6 @@ _OPTIMISER_DEFAULTS: dict[str, dict[str, Any]] = {
 }
 
 
-def _path_or_none(value, label):
-    if value is None:
-        return None
-    if not isinstance(value, (str, os.PathLike)) or not os.fspath(value) \
-            or os.path.isdir(value):
-        raise InvalidInputError(f"{label} must name a file (or be None), got {shown(value)}")
-    return value
-
-
 #: Largest weight of the refinement and of the guidance (``wls_lambda`` / ``lam``,
 #: ``guidance``, the confidences): the data and smoothness terms are of order 1, so far beyond
 #: it the float32 result no longer changes, and near 1e300 the solver overflows.
@@ -457,7 +454,7 @@ _weight = rule(number, at_most=MAX_WEIGHT)
 #: How :func:`complete`, :func:`pairwise_disparities` and :func:`refine_disparity` check their
 #: options before any work.
 _COMPLETE_RULES = {
-    "out_path": _path_or_none,
+    "out_path": word_or(path_like, (None,), "a file to write (or None)"),
     "optimizer": rule(choice, choices=(None, *_OPTIMISER_DEFAULTS)),
     "band": rule(number, positive=True), "guidance": _weight,
     "window": rule(integer, minimum=1, odd=True, optional=True), "params": mapping,
@@ -468,6 +465,7 @@ _COMPLETE_RULES = {
     "keep_initial": flag, "occlusion_tol": number, "max_iter": integer,
     "disparity_range": word_or(real_pair, (None,), "two finite numbers (low, high) or None"),
     "progress": flag,
+    "compression": rule(choice, choices=(None, "none", False, "gzip", "lzf")),
 }
 
 
@@ -724,10 +722,13 @@ def register_view(lf, disparities: np.ndarray, view, band_index: np.ndarray,
         NaN where invalid.
     mask : ndarray of bool (B, H, W)
     """
-    R, C = lf.grid_shape
+    R, C = _light_field(lf).grid_shape
     H, W = lf.image_shape
     B = R * C
-    v = tuple(view)
+    v = index(view, "view", (R, C))
+    occlusion_tol = number(occlusion_tol, "occlusion_tol", optional=True)
+    disparities = _float_maps(disparities, "disparities", (R, C, H, W))
+    band_index = _band_index(band_index, (R, C))
     cube = np.full((B, H, W), np.nan, dtype=np.float32)
     mask = np.zeros((B, H, W), dtype=bool)
     dv = np.asarray(disparities[v], dtype=np.float64)
@@ -756,6 +757,34 @@ def register_view(lf, disparities: np.ndarray, view, band_index: np.ndarray,
     # each source writes only its own band; numpy releases the GIL
     map_threads(one, [(r, c) for r in range(R) for c in range(C)], cap=REGISTER_THREADS)
     return cube, mask
+
+
+def _float_maps(value, label: str, shape: tuple[int, ...]) -> np.ndarray:
+    """``value`` as a real array of ``shape``: a numeric array as it is (no copy), anything
+    else as float64."""
+    a = value if isinstance(value, np.ndarray) and value.dtype.kind in "fiu" else real_array(
+        value, label)
+    if a.shape != shape:
+        raise InvalidInputError(f"{label} must have shape {shape}, got {a.shape}")
+    return a
+
+
+def _bool_maps(value, label: str, shape: tuple[int, ...]) -> np.ndarray:
+    """``value`` as a bool array of ``shape``: a bool array as it is (no copy)."""
+    if isinstance(value, np.ndarray) and value.dtype == np.bool_ and value.shape == shape:
+        return value
+    return bool_mask(value, label, shape, of="the cube")
+
+
+def _band_index(value, grid: tuple[int, int]) -> np.ndarray:
+    """``value`` as the ``(R, C)`` band indices of :func:`band_order`, each in ``0..R C-1``."""
+    b = real_array(value, "band_index")
+    n = grid[0] * grid[1]
+    ok = b.shape == grid and bool(np.all(np.isfinite(b)))
+    if not (ok and np.all((b == np.round(b)) & (b >= 0) & (b < n))):
+        raise InvalidInputError(f"band_index must be {grid[0]} x {grid[1]} integers in "
+                                f"0..{n - 1} (from band_order), got {shown(value)}")
+    return b.astype(np.intp)
 
 
 #: The most threads :func:`register_view` warps source views on (each holds about a dozen
@@ -931,16 +960,16 @@ def fill_missing(cube: np.ndarray, mask: np.ndarray, wavelengths, mode: str = "s
     ndarray of float32 (B, H, W)
         A new array.
     """
-    if impl not in ("auto", "numpy", "numba"):
-        raise InvalidInputError(f"impl must be 'auto', 'numpy' or 'numba', got {impl!r}")
-    cube = np.asarray(cube, dtype=np.float32)
-    m = np.asarray(mask, dtype=bool)
+    choice(impl, "impl", _IMPLS)
+    choice(mode, "mode", ("spectral", "zero"))
+    cube = real_array(cube, "cube", np.float32)
+    if cube.ndim != 3:
+        raise InvalidInputError(f"cube must be (B, H, W), got shape {cube.shape}")
+    m = _bool_maps(mask, "mask", cube.shape)
     if mode == "zero":
         return np.where(m, cube, 0.0).astype(np.float32)
-    if mode != "spectral":
-        raise InvalidInputError(f"fill must be 'spectral' or 'zero', got {mode!r}")
     B = cube.shape[0]
-    wl = np.asarray(wavelengths, dtype=np.float64)
+    wl = _float_maps(wavelengths, "wavelengths", (B,)).astype(np.float64, copy=False)
     _fill_mode(mode, wl)
     out = np.where(m, cube, 0.0).astype(np.float32)
     if m.all():
@@ -981,10 +1010,19 @@ def _interpolate_bands(out: np.ndarray, m: np.ndarray, wl: np.ndarray) -> np.nda
     return np.where(m, out, interp).astype(np.float32)
 
 
+#: The implementations of :func:`fill_missing` and :func:`infer_missing`.
+_IMPLS = ("auto", "numpy", "numba")
+#: Bounds of :func:`infer_missing`'s ``sigma_d`` and ``sigma_g``: below, ``2 sigma**2``
+#: underflows to 0 (a division by zero); above, the term no longer changes any weight.
+INFER_SIGMA_RANGE = (1e-6, 1e6)
+
+
 def _infer_params(radius, sigma_d, sigma_g, min_weight, rounds):
+    low, high = INFER_SIGMA_RANGE
     return (integer(radius, "infer radius", 1),
-            *(number(v, f"infer {name}", positive=True) for v, name in
-              ((sigma_d, "sigma_d"), (sigma_g, "sigma_g"), (min_weight, "min_weight"))),
+            *(number(v, f"infer {name}", at_least=low, at_most=high) for v, name in
+              ((sigma_d, "sigma_d"), (sigma_g, "sigma_g"))),
+            number(min_weight, "infer min_weight", positive=True),
             integer(rounds, "infer rounds"))
 
 
@@ -1051,16 +1089,19 @@ def infer_missing(cube, mask, disparity, guide, *, radius: int = 6, sigma_d: flo
     """
     radius, sigma_d, sigma_g, min_weight, rounds = _infer_params(radius, sigma_d, sigma_g,
                                                                  min_weight, rounds)
-    c = np.asarray(cube, dtype=np.float32)
-    m = np.asarray(mask, dtype=bool)
-    d = np.asarray(disparity, dtype=np.float64)
-    g = np.asarray(guide, dtype=np.float64)
-    if c.ndim != 3 or m.shape != c.shape or d.shape != c.shape[1:] or g.shape != c.shape[1:]:
+    choice(impl, "impl", _IMPLS)
+    c = real_array(cube, "cube", np.float32)
+    d = real_array(disparity, "disparity")
+    g = real_array(guide, "guide")
+    if c.ndim != 3 or d.shape != c.shape[1:] or g.shape != c.shape[1:]:
         raise InvalidInputError(
             f"infer_missing needs cube/mask (B, H, W) and disparity/guide (H, W); got "
-            f"{c.shape}, {m.shape}, {d.shape}, {g.shape}")
-    if impl not in ("auto", "numpy", "numba"):
-        raise InvalidInputError(f"impl must be 'auto', 'numpy' or 'numba', got {impl!r}")
+            f"{c.shape}, {d.shape}, {g.shape}")
+    m = _bool_maps(mask, "mask", c.shape)
+    limit = max(c.shape[1], c.shape[2], 6)  # the default radius 6 on any view
+    if radius > limit:
+        raise InvalidInputError(f"infer radius {radius} px reaches past the {c.shape[2]} x "
+                                f"{c.shape[1]} px view; use at most {limit}")
     gm = float(np.nanmean(np.abs(g))) if np.isfinite(g).any() else 0.0
     g = g / gm if gm > 0 else g
     inferred = np.zeros(c.shape, dtype=bool)
@@ -1104,13 +1145,22 @@ def read_band_mask(path, view=None, *, name: str = "band_mask") -> np.ndarray:
     """
     import h5py
 
-    if name not in ("band_mask", "inferred_mask"):
-        raise InvalidInputError(f"name must be 'band_mask' or 'inferred_mask', got {name!r}")
-    with h5py.File(path, "r") as f:
+
+    path_like(path)
+    choice(name, "name", ("band_mask", "inferred_mask"))
+    if not os.path.isfile(path):
+        raise DataNotFoundError(f"{path} does not exist")
+    try:
+        f = h5py.File(path, "r")
+    except OSError:
+        raise FormatError(f"{path} is not an HDF5 file") from None
+    with f:
         if name not in f:
             raise InvalidInputError(f"{path} has no /{name} (not written by hyperlf.completion"
                                     f"{', or inference was off' if name == 'inferred_mask' else ''})")
         ds = f[name]
+        if view is not None:
+            view = index(view, "view", ds.shape[:2])
         return np.asarray(ds[view[0], view[1]] if view is not None else ds[()], dtype=bool)
 
 
@@ -1272,7 +1322,7 @@ def complete(lf, disparity=None, out_path=None, *, metric: str = "rsncc",
                           edge_sigma=edge_sigma, init_confidence=init_confidence,
                           stereo_confidence=stereo_confidence, fill_confidence=fill_confidence,
                           keep_initial=keep_initial, occlusion_tol=occlusion_tol,
-                          max_iter=max_iter), _COMPLETE_RULES)
+                          max_iter=max_iter, compression=compression), _COMPLETE_RULES)
     window, keep_initial, max_iter = o["window"], o["keep_initial"], o["max_iter"]
     _check_band(band, lf)
     if optimizer is not None:  # its params and metric, before a depth run that may take minutes
@@ -1332,6 +1382,8 @@ def naive_completion(lf, ref_disparity, out_path=None, *, fill: str | None = Non
     (3, 3, 9, 24, 32)
     """
     lf = _filled(_check_lf(lf))
+    out_path = check_values(dict(out_path=out_path, compression=compression),
+                            _COMPLETE_RULES)["out_path"]
     t_all = time.perf_counter()
     wl, bidx = band_order(lf)
     fill = _fill_mode(fill, wl)

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataNotFoundError, FormatError, HyperLFError, InvalidInputError
+from .._options import check_values, path_like
 from ..lightfield import LightField
 from . import capture, envi, hci, hdf5, images, middlebury, pfm
 from .capture import (CAPTURE_FORMAT, MANIFEST, gt_cube_file, is_capture, read_capture,
@@ -341,15 +342,24 @@ def save_lightfield(lf: LightField, path: str | os.PathLike, *, bit_depth: int =
         Show a progress bar while a capture's views are written.
     **kwargs
         Passed on to :func:`write_lightfield_h5` (``compression``) or :func:`write_capture`
-        (``image_format``).
+        (``image_format``); any other name is refused.
 
     Returns
     -------
     Path
         The written file (the manifest for a capture).
     """
-    p = Path(path)
-    if p.suffix.lower() in _H5:
+    h5 = Path(path_like(path, folder=None)).suffix.lower() in _H5
+    p = Path(path_like(path, folder=not h5))
+    check_values(dict(bit_depth=bit_depth, overwrite=overwrite, progress=progress),
+                 capture._WRITE_RULES)
+    allowed = ("compression",) if h5 else ("image_format",)
+    unknown = sorted(set(kwargs) - set(allowed))
+    if unknown:
+        raise InvalidInputError(f"unknown option(s) {', '.join(map(repr, unknown))} for "
+                                f"{'an HDF5 file' if h5 else 'a capture folder'} (allowed: "
+                                f"{allowed[0]})")
+    if h5:
         if p.exists() and not overwrite:
             raise InvalidInputError(f"{p} exists; choose another name or pass overwrite=True")
         return write_lightfield_h5(p, lf, **kwargs)

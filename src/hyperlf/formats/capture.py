@@ -58,6 +58,7 @@ from typing import Any
 import numpy as np
 
 from .._atomic import atomic_write_bytes
+from .._options import check_values, choice, flag, path_like, rule
 from .._parallel import thread_pool
 from .._paths import leads_outside
 from .._progress import progress_bar
@@ -500,18 +501,20 @@ def _toml_value(v: Any):
 _DROP = object()
 
 
+#: The options of :func:`write_capture`, checked before any work.
+_WRITE_RULES = {"folder": rule(path_like, folder=True),
+                "bit_depth": rule(choice, choices=(8, 16, 32)), "overwrite": flag,
+                "image_format": rule(choice, choices=("png", "tiff", "tif")), "progress": flag}
+
+
 def _check_write_args(lf: Any, bit_depth: int, image_format: str) -> str:
     """Validate the arguments of :func:`write_capture`; the view files' suffix."""
     if not isinstance(lf, LightField):
         raise InvalidInputError(f"expected a LightField, got {type(lf).__name__}")
-    if bit_depth not in (8, 16, 32):
-        raise InvalidInputError(f"bit_depth must be 8, 16 or 32, got {bit_depth!r}")
     if lf.channels not in (1, 3):
         raise InvalidInputError(
             f"a capture holds monochrome or RGB views, got {lf.channels} channels per view"
         )
-    if image_format not in ("png", "tiff", "tif"):
-        raise InvalidInputError(f"image_format must be 'png' or 'tiff', got {image_format!r}")
     if bit_depth != 32:
         lo, hi = float(lf.views.min()), float(lf.views.max())
         if lo < 0 or hi > 1:
@@ -713,6 +716,8 @@ def write_capture(lightfield: LightField, folder: str | os.PathLike, *, bit_dept
     """
     import tomli_w
 
+    check_values(dict(folder=folder, bit_depth=bit_depth, overwrite=overwrite,
+                      image_format=image_format, progress=progress), _WRITE_RULES)
     ext = _check_write_args(lightfield, bit_depth, image_format)
     lf = lightfield
     root = Path(folder)

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .._atomic import atomic_path, atomic_write_text
+from .._options import choice, path_like, real_array
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
 from ..spectral import wavelengths_unknown
 
@@ -58,12 +59,14 @@ def write_envi(path_hdr_or_base: str | os.PathLike, cube, wavelengths=None,
     Path
         The header file.
     """
-    a = np.asarray(cube)
+    path_like(path_hdr_or_base)
+    choice(axes, "axes", ("auto", "bhw", "hwb"))
+    a = real_array(cube, "cube", None)
     if a.ndim != 3 or a.size == 0:
         raise InvalidInputError(f"an ENVI cube must be 3-D (B, H, W) or (H, W, B), got {a.shape}")
     if not np.issubdtype(a.dtype, np.number) or np.iscomplexobj(a):
         raise InvalidInputError(f"an ENVI cube must hold real numbers, got {a.dtype}")
-    wl = None if wavelengths is None else np.asarray(wavelengths, dtype=np.float64).ravel()
+    wl = None if wavelengths is None else real_array(wavelengths, "wavelengths").ravel()
     if wl is not None and wavelengths_unknown(wl):
         wl = None  # unknown (a cube completed without wavelengths): no wavelength line
     if axes == "auto":

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from .._atomic import atomic_path, publish
+from .._options import bool_mask, choice, index, integer, mapping, path_like, real_array, shown
 from ..errors import DataNotFoundError, FormatError, HyperLFError, InvalidInputError
 from ..lightfield import LightField
 from ..spectral import wavelengths_unknown
@@ -72,6 +73,7 @@ def _h5py():
 
 
 def _compression(compression):
+    choice(compression, "compression", (None, "none", False, "gzip", "lzf"))
     if compression in (None, "none", False):
         return {}
     if compression == "gzip":
@@ -336,6 +338,7 @@ def write_lightfield_h5(path: str | os.PathLike, lf: LightField,
     Path
     """
     h5py = _h5py()
+    path_like(path)
     if not isinstance(lf, LightField):
         raise InvalidInputError(f"expected a LightField, got {type(lf).__name__}")
     comp = _compression(compression)
@@ -466,12 +469,14 @@ def _valid_mask(p: Path, raw, shape):
 
 def _check_cube_args(shape, wavelengths):
     try:
-        shape = tuple(int(v) for v in shape)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"cube shape must be (R, C, B, H, W), got {shape!r}") from None
-    if len(shape) != 5 or min(shape) < 1:
-        raise InvalidInputError(f"cube shape must be 5 positive sizes (R, C, B, H, W), got {shape}")
-    wl = np.asarray(wavelengths, dtype=np.float64).ravel()
+        sizes = tuple(shape)
+    except TypeError:
+        sizes = ()
+    if len(sizes) != 5:
+        raise InvalidInputError(f"cube shape must be 5 positive sizes (R, C, B, H, W), got "
+                                f"{shown(shape)}")
+    shape = tuple(integer(v, "each size of the cube shape", 1) for v in sizes)
+    wl = real_array(wavelengths, "wavelengths").ravel()
     if wl.size != shape[2]:
         raise InvalidInputError(
             f"{wl.size} wavelengths given for a cube with {shape[2]} bands"
@@ -511,10 +516,10 @@ class CubeWriter:
 
     def __init__(self, path, shape, wavelengths, compression: str | None = "gzip",
                  metadata: dict | None = None):
-        self.path = Path(path)
+        self.path = Path(path_like(path))
         self.shape, self.wavelengths = _check_cube_args(shape, wavelengths)
         self._comp = _compression(compression)
-        self._metadata = dict(metadata or {})
+        self._metadata = dict(mapping(metadata, "metadata") or {})
         self._file = None
         self._tmp: Path | None = None
         self._written = np.zeros(self.shape[:2], dtype=bool)
@@ -547,18 +552,15 @@ class CubeWriter:
         if self._file is None:
             raise InvalidInputError("CubeWriter.write_view called outside its 'with' block")
         R, C, B, H, W = self.shape
-        if not (0 <= r < R and 0 <= c < C):
-            raise InvalidInputError(f"view ({r}, {c}) is outside the {R} x {C} grid")
-        a = np.asarray(cube_rc, dtype=np.float32)
+        r, c = index((r, c), "view (r, c)", (R, C))
+        a = real_array(cube_rc, f"view ({r}, {c}) cube", np.float32)
         if a.shape != (B, H, W):
             raise InvalidInputError(f"view ({r}, {c}) cube must have shape {(B, H, W)}, got {a.shape}")
         if not np.all(np.isfinite(a)):
             raise InvalidInputError(f"view ({r}, {c}) cube contains NaN or inf")
         write_images(self._file["cube"], (r, c), a)
         if mask_rc is not None:
-            m = np.asarray(mask_rc, dtype=bool)
-            if m.shape != (H, W):
-                raise InvalidInputError(f"view ({r}, {c}) mask must have shape {(H, W)}, got {m.shape}")
+            m = bool_mask(mask_rc, f"view ({r}, {c}) mask", (H, W), of="each view")
             if "mask" not in self._file:
                 _annotate(self._file.create_dataset("mask", shape=(R, C, H, W), dtype=bool,
                                                     chunks=(1, 1, H, W), fillvalue=True,
@@ -578,9 +580,8 @@ class CubeWriter:
                                                                             "wavelengths"):
             raise InvalidInputError(f"extra dataset name must be a new identifier, got {name!r}")
         R, C = self.shape[:2]
-        if not (0 <= r < R and 0 <= c < C):
-            raise InvalidInputError(f"view ({r}, {c}) is outside the {R} x {C} grid")
-        a = np.asarray(data)
+        r, c = index((r, c), "view (r, c)", (R, C))
+        a = real_array(data, f"/{name}", None)
         if name not in self._file:
             chunks = (1, 1) + (1,) * max(a.ndim - 2, 0) + a.shape[-2:] if a.ndim >= 2 else None
             _annotate(self._file.create_dataset(name, shape=(R, C) + a.shape, dtype=a.dtype,
@@ -644,12 +645,13 @@ def write_cube_h5(path: str | os.PathLike, cube, wavelengths, *, mask=None,
     -------
     Path
     """
-    a = np.asarray(cube)
+    path_like(path)
+    mapping(metadata, "metadata")
+    _compression(compression)
+    a = cube if isinstance(cube, np.ndarray) else real_array(cube, "cube", np.float32)
     shape, wl = _check_cube_args(a.shape, wavelengths)
     if mask is not None:
-        m = np.asarray(mask, dtype=bool)
-        if m.shape != shape[:2] + shape[3:]:
-            raise InvalidInputError(f"mask must have shape {shape[:2] + shape[3:]}, got {m.shape}")
+        m = bool_mask(mask, "mask", shape[:2] + shape[3:], of="the cube")
     with CubeWriter(path, shape, wl, compression=compression, metadata=metadata) as w:
         for r in range(shape[0]):
             for c in range(shape[1]):

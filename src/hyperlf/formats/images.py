@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from .._atomic import atomic_path
+from .._options import choice, path_like, real_array
 from ..errors import DataNotFoundError, FormatError, HyperLFError, InvalidInputError
 
 __all__ = ["read_image", "read_images_same_size", "write_image", "to_grey", "REC709_WEIGHTS"]
@@ -335,21 +336,22 @@ def write_image(path: str | os.PathLike, array, bit_depth: int = 16) -> Path:
         bits. Integer data (uint8 / uint16) is written verbatim in its own dtype and
         ``bit_depth`` is ignored, so integer images round-trip exactly.
     bit_depth : {8, 16, 32}
-        Bits per sample for float input. 32 writes float32 samples unchanged (no clipping);
-        only TIFF supports it.
+        Bits per sample for float input (checked for any input). 32 writes float32 samples
+        unchanged (no clipping); only TIFF supports it.
 
     Returns
     -------
     Path
         The written file.
     """
-    p = Path(path)
+    p = Path(path_like(path))
     ext = p.suffix.lower()
     if ext not in _WRITABLE:
         raise InvalidInputError(
             f"cannot write {p}: supported image formats are .png, .tif and .tiff"
         )
-    arr = np.asarray(array)
+    choice(bit_depth, "bit_depth", (8, 16, 32))
+    arr = real_array(array, "array", None)
     if arr.ndim == 3 and arr.shape[2] == 1:
         arr = arr[..., 0]
     if arr.ndim not in (2, 3) or (arr.ndim == 3 and arr.shape[2] != 3) or arr.size == 0:

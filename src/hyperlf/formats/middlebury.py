@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .._atomic import atomic_write_text
+from .._options import mapping, number, path_like, real_array
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
 from .images import read_image, write_image
 
@@ -210,12 +211,12 @@ def write_middlebury(folder: str | os.PathLike, pair: StereoPair) -> Path:
     InvalidInputError
         When the scaled ground truth does not fit into 1..255.
     """
-    root = Path(folder)
-    root.mkdir(parents=True, exist_ok=True)
-    s = float(pair.scale)
-    if not (math.isfinite(s) and s > 0):
-        raise InvalidInputError(f"pair.scale must be positive, got {pair.scale}")
-    gt = np.asarray(pair.gt_disparity, dtype=np.float64)
+    root = Path(path_like(folder, "folder", folder=True))
+    if not isinstance(pair, StereoPair):
+        raise InvalidInputError(f"pair must be a StereoPair, got {type(pair).__name__}")
+    s = number(pair.scale, "pair.scale", positive=True)
+    gt = real_array(pair.gt_disparity, "pair.gt_disparity")
+    mapping(pair.masks, "pair.masks", optional=False)
     known = np.isfinite(gt)
     q = np.zeros(gt.shape, dtype=np.float64)
     q[known] = np.rint(gt[known] * s)
@@ -224,6 +225,7 @@ def write_middlebury(folder: str | os.PathLike, pair: StereoPair) -> Path:
             f"ground truth times scale {s:g} must lie in 1..255 to fit an 8-bit PNG "
             "(0 means unknown); choose a smaller scale"
         )
+    root.mkdir(parents=True, exist_ok=True)
     write_image(root / "imL.png", np.asarray(pair.left), bit_depth=8)
     write_image(root / "imR.png", np.asarray(pair.right), bit_depth=8)
     write_image(root / "groundtruth.png", q.astype(np.uint8))

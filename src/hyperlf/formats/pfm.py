@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from .._atomic import atomic_path
+from .._options import path_like, real, real_array
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
 
 __all__ = ["read_pfm", "write_pfm", "describe_pfm"]
@@ -122,7 +123,8 @@ def write_pfm(path: str | os.PathLike, array, scale: float = -1.0) -> Path:
     Path
         The written file.
     """
-    arr = np.asarray(array)
+    path_like(path)
+    arr = real_array(array, "array", None)
     if arr.ndim == 3 and arr.shape[2] == 1:
         arr = arr[..., 0]
     if arr.ndim not in (2, 3) or (arr.ndim == 3 and arr.shape[2] != 3) or arr.size == 0:
@@ -131,13 +133,14 @@ def write_pfm(path: str | os.PathLike, array, scale: float = -1.0) -> Path:
         )
     if not np.issubdtype(arr.dtype, np.number) or np.iscomplexobj(arr):
         raise InvalidInputError(f"a PFM holds real numbers; got dtype {arr.dtype}")
-    scale = float(scale)
-    if not np.isfinite(scale) or scale == 0:
-        raise InvalidInputError(f"PFM scale must be a finite non-zero number, got {scale}")
+    scale = real(scale, "PFM scale")
+    if scale == 0:
+        raise InvalidInputError("PFM scale must be a finite non-zero number, got 0")
     h, w = arr.shape[:2]
     ident = "PF" if arr.ndim == 3 else "Pf"
     dtype = np.dtype("<f4") if scale < 0 else np.dtype(">f4")
-    body = np.ascontiguousarray(np.flipud(arr).astype(dtype)).tobytes()
+    with np.errstate(over="ignore"):  # beyond float32: inf, which PFM stores verbatim
+        body = np.ascontiguousarray(np.flipud(arr).astype(dtype)).tobytes()
     header = f"{ident}\n{w} {h}\n{scale:g}\n".encode("ascii")
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as fh:

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .._atomic import atomic_path
+from .._options import mapping, path_like, real_array, shown
 from ..errors import FormatError, InvalidInputError
 
 __all__ = ["write_ply", "read_ply", "read_ply_properties", "describe_ply"]
@@ -42,7 +43,7 @@ def write_ply(path: str | os.PathLike, points: np.ndarray, colours: np.ndarray |
         order, e.g. ``{"confidence": c}``. Names are PLY words: letters, digits and ``_``,
         not starting with a digit, other than the position and colour names.
     comment : str, optional
-        One line stored in the header (e.g. the unit).
+        One line of ASCII text stored in the header (e.g. the unit).
 
     Returns
     -------
@@ -58,12 +59,16 @@ def write_ply(path: str | os.PathLike, points: np.ndarray, colours: np.ndarray |
     >>> read_ply_properties(p)["confidence"].tolist()
     [0.5, 1.0]
     """
-    pts = np.asarray(points, dtype=np.float32)
+    path_like(path)
+    mapping(scalars, "scalars")
+    if comment is not None and not (isinstance(comment, str) and comment.isascii()):
+        raise InvalidInputError(f"comment must be ASCII text or None, got {shown(comment)}")
+    pts = real_array(points, "points", np.float32)
     if pts.ndim != 2 or pts.shape[1] != 3:
         raise InvalidInputError(f"points must be (N, 3), got {pts.shape}")
     fields = list(_XYZ)
     if colours is not None:
-        col = np.asarray(colours)
+        col = real_array(colours, "colours", None)
         if col.shape != pts.shape or col.dtype != np.uint8:
             raise InvalidInputError(f"colours must be uint8 of shape {pts.shape}, got "
                                     f"{col.dtype} {col.shape}")
@@ -98,7 +103,7 @@ def _checked_scalars(scalars, n: int) -> dict[str, np.ndarray]:
                 or name in taken:
             raise InvalidInputError(f"PLY property name {name!r} must be a word of letters, "
                                     "digits and _ other than x, y, z, red, green, blue")
-        arr = np.asarray(values, dtype=np.float32)
+        arr = real_array(values, f"PLY property {name!r}", np.float32)
         if arr.shape != (n,):
             raise InvalidInputError(f"PLY property {name!r} must have shape ({n},), got "
                                     f"{arr.shape}")
