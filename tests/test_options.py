@@ -86,7 +86,7 @@ def test_the_defaults_are_kept_as_they_are_written(cls):
     ("plane_max_slope", 0.0, "params.plane_max_slope must be a finite number in (0, 1]"),
     ("texture_snr", 0.5, "params.texture_snr must be None, 0 (off) or > 1"),
     ("lambda_r", "per_view", "params.lambda_r must be None, 'per_label', 'per_pixel' or"),
-    ("median_passes", 0, "params.median_passes must be 'auto' or an integer >= 1, got 0"),
+    ("median_passes", 0, "params.median_passes must be 'auto' or an integer in 1..50, got 0"),
     ("tile_rows", 100, "params.tile_rows must be a multiple of 32, got 100"),
     ("refine", 1, "params.refine must be True or False, got 1"),
     ("missing_views", ["average"], "params.missing_views must be one of average, neutral"),
@@ -211,7 +211,7 @@ def test_parameter_objects_and_output_paths_are_refused_in_one_line(tmp_path):
     lf = synthesis.procedural_scene(seed=1, rows=2, cols=2, height=12, width=12,
                                     disparity_range=(-1.0, 1.0))
     for bad in ("", tmp_path):
-        with pytest.raises(InvalidInputError, match="^out_path must name a file"):
+        with pytest.raises(InvalidInputError, match="^out_path must be a file to write"):
             completion.complete(lf, lf.gt_disparity[lf.reference], out_path=bad)
 
 
@@ -321,6 +321,65 @@ def test_completion_stages_take_any_option_or_refuse_it_in_one_line(option, valu
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # an overflow on the way is a failure too
         _build_or_refuse(_completion_stage_calls()[name][1], **{keyword: value})
+
+
+@functools.lru_cache(maxsize=1)
+def _matching_calls():
+    """The pair costs with their constants, two-view stereo on given volumes, and the H-LF
+    depth's checks (:func:`hlf.prepare`; ``save_intermediate`` and ``progress`` through
+    :func:`hlf.depth`), as :func:`_render_calls`."""
+    from hyperlf import costs, hlf, synthesis, twoview
+
+    img = np.random.default_rng(0).random((12, 16)) + 0.5
+    vol = costs.cost_volume(img, img, 0, 3, metric="census")
+    lf = synthesis.procedural_scene(seed=1, rows=2, cols=2, height=12, width=12,
+                                    disparity_range=(-1.0, 1.0))
+    pair = {"left": img, "right": img, "dmin": 0, "dmax": 3}
+    calls = {
+        "ncc_volume": (costs.ncc_volume, pair),
+        "rsncc_volume": (costs.rsncc_volume, pair),
+        "bwncc_volume": (costs.bwncc_volume, pair),
+        "fused_volume": (costs.fused_volume, pair),
+        "census_rsncc_volume": (costs.census_rsncc_volume, pair),
+        "cost_volume": (costs.cost_volume, {**pair, "metric": "census"}),
+        "cost_volumes": (costs.cost_volumes, {**pair, "metric": "ncc"}),
+        "compute_volumes": (twoview.compute_volumes, {**pair, "metric": "ncc"}),
+        "stereo_from_volumes": (twoview.stereo_from_volumes,
+                                {"cost_left": vol, "cost_right": vol, "dmin": 0,
+                                 "guide_left": img}),
+        "prepare": (hlf.prepare, {"lf": lf, "n_labels": 4}),
+    }
+    out = {name: (f, lambda f=f, base=base, **kw: f(**{**base, **kw}))
+           for name, (f, base) in calls.items()}
+    out["depth"] = (hlf.depth, lambda **kw: hlf.depth(lf, n_labels=4, **kw))
+    return out
+
+
+_MATCHING_OPTIONS = [(name, p) for name, (f, _) in _matching_calls().items()
+                     for p in _keywords(f, leave=("lf", "params", "metric", "view_selection",
+                                                  "occlusion_split", "disparity_range",
+                                                  "bwncc_params", "rsncc_params"))
+                     if name != "depth" or p in ("save_intermediate", "progress")]
+
+
+@settings(max_examples=300, deadline=None, derandomize=True)
+@given(st.sampled_from(_MATCHING_OPTIONS), JUNK)
+def test_costs_stereo_and_depth_take_any_option_or_refuse_it_in_one_line(option, value):
+    """The pair costs' constants (``tau_rel='x'``, ``rs_tau=1e300``: infinite costs,
+    ``eps=0``, ``block=nan``, ``timings=2.5``), their disparity bounds (``dmax=1e300``: numpy's
+    "Maximum allowed size exceeded"), ``stereo_from_volumes``' ``dmin`` and volumes, and the
+    depth's ``n_labels=1e300``, ``defocus`` / ``optimizer`` as arrays and its flags (some 260
+    failing cases in the forty-fourth session's survey). The memory available is taken as
+    256 MiB. Overflow warnings count as failures."""
+    import warnings
+
+    from hyperlf import tiling
+
+    name, keyword = option
+    with pytest.MonkeyPatch.context() as mp, warnings.catch_warnings():
+        warnings.simplefilter("error")
+        mp.setattr(tiling, "available_memory", lambda: 2 ** 28)
+        _build_or_refuse(_matching_calls()[name][1], **{keyword: value})
 
 
 def test_indices_and_fill_values():

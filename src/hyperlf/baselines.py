@@ -147,7 +147,7 @@ from typing import Any, Callable
 import numpy as np
 
 from . import regularisers as _reg
-from ._options import integer, number
+from ._options import check_values, choice, flag, integer, number, rule, word_or
 from ._progress import progress_bar
 from .errors import InvalidInputError
 from .lightfield import LightField, resolve_disparity_range
@@ -204,6 +204,44 @@ DEFAULTS: dict[str, dict[str, Any]] = {
 
 _LUMA = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
 
+#: Largest window, radius, offset or sigma in px; largest weight, threshold or exponent; most
+#: iterations or cycles. Beyond them nothing changes that the result can show, and near the
+#: largest floats the arithmetic overflows or the loops never end.
+MAX_PX, MAX_CONSTANT, MAX_ITERATIONS = 1000, 1e6, 100
+
+_px = rule(number, at_most=MAX_PX)
+_weight = rule(number, at_most=MAX_CONSTANT)
+_sigma = rule(number, at_least=1e-6, at_most=MAX_CONSTANT)
+_window = rule(integer, minimum=1, maximum=MAX_PX, odd=True)
+_count = rule(integer, minimum=0, maximum=MAX_ITERATIONS)
+
+#: Every parameter's rule per method (checked by :func:`_merge` before any work; the methods'
+#: own checks below keep their canonical types).
+_RULES: dict[str, dict[str, Callable]] = {
+    "tao2013": dict(window=_window, defocus_operator=rule(choice, choices=("laplacian",
+                                                                           "gradient_x")),
+                    conf_exponent_corr=_weight, conf_exponent_defocus=_weight,
+                    lambda_flat=_weight, lambda_smooth=_weight, irls_iterations=_count,
+                    irls_epsilon=rule(number, positive=True, at_most=MAX_CONSTANT),
+                    conf_percentile=rule(number, positive=True, at_most=100)),
+    "wang2015": dict(band_radius=_px, orientation_window=_window, split_margin=_weight,
+                     consistency_offset=_px, consistency_threshold=_weight,
+                     inconsistent_cost=_weight, refocus_weight=_weight,
+                     bilateral_radius=rule(integer, maximum=MAX_PX), bilateral_sigma=_sigma,
+                     canny_sigma=_px, canny_non_edge=rule(number, positive=True, below=1),
+                     canny_low_ratio=rule(number, positive=True, at_most=1),
+                     canny_weight=_weight, occlusion_weight=_weight, smooth_weight=_weight,
+                     max_cycles=_count, median=rule(integer, maximum=MAX_PX)),
+    "lin2015": dict(window=_window, symmetry_span=rule(number, positive=True, at_most=MAX_PX),
+                    tau=rule(number, positive=True, at_most=MAX_CONSTANT),
+                    data_weight=_weight, smooth_weight=_weight,
+                    truncation=word_or(rule(number, positive=True, at_most=MAX_CONSTANT),
+                                       (None,), f"None or a number in (0, {MAX_CONSTANT:g}]"),
+                    edge_sigma=word_or(_sigma, (None,),
+                                       f"None or a number in [1e-06, {MAX_CONSTANT:g}]"),
+                    max_cycles=_count),
+}
+
 
 # ----------------------------------------------------------------------------------------------
 # shared helpers
@@ -235,6 +273,8 @@ def prepare_views(lf: LightField) -> np.ndarray:
         Monochrome views as they are; Rec. 709 luma (float32) of 3-channel views, the channel
         mean (float32) of others.
     """
+    if not isinstance(lf, LightField):
+        raise InvalidInputError(f"expected a hyperlf.LightField, got {type(lf).__name__}")
     v = lf.views
     if v.ndim == 4:
         return v
@@ -263,7 +303,12 @@ def label_disparities(lf: LightField, n_labels, disparity_range=None) -> np.ndar
     InvalidInputError
         When ``n_labels`` is not an integer >= 3.
     """
+    from .tiling import check_memory
+
+    lf = _check_lf(lf)
     n_labels = integer(n_labels, "n_labels", 3)
+    check_memory(4.0 * n_labels * np.prod(lf.image_shape), f"{n_labels} labels on "
+                 f"{lf.image_shape[1]} x {lf.image_shape[0]} px views", "use fewer labels")
     dmin, dmax = resolve_disparity_range(lf, disparity_range)
     return np.linspace(dmin, dmax, n_labels)
 
@@ -276,6 +321,7 @@ def _merge(method: str, params: dict) -> dict:
             f"unknown parameter(s) for {method}: {', '.join(unknown)}; "
             f"allowed: {', '.join(sorted(p))}")
     p.update(params)
+    check_values(p, _RULES[method])
     return p
 
 
@@ -393,6 +439,7 @@ def _start(method: str, lf, n_labels, disparity_range, params: dict, progress: b
     views to intensities (module docstring, "Common conventions")."""
     t0 = time.perf_counter()
     lf = _check_lf(lf)
+    progress = flag(progress, "progress")
     labels = label_disparities(lf, n_labels, disparity_range)
     p = _PARAMS[method](params)
     views = prepare_views(lf)

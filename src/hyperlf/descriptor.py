@@ -607,8 +607,7 @@ def descriptor(image, params: DescriptorParams | None = None, channels=None, imp
     >>> h1.shape, bool(np.allclose(h1.sum(axis=0), 1.0, atol=1e-5))  # each histogram sums to 1
     ((68, 16, 20), True)
     """
-    if impl not in _IMPLS:
-        raise InvalidInputError(f"impl must be one of {_IMPLS}, got {impl!r}")
+    choice(impl, "impl", _IMPLS)
     prep = prepare(image, params)
     if impl == "numpy":
         return descriptor_reference(prep, channels=channels, weighted=weighted)

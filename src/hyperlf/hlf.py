@@ -174,6 +174,7 @@ from .costs import (DENSE_VIEWS, ROW_BLOCK, AggregationParams, aggregate_volume,
 from .imageops import fill_masked, gradient_magnitude, normalise_intensity
 from .warp import shift_map
 from .errors import InvalidInputError
+from .tiling import check_memory
 from . import regularisers as _reg
 
 __all__ = [
@@ -248,6 +249,10 @@ CAMERA_TEXTURE_SNR = 2.0
 
 _rule = _opt.rule
 _number, _count, _flag = _opt.number, _opt.integer, _opt.flag
+
+#: Most passes of the guided median (``median_passes``, :func:`post_filter`): each moves an
+#: edge by at most a radius; far beyond the image's size in passes the loop would only spin.
+MAX_MEDIAN_PASSES = 50
 _positive = _rule(_opt.number, positive=True)
 
 
@@ -331,8 +336,8 @@ _DEPTH_RULES = {
     "texture_snr": _texture_snr,
     "lambda_r": _opt.word_or(_positive, (None, "per_label", "per_pixel"),
                              "None, 'per_label', 'per_pixel' or a finite number > 0"),
-    "median_passes": _opt.word_or(_rule(_opt.integer, minimum=1), ("auto",),
-                                  "'auto' or an integer >= 1"),
+    "median_passes": _opt.word_or(_rule(_opt.integer, minimum=1, maximum=MAX_MEDIAN_PASSES),
+                                  ("auto",), f"'auto' or an integer in 1..{MAX_MEDIAN_PASSES}"),
 }
 
 
@@ -1075,12 +1080,6 @@ def _mrf_params(optimizer: str, params: DepthParams, step: float):
     return _reg.make_params(optimizer, settings[optimizer])
 
 
-def _check_bool(name, v):
-    if not isinstance(v, (bool, np.bool_)):
-        raise InvalidInputError(f"{name} must be True or False, got {v!r}")
-    return bool(v)
-
-
 @dataclass
 class DepthProblem:
     """Everything the stages of :func:`depth` share, built once by :func:`prepare`.
@@ -1186,12 +1185,10 @@ def _check_depth_options(lf, metric, view_selection, occlusion_split, defocus, o
     params = DepthParams() if params is None else params
     if not isinstance(params, DepthParams):
         raise InvalidInputError(f"params must be a DepthParams, got {type(params).__name__}")
-    view_selection = _check_bool("view_selection", view_selection)
-    occlusion_split = _check_bool("occlusion_split", occlusion_split)
-    if defocus not in DEFOCUS_MODES:
-        raise InvalidInputError(f"defocus must be one of {DEFOCUS_MODES}, got {defocus!r}")
-    if optimizer not in OPTIMIZERS:
-        raise InvalidInputError(f"optimizer must be one of {OPTIMIZERS}, got {optimizer!r}")
+    view_selection = _opt.flag(view_selection, "view_selection")
+    occlusion_split = _opt.flag(occlusion_split, "occlusion_split")
+    _opt.choice(defocus, "defocus", DEFOCUS_MODES)
+    _opt.choice(optimizer, "optimizer", OPTIMIZERS)
     mname = get_cost(metric, light_field=True).name
     if params.fusion_weights is not None:
         try:
@@ -1299,6 +1296,9 @@ def prepare(lf, *, disparity_range=None, n_labels: int = 64, metric: str = "auto
     mname, view_selection, occlusion_split, params = _check_depth_options(
         lf, metric, view_selection, occlusion_split, defocus, optimizer, params)
     dmin, dmax = resolve_disparity_range(lf, disparity_range)
+    n_labels = _opt.integer(n_labels, "n_labels", 2)
+    check_memory(4.0 * n_labels * np.prod(lf.image_shape), f"{n_labels} labels on "
+                 f"{lf.image_shape[1]} x {lf.image_shape[0]} px views", "use fewer labels")
     labels = make_labels(dmin, dmax, n_labels)
     R, Cc = lf.grid_shape
     ref = lf.reference
@@ -2145,6 +2145,9 @@ def post_filter(disparity: np.ndarray, guide: np.ndarray, params: DepthParams, *
     beyond the image's longer side is taken as that side (a window over the whole image)."""
     from .regularisers import weighted_median
 
+    params = _opt.params_of(params, "params", DepthParams)
+    if passes is not None:
+        passes = _opt.integer(passes, "passes", maximum=MAX_MEDIAN_PASSES)
     if params.median_radius <= 0:
         return disparity
     radius = min(int(params.median_radius), max(disparity.shape))
@@ -2335,6 +2338,9 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
     timings: dict[str, float] = {}
     clock = _Clock(timings)
     t0 = clock.t
+    save_intermediate = _opt.flag(save_intermediate, "save_intermediate")
+    if not isinstance(progress, str):
+        progress = _opt.flag(progress, "progress (True, False or a bar's description)")
     prob = prepare(lf, disparity_range=disparity_range, n_labels=n_labels, metric=metric,
                    view_selection=view_selection, occlusion_split=occlusion_split,
                    defocus=defocus, optimizer=optimizer, params=params)

@@ -32,6 +32,7 @@ import math
 import os
 import re
 
+from . import _options as _opt
 from .errors import InvalidInputError
 
 __all__ = [
@@ -149,7 +150,8 @@ def row_strips(height: int, rows: int) -> list[tuple[int, int]]:
     last one shorter) covering ``height`` rows in order."""
     from .costs import ROW_BLOCK
 
-    rows = int(rows)
+    height = _opt.integer(height, "height", maximum=2 ** 31)
+    rows = _opt.integer(rows, "rows", maximum=2 ** 31)
     if rows < ROW_BLOCK or rows % ROW_BLOCK:
         raise InvalidInputError(f"strips must be a positive multiple of {ROW_BLOCK} rows, got {rows}")
     return [(a, min(a + rows, height)) for a in range(0, height, rows)]

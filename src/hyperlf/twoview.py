@@ -79,7 +79,7 @@ import numpy as np
 
 from . import costs as _costs
 from . import regularisers as _reg
-from ._options import mapping, params_of, shown
+from ._options import flag, integer, mapping, params_of, real_array, shown
 from .errors import InvalidInputError
 
 __all__ = [
@@ -439,7 +439,10 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
     name = _costs.resolve_metric(metric)
     p = _merge_params(name, optimizer, params)
     opt = _reg.make_params(optimizer, p)
-    cl = np.asarray(cost_left, dtype=np.float32)
+    dmin = integer(dmin, "dmin", minimum=-(2 ** 31), maximum=2 ** 31)
+    subpixel, overwrite = flag(subpixel, "subpixel"), flag(overwrite, "overwrite")
+    progress = flag(progress, "progress")
+    cl = real_array(cost_left, "cost_left", np.float32)
     if cl.ndim != 3:
         raise InvalidInputError(f"cost_left must be (L, H, W), got {cl.shape}")
     Lc = cl.shape[0]
@@ -458,7 +461,7 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
         if occlusion == "lr-plane" and guide_left is None:
             raise InvalidInputError("occlusion='lr-plane' needs guide_left (the left image): "
                                     "pass it, or use occlusion='lr-fill'")
-        cr = np.asarray(cost_right, dtype=np.float32)
+        cr = real_array(cost_right, "cost_right", np.float32)
         if cr.shape != cl.shape:
             raise InvalidInputError(f"cost_right shape {cr.shape} != cost_left shape {cl.shape}")
         DR = _reg.data_term(cr, overwrite=overwrite)

@@ -13,9 +13,19 @@ from .board import camera_label
 __all__ = ["check_grid", "check_images", "grid_keys"]
 
 
+#: The most cameras an array may have (the paper's has 30; a grid of millions is a typo).
+MAX_CAMERAS = 4096
+
+
 def grid_keys(rows: int, cols: int) -> list:
-    """``(row, col)`` of every camera of an ``rows x cols`` grid, raster order."""
-    return [(r, c) for r in range(rows) for c in range(cols)]
+    """``(row, col)`` of every camera of an ``rows x cols`` grid, raster order; at most
+    :data:`MAX_CAMERAS` cameras."""
+    R = _opt.integer(rows, "rows", minimum=1, maximum=MAX_CAMERAS)
+    C = _opt.integer(cols, "cols", minimum=1, maximum=MAX_CAMERAS)
+    if R * C > MAX_CAMERAS:
+        raise InvalidInputError(f"a grid of {R} x {C} = {R * C} cameras is more than the "
+                                f"{MAX_CAMERAS} hyperlf handles")
+    return [(r, c) for r in range(R) for c in range(C)]
 
 
 def check_grid(keys, reference=None) -> tuple[tuple[int, int], tuple[int, int]]:

@@ -19,6 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._options import check_values, integer, number, real_array, rule
+from ..errors import InvalidInputError
+
 __all__ = ["feature_image", "select_points", "match_flows", "factor_rank1", "Rank1",
            "hub_camera", "measured_disparity_range"]
 
@@ -50,11 +53,18 @@ def select_points(image: np.ndarray, allowed: np.ndarray, *, spacing: int,
     """Well-textured points ``(N, 2)`` (``x, y``) inside ``allowed`` (Shi-Tomasi corners)."""
     import cv2
 
-    img = np.asarray(image, np.float32)
+    img = real_array(image, "image", np.float32)
+    ok = real_array(allowed, "allowed", np.float32)
+    if img.ndim != 2 or ok.shape != img.shape or not np.isfinite(img).all():
+        raise InvalidInputError(f"image must be a finite 2-D image and allowed a mask of its "
+                                f"shape, got shapes {img.shape} and {ok.shape}")
+    spacing = integer(spacing, "spacing", minimum=1, maximum=max(img.shape))  # a huge one
+    max_points = integer(max_points, "max_points", minimum=1, maximum=10 ** 6)  # crashed cv2
     lo, hi = np.percentile(img, [1, 99])
     img8 = np.clip((img - lo) / max(hi - lo, 1e-6) * 255, 0, 255).astype(np.uint8)
     pts = cv2.goodFeaturesToTrack(img8, maxCorners=max_points, qualityLevel=0.005,
-                                  minDistance=max(3, spacing), mask=allowed.astype(np.uint8),
+                                  minDistance=max(3, spacing),
+                                  mask=np.asarray(allowed).astype(np.uint8),
                                   blockSize=5)
     return np.zeros((0, 2)) if pts is None else pts.reshape(-1, 2).astype(np.float64)
 
@@ -208,6 +218,16 @@ def _ransac_offsets(F: np.ndarray, w: np.ndarray, tol: float, trials: int,
     return best
 
 
+#: How :func:`factor_rank1` checks its options: the rounds and trials are loops (``1e300``
+#: never ended), the tolerances px.
+_RANK1_RULES = {
+    "min_views": rule(integer, minimum=1, maximum=10 ** 6),
+    "floor": rule(number, positive=True, at_most=1e6),
+    "rounds": rule(integer, maximum=1000), "tol": rule(number, positive=True, at_most=1e6),
+    "trials": rule(integer, minimum=1, maximum=10 ** 6), "seed": rule(integer, maximum=2 ** 63),
+}
+
+
 def factor_rank1(flows: np.ndarray, *, min_views: int = 2, floor: float = 0.25,
                  rounds: int = 5, tol: float = 1.0, trials: int = 200, seed: int = 0) -> Rank1:
     """Robust rank-1 factorisation of measured flows ``(V, N, 2)`` (NaN = not measured).
@@ -228,7 +248,13 @@ def factor_rank1(flows: np.ndarray, *, min_views: int = 2, floor: float = 0.25,
     >>> bool(np.allclose(fac.offsets / fac.offsets[0, 0], o))
     True
     """
-    F = np.asarray(flows, np.float64)
+    F = real_array(flows, "flows")
+    if F.ndim != 3 or F.shape[-1] != 2:
+        raise InvalidInputError(f"flows must be (V, N, 2), got shape {F.shape}")
+    o = check_values(dict(min_views=min_views, floor=floor, rounds=rounds, tol=tol,
+                          trials=trials, seed=seed), _RANK1_RULES)
+    min_views, floor, rounds, tol, trials = (o[k] for k in ("min_views", "floor", "rounds",
+                                                            "tol", "trials"))
     w = np.all(np.isfinite(F), axis=-1)
     V, N = w.shape
     o = _ransac_offsets(F, w, tol, trials, seed)

@@ -17,14 +17,13 @@ import numpy as np
 
 from .._paths import leads_outside
 from ..errors import DataNotFoundError, InvalidInputError
+from .grid import MAX_CAMERAS
 
 __all__ = ["camera_files", "beyond_grid", "pose_folders", "read_camera_images", "read_poses",
            "read_raw_image", "sensor_bits", "RawScale", "SENSOR_BITS"]
 
 _FIELDS = ("index", "row", "col")
 
-#: The most cameras an array may have (the paper's has 30; a grid of millions is a typo).
-MAX_CAMERAS = 4096
 
 
 def _check_pattern(pattern: str) -> None:

@@ -27,6 +27,7 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from .board import BoardSpec
+from .grid import grid_keys
 
 __all__ = ["RigCamera", "Panel", "BoardPose", "SyntheticRig", "make_rig", "rotation_matrix"]
 
@@ -441,12 +442,12 @@ def make_rig(rows: int = 3, cols: int = 3, *, seed: int = 0,
     >>> rig.grid, rig.reference, len(rig.cameras)
     ((3, 3), (1, 1), 9)
     """
-    if rows < 1 or cols < 1 or rows * cols < 2:
+    keys = grid_keys(rows, cols)
+    if len(keys) < 2:
         raise InvalidInputError(f"a rig needs at least two cameras, got {rows} x {cols}")
     board = board or BoardSpec(8, 6, 20.0)
     rng = np.random.default_rng(seed)
     ref = ((rows - 1) // 2, (cols - 1) // 2)
-    keys = [(r, c) for r in range(rows) for c in range(cols)]
     dist = imperfect if distortion is None else distortion
     cams = {k: _camera(rng, k, ref, baseline, focal, image_size, len(keys), i, set(inverted),
                        imperfect, dist) for i, k in enumerate(keys)}

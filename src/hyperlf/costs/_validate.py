@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._options import choice, window
+from .._options import choice, integer, shown, window
 from ..errors import InvalidInputError
 
 __all__ = ["IMPLS", "AUTO_IMPL", "check_pair", "check_disp", "check_window", "check_impl"]
@@ -35,16 +35,23 @@ def check_pair(left, right) -> tuple[np.ndarray, np.ndarray]:
     return L, R
 
 
-def check_disp(dmin, dmax) -> tuple[int, int]:
-    """Integer ``dmin <= dmax``."""
+def check_disp(dmin, dmax, shape=None) -> tuple[int, int]:
+    """Integer ``dmin <= dmax``; with the images' ``shape`` ``(H, W)``, a float32 volume of
+    ``dmax - dmin + 1`` labels that fits in the memory available
+    (:func:`hyperlf.tiling.check_memory`)."""
     try:
-        a, b = int(dmin), int(dmax)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"dmin and dmax must be integers, got {dmin!r}, {dmax!r}")
-    if a != dmin or b != dmax:
-        raise InvalidInputError(f"dmin and dmax must be integers, got {dmin!r}, {dmax!r}")
+        a, b = (integer(v, "d", minimum=-(2 ** 62), maximum=2 ** 62) for v in (dmin, dmax))
+    except InvalidInputError:
+        raise InvalidInputError(f"dmin and dmax must be integers, got {shown(dmin)}, "
+                                f"{shown(dmax)}") from None
     if b < a:
         raise InvalidInputError(f"dmax must be >= dmin, got dmin={a}, dmax={b}")
+    if shape is not None:
+        from ..tiling import check_memory
+
+        check_memory(4 * (b - a + 1) * int(np.prod(shape[-2:])),
+                     f"a cost volume of {b - a + 1} disparities",
+                     "narrow dmin..dmax to the disparities the scene has")
     return a, b
 
 

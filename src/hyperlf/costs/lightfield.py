@@ -52,7 +52,8 @@ from ..imageops import fill_masked, gradient_magnitude, normalise_intensity
 from ..warp import axis_taps, axis_valid, shift_map
 from .pair import (bwncc_finish, census_transform, channel_stats, fill_out_of_image, inv_sigma,
                    pad_replicate, rsncc_rho, window_stats)
-from ._validate import check_impl
+from ._validate import check_impl, check_window
+from .pair import _constants
 
 __all__ = [
     "view_costs",
@@ -166,6 +167,36 @@ def _xi_terms(ref: _RefBlock, B: np.ndarray, centre_b, tauB, sx, sy, weighted=Tr
     return oF.sum(axis=0), oB.sum(axis=0), oM.sum(axis=0)
 
 
+#: Widest cost window the per-view evaluators take on views narrower than it (a window wider
+#: than the view makes every column a border column; a huge one only pads memory away).
+MAX_VIEW_WINDOW = 255
+
+
+def _check_view_args(ref_img, img, shifts, window=None, **constants) -> None:
+    """Refuse, before the kernels read them, two views that are not 2-D images of one shape,
+    shifts that are not finite ``(sx, sy)`` pairs, a window beyond the views (or
+    :data:`MAX_VIEW_WINDOW`), and bad cost
+    constants (:data:`hyperlf.costs.pair._COST_RULES`): mismatched shapes crashed the
+    interpreter in numba's kernels."""
+    from ..errors import InvalidInputError
+
+    a, b = np.shape(ref_img), np.shape(img)
+    if len(a) != 2 or a != b or 0 in a:
+        raise InvalidInputError(f"ref_img and img must be 2-D images of one shape, got shapes "
+                                f"{a} and {b}")
+    if not all(np.issubdtype(np.asarray(x).dtype, np.number) for x in (ref_img, img)):
+        raise InvalidInputError("ref_img and img must be numeric arrays")
+    try:
+        sh = np.asarray(shifts, np.float64)
+    except (TypeError, ValueError):
+        sh = np.empty(0)
+    if sh.ndim != 2 or sh.shape[1] != 2 or not np.isfinite(sh).all():
+        raise InvalidInputError("shifts must be finite (sx, sy) pairs, shape (L, 2)")
+    if window is not None:  # wider than a small view is fine: every column a border column
+        check_window(window, side=max(max(a), MAX_VIEW_WINDOW // 2))
+    _constants(**constants)
+
+
 def ncc_view_volume(ref_img, img, shifts, window: int = 5, tau_rel: float = 1e-5, *,
                     rows=None) -> np.ndarray:
     """``1 - NCC`` of the intensities ``I / mean(I)`` at each shift, float32 ``(L, H, W)``.
@@ -183,6 +214,7 @@ def ncc_view_volume(ref_img, img, shifts, window: int = 5, tau_rel: float = 1e-5
     rows : (int, int), optional
         Only the reference rows ``a .. b - 1`` (``(L, b - a, W)``; :func:`view_costs`).
     """
+    _check_view_args(ref_img, img, shifts, window, tau_rel=tau_rel)
     L = len(shifts)
     H, W = ref_img.shape
     a, b = (0, H) if rows is None else rows
@@ -209,6 +241,7 @@ def rsncc_view_volume(ref_img, img, shifts, window: int = 5, tau_rel: float = 1e
     :func:`ncc_view_volume`; ``impl``: of ``rho`` (:func:`hyperlf.costs.pair.rsncc_rho`);
     float32 ``(L, H, W)``.
     """
+    _check_view_args(ref_img, img, shifts, window, tau_rel=tau_rel, rs_tau=rs_tau)
     L = len(shifts)
     H, W = ref_img.shape
     a_, b_ = (0, H) if rows is None else rows
@@ -234,6 +267,7 @@ def census_view_volume(ref_img, img, shifts, window: int = 7, impl: str = "numba
     :func:`hyperlf.costs.census_transform` and a popcount); ``"numba"``: one fused kernel,
     identical results.  ``rows`` ``(a, b)``: only the reference rows ``a .. b - 1``.
     """
+    _check_view_args(ref_img, img, shifts, window)
     L = len(shifts)
     H, W = ref_img.shape
     a_, b_ = (0, H) if rows is None else rows
@@ -368,6 +402,7 @@ def bwncc_view_volume(ref_img, img, shifts, *, paper: bool = False, window=None,
         Only the reference rows ``a .. b - 1`` (:func:`view_costs`).
     """
     from ..descriptor import DescriptorParams, iter_descriptor_blocks, prepare
+    _check_view_args(ref_img, img, shifts, window, tau_rel=tau_rel, eps=eps, block=block)
     params = DescriptorParams.paper() if paper else DescriptorParams.default()
     variant = "bwncc-paper" if paper else "bwncc"
     if window is not None:

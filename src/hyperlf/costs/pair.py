@@ -16,10 +16,30 @@ from typing import Sequence
 import numpy as np
 
 from .._kernel_args import kernel_input
-from .._options import number
+from .._options import check_values, choice, flag, integer, number, real_array, rule, shown
 from ..errors import InvalidInputError
 from ..imageops import gradient_magnitude, normalise_intensity
 from ._validate import check_disp, check_impl, check_pair, check_window
+
+#: Largest ``tau_rel``, ``rs_tau`` and ``eps`` (relative thresholds and weights of order 1;
+#: near 1e300 they overflow into infinite costs).
+MAX_COST_CONSTANT = 1e6
+
+#: How the pair costs check their constants before any work.
+_COST_RULES = {
+    "tau_rel": rule(number, at_most=MAX_COST_CONSTANT),
+    "rs_tau": rule(number, at_most=MAX_COST_CONSTANT),
+    "eps": rule(number, positive=True, at_most=MAX_COST_CONSTANT),
+    "block": rule(integer, minimum=1, optional=True),
+    "tau_scope": rule(choice, choices=("block", "view")),
+    "return_scores": flag,
+}
+
+
+def _constants(**values) -> dict:
+    """``values`` checked by :data:`_COST_RULES`."""
+    return check_values(values, _COST_RULES)
+
 
 __all__ = [
     "candidate_validity",
@@ -402,8 +422,8 @@ def _ds(dmin, dmax):
 def ssd_volume(left, right, dmin, dmax, window: int = 5) -> np.ndarray:
     """Window mean of squared differences of ``I / mean(I)``; float32 ``(L, H, W)``."""
     L, R = check_pair(left, right)
-    dmin, dmax = check_disp(dmin, dmax)
-    n = check_window(window)
+    dmin, dmax = check_disp(dmin, dmax, L.shape)
+    n = check_window(window, side=max(L.shape))
     r = n // 2
     Ln = pad_replicate(normalise_intensity(L), r)
     Rn = pad_replicate(normalise_intensity(R), r)
@@ -457,9 +477,10 @@ def ncc_volume(left, right, dmin, dmax, window: int = 5, impl: str = "auto",
     mean patch variance (and where it is exactly 0).
     """
     L, R = check_pair(left, right)
-    dmin, dmax = check_disp(dmin, dmax)
-    n = check_window(window)
+    dmin, dmax = check_disp(dmin, dmax, L.shape)
+    n = check_window(window, side=max(L.shape))
     impl = check_impl(impl, "ncc")
+    tau_rel = _constants(tau_rel=tau_rel)["tau_rel"]
     ds, setup = _ds(dmin, dmax), _ncc_setup(L, R, n, tau_rel)
     out = np.empty((len(ds),) + L.shape, np.float32)
     for sl in _label_blocks(len(ds), L.shape):
@@ -471,9 +492,11 @@ def rsncc_volume(left, right, dmin, dmax, window: int = 5, impl: str = "auto",
                  rs_tau: float = 1.0, tau_rel: float = 1e-5) -> np.ndarray:
     """RSNCC (Shen et al. 2014): ``rho(1 - NCC(In)) + rs_tau * rho(1 - NCC(|grad In|))``."""
     L, R = check_pair(left, right)
-    dmin, dmax = check_disp(dmin, dmax)
-    n = check_window(window)
+    dmin, dmax = check_disp(dmin, dmax, L.shape)
+    n = check_window(window, side=max(L.shape))
     impl = check_impl(impl, "rsncc")
+    c = _constants(rs_tau=rs_tau, tau_rel=tau_rel)
+    rs_tau, tau_rel = c["rs_tau"], c["tau_rel"]
     Ln, Rn = normalise_intensity(L), normalise_intensity(R)
     ds = _ds(dmin, dmax)
     set_i = _ncc_setup(Ln, Rn, n, tau_rel)
@@ -563,7 +586,7 @@ def census_volume(left, right, dmin, dmax, window: int = 7, impl: str = "auto", 
     right-referenced volume is still a shift of this one.
     """
     L, R = check_pair(left, right)
-    dmin, dmax = check_disp(dmin, dmax)
+    dmin, dmax = check_disp(dmin, dmax, L.shape)
     impl = check_impl(impl, "census")
     cl = census_transform(L, window)
     cr = census_transform(R, window)
@@ -722,6 +745,18 @@ class _BwnccAccumulator:
         return (cost,) + tuple(res[1:]) if return_scores else cost
 
 
+def _check_patch_sizes(n, shape) -> None:
+    """``n``: one odd NCC patch size, or one per channel of ``(nc, H, W)`` stacks, within the
+    images (a negative size corrupted the kernels' memory)."""
+    try:
+        ns = np.broadcast_to(np.asarray(n, dtype=object), (shape[0],))
+    except ValueError:
+        raise InvalidInputError(f"n must be one patch size or {shape[0]} (one per channel), "
+                                f"got {shown(n)}") from None
+    for v in ns:
+        check_window(v, "n", side=max(shape[1:]))
+
+
 def bwncc_from_descriptors(desc_left, desc_right, dmin, dmax, n=5, tau_rel: float = 1e-5,
                            eps: float = 1e-3, impl: str = "auto", return_scores: bool = False):
     """BWNCC cost volume from in-memory channel stacks ``(nc, H, W)`` of the two views.
@@ -734,8 +769,11 @@ def bwncc_from_descriptors(desc_left, desc_right, dmin, dmax, n=5, tau_rel: floa
     B = np.asarray(desc_right)
     if A.ndim != 3 or A.shape != B.shape:
         raise InvalidInputError(f"descriptor stacks must be (nc, H, W) of equal shape, got {A.shape}, {B.shape}")
-    dmin, dmax = check_disp(dmin, dmax)
+    dmin, dmax = check_disp(dmin, dmax, A.shape)
     impl = check_impl(impl, "bwncc")
+    _check_patch_sizes(n, A.shape)
+    c = _constants(tau_rel=tau_rel, eps=eps, return_scores=return_scores)
+    tau_rel, eps, return_scores = c["tau_rel"], c["eps"], c["return_scores"]
     acc = _BwnccAccumulator(A.shape[1], A.shape[2], dmin, dmax, impl)
     acc.add_block(A, B, n, tau_rel)
     return acc.finish(eps, return_scores)
@@ -745,19 +783,21 @@ def _descriptor_params(variant):
     from ..descriptor import DescriptorParams
     if isinstance(variant, DescriptorParams):
         return variant
-    if variant in ("default", "bwncc"):
+    if isinstance(variant, str) and variant in ("default", "bwncc"):
         return DescriptorParams.default()
-    if variant in ("paper", "bwncc-paper"):
+    if isinstance(variant, str) and variant in ("paper", "bwncc-paper"):
         return DescriptorParams.paper()
-    raise InvalidInputError(f"descriptor variant must be 'default', 'paper' or a DescriptorParams, got {variant!r}")
+    raise InvalidInputError("descriptor variant must be 'default', 'paper' or a DescriptorParams, "
+                            f"got {shown(variant)}")
 
 
-def _patch_sizes(params, variant, window) -> np.ndarray:
-    """NCC patch size per descriptor channel (see :func:`bwncc_volume`, ``window``)."""
+def _patch_sizes(params, variant, window, side: int) -> np.ndarray:
+    """NCC patch size per descriptor channel (see :func:`bwncc_volume`, ``window``) for images
+    of ``side`` px on their longer side."""
     if window is None:
-        is_paper = variant in ("paper", "bwncc-paper")
+        is_paper = isinstance(variant, str) and variant in ("paper", "bwncc-paper")
         return np.full(params.n_channels, 5, np.int64) if is_paper else params.channel_levels
-    return np.full(params.n_channels, check_window(window), np.int64)
+    return np.full(params.n_channels, check_window(window, side=side), np.int64)
 
 
 def _view_scope_taus(pL, pR, n_all, block, tau_rel, descriptor_impl):
@@ -813,15 +853,17 @@ def bwncc_volume(left, right, dmin, dmax, variant="default", window=None, tau_re
     from ..descriptor import iter_descriptor_blocks, prepare
 
     L, R = check_pair(left, right)
-    dmin, dmax = check_disp(dmin, dmax)
+    dmin, dmax = check_disp(dmin, dmax, L.shape)
     impl = check_impl(impl, "bwncc")
     params = _descriptor_params(variant)
-    if tau_scope not in ("block", "view"):
-        raise InvalidInputError(f"tau_scope must be 'block' or 'view', got {tau_scope!r}")
-    n_all = _patch_sizes(params, variant, window)
-    block = params.n_bins if block is None else int(block)
-    if block < 1:
-        raise InvalidInputError(f"block must be >= 1, got {block}")
+    c = _constants(tau_rel=tau_rel, tau_scope=tau_scope, eps=eps, block=block,
+                   return_scores=return_scores)
+    tau_rel, eps, return_scores = c["tau_rel"], c["eps"], c["return_scores"]
+    choice(descriptor_impl, "descriptor_impl", ("auto", "numpy", "numba"))
+    if timings is not None and not isinstance(timings, dict):
+        raise InvalidInputError(f"timings must be a dict to fill (or None), got {shown(timings)}")
+    n_all = _patch_sizes(params, variant, window, max(L.shape))
+    block = params.n_bins if c["block"] is None else c["block"]
     t0 = time.perf_counter()
     pL = prepare(L, params)
     pR = prepare(R, params)
@@ -993,9 +1035,10 @@ def fuse(volumes: Sequence[np.ndarray], weights: Sequence[float] | None = None, 
     shape = vols[0].shape
     if any(v.shape != shape for v in vols) or len(shape) != 3:
         raise InvalidInputError(f"volumes must be (L, H, W) of equal shape, got {[v.shape for v in vols]}")
-    w = np.ones(len(vols)) if weights is None else np.asarray(weights, np.float64)
+    w = np.ones(len(vols)) if weights is None else real_array(weights, "weights")
     if w.shape != (len(vols),) or not np.all(np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
-        raise InvalidInputError(f"weights must be {len(vols)} non-negative numbers with a positive sum, got {weights!r}")
+        raise InvalidInputError(f"weights must be {len(vols)} non-negative numbers with a "
+                                f"positive sum, got {shown(weights)}")
     sds = [None] * len(vols) if scales is None else [float(x) for x in scales]
     if len(sds) != len(vols):
         raise InvalidInputError(f"scales must give one number per volume ({len(vols)}), got {scales!r}")

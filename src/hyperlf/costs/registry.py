@@ -30,7 +30,7 @@ from typing import Any, Iterator, Sequence
 
 import numpy as np
 
-from .._options import shown
+from .._options import choice, flag, shown
 from ..errors import InvalidInputError
 from ._validate import IMPLS, check_window
 from .pair import fuse, right_validity, row_moments
@@ -460,8 +460,7 @@ def _checked(metric, window, impl, image) -> tuple[Cost, int | None]:
     cost = get_cost(metric)
     if window is not None:
         window = check_window(window, side=max(np.shape(image)[:2], default=0))
-    if impl not in IMPLS:
-        raise InvalidInputError(f"impl must be one of {IMPLS}, got {impl!r}")
+    choice(impl, "impl", IMPLS)
     return cost, window
 
 
@@ -502,6 +501,7 @@ def cost_volume(left, right, dmin: int, dmax: int, metric: str = "auto", window:
     """
     from .pair import candidate_validity
     cost, window = _checked(metric, window, impl, left)
+    return_valid = flag(return_valid, "return_valid")
     with _bad_parameters(cost.name):
         vol = cost.pair_volume(left, right, dmin, dmax, window=window, impl=impl, **params)
     if return_valid:
@@ -518,6 +518,7 @@ def cost_volumes(left, right, dmin: int, dmax: int, metric: str = "auto", *,
     (:meth:`Cost.pair_volumes`), None unless ``need_right``.
     """
     cost, window = _checked(metric, window, impl, left)
+    need_right = flag(need_right, "need_right")
     with _bad_parameters(cost.name):
         return cost.pair_volumes(left, right, dmin, dmax, window=window, impl=impl,
                                  need_right=need_right, **params)

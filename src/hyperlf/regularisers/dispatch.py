@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._options import flag
 from ..errors import InvalidInputError
 from .basic import wta
 from .graphcuts import graphcut, graphcut_multiscale
@@ -117,5 +118,6 @@ def optimise(volume, params, *, guide=None, labels=None, edge_weights=None, init
     for name, given in (("edge_weights", edge_weights), ("init", init)):
         if given is not None and not isinstance(params, GraphCutParams):
             raise InvalidInputError(f"{name} is a graph-cut option, not {params.name}'s")
+    progress = flag(progress, "progress")
     f, vol = run(volume, params, guide, labels, edge_weights, init, progress)
     return OptimiseResult(labels=f, volume=vol)
