@@ -96,14 +96,21 @@ def slow_task(began, done):
     return task
 
 
-def test_an_interrupt_while_a_pool_thread_starts_leaves_no_thread_running(monkeypatch):
+def interrupted_pool(monkeypatch, make_pool):
+    """Run eight slow tasks on ``make_pool(4)`` with the interrupt in its first thread's
+    start; the thread the executor never recorded, and the tasks done when the block is left."""
     began, done = threading.Event(), []
     calls = interrupt_the_first_start(monkeypatch, began)
     with pytest.raises(KeyboardInterrupt):
-        with thread_pool(4) as pool:
+        with make_pool(4) as pool:
             list(pool.map(slow_task(began, done), range(8)))
+    return calls[0], done
+
+
+def test_an_interrupt_while_a_pool_thread_starts_leaves_no_thread_running(monkeypatch):
+    thread, done = interrupted_pool(monkeypatch, thread_pool)
     # the thread the executor never recorded ran its task to the end before the block was left
-    assert not calls[0].is_alive() and done == [0]
+    assert not thread.is_alive() and done == [0]
     time.sleep(0.3)
     assert done == [0]  # and nothing ran afterwards
 
@@ -112,13 +119,9 @@ def test_the_executors_own_shutdown_misses_that_thread(monkeypatch):
     # the failure thread_pool exists for: with the plain executor the task outlives the block
     from concurrent.futures import ThreadPoolExecutor
 
-    began, done = threading.Event(), []
-    calls = interrupt_the_first_start(monkeypatch, began)
-    with pytest.raises(KeyboardInterrupt):
-        with ThreadPoolExecutor(4) as pool:
-            list(pool.map(slow_task(began, done), range(8)))
-    assert calls[0].is_alive() and done == []
-    calls[0].join()
+    thread, done = interrupted_pool(monkeypatch, ThreadPoolExecutor)
+    assert thread.is_alive() and done == []
+    thread.join()
     assert done == [0]
 
 
