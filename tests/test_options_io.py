@@ -168,7 +168,7 @@ def test_the_completion_stages_take_any_option_or_refuse_it_in_one_line(option, 
     ("save_lightfield", "compression", "gzip", "unknown option(s) 'compression' for a capture "
                                                "folder (allowed: image_format)"),
     ("write_cube_h5", "metadata", "x", "metadata must be a dict (or None), got str"),
-    ("write_ply", "comment", 5, "comment must be ASCII text or None, got 5"),
+    ("write_ply", "comment", 5, "comment must be one line of ASCII text or None, got 5"),
     ("write_middlebury", "pair", None, "pair must be a StereoPair, got NoneType"),
     ("CubeWriter", "r", "x", "view (r, c) must be 2 integers within (1, 2) (from 0), got ('x', "),
 ])

@@ -303,12 +303,11 @@ def label_disparities(lf: LightField, n_labels, disparity_range=None) -> np.ndar
     InvalidInputError
         When ``n_labels`` is not an integer >= 3.
     """
-    from .tiling import check_memory
+    from .tiling import check_label_volume
 
     lf = _check_lf(lf)
     n_labels = integer(n_labels, "n_labels", 3)
-    check_memory(4.0 * n_labels * np.prod(lf.image_shape), f"{n_labels} labels on "
-                 f"{lf.image_shape[1]} x {lf.image_shape[0]} px views", "use fewer labels")
+    check_label_volume(n_labels, lf.image_shape)
     dmin, dmax = resolve_disparity_range(lf, disparity_range)
     return np.linspace(dmin, dmax, n_labels)
 

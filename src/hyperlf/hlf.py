@@ -174,7 +174,7 @@ from .costs import (DENSE_VIEWS, ROW_BLOCK, AggregationParams, aggregate_volume,
 from .imageops import fill_masked, gradient_magnitude, normalise_intensity
 from .warp import shift_map
 from .errors import InvalidInputError
-from .tiling import check_memory
+from .tiling import check_label_volume
 from . import regularisers as _reg
 
 __all__ = [
@@ -249,11 +249,11 @@ CAMERA_TEXTURE_SNR = 2.0
 
 _rule = _opt.rule
 _number, _count, _flag = _opt.number, _opt.integer, _opt.flag
+_positive = _rule(_opt.number, positive=True)
 
 #: Most passes of the guided median (``median_passes``, :func:`post_filter`): each moves an
 #: edge by at most a radius; far beyond the image's size in passes the loop would only spin.
 MAX_MEDIAN_PASSES = 50
-_positive = _rule(_opt.number, positive=True)
 
 
 def _texture_snr(value, label):
@@ -1297,8 +1297,7 @@ def prepare(lf, *, disparity_range=None, n_labels: int = 64, metric: str = "auto
         lf, metric, view_selection, occlusion_split, defocus, optimizer, params)
     dmin, dmax = resolve_disparity_range(lf, disparity_range)
     n_labels = _opt.integer(n_labels, "n_labels", 2)
-    check_memory(4.0 * n_labels * np.prod(lf.image_shape), f"{n_labels} labels on "
-                 f"{lf.image_shape[1]} x {lf.image_shape[0]} px views", "use fewer labels")
+    check_label_volume(n_labels, lf.image_shape)
     labels = make_labels(dmin, dmax, n_labels)
     R, Cc = lf.grid_shape
     ref = lf.reference
@@ -2163,7 +2162,8 @@ def median_passes(guide: np.ndarray, params: DepthParams, *, valid=None) -> tupl
 
     ``params.median_passes`` when it is a number; with ``"auto"``, one pass per
     ``params.median_blur_step`` px of :func:`hyperlf.imageops.edge_blur` above
-    ``params.median_blur_sharp``, at least one (one when the guide has too few edges to tell).
+    ``params.median_blur_sharp``, at least one (one when the guide has too few edges to tell)
+    and at most :data:`MAX_MEDIAN_PASSES`.
     """
     if params.median_passes != "auto":
         return int(params.median_passes), float("nan")
@@ -2173,7 +2173,7 @@ def median_passes(guide: np.ndarray, params: DepthParams, *, valid=None) -> tupl
     if not np.isfinite(blur):
         return 1, blur
     extra = (blur - params.median_blur_sharp) / params.median_blur_step
-    return max(1, int(np.ceil(extra - 1e-9))), blur
+    return min(MAX_MEDIAN_PASSES, max(1, int(np.ceil(extra - 1e-9)))), blur
 
 
 def strips_for(prob: DepthProblem) -> list:

@@ -673,6 +673,6 @@ def save_metric_outputs(out: str | os.PathLike, disparity: np.ndarray, lf, *,
     return [write_pfm(out / "depth.pfm", Z),
             visualise.save_disparity_png(out / "depth.png", Z, title=f"depth ({unit})",
                                          label=unit, cmap="viridis"),
-            write_ply(out / "points.ply", pts, rgb, scalars=scalars,
-                      comment=f"unit: {unit}; the reference camera's frame: x right, y down, "
-                              "z forward (viewers with y up show it upside down)")]
+            write_ply(out / "points.ply", pts, rgb, scalars=scalars,  # a PLY header is ASCII
+                      comment=f"unit: {ascii(unit)[1:-1]}; the reference camera's frame: x "
+                              "right, y down, z forward (viewers with y up show it upside down)")]

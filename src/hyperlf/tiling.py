@@ -41,6 +41,7 @@ __all__ = [
     "format_memory",
     "available_memory",
     "check_memory",
+    "check_label_volume",
     "check_strips",
     "row_strips",
     "depth_memory",
@@ -143,6 +144,20 @@ def check_memory(nbytes: float, what: str, remedy: str) -> None:
         gib = float(min(nbytes, 2 ** 1000)) / 2 ** 30  # an int beyond a float: at least this
         raise InvalidInputError(f"{what} would need about {gib:.3g} GiB of memory, more than "
                                 f"the {avail / 2 ** 30:.3g} GiB available; {remedy}")
+
+
+def check_label_volume(n_labels: int, shape) -> None:
+    """Refuse ``n_labels`` whose float32 volume over images of ``shape`` ``(..., H, W)``
+    exceeds the memory available (:func:`check_memory`): one volume, a lower bound of any
+    matcher's need."""
+    H, W = (int(v) for v in shape[-2:])
+    check_memory(4.0 * n_labels * H * W, f"{count_text(n_labels)} labels on {W} x {H} px views",
+                 "use fewer labels")
+
+
+def count_text(n: int) -> str:
+    """A count as people read it: ``64``, or ``1e+300`` for a count beyond a billion."""
+    return str(n) if abs(n) < 10 ** 9 else f"{float(min(abs(n), 10 ** 308)):.3g}"
 
 
 def row_strips(height: int, rows: int) -> list[tuple[int, int]]:

@@ -80,6 +80,7 @@ import numpy as np
 from . import costs as _costs
 from . import regularisers as _reg
 from ._options import flag, integer, mapping, params_of, real_array, shown
+from .costs._validate import MAX_DISPARITY
 from .errors import InvalidInputError
 
 __all__ = [
@@ -439,7 +440,7 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
     name = _costs.resolve_metric(metric)
     p = _merge_params(name, optimizer, params)
     opt = _reg.make_params(optimizer, p)
-    dmin = integer(dmin, "dmin", minimum=-(2 ** 31), maximum=2 ** 31)
+    dmin = integer(dmin, "dmin", minimum=-MAX_DISPARITY, maximum=MAX_DISPARITY)
     subpixel, overwrite = flag(subpixel, "subpixel"), flag(overwrite, "overwrite")
     progress = flag(progress, "progress")
     cl = real_array(cost_left, "cost_left", np.float32)

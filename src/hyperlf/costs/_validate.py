@@ -35,22 +35,27 @@ def check_pair(left, right) -> tuple[np.ndarray, np.ndarray]:
     return L, R
 
 
+#: Largest disparity magnitude (px) a cost takes: far beyond any image, within int64.
+MAX_DISPARITY = 2 ** 31
+
+
 def check_disp(dmin, dmax, shape=None) -> tuple[int, int]:
     """Integer ``dmin <= dmax``; with the images' ``shape`` ``(H, W)``, a float32 volume of
     ``dmax - dmin + 1`` labels that fits in the memory available
     (:func:`hyperlf.tiling.check_memory`)."""
     try:
-        a, b = (integer(v, "d", minimum=-(2 ** 62), maximum=2 ** 62) for v in (dmin, dmax))
+        a, b = (integer(v, "d", minimum=-MAX_DISPARITY, maximum=MAX_DISPARITY)
+                for v in (dmin, dmax))
     except InvalidInputError:
-        raise InvalidInputError(f"dmin and dmax must be integers, got {shown(dmin)}, "
-                                f"{shown(dmax)}") from None
+        raise InvalidInputError(f"dmin and dmax must be integers within +-{MAX_DISPARITY:.3g}, "
+                                f"got {shown(dmin)}, {shown(dmax)}") from None
     if b < a:
         raise InvalidInputError(f"dmax must be >= dmin, got dmin={a}, dmax={b}")
     if shape is not None:
-        from ..tiling import check_memory
+        from ..tiling import check_memory, count_text
 
         check_memory(4 * (b - a + 1) * int(np.prod(shape[-2:])),
-                     f"a cost volume of {b - a + 1} disparities",
+                     f"a cost volume of {count_text(b - a + 1)} disparities",
                      "narrow dmin..dmax to the disparities the scene has")
     return a, b
 

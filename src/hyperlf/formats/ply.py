@@ -61,8 +61,10 @@ def write_ply(path: str | os.PathLike, points: np.ndarray, colours: np.ndarray |
     """
     path_like(path)
     mapping(scalars, "scalars")
-    if comment is not None and not (isinstance(comment, str) and comment.isascii()):
-        raise InvalidInputError(f"comment must be ASCII text or None, got {shown(comment)}")
+    if comment is not None and not (isinstance(comment, str) and comment.isascii()
+                                    and comment.isprintable()):
+        raise InvalidInputError(f"comment must be one line of ASCII text or None, got "
+                                f"{shown(comment)}")
     pts = real_array(points, "points", np.float32)
     if pts.ndim != 2 or pts.shape[1] != 3:
         raise InvalidInputError(f"points must be (N, 3), got {pts.shape}")
