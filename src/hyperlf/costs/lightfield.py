@@ -50,10 +50,11 @@ import numpy as np
 from .._kernel_args import kernel_input
 from ..imageops import fill_masked, gradient_magnitude, normalise_intensity
 from ..warp import axis_taps, axis_valid, shift_map
-from .pair import (bwncc_finish, census_transform, channel_stats, fill_out_of_image, inv_sigma,
-                   pad_replicate, rsncc_rho, window_stats)
+from .._options import shown
+from ..errors import InvalidInputError
+from .pair import (_constants, bwncc_finish, census_transform, channel_stats, fill_out_of_image,
+                   inv_sigma, pad_replicate, rsncc_rho, window_stats)
 from ._validate import check_impl, check_window
-from .pair import _constants
 
 __all__ = [
     "view_costs",
@@ -172,14 +173,12 @@ def _xi_terms(ref: _RefBlock, B: np.ndarray, centre_b, tauB, sx, sy, weighted=Tr
 MAX_VIEW_WINDOW = 255
 
 
-def _check_view_args(ref_img, img, shifts, window=None, **constants) -> None:
+def _check_view_args(ref_img, img, shifts, window=None, rows=None, **constants) -> None:
     """Refuse, before the kernels read them, two views that are not 2-D images of one shape,
-    shifts that are not finite ``(sx, sy)`` pairs, a window beyond the views (or
-    :data:`MAX_VIEW_WINDOW`), and bad cost
-    constants (:data:`hyperlf.costs.pair._COST_RULES`): mismatched shapes crashed the
-    interpreter in numba's kernels."""
-    from ..errors import InvalidInputError
-
+    shifts that are not finite ``(sx, sy)`` pairs, ``rows`` outside the views, a window beyond
+    the views (or :data:`MAX_VIEW_WINDOW`) and bad cost constants
+    (:data:`hyperlf.costs.pair._COST_RULES`): mismatched shapes crashed the interpreter in
+    numba's kernels."""
     a, b = np.shape(ref_img), np.shape(img)
     if len(a) != 2 or a != b or 0 in a:
         raise InvalidInputError(f"ref_img and img must be 2-D images of one shape, got shapes "
@@ -192,9 +191,21 @@ def _check_view_args(ref_img, img, shifts, window=None, **constants) -> None:
         sh = np.empty(0)
     if sh.ndim != 2 or sh.shape[1] != 2 or not np.isfinite(sh).all():
         raise InvalidInputError("shifts must be finite (sx, sy) pairs, shape (L, 2)")
+    if rows is not None and not _row_range(rows, a[0]):
+        raise InvalidInputError(f"rows must be (a, b) with 0 <= a < b <= {a[0]}, got "
+                                f"{shown(rows)}")
     if window is not None:  # wider than a small view is fine: every column a border column
         check_window(window, side=max(max(a), MAX_VIEW_WINDOW // 2))
     _constants(**constants)
+
+
+def _row_range(rows, height: int) -> bool:
+    """Whether ``rows`` is ``(a, b)``, two ints with ``0 <= a < b <= height``."""
+    try:
+        a, b = (int(x) for x in rows)
+        return (a, b) == tuple(rows) and 0 <= a < b <= height
+    except (TypeError, ValueError, OverflowError):
+        return False
 
 
 def ncc_view_volume(ref_img, img, shifts, window: int = 5, tau_rel: float = 1e-5, *,
@@ -214,7 +225,7 @@ def ncc_view_volume(ref_img, img, shifts, window: int = 5, tau_rel: float = 1e-5
     rows : (int, int), optional
         Only the reference rows ``a .. b - 1`` (``(L, b - a, W)``; :func:`view_costs`).
     """
-    _check_view_args(ref_img, img, shifts, window, tau_rel=tau_rel)
+    _check_view_args(ref_img, img, shifts, window, rows, tau_rel=tau_rel)
     L = len(shifts)
     H, W = ref_img.shape
     a, b = (0, H) if rows is None else rows
@@ -241,7 +252,7 @@ def rsncc_view_volume(ref_img, img, shifts, window: int = 5, tau_rel: float = 1e
     :func:`ncc_view_volume`; ``impl``: of ``rho`` (:func:`hyperlf.costs.pair.rsncc_rho`);
     float32 ``(L, H, W)``.
     """
-    _check_view_args(ref_img, img, shifts, window, tau_rel=tau_rel, rs_tau=rs_tau)
+    _check_view_args(ref_img, img, shifts, window, rows, tau_rel=tau_rel, rs_tau=rs_tau)
     L = len(shifts)
     H, W = ref_img.shape
     a_, b_ = (0, H) if rows is None else rows
@@ -267,7 +278,7 @@ def census_view_volume(ref_img, img, shifts, window: int = 7, impl: str = "numba
     :func:`hyperlf.costs.census_transform` and a popcount); ``"numba"``: one fused kernel,
     identical results.  ``rows`` ``(a, b)``: only the reference rows ``a .. b - 1``.
     """
-    _check_view_args(ref_img, img, shifts, window)
+    _check_view_args(ref_img, img, shifts, window, rows)
     L = len(shifts)
     H, W = ref_img.shape
     a_, b_ = (0, H) if rows is None else rows
@@ -402,7 +413,7 @@ def bwncc_view_volume(ref_img, img, shifts, *, paper: bool = False, window=None,
         Only the reference rows ``a .. b - 1`` (:func:`view_costs`).
     """
     from ..descriptor import DescriptorParams, iter_descriptor_blocks, prepare
-    _check_view_args(ref_img, img, shifts, window, tau_rel=tau_rel, eps=eps, block=block)
+    _check_view_args(ref_img, img, shifts, window, rows, tau_rel=tau_rel, eps=eps, block=block)
     params = DescriptorParams.paper() if paper else DescriptorParams.default()
     variant = "bwncc-paper" if paper else "bwncc"
     if window is not None:
@@ -521,20 +532,13 @@ def tap_validity(mask, sx: float, sy: float) -> np.ndarray:
 def check_rows(rows, height: int):
     """``rows`` as ``(a, b)`` ints with ``0 <= a < b <= height`` and ``a`` a multiple of
     :data:`ROW_BLOCK`, or None; else :class:`~hyperlf.errors.InvalidInputError`."""
-    from ..errors import InvalidInputError
-
     if rows is None:
         return None
-    try:
-        a, b = (int(x) for x in rows)
-        ok = (a, b) == tuple(rows)
-    except (TypeError, ValueError):
-        ok = False
-    if not ok or not 0 <= a < b <= height or a % ROW_BLOCK:
+    if not _row_range(rows, height) or int(rows[0]) % ROW_BLOCK:
         raise InvalidInputError(
             f"rows must be (a, b) with 0 <= a < b <= {height} and a a multiple of {ROW_BLOCK}, "
-            f"got {rows!r}")
-    return a, b
+            f"got {shown(rows)}")
+    return int(rows[0]), int(rows[1])
 
 
 def _view_inputs(ref_img, img, offset, labels, ref_valid, view_valid, rows):
@@ -650,7 +654,6 @@ def view_costs(ref_img, img, offset, labels, metric: str = "ncc", window: int | 
     >>> float(labels[C[:, 8, 10].argmin()])
     1.0
     """
-    from ..errors import InvalidInputError
     from .registry import fusion_weights, get_cost
     cost = get_cost(metric, light_field=True)
     A, B, shifts, valid, rows = _view_inputs(ref_img, img, offset, labels, ref_valid,
