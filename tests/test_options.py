@@ -335,6 +335,7 @@ def _matching_calls():
     lf = synthesis.procedural_scene(seed=1, rows=2, cols=2, height=12, width=12,
                                     disparity_range=(-1.0, 1.0))
     pair = {"left": img, "right": img, "dmin": 0, "dmax": 3}
+    view = {"ref_img": img, "img": img, "shifts": [(0.5, 0.0), (1.0, 0.0)]}
     calls = {
         "ncc_volume": (costs.ncc_volume, pair),
         "rsncc_volume": (costs.rsncc_volume, pair),
@@ -348,6 +349,8 @@ def _matching_calls():
                                 {"cost_left": vol, "cost_right": vol, "dmin": 0,
                                  "guide_left": img}),
         "prepare": (hlf.prepare, {"lf": lf, "n_labels": 4}),
+        "census_view_volume": (costs.census_view_volume, view),
+        "rsncc_view_volume": (costs.rsncc_view_volume, view),
     }
     out = {name: (f, lambda f=f, base=base, **kw: f(**{**base, **kw}))
            for name, (f, base) in calls.items()}
@@ -366,6 +369,7 @@ _MATCHING_OPTIONS = [(name, p) for name, (f, _) in _matching_calls().items()
 @given(st.sampled_from(_MATCHING_OPTIONS), JUNK)
 def test_costs_stereo_and_depth_take_any_option_or_refuse_it_in_one_line(option, value):
     """The pair costs' constants (``tau_rel='x'``, ``rs_tau=1e300``: infinite costs,
+    views of two shapes or rows beyond them in the per-view evaluators: crashes in numba,
     ``eps=0``, ``block=nan``, ``timings=2.5``), their disparity bounds (``dmax=1e300``: numpy's
     "Maximum allowed size exceeded"), ``stereo_from_volumes``' ``dmin`` and volumes, and the
     depth's ``n_labels=1e300``, ``defocus`` / ``optimizer`` as arrays and its flags (some 260

@@ -50,7 +50,7 @@ import numpy as np
 from .._kernel_args import kernel_input
 from ..imageops import fill_masked, gradient_magnitude, normalise_intensity
 from ..warp import axis_taps, axis_valid, shift_map
-from .._options import shown
+from .._options import real_array, shown
 from ..errors import InvalidInputError
 from .pair import (_constants, bwncc_finish, census_transform, channel_stats, fill_out_of_image,
                    inv_sigma, pad_replicate, rsncc_rho, window_stats)
@@ -173,28 +173,26 @@ def _xi_terms(ref: _RefBlock, B: np.ndarray, centre_b, tauB, sx, sy, weighted=Tr
 MAX_VIEW_WINDOW = 255
 
 
-def _check_view_args(ref_img, img, shifts, window=None, rows=None, **constants) -> None:
+def _check_view_args(ref_img, img, shifts, window, rows, *, default_window: bool = False,
+                     **constants) -> None:
     """Refuse, before the kernels read them, two views that are not 2-D images of one shape,
     shifts that are not finite ``(sx, sy)`` pairs, ``rows`` outside the views, a window beyond
     the views (or :data:`MAX_VIEW_WINDOW`) and bad cost constants
     (:data:`hyperlf.costs.pair._COST_RULES`): mismatched shapes crashed the interpreter in
-    numba's kernels."""
+    numba's kernels. ``window`` may be None (the cost's own) where ``default_window``."""
     a, b = np.shape(ref_img), np.shape(img)
     if len(a) != 2 or a != b or 0 in a:
         raise InvalidInputError(f"ref_img and img must be 2-D images of one shape, got shapes "
                                 f"{a} and {b}")
     if not all(np.issubdtype(np.asarray(x).dtype, np.number) for x in (ref_img, img)):
         raise InvalidInputError("ref_img and img must be numeric arrays")
-    try:
-        sh = np.asarray(shifts, np.float64)
-    except (TypeError, ValueError):
-        sh = np.empty(0)
+    sh = real_array(shifts, "shifts")
     if sh.ndim != 2 or sh.shape[1] != 2 or not np.isfinite(sh).all():
         raise InvalidInputError("shifts must be finite (sx, sy) pairs, shape (L, 2)")
     if rows is not None and not _row_range(rows, a[0]):
         raise InvalidInputError(f"rows must be (a, b) with 0 <= a < b <= {a[0]}, got "
                                 f"{shown(rows)}")
-    if window is not None:  # wider than a small view is fine: every column a border column
+    if window is not None or not default_window:  # wider than a small view is fine
         check_window(window, side=max(max(a), MAX_VIEW_WINDOW // 2))
     _constants(**constants)
 
@@ -279,6 +277,7 @@ def census_view_volume(ref_img, img, shifts, window: int = 7, impl: str = "numba
     identical results.  ``rows`` ``(a, b)``: only the reference rows ``a .. b - 1``.
     """
     _check_view_args(ref_img, img, shifts, window, rows)
+    impl = check_impl(impl, "census")
     L = len(shifts)
     H, W = ref_img.shape
     a_, b_ = (0, H) if rows is None else rows
@@ -413,7 +412,8 @@ def bwncc_view_volume(ref_img, img, shifts, *, paper: bool = False, window=None,
         Only the reference rows ``a .. b - 1`` (:func:`view_costs`).
     """
     from ..descriptor import DescriptorParams, iter_descriptor_blocks, prepare
-    _check_view_args(ref_img, img, shifts, window, rows, tau_rel=tau_rel, eps=eps, block=block)
+    _check_view_args(ref_img, img, shifts, window, rows, default_window=True, tau_rel=tau_rel,
+                     eps=eps, block=block)
     params = DescriptorParams.paper() if paper else DescriptorParams.default()
     variant = "bwncc-paper" if paper else "bwncc"
     if window is not None:
