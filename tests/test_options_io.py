@@ -199,3 +199,48 @@ def test_the_stages_name_the_argument_and_what_it_takes(name, keyword, value, wo
     with pytest.raises(InvalidInputError) as exc:
         _stage_calls()[0][name][1](**{keyword: value})
     assert str(exc.value).startswith(words)
+
+
+_DEMO_JUNK = [("seed", "x"), ("seed", 1e300), ("grid", (1, 1)), ("grid", "x"), ("grid", [1]),
+              ("size", (0, 5)), ("size", np.zeros((3, 3))), ("metric", None), ("labels", 1e300),
+              ("labels", None), ("progress", np.zeros(2)), ("log", 5), ("out_dir", 5)]
+
+
+@pytest.mark.parametrize("name, value", _DEMO_JUNK)
+def test_the_demo_refuses_its_options_in_one_line_before_writing(tmp_path, name, value):
+    """``run_demo(grid='x')``, ``size=[1]``, ``labels=1e300``, ``log=5`` and the like were
+    TypeErrors and ValueErrors (the survey of the forty-fourth session); nothing is written."""
+    from hyperlf.errors import InvalidInputError
+    from hyperlf.pipeline import run_demo
+
+    kw = {"grid": (2, 2), "size": (16, 20), "labels": 4, name: value}
+    out = kw.pop("out_dir", tmp_path / "demo")
+    with pytest.raises(InvalidInputError) as err:
+        run_demo(out, **kw)
+    assert "\n" not in str(err.value) and not (tmp_path / "demo").exists()
+
+
+_RUN_JUNK = [("grid", "x"), ("grid", (10 ** 400, 2)), ("board", [1]), ("board", None),
+             ("square", "x"), ("mode", np.zeros(2)), ("reference", "x"), ("focal_px", -1),
+             ("log", "x"), ("pattern", 5), ("shots", None), ("out_dir", 2.5)]
+
+
+@pytest.mark.parametrize("name, value", _RUN_JUNK)
+def test_calibration_and_ingest_runs_refuse_their_options_in_one_line(tmp_path, name, value):
+    """``run_calibration(board=[1])``, ``square='x'``, ``reference='x'``, ``grid=(10**400, 2)``
+    and the like were TypeErrors, or a grid of 10**400 cameras being built; ``run_ingest``
+    takes the same paths and pattern."""
+    from hyperlf.errors import InvalidInputError
+    from hyperlf.pipeline import run_calibration, run_ingest
+
+    base = {"shots": tmp_path, "out_dir": tmp_path / "out", "pattern": "cam{index}.png",
+            "grid": (3, 3), "board": (8, 6)}
+    kw = {**base, name: value}
+    with pytest.raises(InvalidInputError) as err:
+        run_calibration(kw.pop("shots"), kw.pop("out_dir"), **kw)
+    assert "\n" not in str(err.value)
+    if name in ("pattern", "out_dir", "log"):
+        kw = {"raw": tmp_path, "out_dir": tmp_path / "out", "calibration": tmp_path / "c.toml",
+              "pattern": "cam{index}.png", name: value}
+        with pytest.raises(InvalidInputError):
+            run_ingest(kw.pop("raw"), kw.pop("out_dir"), **kw)

@@ -31,7 +31,7 @@ import numpy as np
 from .errors import InvalidInputError
 
 __all__ = ["number", "real", "integer", "share", "flag", "choice", "real_array", "real_pair",
-           "index", "float_dtype", "bool_mask",
+           "int_pair", "index", "float_dtype", "bool_mask", "path_like",
            "shown", "rule", "word_or", "check_fields", "check_values", "params_of", "window",
            "mapping"]
 
@@ -161,6 +161,26 @@ def real_pair(value, label: str, what: str = "two finite numbers") -> tuple[floa
     if pair.shape != (2,) or not np.isfinite(pair).all():
         raise InvalidInputError(f"{label} must be {what}, got {shown(value)}")
     return float(pair[0]), float(pair[1])
+
+
+def int_pair(value, label: str, minimum: int | None = 1, *, maximum: int | None = None,
+             what: str = "two integers") -> tuple[int, int]:
+    """``value`` as two ints ``>= minimum`` (``<= maximum`` where given): a grid, a size, a
+    board's corners; a refusal says ``what`` it takes.
+
+    Examples
+    --------
+    >>> int_pair([5, 6.0], "grid")
+    (5, 6)
+    """
+    try:
+        a, b = value
+        return integer(a, label, minimum, maximum=maximum), integer(b, label, minimum,
+                                                                     maximum=maximum)
+    except (TypeError, ValueError, InvalidInputError):
+        bound = (f" in {minimum}..{maximum}" if maximum is not None and minimum is not None
+                 else f" >= {minimum}" if minimum is not None else "")
+        raise InvalidInputError(f"{label} must be {what}{bound}, got {shown(value)}") from None
 
 
 def float_dtype(value, label: str = "dtype") -> np.dtype:

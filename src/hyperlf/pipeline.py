@@ -19,6 +19,8 @@ from typing import Any, Callable
 
 import numpy as np
 
+from . import _options as _opt
+
 __all__ = [
     "DemoResult",
     "run_demo",
@@ -297,17 +299,50 @@ def _demo_report(out: Path, lf, metric: str, sc, cres, scores: dict, timings: di
                                  f"{k} {v:.1f} s" for k, v in stages.items()))
 
 
-def _check_demo_options(grid, size, labels) -> None:
-    """Refuse impossible demo options before anything is written."""
+def _log_or_quiet(log) -> Callable[[str], None]:
+    """``log`` when it is callable (or the silent default for None)."""
     from .errors import InvalidInputError
 
-    R, C = (int(v) for v in grid)
-    H, W = (int(v) for v in size)
-    if min(R, C, H, W) < 1 or R * C < 2:
-        raise InvalidInputError(f"the demo needs at least 2 views of at least 1 x 1 px; got a "
-                                f"{R} x {C} grid of {W} x {H} px")
-    if isinstance(labels, bool) or int(labels) != labels or labels < 2:
-        raise InvalidInputError(f"labels must be an integer >= 2, got {labels}")
+    if log is None:
+        return _quiet
+    if not callable(log):
+        raise InvalidInputError(f"log must be a callable taking one line of text (or None), "
+                                f"got {type(log).__name__}")
+    return log
+
+
+def _check_demo_options(out_dir, seed, grid, size, metric, labels, progress) -> None:
+    """Refuse impossible demo options before anything is written."""
+    from .calibration.grid import MAX_CAMERAS
+    from .costs import get_cost
+    from .errors import InvalidInputError
+    from .tiling import check_label_volume
+
+    _opt.path_like(out_dir, "out_dir", folder=True)
+    _opt.integer(seed, "seed", maximum=2 ** 63)
+    R, C = _opt.int_pair(grid, "grid", maximum=MAX_CAMERAS, what="(rows, cols)")
+    H, W = _opt.int_pair(size, "size", maximum=2 ** 16, what="(height, width) in px")
+    if R * C < 2 or R * C > MAX_CAMERAS:
+        raise InvalidInputError(f"the demo needs 2 to {MAX_CAMERAS} views; got a {R} x {C} "
+                                "grid")
+    get_cost(metric, light_field=True)
+    check_label_volume(_opt.integer(labels, "labels", 2), (H, W))
+    _opt.flag(progress, "progress")
+
+
+def _check_run_paths(**paths) -> dict:
+    """The inputs (files or folders), ``out_dir`` (a folder) and ``pattern`` (text) of
+    :func:`run_calibration` and :func:`run_ingest`, checked before any image is read."""
+    from .errors import InvalidInputError
+
+    for name, value in paths.items():
+        if name == "pattern":
+            if not isinstance(value, str) or not value:
+                raise InvalidInputError(f"pattern must be a file name pattern (text), got "
+                                        f"{_opt.shown(value)}")
+        else:
+            _opt.path_like(value, name, folder=True if name == "out_dir" else None)
+    return paths
 
 
 def run_demo(out_dir: str | os.PathLike, *, seed: int = 0, grid: tuple[int, int] = (5, 6),
@@ -355,8 +390,8 @@ def run_demo(out_dir: str | os.PathLike, *, seed: int = 0, grid: tuple[int, int]
     >>> res.report.name  # doctest: +SKIP
     'report.html'
     """
-    _check_demo_options(grid, size, labels)
-    log = log or _quiet
+    _check_demo_options(out_dir, seed, grid, size, metric, labels, progress)
+    log = _log_or_quiet(log)
     t_start = time.perf_counter()
     out = Path(out_dir)
     timings: dict[str, float] = {}
@@ -437,15 +472,25 @@ def run_calibration(shots: str | os.PathLike, out_dir: str | os.PathLike, *, pat
         The calibration and every file written.
     """
     from . import calibration as cal_mod
+    from .calibration.grid import grid_keys
     from .calibration.raw import pose_folders, read_poses
     from .errors import InvalidInputError
 
-    log = log or _quiet
-    out = Path(out_dir)
-    spec = cal_mod.BoardSpec(int(board[0]), int(board[1]), float(square))  # options first
-    if reference is not None and not (0 <= reference[0] < grid[0] and 0 <= reference[1] < grid[1]):
-        raise InvalidInputError(f"--reference {reference[0]},{reference[1]} is outside the "
-                                f"{grid[0]} x {grid[1]} grid (rows and columns count from 0)")
+    log = _log_or_quiet(log)
+    out = Path(_check_run_paths(shots=shots, out_dir=out_dir, pattern=pattern)["out_dir"])
+    grid = _opt.int_pair(grid, "grid", what="(rows, cols)")
+    grid_keys(*grid)  # at most MAX_CAMERAS
+    spec = cal_mod.BoardSpec(*_opt.int_pair(board, "board", what="(cols, rows) of inner "
+                                            "corners"), square)  # options first
+    _opt.choice(mode, "mode", ("auto", "plane", "full"))
+    if reference is not None:
+        reference = _opt.int_pair(reference, "reference", None, what="(row, col)")
+        if not (0 <= reference[0] < grid[0] and 0 <= reference[1] < grid[1]):
+            raise InvalidInputError(f"--reference {reference[0]},{reference[1]} is outside the "
+                                    f"{grid[0]} x {grid[1]} grid (rows and columns count from "
+                                    "0)")
+    if focal_px is not None:
+        _opt.number(focal_px, "focal_px", positive=True)
     per = read_poses(shots, pattern, grid)  # a wrong pattern: refused here
     _say_beyond_grid(pose_folders(shots, pattern, grid)[0], pattern, grid, log)
     n = len(next(iter(per.values())))
@@ -501,7 +546,9 @@ def _wavelength_table(spec, grid) -> np.ndarray | None:
     from .errors import DataNotFoundError, InvalidInputError
 
     n, text = grid[0] * grid[1], str(spec)
-    if _is_file(spec):
+    if not isinstance(spec, (str, os.PathLike)):  # numbers given as they are
+        text = " ".join(str(v) for v in _opt.real_array(spec, "wavelengths").ravel())
+    elif _is_file(spec):
         text = Path(spec).read_text(encoding="utf-8", errors="replace")
         lines = text.splitlines()
         if lines and _numbers(lines[0]) is None:
@@ -587,7 +634,15 @@ def run_ingest(raw: str | os.PathLike, out_dir: str | os.PathLike, *, calibratio
     from .errors import DataNotFoundError
     from .formats import save_lightfield
 
-    log = log or _quiet
+    log = _log_or_quiet(log)
+    _check_run_paths(raw=raw, out_dir=out_dir, calibration=calibration, pattern=pattern)
+    for name, frame in (("dark", dark), ("flat", flat)):
+        if frame is not None:
+            _opt.path_like(frame, name, folder=None)
+    if saturation is not None:
+        _opt.number(saturation, "saturation", at_most=1)
+    if raw_bits is not None:
+        _opt.integer(raw_bits, "raw_bits", 1, maximum=32)
     cal_path = Path(calibration)
     cal = read_calibration(cal_path / "calibration.toml" if cal_path.is_dir() else cal_path)
     wl = _wavelength_table(wavelengths, cal.grid)  # the options first: no images read yet

@@ -14,6 +14,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from .. import _options as _opt
 from ..errors import InvalidInputError
 
 __all__ = ["ingest", "correct_raw", "check_dead"]
@@ -74,8 +75,17 @@ def check_dead(calibration, dead) -> set:
     InvalidInputError
         A camera outside the grid or the reference; fewer than two cameras alive.
     """
+    from .model import Calibration
+
+    if not isinstance(calibration, Calibration):
+        raise InvalidInputError(f"calibration must be a Calibration, got "
+                                f"{type(calibration).__name__}")
     R, C = calibration.grid
-    dead = {tuple(int(v) for v in k) for k in dead}
+    try:
+        dead = {_opt.int_pair(k, "dead camera", None, what="(row, col)") for k in dead}
+    except TypeError:
+        raise InvalidInputError(f"dead must be (row, col) pairs, got {_opt.shown(dead)}") \
+            from None
     for k in sorted(dead):
         if not (0 <= k[0] < R and 0 <= k[1] < C):
             raise InvalidInputError(f"dead camera {k[0]},{k[1]} is outside the {R} x {C} grid")
