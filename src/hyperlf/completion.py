@@ -1145,7 +1145,6 @@ def read_band_mask(path, view=None, *, name: str = "band_mask") -> np.ndarray:
     """
     import h5py
 
-
     path_like(path)
     choice(name, "name", ("band_mask", "inferred_mask"))
     if not os.path.isfile(path):

@@ -323,8 +323,8 @@ def _check_demo_options(out_dir, seed, grid, size, metric, labels, progress) -> 
     R, C = _opt.int_pair(grid, "grid", maximum=MAX_CAMERAS, what="(rows, cols)")
     H, W = _opt.int_pair(size, "size", maximum=2 ** 16, what="(height, width) in px")
     if R * C < 2 or R * C > MAX_CAMERAS:
-        raise InvalidInputError(f"the demo needs 2 to {MAX_CAMERAS} views; got a {R} x {C} "
-                                "grid")
+        raise InvalidInputError(f"the demo needs at least 2 views (and at most {MAX_CAMERAS}); "
+                                f"got a {R} x {C} grid")
     get_cost(metric, light_field=True)
     check_label_volume(_opt.integer(labels, "labels", 2), (H, W))
     _opt.flag(progress, "progress")
