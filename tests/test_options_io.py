@@ -244,3 +244,43 @@ def test_calibration_and_ingest_runs_refuse_their_options_in_one_line(tmp_path, 
               "pattern": "cam{index}.png", name: value}
         with pytest.raises(InvalidInputError):
             run_ingest(kw.pop("raw"), kw.pop("out_dir"), **kw)
+
+
+_PICTURE_JUNK = [("save_disparity_png", "cmap", "x"), ("save_disparity_png", "vmin", "x"),
+                 ("save_disparity_png", "path", 5), ("save_mosaic_png", "max_side", 0),
+                 ("save_mosaic_png", "wavelengths", np.ones(3)), ("save_mosaic_png", "title",
+                                                                  np.zeros(2)),
+                 ("save_share_mosaic_png", "shares", "x"), ("save_spectrum_plot", "labels", 5),
+                 ("save_error_png", "truth", np.zeros((3, 3))), ("save_figure", "fig", None)]
+
+
+@pytest.mark.parametrize("function, name, value", _PICTURE_JUNK)
+def test_pictures_refuse_their_options_in_one_line_and_leave_no_figure_open(tmp_path, function,
+                                                                           name, value):
+    """``cmap='x'`` (matplotlib's own error), ``max_side=0`` (a division by zero), a path of
+    5, ``labels=5``, truth of another shape were tracebacks; a refused write closed no
+    figure (matplotlib warned after twenty)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from hyperlf import visualise
+    from hyperlf.errors import InvalidInputError
+
+    rng = np.random.default_rng(0)
+    views, img = rng.random((2, 2, 8, 8)), rng.random((8, 8))
+    base = {"save_disparity_png": {"disparity": img},
+            "save_mosaic_png": {"views": views, "wavelengths": np.full((2, 2), 500.0)},
+            "save_share_mosaic_png": {"shares": views, "title": "t", "label": "l"},
+            "save_spectrum_plot": {"wavelengths": np.arange(4.0) + 450,
+                                   "spectra": rng.random((2, 4))},
+            "save_error_png": {"estimate": img, "truth": img},
+            "save_figure": {"fig": plt.figure()}}[function]
+    kw = {"path": tmp_path / "p.png", **base, name: value}
+    before = len(plt.get_fignums())
+    with pytest.raises(InvalidInputError) as err:
+        getattr(visualise, function)(**kw)
+    assert "\n" not in str(err.value)
+    assert len(plt.get_fignums()) <= before and not (tmp_path / "p.png").exists()
+    plt.close("all")

@@ -14,6 +14,8 @@ import threading
 from pathlib import Path
 from typing import Iterator
 
+from ._options import path_like
+
 __all__ = ["atomic_path", "atomic_write_bytes", "atomic_write_text", "current_umask",
            "publish"]
 
@@ -69,7 +71,7 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     pick a codec from the extension (OpenCV, tifffile) still work on the temporary name. The
     renamed file's mode is ``0o666`` less the process's umask, as for any newly created file.
     """
-    target = Path(path)
+    target = Path(path_like(path))  # a bad name is one line, whoever writes
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(
         prefix=f".{target.name}.partial-",

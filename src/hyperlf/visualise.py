@@ -13,6 +13,7 @@ from typing import Sequence
 
 import numpy as np
 
+from . import _options as _opt
 from ._atomic import atomic_path
 from .errors import InvalidInputError
 
@@ -43,9 +44,14 @@ def save_figure(fig, path) -> Path:
     """Write a matplotlib figure atomically (format from the suffix, PNG by default), close it
     and return the path: every picture hyperlf draws is written here."""
     plt = pyplot()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=110, bbox_inches="tight", format=Path(path).suffix.lstrip(".") or "png")
-    plt.close(fig)
+    if not hasattr(fig, "savefig"):
+        raise InvalidInputError(f"fig must be a matplotlib figure, got {type(fig).__name__}")
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=110, bbox_inches="tight",
+                        format=Path(path).suffix.lstrip(".") or "png")
+    finally:  # a refused or failed write leaves no figure open
+        plt.close(fig)
     return Path(path)
 
 
@@ -53,6 +59,9 @@ def display_step(rows: int, cols: int, max_side: int) -> int:
     """The stride (1, 2, ...) that brings a picture of ``rows`` x ``cols`` pixels to at most
     ``max_side`` on its longer side: a grid of views is subsampled to what a figure shows
     before it is drawn, so that a picture of large images costs what a small one does."""
+    rows, cols = (_opt.integer(n, name, maximum=2 ** 31) for n, name in ((rows, "rows"),
+                                                                         (cols, "cols")))
+    max_side = _opt.integer(max_side, "max_side", 1)
     return max(1, int(np.ceil(max(rows, cols) / max_side)))
 
 
@@ -60,8 +69,8 @@ def _robust_range(values: np.ndarray, vmin=None, vmax=None) -> tuple[float, floa
     finite = values[np.isfinite(values)]
     if finite.size == 0:
         return 0.0, 1.0
-    lo = float(np.percentile(finite, 0.5)) if vmin is None else float(vmin)
-    hi = float(np.percentile(finite, 99.5)) if vmax is None else float(vmax)
+    lo = float(np.percentile(finite, 0.5)) if vmin is None else _opt.real(vmin, "vmin")
+    hi = float(np.percentile(finite, 99.5)) if vmax is None else _opt.real(vmax, "vmax")
     if hi <= lo:
         hi = lo + 1e-6
     return lo, hi
@@ -97,10 +106,12 @@ def save_disparity_png(path: str | os.PathLike, disparity: np.ndarray, *, title:
     >>> save_disparity_png(out, np.eye(8)).is_file()
     True
     """
-    d = np.asarray(disparity, dtype=np.float64)
+    d = _opt.real_array(disparity, "disparity")
     if d.ndim != 2:
         raise InvalidInputError(f"disparity must be 2-D, got shape {d.shape}")
+    _opt.path_like(path)
     plt = pyplot()
+    _opt.choice(cmap, "cmap", tuple(plt.colormaps()))
     lo, hi = _robust_range(d, vmin, vmax)
     H, W = d.shape
     fig, ax = plt.subplots(figsize=(min(10, 2 + 6 * W / max(H, W)), 6 * H / max(H, W) + 0.6))
@@ -142,7 +153,11 @@ def save_error_png(path: str | os.PathLike, estimate: np.ndarray, truth: np.ndar
     Path
         The written PNG.
     """
-    err = np.abs(np.asarray(estimate, dtype=np.float64) - np.asarray(truth, dtype=np.float64))
+    est, tru = _opt.real_array(estimate, "estimate"), _opt.real_array(truth, "truth")
+    if est.shape != tru.shape:
+        raise InvalidInputError(f"estimate and truth must have one shape, got {est.shape} and "
+                                f"{tru.shape}")
+    err = np.abs(est - tru)
     return save_disparity_png(path, err, title=title, vmin=0.0, vmax=vmax, cmap="magma",
                               label="|error| (px)")
 
@@ -219,10 +234,15 @@ def save_mosaic_png(path: str | os.PathLike, views: np.ndarray,
     Path
         The written PNG.
     """
-    v = np.asarray(views, dtype=np.float32)
+    _opt.path_like(path)
+    v = _opt.real_array(views, "views", np.float32)
     if v.ndim not in (4, 5):
         raise InvalidInputError(f"views must be (R, C, H, W[, 3]), got {v.shape}")
     R, C, H, W = v.shape[:4]
+    if wavelengths is not None and _opt.real_array(wavelengths, "wavelengths").shape != (R, C):
+        raise InvalidInputError(f"wavelengths must be one per view, shape {(R, C)}")
+    if title is not None and not isinstance(title, str):
+        raise InvalidInputError(f"title must be text or None, got {type(title).__name__}")
     step = display_step(R * H, C * W, max_side)
     v = v[:, :, ::step, ::step]
     if v.ndim == 4:
@@ -269,7 +289,8 @@ def save_share_mosaic_png(path: str | os.PathLike, shares: np.ndarray, *, title:
     Path
         The PNG.
     """
-    v = np.asarray(shares, dtype=np.float32)
+    _opt.path_like(path)
+    v = _opt.real_array(shares, "shares", np.float32)
     if v.ndim != 4:
         raise InvalidInputError(f"shares must be (R, C, H, W), got {v.shape}")
     R, C, H, W = v.shape
@@ -312,8 +333,13 @@ def save_spectrum_plot(path: str | os.PathLike, wavelengths: np.ndarray,
     Path
         The written PNG.
     """
-    wl = np.asarray(wavelengths, dtype=np.float64)
-    sp = np.atleast_2d(np.asarray(spectra, dtype=np.float64))
+    _opt.path_like(path)
+    wl = _opt.real_array(wavelengths, "wavelengths")
+    sp = np.atleast_2d(_opt.real_array(spectra, "spectra"))
+    if labels is not None and (isinstance(labels, str) or not isinstance(labels, Sequence)
+                               or len(labels) != len(sp)):
+        raise InvalidInputError(f"labels must be one text per spectrum ({len(sp)}), got "
+                                f"{_opt.shown(labels)}")
     if sp.shape[-1] != wl.size:
         raise InvalidInputError(
             f"spectra have {sp.shape[-1]} samples but there are {wl.size} wavelengths"
