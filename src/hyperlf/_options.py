@@ -200,14 +200,15 @@ def float_dtype(value, label: str = "dtype") -> np.dtype:
 def bool_mask(value, label: str, shape: tuple[int, ...], *, broadcast: bool = False,
               of: str = "the data") -> np.ndarray:
     """``value`` (bools or numbers, not text) as a bool mask of ``shape``, or broadcast to it
-    where ``broadcast``.
+    where ``broadcast``; a bool array is used as it is (no copy of a cube-sized mask).
 
     Examples
     --------
     >>> bool_mask([1, 0], "valid", (2,)).tolist()
     [True, False]
     """
-    mask = real_array(value, label).astype(bool)
+    mask = value if isinstance(value, np.ndarray) and value.dtype == np.bool_ else \
+        real_array(value, label).astype(bool)
     if mask.shape == shape:
         return mask
     if broadcast:

@@ -215,8 +215,7 @@ _sigma = rule(number, at_least=1e-6, at_most=MAX_CONSTANT)
 _window = rule(integer, minimum=1, maximum=MAX_PX, odd=True)
 _count = rule(integer, minimum=0, maximum=MAX_ITERATIONS)
 
-#: Every parameter's rule per method (checked by :func:`_merge` before any work; the methods'
-#: own checks below keep their canonical types).
+#: Every parameter's rule per method, checked by :func:`_merge` before any work.
 _RULES: dict[str, dict[str, Callable]] = {
     "tao2013": dict(window=_window, defocus_operator=rule(choice, choices=("laplacian",
                                                                            "gradient_x")),
@@ -313,6 +312,7 @@ def label_disparities(lf: LightField, n_labels, disparity_range=None) -> np.ndar
 
 
 def _merge(method: str, params: dict) -> dict:
+    """``params`` over :data:`DEFAULTS` of ``method``, every value checked by :data:`_RULES`."""
     p = dict(DEFAULTS[method])
     unknown = sorted(set(params) - set(p))
     if unknown:
@@ -320,17 +320,10 @@ def _merge(method: str, params: dict) -> dict:
             f"unknown parameter(s) for {method}: {', '.join(unknown)}; "
             f"allowed: {', '.join(sorted(p))}")
     p.update(params)
-    check_values(p, _RULES[method])
+    checked = check_values(p, _RULES[method])
+    # integers in their canonical type (a window of 9.0 is 9); numbers stay as given
+    p.update({k: v for k, v in checked.items() if type(v) is int})
     return p
-
-
-def _positive(p: dict, name: str, allow_zero: bool = False) -> float:
-    return number(p[name], name, positive=not allow_zero)
-
-
-def _odd_window(p: dict, name: str = "window") -> int:
-    p[name] = integer(p[name], name, 1, odd=True)
-    return p[name]
 
 
 def _shift(img: np.ndarray, sx: float, sy: float) -> np.ndarray:
@@ -440,7 +433,7 @@ def _start(method: str, lf, n_labels, disparity_range, params: dict, progress: b
     lf = _check_lf(lf)
     progress = flag(progress, "progress")
     labels = label_disparities(lf, n_labels, disparity_range)
-    p = _PARAMS[method](params)
+    p = _merge(method, params)
     views = prepare_views(lf)
     return _Run(method=method, labels=labels, p=p, vl=_view_list(lf, views),
                 ref=views[lf.reference].astype(np.float32), progress=progress, t0=t0)
@@ -495,22 +488,6 @@ def _tao_fuse(z_src, w_src, lam_flat, lam_smooth, n_irls, eps):
         b = sum(w * s for w, s in zip(wi, zs)) + floor * z
         z = spsolve(A.tocsc(), b)
     return z.reshape(H, W)
-
-
-def _tao_params(params: dict) -> dict:
-    """Merged and checked Tao et al. parameters."""
-    p = _merge("tao2013", params)
-    _odd_window(p)
-    if p["defocus_operator"] not in ("laplacian", "gradient_x"):
-        raise InvalidInputError(
-            f"defocus_operator must be 'laplacian' or 'gradient_x', got {p['defocus_operator']!r}")
-    for k in ("conf_exponent_corr", "conf_exponent_defocus", "lambda_flat", "lambda_smooth"):
-        _positive(p, k, allow_zero=True)
-    _positive(p, "irls_epsilon")
-    pct = _positive(p, "conf_percentile")
-    if pct > 100:
-        raise InvalidInputError(f"conf_percentile must be in (0, 100], got {pct}")
-    return p
 
 
 def _tao_responses(run: _Run):
@@ -684,22 +661,6 @@ def _bilateral_apply(a: np.ndarray, offs, ws, radius: int) -> np.ndarray:
     for (oy, ox), w in zip(offs, ws):
         out += w * pad[radius + oy:radius + oy + H, radius + ox:radius + ox + W]
     return out
-
-
-def _wang_params(params: dict) -> dict:
-    """Merged and checked Wang et al. parameters."""
-    p = _merge("wang2015", params)
-    for k in ("band_radius", "consistency_offset", "consistency_threshold", "inconsistent_cost",
-              "refocus_weight", "canny_sigma", "canny_weight", "occlusion_weight", "smooth_weight",
-              "split_margin"):
-        _positive(p, k, allow_zero=True)
-    _positive(p, "bilateral_sigma")
-    _odd_window(p, "orientation_window")
-    for k in ("bilateral_radius", "median"):
-        p[k] = integer(p[k], k)
-    number(p["canny_non_edge"], "canny_non_edge", positive=True, below=1)
-    number(p["canny_low_ratio"], "canny_low_ratio", positive=True, at_most=1)
-    return p
 
 
 @dataclass
@@ -944,19 +905,6 @@ def _robust_range(vol: np.ndarray) -> float:
     return float(r) if r > 0 else 1.0
 
 
-def _lin_params(params: dict) -> dict:
-    """Merged and checked Lin et al. parameters."""
-    p = _merge("lin2015", params)
-    _odd_window(p)
-    _positive(p, "symmetry_span")
-    _positive(p, "tau")
-    _positive(p, "data_weight", allow_zero=True)
-    _positive(p, "smooth_weight", allow_zero=True)
-    if p["truncation"] is not None:
-        _positive(p, "truncation")
-    return p
-
-
 def _lin_focal_stack(run: _Run, sym) -> tuple[np.ndarray, np.ndarray]:
     """Focal stack ``F`` of the symmetric views and the data term ``|Fall - I_ref|`` (boxed)."""
     w = int(run.p["window"])
@@ -1057,9 +1005,3 @@ METHODS: dict[str, Callable[..., BaselineResult]] = {
     "lin2015": lin2015,
 }
 
-#: Each method's parameter check: merges ``**params`` into :data:`DEFAULTS` and validates them.
-_PARAMS: dict[str, Callable[[dict], dict]] = {
-    "tao2013": _tao_params,
-    "wang2015": _wang_params,
-    "lin2015": _lin_params,
-}

@@ -769,13 +769,6 @@ def _float_maps(value, label: str, shape: tuple[int, ...]) -> np.ndarray:
     return a
 
 
-def _bool_maps(value, label: str, shape: tuple[int, ...]) -> np.ndarray:
-    """``value`` as a bool array of ``shape``: a bool array as it is (no copy)."""
-    if isinstance(value, np.ndarray) and value.dtype == np.bool_ and value.shape == shape:
-        return value
-    return bool_mask(value, label, shape, of="the cube")
-
-
 def _band_index(value, grid: tuple[int, int]) -> np.ndarray:
     """``value`` as the ``(R, C)`` band indices of :func:`band_order`, each in ``0..R C-1``."""
     b = real_array(value, "band_index")
@@ -965,7 +958,7 @@ def fill_missing(cube: np.ndarray, mask: np.ndarray, wavelengths, mode: str = "s
     cube = real_array(cube, "cube", np.float32)
     if cube.ndim != 3:
         raise InvalidInputError(f"cube must be (B, H, W), got shape {cube.shape}")
-    m = _bool_maps(mask, "mask", cube.shape)
+    m = bool_mask(mask, "mask", cube.shape, of="the cube")
     if mode == "zero":
         return np.where(m, cube, 0.0).astype(np.float32)
     B = cube.shape[0]
@@ -1097,7 +1090,7 @@ def infer_missing(cube, mask, disparity, guide, *, radius: int = 6, sigma_d: flo
         raise InvalidInputError(
             f"infer_missing needs cube/mask (B, H, W) and disparity/guide (H, W); got "
             f"{c.shape}, {d.shape}, {g.shape}")
-    m = _bool_maps(mask, "mask", c.shape)
+    m = bool_mask(mask, "mask", c.shape, of="the cube")
     limit = max(c.shape[1], c.shape[2], 6)  # the default radius 6 on any view
     if radius > limit:
         raise InvalidInputError(f"infer radius {radius} px reaches past the {c.shape[2]} x "

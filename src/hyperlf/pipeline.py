@@ -330,7 +330,7 @@ def _check_demo_options(out_dir, seed, grid, size, metric, labels, progress) -> 
     _opt.flag(progress, "progress")
 
 
-def _check_run_paths(**paths) -> dict:
+def _check_run_paths(**paths) -> None:
     """The inputs (files or folders), ``out_dir`` (a folder) and ``pattern`` (text) of
     :func:`run_calibration` and :func:`run_ingest`, checked before any image is read."""
     from .errors import InvalidInputError
@@ -342,7 +342,6 @@ def _check_run_paths(**paths) -> dict:
                                         f"{_opt.shown(value)}")
         else:
             _opt.path_like(value, name, folder=True if name == "out_dir" else None)
-    return paths
 
 
 def run_demo(out_dir: str | os.PathLike, *, seed: int = 0, grid: tuple[int, int] = (5, 6),
@@ -477,7 +476,8 @@ def run_calibration(shots: str | os.PathLike, out_dir: str | os.PathLike, *, pat
     from .errors import InvalidInputError
 
     log = _log_or_quiet(log)
-    out = Path(_check_run_paths(shots=shots, out_dir=out_dir, pattern=pattern)["out_dir"])
+    _check_run_paths(shots=shots, out_dir=out_dir, pattern=pattern)
+    out = Path(out_dir)
     grid = _opt.int_pair(grid, "grid", what="(rows, cols)")
     grid_keys(*grid)  # at most MAX_CAMERAS
     spec = cal_mod.BoardSpec(*_opt.int_pair(board, "board", what="(cols, rows) of inner "
@@ -539,16 +539,32 @@ WAVELENGTH_RANGE_NM = (200.0, 20000.0)
 
 
 def _wavelength_table(spec, grid) -> np.ndarray | None:
-    """Filter wavelengths (nm) in raster order: a comma list, or a text/CSV file of numbers
-    (separated by commas, spaces or lines; one header line is skipped)."""
+    """Filter wavelengths (nm) in raster order: numbers, a comma list, or a text/CSV file of
+    numbers (separated by commas, spaces or lines; one header line is skipped)."""
     if spec is None:
         return None
+    from .errors import InvalidInputError
+
+    n = grid[0] * grid[1]
+    wl = (_wavelength_text(spec, n) if isinstance(spec, (str, os.PathLike))
+          else _opt.real_array(spec, "wavelengths").ravel())
+    lo, hi = WAVELENGTH_RANGE_NM
+    if wl.size != n:
+        raise InvalidInputError(f"--wavelengths: need {n} numbers (one per camera, raster "
+                                f"order), got {wl.size}")
+    if not (np.isfinite(wl).all() and (wl >= lo).all() and (wl <= hi).all()):
+        um = " (micrometres? give nm, e.g. 450)" if np.nanmax(np.abs(wl)) < 20 else ""
+        raise InvalidInputError(f"--wavelengths: every value must be a wavelength in nm "
+                                f"between {lo:g} and {hi:g}{um}")
+    return wl.reshape(grid)
+
+
+def _wavelength_text(spec, n: int) -> np.ndarray:
+    """The numbers of a comma list, or of a text/CSV file of them (``n`` expected)."""
     from .errors import DataNotFoundError, InvalidInputError
 
-    n, text = grid[0] * grid[1], str(spec)
-    if not isinstance(spec, (str, os.PathLike)):  # numbers given as they are
-        text = " ".join(str(v) for v in _opt.real_array(spec, "wavelengths").ravel())
-    elif _is_file(spec):
+    text = str(spec)
+    if _is_file(spec):
         text = Path(spec).read_text(encoding="utf-8", errors="replace")
         lines = text.splitlines()
         if lines and _numbers(lines[0]) is None:
@@ -559,15 +575,7 @@ def _wavelength_table(spec, grid) -> np.ndarray | None:
     if wl is None:
         raise InvalidInputError(f"--wavelengths {spec!r}: give {n} numbers in nm (raster "
                                 "order), separated by commas, or a file of them")
-    lo, hi = WAVELENGTH_RANGE_NM
-    if wl.size != n:
-        raise InvalidInputError(f"--wavelengths: need {n} numbers (one per camera, raster "
-                                f"order), got {wl.size}")
-    if not (np.isfinite(wl).all() and (wl >= lo).all() and (wl <= hi).all()):
-        um = " (micrometres? give nm, e.g. 450)" if np.nanmax(np.abs(wl)) < 20 else ""
-        raise InvalidInputError(f"--wavelengths: every value must be a wavelength in nm "
-                                f"between {lo:g} and {hi:g}{um}")
-    return wl.reshape(grid)
+    return wl
 
 
 def _is_file(spec) -> bool:
