@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._options import choice, integer, shown, window
+from .._options import choice, integer, number, real_array, shown, window
 from ..errors import InvalidInputError
 
-__all__ = ["IMPLS", "AUTO_IMPL", "check_pair", "check_disp", "check_window", "check_impl"]
+__all__ = ["IMPLS", "AUTO_IMPL", "MAX_VIEW_WINDOW", "MIN_SCALE", "check_pair", "check_disp",
+           "check_window", "check_impl", "check_map", "check_shape", "check_bytes",
+           "check_scale", "check_dmin", "map_side"]
 
 IMPLS = ("auto", "numpy", "numba")
 #: ``impl="auto"`` per evaluator: numba wherever a kernel exists (measured faster, BENCHMARKS.md).
@@ -60,6 +62,11 @@ def check_disp(dmin, dmax, shape=None) -> tuple[int, int]:
     return a, b
 
 
+def check_dmin(dmin) -> int:
+    """The lowest disparity of a volume: an integer within ``+-MAX_DISPARITY``."""
+    return integer(dmin, "dmin", minimum=-MAX_DISPARITY, maximum=MAX_DISPARITY)
+
+
 def check_window(n, name="window", *, side: int | None = None) -> int:
     """An odd integer window size ``>= 1`` (at most ``2 side + 1`` for an image of ``side``
     px on its longer side)."""
@@ -72,3 +79,77 @@ def check_impl(impl, evaluator) -> str:
     if impl == "auto":
         return AUTO_IMPL.get(evaluator, "numpy")
     return impl
+
+
+#: Widest cost window the per-view evaluators take on views narrower than it (a window wider
+#: than the view makes every column a border column; a huge one only pads memory away).
+MAX_VIEW_WINDOW = 255
+
+
+def map_side(shape) -> int:
+    """The half-width up to which the window helpers take a window on maps of ``shape``
+    ``(..., H, W)``: the maps' longer side, or ``MAX_VIEW_WINDOW // 2`` on smaller ones (as
+    the per-view evaluators allow)."""
+    return max(int(shape[-2]), int(shape[-1]), MAX_VIEW_WINDOW // 2)
+
+
+#: Real-number dtype kinds the helpers take (no bools, text or objects).
+_REAL_KINDS = "iuf"
+
+
+def check_map(value, label: str, ndim, *, empty: bool = False) -> np.ndarray:
+    """``value`` as a numpy array of real numbers (an ndarray is returned as it is, no copy)
+    with ``ndim`` axes (an int, or a tuple of the ones allowed), non-empty unless ``empty``.
+    O(1) for an ndarray: nothing is scanned."""
+    a = value if isinstance(value, np.ndarray) else real_array(value, label, dtype=None)
+    ndims = (ndim,) if isinstance(ndim, int) else tuple(ndim)
+    if a.dtype.kind not in _REAL_KINDS or a.ndim not in ndims or (a.size == 0 and not empty):
+        want = " or ".join(f"{n}-D" for n in ndims)
+        got = f"shape {a.shape}, dtype {a.dtype}" if isinstance(value, np.ndarray) \
+            else shown(value)
+        raise InvalidInputError(f"{label} must be a non-empty {want} array of real numbers, "
+                                f"got {got}")
+    return a
+
+
+def check_shape(shape, label: str = "shape") -> tuple[int, int]:
+    """``(H, W)``, the last two entries of ``shape`` (a sequence of at least two integers
+    ``>= 1``, up to ``2**31``)."""
+    try:
+        items = tuple(shape) if not isinstance(shape, (str, bytes, dict)) else ()
+        ok = len(items) >= 2
+        H, W = (integer(v, label, 1, maximum=2 ** 31) for v in items[-2:]) if ok else (0, 0)
+    except (TypeError, InvalidInputError):
+        ok = False
+    if not ok:
+        raise InvalidInputError(f"{label} must be an image shape (..., H, W) of integers >= 1, "
+                                f"got {shown(shape)}")
+    return H, W
+
+
+#: Arrays up to this many bytes are made without asking the memory (:func:`check_bytes`).
+_SMALL_BYTES = 2 ** 26
+
+
+def check_bytes(nbytes, what: str, remedy: str) -> None:
+    """Refuse arrays of ``nbytes`` beyond the memory available
+    (:func:`hyperlf.tiling.check_memory`); below 64 MiB without asking (O(1))."""
+    if nbytes > _SMALL_BYTES:
+        from ..tiling import check_memory
+
+        check_memory(nbytes, what, remedy)
+
+
+#: Smallest nonzero normalising scale (standard deviation of a cost volume) taken: below it
+#: costs of order one would overflow float32 (a true standard deviation is 0 or far above).
+MIN_SCALE = 1e-20
+
+
+def check_scale(value, label: str, *, optional: bool = True) -> float | None:
+    """A normalising scale: a finite number that is 0 or ``>= MIN_SCALE`` (None where
+    ``optional``)."""
+    sd = number(value, label, optional=optional)
+    if sd is not None and 0 < sd < MIN_SCALE:
+        raise InvalidInputError(f"{label} must be 0 or at least {MIN_SCALE:g} (a standard "
+                                f"deviation of costs), got {shown(value)}")
+    return sd

@@ -38,8 +38,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._options import choice, integer, number, shown
+from .._options import bool_mask, choice, integer, number, shown
 from ..errors import InvalidInputError
+from ._validate import check_dmin, check_map, map_side
 from .pair import box_mean, candidate_validity, right_validity, worst_fill
 
 __all__ = ["AGGREGATION_METHODS", "AggregationParams", "guide_image", "guided_filter",
@@ -93,11 +94,11 @@ def guide_image(image) -> np.ndarray:
     """The guide of a 2-D image: float64, divided by its 99th percentile.
 
     A non-positive percentile leaves the image as it is (a flat guide is fine: the guided filter
-    is then a box mean).
+    is then a box mean).  ``image``: finite real numbers, 2-D.
     """
-    img = np.asarray(image, dtype=np.float64)
-    if img.ndim != 2:
-        raise InvalidInputError(f"the guide must be a 2-D image, got shape {img.shape}")
+    img = np.asarray(check_map(image, "the guide", 2), dtype=np.float64)
+    if not np.isfinite(img).all():  # one pass, beside the percentile's sort
+        raise InvalidInputError("the guide must be finite (no NaN/inf); fill or mask it first")
     p = float(np.percentile(img, 99)) if img.size else 0.0
     return img / p if p > 0 and np.isfinite(p) else img
 
@@ -113,16 +114,35 @@ def guided_filter(guide, src, radius: int, eps: float, *, stats=None) -> np.ndar
     ``q = mean(a) I + mean(b)`` with ``a = cov(I, p) / (var(I) + eps)``, ``b = mean(p) -
     a mean(I)`` over ``(2 radius + 1)``-square boxes, replicated borders
     (:func:`hyperlf.costs.box_mean`).  ``stats``: the guide's box mean and variance, when
-    filtering many maps with one guide.
+    filtering many maps with one guide.  Checked in O(1) (it runs per label): 2-D maps of one
+    shape, ``radius`` an integer in ``1 .. map_side`` (:func:`_check_radius`), ``eps`` > 0.
     """
-    n = 2 * int(radius) + 1
-    guide = np.asarray(guide, dtype=np.float64)
+    guide = np.asarray(check_map(guide, "guide", 2), dtype=np.float64)
+    src = check_map(src, "src", 2)
+    if src.shape != guide.shape:
+        raise InvalidInputError(f"src {src.shape} and guide {guide.shape} must have one shape")
+    n = 2 * _check_radius(radius, guide.shape) + 1
+    number(eps, "eps", positive=True)
+    if stats is not None:
+        try:
+            ok = len(stats) == 2 and all(np.shape(a) == guide.shape for a in stats)
+        except TypeError:
+            ok = False
+        if not ok:
+            raise InvalidInputError(f"stats must be the guide's (box mean, variance), two "
+                                    f"arrays of its shape {guide.shape}, got {shown(stats)}")
     mean_i, var_i = _guide_stats(guide, n) if stats is None else stats
     mean_p = box_mean(src, n)
     cov = box_mean(guide * src, n) - mean_i * mean_p
     a = cov / (var_i + eps)
     b = mean_p - a * mean_i
     return box_mean(a, n) * guide + box_mean(b, n)
+
+
+def _check_radius(radius, shape) -> int:
+    """The guided filter's radius: an integer ``>= 1``, at most the maps' longer side (or
+    127 on smaller maps, :func:`hyperlf.costs._validate.map_side`)."""
+    return integer(radius, "radius", 1, maximum=map_side(shape))
 
 
 def aggregate_volume(volume, guide, params: AggregationParams | str | None = None, *,
@@ -149,18 +169,24 @@ def aggregate_volume(volume, guide, params: AggregationParams | str | None = Non
     ndarray, float32, shape (L, H, W)
     """
     p = AggregationParams.of(params)
-    vol = np.asarray(volume, dtype=np.float32)
+    vol = np.asarray(check_map(volume, "volume (L, H, W)", 3), dtype=np.float32)
+    guide = check_map(guide, "guide", 2)
+    if guide.shape != vol.shape[1:]:
+        raise InvalidInputError(f"volume (L, H, W) and guide (H, W) disagree: {vol.shape} vs "
+                                f"{guide.shape}")
+    if valid is not None:
+        valid = bool_mask(valid, "valid", vol.shape, broadcast=True, of="the volume")
+    if out is not None and not (isinstance(out, np.ndarray) and out.shape == vol.shape
+                                and out.dtype == np.float32 and out.flags.writeable):
+        raise InvalidInputError(f"out must be a writeable float32 array of shape {vol.shape}, "
+                                f"got {shown(out)}")
     if p.method == "none":
         return vol
-    if vol.ndim != 3 or np.shape(guide) != vol.shape[1:]:
-        raise InvalidInputError(f"volume (L, H, W) and guide (H, W) disagree: {vol.shape} vs "
-                                f"{np.shape(guide)}")
+    _check_radius(p.radius, vol.shape)
     g = guide_image(guide)
     stats = _guide_stats(g, 2 * p.radius + 1)
     if out is None:
         out = np.empty_like(vol)
-    elif out.shape != vol.shape or out.dtype != np.float32:
-        raise InvalidInputError(f"out must be a float32 array of shape {vol.shape}")
     for k in range(vol.shape[0]):
         out[k] = guided_filter(g, vol[k], p.radius, p.eps, stats=stats)
     if valid is not None:
@@ -176,9 +202,18 @@ def aggregate_pair(cost_left, cost_right, left, right, dmin: int,
     ``cost_right`` may be None.  Returns ``(C_L, C_R)``.
     """
     p = AggregationParams.of(params)
+    Lc, H, W = check_map(cost_left, "cost_left (L, H, W)", 3).shape
+    if cost_right is not None and np.shape(check_map(cost_right, "cost_right (L, H, W)", 3)) \
+            != (Lc, H, W):
+        raise InvalidInputError(f"cost_right must have cost_left's shape {(Lc, H, W)}, got "
+                                f"{np.shape(cost_right)}")
+    for name, image in (("left", left), ("right", right)):
+        if check_map(image, name, 2).shape != (H, W):
+            raise InvalidInputError(f"{name} must be the (H, W) = {(H, W)} image of the "
+                                    f"volumes, got shape {np.shape(image)}")
+    dmin = check_dmin(dmin)
     if p.method == "none":
         return cost_left, cost_right
-    Lc, H, W = np.shape(cost_left)
     dmax = dmin + Lc - 1
     cl = aggregate_volume(cost_left, left, p, valid=candidate_validity((H, W), dmin, dmax))
     cr = None if cost_right is None else aggregate_volume(

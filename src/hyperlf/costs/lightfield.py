@@ -50,11 +50,12 @@ import numpy as np
 from .._kernel_args import kernel_input
 from ..imageops import fill_masked, gradient_magnitude, normalise_intensity
 from ..warp import axis_taps, axis_valid, shift_map
-from .._options import real_array, shown
+from .._options import bool_mask, flag, integer, number, real, real_array, real_pair, shown
 from ..errors import InvalidInputError
 from .pair import (_constants, bwncc_finish, census_transform, channel_stats, fill_out_of_image,
                    inv_sigma, pad_replicate, rsncc_rho, window_stats)
-from ._validate import check_impl, check_window
+from ._validate import (MAX_VIEW_WINDOW, check_bytes, check_impl, check_map, check_shape,
+                        check_window)
 
 __all__ = [
     "view_costs",
@@ -168,11 +169,6 @@ def _xi_terms(ref: _RefBlock, B: np.ndarray, centre_b, tauB, sx, sy, weighted=Tr
     return oF.sum(axis=0), oB.sum(axis=0), oM.sum(axis=0)
 
 
-#: Widest cost window the per-view evaluators take on views narrower than it (a window wider
-#: than the view makes every column a border column; a huge one only pads memory away).
-MAX_VIEW_WINDOW = 255
-
-
 def _check_view_args(ref_img, img, shifts, window, rows, *, default_window: bool = False,
                      **constants) -> None:
     """Refuse, before the kernels read them, two views that are not 2-D images of one shape,
@@ -180,21 +176,37 @@ def _check_view_args(ref_img, img, shifts, window, rows, *, default_window: bool
     the views (or :data:`MAX_VIEW_WINDOW`) and bad cost constants
     (:data:`hyperlf.costs.pair._COST_RULES`): mismatched shapes crashed the interpreter in
     numba's kernels. ``window`` may be None (the cost's own) where ``default_window``."""
-    a, b = np.shape(ref_img), np.shape(img)
-    if len(a) != 2 or a != b or 0 in a:
-        raise InvalidInputError(f"ref_img and img must be 2-D images of one shape, got shapes "
-                                f"{a} and {b}")
-    if not all(np.issubdtype(np.asarray(x).dtype, np.number) for x in (ref_img, img)):
-        raise InvalidInputError("ref_img and img must be numeric arrays")
-    sh = real_array(shifts, "shifts")
-    if sh.ndim != 2 or sh.shape[1] != 2 or not np.isfinite(sh).all():
-        raise InvalidInputError("shifts must be finite (sx, sy) pairs, shape (L, 2)")
+    a = _check_views(ref_img, img)
+    _check_shifts(shifts)
     if rows is not None and not _row_range(rows, a[0]):
         raise InvalidInputError(f"rows must be (a, b) with 0 <= a < b <= {a[0]}, got "
                                 f"{shown(rows)}")
     if window is not None or not default_window:  # wider than a small view is fine
         check_window(window, side=max(max(a), MAX_VIEW_WINDOW // 2))
     _constants(**constants)
+
+
+def _check_views(ref_img, img) -> tuple[int, int]:
+    """The shape ``(H, W)`` of two views: 2-D numeric images of one non-empty shape (O(1))."""
+    try:
+        a, b = np.shape(ref_img), np.shape(img)
+    except ValueError:  # ragged
+        a = b = ()
+    if len(a) != 2 or a != b or 0 in a:
+        raise InvalidInputError(f"ref_img and img must be 2-D images of one shape, got "
+                                f"{shown(ref_img, 30)} and {shown(img, 30)}")
+    if not all(np.issubdtype(np.asarray(x).dtype, np.number) for x in (ref_img, img)):
+        raise InvalidInputError("ref_img and img must be numeric arrays")
+    return a
+
+
+def _check_shifts(shifts) -> np.ndarray:
+    """``shifts`` as finite ``(sx, sy)`` pairs, float64 ``(L, 2)``."""
+    sh = real_array(shifts, "shifts")
+    if sh.ndim != 2 or sh.shape[1] != 2 or not np.isfinite(sh).all():
+        raise InvalidInputError(f"shifts must be finite (sx, sy) pairs, shape (L, 2), got "
+                                f"{shown(shifts)}")
+    return sh
 
 
 def _row_range(rows, height: int) -> bool:
@@ -349,8 +361,15 @@ def average_over_shift(cost, shifts, half: float, *, valid=None,
     >>> [round(float(v), 2) for v in average_over_shift(c, shifts, 0.5)[:, 0, 0]]
     [3.4, 3.14, 3.25, 3.14, 3.4]
     """
-    C = np.asarray(cost, np.float32)
-    s = np.asarray(shifts, np.float64).reshape(len(C), 2)
+    C = np.asarray(check_map(cost, "cost (L, H, W)", 3), np.float32)
+    s = _check_shifts(shifts)
+    if len(s) != len(C):
+        raise InvalidInputError(f"shifts must give one (sx, sy) per label ({len(C)}), got "
+                                f"{len(s)}")
+    half = number(half, "half")
+    if valid is not None:
+        valid = bool_mask(valid, "valid", C.shape, broadcast=True, of="the cost")
+    impl = check_impl(impl, "census")
     if len(C) < 2 or not half > 0:
         return C
     step = np.hypot(*np.diff(s, axis=0).T)
@@ -360,7 +379,7 @@ def average_over_shift(cost, shifts, half: float, *, valid=None,
     t = np.concatenate([[0.0], np.cumsum(step)])
     w = np.clip((half + delta / 2 - np.abs(t[:, None] - t[None, :])) / delta, 0.0, 1.0)
     v = None if valid is None else np.asarray(valid, bool)
-    if check_impl(impl, "census") == "numba":
+    if impl == "numba":
         return _average_over_shift_numba(C, w, v)
     out = np.empty_like(C)
     for k in range(len(C)):
@@ -414,6 +433,10 @@ def bwncc_view_volume(ref_img, img, shifts, *, paper: bool = False, window=None,
     from ..descriptor import DescriptorParams, iter_descriptor_blocks, prepare
     _check_view_args(ref_img, img, shifts, window, rows, default_window=True, tau_rel=tau_rel,
                      eps=eps, block=block)
+    paper = flag(paper, "paper")
+    if cache is not None and not isinstance(cache, dict):
+        raise InvalidInputError(f"cache must be a dict to share across views (or None), got "
+                                f"{shown(cache)}")
     params = DescriptorParams.paper() if paper else DescriptorParams.default()
     variant = "bwncc-paper" if paper else "bwncc"
     if window is not None:
@@ -458,10 +481,31 @@ def bwncc_view_volume(ref_img, img, shifts, *, paper: bool = False, window=None,
 
 
 def view_shifts(offset, labels) -> list[tuple[float, float]]:
-    """``[(sx, sy)]`` per label: ``(-d dx, -d dy)`` for ``offset = (dx, dy)``."""
-    dx, dy = float(offset[0]), float(offset[1])
-    lab = np.asarray(labels, dtype=np.float64)
+    """``[(sx, sy)]`` per label: ``(-d dx, -d dy)`` for ``offset = (dx, dy)``.
+
+    ``offset``: two finite numbers; ``labels``: finite numbers (1-D), whose shifts stay
+    finite."""
+    dx, dy = real_pair(offset, "offset", "two finite numbers (dx, dy)")
+    lab = _check_labels(labels)
+    with np.errstate(over="ignore"):
+        big = float(np.abs(lab).max(initial=0.0)) * max(abs(dx), abs(dy))
+    if not big <= MAX_SHIFT:
+        raise InvalidInputError(f"labels times offset must stay within +-{MAX_SHIFT:g} px, got "
+                                f"labels up to {float(np.abs(lab).max()):g} and offset "
+                                f"({dx:g}, {dy:g})")
     return [(-d * dx, -d * dy) for d in lab]
+
+
+#: Largest shift (px) :func:`view_shifts` makes: far beyond any image, finite.
+MAX_SHIFT = 1e12
+
+
+def _check_labels(labels) -> np.ndarray:
+    """``labels`` as finite float64 numbers, 1-D."""
+    lab = real_array(labels, "labels")
+    if lab.ndim != 1 or not np.isfinite(lab).all():
+        raise InvalidInputError(f"labels must be finite numbers (1-D), got {shown(labels)}")
+    return lab
 
 
 def view_validity(shape, shifts, *, mask=None, rows=None) -> np.ndarray:
@@ -492,8 +536,15 @@ def view_validity(shape, shifts, *, mask=None, rows=None) -> np.ndarray:
     >>> view_validity((1, 4), [(0.5, 0.0)], mask=m)[0].tolist()
     [[True, False, False, False]]
     """
-    H, W = int(shape[-2]), int(shape[-1])
-    a, b = (0, H) if rows is None else rows
+    H, W = check_shape(shape)
+    sh = _check_shifts(shifts)
+    if rows is not None and not _row_range(rows, H):
+        raise InvalidInputError(f"rows must be (a, b) with 0 <= a < b <= {H}, got {shown(rows)}")
+    a, b = (0, H) if rows is None else (int(rows[0]), int(rows[1]))
+    if mask is not None:
+        mask = bool_mask(mask, "mask", (H, W), of="the image")
+    check_bytes(len(sh) * (b - a) * W, f"a validity mask of {len(sh)} shifts",
+                "use fewer labels")
     out = np.stack([axis_valid(H, sy)[a:b, None] & axis_valid(W, sx)[None, :]
                     for sx, sy in shifts])
     if mask is not None:
@@ -521,7 +572,12 @@ def tap_validity(mask, sx: float, sy: float) -> np.ndarray:
     -------
     ndarray of bool, shape (H, W)
     """
-    m = np.asarray(mask, bool)
+    m = mask if isinstance(mask, np.ndarray) and mask.dtype == np.bool_ else \
+        check_map(mask, "mask", 2).astype(bool)
+    if m.ndim != 2 or not m.size:
+        raise InvalidInputError(f"mask must be a non-empty 2-D array of bools, got shape "
+                                f"{m.shape}")
+    sx, sy = real(sx, "sx"), real(sy, "sy")
     H, W = m.shape
     y0, y1, fy = axis_taps(H, sy, 0)
     x0, x1, fx = axis_taps(W, sx, 0)
@@ -532,6 +588,7 @@ def tap_validity(mask, sx: float, sy: float) -> np.ndarray:
 def check_rows(rows, height: int):
     """``rows`` as ``(a, b)`` ints with ``0 <= a < b <= height`` and ``a`` a multiple of
     :data:`ROW_BLOCK`, or None; else :class:`~hyperlf.errors.InvalidInputError`."""
+    height = integer(height, "height")
     if rows is None:
         return None
     if not _row_range(rows, height) or int(rows[0]) % ROW_BLOCK:
@@ -543,6 +600,10 @@ def check_rows(rows, height: int):
 
 def _view_inputs(ref_img, img, offset, labels, ref_valid, view_valid, rows):
     """The two images as the evaluators take them, the shifts and the samples' validity."""
+    H, W = _check_views(ref_img, img)
+    masks = [None if m is None else bool_mask(m, name, (H, W), of="the views")
+             for m, name in ((ref_valid, "ref_valid"), (view_valid, "view_valid"))]
+    ref_valid, view_valid = masks
     A = np.asarray(ref_img, dtype=np.float64)
     B = np.asarray(img, dtype=np.float64)
     rows = check_rows(rows, A.shape[0])
@@ -582,10 +643,13 @@ def light_field_window(metric: str, n_other_views: int, *, window: int | None = 
     """
     from .registry import get_cost
 
+    cost = get_cost(metric)
+    n_other_views = integer(n_other_views, "n_other_views")
+    dense_views = integer(dense_views, "dense_views", 1)
     if window is not None:
-        return int(window)
-    if int(n_other_views) >= int(dense_views):
-        return get_cost(metric).dense_window
+        return check_window(window)
+    if n_other_views >= dense_views:
+        return cost.dense_window
     return None
 
 

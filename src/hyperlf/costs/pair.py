@@ -16,10 +16,12 @@ from typing import Sequence
 import numpy as np
 
 from .._kernel_args import kernel_input
-from .._options import check_values, choice, flag, integer, number, real_array, rule, shown
+from .._options import (bool_mask, check_values, choice, flag, integer, number, real,
+                        real_array, rule, shown)
 from ..errors import InvalidInputError
 from ..imageops import gradient_magnitude, normalise_intensity
-from ._validate import check_disp, check_impl, check_pair, check_window
+from ._validate import (check_bytes, check_disp, check_dmin, check_impl, check_map, check_pair,
+                        check_scale, check_shape, check_window, map_side)
 
 #: Largest ``tau_rel``, ``rs_tau`` and ``eps`` (relative thresholds and weights of order 1;
 #: near 1e300 they overflow into infinite costs).
@@ -54,7 +56,6 @@ __all__ = [
     "window_stats",
     "inv_sigma",
     "channel_stats",
-    "ncc_cross_accumulate",
     "shift_cols",
     "ssd_volume",
     "ncc_volume",
@@ -84,13 +85,21 @@ def candidate_validity(shape, dmin: int, dmax: int) -> np.ndarray:
     A read-only broadcast view of an ``(L, 1, W)`` array (no ``L*H*W`` memory); use
     ``np.array(...)`` for a writable copy.  ``shape`` is ``(H, W)`` (or any shape ending in them).
     """
-    dmin, dmax = check_disp(dmin, dmax)
-    H, W = int(shape[-2]), int(shape[-1])
+    H, W, dmin, dmax = _validity_args(shape, dmin, dmax)
     d = np.arange(dmin, dmax + 1)[:, None, None]
     x = np.arange(W)[None, None, :]
     v = (x - d >= 0) & (x - d < W)
     return np.broadcast_to(v, (d.shape[0], H, W))
 
+
+def _validity_args(shape, dmin, dmax) -> tuple[int, int, int, int]:
+    """``(H, W, dmin, dmax)`` of the validity masks, checked (O(1)): an image shape, integer
+    disparities, and the ``(L, 1, W)`` mask within the memory."""
+    H, W = check_shape(shape)
+    dmin, dmax = check_disp(dmin, dmax)
+    check_bytes(10 * (dmax - dmin + 1) * W, f"a validity mask of {dmax - dmin + 1} disparities",
+                "narrow dmin..dmax")
+    return H, W, dmin, dmax
 
 
 def right_validity(shape, dmin: int, dmax: int) -> np.ndarray:
@@ -98,7 +107,7 @@ def right_validity(shape, dmin: int, dmax: int) -> np.ndarray:
 
     The right-referenced counterpart of :func:`candidate_validity` (read-only broadcast view).
     """
-    H, W = int(shape[-2]), int(shape[-1])
+    H, W, dmin, dmax = _validity_args(shape, dmin, dmax)
     d = np.arange(dmin, dmax + 1)[:, None, None]
     x = np.arange(W)[None, None, :]
     return np.broadcast_to((x + d >= 0) & (x + d < W), (d.shape[0], H, W))
@@ -110,10 +119,22 @@ def fill_out_of_image(cost: np.ndarray, dmin: int, valid: np.ndarray | None = No
     Invalid entries get the pixel's worst (largest) valid cost; a pixel with no valid candidate
     gets 0 for every disparity.  ``valid`` defaults to :func:`candidate_validity`.
     """
-    Lc, H, W = cost.shape
+    Lc, H, W = _volume(cost, "cost", writeable=True).shape
+    dmin = check_dmin(dmin)
     if valid is None:
         valid = candidate_validity((H, W), dmin, dmin + Lc - 1)
+    else:
+        valid = bool_mask(valid, "valid", cost.shape, broadcast=True, of="the cost")
     return worst_fill(cost, ~np.asarray(valid, dtype=bool), empty="zero")
+
+
+def _volume(cost, label: str, *, writeable: bool = False) -> np.ndarray:
+    """``cost`` as an ``(L, H, W)`` array of real numbers (O(1), no copy of an ndarray); an
+    ndarray that can be written in place where ``writeable``."""
+    if writeable and not (isinstance(cost, np.ndarray) and cost.flags.writeable):
+        raise InvalidInputError(f"{label} must be a writeable numpy array (it is filled in "
+                                f"place), got {shown(cost)}")
+    return check_map(cost, f"{label} (L, H, W)", 3)
 
 
 #: What :func:`worst_fill` gives a pixel with no valid entry.
@@ -153,9 +174,9 @@ def worst_fill(cost: np.ndarray, invalid, *, empty: str = "zero") -> np.ndarray:
     >>> worst_fill(c, np.array([[[False, True]], [[True, True]]]))[:, 0, :].tolist()
     [[1.0, 0.0], [1.0, 0.0]]
     """
-    if empty not in FILL_EMPTY_MODES:
-        raise InvalidInputError(f"empty must be one of {FILL_EMPTY_MODES}, got {empty!r}")
-    invalid = np.broadcast_to(np.asarray(invalid, dtype=bool), cost.shape)
+    choice(empty, "empty", FILL_EMPTY_MODES)
+    _volume(cost, "cost", writeable=True)
+    invalid = bool_mask(invalid, "invalid", cost.shape, broadcast=True, of="the cost")
     worst = np.full(cost.shape[1:], -np.inf, np.result_type(cost.dtype, np.float32))
     for k in range(cost.shape[0]):  # label by label: no volume-sized temporary
         np.maximum(worst, np.where(invalid[k], -np.inf, cost[k]), out=worst)
@@ -169,7 +190,32 @@ def worst_fill(cost: np.ndarray, invalid, *, empty: str = "zero") -> np.ndarray:
 
 
 def rho(x):
-    """Shen et al.'s robust function ``rho(x) = -log(exp(-|x|) + exp(|x| - 2))``."""
+    """Shen et al.'s robust function ``rho(x) = -log(exp(-|x|) + exp(|x| - 2))``.
+
+    ``x``: a number or an array of real numbers with ``|x| <= RHO_MAX`` (beyond it ``exp``
+    overflows); a number is checked whole, an array by its dtype and by the overflow (its
+    NaNs are not searched for: this runs per block of labels).
+    """
+    if isinstance(x, (list, tuple)):
+        x = real_array(x, "x", dtype=None)
+    if isinstance(x, np.ndarray) and x.ndim:
+        check_map(x, "x", x.ndim, empty=True)
+    elif not (-RHO_MAX <= real(x[()] if isinstance(x, np.ndarray) else x, "x") <= RHO_MAX):
+        raise InvalidInputError(f"x must be within +-{RHO_MAX:g} (exp overflows beyond), got "
+                                f"{shown(x)}")
+    with np.errstate(over="raise"):
+        try:
+            return _rho(x)
+        except FloatingPointError:
+            raise InvalidInputError(f"x must be within +-{RHO_MAX:g} (exp overflows beyond)") \
+                from None
+
+
+#: Largest ``|x|`` :func:`rho` takes: ``exp(|x| - 2)`` is finite up to about 711.
+RHO_MAX = 700.0
+
+
+def _rho(x):
     a = np.abs(x)
     if not (isinstance(a, np.ndarray) and a.dtype.kind == "f"):  # scalars, integers
         return -np.log(np.exp(-a) + np.exp(a - 2.0))
@@ -193,7 +239,7 @@ RHO_TABLE_INTERVALS = 1 << 16
 def rho_table() -> np.ndarray:
     """:func:`rho` at ``RHO_TABLE_INTERVALS + 1`` evenly spaced ``|x|`` from 0 to 2 (the range
     of ``1 - NCC``), float64, read-only."""
-    table = rho(np.linspace(0.0, 2.0, RHO_TABLE_INTERVALS + 1))
+    table = _rho(np.linspace(0.0, 2.0, RHO_TABLE_INTERVALS + 1))
     table.flags.writeable = False
     return table
 
@@ -210,6 +256,15 @@ def rsncc_rho(xi_i, xi_g, rs_tau: float, out: np.ndarray, impl: str = "auto") ->
     their last place at the largest costs (``2^-24`` at ``rs_tau <= 1``).
     """
     impl = check_impl(impl, "rsncc")
+    rs_tau = _constants(rs_tau=rs_tau)["rs_tau"]
+    if not (isinstance(out, np.ndarray) and out.dtype.kind == "f" and out.flags.writeable):
+        raise InvalidInputError(f"out must be a writeable float numpy array, got {shown(out)}")
+    for label, xi in (("xi_i", xi_i), ("xi_g", xi_g)):
+        if not (isinstance(xi, np.ndarray) and xi.dtype.kind == "f" and xi.shape == out.shape):
+            got = f"shape {xi.shape}, dtype {xi.dtype}" if isinstance(xi, np.ndarray) \
+                else shown(xi)
+            raise InvalidInputError(f"{label} must be a float numpy array of out's shape "
+                                    f"{out.shape}, got {got}")
     if impl == "numba" and out.flags.c_contiguous and out.dtype == np.float32 \
             and xi_i.dtype == np.float64 and xi_g.dtype == np.float64:
         from ._kernels import rho_sum
@@ -217,7 +272,7 @@ def rsncc_rho(xi_i, xi_g, rs_tau: float, out: np.ndarray, impl: str = "auto") ->
         rho_sum(np.ascontiguousarray(xi_i).reshape(-1), np.ascontiguousarray(xi_g).reshape(-1),
                 float(rs_tau), rho_table(), out.reshape(-1))
         return out
-    out[...] = rho(1.0 - xi_i) + float(rs_tau) * rho(1.0 - xi_g)
+    out[...] = _rho(1.0 - xi_i) + float(rs_tau) * _rho(1.0 - xi_g)
     return out
 
 
@@ -227,7 +282,10 @@ def rsncc_rho(xi_i, xi_g, rs_tau: float, out: np.ndarray, impl: str = "auto") ->
 
 
 def pad_replicate(maps: np.ndarray, r: int) -> np.ndarray:
-    """Pad the last two axes by ``r`` with replicated borders (same dtype)."""
+    """Pad the last two axes by ``r`` with replicated borders (same dtype); ``r`` at most
+    the maps' longer side (:func:`hyperlf.costs._validate.map_side`)."""
+    maps = check_map(maps, "maps", tuple(range(2, 33)))
+    r = integer(r, "r", maximum=map_side(maps.shape))
     if r == 0:
         return np.ascontiguousarray(maps)
     pw = [(0, 0)] * (maps.ndim - 2) + [(r, r), (r, r)]
@@ -235,7 +293,12 @@ def pad_replicate(maps: np.ndarray, r: int) -> np.ndarray:
 
 
 def box_mean(image: np.ndarray, n: int) -> np.ndarray:
-    """Mean over the ``n x n`` window centred on each pixel, float64, replicate border."""
+    """Mean over the ``n x n`` window centred on each pixel, float64, replicate border.
+
+    ``image``: 2-D real numbers; ``n``: an odd window, at most ``2 side + 1`` for the
+    image's :func:`hyperlf.costs._validate.map_side`."""
+    image = check_map(image, "image", 2)
+    n = check_window(n, "n", side=map_side(image.shape))
     img = np.ascontiguousarray(image, dtype=np.float64)
     if n == 1:
         return img.copy()
@@ -261,10 +324,8 @@ def window_stats(image: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     naive float32 version loses patch variances of ~1e-4 on values of ~0.5, SPEC §3).  ``var``
     is clipped at 0.
     """
-    n = check_window(n, "n")
-    img = np.asarray(image, dtype=np.float64)
-    if img.ndim != 2:
-        raise InvalidInputError(f"image must be 2-D, got shape {img.shape}")
+    img = np.asarray(check_map(image, "image", 2), dtype=np.float64)
+    n = check_window(n, "n", side=map_side(img.shape))
     m0 = float(img.mean())
     c = img - m0
     mu_c = box_mean(c, n)
@@ -274,7 +335,24 @@ def window_stats(image: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def inv_sigma(var: np.ndarray, tau: float) -> np.ndarray:
-    """``1 / sqrt(var)`` where ``var >= tau`` and ``var > 0``, else 0 (so that ``xi = 0``)."""
+    """``1 / sqrt(var)`` where ``var >= tau`` and ``var > 0``, else 0 (so that ``xi = 0``).
+
+    ``var``: an array of real numbers; ``tau``: a finite number >= 0, or such numbers
+    broadcastable to ``var`` (one per channel)."""
+    var = check_map(var, "var", tuple(range(1, 33)))
+    if var.dtype.kind != "f":
+        var = var.astype(np.float64)
+    if isinstance(tau, np.ndarray) and tau.ndim:
+        t = check_map(tau, "tau", tau.ndim)
+        try:
+            fits = np.broadcast_shapes(t.shape, var.shape) == var.shape
+        except ValueError:
+            fits = False
+        if not (fits and np.isfinite(t).all() and (t >= 0).all()):
+            raise InvalidInputError(f"tau must be finite numbers >= 0 broadcastable to var's "
+                                    f"{var.shape}, got shape {t.shape}")
+    else:
+        number(tau, "tau")
     ok = (var >= tau) & (var > 0)
     out = np.zeros_like(var)
     np.divide(1.0, np.sqrt(var, where=ok, out=np.zeros_like(var)), out=out, where=ok)
@@ -282,7 +360,7 @@ def inv_sigma(var: np.ndarray, tau: float) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------------------------
-# Generic per-channel NCC cross term (shared by ncc, rsncc, bwncc; reusable by the H-LF code)
+# Generic per-channel NCC cross term (shared by ncc, rsncc, bwncc)
 # --------------------------------------------------------------------------------------------
 
 
@@ -297,7 +375,8 @@ def channel_stats(maps: np.ndarray, n: int | Sequence[int]) -> dict:
     Returns a dict with float64 arrays ``mu`` (nc, H, W), ``var`` (nc, H, W), the per-channel
     global means ``centre`` (nc,) and the per-channel mean patch variance ``mean_var`` (nc,).
     """
-    maps = np.asarray(maps)
+    maps = check_map(maps, "maps (nc, H, W)", 3)
+    _check_patch_sizes(n, maps.shape, side=map_side(maps.shape))
     nc = maps.shape[0]
     ns = np.broadcast_to(np.asarray(n, dtype=np.int64), (nc,))
     H, W = maps.shape[1:]
@@ -309,13 +388,15 @@ def channel_stats(maps: np.ndarray, n: int | Sequence[int]) -> dict:
     return {"mu": mu, "var": var, "centre": centre, "mean_var": var.reshape(nc, -1).mean(axis=1)}
 
 
-def ncc_cross_accumulate(ref_pad: np.ndarray, oth_pad: np.ndarray, n: int,
-                         ref_mu: np.ndarray, ref_is: np.ndarray,
-                         oth_mu: np.ndarray, oth_is: np.ndarray,
-                         acc_fwd: np.ndarray, acc_bwd: np.ndarray | None = None,
-                         weighted: bool = True, valid: np.ndarray | None = None,
-                         ref_centre=None, oth_centre=None) -> None:
-    """Accumulate per-channel NCC ``xi_i`` for ONE alignment of two views (numpy reference).
+def _ncc_cross_accumulate(ref_pad: np.ndarray, oth_pad: np.ndarray, n: int,
+                          ref_mu: np.ndarray, ref_is: np.ndarray,
+                          oth_mu: np.ndarray, oth_is: np.ndarray,
+                          acc_fwd: np.ndarray, acc_bwd: np.ndarray | None = None,
+                          weighted: bool = True, valid: np.ndarray | None = None,
+                          ref_centre=None, oth_centre=None) -> None:
+    """Accumulate per-channel NCC ``xi_i`` for ONE alignment of two views (numpy reference
+    of the pair costs' cross terms; private: only :func:`_xcorr_numpy` calls it, with
+    arguments the pair costs have checked).
 
     This is the disparity-independent building block: the caller supplies the other view's
     channel maps **already aligned** to the reference grid (for the two-view case: shifted by
@@ -358,7 +439,19 @@ def ncc_cross_accumulate(ref_pad: np.ndarray, oth_pad: np.ndarray, n: int,
 
 
 def shift_cols(a: np.ndarray, d: int, fill=0.0) -> np.ndarray:
-    """``out[..., x] = a[..., x - d]`` (zero/fill outside)."""
+    """``out[..., x] = a[..., x - d]`` (zero/fill outside).
+
+    ``a``: a numpy array (1-D or more) of numbers; ``d``: an integer; ``fill``: a finite
+    number that ``a``'s dtype holds.  O(1) checks (this runs per label)."""
+    if not (isinstance(a, np.ndarray) and a.ndim and a.dtype.kind in "biuf"):
+        raise InvalidInputError(f"a must be a numpy array of numbers (1-D or more), got "
+                                f"{shown(a)}")
+    d = integer(d, "d", minimum=None)
+    fill = real(fill, "fill")
+    if a.dtype.kind in "iu" and not (fill.is_integer() and np.iinfo(a.dtype).min <= fill
+                                     <= np.iinfo(a.dtype).max) \
+            or a.dtype.kind == "f" and abs(fill) > np.finfo(a.dtype).max:
+        raise InvalidInputError(f"fill {fill:g} does not fit a's dtype {a.dtype}")
     out = np.full_like(a, fill)
     W = a.shape[-1]
     if d >= 0:
@@ -388,7 +481,7 @@ def _xcorr_numba(Ap, Bp, ca, cb, muA, isA, muB, isB, ds, r, weighted, accF, accB
 
 def _xcorr_numpy(Ap, Bp, ca, cb, muA, isA, muB, isB, ds, r, weighted, accF, accB):
     """Reference: loop over disparities, align the right view by ``d`` and call
-    :func:`ncc_cross_accumulate`."""
+    :func:`_ncc_cross_accumulate`."""
     n = 2 * r + 1
     H, W = muA.shape[1:]
     for k, d in enumerate(ds):
@@ -398,7 +491,7 @@ def _xcorr_numpy(Ap, Bp, ca, cb, muA, isA, muB, isB, ds, r, weighted, accF, accB
             continue
         Bs = shift_cols(Bp, d)
         accB_k = accB[k] if weighted else None
-        ncc_cross_accumulate(Ap, Bs, n, muA, isA, shift_cols(muB, d), shift_cols(isB, d),
+        _ncc_cross_accumulate(Ap, Bs, n, muA, isA, shift_cols(muB, d), shift_cols(isB, d),
                              accF[k], accB_k, weighted=weighted, valid=valid,
                              ref_centre=ca, oth_centre=cb)
 
@@ -513,10 +606,10 @@ def census_transform(image, window: int = 7) -> np.ndarray:
     """Census codes, uint64 ``(H, W)``: one bit per neighbour in the ``window x window``
     square (row-major, centre skipped), set where ``neighbour < centre`` (strict), replicate
     border.  ``window`` <= 7 (at most 63 bits)."""
+    img = np.asarray(check_map(image, "image", 2), dtype=np.float64)
     n = check_window(window)
     if n * n - 1 > 64:
         raise InvalidInputError(f"census window must be <= 7 (64 bits), got {n}")
-    img = np.asarray(image, dtype=np.float64)
     r = n // 2
     p = pad_replicate(img, r)
     H, W = img.shape
@@ -616,10 +709,35 @@ def census_volume(left, right, dmin, dmax, window: int = 7, impl: str = "auto", 
 
 def bwncc_finish(acc_fwd, acc_bwd, den_fwd, den_bwd, eps: float = 1e-3, return_scores=False):
     """``S_fwd = acc_fwd / den_fwd``, ``S_bwd = acc_bwd / den_bwd`` (0 where a denominator is
-    0), ``BWNCC = sqrt(max(S_fwd, 0) max(S_bwd, 0))``, cost ``-log(max(BWNCC, eps))``."""
-    Sf = np.divide(acc_fwd, den_fwd, out=np.zeros_like(acc_fwd), where=den_fwd > 0)
-    Sb = np.divide(acc_bwd, den_bwd, out=np.zeros_like(acc_bwd), where=den_bwd > 0)
-    B = np.sqrt(np.maximum(Sf, 0.0) * np.maximum(Sb, 0.0))
+    0), ``BWNCC = sqrt(max(S_fwd, 0) max(S_bwd, 0))``, cost ``-log(max(BWNCC, eps))``.
+
+    ``acc_fwd``, ``acc_bwd``: float arrays of one shape; ``den_fwd``, ``den_bwd``: arrays of
+    real numbers broadcastable to it; ``eps`` in ``(0, 1e6]``.  Checked in O(1) (shapes and
+    dtypes; an overflow of the scores is refused, NaNs are not searched for)."""
+    c = _constants(eps=eps, return_scores=return_scores)
+    eps, return_scores = c["eps"], c["return_scores"]
+    for label, acc in (("acc_fwd", acc_fwd), ("acc_bwd", acc_bwd)):
+        if not (isinstance(acc, np.ndarray) and acc.ndim and acc.dtype.kind == "f"):
+            raise InvalidInputError(f"{label} must be a float numpy array (L, H, W), got "
+                                    f"{shown(acc)}")
+    shape = acc_fwd.shape
+    den_fwd, den_bwd = (check_map(a, label, tuple(range(acc_fwd.ndim + 1)))
+                        for a, label in ((den_fwd, "den_fwd"), (den_bwd, "den_bwd")))
+    for label, a in (("acc_bwd", acc_bwd), ("den_fwd", den_fwd), ("den_bwd", den_bwd)):
+        try:
+            fits = np.broadcast_shapes(a.shape, shape) == shape
+        except ValueError:
+            fits = False
+        if not fits or (label == "acc_bwd" and a.shape != shape):
+            raise InvalidInputError(f"{label} of shape {a.shape} does not fit acc_fwd's {shape}")
+    try:
+        with np.errstate(over="raise"):
+            Sf = np.divide(acc_fwd, den_fwd, out=np.zeros_like(acc_fwd), where=den_fwd > 0)
+            Sb = np.divide(acc_bwd, den_bwd, out=np.zeros_like(acc_bwd), where=den_bwd > 0)
+            B = np.sqrt(np.maximum(Sf, 0.0) * np.maximum(Sb, 0.0))
+    except FloatingPointError:
+        raise InvalidInputError("the BWNCC scores acc / den overflow: the denominators are "
+                                "too small for the sums") from None
     cost = -np.log(np.maximum(B, eps))
     if return_scores:
         return cost, Sf, Sb, B
@@ -745,16 +863,17 @@ class _BwnccAccumulator:
         return (cost,) + tuple(res[1:]) if return_scores else cost
 
 
-def _check_patch_sizes(n, shape) -> None:
+def _check_patch_sizes(n, shape, side: int | None = None) -> None:
     """``n``: one odd NCC patch size, or one per channel of ``(nc, H, W)`` stacks, within the
-    images (a negative size corrupted the kernels' memory)."""
+    images (``side``: their longer side by default; a negative size corrupted the kernels'
+    memory)."""
     try:
         ns = np.broadcast_to(np.asarray(n, dtype=object), (shape[0],))
     except ValueError:
         raise InvalidInputError(f"n must be one patch size or {shape[0]} (one per channel), "
                                 f"got {shown(n)}") from None
     for v in ns:
-        check_window(v, "n", side=max(shape[1:]))
+        check_window(v, "n", side=max(shape[1:]) if side is None else side)
 
 
 def bwncc_from_descriptors(desc_left, desc_right, dmin, dmax, n=5, tau_rel: float = 1e-5,
@@ -926,8 +1045,8 @@ def row_moments(cost, valid) -> tuple:
     """
     from ._kernels import row_moments as kernel
 
-    C = kernel_input(_kernel_float(cost))
-    ok = kernel_input(np.broadcast_to(np.asarray(valid, bool), C.shape))
+    C = kernel_input(_kernel_float(_volume(cost, "cost")))
+    ok = kernel_input(bool_mask(valid, "valid", C.shape, broadcast=True, of="the cost"))
     h = C.shape[1]
     n, mean, m2 = np.zeros(h, np.int64), np.zeros(h), np.zeros(h)
     kernel(C, ok, n, mean, m2)
@@ -943,9 +1062,24 @@ def _kernel_float(cost) -> np.ndarray:
 
 def moments_std(n, mean, m2) -> float:
     """The standard deviation of every entry that :func:`row_moments` counted (rows joined in
-    order, float64); 0 when none was valid."""
+    order, float64); 0 when none was valid.
+
+    ``n``, ``mean``, ``m2``: one entry per row each (1-D, of one length), as
+    :func:`row_moments` gives them: counts (integers >= 0), finite means, finite sums >= 0."""
     from ._kernels import combine_moments
 
+    n_, mean_, m2_ = (check_map(v, k, 1, empty=True) for v, k in ((n, "n"), (mean, "mean"),
+                                                                   (m2, "m2")))
+    if not n_.shape == mean_.shape == m2_.shape:
+        raise InvalidInputError(f"n, mean and m2 must have one entry per row each, got shapes "
+                                f"{n_.shape}, {mean_.shape}, {m2_.shape}")
+    with np.errstate(invalid="ignore"):
+        ok = (np.isfinite(n_).all() and (n_ >= 0).all() and (n_ == np.round(n_)).all()
+              and (n_ < 2 ** 62).all() and np.isfinite(mean_).all() and np.isfinite(m2_).all()
+              and (m2_ >= 0).all())  # one entry per row: small
+    if not ok:
+        raise InvalidInputError("n must be counts (integers >= 0), mean and m2 finite and m2 "
+                                ">= 0 (row_moments' moments)")
     return float(combine_moments(np.ascontiguousarray(n, np.int64),
                                  np.ascontiguousarray(mean, np.float64),
                                  np.ascontiguousarray(m2, np.float64))[0])
@@ -976,11 +1110,15 @@ def normalise_volume(cost, dmin: int, valid=None, *, sd: float | None = None,
     normalised in place and returned (the same numbers, one volume less).
     """
     impl = check_impl(impl, "normalise")
-    if centre not in NORMALISE_CENTRES:
-        raise InvalidInputError(f"centre must be one of {NORMALISE_CENTRES}, got {centre!r}")
-    Lc, H, W = np.shape(cost)
+    choice(centre, "centre", NORMALISE_CENTRES)
+    Lc, H, W = _volume(cost, "cost").shape
+    dmin = check_dmin(dmin)
+    sd = check_scale(sd, "sd")
+    overwrite = flag(overwrite, "overwrite")
     if valid is None:
         valid = candidate_validity((H, W), dmin, dmin + Lc - 1)
+    else:
+        bool_mask(valid, "valid", (Lc, H, W), broadcast=True, of="the cost")
     if impl == "numba":
         from ._kernels import normalise_fill
 
@@ -1029,19 +1167,36 @@ def fuse(volumes: Sequence[np.ndarray], weights: Sequence[float] | None = None, 
     and the fill in one kernel, same float64 arithmetic).  ``overwrite``: the volumes are not
     used again, so under ``"numba"`` the C-contiguous float32 ones are normalised in place
     and the first one holds the result (the same numbers, without new volumes)."""
-    vols = list(volumes)
+    if isinstance(volumes, np.ndarray) or not isinstance(volumes, (list, tuple)):
+        raise InvalidInputError(f"volumes must be a list of (L, H, W) arrays, got "
+                                f"{shown(volumes)}")
+    vols = [_volume(v, "each volume") for v in volumes]
     if not vols:
         raise InvalidInputError("fuse needs at least one volume")
     shape = vols[0].shape
     if any(v.shape != shape for v in vols) or len(shape) != 3:
         raise InvalidInputError(f"volumes must be (L, H, W) of equal shape, got {[v.shape for v in vols]}")
     w = np.ones(len(vols)) if weights is None else real_array(weights, "weights")
-    if w.shape != (len(vols),) or not np.all(np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
+    with np.errstate(over="ignore"):
+        ok = w.shape == (len(vols),) and np.isfinite(w).all() and (w >= 0).all() and \
+            0 < w.sum() < np.inf
+    if not ok:
         raise InvalidInputError(f"weights must be {len(vols)} non-negative numbers with a "
                                 f"positive sum, got {shown(weights)}")
-    sds = [None] * len(vols) if scales is None else [float(x) for x in scales]
+    if scales is None:
+        sds = [None] * len(vols)
+    elif isinstance(scales, (list, tuple, np.ndarray)) and np.ndim(scales) == 1:
+        sds = [check_scale(x, "each of scales", optional=False) for x in scales]
+    else:
+        sds = []
     if len(sds) != len(vols):
-        raise InvalidInputError(f"scales must give one number per volume ({len(vols)}), got {scales!r}")
+        raise InvalidInputError(f"scales must give one number per volume ({len(vols)}), got "
+                                f"{shown(scales)}")
+    dmin = check_dmin(dmin)
+    if valid is not None:
+        bool_mask(valid, "valid", shape, broadcast=True, of="the volumes")
+    choice(centre, "centre", NORMALISE_CENTRES)
+    overwrite = flag(overwrite, "overwrite")
     if check_impl(impl, "normalise") == "numba":
         from ._kernels import fuse_fill
 

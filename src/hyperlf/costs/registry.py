@@ -30,7 +30,7 @@ from typing import Any, Iterator, Sequence
 
 import numpy as np
 
-from .._options import choice, flag, shown
+from .._options import choice, flag, integer, mapping, shown
 from ..errors import InvalidInputError
 from ._validate import IMPLS, check_window
 from .pair import fuse, right_validity, row_moments
@@ -204,8 +204,24 @@ class FusedCost(Cost):
                  description: str = "", view_window_part: int | None = None,
                  params: dict | None = None, windows: dict | None = None,
                  part_options: Mapping[str, Mapping] | None = None):
-        self.name = name
+        self.name = _cost_name(name)
+        if isinstance(parts, (str, bytes, Mapping, np.ndarray)) or \
+                not isinstance(parts, Sequence) or not parts or \
+                not all(isinstance(p, str) and p for p in parts):
+            raise InvalidInputError(f"{name}: parts must be a sequence of registered cost "
+                                    f"names, got {shown(parts)}")
         self.parts = tuple(parts)
+        if not isinstance(description, str):
+            raise InvalidInputError(f"{name}: description must be a string, got "
+                                    f"{shown(description)}")
+        if view_window_part is not None:
+            view_window_part = integer(view_window_part, "view_window_part",
+                                       maximum=len(self.parts) - 1)
+        for label, value in (("params", params), ("windows", windows)):
+            mapping(value, f"{name}: {label}")
+        mapping(part_options, f"{name}: part_options")
+        for p, o in (part_options or {}).items():
+            mapping(o, f"{name}: part_options[{p!r}]", optional=False)
         self.part_options = {p: dict(o) for p, o in (part_options or {}).items()}
         strangers = sorted(set(self.part_options) - set(self.parts))
         if strangers:
@@ -319,14 +335,20 @@ def register_cost(cost: Cost, *, replace: bool = False) -> Cost:
     """
     if not isinstance(cost, Cost):
         raise InvalidInputError(f"register_cost needs a Cost instance, got {type(cost).__name__}")
-    name = cost.name
-    if not isinstance(name, str) or not name or name != name.strip().lower() or name == "auto":
-        raise InvalidInputError(f"cost name must be a non-empty lower-case string other than "
-                                f"'auto', got {name!r}")
+    name = _cost_name(cost.name)
+    replace = flag(replace, "replace")
     if name in _REGISTRY and not replace:
         raise InvalidInputError(f"a cost named {name!r} is already registered")
     _REGISTRY[name] = cost
     return cost
+
+
+def _cost_name(name) -> str:
+    """``name`` when it can name a cost: a non-empty lower-case string other than 'auto'."""
+    if not isinstance(name, str) or not name or name != name.strip().lower() or name == "auto":
+        raise InvalidInputError(f"cost name must be a non-empty lower-case string other than "
+                                f"'auto', got {shown(name)}")
+    return name
 
 
 def unregister_cost(name: str) -> Cost:
@@ -337,9 +359,10 @@ def unregister_cost(name: str) -> Cost:
     InvalidInputError
         ``"auto"`` or a name that is not registered.
     """
-    key = name.strip().lower() if isinstance(name, str) else name
-    if key == "auto" or key not in _REGISTRY:
-        raise InvalidInputError(f"no registered cost named {name!r}; registered: {_choices(False)}")
+    key = name.strip().lower() if isinstance(name, str) else None
+    if key is None or key == "auto" or key not in _REGISTRY:
+        raise InvalidInputError(f"no registered cost named {shown(name)}; registered: "
+                                f"{_choices(False)}")
     return _REGISTRY.pop(key)
 
 
@@ -358,6 +381,7 @@ def cost_names(*, light_field: bool = False) -> tuple[str, ...]:
 
     ``light_field=True``: only the costs with a light-field evaluator.
     """
+    light_field = flag(light_field, "light_field")
     return tuple(n for n, c in _REGISTRY.items() if not light_field or c.light_field)
 
 
@@ -377,6 +401,7 @@ def get_cost(name: str, *, light_field: bool = False) -> Cost:
     if not isinstance(name, str):
         raise InvalidInputError(
             f"metric must be a string, one of {cost_names() + ('auto',)}, got {shown(name)}")
+    light_field = flag(light_field, "light_field")
     key = name.strip().lower()
     if key == "auto":
         key = AUTO_METRIC
