@@ -103,7 +103,8 @@ from typing import Iterator, Union
 import numpy as np
 from scipy import ndimage
 
-from ._options import check_fields, choice, integer, number, rule, shown, word_or
+from ._options import (check_fields, choice, flag, integer, number, params_of, real_array, rule,
+                       shown, word_or)
 from .errors import InvalidInputError
 
 __all__ = [
@@ -118,7 +119,6 @@ __all__ = [
     "descriptor",
     "descriptor_reference",
     "iter_descriptor_blocks",
-    "gaussian_window",
     "magnitude_direction",
     "prepare_from_gradients",
 ]
@@ -270,6 +270,39 @@ def _as_image(image) -> np.ndarray:
     return img
 
 
+#: Largest gradient value :func:`magnitude_direction` and the magnitude helpers take: its
+#: square (``M^2``) must stay finite in float64 (a normalised image's gradients are far below).
+_MAX_GRADIENT = 1e150
+
+
+def _real_values(value, label: str, *, two_d: bool = False, at_least: float | None = None
+                 ) -> np.ndarray:
+    """``value`` as a non-empty float64 array (2-D where ``two_d``) of finite values of size at
+    most :data:`_MAX_GRADIENT` (``>= at_least`` where given): the public helpers' one check
+    (one pass over the data; the descriptor's own pipeline calls their unchecked cores)."""
+    a = real_array(value, label)
+    if (two_d and a.ndim != 2) or a.size == 0:
+        what = "a non-empty 2-D (H, W) array" if two_d else "a non-empty array"
+        raise InvalidInputError(f"{label} must be {what}, got shape {a.shape}")
+    with np.errstate(invalid="ignore"):
+        ok = bool(np.all(np.abs(a) <= _MAX_GRADIENT))
+        ok = ok and (at_least is None or bool(np.all(a >= at_least)))
+    if not ok:
+        low = f" and >= {at_least:g}" if at_least is not None else ""
+        raise InvalidInputError(f"{label} must hold finite values of size at most "
+                                f"{_MAX_GRADIENT:g}{low}")
+    return a
+
+
+def _gradient_pair(gx, gy, *, two_d: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """``gx`` and ``gy`` checked by :func:`_real_values`, of one shape."""
+    gx, gy = _real_values(gx, "gx", two_d=two_d), _real_values(gy, "gy", two_d=two_d)
+    if gx.shape != gy.shape:
+        raise InvalidInputError(f"gx and gy must have the same shape, got {gx.shape} and "
+                                f"{gy.shape}")
+    return gx, gy
+
+
 def normalise(image) -> np.ndarray:
     """``In = I / mean(I)`` in float64 (SPEC §2 step 1). The mean must be positive."""
     img = _as_image(image)
@@ -285,11 +318,15 @@ def gradients(In, method: str = "sobel"):
     ``method="central"``: ``(f[x+1] - f[x-1]) / 2``; ``method="sobel"``: Sobel / 4.  ``gx``
     is along columns (x), ``gy`` along rows (y, growing downwards).  ``M = hypot``-free
     ``sqrt(gx^2 + gy^2)``; ``Theta = (atan2(gy, gx) mod pi) / pi`` in ``[0, 1)``, bit-exactly
-    invariant under ``(gx, gy) -> (-gx, -gy)`` (see the module docstring).
+    invariant under ``(gx, gy) -> (-gx, -gy)`` (see the module docstring).  ``In``: a finite
+    2-D image (values at most 1e150 in size).
     """
-    In = np.asarray(In, dtype=np.float64)
-    if In.ndim != 2:
-        raise InvalidInputError(f"In must be 2-D, got shape {In.shape}")
+    choice(method, "gradient method", _GRADIENTS)
+    return _gradients(_real_values(In, "In", two_d=True), method)
+
+
+def _gradients(In: np.ndarray, method: str):
+    """:func:`gradients` of a checked float64 image."""
     if method == "central":
         p = np.pad(In, 1, mode="edge")
         gx = (p[1:-1, 2:] - p[1:-1, :-2]) / 2.0
@@ -297,14 +334,20 @@ def gradients(In, method: str = "sobel"):
     elif method == "sobel":
         gx = ndimage.sobel(In, axis=1, mode="nearest") / 4.0
         gy = ndimage.sobel(In, axis=0, mode="nearest") / 4.0
-    else:
-        raise InvalidInputError(f"gradient method must be one of {_GRADIENTS}, got {method!r}")
-    M, Theta = magnitude_direction(gx, gy)
+    M, Theta = _magnitude_direction(gx, gy)
     return gx, gy, M, Theta
 
 
 def magnitude_direction(gx, gy):
-    """``M = sqrt(gx^2 + gy^2)`` and ``Theta = (atan2(gy, gx) mod pi) / pi`` in ``[0, 1)``."""
+    """``M = sqrt(gx^2 + gy^2)`` and ``Theta = (atan2(gy, gx) mod pi) / pi`` in ``[0, 1)``.
+
+    ``gx`` and ``gy``: arrays of one shape, finite, at most 1e150 in size (so that ``M^2`` is).
+    """
+    return _magnitude_direction(*_gradient_pair(gx, gy))
+
+
+def _magnitude_direction(gx, gy):
+    """:func:`magnitude_direction` of checked gradients."""
     gx = np.asarray(gx, dtype=np.float64) + 0.0  # + 0.0 turns -0.0 into +0.0
     gy = np.asarray(gy, dtype=np.float64) + 0.0
     M = np.sqrt(gx * gx + gy * gy)
@@ -323,9 +366,15 @@ def bin_weights(values, params: DescriptorParams | None = None):
     (``idx0 + 1``) when the value lies in the overlap of the two, else -1.  Each bin a value
     falls in counts it fully: ``w0 = 1`` everywhere, ``w1 = 1`` where ``idx1 >= 0`` else 0
     (float64).  Bin ``k`` covers ``[k (1-o) s, k (1-o) s + s)``; values at or past the end of
-    the last bin go to the last bin only; negative values go to bin 0.
+    the last bin go to the last bin only; negative values go to bin 0.  ``values`` must be
+    finite.
     """
-    params = DescriptorParams() if params is None else params
+    return _bin_weights(_real_values(values, "values"),
+                        params_of(params, "params", DescriptorParams))
+
+
+def _bin_weights(values, params: DescriptorParams):
+    """:func:`bin_weights` of checked values."""
     v = np.asarray(values, dtype=np.float64)
     step = params.bin_step
     s = params.bin_width
@@ -346,7 +395,15 @@ def bin_weights(values, params: DescriptorParams | None = None):
 
 
 def auto_sigma_w(M) -> float:
-    """``median(M^2) / ln 2`` (0 only if ``M`` is 0 everywhere; see the module docstring)."""
+    """``median(M^2) / ln 2`` (0 only if ``M`` is 0 everywhere; see the module docstring).
+
+    ``M``: gradient magnitudes, finite, ``>= 0`` and at most 1e150.
+    """
+    return _auto_sigma_w(_real_values(M, "M", at_least=0.0))
+
+
+def _auto_sigma_w(M) -> float:
+    """:func:`auto_sigma_w` of checked magnitudes."""
     m2 = np.asarray(M, dtype=np.float64) ** 2
     med = float(np.median(m2))
     if med <= 0:
@@ -356,20 +413,31 @@ def auto_sigma_w(M) -> float:
 
 
 def edge_weights(M, params: DescriptorParams | None = None, sigma_w: float | None = None):
-    """``(a1, a3, sigma_w)`` with ``a1 = a2 = beta exp(-M^2 / sigma_w)``, ``a3 = 1 - 2 a1``."""
-    params = DescriptorParams() if params is None else params
+    """``(a1, a3, sigma_w)`` with ``a1 = a2 = beta exp(-M^2 / sigma_w)``, ``a3 = 1 - 2 a1``.
+
+    ``M``: gradient magnitudes as :func:`auto_sigma_w` takes them; ``sigma_w``: a finite number
+    ``>= 0`` (0: ``M`` is taken as 0 everywhere), default from ``params``.
+    """
+    return _edge_weights(_real_values(M, "M", at_least=0.0),
+                         params_of(params, "params", DescriptorParams),
+                         number(sigma_w, "sigma_w", optional=True))
+
+
+def _edge_weights(M, params: DescriptorParams, sigma_w: float | None = None):
+    """:func:`edge_weights` of checked values."""
     M = np.asarray(M, dtype=np.float64)
     if sigma_w is None:
-        sigma_w = auto_sigma_w(M) if params.sigma_w == "auto" else float(params.sigma_w)
+        sigma_w = _auto_sigma_w(M) if params.sigma_w == "auto" else float(params.sigma_w)
     if sigma_w > 0:
-        a1 = params.beta * np.exp(-(M * M) / sigma_w)
+        with np.errstate(over="ignore"):  # a tiny sigma_w: the weight's limit, 0
+            a1 = params.beta * np.exp(-(M * M) / sigma_w)
     else:  # M == 0 everywhere
         a1 = np.full(M.shape, params.beta)
     a3 = 1.0 - a1 - a1
     return a1, a3, float(sigma_w)
 
 
-def gaussian_window(w: int, sigma_g: float) -> np.ndarray:
+def _gaussian_window(w: int, sigma_g: float) -> np.ndarray:
     """1-D factor of the separable window weights ``exp(-d^2 / (2 sigma_g^2))``, d = -r..r."""
     r = w // 2
     d = np.arange(-r, r + 1, dtype=np.float64)
@@ -399,6 +467,26 @@ class PreparedDescriptor:
     sigma_w: float
     cache: dict = field(default_factory=dict, repr=False)
 
+    def __post_init__(self):
+        # O(1): types and shapes only (one per view, built by :func:`prepare`)
+        params_of(self.params, "params", DescriptorParams)
+        shape = None
+        for name in ("In", "gx", "gy", "M", "Theta", "m_idx0", "m_idx1", "t_idx0", "t_idx1",
+                     "a1", "a3"):
+            a = getattr(self, name)
+            kind = "iu" if "idx" in name else "f"
+            if not isinstance(a, np.ndarray) or a.dtype.kind not in kind or a.ndim != 2 or (
+                    shape is not None and a.shape != shape):
+                what = "integer" if "idx" in name else "float"
+                raise InvalidInputError(
+                    f"PreparedDescriptor.{name} must be a 2-D {what} array of the shape of In "
+                    f"(build one with hyperlf.descriptor.prepare), got {shown(a)}")
+            shape = a.shape
+        object.__setattr__(self, "sigma_w", number(self.sigma_w, "PreparedDescriptor.sigma_w"))
+        if not isinstance(self.cache, dict):
+            raise InvalidInputError(f"PreparedDescriptor.cache must be a dict, got "
+                                    f"{type(self.cache).__name__}")
+
     @property
     def shape(self):
         return self.In.shape
@@ -425,7 +513,7 @@ def prepare(image, params: DescriptorParams | None = None) -> PreparedDescriptor
         Not a finite 2-D image with a positive mean, or a prepared view with other params.
     """
     if isinstance(image, PreparedDescriptor):
-        if params is not None and params != image.params:
+        if params is not None and params_of(params, "params", DescriptorParams) != image.params:
             raise InvalidInputError("prepared descriptor was built with different params")
         return image
     params = DescriptorParams() if params is None else params
@@ -434,26 +522,23 @@ def prepare(image, params: DescriptorParams | None = None) -> PreparedDescriptor
     In = normalise(image)
     if params.presmooth_sigma > 0:
         In = ndimage.gaussian_filter(In, params.presmooth_sigma, mode="nearest")
-    gx, gy, M, Theta = gradients(In, params.gradient)
+    gx, gy, M, Theta = _gradients(In, params.gradient)
     return _prepare_from(params, In, gx, gy, M, Theta)
 
 
 def prepare_from_gradients(gx, gy, params: DescriptorParams | None = None) -> PreparedDescriptor:
-    """Like :func:`prepare` but from given gradients (for tests and custom gradient operators)."""
-    params = DescriptorParams() if params is None else params
-    gx = np.asarray(gx, dtype=np.float64)
-    gy = np.asarray(gy, dtype=np.float64)
-    if gx.ndim != 2 or gx.shape != gy.shape:
-        raise InvalidInputError(
-            f"gx and gy must be 2-D of the same shape, got {gx.shape}, {gy.shape}")
-    M, Theta = magnitude_direction(gx, gy)
+    """Like :func:`prepare` but from given gradients (for tests and custom gradient operators):
+    ``gx`` and ``gy`` 2-D of one shape, as :func:`magnitude_direction` takes them."""
+    params = params_of(params, "params", DescriptorParams)
+    gx, gy = _gradient_pair(gx, gy, two_d=True)
+    M, Theta = _magnitude_direction(gx, gy)
     return _prepare_from(params, np.full(gx.shape, np.nan), gx, gy, M, Theta)
 
 
 def _prepare_from(params, In, gx, gy, M, Theta) -> PreparedDescriptor:
-    m0, _, m1, _ = bin_weights(M, params)
-    t0, _, t1, _ = bin_weights(Theta, params)
-    a1, a3, sw = edge_weights(M, params)
+    m0, _, m1, _ = _bin_weights(M, params)
+    t0, _, t1, _ = _bin_weights(Theta, params)
+    a1, a3, sw = _edge_weights(M, params)
     return PreparedDescriptor(params, In, gx, gy, M, Theta, m0, m1, t0, t1, a1, a3, sw)
 
 
@@ -466,7 +551,11 @@ def _channel_index(channels, n_channels: int) -> np.ndarray:
     if channels is None:
         return np.arange(n_channels)
     if isinstance(channels, slice):
-        return np.arange(n_channels)[channels]
+        try:
+            return np.arange(n_channels)[channels]
+        except (TypeError, ValueError):  # a step of 0, bounds that are not integers
+            raise InvalidInputError(f"channels must be a slice of integers (step not 0), got "
+                                    f"{shown(channels)}") from None
     idx = np.asarray(channels)
     if idx.ndim == 0:
         idx = idx[None]
@@ -496,7 +585,7 @@ def _reference_group(prep: PreparedDescriptor, level: int, hist: int) -> np.ndar
     """All K bins of one histogram at one level, normalised (float64, (K, H, W))."""
     params = prep.params
     w = params.windows[level]
-    g = gaussian_window(w, params.sigma_g(w))
+    g = _gaussian_window(w, params.sigma_g(w))
     if hist == 0:
         i0, i1, val = prep.m_idx0, prep.m_idx1, None
     else:
@@ -527,6 +616,7 @@ def descriptor_reference(image, params: DescriptorParams | None = None, channels
     window (``correlate1d``, ``mode='nearest'`` = replicate border), divides by their sum over
     ``k`` and multiplies by the edge weight.
     """
+    weighted = flag(weighted, "weighted")
     prep = prepare(image, params)
     params = prep.params
     sel = _channel_index(channels, params.n_channels)
@@ -556,7 +646,7 @@ def _descriptor_numba(prep: PreparedDescriptor, sel: np.ndarray, weighted: bool)
     out = np.empty((uniq.size, H, W), dtype=np.float32)
     for level, hist, bins, pos in _groups(params, uniq):
         w = params.windows[level]
-        g = gaussian_window(w, params.sigma_g(w))
+        g = _gaussian_window(w, params.sigma_g(w))
         dest = np.full(K, -1, dtype=np.int64)
         dest[bins] = pos
         if hist == 0:
@@ -608,6 +698,7 @@ def descriptor(image, params: DescriptorParams | None = None, channels=None, imp
     ((68, 16, 20), True)
     """
     choice(impl, "impl", _IMPLS)
+    weighted = flag(weighted, "weighted")
     prep = prepare(image, params)
     if impl == "numpy":
         return descriptor_reference(prep, channels=channels, weighted=weighted)
@@ -638,11 +729,22 @@ def iter_descriptor_blocks(image, params: DescriptorParams | None = None, block:
     ------
     (slice, float32 (n, H, W))
         The channel range and its maps.
+
+    Raises
+    ------
+    InvalidInputError
+        At the call (before the first block): a bad image, ``params``, ``block``, ``impl`` or
+        ``weighted``.
     """
-    block = int(block)
-    if block < 1:
-        raise InvalidInputError(f"block must be >= 1, got {block}")
-    prep = prepare(image, params)
+    block = integer(block, "block", 1)
+    choice(impl, "impl", _IMPLS)
+    weighted = flag(weighted, "weighted")
+    return _blocks(prepare(image, params), block, impl, weighted)
+
+
+def _blocks(prep: PreparedDescriptor, block: int, impl: str, weighted: bool
+            ) -> Iterator[tuple[slice, np.ndarray]]:
+    """The blocks of :func:`iter_descriptor_blocks`, of checked arguments."""
     K = prep.params.n_bins
     n = prep.params.n_channels
     H, W = prep.shape

@@ -64,6 +64,8 @@ def normalise_intensity(image, dtype=np.float64, *, valid=None) -> np.ndarray:
     [[0.5, 1.5]]
     """
     a = _opt.real_array(image, "image", _opt.float_dtype(dtype))
+    if a.size == 0:
+        raise InvalidInputError("image is empty: nothing to normalise")
     if valid is not None and np.any(
             valid := _opt.bool_mask(valid, "valid", a.shape, broadcast=True, of="the image")):
         m = float(a[valid].mean())
@@ -71,9 +73,9 @@ def normalise_intensity(image, dtype=np.float64, *, valid=None) -> np.ndarray:
         m = float(a.mean()) if float(a.mean()) > 0 else 1.0
     else:
         m = float(a.mean())
-    if not m > 0:
+    if not 0 < m < np.inf:
         raise InvalidInputError(
-            f"image mean must be positive to normalise I / mean(I), got {m!r} "
+            f"image mean must be positive and finite to normalise I / mean(I), got {m!r} "
             "(linear intensities expected)")
     return a / m
 
@@ -247,7 +249,7 @@ def texture_snr(image, window: int = 5, *, sigma: float | None = None, valid=Non
     a = _grey(image)
     w = _opt.window(_opt.integer(window, "window", 3, odd=True), "window", side=max(a.shape))
     s = noise_sigma(a, valid=valid) if sigma is None else _opt.number(sigma, "sigma")
-    if not s > 0:
+    if not s * s > 0:  # no noise (or a sigma whose square is 0 in float64)
         return np.full(a.shape, np.inf)
     n = w * w
     m = uniform_filter(a, w, mode="reflect")

@@ -261,6 +261,9 @@ def disparity_scores(estimate, truth, *, mask=None, mask_name: str = "all",
     >>> s.rmse, s.bad_0_5, s.n_pixels
     (0.7071067811865476, 50.0, 2)
     """
+    if not isinstance(mask_name, str):
+        raise InvalidInputError(f"mask_name must be a str (the mask's name in reports), got "
+                                f"{_opt.shown(mask_name)}")
     err = np.abs(_masked_error(estimate, truth, mask, border))
     return DisparityScores(
         rmse=float(np.sqrt(np.mean(err ** 2))),
@@ -279,7 +282,10 @@ def disparity_scores(estimate, truth, *, mask=None, mask_name: str = "all",
 def hci_scores(estimate, truth) -> DisparityScores | None:
     """:func:`disparity_scores` with the HCI protocol's border (:data:`HCI_BORDER`), or None
     when the maps are too small to keep a pixel inside it."""
-    if min(np.shape(truth)) <= 2 * HCI_BORDER:
+    shape = np.shape(_opt.real_array(truth, "truth"))
+    if len(shape) != 2:
+        raise InvalidInputError(f"truth must be a 2-D disparity map, got shape {shape}")
+    if min(shape) <= 2 * HCI_BORDER:
         return None
     return disparity_scores(estimate, truth, border=HCI_BORDER, mask_name="all-15px-border")
 
@@ -462,6 +468,7 @@ def cube_scores(estimate, truth, data_range: float = 1.0) -> tuple[float, float]
     >>> [round(v, 4) for v in cube_scores(est, gt)]
     [23.0103, 0.0]
     """
+    data_range = _opt.number(data_range, "data_range", positive=True)
     if np.shape(estimate) != np.shape(truth) or len(np.shape(truth)) != 5:
         raise InvalidInputError(f"cube_scores needs two (R, C, B, H, W) cubes of one shape, got "
                                 f"{np.shape(estimate)} and {np.shape(truth)}")

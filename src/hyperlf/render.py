@@ -200,11 +200,19 @@ _RULES = {
     "white_balance": _opt.flag, "white_preserving": _opt.flag, "return_counts": _opt.flag,
     "progress": _opt.flag, "annotate": _opt.flag,
     "exposure_percentile": _opt.rule(_opt.number, positive=True, at_most=100),
-    "fill": _opt.rule(_opt.real, nan=True),
+    "fill": lambda value, label: _float32_value(_opt.real(value, label, nan=True), label),
     "tol": _opt.number,
     "fps": _opt.rule(_opt.number, positive=True),
     "bit_depth": _opt.rule(_opt.choice, choices=(8, 16)),
 }
+
+
+def _float32_value(value: float, label: str) -> float:
+    """``value`` (a number or NaN) when float32, the type of the images made, holds it."""
+    if abs(value) > float(np.finfo(np.float32).max):
+        raise InvalidInputError(f"{label} must be a number float32 holds (at most 3.4e+38 in "
+                                f"size) or NaN, got {value:g}")
+    return value
 
 
 def _checked(**options) -> None:
@@ -527,10 +535,13 @@ def band_index(wavelengths, lam: float) -> int:
     >>> band_index([410.0, 548.7, 700.0], 550)
     1
     """
-    wl_bands = spectral.as_wavelengths(np.asarray(wavelengths, np.float64).ravel(),
+    wl_bands = spectral.as_wavelengths(_opt.real_array(wavelengths, "wavelengths").ravel(),
                                        "the cube's wavelengths")  # known ones
-    if not np.isfinite(lam):
-        raise InvalidInputError(f"a band profile needs a finite wavelength in nm, got {lam}")
+    try:
+        lam = _opt.real(lam, "lam")
+    except InvalidInputError:
+        raise InvalidInputError(f"a band profile needs a finite wavelength in nm, got "
+                                f"{_opt.shown(lam)}") from None
     b = int(np.argmin(np.abs(wl_bands - lam)))
     tol = BAND_TOLERANCE_NM
     if wl_bands.size > 1:
@@ -620,7 +631,8 @@ def _apply_post(x: np.ndarray, plan: _Plan, channel_axis: int = -1) -> np.ndarra
 def _exposure_scale(values: Iterable[np.ndarray], plan: _Plan, exposure, percentile: float
                     ) -> float:
     if _is_number(exposure):
-        return _opt.number(exposure, "an exposure gain", positive=True)
+        # at most 1e30: the float32 images it scales stay finite
+        return _opt.number(exposure, "an exposure gain", positive=True, at_most=1e30)
     e = str(exposure).lower() if exposure is not None else "none"
     if e == "none":
         return 1.0
@@ -1429,6 +1441,9 @@ def spectrum_at(cube, wavelengths=None, x=None, y=None, view=None) -> np.ndarray
     ys = np.atleast_1d(_opt.real_array(y, "y"))
     if xs.shape != ys.shape or xs.ndim != 1:
         raise InvalidInputError("x and y must be scalars or 1-D arrays of the same length")
+    if not (np.isfinite(xs).all() and np.isfinite(ys).all()):
+        raise InvalidInputError(f"x and y must be finite pixel positions, got x={_opt.shown(x)}, "
+                                f"y={_opt.shown(y)}")
     out = np.full((xs.size, B), np.nan)
     tx0, _, _, vx = coordinate_taps(xs, W)
     ty0, _, _, vy = coordinate_taps(ys, H)

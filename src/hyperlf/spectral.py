@@ -670,8 +670,16 @@ def srgb_to_linear(x) -> np.ndarray:
         raise InvalidInputError(f"sRGB values must be floats in [0, 1], got {a.dtype} "
                                 "integers; divide by 255 (or 65535) first")
     a = _float(a)
+    if not np.isfinite(a).all():
+        raise InvalidInputError("sRGB values must be finite")
     ax = np.abs(a)
-    out = np.where(ax <= 0.04045, ax / 12.92, ((ax + 0.055) / 1.055) ** 2.4)
+    try:
+        with np.errstate(over="raise"):
+            out = np.where(ax <= 0.04045, ax / 12.92, ((ax + 0.055) / 1.055) ** 2.4)
+    except FloatingPointError:
+        raise InvalidInputError(f"sRGB values must be of a size whose linear value the "
+                                f"{a.dtype} type holds (they are 0..1), got up to "
+                                f"{float(ax.max()):g}") from None
     return (np.sign(a) * out).astype(a.dtype, copy=False)
 
 

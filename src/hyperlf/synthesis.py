@@ -64,7 +64,8 @@ def add_noise(views: np.ndarray, sigma: float, seed: Any = 0) -> np.ndarray:
     views : ndarray
         Intensities in [0, 1] (any shape).
     sigma : float
-        Noise standard deviation on the [0, 1] scale; ``0`` returns a float32 copy.
+        Noise standard deviation on the [0, 1] scale, at most 1e6; ``0`` returns a float32
+        copy.
     seed : int or sequence of int
         Anything :func:`numpy.random.default_rng` accepts; the same seed gives the same noise.
 
@@ -75,7 +76,7 @@ def add_noise(views: np.ndarray, sigma: float, seed: Any = 0) -> np.ndarray:
     v = _opt.real_array(views, "views", np.float32)
     if v.ndim == 0:
         raise InvalidInputError(f"views must be an array of intensities, got {_opt.shown(views)}")
-    sigma = _opt.number(sigma, "noise sigma")
+    sigma = _opt.number(sigma, "noise sigma", at_most=1e6)  # float32 noise stays finite
     if sigma == 0:
         return v.copy()
     try:
@@ -166,7 +167,7 @@ def view_disparity_from_reference(gt_ref: np.ndarray, offset: tuple[float, float
         raise InvalidInputError(f"gt_ref must be an (H, W) map, got shape {g.shape}")
     H, W = g.shape
     dx, dy = _opt.real_pair(offset, "offset", "two finite numbers (dx, dy)")
-    tol = _opt.number(tol, "tol")
+    tol = _opt.number(tol, "tol", at_most=1e6)  # px; compared with float32 maps
     iterations = _opt.integer(iterations, "iterations", maximum=100)
     fw = forward_warp_disparity(g, (dx, dy))
     if dx == 0 and dy == 0:
@@ -325,12 +326,8 @@ def _check_rgb_args(lf_rgb: Any, view_disparity: str, normalization: str) -> Non
         raise InvalidInputError(
             f"from_rgb_lightfield needs RGB views (R, C, H, W, 3); got {lf_rgb.views.shape}"
         )
-    if view_disparity not in ("warp", "reference"):
-        raise InvalidInputError(
-            f"view_disparity must be 'warp' or 'reference', got {view_disparity!r}"
-        )
-    if normalization not in ("white", "max"):
-        raise InvalidInputError(f"normalization must be 'white' or 'max', got {normalization!r}")
+    _opt.choice(view_disparity, "view_disparity", ("warp", "reference"))
+    _opt.choice(normalization, "normalization", ("white", "max"))
 
 
 class _RGBToBands:
@@ -559,6 +556,10 @@ def from_rgb_lightfield(lf_rgb: LightField, *, rows: int = 5, cols: int = 6,
     ((3, 3, 8, 8), 555.0)
     """
     _check_rgb_args(lf_rgb, view_disparity, normalization)
+    # the options it shares with procedural_scene, by the same rules (values kept as given)
+    _opt.check_values(dict(rows=rows, cols=cols, lambda_min=lambda_min, lambda_max=lambda_max,
+                           filter_shape=filter_shape, fwhm=fwhm, noise_sigma=noise_sigma,
+                           seed=seed, progress=progress), _SCENE_RULES)
     rows, cols = int(rows), int(cols)
     t_start = time.perf_counter()
     cube_wl = band_grid(rows, cols, lambda_min, lambda_max)
@@ -1065,13 +1066,15 @@ _SCENE_RULES = {
     "lambda_min": _opt.rule(_opt.number, positive=True),
     "lambda_max": _opt.rule(_opt.number, positive=True),
     "n_objects": _opt.rule(_opt.integer, maximum=MAX_OBJECTS), "kinds": _kinds,
-    "noise_sigma": _opt.number,
+    "noise_sigma": _opt.rule(_opt.number, at_most=1e6),  # as add_noise takes it
     "texture_scale": _opt.rule(_opt.number, positive=True),
     "supersample": _opt.rule(_opt.integer, minimum=1, maximum=MAX_SUPERSAMPLE),
     "objects": _objects,
     "filter_shape": _opt.rule(_opt.choice, choices=("dirac", "gaussian", "thorlabs")),
     "fwhm": _opt.rule(_opt.number, positive=True),
-    "focal_length": _opt.rule(_opt.number, positive=True, optional=True),
+    # px; within 1e-6..1e12 the projections stay finite (1e300 overflowed them)
+    "focal_length": _opt.rule(_opt.number, positive=True, at_least=1e-6, at_most=1e12,
+                              optional=True),
     "shading": _opt.flag, "name": _text_or_none, "progress": _opt.flag,
 }
 
@@ -1463,7 +1466,7 @@ def named_scene(name: str) -> dict[str, Any]:
     >>> named_scene("planes")["seed"]
     101
     """
-    if name not in SCENES:
-        raise InvalidInputError(f"unknown scene {name!r}; the named scenes are "
+    if not isinstance(name, str) or name not in SCENES:
+        raise InvalidInputError(f"unknown scene {_opt.shown(name)}; the named scenes are "
                                 f"{', '.join(SCENES)}")
     return dict(SCENES[name])

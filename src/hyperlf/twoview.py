@@ -79,7 +79,7 @@ import numpy as np
 
 from . import costs as _costs
 from . import regularisers as _reg
-from ._options import flag, integer, mapping, params_of, real_array, shown
+from ._options import bool_mask, choice, flag, integer, mapping, params_of, real_array, shown
 from .costs._validate import MAX_DISPARITY
 from .errors import InvalidInputError
 
@@ -360,6 +360,23 @@ def _optimise(D: np.ndarray, params, guide, labels, subpixel: bool, progress: bo
     return res.labels, disp, res.volume
 
 
+def _disparity_map(value, label: str) -> np.ndarray:
+    """``value`` as a 2-D real map in its own dtype (an array is used as it is)."""
+    d = real_array(value, label, None)
+    if d.ndim != 2 or d.dtype.kind not in "biuf":
+        raise InvalidInputError(f"{label} must be a 2-D disparity map, got {shown(value)}")
+    return d
+
+
+def _value_range(value, label: str) -> tuple[float, float]:
+    """``(low, high)``: two numbers, not NaN, ``low <= high`` (infinite ends allowed)."""
+    pair = real_array(value, label)
+    if pair.shape != (2,) or np.isnan(pair).any() or pair[0] > pair[1]:
+        raise InvalidInputError(f"{label} must be (low, high), two numbers with low <= high "
+                                f"(infinite ends allowed), got {shown(value)}")
+    return value if isinstance(value, tuple) and len(value) == 2 else (pair[0], pair[1])
+
+
 def fill_inconsistent(disp_l, disp_r, valid, occlusion: str, guide, plane_params=None,
                       drange=(-np.inf, np.inf)):
     """Step 6 after the left-right check (module docstring): the background fill, and for
@@ -383,6 +400,15 @@ def fill_inconsistent(disp_l, disp_r, valid, occlusion: str, guide, plane_params
     (ndarray, ndarray of bool)
         The filled map, and the pixels that got a plane value.
     """
+    disp_l, disp_r = _disparity_map(disp_l, "disp_l"), _disparity_map(disp_r, "disp_r")
+    if disp_r.shape != disp_l.shape:
+        raise InvalidInputError(f"disp_r has shape {disp_r.shape}, disp_l {disp_l.shape}: they "
+                                f"must match")
+    valid = bool_mask(valid, "valid", disp_l.shape, of="disp_l")
+    choice(occlusion, "occlusion", ("lr-plane", "lr-fill"))
+    if plane_params is not None:
+        params_of(plane_params, "plane_params", _reg.PlaneFillParams)
+    drange = _value_range(drange, "drange")
     replaced = np.zeros(valid.shape, dtype=bool)
     if not valid.any():  # nothing consistent: keep the left map rather than fail
         return disp_l.copy(), replaced

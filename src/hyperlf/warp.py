@@ -79,6 +79,14 @@ def _offset_px(sx, sy) -> tuple[float, float]:
 #: The widest ``pad`` (px) :func:`shift_map` adds on each side.
 MAX_PAD = 4096
 
+#: The longest image axis (px) the taps take (:func:`axis_taps` builds a grid that long).
+MAX_AXIS = 1 << 20
+
+
+def _axis_length(n) -> int:
+    """An axis length ``n``, ``1 <= n <=`` :data:`MAX_AXIS` (O(1): the taps are per view)."""
+    return _opt.integer(n, "n", 1, maximum=MAX_AXIS)
+
 
 def _offset(offset) -> tuple[float, float]:
     return _opt.real_pair(offset, "offset", "(dx, dy) in baselines, finite")
@@ -89,6 +97,15 @@ def _image(image) -> np.ndarray:
     if img.ndim not in (2, 3):
         raise InvalidInputError(f"image must be (H, W) or (H, W, K), got shape {img.shape}")
     return img
+
+
+def _broadcast_xy(x, y) -> None:
+    """``x`` and ``y`` broadcast to one shape (O(1): their shapes only)."""
+    try:
+        np.broadcast_shapes(np.shape(x), np.shape(y))
+    except ValueError:
+        raise InvalidInputError(f"x and y must broadcast to one shape, got {np.shape(x)} and "
+                                f"{np.shape(y)}") from None
 
 
 def coordinate_taps(coord, n: int, *, dtype=np.float64):
@@ -120,6 +137,8 @@ def coordinate_taps(coord, n: int, *, dtype=np.float64):
     ([0, 0, 2], [1, 1, 3], [0.0, 0.25, 1.0], [False, True, True])
     """
     c = _opt.real_array(coord, "coordinates")
+    n = _axis_length(n)
+    _opt.float_dtype(dtype)
     finite = np.isfinite(c)
     valid = finite & (c >= -INSIDE_EPS) & (c <= n - 1 + INSIDE_EPS)
     cc = np.clip(c, 0.0, n - 1)
@@ -159,6 +178,8 @@ def axis_taps(n: int, shift: float, pad: int = 0, *, dtype=np.float64):
     >>> i0.tolist(), i1.tolist(), f.tolist()
     ([0, 1, 1], [1, 2, 2], [0.5, 0.5, 1.0])
     """
+    n, shift = _axis_length(n), _opt.real(shift, "shift")
+    pad = _opt.integer(pad, "pad", maximum=MAX_PAD)
     i0, i1, f, _ = coordinate_taps(np.arange(-pad, n + pad, dtype=np.float64) + shift, n,
                                    dtype=dtype)
     return i0, i1, f
@@ -174,6 +195,7 @@ def axis_valid(n: int, shift: float) -> np.ndarray:
     >>> axis_valid(3, 0.5).tolist()
     [True, True, False]
     """
+    n, shift = _axis_length(n), _opt.real(shift, "shift")
     return coordinate_taps(np.arange(n, dtype=np.float64) + shift, n)[3]
 
 
@@ -296,11 +318,7 @@ def sample_bilinear(image: np.ndarray, x: np.ndarray, y: np.ndarray,
     _check_edge(edge)
     fill = _opt.real(fill, "fill", nan=True)
     _opt.float_dtype(dtype)
-    try:
-        np.broadcast_shapes(np.shape(x), np.shape(y))
-    except ValueError:
-        raise InvalidInputError(f"x and y must broadcast to one shape, got {np.shape(x)} and "
-                                f"{np.shape(y)}") from None
+    _broadcast_xy(x, y)
     img = _image(image)
     H, W = img.shape[:2]
     x0, x1, fx, vx = coordinate_taps(x, W, dtype=dtype)
@@ -345,7 +363,8 @@ def bilinear_taps(x, y, shape: tuple[int, int], *, dtype=np.float64):
     >>> [int(i[0]) for i in idx], [float(w[0]) for w in wts]
     ([2, 3, 4, 5], [0.5, 0.5, 0.0, 0.0])
     """
-    H, W = shape
+    H, W = _opt.int_pair(shape, "shape", 1, what="(H, W), two integers")
+    _broadcast_xy(x, y)
     x0, x1, fx, vx = coordinate_taps(x, W, dtype=dtype)
     y0, y1, fy, vy = coordinate_taps(y, H, dtype=dtype)
     idx = (y0 * W + x0, y0 * W + x1, y1 * W + x0, y1 * W + x1)
@@ -375,8 +394,25 @@ def gather_taps(flat: np.ndarray, idx, wts) -> np.ndarray:
     >>> gather_taps(img.ravel(), idx, wts).tolist()
     [1.5]
     """
-    return (flat[idx[0]] * wts[0] + flat[idx[1]] * wts[1]
-            + flat[idx[2]] * wts[2] + flat[idx[3]] * wts[3])
+    # O(1) checks (called per view and band): types and shapes; the indices' range is
+    # checked by numpy's own gather, whose IndexError is turned into our message
+    if not isinstance(flat, np.ndarray) or flat.ndim != 1 or flat.dtype.kind not in "biuf":
+        raise InvalidInputError(f"flat must be a 1-D real image array (image.ravel()), got "
+                                f"{_opt.shown(flat)}")
+    for name, taps, kinds in (("idx", idx, "iu"), ("wts", wts, "biuf")):
+        if not (isinstance(taps, (tuple, list)) and len(taps) == 4 and all(
+                isinstance(t, np.ndarray) and t.dtype.kind in kinds for t in taps)):
+            raise InvalidInputError(f"{name} must be the 4 {'index' if name == 'idx' else 'weight'}"
+                                    f" arrays of bilinear_taps, got {_opt.shown(taps)}")
+    shape = idx[0].shape
+    if any(t.shape != shape for t in (*idx, *wts)):
+        raise InvalidInputError("idx and wts must be 8 arrays of one shape (from bilinear_taps)")
+    try:
+        return (flat[idx[0]] * wts[0] + flat[idx[1]] * wts[1]
+                + flat[idx[2]] * wts[2] + flat[idx[3]] * wts[3])
+    except IndexError:
+        raise InvalidInputError(f"idx holds indices beyond the {flat.size} pixels of flat (taps "
+                                f"of another image shape?)") from None
 
 
 def shift_image(image: np.ndarray, dx: float, dy: float, fill: float = np.nan, *,
@@ -630,12 +666,22 @@ def visible_at_labels(zbuffer: np.ndarray, offset: tuple[float, float], labels, 
     >>> visible_at_labels(z, (-1.0, 0.0), [0.0, 2.0], impl="numpy")[:, 0].tolist()
     [[True, True, False, False, True], [True, True, True, False, False]]
     """
+    _opt.choice(impl, "impl", ("auto", "numba", "numpy"))
     z = np.asarray(zbuffer)  # float32 as kept by LabelVisibility: no copy per call
+    if z.ndim != 2 or z.dtype.kind not in "biuf":  # O(1) checks: called once per view
+        raise InvalidInputError(f"zbuffer must be an (H, W) map of disparities "
+                                f"(occlusion_zbuffer), got {_opt.shown(zbuffer)}")
     z = np.ascontiguousarray(z, z.dtype if z.dtype in (np.float32, np.float64) else np.float64)
     H, W = z.shape
-    a, b = (0, H) if rows is None else (int(rows[0]), int(rows[1]))
-    lab = np.ascontiguousarray(np.asarray(labels, np.float64).ravel())
-    dx, dy = (float(v) for v in offset)
+    a, b = (0, H) if rows is None else _opt.int_pair(rows, "rows", 0, maximum=H,
+                                                     what="(first, end) reference rows")
+    if a > b:
+        raise InvalidInputError(f"rows must be (first, end) with first <= end, got {rows}")
+    lab = np.ascontiguousarray(_opt.real_array(labels, "labels").ravel())
+    if not np.isfinite(lab).all():  # L values, not a map
+        raise InvalidInputError("labels must be finite disparities")
+    dx, dy = _offset(offset)
+    margin = _opt.real(margin, "margin")
     if impl == "numpy":
         return _visible_at_labels_reference(z, dx, dy, lab, a, b, float(margin))
     from . import _warp_kernels

@@ -24,7 +24,7 @@ import warnings
 import numpy as np
 
 from ..errors import InvalidInputError
-from .._options import bool_mask, choice, real_array
+from .._options import bool_mask, choice, flag, real_array
 from ._checks import check_cost
 
 __all__ = ["data_term", "wta", "fill_invalid"]
@@ -49,6 +49,7 @@ def data_term(cost, *, overwrite: bool = False) -> np.ndarray:
     ndarray, float32, shape (L, H, W)
         ``cost - min_l cost[l]``.
     """
+    overwrite = flag(overwrite, "overwrite")
     c = check_cost(cost)
     if overwrite:
         c -= c.min(axis=0, keepdims=True)

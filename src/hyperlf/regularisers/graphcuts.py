@@ -55,7 +55,8 @@ def edge_weights_from_guide(guide, edge_sigma: float | None = None):
         ms = (dx2.sum() + dy2.sum()) / n if n else 0.0
         edge_sigma = float(np.sqrt(ms)) if ms > 0 else 1.0
     else:
-        edge_sigma = number(edge_sigma, "edge_sigma", positive=True)
+        # at least 1e-150, so that 2 edge_sigma^2 is not 0 in float64
+        edge_sigma = number(edge_sigma, "edge_sigma", positive=True, at_least=1e-150)
     with np.errstate(over="ignore"):  # a huge sigma: no edge weighs less (s2 = inf)
         s2 = 2.0 * np.float64(edge_sigma) ** 2
     return np.exp(-dx2 / s2), np.exp(-dy2 / s2)

@@ -157,5 +157,10 @@ def make_params(name: str, values: dict[str, Any] | None = None):
 
 
 def params_dict(params) -> dict[str, Any]:
-    """The fields of an optimiser's parameters as a plain dict (without the name)."""
+    """The fields of an optimiser's parameters (one of :data:`OPTIMISERS`' classes) as a plain
+    dict (without the name)."""
+    if not isinstance(params, tuple(OPTIMISERS.values())):
+        raise InvalidInputError(f"params must be the parameters of an optimiser (one of "
+                                f"{', '.join(c.__name__ for c in OPTIMISERS.values())}), got "
+                                f"{type(params).__name__}")
     return asdict(params)

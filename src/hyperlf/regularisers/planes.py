@@ -27,7 +27,8 @@ from typing import ClassVar
 import numpy as np
 
 from ..errors import InvalidInputError
-from .._options import check_fields, integer, number, real_array, rule, share
+from .._options import (bool_mask, check_fields, choice, integer, number, params_of, real_array,
+                        rule, share, shown)
 
 __all__ = ["PlaneFillParams", "segment", "fit_plane", "plane_fill", "cost_planes"]
 
@@ -143,10 +144,15 @@ def fit_plane(x, y, d, *, iterations: int = 4, floor: float = 0.5):
     >>> np.round(fit_plane(x.ravel(), y.ravel(), d.ravel()), 6).tolist()
     [0.5, -0.25, 3.0]
     """
+    # called once per region: conversions and counts only (no pass over the values)
+    x, y, d = real_array(x, "x"), real_array(y, "y"), real_array(d, "d")
+    if d.size < 3 or not x.size == y.size == d.size:
+        raise InvalidInputError(f"fit_plane needs >= 3 points of equal count, got "
+                                f"{x.size}, {y.size} and {d.size} values of x, y and d")
+    iterations = integer(iterations, "iterations", maximum=1000)
+    floor = number(floor, "floor")
     A = np.column_stack([np.ravel(x), np.ravel(y), np.ones(np.size(x))]).astype(np.float64)
-    d = np.asarray(d, dtype=np.float64).ravel()
-    if d.size < 3 or A.shape[0] != d.size:
-        raise InvalidInputError(f"fit_plane needs >= 3 points of equal count, got {d.size}")
+    d = d.ravel()
     keep = np.ones(d.size, dtype=bool)
     coef = np.zeros(3)
     for _ in range(max(1, int(iterations))):
@@ -200,8 +206,8 @@ def plane_fill(disparity, reliable, guide, *, targets=None, params: PlaneFillPar
     >>> float(np.abs(out - d).max()) < 1e-4, int(rep.sum())
     (True, 100)
     """
-    p = params or PlaneFillParams()
-    d = np.asarray(disparity, dtype=np.float64)
+    p = params_of(params, "params", PlaneFillParams)
+    d = real_array(disparity, "disparity")
     if d.ndim != 2:
         raise InvalidInputError(f"disparity must be a 2-D map, got shape {d.shape}")
     ok = np.asarray(reliable, dtype=bool)
@@ -485,14 +491,17 @@ def cost_planes(volume, mask, *, tile: int, max_slope: float, period: float = 1.
     True
     """
     C = np.asarray(volume)
-    m = np.asarray(mask, bool)
-    if C.ndim != 3 or m.shape != C.shape[1:]:
-        raise InvalidInputError(f"cost_planes needs a volume (L, H, W) and a mask (H, W), got "
-                                f"{C.shape} and {m.shape}")
-    if int(tile) < 4 or max_slope <= 0 or int(samples) < 1 or (carry is not None and
-                                                                 not carry >= 0):
-        raise InvalidInputError("cost_planes needs tile >= 4, max_slope > 0, samples >= 1 and "
-                                "carry None or >= 0")
+    if C.ndim != 3 or C.dtype.kind not in "biuf":
+        raise InvalidInputError(f"cost_planes needs a real volume (L, H, W), got "
+                                f"{shown(volume)}")
+    m = bool_mask(mask, "mask", C.shape[1:], of="the volume")
+    # a slope and a period of at most 1e4 labels per px: their grids stay small
+    tile, samples = integer(tile, "tile", 4), integer(samples, "samples", 1)
+    max_slope = number(max_slope, "max_slope", positive=True, at_most=1e4)
+    period = number(period, "period", positive=True, at_most=1e4)
+    min_share = share(min_share, "min_share")
+    carry = number(carry, "carry", optional=True)
+    choice(impl, "impl", ("auto", "numba", "numpy"))
     L, H, W = C.shape
     T = min(int(tile), H, W)
     n_steps = max(1, int(round(max_slope * T)))
