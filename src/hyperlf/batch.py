@@ -47,6 +47,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Sequence
 
+from . import _options as _opt
 from .errors import DataNotFoundError, HyperLFError, InvalidInputError
 
 __all__ = ["BATCH_FILE", "CaptureTask", "find_captures", "plan_batch", "run_capture",
@@ -70,6 +71,39 @@ class CaptureTask:
     overwrite: bool = False
     disparity_range: tuple | None = None  # the batch's --disparity-range, if given
     downscale: int = 1  # the batch's --downscale: results at 1 / downscale of the capture
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise InvalidInputError(f"name must be a non-empty text, got {_opt.shown(self.name)}")
+        _opt.path_like(self.capture, "capture", folder=None)
+        _opt.path_like(self.output, "output", folder=None)
+        _opt.check_fields(self, {"depth_args": _args, "overwrite": _opt.flag,
+                                 "disparity_range": _range, "downscale": _downscale})
+
+
+def _args(value, label: str) -> tuple:
+    """Command-line arguments: a list or tuple of text, as a tuple."""
+    if not isinstance(value, (list, tuple)) or not all(isinstance(a, str) for a in value):
+        raise InvalidInputError(f"{label} must be a list of text (command-line arguments), got "
+                                f"{_opt.shown(value)}")
+    return tuple(value)
+
+
+def _range(value, label: str) -> tuple | None:
+    """A disparity range ``(dmin, dmax)`` or None."""
+    return None if value is None else _opt.real_pair(value, label, "(dmin, dmax)")
+
+
+def _downscale(value, label: str) -> int:
+    return _opt.integer(value, label, 1, maximum=2 ** 16)
+
+
+def _rows(rows) -> list:
+    """The :class:`CaptureResult` rows of a summary."""
+    if not isinstance(rows, (list, tuple)) or not all(isinstance(r, CaptureResult) for r in rows):
+        raise InvalidInputError(f"rows must be a list of hyperlf.batch.CaptureResult, got "
+                                f"{_opt.shown(rows)}")
+    return list(rows)
 
 
 @dataclass
@@ -108,6 +142,13 @@ def find_captures(inputs: Sequence[str | os.PathLike]) -> list[Path]:
     DataNotFoundError
         An input that does not exist, or inputs that hold no capture.
     """
+    if isinstance(inputs, (str, os.PathLike)):
+        inputs = [inputs]
+    if not isinstance(inputs, (list, tuple)) or not inputs:
+        raise InvalidInputError(f"inputs must be a list of at least one capture, folder or "
+                                f"pattern, got {_opt.shown(inputs)}")
+    for raw in inputs:
+        _opt.path_like(raw, "inputs", folder=None)
     found: list[Path] = []
     for raw in inputs:
         text = os.fspath(raw)
@@ -201,7 +242,8 @@ def _write_marker(marker: Path, doc: dict) -> None:
 def finish_batch(out: str | os.PathLike, rows: Sequence["CaptureResult"]) -> None:
     """After a run: the folder's results all have its recorded options once every capture
     is done (clears the mark an ``overwrite`` run leaves until then)."""
-    marker = Path(out) / BATCH_FILE
+    marker = Path(_opt.path_like(out, "out", folder=True)) / BATCH_FILE
+    _rows(rows)
     doc = _read_marker(marker)
     if doc.get("overwrite_unfinished") and all(r.status != "failed" for r in rows):
         _write_marker(marker, {**doc, "overwrite_unfinished": False})
@@ -215,9 +257,12 @@ def plan_batch(inputs, out: str | os.PathLike, *, depth_args: Sequence[str] = ()
     and used for its range-limit figure, ``downscale`` (depth's ``--downscale``) to every run
     and to the measuring of its results.  Checks and marks ``out`` first (nothing is
     computed)."""
+    out = Path(_opt.path_like(out, "out", folder=True))
+    args = list(_args(depth_args, "depth_args"))
+    disparity_range = _range(disparity_range, "disparity_range")
+    downscale = _downscale(downscale, "downscale")
+    overwrite = _opt.flag(overwrite, "overwrite")
     captures = find_captures(inputs)
-    out = Path(out)
-    args = list(depth_args)
     if downscale != 1:
         args.insert(0, f"--downscale={int(downscale)}")
     if disparity_range is not None:
@@ -225,8 +270,7 @@ def plan_batch(inputs, out: str | os.PathLike, *, depth_args: Sequence[str] = ()
     _record_options(out, args, overwrite)
     return [CaptureTask(name=n, capture=os.fspath(c), output=os.fspath(out / n),
                         depth_args=tuple(args), overwrite=overwrite,
-                        disparity_range=None if disparity_range is None
-                        else tuple(disparity_range), downscale=int(downscale))
+                        disparity_range=disparity_range, downscale=downscale)
             for n, c in zip(_names(captures), captures)]
 
 
@@ -268,6 +312,9 @@ def run_capture(task: CaptureTask) -> CaptureResult:
     Runs in a dask worker; the depth command is its own process, so the result set is whole
     whatever happens to the worker.  A failure of the command is reported, not raised.
     """
+    if not isinstance(task, CaptureTask):
+        raise InvalidInputError(f"task must be a hyperlf.batch.CaptureTask, got "
+                                f"{type(task).__name__}")
     done = _done_before(task)  # a retried task whose first run had finished
     if done is not None:
         return done
@@ -401,6 +448,15 @@ def run_batch(tasks: Sequence[CaptureTask], *, workers: int = 2, scheduler: str 
     the order of ``tasks`` (finished ones are measured here, not resubmitted)."""
     from ._progress import progress_bar
 
+    if not isinstance(tasks, (list, tuple)) or not all(isinstance(t, CaptureTask)
+                                                       for t in tasks):
+        raise InvalidInputError(f"tasks must be a list of hyperlf.batch.CaptureTask, got "
+                                f"{_opt.shown(tasks)}")
+    workers = _opt.integer(workers, "workers", 1, maximum=1024)
+    if scheduler is not None and not isinstance(scheduler, str):
+        raise InvalidInputError(f"scheduler must be an address (text) or None, got "
+                                f"{_opt.shown(scheduler)}")
+    progress = _opt.flag(progress, "progress")
     results: dict[int, CaptureResult] = {}
     todo = []
     for i, t in enumerate(tasks):
@@ -449,7 +505,8 @@ def write_summary(out: str | os.PathLike, rows: Sequence[CaptureResult]) -> list
     in ``out``, replaced together as one result set."""
     from .outputs import result_files
 
-    out = Path(out)
+    out = Path(_opt.path_like(out, "out", folder=True))
+    rows = _rows(rows)
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(SUMMARY_COLUMNS)

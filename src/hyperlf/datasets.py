@@ -19,6 +19,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from ._options import path_like
 from .errors import DataNotFoundError
 
 __all__ = ["ENV_VAR", "DATASETS", "data_root", "dataset_path", "has_data", "expand_user"]
@@ -31,12 +32,15 @@ def expand_user(path: str | os.PathLike) -> Path:
     ------
     DataNotFoundError
         ``~user`` names no user (or the home folder cannot be found).
+    InvalidInputError
+        ``path`` is not a path (a non-empty str or os.PathLike).
 
     Examples
     --------
     >>> expand_user("data/x.csv")
     PosixPath('data/x.csv')
     """
+    path_like(path, folder=None)
     try:
         return Path(path).expanduser()
     except RuntimeError:
@@ -76,6 +80,8 @@ def data_root(root: str | os.PathLike | None = None) -> Path:
     DataNotFoundError
         When neither is set or the folder does not exist.
     """
+    if root is not None:
+        path_like(root, "root", folder=None)
     value = root if root is not None else os.environ.get(ENV_VAR)
     if not value:
         raise DataNotFoundError(
@@ -116,6 +122,7 @@ def dataset_path(name: str, root: str | os.PathLike | None = None) -> Path:
     >>> dataset_path("antinous", root=root).name
     'antinous'
     """
+    path_like(name, "name", folder=None)
     rel = DATASETS.get(name, name)
     path = data_root(root) / rel
     if not path.exists():
@@ -137,7 +144,14 @@ def has_data(name: str | None = None) -> bool:
     Returns
     -------
     bool
+
+    Raises
+    ------
+    InvalidInputError
+        ``name`` is neither None nor a dataset name or path.
     """
+    if name is not None:
+        path_like(name, "name", folder=None)
     try:
         if name is None:
             data_root()

@@ -22,7 +22,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ._options import integer, real_array, shown
+from ._options import flag, index, integer, int_pair, mapping, number, real_array, shown
 from .errors import InvalidInputError
 from .imageops import block_reduce
 
@@ -39,6 +39,23 @@ def _finite(name: str, arr: np.ndarray) -> None:
             f"{name} contains {bad} NaN or infinite value(s); replace them (e.g. np.nan_to_num) "
             "or mask those pixels before building the light field"
         )
+
+
+def _grid(rows, cols) -> tuple[int, int]:
+    """A grid of ``rows x cols`` views: two ints >= 1 whose per-view arrays fit in memory."""
+    from .tiling import check_memory
+
+    rows, cols = integer(rows, "rows", 1, maximum=2 ** 31), integer(cols, "cols", 1,
+                                                                    maximum=2 ** 31)
+    check_memory(32.0 * rows * cols, f"a {rows} x {cols} grid of views", "use a smaller grid")
+    return rows, cols
+
+
+def _light_field(lf) -> "LightField":
+    """``lf`` when it is a :class:`LightField`."""
+    if not isinstance(lf, LightField):
+        raise InvalidInputError(f"lf must be a hyperlf.LightField, got {type(lf).__name__}")
+    return lf
 
 
 def filter_layout(rows: int, cols: int, order: str | Sequence[int] = "raster",
@@ -61,6 +78,8 @@ def filter_layout(rows: int, cols: int, order: str | Sequence[int] = "raster",
     -------
     ndarray of int, shape (rows, cols)
     """
+    rows, cols = _grid(rows, cols)
+    seed = integer(seed, "seed", maximum=2 ** 63)
     n = rows * cols
     if isinstance(order, str):
         if order == "raster":
@@ -75,7 +94,7 @@ def filter_layout(rows: int, cols: int, order: str | Sequence[int] = "raster",
             f"unknown filter layout {order!r}; use 'raster', 'serpentine', 'random' "
             "or a list of band indices"
         )
-    k = np.asarray(order)
+    k = real_array(order, "order")
     if k.size != n or sorted(k.ravel().tolist()) != list(range(n)):
         raise InvalidInputError(
             f"a custom filter layout must list each band index 0..{n - 1} exactly once "
@@ -112,8 +131,9 @@ def raster_wavelengths(rows: int = 5, cols: int = 6, *, lambda_min: float = 410.
     >>> float(raster_wavelengths(5, 6)[2, 2])
     550.0
     """
-    if rows < 1 or cols < 1:
-        raise InvalidInputError(f"grid must have at least one view, got {rows} x {cols}")
+    rows, cols = _grid(rows, cols)
+    lambda_min = number(lambda_min, "lambda_min", positive=True)
+    lambda_max = number(lambda_max, "lambda_max", positive=True)
     if not (0 < lambda_min <= lambda_max):
         raise InvalidInputError(
             f"band range must satisfy 0 < min <= max, got {lambda_min}..{lambda_max} nm"
@@ -143,6 +163,14 @@ def view_offsets(positions: np.ndarray, reference: tuple[int, int]) -> np.ndarra
     >>> view_offsets(pos, (1, 1))[0, 0].tolist()
     [-1.0, -1.0]
     """
+    pos = real_array(positions, "positions", None)
+    if pos.ndim != 3 or pos.shape[2] != 2 or pos.dtype.kind not in "biuf":
+        raise InvalidInputError(f"positions must be (R, C, 2) numbers, got {shown(positions)}")
+    return _view_offsets(pos, index(reference, "reference", pos.shape[:2]))
+
+
+def _view_offsets(positions: np.ndarray, reference: tuple[int, int]) -> np.ndarray:
+    """:func:`view_offsets` of checked values."""
     return positions - positions[reference][None, None, :]
 
 
@@ -164,6 +192,11 @@ def grid_positions(rows: int, cols: int) -> np.ndarray:
     >>> grid_positions(2, 3)[1, 2].tolist()
     [2.0, 1.0]
     """
+    return _grid_positions(*_grid(rows, cols))
+
+
+def _grid_positions(rows: int, cols: int) -> np.ndarray:
+    """:func:`grid_positions` of a checked grid."""
     cc, rr = np.meshgrid(np.arange(cols, dtype=np.float64), np.arange(rows, dtype=np.float64))
     return np.stack([cc, rr], axis=-1)
 
@@ -176,6 +209,12 @@ def centre_view(rows: int, cols: int) -> tuple[int, int]:
     >>> centre_view(5, 6)
     (2, 2)
     """
+    rows, cols = (integer(n, label, 1) for n, label in ((rows, "rows"), (cols, "cols")))
+    return _centre_view(rows, cols)
+
+
+def _centre_view(rows: int, cols: int) -> tuple[int, int]:
+    """:func:`centre_view` of a checked grid."""
     return (rows - 1) // 2, (cols - 1) // 2
 
 
@@ -234,13 +273,14 @@ def resolve_disparity_range(lf: "LightField", disparity_range=None) -> tuple[flo
         disparities at which even the nearest view is shifted entirely out of the image (such
         labels can match nothing; a typo such as ``1e30`` is the usual cause).
     """
+    _light_field(lf)
     rng = disparity_range if disparity_range is not None else lf.disparity_range
     if rng is None:
         raise InvalidInputError(
             "no disparity range: pass disparity_range=(dmin, dmax) or set lf.disparity_range")
     dmin, dmax = check_disparity_range(rng)
-    offsets = view_offsets(np.asarray(lf.positions), lf.reference)
-    check_disparity_reach((dmin, dmax), offsets, lf.image_shape)
+    offsets = _view_offsets(np.asarray(lf.positions), lf.reference)
+    _disparity_reach((dmin, dmax), offsets, lf.image_shape)
     return dmin, dmax
 
 
@@ -261,8 +301,22 @@ def check_disparity_reach(disparities, offsets: np.ndarray, image_shape) -> None
     Raises
     ------
     InvalidInputError
-        A disparity reaches beyond ``max(H, W) / (nearest view's distance)``.
+        A disparity reaches beyond ``max(H, W) / (nearest view's distance)``; or the
+        arguments are not numbers of these shapes.
     """
+    d = real_array(disparities, "disparities")
+    off = real_array(offsets, "offsets")
+    if d.size == 0 or np.isnan(d).any():
+        raise InvalidInputError(f"disparities must be numbers (at least one), got "
+                                f"{shown(disparities)}")
+    if off.ndim < 1 or off.shape[-1] != 2 or not np.isfinite(off).all():
+        raise InvalidInputError(f"offsets must be finite (dx, dy) pairs, shape (R, C, 2); got "
+                                f"{shown(offsets)}")
+    _disparity_reach(d, off, int_pair(image_shape, "image_shape", what="(H, W)"))
+
+
+def _disparity_reach(disparities, offsets: np.ndarray, image_shape) -> None:
+    """:func:`check_disparity_reach` of checked values."""
     off = np.hypot(*np.moveaxis(np.asarray(offsets, dtype=np.float64), -1, 0))
     nearest = float(off[off > 0].min()) if (off > 0).any() else 1.0
     limit = max(image_shape) / nearest
@@ -403,7 +457,7 @@ class LightField:
     def _check_positions(self, R: int, C: int) -> None:
         """Camera positions ``(R, C, 2)``; None: the grid's own."""
         if self.positions is None:
-            self.positions = grid_positions(R, C)
+            self.positions = _grid_positions(R, C)
             return
         pos = real_array(self.positions, "positions")
         if pos.shape != (R, C, 2):
@@ -416,7 +470,7 @@ class LightField:
     def _check_reference(self, R: int, C: int) -> None:
         """The reference view as ``(row, col)`` inside the grid; None: the centre view."""
         if self.reference is None:
-            self.reference = centre_view(R, C)
+            self.reference = _centre_view(R, C)
             return
         try:
             r0, c0 = (int(v) for v in self.reference)
@@ -499,7 +553,7 @@ class LightField:
     @property
     def offsets(self) -> np.ndarray:
         """``positions - positions[reference]``, shape ``(R, C, 2)`` as ``(dx, dy)``."""
-        return view_offsets(self.positions, self.reference)
+        return _view_offsets(self.positions, self.reference)
 
     @property
     def reference_gt_disparity(self) -> np.ndarray | None:
@@ -607,7 +661,9 @@ def downscale(lf: LightField, factor: int = 2, *, truth: bool = False) -> LightF
     >>> small.image_shape, small.disparity_range
     ((3, 4), (-1.0, 2.0))
     """
+    _light_field(lf)
     factor = integer(factor, "factor", 1)
+    truth = flag(truth, "truth")
     if factor == 1:
         return lf
     rng = lf.disparity_range
@@ -659,7 +715,7 @@ def capture_signature(lf: LightField) -> dict:
     >>> sig["grid"], sig["image_shape"], len(sig["thumbnail"])
     ([1, 2], [16, 16], 64)
     """
-    ref = tuple(lf.reference)
+    ref = tuple(_light_field(lf).reference)
     view = np.asarray(lf.views[ref], np.float64)
     view = view.mean(axis=-1) if view.ndim == 3 else view
     valid = np.ones(view.shape, bool) if lf.valid is None else np.asarray(lf.valid[ref])
@@ -691,6 +747,7 @@ def signature_mismatch(recorded: dict, sig: dict) -> str | None:
     >>> signature_mismatch(a, dict(a, grid=[5, 6]))
     'its grid is 3 x 3, not 5 x 6'
     """
+    mapping(sig, "sig", optional=False)
     try:
         for key, what, order in (("grid", "grid", 1), ("image_shape", "view size", -1),
                                  ("reference", "reference view", 1)):
@@ -700,7 +757,7 @@ def signature_mismatch(recorded: dict, sig: dict) -> str | None:
                 unit = " px (W x H)" if order < 0 else ""
                 return f"its {what} is {a}{unit}, not {b}{unit}"
         return _geometry_mismatch(recorded, sig) or _thumbnail_mismatch(recorded, sig)
-    except (KeyError, TypeError, ValueError):
+    except (KeyError, TypeError, ValueError, IndexError):
         return None
 
 
@@ -761,12 +818,17 @@ class BlockMeanCube:
     """
 
     def __init__(self, cube, factor: int):
-        self.cube, self.factor = cube, int(factor)
+        if not hasattr(cube, "shape") or not hasattr(cube, "dtype"):  # a list: an array
+            cube = real_array(cube, "cube")
+        if len(cube.shape) != 5 or np.dtype(cube.dtype).kind not in "biuf":
+            raise InvalidInputError(f"cube must be (R, C, B, H, W) numbers, got "
+                                    f"{shown(cube)}")
+        self.cube, self.factor = cube, integer(factor, "factor", 1)
         R, C, B, H, W = np.shape(cube)
         self.shape = (R, C, B, -(-H // self.factor), -(-W // self.factor))
 
     def __getitem__(self, view) -> np.ndarray:
-        r, c = view
+        r, c = index(view, "view", self.shape[:2])
         return block_reduce(np.asarray(self.cube[r, c], dtype=np.float64), self.factor)
 
 

@@ -42,7 +42,10 @@ import threading
 from pathlib import Path
 from typing import Iterable, Iterator, Sequence
 
-from .errors import InvalidInputError, Terminated
+from .errors import DataNotFoundError, InvalidInputError, Terminated
+
+# hyperlf._options (and so numpy) is imported inside the functions that check their arguments:
+# ``python -m hyperlf`` imports this module before its signal handlers are in place.
 
 __all__ = [
     "MANIFEST",
@@ -279,7 +282,9 @@ def read_manifest(folder: str | os.PathLike) -> dict | None:
     >>> m["command"], m["files"]
     ('depth', ['a.txt'])
     """
-    man = Path(folder) / MANIFEST
+    from ._options import path_like
+
+    man = Path(path_like(folder, "folder", folder=None)) / MANIFEST
     if man.is_symlink() or not man.is_file():
         return None
     try:
@@ -335,7 +340,11 @@ def foreign_entries(folder: str | os.PathLike) -> list[str]:
     >>> foreign_entries(d)
     ['notes.txt']
     """
-    root = Path(folder)
+    from ._options import path_like
+
+    root = Path(path_like(folder, "folder", folder=None))
+    if not root.is_dir():
+        raise DataNotFoundError(f"{root}: no such folder")
     files = manifest_files(root) or set()
     return sorted(f for f in _foreign_in(root, root, files | {MANIFEST}) if not _is_temporary(f))
 
@@ -367,7 +376,10 @@ def check_replaceable(target: str | os.PathLike, *, overwrite: bool) -> None:
     ``overwrite``. A folder may be replaced with ``overwrite`` only when it holds nothing but a
     previous result set (see :func:`foreign_entries`). A symlink is never replaced.
     """
-    p = Path(target)
+    from ._options import flag, path_like
+
+    p = Path(path_like(target, "target", folder=None))
+    flag(overwrite, "overwrite")
     if p.is_symlink():
         raise InvalidInputError(f"{p} is a symlink; hyperlf does not write through or replace "
                                 "symlinks: give the real path or another name")
@@ -419,7 +431,9 @@ def clean_stale(folder: str | os.PathLike) -> list[Path]:
     run: an ``.old`` entry whose target is missing is put back (the run died between the two
     renames of a replacement), everything else of that run is removed. Live runs are left alone.
     """
-    root = Path(folder)
+    from ._options import path_like
+
+    root = Path(path_like(folder, "folder", folder=None))
     done: list[Path] = []
     with contextlib.suppress(OSError):
         locks = [p for p in root.iterdir() if p.name.startswith(_PREFIX)
@@ -618,10 +632,33 @@ class _ResultSet:
             self.lock = None
 
 
-def _as_targets(targets) -> list[Path]:
+def _as_targets(targets, label: str) -> list[Path]:
+    """The targets of a result set: one path, or an iterable of at least one."""
+    from ._options import path_like, shown
+
     if isinstance(targets, (str, os.PathLike)):
-        return [Path(targets)]
-    return [Path(t) for t in targets]
+        return [Path(path_like(targets, label, folder=None))]
+    try:
+        items = list(targets) if not isinstance(targets, (bytes, dict)) else None
+    except TypeError:  # not iterable
+        items = None
+    if not items:
+        raise InvalidInputError(f"{label} must be a path or a list of at least one path, got "
+                                f"{shown(targets)}")
+    return [Path(path_like(t, label, folder=None)) for t in items]
+
+
+def _check_record(overwrite, command, argv, provenance=None) -> None:
+    """The options of a result set that its manifest records, checked before any work."""
+    from ._options import flag, mapping, shown
+
+    flag(overwrite, "overwrite")
+    if command is not None and not isinstance(command, str):
+        raise InvalidInputError(f"command must be text or None, got {shown(command)}")
+    if argv is not None and not isinstance(argv, (list, tuple)):
+        raise InvalidInputError(f"argv must be a list of str (the command line) or None, got "
+                                f"{shown(argv)}")
+    mapping(provenance, "provenance")
 
 
 @contextlib.contextmanager
@@ -685,8 +722,9 @@ def result_folder(folder: str | os.PathLike, *, overwrite: bool = False,
     >>> sorted(p.name for p in out.iterdir())
     ['.hyperlf-result.json', 'a.txt']
     """
-    rs = _ResultSet(_as_targets(folder), overwrite=overwrite, command=command, argv=argv,
-                    provenance=provenance)
+    _check_record(overwrite, command, argv, provenance)
+    rs = _ResultSet(_as_targets(folder, "folder"), overwrite=overwrite, command=command,
+                    argv=argv, provenance=provenance)
     with _staged(rs) as stage:
         if rs.inplace:
             yield stage
@@ -729,7 +767,8 @@ def result_files(paths: Iterable[str | os.PathLike], *, overwrite: bool = False,
     >>> sorted(p.name for p in d.iterdir())
     ['s.csv', 's.png']
     """
-    rs = _ResultSet(_as_targets(paths), overwrite=overwrite, command=command, inplace=False,
-                    argv=argv)
+    _check_record(overwrite, command, argv)
+    rs = _ResultSet(_as_targets(paths, "paths"), overwrite=overwrite, command=command,
+                    inplace=False, argv=argv)
     with _staged(rs) as stage:
         yield [stage / t.name for t in rs.targets]

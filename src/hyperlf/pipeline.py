@@ -84,8 +84,60 @@ def finite_range(values: np.ndarray) -> tuple[float, float]:
     >>> finite_range(np.array([np.nan, -1.5, 2.0]))
     (-1.5, 2.0)
     """
+    values = _opt.real_array(values, "values")
     f = values[np.isfinite(values)]
+    if f.size == 0:
+        from .errors import InvalidInputError
+
+        raise InvalidInputError(f"values must hold at least one finite number, got "
+                                f"{_opt.shown(values)}")
     return float(f.min()), float(f.max())
+
+
+def _light_field(lf):
+    """``lf`` when it is a :class:`~hyperlf.lightfield.LightField`."""
+    from .errors import InvalidInputError
+    from .lightfield import LightField
+
+    if not isinstance(lf, LightField):
+        raise InvalidInputError(f"lf must be a hyperlf.LightField, got {type(lf).__name__}")
+    return lf
+
+
+def _text(value, label: str) -> str:
+    """``value`` when it is printable text (a title, a unit, a file-name stem)."""
+    if not isinstance(value, str) or not value.isprintable():
+        from .errors import InvalidInputError
+
+        raise InvalidInputError(f"{label} must be printable text (a str), got "
+                                f"{_opt.shown(value)}")
+    return value
+
+
+def _stem(value) -> str:
+    """A file-name prefix: text without a folder separator, short enough for a file name."""
+    from .errors import InvalidInputError
+
+    if _text(value, "stem") and (os.sep in value or "\0" in value or len(value) > 200):
+        raise InvalidInputError(f"stem must be a file-name prefix (no folder, at most 200 "
+                                f"characters), got {_opt.shown(value)}")
+    return value
+
+
+def _map(value, label: str, shape=None, *, optional: bool = False):
+    """A 2-D map of real numbers (NaN allowed, not inf) of ``shape`` where given; None
+    passes where ``optional``. One pass for the infinities: these helpers write files."""
+    from .errors import InvalidInputError
+
+    if value is None and optional:
+        return None
+    a = _opt.real_array(value, label)
+    if a.ndim != 2 or a.size == 0 or (shape is not None and a.shape != tuple(shape)):
+        want = f"shape {tuple(shape)}" if shape is not None else "a non-empty (H, W) map"
+        raise InvalidInputError(f"{label} must be {want}, got shape {a.shape}")
+    if np.isinf(a).any():
+        raise InvalidInputError(f"{label} holds infinite values; use NaN for unknown pixels")
+    return a
 
 
 def write_lightfield_pictures(lf, out: str | os.PathLike, stem: str = "") -> list[Path]:
@@ -108,7 +160,9 @@ def write_lightfield_pictures(lf, out: str | os.PathLike, stem: str = "") -> lis
     """
     from . import visualise
 
-    out = Path(out)
+    _light_field(lf)
+    out = Path(_opt.path_like(out, "out", folder=True))
+    _stem(stem)
     written = [visualise.save_mosaic_png(out / f"{stem}views.png", lf.views, lf.wavelengths,
                                          title="views (false colour by filter wavelength)")]
     gt = lf.reference_gt_disparity
@@ -168,7 +222,11 @@ def save_disparity_outputs(out: str | os.PathLike, disparity: np.ndarray, title:
     from ._atomic import atomic_write_text
     from .formats import write_image, write_pfm
 
-    out = Path(out)
+    out = Path(_opt.path_like(out, "out", folder=True))
+    shape = _map(disparity, "disparity").shape
+    _map(truth, "truth", shape, optional=True)
+    _map(confidence, "confidence", shape, optional=True)
+    _text(title, "title"), _stem(stem), _text(unit, "unit")
     written = [write_pfm(out / f"{stem}.pfm", disparity)]
     d = np.nan_to_num(np.asarray(disparity, dtype=np.float64), nan=0.0)
     offset = float(min(0.0, np.floor(d.min())))
@@ -713,15 +771,17 @@ def save_metric_outputs(out: str | os.PathLike, disparity: np.ndarray, lf, *,
     from .formats import write_pfm
     from .formats.ply import write_ply
 
+    out = Path(_opt.path_like(out, "out", folder=True))
+    shape = _light_field(lf).image_shape
+    _map(disparity, "disparity", shape)
+    _map(confidence, "confidence", shape, optional=True)
+    min_confidence = _opt.share(min_confidence, "min_confidence")
     geo = lf.metadata.get("calibration")
     if not isinstance(geo, dict) or "camera_matrix" not in geo \
             or geo.get("focal_determined") is False:
         return []
-    if not 0.0 <= min_confidence <= 1.0:
-        raise InvalidInputError(f"min_confidence must be in [0, 1], got {min_confidence}")
     if min_confidence > 0 and confidence is None:
         raise InvalidInputError("min_confidence needs the estimate's confidence map")
-    out = Path(out)
     Z = depth_from_disparity(disparity, geo)
     keep = np.ones(Z.shape, bool) if lf.valid is None else lf.valid[lf.reference]
     if min_confidence > 0:

@@ -14,6 +14,8 @@ from pathlib import Path
 from typing import Sequence
 
 from ._atomic import atomic_write_text
+from ._options import path_like, shown
+from .errors import DataNotFoundError, InvalidInputError
 
 __all__ = ["Section", "write_html_report"]
 
@@ -38,6 +40,28 @@ class Section:
     text: str = ""
     table: Sequence[Sequence[str]] = ()  # first row = header
     pictures: Sequence[tuple[str | os.PathLike, str]] = field(default_factory=list)  # (path, caption)
+
+    def __post_init__(self) -> None:
+        _text(self.title, "title"), _text(self.text, "text")
+        if not _rows(self.table):
+            raise InvalidInputError(f"table must be a list of rows (each a list of cells), got "
+                                    f"{shown(self.table)}")
+        if not _rows(self.pictures) or any(len(p) != 2 for p in self.pictures):
+            raise InvalidInputError(f"pictures must be a list of (path, caption) pairs, got "
+                                    f"{shown(self.pictures)}")
+        for pic, caption in self.pictures:
+            path_like(pic, "picture", folder=None), _text(caption, "caption")
+
+
+def _text(value, label: str) -> str:
+    if not isinstance(value, str):
+        raise InvalidInputError(f"{label} must be text (a str), got {shown(value)}")
+    return value
+
+
+def _rows(value) -> bool:
+    """Whether ``value`` is a list or tuple of lists or tuples (a table's rows)."""
+    return isinstance(value, (list, tuple)) and all(isinstance(r, (list, tuple)) for r in value)
 
 
 _STYLE = """
@@ -86,6 +110,17 @@ def write_html_report(path: str | os.PathLike, title: str, sections: Sequence[Se
     >>> "<h2>a</h2>" in rep.read_text()
     True
     """
+    path_like(path)
+    _text(title, "title"), _text(footer, "footer")
+    if not isinstance(sections, (list, tuple)) or not all(isinstance(sec, Section)
+                                                          for sec in sections):
+        raise InvalidInputError(f"sections must be a list of hyperlf.report.Section, got "
+                                f"{shown(sections)}")
+    missing = [os.fspath(pic) for sec in sections for pic, _ in sec.pictures
+               if not Path(pic).is_file()]
+    if missing:
+        raise DataNotFoundError(f"picture {missing[0]} not found"
+                                + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""))
     parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}"
              f"</title><style>{_STYLE}</style></head><body><h1>{html.escape(title)}</h1>"]
     for sec in sections:

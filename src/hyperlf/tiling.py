@@ -32,6 +32,8 @@ import math
 import os
 import re
 
+import numpy as np
+
 from . import _options as _opt
 from .errors import InvalidInputError
 
@@ -75,6 +77,8 @@ _SELECTION_BYTES = 8.0
 _UNITS = {"": 1, "B": 1, "K": 2 ** 10, "KB": 2 ** 10, "KIB": 2 ** 10, "M": 2 ** 20,
           "MB": 2 ** 20, "MIB": 2 ** 20, "G": 2 ** 30, "GB": 2 ** 30, "GIB": 2 ** 30,
           "T": 2 ** 40, "TB": 2 ** 40, "TIB": 2 ** 40}
+#: The largest byte count the memory helpers take (far beyond any machine, within a float).
+_MAX_BYTES = 2.0 ** 1000
 _MEMORY = re.compile(r"\s*([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*([A-Za-z]*)\s*")
 
 
@@ -97,7 +101,11 @@ def parse_memory(text) -> int:
     if isinstance(text, bool):
         raise InvalidInputError(f"a memory size must be a number with a unit (e.g. 6G), got {text!r}")
     if isinstance(text, (int, float)):
-        value, unit = float(text), ""
+        try:
+            value, unit = float(text), ""
+        except OverflowError:  # an int beyond a float
+            raise InvalidInputError(f"a memory size must be at most {_MAX_BYTES:.3g} bytes, "
+                                    f"got {_opt.shown(text)}") from None
     else:
         m = _MEMORY.fullmatch(str(text))
         if m is None or m.group(2).upper() not in _UNITS:
@@ -107,12 +115,13 @@ def parse_memory(text) -> int:
         value, unit = float(m.group(1)), m.group(2).upper()
     nbytes = value * _UNITS[unit]
     if not math.isfinite(nbytes) or nbytes < 1:
-        raise InvalidInputError(f"a memory size must be at least 1 byte, got {text!r}")
+        raise InvalidInputError(f"a memory size must be at least 1 byte, got {_opt.shown(text)}")
     return int(nbytes)
 
 
 def format_memory(nbytes: float) -> str:
     """``"1.5 GiB"``-style text of a byte count (for messages)."""
+    nbytes = _opt.number(nbytes, "nbytes")
     for unit, scale in (("GiB", 2 ** 30), ("MiB", 2 ** 20), ("KiB", 2 ** 10)):
         if nbytes >= scale:
             return f"{nbytes / scale:.3g} {unit}"
@@ -137,20 +146,48 @@ def check_memory(nbytes: float, what: str, remedy: str) -> None:
     Raises
     ------
     InvalidInputError
-        ``"{what} would need about ... of memory, more than the ... available; {remedy}"``.
+        ``"{what} would need about ... of memory, more than the ... available; {remedy}"``;
+        or ``nbytes`` is not a number >= 0, ``what`` or ``remedy`` not text.
     """
+    _check_bytes(nbytes)
+    for value, label in ((what, "what"), (remedy, "remedy")):
+        if not isinstance(value, str):
+            raise InvalidInputError(f"{label} must be text, got {_opt.shown(value)}")
     avail = available_memory()
     if nbytes > avail:
-        gib = float(min(nbytes, 2 ** 1000)) / 2 ** 30  # an int beyond a float: at least this
+        # an int beyond a float: at least this (a numpy scalar converts as it is)
+        big = float(min(nbytes, 2 ** 1000)) if isinstance(nbytes, int) else float(nbytes)
+        gib = big / 2 ** 30
         raise InvalidInputError(f"{what} would need about {gib:.3g} GiB of memory, more than "
                                 f"the {avail / 2 ** 30:.3g} GiB available; {remedy}")
+
+
+def _check_bytes(nbytes) -> None:
+    """A byte count: a number >= 0 (an int beyond a float too: it is refused as too large)."""
+    ok = isinstance(nbytes, (int, float, np.integer, np.floating)) and not isinstance(
+        nbytes, (bool, np.bool_)) and nbytes >= 0  # NaN is not >= 0
+    if not ok:
+        raise InvalidInputError(f"nbytes must be a number >= 0, got {_opt.shown(nbytes)}")
+
+
+def _image_size(shape, label: str = "shape") -> tuple[int, int]:
+    """``(H, W)`` of ``shape`` ``(..., H, W)``: two ints >= 1."""
+    try:
+        tail = tuple(shape)[-2:] if not isinstance(shape, (str, bytes, dict)) else None
+    except TypeError:  # not iterable
+        tail = None
+    if tail is None:
+        raise InvalidInputError(f"{label} must be an image size (..., H, W), got "
+                                f"{_opt.shown(shape)}")
+    return _opt.int_pair(tail, label, 1, maximum=2 ** 31, what="an image size (..., H, W)")
 
 
 def check_label_volume(n_labels: int, shape) -> None:
     """Refuse ``n_labels`` whose float32 volume over images of ``shape`` ``(..., H, W)``
     exceeds the memory available (:func:`check_memory`): one volume, a lower bound of any
     matcher's need."""
-    H, W = (int(v) for v in shape[-2:])
+    n_labels = _opt.integer(n_labels, "n_labels", 1)
+    H, W = _image_size(shape)
     check_memory(4.0 * n_labels * H * W, f"{count_text(n_labels)} labels on {W} x {H} px views",
                  "use fewer labels")
 
@@ -177,9 +214,17 @@ def check_strips(strips, height: int) -> list[tuple[int, int]]:
     starting on the :data:`hyperlf.costs.ROW_BLOCK` grid; None = one strip of every row."""
     from .costs import check_rows
 
+    height = _opt.integer(height, "height", 1, maximum=2 ** 31)
     if strips is None:
-        return [(0, int(height))]
-    out = [check_rows(s, height) for s in strips]
+        return [(0, height)]
+    try:
+        items = list(strips) if not isinstance(strips, (str, bytes, dict)) else None
+    except TypeError:  # not iterable
+        items = None
+    if items is None or any(s is None for s in items):
+        raise InvalidInputError(f"strips must be a list of (a, b) row ranges (or None), got "
+                                f"{_opt.shown(strips)}")
+    out = [check_rows(s, height) for s in items]
     starts = [a for a, _ in out]
     stops = [b for _, b in out]
     if not out or starts[0] != 0 or stops[-1] != height or starts[1:] != stops[:-1]:
@@ -204,7 +249,21 @@ def depth_memory(shape, n_labels: int, n_views: int, *, strip_rows: int | None =
     selection : bool
         View selection on (its per-label maps).
     """
-    H, W = (int(x) for x in shape)
+    H, W, n_labels, n_views = _sizes(shape, n_labels, n_views)
+    strip_rows = _opt.integer(strip_rows, "strip_rows", 1, optional=True)
+    return _peak(H, W, n_labels, n_views, strip_rows, _opt.flag(selection, "selection"))
+
+
+def _sizes(shape, n_labels, n_views) -> tuple[int, int, int, int]:
+    """The image size ``(H, W)``, the labels and the views of :func:`depth_memory`."""
+    H, W = _opt.int_pair(shape, "shape", 1, maximum=2 ** 31, what="(H, W)")
+    return (H, W, _opt.integer(n_labels, "n_labels", 1, maximum=2 ** 53),
+            _opt.integer(n_views, "n_views", 1, maximum=2 ** 53))
+
+
+def _peak(H: int, W: int, n_labels: int, n_views: int, strip_rows: int | None,
+          selection: bool) -> float:
+    """:func:`depth_memory` of checked values."""
     px = float(H * W)
     lw = float(n_labels) * W
     rows = H if strip_rows is None else min(int(strip_rows), H)
@@ -233,12 +292,13 @@ def plan(shape, n_labels: int, n_views: int, max_memory: float | None, *,
     """
     from .costs import ROW_BLOCK
 
-    H = int(shape[0])
+    H, W, n_labels, n_views = _sizes(shape, n_labels, n_views)
+    max_memory = _opt.number(max_memory, "max_memory", positive=True, optional=True)
+    selection = _opt.flag(selection, "selection")
     if tile_rows is not None:
         return row_strips(H, tile_rows)
-    budget = DEFAULT_MAX_MEMORY if max_memory is None else float(max_memory)
-    est = lambda rows: depth_memory(shape, n_labels, n_views, strip_rows=rows,  # noqa: E731
-                                    selection=selection)
+    budget = DEFAULT_MAX_MEMORY if max_memory is None else max_memory
+    est = lambda rows: _peak(H, W, n_labels, n_views, rows, selection)  # noqa: E731
     if est(None) <= budget:
         return [(0, H)]
     rows = (H // ROW_BLOCK) * ROW_BLOCK
@@ -246,7 +306,7 @@ def plan(shape, n_labels: int, n_views: int, max_memory: float | None, *,
         rows -= ROW_BLOCK
     if rows < ROW_BLOCK:
         raise InvalidInputError(
-            f"depth of {shape[1]} x {H} px with {n_labels} labels needs about "
+            f"depth of {W} x {H} px with {n_labels} labels needs about "
             f"{format_memory(est(ROW_BLOCK))} even in strips of {ROW_BLOCK} rows, more than the "
             f"{format_memory(budget)} allowed; raise --max-memory or use fewer --labels")
     return row_strips(H, rows)

@@ -185,7 +185,7 @@ def wavelength_to_rgb(wavelengths: np.ndarray) -> np.ndarray:
     """
     from . import spectral
 
-    wl = np.atleast_1d(np.asarray(wavelengths, dtype=np.float64))
+    wl = np.atleast_1d(_opt.real_array(wavelengths, "wavelengths"))
     xyz = spectral.cmfs(wl.ravel())
     rgb = spectral.xyz_to_srgb_linear(xyz)
     rgb = rgb - np.minimum(rgb.min(axis=-1, keepdims=True), 0.0)
@@ -206,8 +206,18 @@ def false_colour(views: np.ndarray, wavelengths: np.ndarray) -> np.ndarray:
     -------
     ndarray, shape (..., H, W, 3), sRGB-encoded in [0, 1]
     """
-    v = np.asarray(views, dtype=np.float32)
-    tint = wavelength_to_rgb(np.asarray(wavelengths))
+    v = _opt.real_array(views, "views", np.float32)
+    if v.ndim < 2 or not np.isfinite(v).all():
+        raise InvalidInputError(f"views must be finite images (..., H, W), got "
+                                f"{_opt.shown(views)}")
+    tint = wavelength_to_rgb(wavelengths)
+    try:
+        fits = np.broadcast_shapes(tint.shape[:-1], v.shape[:-2]) == v.shape[:-2]
+    except ValueError:
+        fits = False
+    if not fits:
+        raise InvalidInputError(f"wavelengths must have one value per view, shape "
+                                f"{v.shape[:-2]}; got {tint.shape[:-1]}")
     return np.clip(v[..., None] * tint[..., None, None, :], 0.0, 1.0)
 
 

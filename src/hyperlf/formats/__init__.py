@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataNotFoundError, FormatError, HyperLFError, InvalidInputError
-from .._options import check_values, path_like
+from .._options import check_values, flag, path_like
 from ..lightfield import LightField
 from . import capture, envi, hci, hdf5, images, middlebury, pfm
 from .capture import (CAPTURE_FORMAT, MANIFEST, gt_cube_file, is_capture, read_capture,
@@ -63,7 +63,7 @@ def open_gt_cube(path: str | os.PathLike):
     DataNotFoundError, FormatError
         As :func:`load_lightfield`, for a missing or malformed file.
     """
-    p = Path(path)
+    p = Path(path_like(path, folder=None))
     if is_capture(p):
         cfile = gt_cube_file(p)
         if cfile is None:
@@ -116,7 +116,8 @@ def load_lightfield(path: str | os.PathLike, *, cube: bool = True, **kwargs) -> 
     FormatError
         When ``path`` exists but is none of the supported formats.
     """
-    p = Path(path)
+    p = Path(path_like(path, folder=None))
+    cube = flag(cube, "cube")
     if not p.exists():
         raise DataNotFoundError(f"{p} does not exist; expected {_SUPPORTED}")
     if p.is_file() and p.name == MANIFEST and is_capture(p.parent):
@@ -183,7 +184,7 @@ def describe(path: str | os.PathLike) -> str:
     """
     from ..outputs import read_manifest
 
-    p = Path(path)
+    p = Path(path_like(path, folder=None))
     if not p.exists():
         raise DataNotFoundError(f"{p} does not exist; expected {_SUPPORTED}")
     if p.is_dir() and not is_capture(p) and not is_hci_scene(p):

@@ -96,7 +96,7 @@ def is_capture(folder: str | os.PathLike) -> bool:
     -------
     bool
     """
-    p = Path(folder)
+    p = Path(path_like(folder, "folder", folder=None))
     return p.is_dir() and (p / MANIFEST).is_file()
 
 
@@ -388,7 +388,7 @@ def gt_cube_file(folder: str | os.PathLike) -> Path | None:
     """The ground-truth cube file a capture's manifest names (checked to stay inside the
     folder, as :func:`read_capture` does), or None when it names none; for reading the cube
     view by view (:func:`hyperlf.formats.open_gt_cube`)."""
-    root = Path(folder)
+    root = Path(path_like(folder, "folder", folder=None))
     man, doc = _read_manifest(root)
     cspec = doc.get("gt_cube")
     return None if cspec is None else _safe_file(man, root, cspec, "gt_cube")
@@ -430,7 +430,8 @@ def read_capture(folder: str | os.PathLike, *, cube: bool = True) -> LightField:
     >>> back.views.shape, bool(abs(back.views - lf.views).max() < 1e-4)
     ((2, 2, 12, 16), True)
     """
-    root = Path(folder)
+    root = Path(path_like(folder, "folder", folder=None))
+    cube = flag(cube, "cube")
     man, doc = _read_manifest(root)
     hd = _manifest_header(man, doc)
     R, C = hd["R"], hd["C"]

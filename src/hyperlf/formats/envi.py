@@ -193,7 +193,7 @@ def read_envi(path: str | os.PathLike):
     FormatError
         When the header is malformed or the data file has the wrong size.
     """
-    p = Path(path)
+    p = Path(path_like(path, folder=None))
     base = _base(p)
     hdr = base.with_name(base.name + ".hdr")
     if not hdr.is_file() and p.suffix.lower() not in (".hdr", ".img"):

@@ -17,6 +17,7 @@ from typing import Iterable
 
 import numpy as np
 
+from .._options import path_like
 from .._paths import leads_outside
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
 from ..lightfield import LightField, centre_view
@@ -32,7 +33,7 @@ _CAM = re.compile(r"^input_Cam(\d{3})\.png$")
 def is_hci_scene(folder: str | os.PathLike) -> bool:
     """True when ``folder`` (any path) is a folder holding ``input_Cam000.png``: an HCI 4D LF
     scene, as :func:`~hyperlf.formats.capture.is_capture` tells a capture."""
-    p = Path(folder)
+    p = Path(path_like(folder, "folder", folder=None))
     return p.is_dir() and (p / "input_Cam000.png").is_file()
 
 
@@ -161,7 +162,7 @@ def read_hci_scene(folder: str | os.PathLike, *, grid=None, rows=None, cols=None
     FormatError
         When a file cannot be decoded or views differ in size.
     """
-    root = Path(folder)
+    root = Path(path_like(folder, "folder", folder=None))
     if not root.is_dir():
         raise DataNotFoundError(f"HCI scene folder {root} does not exist")
     cfg_path = root / "parameters.cfg"

@@ -39,7 +39,8 @@ from typing import Any
 import numpy as np
 
 from .._atomic import atomic_path, publish
-from .._options import bool_mask, choice, index, integer, mapping, path_like, real_array, shown
+from .._options import (bool_mask, choice, flag, index, integer, mapping, path_like,
+                        real_array, shown)
 from ..errors import DataNotFoundError, FormatError, HyperLFError, InvalidInputError
 from ..lightfield import LightField
 from ..spectral import wavelengths_unknown
@@ -150,7 +151,7 @@ def _text_attr(p: Path, f, name: str) -> str | None:
 @contextlib.contextmanager
 def _open_read(path: str | os.PathLike, expected: str):
     h5py = _h5py()
-    p = Path(path)
+    p = Path(path_like(path, folder=None))
     if not p.is_file():
         raise DataNotFoundError(f"HDF5 file {p} does not exist")
     try:
@@ -433,6 +434,7 @@ def read_lightfield_h5(path: str | os.PathLike, *, cube: bool = True) -> LightFi
     FormatError
         When it is not a hyperlf light-field HDF5 file or is incomplete/corrupt.
     """
+    cube = flag(cube, "cube")
     with _open_read(path, LF_FORMAT) as (p, f):
         views = _get(p, f, "views")
         positions = _get(p, f, "positions")
@@ -582,6 +584,9 @@ class CubeWriter:
         R, C = self.shape[:2]
         r, c = index((r, c), "view (r, c)", (R, C))
         a = real_array(data, f"/{name}", None)
+        if a.dtype.kind not in "biuf":
+            raise InvalidInputError(f"/{name} must be an array of numbers or bools, got "
+                                    f"{shown(data)}")
         if name not in self._file:
             chunks = (1, 1) + (1,) * max(a.ndim - 2, 0) + a.shape[-2:] if a.ndim >= 2 else None
             _annotate(self._file.create_dataset(name, shape=(R, C) + a.shape, dtype=a.dtype,

@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from .._atomic import atomic_path
-from .._options import choice, path_like, real_array
+from .._options import choice, flag, path_like, real_array, shown
 from ..errors import DataNotFoundError, FormatError, HyperLFError, InvalidInputError
 
 __all__ = ["read_image", "read_images_same_size", "write_image", "to_grey", "REC709_WEIGHTS"]
@@ -269,7 +269,9 @@ def read_image(path: str | os.PathLike, *, as_float: bool = True,
         When the file cannot be decoded, is a folder, or would need more memory than
         ``HYPERLF_MAX_IMAGE_BYTES`` / :data:`MAX_IMAGE_BYTES` (checked from its header).
     """
-    p = Path(path)
+    p = Path(path_like(path, folder=None))
+    as_float = flag(as_float, "as_float")
+    choice(channels, "channels", (None, "grey", "rgb"))
     if p.is_dir():
         raise FormatError(f"{p} is a folder, not an image file; give the path of an image in it")
     if not p.is_file():
@@ -298,8 +300,6 @@ def read_image(path: str | os.PathLike, *, as_float: bool = True,
             np.clip(np.rint(g), 0, np.iinfo(arr.dtype).max).astype(arr.dtype)
     elif channels == "rgb" and arr.ndim == 2:
         arr = np.repeat(arr[..., None], 3, axis=2)
-    elif channels not in (None, "grey", "rgb"):
-        raise InvalidInputError(f"channels must be None, 'grey' or 'rgb', got {channels!r}")
     return arr
 
 
@@ -400,6 +400,29 @@ def write_image(path: str | os.PathLike, array, bit_depth: int = 16) -> Path:
     return p
 
 
+def _path_list(paths, label: str) -> list:
+    """``paths`` as a list of at least one path."""
+    try:
+        items = list(paths) if not isinstance(paths, (str, bytes, dict, os.PathLike)) else None
+    except TypeError:  # not iterable
+        items = None
+    if not items:
+        raise InvalidInputError(f"{label} must be a list of at least one path, got "
+                                f"{shown(paths)}")
+    for p in items:
+        path_like(p, label, folder=None)
+    return items
+
+
+def _labels(labels, n: int) -> list[str]:
+    """One name per file, for messages."""
+    items = list(labels) if isinstance(labels, (list, tuple)) else None
+    if items is None or len(items) != n:
+        raise InvalidInputError(f"labels must be a list of {n} names (or None), got "
+                                f"{shown(labels)}")
+    return items
+
+
 def read_images_same_size(paths, read, where: str, labels=None) -> np.ndarray:
     """Read several images in parallel threads into one float32 stack ``(N, ...)``.
 
@@ -424,8 +447,13 @@ def read_images_same_size(paths, read, where: str, labels=None) -> np.ndarray:
     """
     from .._parallel import thread_pool
 
-    paths = list(paths)
-    labels = [Path(p).name for p in paths] if labels is None else list(labels)
+    paths = _path_list(paths, "paths")
+    if not callable(read):
+        raise InvalidInputError(f"read must be a function reading one image, got "
+                                f"{type(read).__name__}")
+    if not isinstance(where, str):
+        raise InvalidInputError(f"where must be text, got {shown(where)}")
+    labels = [Path(p).name for p in paths] if labels is None else _labels(labels, len(paths))
     first = read(paths[0])
     stack = np.empty((len(paths),) + first.shape, dtype=np.float32)
     stack[0] = first

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .._atomic import atomic_write_text
-from .._options import mapping, number, path_like, real_array
+from .._options import integer, mapping, number, path_like, real_array, shown
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
 from .images import read_image, write_image
 
@@ -67,6 +67,28 @@ class StereoPair:
     name: str = ""
     metadata: dict = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        """Shapes and options checked (O(1): the arrays are not scanned)."""
+        left, right = (real_array(v, k, None) for v, k in ((self.left, "left"),
+                                                            (self.right, "right")))
+        gt = real_array(self.gt_disparity, "gt_disparity", None)
+        for a, label in ((left, "left"), (right, "right"), (gt, "gt_disparity")):
+            if a.dtype.kind not in "biuf" or a.size == 0:
+                raise InvalidInputError(f"{label} must be a non-empty array of numbers, got "
+                                        f"{shown(getattr(self, label))}")
+        if left.ndim not in (2, 3) or right.shape != left.shape or gt.shape != left.shape[:2]:
+            raise InvalidInputError(f"left and right must be (H, W[, 3]) images of one shape "
+                                    f"and gt_disparity (H, W); got {left.shape}, {right.shape} "
+                                    f"and {gt.shape}")
+        mapping(self.masks, "masks", optional=False)
+        if not all(isinstance(k, str) for k in self.masks):
+            raise InvalidInputError(f"masks must be named by text, got {list(self.masks)!r:.60}")
+        self.scale = number(self.scale, "scale", positive=True)
+        self.max_disparity = integer(self.max_disparity, "max_disparity")
+        if not isinstance(self.name, str):
+            raise InvalidInputError(f"name must be text, got {shown(self.name)}")
+        mapping(self.metadata, "metadata", optional=False)
+
     @property
     def valid(self) -> np.ndarray:
         """Pixels with known ground truth, shape (H, W)."""
@@ -74,6 +96,8 @@ class StereoPair:
 
     def eval_mask(self, name: str = "all") -> np.ndarray:
         """The named mask and known ground truth, or just known ground truth if absent."""
+        if not isinstance(name, str):
+            raise InvalidInputError(f"name must be a mask's name (text), got {shown(name)}")
         m = self.masks.get(name)
         return self.valid if m is None else (m & self.valid)
 
@@ -127,7 +151,8 @@ def read_middlebury(folder: str | os.PathLike, scale: float | None = None) -> St
     FormatError
         When a file is malformed or sizes disagree.
     """
-    root = Path(folder)
+    root = Path(path_like(folder, "folder", folder=None))
+    scale = number(scale, "scale", optional=True, at_least=1e-6, at_most=1e6)
     if not root.is_dir():
         raise DataNotFoundError(f"Middlebury scene folder {root} does not exist")
     name = root.name

@@ -14,6 +14,7 @@ import re
 import string
 from typing import Sequence
 
+from .._options import integer, shown
 from ..errors import InvalidInputError
 
 __all__ = ["pattern_fields", "expand_pattern"]
@@ -29,6 +30,15 @@ _FIELD_NAME = re.compile(r"(\w+?)(?:\+(\d{1,4}))?")
 def _parse(pattern: str, allowed: Sequence[str], what: str) -> list[tuple]:
     """``(literal, name, offset, spec)`` per part of ``pattern`` (name None after the last
     field); refuses what :func:`pattern_fields` documents."""
+    if not isinstance(what, str):
+        raise InvalidInputError(f"what must be text, got {shown(what)}")
+    if not isinstance(allowed, (list, tuple)) or not allowed or not all(
+            isinstance(a, str) for a in allowed):
+        raise InvalidInputError(f"allowed must be a list of field names (text), got "
+                                f"{shown(allowed)}")
+    if not isinstance(pattern, str):
+        raise InvalidInputError(f"{what} must be a file name pattern (text), got "
+                                f"{shown(pattern)}")
     names = [f"{{{a}}}" for a in allowed]
     names = names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
     bad = InvalidInputError(f"{what} {pattern!r} may only use {names}, optionally plus a number "
@@ -100,8 +110,13 @@ def expand_pattern(pattern: str, allowed: Sequence[str], *, what: str = "pattern
     >>> expand_pattern("Cam-{index+1}.png", ["index"], index=0)
     'Cam-1.png'
     """
+    parts = _parse(pattern, allowed, what)
+    for field in {f for _, f, _, _ in parts if f is not None}:
+        if field not in values:
+            raise InvalidInputError(f"{what} {pattern!r} uses {{{field}}}, which has no value")
+        values[field] = integer(values[field], field, maximum=2 ** 63)
     name = "".join(literal + ("" if field is None else format(values[field] + offset, spec))
-                   for literal, field, offset, spec in _parse(pattern, allowed, what))
+                   for literal, field, offset, spec in parts)
     if any(len(os.fsencode(part)) > 255 for part in name.replace("\\", "/").split("/")):
         raise InvalidInputError(f"{what} {pattern!r} gives a name longer than 255 bytes")
     return name

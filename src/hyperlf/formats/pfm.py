@@ -53,7 +53,7 @@ def read_pfm(path: str | os.PathLike) -> np.ndarray:
     FormatError
         When the header is malformed or the data is truncated or too long.
     """
-    p = Path(path)
+    p = Path(path_like(path, folder=None))
     if not p.is_file():
         raise DataNotFoundError(f"PFM file {p} does not exist")
     try:

@@ -17,7 +17,7 @@ import numpy as np
 
 from .._atomic import atomic_path
 from .._options import mapping, path_like, real_array, shown
-from ..errors import FormatError, InvalidInputError
+from ..errors import DataNotFoundError, FormatError, InvalidInputError
 
 __all__ = ["write_ply", "read_ply", "read_ply_properties", "describe_ply"]
 
@@ -162,7 +162,16 @@ def read_ply_properties(path: str | os.PathLike) -> dict[str, np.ndarray]:
     FormatError
         As :func:`read_ply`.
     """
-    p = Path(path)
+    p = Path(path_like(path, folder=None))
+    if not p.is_file():
+        raise DataNotFoundError(f"PLY file {p} does not exist")
+    try:
+        return _read_properties(p)
+    except OSError as exc:
+        raise FormatError(f"cannot read PLY file {p}: {exc.strerror or exc}") from None
+
+
+def _read_properties(p: Path) -> dict[str, np.ndarray]:
     with open(p, "rb") as f:
         fmt, count, props = _header(f, p)
         names = [n for n, _ in props]
@@ -207,7 +216,9 @@ def describe_ply(path: str | os.PathLike) -> str:
     >>> describe_ply(p)
     'PLY point cloud, 3 points (x, y, z, red, green, blue)'
     """
-    p = Path(path)
+    p = Path(path_like(path, folder=None))
+    if not p.is_file():
+        raise DataNotFoundError(f"PLY file {p} does not exist")
     try:
         with open(p, "rb") as f:
             fmt, count, props = _header(f, p)
