@@ -14,16 +14,23 @@ import numpy as np
 
 from .. import _options as _opt
 from ..errors import InvalidInputError
-from .board import camera_label
-from .model import Calibration
+from .board import camera_label, check_key
+from .model import Calibration, check_calibration
 
 __all__ = ["view_maps", "apply_calibration", "check_fits"]
 
 
-def _calibration(value) -> Calibration:
-    if not isinstance(value, Calibration):
-        raise InvalidInputError(f"calibration must be a Calibration (read_calibration reads "
-                                f"one), got {_opt.shown(value)}")
+def check_saturation(value, *, positive: bool = False) -> float | None:
+    """A saturation level: None, or a finite number within float32's range (raw images are
+    compared with it as float32), ``> 0`` where ``positive``."""
+    if value is None:
+        return None
+    top = float(np.finfo(np.float32).max)
+    if positive:
+        return _opt.number(value, "saturation", positive=True, at_most=top)
+    value = _opt.real(value, "saturation")
+    if abs(value) > top:
+        raise InvalidInputError(f"saturation must be within float32's range, got {value:g}")
     return value
 
 
@@ -36,7 +43,8 @@ def view_maps(calibration: Calibration, key) -> tuple[np.ndarray, np.ndarray]:
     """
     import cv2
 
-    _calibration(calibration)
+    check_calibration(calibration)
+    check_key(key)
     cam = calibration.cameras.get(key) if isinstance(key, tuple) else None
     if cam is None:
         raise InvalidInputError(f"no camera {_opt.shown(key)} in the calibration; its cameras "
@@ -58,7 +66,7 @@ def view_maps(calibration: Calibration, key) -> tuple[np.ndarray, np.ndarray]:
 def check_fits(calibration: Calibration, images: Mapping, names: Mapping | None = None) -> None:
     """Raise InvalidInputError unless ``images`` has one grey image of the calibrated size for
     every camera of the calibration's grid."""
-    want = set(_calibration(calibration).cameras)
+    want = set(check_calibration(calibration).cameras)
     got = set(_opt.mapping(images, "images", optional=False))
     _opt.mapping(names, "names")
     if want != got:
@@ -70,8 +78,8 @@ def check_fits(calibration: Calibration, images: Mapping, names: Mapping | None 
             f"unknown {[camera_label(k) for k in extra] if extra else []}")
     W, H = calibration.image_size
     for key, img in images.items():
-        a = np.asarray(img)
-        if a.shape != (H, W):
+        a = _opt.real_array(img, f"the image of camera {camera_label(key, names)}", None)
+        if a.shape != (H, W) or not (np.issubdtype(a.dtype, np.number) or a.dtype == bool):
             raise InvalidInputError(
                 f"camera {camera_label(key, names)}: image is {a.shape[::-1]} (W x H, channels "
                 f"last) but the calibration was made for {W} x {H} grey images; use the "
@@ -106,7 +114,7 @@ def apply_calibration(calibration: Calibration, images: Mapping, *, names=None,
     import cv2
 
     check_fits(calibration, images, names)
-    saturation = _opt.real(saturation, "saturation") if saturation is not None else None
+    saturation = check_saturation(saturation)
     R, C = calibration.grid
     W, H = calibration.output_size
     views = np.zeros((R, C, H, W), np.float32)

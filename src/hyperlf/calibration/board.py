@@ -98,8 +98,55 @@ def check_board(board) -> BoardSpec:
     return board
 
 
+def check_shot(image, label: str = "a board shot") -> np.ndarray:
+    """``image`` as a float64 grey image ``(H, W)`` of at least :data:`MIN_SHOT_SIDE` px a
+    side (its values are not scanned: NaN marks pixels without a value)."""
+    img = _opt.real_array(image, label)
+    if img.ndim != 2:
+        raise InvalidInputError(f"{label} must be a grey image (H, W), got shape {img.shape}")
+    if min(img.shape) < MIN_SHOT_SIDE:
+        raise InvalidInputError(f"{label} of {img.shape[1]} x {img.shape[0]} px is too small "
+                                f"to find a board in; at least {MIN_SHOT_SIDE} px a side")
+    return img
+
+
+def check_corners(corners, label: str, board: BoardSpec, *, unseen: bool = True) -> np.ndarray:
+    """``corners`` as float64 ``(board.n_corners, 2)`` image points ``(x, y)``: finite, or NaN
+    for corners not seen where ``unseen`` (one pass over a board's few corners)."""
+    a = _opt.real_array(corners, label)
+    if a.shape != (board.n_corners, 2):
+        raise InvalidInputError(f"{label} must be the ({board.n_corners}, 2) corners (x, y) of "
+                                f"a {board.cols} x {board.rows} board, got shape {a.shape}")
+    if np.isinf(a).any() or (not unseen and np.isnan(a).any()):
+        what = "finite or NaN (unseen)" if unseen else "finite"
+        raise InvalidInputError(f"{label} must be {what} pixel coordinates")
+    return a
+
+
+def check_corner_sets(corners, label: str, board: BoardSpec) -> Mapping:
+    """``corners``: a mapping camera -> corners (:func:`check_corners`, NaN for unseen)."""
+    _opt.mapping(corners, label, optional=False)
+    for k, c in corners.items():
+        check_corners(c, f"{label}[{_opt.shown(k)}]", board)
+    return corners
+
+
+def check_key(key, label: str = "camera") -> object:
+    """``key`` when it names a camera: a ``(row, col)`` pair, or any other hashable label."""
+    try:
+        hash(key)
+    except TypeError:
+        raise InvalidInputError(f"{label} must be a (row, col) pair or a hashable label, got "
+                                f"{_opt.shown(key)}") from None
+    if isinstance(key, tuple) and len(key) != 2:
+        raise InvalidInputError(f"{label} must be a (row, col) pair, got {_opt.shown(key)}")
+    return key
+
+
 def camera_label(key, names: Mapping | None = None) -> str:
     """How a camera is named in messages: the user's name if given, else ``(row, col)``."""
+    check_key(key)
+    _opt.mapping(names, "names")
     if names and key in names:
         return str(names[key])
     return f"({key[0]}, {key[1]})" if isinstance(key, tuple) else str(key)
@@ -121,12 +168,8 @@ def normalise_for_detection(image: np.ndarray, *, clahe: bool = True) -> np.ndar
     """
     import cv2
 
-    img = _opt.real_array(image, "a board shot")
-    if img.ndim != 2:
-        raise InvalidInputError(f"board shots must be grey images (H, W), got shape {img.shape}")
-    if min(img.shape) < MIN_SHOT_SIDE:
-        raise InvalidInputError(f"a board shot of {img.shape[1]} x {img.shape[0]} px is too "
-                                f"small to find a board in; at least {MIN_SHOT_SIDE} px a side")
+    img = check_shot(image)
+    clahe = _opt.flag(clahe, "clahe")
     finite = img[np.isfinite(img)]
     lo, hi = (np.percentile(finite, [0.5, 99.5]) if finite.size else (0.0, 1.0))
     if hi <= lo:
@@ -151,7 +194,13 @@ def canonical_order(corners: np.ndarray, cols: int, rows: int) -> np.ndarray:
     >>> canonical_order(g[::-1], 3, 2)[0].tolist()
     [0.0, 0.0]
     """
-    g = np.asarray(corners, np.float64).reshape(rows, cols, 2)
+    cols, rows = (_opt.integer(v, k, 1, maximum=MAX_CORNERS) for v, k in ((cols, "cols"),
+                                                                            (rows, "rows")))
+    g = _opt.real_array(corners, "corners")
+    if g.size != 2 * rows * cols or g.shape[-1:] != (2,):
+        raise InvalidInputError(f"corners must be the ({rows * cols}, 2) corners (x, y) of a "
+                                f"{cols} x {rows} grid, got shape {g.shape}")
+    g = g.reshape(rows, cols, 2)
     cands = [g]
     if rows == cols:
         cands.append(g.transpose(1, 0, 2))
@@ -187,6 +236,8 @@ def grid_symmetries(cols: int, rows: int) -> list[np.ndarray]:
     >>> len(grid_symmetries(4, 4))
     8
     """
+    cols, rows = (_opt.integer(v, k, 1, maximum=MAX_CORNERS) for v, k in ((cols, "cols"),
+                                                                            (rows, "rows")))
     idx = np.arange(rows * cols).reshape(rows, cols)
     grids = [idx, idx[::-1, ::-1], idx[::-1], idx[:, ::-1]]
     if rows == cols:
@@ -221,7 +272,9 @@ def order_like(corners: np.ndarray, anchor: np.ndarray, board: BoardSpec) -> np.
     >>> order_like(g[::-1] + 0.1, g, BoardSpec(4, 3))[0].tolist()
     [0.1, 0.1]
     """
-    ref = _directions(anchor, board.cols, board.rows)
+    check_board(board)
+    corners = check_corners(corners, "corners", board)
+    ref = _directions(check_corners(anchor, "anchor", board), board.cols, board.rows)
     cands = grid_symmetries(board.cols, board.rows)
     score = [np.sum(_directions(corners[s], board.cols, board.rows) * ref) for s in cands]
     return np.ascontiguousarray(corners[cands[int(np.argmax(score))]])
@@ -230,6 +283,9 @@ def order_like(corners: np.ndarray, anchor: np.ndarray, board: BoardSpec) -> np.
 def orders_like(corners: Mapping, reference, board: BoardSpec) -> dict:
     """Every camera's corners of one pose in the reference camera's order (:func:`order_like`);
     when the reference missed the pose, in the first camera's that saw it."""
+    check_board(board)
+    check_corner_sets(corners, "corners", board)
+    check_key(reference, "reference")
     anchor = reference if reference in corners else next(iter(corners), None)
     return {k: c if k == anchor else order_like(c, corners[anchor], board)
             for k, c in corners.items()}
@@ -247,8 +303,9 @@ def image_turn(corners: np.ndarray, anchor: np.ndarray, board: BoardSpec) -> int
     >>> image_turn(g[:, ::-1] * [-1, 1], g, BoardSpec(4, 3))   # rows now run down the image
     90
     """
-    a = _directions(anchor, board.cols, board.rows)[0]
-    b = _directions(corners, board.cols, board.rows)[0]
+    check_board(board)
+    a = _directions(check_corners(anchor, "anchor", board), board.cols, board.rows)[0]
+    b = _directions(check_corners(corners, "corners", board), board.cols, board.rows)[0]
     angle = np.degrees(np.arctan2(a[0] * b[1] - a[1] * b[0], a @ b))
     return int(np.round(angle / 90.0) * 90) % 360
 
@@ -257,6 +314,13 @@ def turn_report(corners: Mapping, anchors: Mapping, board: BoardSpec, names=None
     """The calibration's ``turned_cameras`` (labels) and ``camera_turns`` (label -> degrees
     clockwise on screen) of the cameras whose board runs turned (:func:`image_turn`):
     ``corners[k]`` against ``anchors[k]``, the reference camera's corners of the same pose."""
+    check_board(board)
+    check_corner_sets(corners, "corners", board)
+    check_corner_sets(anchors, "anchors", board)
+    _opt.mapping(names, "names")
+    if not set(corners) <= set(anchors):
+        raise InvalidInputError(f"anchors must hold the reference's corners for every camera "
+                                f"of corners; missing {sorted(set(corners) - set(anchors), key=str)}")
     turns = {camera_label(k, names): image_turn(c, anchors[k], board) for k, c in corners.items()}
     turns = {k: v for k, v in turns.items() if v}
     return {"turned_cameras": list(turns), "camera_turns": turns}
@@ -348,6 +412,11 @@ def place_partial_grid(grid: np.ndarray, board: BoardSpec, shape) -> np.ndarray 
     """
     import cv2
 
+    check_board(board)
+    grid = _opt.real_array(grid, "grid")
+    if grid.ndim != 3 or grid.shape[-1] != 2 or not np.isfinite(grid).all():
+        raise InvalidInputError(f"grid must be finite corners (r, c, 2), got shape {grid.shape}")
+    shape = _opt.int_pair(shape, "shape", 1, what="(H, W) of the image")
     if min(grid.shape[:2]) < MIN_PARTIAL_SIDE:
         return None
     spacing = _spacing(grid)
@@ -490,7 +559,9 @@ def refine_corners(image: np.ndarray, corners: np.ndarray, board: BoardSpec) -> 
     than a third of the spacing keeps its detected position; unseen (NaN) corners stay NaN."""
     import cv2
 
-    img = np.asarray(image, np.float64)
+    check_board(board)
+    img = check_shot(image)
+    corners = check_corners(corners, "corners", board)
     lo, hi = np.percentile(img, [0.5, 99.5])
     img = np.clip((img - lo) / max(hi - lo, 1e-12), 0, 1).astype(np.float32)
     spacing = _spacing(corners.reshape(board.rows, board.cols, 2))
@@ -557,6 +628,7 @@ def largest_grid(image: np.ndarray, *, detect_size: int = 800) -> np.ndarray | N
     """The largest checkerboard grid of inner corners in a shot, ``(rows, cols, 2)`` image
     coordinates with rows running right and columns down (the whole board when it is in
     view), or None when there is none of at least 3 x 3."""
+    detect_size = _opt.integer(detect_size, "detect_size", 64)
     small, scale = _detection_image(image, detect_size)
     grids = _detect_partial(small)
     if not grids:
@@ -586,6 +658,10 @@ def check_board_size(image: np.ndarray, board: BoardSpec, corners: np.ndarray, *
     InvalidInputError
         The found board is part of a larger one.
     """
+    check_board(board)
+    corners = check_corners(corners, "corners", board)
+    if not isinstance(name, str):
+        raise InvalidInputError(f"name must be a str, got {_opt.shown(name)}")
     grid = largest_grid(image)
     if grid is None or _fits(grid, board):
         return

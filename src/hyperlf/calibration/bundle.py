@@ -13,15 +13,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["rodrigues", "project", "bundle_adjust", "BundleResult"]
+from .. import _options as _opt
+from ..errors import InvalidInputError
+
+__all__ = ["bundle_adjust", "BundleResult"]
 
 
-def rodrigues(rvec: np.ndarray) -> np.ndarray:
+def _rodrigues(rvec: np.ndarray) -> np.ndarray:
     """Rotation matrices ``(..., 3, 3)`` of rotation vectors ``(..., 3)`` (vectorised).
 
     Examples
     --------
-    >>> np.allclose(rodrigues(np.array([0.0, 0.0, np.pi / 2])) @ [1, 0, 0], [0, 1, 0])
+    >>> np.allclose(_rodrigues(np.array([0.0, 0.0, np.pi / 2])) @ [1, 0, 0], [0, 1, 0])
     True
     """
     r = np.asarray(rvec, np.float64)
@@ -37,7 +40,7 @@ def rodrigues(rvec: np.ndarray) -> np.ndarray:
     return np.eye(3) + a * S + b * (S @ S)
 
 
-def project(points_cam: np.ndarray, intr: np.ndarray) -> np.ndarray:
+def _project(points_cam: np.ndarray, intr: np.ndarray) -> np.ndarray:
     """Pixels ``(N, 2)`` of camera-frame points ``(N, 3)`` with per-point intrinsics
     ``(N, 8)``: ``fx, fy, cx, cy, k1, k2, p1, p2`` (OpenCV's model)."""
     x = points_cam[:, 0] / points_cam[:, 2]
@@ -87,11 +90,11 @@ class _Problem:
 
     def residuals(self, theta):
         intr, ext, pose = self.split(theta)
-        Rp = rodrigues(pose[:, :3])[self.pose]
+        Rp = _rodrigues(pose[:, :3])[self.pose]
         Xr = np.einsum("nij,nj->ni", Rp, self.X) + pose[self.pose, 3:]
-        Rc = rodrigues(ext[:, :3])[self.cam]
+        Rc = _rodrigues(ext[:, :3])[self.cam]
         Xc = np.einsum("nij,nj->ni", Rc, Xr) + ext[self.cam, 3:]
-        return (project(Xc, intr[self.cam]) - self.uv).ravel()
+        return (_project(Xc, intr[self.cam]) - self.uv).ravel()
 
     def sparsity(self):
         from scipy.sparse import lil_matrix
@@ -109,6 +112,39 @@ class _Problem:
         return J
 
 
+def _finite_rows(value, label: str, width: int, rows: int | None = None) -> np.ndarray:
+    """``value`` as a finite float64 array ``(n, width)``, ``n >= 1`` (``n == rows`` where
+    given)."""
+    a = _opt.real_array(value, label)
+    if a.ndim != 2 or a.shape[1] != width or not len(a) or (rows is not None and len(a) != rows):
+        n = "n" if rows is None else rows
+        raise InvalidInputError(f"{label} must be an array ({n}, {width}), got shape {a.shape}")
+    if not np.isfinite(a).all():
+        raise InvalidInputError(f"{label} must be finite")
+    return a
+
+
+def _observations(obs, n_points: int, n_cams: int, n_poses: int) -> list:
+    """``obs`` as a non-empty list of ``(camera, pose, (n_points, 2) finite corners)``."""
+    what = (f"obs must be a non-empty list of (camera index < {n_cams}, pose index < {n_poses}, "
+            f"({n_points}, 2) corners)")
+    if isinstance(obs, (str, bytes, dict)) or not hasattr(obs, "__len__") or not len(obs):
+        raise InvalidInputError(f"{what}, got {_opt.shown(obs)}")
+    out = []
+    for item in obs:
+        try:
+            c, p, uv = item
+            c = _opt.integer(c, "camera", maximum=n_cams - 1)
+            p = _opt.integer(p, "pose", maximum=n_poses - 1)
+            uv = _opt.real_array(uv, "corners")
+        except (TypeError, ValueError, InvalidInputError):
+            raise InvalidInputError(f"{what}, got {_opt.shown(item)}") from None
+        if uv.shape != (n_points, 2) or not np.isfinite(uv).all():
+            raise InvalidInputError(f"{what}, got corners of shape {uv.shape} (or not finite)")
+        out.append((c, p, uv))
+    return out
+
+
 def bundle_adjust(obs, obj, intr0, rvec0, tvec0, pose_r0, pose_t0, ref: int) -> BundleResult:
     """Refine everything on every corner; the reference camera's pose stays the identity.
 
@@ -121,7 +157,15 @@ def bundle_adjust(obs, obj, intr0, rvec0, tvec0, pose_r0, pose_t0, ref: int) -> 
     """
     from scipy.optimize import least_squares
 
-    prob = _Problem(obs, np.asarray(obj, np.float64), len(intr0), len(pose_r0), ref)
+    obj = _finite_rows(obj, "obj", 3)
+    intr0 = _finite_rows(intr0, "intr0", 8)
+    V = len(intr0)
+    rvec0, tvec0 = (_finite_rows(v, k, 3, V) for v, k in ((rvec0, "rvec0"), (tvec0, "tvec0")))
+    pose_r0 = _finite_rows(pose_r0, "pose_r0", 3)
+    pose_t0 = _finite_rows(pose_t0, "pose_t0", 3, len(pose_r0))
+    ref = _opt.integer(ref, "ref", maximum=V - 1)
+    obs = _observations(obs, len(obj), V, len(pose_r0))
+    prob = _Problem(obs, obj, len(intr0), len(pose_r0), ref)
     ext0 = np.concatenate([rvec0, tvec0], axis=1)
     theta0 = np.concatenate([np.asarray(intr0, np.float64).ravel(), ext0.ravel(),
                              np.concatenate([pose_r0, pose_t0], axis=1).ravel()])

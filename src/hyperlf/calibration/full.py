@@ -30,7 +30,8 @@ from .. import _options as _opt
 from .._parallel import map_threads
 from ..errors import InvalidInputError
 from .board import (DETECT_THREADS, BoardSpec, camera_label, check_board, check_board_size,
-                    detect_board, grid_symmetries, orders_like, turn_report)
+                    check_corners, check_key, detect_board, grid_symmetries, orders_like,
+                    turn_report)
 from .grid import check_grid, check_images
 from .model import Calibration, CameraCalibration
 
@@ -41,6 +42,63 @@ __all__ = ["calibrate_full", "detect_poses", "intrinsics", "extrinsics", "relati
 TURN_TRY_RMS = 1.0
 
 
+def _shot_lists(shots, names) -> Mapping:
+    """``shots``: a non-empty mapping camera -> sequence of board shots."""
+    _opt.mapping(shots, "shots", optional=False)
+    if not shots:
+        raise InvalidInputError("shots must hold the board shots of at least one camera")
+    for k, v in shots.items():
+        check_key(k)
+        if isinstance(v, (str, bytes, Mapping)) or not hasattr(v, "__len__") or \
+                (isinstance(v, np.ndarray) and v.ndim != 3):
+            raise InvalidInputError(f"the board shots of camera {camera_label(k, names)} must be "
+                                    f"a list of images, got {_opt.shown(v)}")
+    return shots
+
+
+def _pose_corners(corners, label: str, board: BoardSpec) -> dict:
+    """``corners``: a non-empty mapping pose index -> a camera's whole board's corners."""
+    _opt.mapping(corners, label, optional=False)
+    if not corners:
+        raise InvalidInputError(f"{label} must hold the corners of at least one pose")
+    for p, c in corners.items():
+        _opt.integer(p, f"a pose index of {label}")
+        check_corners(c, f"{label}[{_opt.shown(p)}]", board, unseen=False)
+    return corners
+
+
+def _camera_matrix(K, label: str) -> np.ndarray:
+    """``K`` as a finite float64 3 x 3 camera matrix with positive focal lengths."""
+    a = _opt.real_array(K, label)
+    if a.shape != (3, 3) or not np.isfinite(a).all() or not (a[0, 0] > 0 and a[1, 1] > 0):
+        raise InvalidInputError(f"{label} must be a finite 3 x 3 camera matrix with focal "
+                                f"lengths > 0, got {_opt.shown(K)}")
+    return a
+
+
+def _distortion(d, label: str) -> np.ndarray:
+    """``d`` as finite float64 OpenCV distortion coefficients (4, 5, 8, 12 or 14)."""
+    a = _opt.real_array(d, label)
+    if a.ndim != 1 or a.size not in (4, 5, 8, 12, 14) or not np.isfinite(a).all():
+        raise InvalidInputError(f"{label} must be 4, 5, 8, 12 or 14 finite distortion "
+                                f"coefficients (k1, k2, p1, p2, k3, ...), got {_opt.shown(d)}")
+    return a
+
+
+def _stereo_inputs(ref_corners, corners, board, K_ref, d_ref, K, d) -> tuple:
+    """The checked inputs of a pose relative to the reference (:func:`extrinsics`)."""
+    check_board(board)
+    return (_pose_corners(ref_corners, "ref_corners", board),
+            _pose_corners(corners, "corners", board), _camera_matrix(K_ref, "K_ref"),
+            _distortion(d_ref, "d_ref"), _camera_matrix(K, "K"), _distortion(d, "d"))
+
+
+def _label(label) -> str:
+    if not isinstance(label, str):
+        raise InvalidInputError(f"label must be a str, got {_opt.shown(label)}")
+    return label
+
+
 def detect_poses(shots: Mapping, board: BoardSpec, *, names=None, min_poses: int = 3) -> dict:
     """Corners per camera and pose: ``{key: {pose_index: (N, 2)}}``.
 
@@ -49,6 +107,10 @@ def detect_poses(shots: Mapping, board: BoardSpec, *, names=None, min_poses: int
     InvalidInputError
         Cameras with fewer than ``min_poses`` detections (all named, with their counts).
     """
+    check_board(board)
+    _opt.mapping(names, "names")
+    _shot_lists(shots, names)
+    min_poses = _opt.integer(min_poses, "min_poses", 1)
     jobs = [(key, i, img) for key, imgs in shots.items() for i, img in enumerate(imgs)]
     corners = map_threads(lambda job: detect_board(job[2], board), jobs, cap=DETECT_THREADS)
     found, short = {key: {} for key in shots}, []
@@ -76,6 +138,9 @@ def intrinsics(corners: Mapping, board: BoardSpec, size) -> tuple:
     Returns ``(K, dist(5), rms px, {pose: (rvec, tvec)})`` (board to camera)."""
     import cv2
 
+    check_board(board)
+    _pose_corners(corners, "corners", board)
+    size = _opt.int_pair(size, "size", 1, what="(W, H) of the images")
     obj = board.object_points().astype(np.float32)
     poses = sorted(corners)
     img = [corners[p].astype(np.float32).reshape(-1, 1, 2) for p in poses]
@@ -92,6 +157,10 @@ def extrinsics(ref_corners: Mapping, corners: Mapping, board: BoardSpec, K_ref, 
     """Pose ``(R, t, rms)`` of a camera relative to the reference: ``X = R X_ref + t``."""
     import cv2
 
+    ref_corners, corners, K_ref, d_ref, K, d = _stereo_inputs(ref_corners, corners, board,
+                                                              K_ref, d_ref, K, d)
+    size = _opt.int_pair(size, "size", 1, what="(W, H) of the images")
+    _label(label)
     shared = sorted(set(ref_corners) & set(corners))
     if not shared:
         raise InvalidInputError(
@@ -121,6 +190,8 @@ def relative_pose(ref_corners: Mapping, corners: Mapping, board: BoardSpec, K_re
     (:func:`turned_orders`), and taken as turned when that at least halves the RMS (an
     upright camera fits at a tenth of a pixel, tried turned at tens of pixels).
     """
+    ref_corners, corners, K_ref, d_ref, K, d = _stereo_inputs(ref_corners, corners, board,
+                                                              K_ref, d_ref, K, d)
     R, t, rms = extrinsics(ref_corners, corners, board, K_ref, d_ref, K, d, size, label=label)
     if rms <= TURN_TRY_RMS:
         return R, t, rms, None
@@ -159,8 +230,14 @@ def turned_orders(ref_corners: Mapping, corners: Mapping, board: BoardSpec, K_re
     reference did not see keep the order every shared pose took, and are left out when the
     shared poses took different ones.
     """
+    ref_corners, corners, K_ref, d_ref, K, d = _stereo_inputs(ref_corners, corners, board,
+                                                              K_ref, d_ref, K, d)
+    tolerance = _opt.number(tolerance, "tolerance", positive=True, at_most=180)
     orders = grid_symmetries(board.cols, board.rows)
     shared = sorted(set(ref_corners) & set(corners))
+    if not shared:
+        raise InvalidInputError("the camera and the reference never saw the board in the same "
+                                "pose; add a pose both see")
     in_ref = {p: _board_rotation(ref_corners[p], board, K_ref, d_ref) for p in shared}
     rel = {p: [_board_rotation(corners[p][s], board, K, d) @ in_ref[p].T for s in orders]
            for p in shared}
@@ -210,8 +287,24 @@ def _array_axes(centres: np.ndarray) -> np.ndarray:
 
 def rectification(Ks: Mapping, Rs: Mapping, ts: Mapping, reference, size) -> dict:
     """Rectifying rotations, shared camera matrix, positions (baselines) and baseline."""
-    keys = list(Ks)
-    W, H = size
+    keys = list(_opt.mapping(Ks, "Ks", optional=False))
+    for table, what in ((Rs, "Rs"), (ts, "ts")):
+        if set(_opt.mapping(table, what, optional=False)) != set(keys):
+            raise InvalidInputError(f"Ks, Rs and ts must have the same cameras, got {what} "
+                                    f"for {_opt.shown(list(table))}")
+    if len(keys) < 2:
+        raise InvalidInputError(f"rectification needs at least two cameras, got {len(keys)}")
+    check_key(reference, "reference")
+    if reference not in Ks:
+        raise InvalidInputError(f"reference {_opt.shown(reference)} is not one of the cameras")
+    for k in keys:
+        _camera_matrix(Ks[k], f"Ks[{k}]")
+        R, t = _opt.real_array(Rs[k], f"Rs[{k}]"), _opt.real_array(ts[k], f"ts[{k}]")
+        if R.shape != (3, 3) or t.shape != (3,) or not (np.isfinite(R).all()
+                                                        and np.isfinite(t).all()):
+            raise InvalidInputError(f"camera {k} needs a finite rotation Rs (3, 3) and "
+                                    f"translation ts (3,), got shapes {R.shape}, {t.shape}")
+    W, H = _opt.int_pair(size, "size", 1, what="(W, H) of the images")
     centres = {k: -Rs[k].T @ ts[k] for k in keys}        # in the reference camera's frame
     C = np.stack([centres[k] for k in keys])
     A = _array_axes(C)
@@ -223,6 +316,9 @@ def rectification(Ks: Mapping, Rs: Mapping, ts: Mapping, reference, size) -> dic
     dd = np.linalg.norm(rel[:, None] - rel[None], axis=-1)
     np.fill_diagonal(dd, np.inf)
     base = float(np.median(dd.min(axis=1)))
+    if not (np.isfinite(base) and base > 0 and np.isfinite(K_new).all()):
+        raise InvalidInputError("the cameras' centres coincide or the reference looks along "
+                                "the array plane; no rectification")
     return {"K": K_new, "rectify": {k: A @ Rs[k].T for k in keys}, "baseline": base,
             "positions": {k: rel[i, :2] / base for i, k in enumerate(keys)},
             "planarity": float(np.max(np.abs(rel[:, 2])) / base)}

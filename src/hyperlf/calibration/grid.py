@@ -37,6 +37,9 @@ def check_grid(keys, reference=None) -> tuple[tuple[int, int], tuple[int, int]]:
         Keys that are not ``(row, col)`` pairs of non-negative ints, a grid with holes, fewer
         than two cameras, or a reference outside the grid.
     """
+    if isinstance(keys, (str, bytes)) or not hasattr(keys, "__iter__"):
+        raise InvalidInputError(f"keys must be the cameras' (row, col) pairs, got "
+                                f"{_opt.shown(keys)}")
     keys = list(keys)
     if not all(isinstance(k, tuple) and len(k) == 2 and all(isinstance(i, (int, np.integer))
                                                            and i >= 0 for i in k) for k in keys):
@@ -58,9 +61,15 @@ def check_grid(keys, reference=None) -> tuple[tuple[int, int], tuple[int, int]]:
 def check_images(images: Mapping, names: Mapping | None = None, *,
                  what: str = "image") -> tuple[int, int]:
     """Every image is a finite 2-D grey array and all have one size; returns ``(W, H)``."""
+    _opt.mapping(images, "images", optional=False)
+    _opt.mapping(names, "names")
+    if not isinstance(what, str):
+        raise InvalidInputError(f"what must be a str, got {_opt.shown(what)}")
+    if not images:
+        raise InvalidInputError(f"no {what}s: give one per camera")
     sizes = {}
     for key, img in images.items():
-        a = np.asarray(img)
+        a = _opt.real_array(img, f"the {what} of camera {camera_label(key, names)}", None)
         if a.ndim != 2 or a.size == 0 or not np.issubdtype(a.dtype, np.number):
             raise InvalidInputError(
                 f"the {what} of camera {camera_label(key, names)} must be a grey (H, W) image, "

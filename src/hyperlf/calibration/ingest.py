@@ -27,8 +27,23 @@ def _per_camera(value, key, what: str):
     if isinstance(value, Mapping):
         if key not in value:
             raise InvalidInputError(f"{what}: no frame for camera {key[0]},{key[1]}")
-        return np.asarray(value[key], np.float32)
-    return np.asarray(value, np.float32)
+        return _opt.real_array(value[key], what, np.float32)
+    return _opt.real_array(value, what, np.float32)
+
+
+def _frame(value, what: str, shape) -> np.ndarray | None:
+    """``value`` (None, a number or an image of ``shape``) as float32, NaN allowed (pixels
+    without a value), not infinite (nor beyond float32)."""
+    if value is None:
+        return None
+    a = _opt.real_array(value, what, np.float32)
+    if a.ndim and a.shape != shape:
+        raise InvalidInputError(f"the {what} is {a.shape[::-1]} px (W x H), the raw images "
+                                f"{shape[::-1]}; take it with the same camera settings")
+    if np.isinf(a).any():
+        raise InvalidInputError(f"the {what} must hold finite values (NaN marks pixels "
+                                "without one)")
+    return a
 
 
 def correct_raw(image: np.ndarray, *, dark=None, flat=None) -> np.ndarray:
@@ -49,12 +64,11 @@ def correct_raw(image: np.ndarray, *, dark=None, flat=None) -> np.ndarray:
     ...                          flat=np.full((2, 2), 0.9))[0, 0]), 6)
     0.4
     """
-    out = np.asarray(image, np.float32)
-    for frame, what in ((dark, "dark frame"), (flat, "flat field")):
-        if frame is not None and np.ndim(frame) and np.shape(frame) != out.shape:
-            raise InvalidInputError(f"the {what} is {np.shape(frame)[::-1]} px (W x H), the "
-                                    f"raw images {out.shape[::-1]}; take it with the same "
-                                    "camera settings")
+    out = _opt.real_array(image, "image", np.float32)
+    if out.ndim != 2:
+        raise InvalidInputError(f"image must be a raw grey image (H, W), got shape {out.shape}")
+    _frame(out, "raw image", out.shape)
+    dark, flat = _frame(dark, "dark frame", out.shape), _frame(flat, "flat field", out.shape)
     if dark is not None:
         out = out - np.asarray(dark, np.float32)
     if flat is not None:
@@ -75,11 +89,9 @@ def check_dead(calibration, dead) -> set:
     InvalidInputError
         A camera outside the grid or the reference; fewer than two cameras alive.
     """
-    from .model import Calibration
+    from .model import check_calibration
 
-    if not isinstance(calibration, Calibration):
-        raise InvalidInputError(f"calibration must be a Calibration, got "
-                                f"{type(calibration).__name__}")
+    check_calibration(calibration)
     R, C = calibration.grid
     try:
         dead = {_opt.int_pair(k, "dead camera", None, what="(row, col)") for k in dead}
@@ -175,10 +187,26 @@ def ingest(images: Mapping, calibration, *, wavelengths=None, dark=None, flat=No
     """
     from ..lightfield import LightField
     from . import apply_calibration
+    from .apply import check_saturation
     from .metric import capture_geometry
     from .parallax import measured_disparity_range
 
+    from ..lightfield import check_disparity_range
+
+    _opt.mapping(images, "images", optional=False)
     dead = _check_dead(calibration, dead, images)
+    saturation = check_saturation(saturation, positive=True)
+    if disparity_range is not None:
+        disparity_range = check_disparity_range(disparity_range)
+    if wavelengths is not None:
+        wl = _opt.real_array(wavelengths, "wavelengths")
+        R, C = calibration.grid
+        if wl.size != R * C or not np.isfinite(wl).all() or not (wl > 0).all():
+            raise InvalidInputError(f"wavelengths must be {R * C} positive wavelengths (nm), "
+                                    f"one per camera ({R} x {C}), got {_opt.shown(wavelengths)}")
+    for frame, what in ((dark, "dark"), (flat, "flat")):
+        if frame is not None and not isinstance(frame, Mapping):
+            _opt.real_array(frame, what)
     fixed, silent = {}, []
     for k, img in images.items():
         if k in dead:

@@ -102,7 +102,11 @@ def write_calibration(calibration: Calibration, path: str | os.PathLike) -> Path
     """
     import tomli_w
 
-    c = calibration
+    from .._options import path_like
+    from .model import check_calibration
+
+    path_like(path)
+    c = check_calibration(calibration)
     doc = {"format": CALIBRATION_FORMAT, "version": VERSION, "mode": c.mode,
            "grid": list(c.grid), "reference": list(c.reference),
            "image_size": list(c.image_size), "output_size": list(c.output_size),
@@ -220,7 +224,9 @@ def read_calibration(path: str | os.PathLike) -> Calibration:
         Not TOML, not a hyperlf calibration, or a missing/malformed entry (one line saying
         which).
     """
-    path = Path(path)
+    from .._options import path_like
+
+    path = Path(path_like(path, folder=None))
     doc = _read_doc(path)
     rd = _Reader(path)
     if doc.get("format") != CALIBRATION_FORMAT:

@@ -18,6 +18,7 @@ from typing import Mapping
 
 import numpy as np
 
+from .. import _options as _opt
 from ..errors import InvalidInputError
 
 __all__ = ["capture_geometry", "depth_from_disparity", "point_cloud"]
@@ -39,6 +40,9 @@ def capture_geometry(calibration) -> dict:
     did not fix the focal length (then no metric figure can be trusted: calibrate with
     ``--focal-px``).
     """
+    from .model import check_calibration
+
+    check_calibration(calibration)
     table = {"mode": calibration.mode,
              "camera_matrix": np.asarray(calibration.camera_matrix, float).tolist(),
              "baseline": float(calibration.baseline),
@@ -50,15 +54,17 @@ def capture_geometry(calibration) -> dict:
 
 
 def _geometry(geometry: Mapping) -> tuple[np.ndarray, float, np.ndarray | None]:
+    _opt.mapping(geometry, "geometry", optional=False)
     try:
         K = np.asarray(geometry["camera_matrix"], dtype=np.float64)
         B = float(geometry["baseline"])
         plane = geometry.get("board_plane")
         plane = None if plane is None else np.asarray(plane, dtype=np.float64)
-    except (KeyError, TypeError, ValueError):
+    except (KeyError, TypeError, ValueError, OverflowError):
         raise InvalidInputError("the capture's [calibration] table lacks camera_matrix or "
                                 "baseline; make the capture with 'hyperlf ingest'") from None
-    if K.shape != (3, 3) or not np.isfinite(K).all() or K[0, 0] <= 0 or not B > 0:
+    if K.shape != (3, 3) or not np.isfinite(K).all() or not (K[0, 0] > 0 and K[1, 1] > 0) \
+            or not np.isfinite(B) or not B > 0 or np.linalg.det(K) == 0:
         raise InvalidInputError("the capture's camera_matrix / baseline are not a valid "
                                 "geometry (3 x 3 matrix with f > 0, baseline > 0)")
     if plane is not None and (plane.shape != (4,) or not np.isfinite(plane).all()):
@@ -71,6 +77,14 @@ def _rays(shape, K: np.ndarray) -> np.ndarray:
     H, W = shape
     yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
     return np.stack([xx, yy, np.ones_like(xx)], -1) @ np.linalg.inv(K).T
+
+
+def _map(value, label: str) -> np.ndarray:
+    """``value`` as a float64 map ``(H, W)`` (NaN allowed: pixels without a value)."""
+    a = _opt.real_array(value, label)
+    if a.ndim != 2:
+        raise InvalidInputError(f"{label} must be a map (H, W), got shape {a.shape}")
+    return a
 
 
 def depth_from_disparity(disparity: np.ndarray, geometry: Mapping) -> np.ndarray:
@@ -96,7 +110,7 @@ def depth_from_disparity(disparity: np.ndarray, geometry: Mapping) -> np.ndarray
     500.0
     """
     K, B, plane = _geometry(geometry)
-    d = np.asarray(disparity, dtype=np.float64)
+    d = _map(disparity, "disparity")
     fB = K[0, 0] * B
     with np.errstate(divide="ignore", invalid="ignore"):
         if plane is None:
@@ -129,7 +143,14 @@ def point_cloud(depth: np.ndarray, geometry: Mapping, colours: np.ndarray | None
     colours : ndarray, uint8, shape (N, 3) or None
     """
     K, _, _ = _geometry(geometry)
-    Z = np.asarray(depth, dtype=np.float64)[::step, ::step]
+    step = _opt.integer(step, "step", 1)
+    Z = _map(depth, "depth")
+    if colours is not None:
+        col = _opt.real_array(colours, "colours")
+        if col.shape not in (Z.shape, Z.shape + (3,)):
+            raise InvalidInputError(f"colours must be (H, W) or (H, W, 3) like the depth "
+                                    f"{Z.shape}, got shape {col.shape}")
+    Z = Z[::step, ::step]
     rays = _rays(np.shape(depth), K)[::step, ::step]
     keep = np.isfinite(Z)
     pts = (rays[keep] * Z[keep][:, None]).astype(np.float32)

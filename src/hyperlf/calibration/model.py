@@ -29,6 +29,31 @@ __all__ = ["CameraCalibration", "Calibration", "MODES"]
 MODES = ("plane", "full")
 
 
+def _finite_array(value, label: str, shape, optional: bool = False) -> None:
+    """Refuse ``value`` unless it is a finite real array of ``shape`` (or None where
+    ``optional``)."""
+    from .._options import real_array
+    from ..errors import InvalidInputError
+
+    if value is None and optional:
+        return
+    a = real_array(value, label)
+    if a.shape != tuple(shape) or not np.isfinite(a).all():
+        raise InvalidInputError(f"{label} must be finite numbers of shape {tuple(shape)}, got "
+                                f"shape {a.shape}")
+
+
+def check_calibration(value) -> "Calibration":
+    """``value`` when it is a :class:`Calibration` (the one check of a calibration argument)."""
+    from .._options import shown
+    from ..errors import InvalidInputError
+
+    if not isinstance(value, Calibration):
+        raise InvalidInputError(f"calibration must be a Calibration (read_calibration reads "
+                                f"one), got {shown(value)}")
+    return value
+
+
 @dataclass
 class CameraCalibration:
     """One camera of a calibrated array.
@@ -61,6 +86,18 @@ class CameraCalibration:
     R: np.ndarray | None = None
     t: np.ndarray | None = None
     rectify: np.ndarray | None = None
+
+    def __post_init__(self):
+        from .. import _options as _opt
+        from ..errors import InvalidInputError
+
+        if not isinstance(self.name, str):
+            raise InvalidInputError(f"name must be a str, got {_opt.shown(self.name)}")
+        _finite_array(self.position, "position", (2,))
+        _opt.number(self.reprojection_error, "reprojection_error")
+        for name, shape in (("homography", (3, 3)), ("K", (3, 3)), ("dist", (5,)),
+                            ("R", (3, 3)), ("t", (3,)), ("rectify", (3, 3))):
+            _finite_array(getattr(self, name), name, shape, optional=True)
 
 
 @dataclass
@@ -110,6 +147,25 @@ class Calibration:
     info: dict[str, Any] = field(default_factory=dict)
     residuals: dict = field(default_factory=dict, repr=False)
     corners: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self):
+        from .. import _options as _opt
+        from ..errors import InvalidInputError
+        from .board import check_board
+
+        _opt.choice(self.mode, "mode", MODES)
+        grid = _opt.int_pair(self.grid, "grid", 1, what="(rows, cols)")
+        _opt.index(self.reference, "reference", grid)
+        for name in ("image_size", "output_size"):
+            _opt.int_pair(getattr(self, name), name, 1, what="(W, H) px")
+        _finite_array(self.camera_matrix, "camera_matrix", (3, 3))
+        for name in ("cameras", "info", "residuals", "corners"):
+            _opt.mapping(getattr(self, name), name, optional=False)
+        if not all(isinstance(c, CameraCalibration) for c in self.cameras.values()):
+            raise InvalidInputError("cameras must map (row, col) to CameraCalibration")
+        check_board(self.board)
+        _opt.number(self.baseline, "baseline", positive=True)
+        _finite_array(self.board_plane, "board_plane", (4,), optional=True)
 
     @property
     def focal_px(self) -> float:

@@ -19,11 +19,27 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._options import check_values, integer, number, real_array, rule
+from .._options import (bool_mask, check_values, index, int_pair, integer, number, real,
+                        real_array, rule, shown)
 from ..errors import InvalidInputError
 
 __all__ = ["feature_image", "select_points", "match_flows", "factor_rank1", "Rank1",
            "hub_camera", "measured_disparity_range"]
+
+
+#: The search options of the parallax matching (:func:`measured_disparity_range`,
+#: :func:`hyperlf.calibration.plane.register_plane`): the largest side (px) matched, the search
+#: radius as a fraction of that side.
+SEARCH_RULES = {"work_size": rule(integer, minimum=64),
+                "max_parallax": rule(number, positive=True, at_most=1)}
+
+
+def _image(value, label: str) -> np.ndarray:
+    """``value`` as a float32 image ``(H, W)`` (its values are not scanned)."""
+    img = real_array(value, label, np.float32)
+    if img.ndim != 2 or not img.size:
+        raise InvalidInputError(f"{label} must be an image (H, W), got shape {img.shape}")
+    return img
 
 
 def feature_image(image: np.ndarray, *, sigma: float = 1.0) -> np.ndarray:
@@ -37,7 +53,8 @@ def feature_image(image: np.ndarray, *, sigma: float = 1.0) -> np.ndarray:
     """
     import cv2
 
-    img = np.asarray(image, np.float32)
+    img = _image(image, "image")
+    sigma = number(sigma, "sigma", at_most=max(img.shape))  # a wider blur only costs time
     finite = np.isfinite(img)
     lo, hi = np.percentile(img[finite], [1, 99]) if finite.any() else (0.0, 1.0)
     img = np.where(finite, (img - lo) / max(hi - lo, 1e-6), 0.0).astype(np.float32)
@@ -92,6 +109,20 @@ def match_flows(ref_feat: np.ndarray, view_feat: np.ndarray, points: np.ndarray,
     """
     import cv2
 
+    ref_feat = _image(ref_feat, "ref_feat")
+    view_feat = _image(view_feat, "view_feat")
+    if view_feat.shape != ref_feat.shape:
+        raise InvalidInputError(f"view_feat must have ref_feat's shape {ref_feat.shape}, got "
+                                f"{view_feat.shape}")
+    points = real_array(points, "points")
+    if points.ndim != 2 or points.shape[1] != 2 or not np.isfinite(points).all():
+        raise InvalidInputError(f"points must be finite (N, 2) pixels (x, y), got shape "
+                                f"{points.shape}")
+    view_valid = bool_mask(view_valid, "view_valid", ref_feat.shape, of="the feature images")
+    side = max(ref_feat.shape)
+    half = integer(half, "half", maximum=side)
+    radius = integer(radius, "radius", 1, maximum=side)
+    min_score = real(min_score, "min_score")
     H, W = ref_feat.shape
     flows = np.full((len(points), 2), np.nan)
     scores = np.zeros(len(points))
@@ -301,7 +332,12 @@ def hub_camera(keys, reference):
     >>> hub_camera(grid, (0, 0)), hub_camera(grid, (1, 1))
     ((1, 1), (1, 1))
     """
-    keys = [tuple(k) for k in keys]
+    if isinstance(keys, (str, bytes)) or not hasattr(keys, "__iter__"):
+        raise InvalidInputError(f"keys must be the cameras' (row, col) places, got {shown(keys)}")
+    keys = [int_pair(k, "a camera", 0, what="(row, col)") for k in keys]
+    reference = int_pair(reference, "reference", 0, what="(row, col)")
+    if reference not in keys:
+        raise InvalidInputError(f"reference {reference} is not one of the cameras")
     reach = {k: max(np.hypot(k[0] - j[0], k[1] - j[1]) for j in keys) for k in keys}
     if reach[tuple(reference)] <= min(reach.values()) + 1e-9:
         return tuple(reference)
@@ -364,7 +400,23 @@ def measured_disparity_range(views: np.ndarray, valid: np.ndarray, positions: np
     """
     import cv2
 
+    views = real_array(views, "views", None)
+    if views.ndim != 4 or not views.size or not (np.issubdtype(views.dtype, np.number)
+                                                 or views.dtype == bool):
+        raise InvalidInputError(f"views must be numbers (R, C, H, W), got shape {views.shape}")
     R, C, H, W = views.shape
+    valid = bool_mask(valid, "valid", views.shape, of="the views")
+    positions = real_array(positions, "positions")
+    if positions.shape != (R, C, 2) or not np.isfinite(positions).all():
+        raise InvalidInputError(f"positions must be finite ({R}, {C}, 2), got shape "
+                                f"{positions.shape}")
+    reference = index(reference, "reference", (R, C))
+    o = check_values(dict(work_size=work_size, max_parallax=max_parallax, margin=margin,
+                          min_points=min_points, max_residual=max_residual),
+                     {**SEARCH_RULES, "margin": rule(number, positive=True, at_most=1e3),
+                      "min_points": rule(integer, minimum=1),
+                      "max_residual": rule(number, positive=True)})
+    work_size, max_parallax, margin, min_points, max_residual = o.values()
     scale = min(1.0, work_size / max(W, H))
     size = (max(1, int(round(W * scale))), max(1, int(round(H * scale))))
 

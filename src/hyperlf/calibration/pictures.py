@@ -13,10 +13,19 @@ from typing import Mapping
 
 import numpy as np
 
+from .. import _options as _opt
 from ..errors import InvalidInputError
 from ..visualise import display_step, pyplot, save_figure
 from .board import camera_label
-from .model import Calibration
+from .grid import check_images
+from .model import Calibration, check_calibration
+
+
+def _title(value, optional: bool = False):
+    if not (isinstance(value, str) or (optional and value is None)):
+        raise InvalidInputError(f"title must be a str{' or None' if optional else ''}, got "
+                                f"{_opt.shown(value)}")
+    return value
 
 __all__ = ["save_corner_pictures", "save_registration_picture", "save_residual_picture"]
 
@@ -76,9 +85,20 @@ def save_corner_pictures(path: str | os.PathLike, shots: Mapping, corners: Mappi
     -------
     Path
     """
-    keys = list(shots)
-    if not keys:
+    _opt.path_like(path)
+    if not _opt.mapping(shots, "shots", optional=False):
         raise InvalidInputError("no shots to draw")
+    for k in shots:
+        _opt.int_pair(k, "a camera of shots", 0, what="(row, col)")
+    check_images(shots, names, what="shot")
+    _opt.mapping(corners, "corners", optional=False)
+    for k, c in corners.items():
+        a = None if c is None else _opt.real_array(c, f"corners of camera {camera_label(k, names)}")
+        if a is not None and (a.ndim != 2 or a.shape[1] != 2):
+            raise InvalidInputError(f"corners of camera {camera_label(k, names)} must be (N, 2) "
+                                    f"or None, got shape {a.shape}")
+    _title(title)
+    keys = list(shots)
     H, W = np.asarray(shots[keys[0]]).shape[:2]
     fig, axes, step = _grid_axes(keys, (W, H), title)
     for key in keys:
@@ -121,11 +141,14 @@ def save_registration_picture(path: str | os.PathLike, views: np.ndarray, valid:
     -------
     Path
     """
-    v = np.asarray(views)
-    m = np.asarray(valid, bool)
-    if v.ndim != 4 or m.shape != v.shape:
-        raise InvalidInputError(f"views and valid must both be (R, C, H, W), got {v.shape} and "
-                                f"{m.shape}")
+    _opt.path_like(path)
+    v = _opt.real_array(views, "views", None)
+    if v.ndim != 4 or not v.size or not (np.issubdtype(v.dtype, np.number) or v.dtype == bool):
+        raise InvalidInputError(f"views must be numbers (R, C, H, W), got shape {v.shape}")
+    m = _opt.bool_mask(valid, "valid", v.shape, of="the views")
+    _opt.mapping(names, "names")
+    lines = _opt.integer(lines, "lines", maximum=100)
+    _title(title)
     R, C, H, W = v.shape
     keys = [(r, c) for r in range(R) for c in range(C)]
     fig, axes, step = _grid_axes(keys, (W, H), title)
@@ -167,6 +190,10 @@ def save_residual_picture(path: str | os.PathLike, calibration: Calibration, *,
     InvalidInputError
         The calibration has no residuals (it was read from a file).
     """
+    _opt.path_like(path)
+    check_calibration(calibration)
+    scale = _opt.number(scale, "scale", positive=True, optional=True, at_most=1e6)
+    _title(title, optional=True)
     res = calibration.residuals
     if not res:
         raise InvalidInputError("this calibration carries no corner residuals (they are not "

@@ -33,11 +33,13 @@ import numpy as np
 
 from .. import _options as _opt
 from ..errors import InvalidInputError
-from .board import (BoardSpec, camera_label, check_board, detect_boards, grid_symmetries,
-                    image_turn, orders_like, turn_report)
+from .board import (BoardSpec, camera_label, check_board, check_corner_sets, check_corners,
+                    check_key, detect_boards, grid_symmetries, image_turn, orders_like,
+                    turn_report)
 from .grid import check_grid, check_images
 from .model import Calibration, CameraCalibration
-from .parallax import factor_rank1, feature_image, hub_camera, match_flows, select_points
+from .parallax import (SEARCH_RULES, factor_rank1, feature_image, hub_camera, match_flows,
+                       select_points)
 
 __all__ = ["register_plane", "board_homographies", "board_geometry", "parallax_offsets",
            "turned_cameras", "resolve_positions", "board_outline"]
@@ -54,13 +56,40 @@ def _seen(points: np.ndarray) -> np.ndarray:
     return np.all(np.isfinite(points), axis=1)
 
 
+def _in(key, table: Mapping, label: str = "reference"):
+    """``key`` when ``table`` has it (a camera of the array)."""
+    check_key(key, label)
+    if key not in table:
+        raise InvalidInputError(f"{label} {_opt.shown(key)} is not one of the cameras")
+    return key
+
+
+def _corner_table(corners) -> Mapping:
+    """``corners``: a non-empty mapping camera -> ``(N, 2)`` corners, one ``N`` for all (NaN:
+    unseen)."""
+    _opt.mapping(corners, "corners", optional=False)
+    shapes = set()
+    for k, c in corners.items():
+        a = _opt.real_array(c, f"corners[{_opt.shown(k)}]")
+        if a.ndim != 2 or a.shape[1] != 2 or np.isinf(a).any():
+            raise InvalidInputError(f"corners[{_opt.shown(k)}] must be (N, 2) pixels, finite or "
+                                    f"NaN (unseen), got shape {a.shape}")
+        shapes.add(a.shape)
+    if len(shapes) != 1:
+        raise InvalidInputError(f"every camera's corners must be of one board, got shapes "
+                                f"{sorted(shapes)}")
+    return corners
+
+
 def board_homographies(corners: Mapping, reference, names: Mapping | None = None
                        ) -> tuple[dict, dict, dict]:
     """Homography (raw -> reference), RMS corner residual (px) and the residual vectors
     (reference corners, mapped minus reference) of every camera, on the corners both saw."""
     import cv2
 
-    dst = corners[reference]
+    _corner_table(corners)
+    _opt.mapping(names, "names")
+    dst = corners[_in(reference, corners)]
     Hs, errs, resid = {}, {}, {}
     for key, pts in corners.items():
         both = _seen(pts) & _seen(dst)
@@ -96,7 +125,11 @@ def board_geometry(corners: Mapping, board: BoardSpec, image_size, reference, *,
     """
     import cv2
 
-    W, H = image_size
+    check_board(board)
+    check_corner_sets(corners, "corners", board)
+    _in(reference, corners)
+    W, H = _opt.int_pair(image_size, "image_size", 1, what="(W, H) of the images")
+    focal_px = _PLANE_RULES["focal_px"](focal_px, "focal_px")
     keys = list(corners)
     f0 = float(focal_px) if focal_px else float(max(W, H))
     K0 = np.array([[f0, 0, (W - 1) / 2], [0, f0, (H - 1) / 2], [0, 0, 1.0]])
@@ -130,7 +163,12 @@ def board_outline(corners: np.ndarray, board: BoardSpec, *, margin: float = 1.6)
     """Image polygon ``(4, 2)`` of the board including ``margin`` squares around its corners."""
     import cv2
 
+    check_board(board)
+    corners = check_corners(corners, "corners", board)
+    margin = _opt.number(margin, "margin", at_most=1e3)  # squares
     seen = _seen(corners)
+    if seen.sum() < 4:
+        raise InvalidInputError(f"corners must hold at least 4 seen corners, got {seen.sum()}")
     obj = board.object_points()[:, :2] / board.square
     Hb, _ = cv2.findHomography(obj[seen], corners[seen], 0)
     quad = np.array([[-margin, -margin], [board.cols - 1 + margin, -margin],
@@ -188,7 +226,18 @@ def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, boar
     """
     import cv2
 
-    W, H = np.asarray(images[reference]).shape[::-1]
+    W, H = check_images(images, what="image")
+    _in(reference, images)
+    check_board(board)
+    corners_ref = check_corners(corners_ref, "corners_ref", board)
+    _opt.mapping(Hs, "Hs", optional=False)
+    for k in images:
+        h = _opt.real_array(Hs.get(k), f"the homography of camera {camera_label(k)}")
+        if h.shape != (3, 3) or not np.isfinite(h).all():
+            raise InvalidInputError(f"Hs must hold a finite 3 x 3 homography for every camera "
+                                    f"of images; camera {camera_label(k)}'s is {_opt.shown(h)}")
+    o = _opt.check_values(dict(work_size=work_size, max_parallax=max_parallax), SEARCH_RULES)
+    work_size, max_parallax = o["work_size"], o["max_parallax"]
     scale = min(1.0, work_size / max(W, H))
     feats, valid = _registered(images, Hs, scale, (W, H))
     hub = hub_camera(images, reference)  # matched from: the reference unless it is off-centre
@@ -262,6 +311,21 @@ def turned_cameras(shots: Mapping, corners: Mapping, board: BoardSpec, reference
     corners : dict
         ``corners`` with the turned cameras' in their found order.
     """
+    check_board(board)
+    check_images(shots, names, what="board shot")
+    check_corner_sets(corners, "corners", board)
+    _in(reference, corners)
+    if set(shots) != set(corners):
+        raise InvalidInputError("shots and corners must have the same cameras")
+    _opt.mapping(names, "names")
+    share = _opt.share(share, "share")
+    suspect_rms = _opt.number(suspect_rms, "suspect_rms", positive=True)
+    unknown = set(search) - set(SEARCH_RULES)
+    if unknown:
+        raise InvalidInputError(f"turned_cameras takes the search options "
+                                f"{', '.join(SEARCH_RULES)}, got {', '.join(map(str, unknown))}")
+    search = _opt.check_values(search, SEARCH_RULES)
+
     def parallax(c) -> dict:
         Hs = board_homographies(c, reference, names)[0]
         return parallax_offsets(shots, Hs, c[reference], board, reference, **search)
@@ -304,6 +368,17 @@ def resolve_positions(offsets: Mapping, pose_centres: Mapping, reference) -> tup
     ``(x, y)`` (the physical direction). The score is the cosine between the two sets of
     offsets: near 1 when they agree, near 0 when the pose centres cannot tell the sign.
     """
+    _opt.mapping(offsets, "offsets", optional=False)
+    _opt.mapping(pose_centres, "pose_centres", optional=False)
+    _in(reference, offsets)
+    for k in offsets:
+        o, c = _opt.real_array(offsets[k], "offsets"), _opt.real_array(pose_centres.get(k),
+                                                                         "pose_centres")
+        if o.shape != (2,) or c.ndim != 1 or len(c) < 2 or not (np.isfinite(o).all()
+                                                                and np.isfinite(c[:2]).all()):
+            raise InvalidInputError(f"offsets and pose_centres must hold finite (x, y) for "
+                                    f"every camera; camera {camera_label(k)} has "
+                                    f"{_opt.shown(offsets[k])} and {_opt.shown(pose_centres.get(k))}")
     keys = list(offsets)
     o = np.stack([offsets[k] for k in keys])
     c = np.stack([np.asarray(pose_centres[k])[:2] for k in keys])
@@ -322,10 +397,10 @@ MAX_FOCAL_PX = 1e7
 
 #: What :func:`register_plane`'s options take (:mod:`hyperlf._options`).
 _PLANE_RULES = {
-    "focal_px": _opt.rule(_opt.number, positive=True, optional=True, at_most=MAX_FOCAL_PX),
+    "focal_px": _opt.rule(_opt.number, positive=True, optional=True, at_least=1.0,
+                          at_most=MAX_FOCAL_PX),
     "positions_from": _opt.rule(_opt.choice, choices=("auto", "parallax", "board")),
-    "work_size": _opt.rule(_opt.integer, minimum=64),
-    "max_parallax": _opt.rule(_opt.number, positive=True, at_most=1),
+    **SEARCH_RULES,
     "min_parallax_px": _opt.number,
 }
 

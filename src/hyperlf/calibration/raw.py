@@ -15,6 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .. import _options as _opt
 from .._paths import leads_outside
 from ..errors import DataNotFoundError, InvalidInputError
 from .grid import MAX_CAMERAS
@@ -26,9 +27,28 @@ _FIELDS = ("index", "row", "col")
 
 
 
+def _check_folder(folder) -> Path:
+    """``folder`` as a Path (a non-empty str or os.PathLike)."""
+    return Path(_opt.path_like(folder, "folder", folder=None))
+
+
+def _check_grid(grid) -> tuple[int, int]:
+    """``grid`` as ``(R, C)``: at least two cameras, at most :data:`MAX_CAMERAS`."""
+    R, C = _opt.int_pair(grid, "--grid", 1, what="(rows, cols) of cameras")
+    if R * C < 2:
+        raise InvalidInputError(f"--grid {R},{C}: an array needs at least two cameras")
+    if R * C > MAX_CAMERAS:
+        raise InvalidInputError(f"--grid {R},{C}: {R * C} cameras is more than the "
+                                f"{MAX_CAMERAS} hyperlf handles; check --grid")
+    return R, C
+
+
 def _check_pattern(pattern: str) -> None:
     from ..formats.patterns import pattern_fields
 
+    if not isinstance(pattern, str):
+        raise InvalidInputError(f"--pattern must be a file name pattern (a str), got "
+                                f"{_opt.shown(pattern)}")
     fields = set(pattern_fields(pattern, _FIELDS, what="--pattern"))
     if "index" not in fields and not {"row", "col"} <= fields:
         raise InvalidInputError(f"--pattern {pattern!r} must name each camera with {{index}} or "
@@ -71,16 +91,14 @@ def camera_files(folder: str | os.PathLike, pattern: str, grid: tuple[int, int],
     """
     from ..formats.patterns import expand_pattern
 
+    root = _check_folder(folder)
     _check_pattern(pattern)
-    R, C = (int(v) for v in grid)
-    if R < 1 or C < 1 or R * C < 2:
-        raise InvalidInputError(f"--grid {R},{C}: an array needs at least two cameras")
-    if R * C > MAX_CAMERAS:
-        raise InvalidInputError(f"--grid {R},{C}: {R * C} cameras is more than the "
-                                f"{MAX_CAMERAS} hyperlf handles; check --grid")
-    root = Path(folder)
+    R, C = _check_grid(grid)
+    must_exist = _opt.flag(must_exist, "must_exist")
+    if isinstance(skip, (str, bytes)) or not hasattr(skip, "__iter__"):
+        raise InvalidInputError(f"skip must be (row, col) pairs, got {_opt.shown(skip)}")
     files = {}
-    skip = {tuple(int(v) for v in k) for k in skip}
+    skip = {_opt.int_pair(k, "a skipped camera", None, what="(row, col)") for k in skip}
     for r in range(R):
         for c in range(C):
             if (r, c) in skip:
@@ -120,7 +138,9 @@ def beyond_grid(folder: str | os.PathLike, pattern: str, grid: tuple[int, int]) 
     R / column C), when there is one: a sign that ``grid`` is smaller than the array."""
     from ..formats.patterns import expand_pattern
 
-    R, C = (int(v) for v in grid)
+    folder = _check_folder(folder)
+    _check_pattern(pattern)
+    R, C = _check_grid(grid)
     for index, row, col in ((R * C, R, 0), (R * C, 0, C)):
         p = Path(folder) / expand_pattern(pattern, _FIELDS, what="--pattern", index=index,
                                           row=row, col=col)
@@ -141,7 +161,9 @@ def pose_folders(folder: str | os.PathLike, pattern: str, grid: tuple[int, int])
         ``folder`` does not exist, or neither it nor any subfolder holds a file for every
         camera.
     """
-    root = Path(folder)
+    root = _check_folder(folder)
+    _check_pattern(pattern)
+    _check_grid(grid)
     if root.exists() and not root.is_dir():
         raise InvalidInputError(f"{root} is a file; give the folder of the images (and "
                                 "--pattern for their names)")
@@ -188,6 +210,8 @@ def sensor_bits(largest: int, file_bits: int) -> int:
     >>> sensor_bits(4095, 16), sensor_bits(4096, 16), sensor_bits(65486, 16), sensor_bits(200, 8)
     (12, 14, 16, 8)
     """
+    largest = _opt.integer(largest, "largest")
+    file_bits = _opt.integer(file_bits, "file_bits", 1, maximum=64)
     for b in SENSOR_BITS:
         if b >= file_bits or largest <= 2 ** b - 1:
             return min(b, file_bits)
@@ -207,6 +231,8 @@ def read_raw_image(path, *, bits: int | None = None) -> np.ndarray:
     """
     from ..formats.images import read_image
 
+    _opt.path_like(path, folder=None)
+    bits = _opt.integer(bits, "bits", 1, maximum=64, optional=True)
     arr = read_image(path, as_float=False, channels="grey")
     if not np.issubdtype(arr.dtype, np.integer):
         return np.asarray(arr, np.float32)
@@ -263,6 +289,17 @@ def read_camera_images(files: dict, *, where: str = "", bits: int | None = None,
     """
     from ..formats.images import read_image, read_images_same_size
 
+    _opt.mapping(files, "files", optional=False)
+    if not files:
+        raise InvalidInputError("files must name one image per camera, got none")
+    for k, p in files.items():
+        _opt.int_pair(k, "a camera of files", 0, what="(row, col)")
+        _opt.path_like(p, f"the file of camera {k}", folder=None)
+    files = {k: Path(p) for k, p in files.items()}
+    if not isinstance(where, str):
+        raise InvalidInputError(f"where must be a str, got {_opt.shown(where)}")
+    bits = _opt.integer(bits, "bits", 1, maximum=64, optional=True)
+    return_scale = _opt.flag(return_scale, "return_scale")
     keys = list(files)
     labels = [f"camera {k[0]},{k[1]} ({files[k].name})" for k in keys]
     kinds: dict = {}

@@ -21,15 +21,24 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
+from .. import _options as _opt
 from ..errors import InvalidInputError
-from .board import BoardSpec
+from .board import BoardSpec, check_board
 from .grid import grid_keys
 
 __all__ = ["RigCamera", "Panel", "BoardPose", "SyntheticRig", "make_rig", "rotation_matrix"]
+
+
+def _finite(value, label: str, shape) -> None:
+    """Refuse ``value`` unless it is a finite real array of ``shape``."""
+    a = _opt.real_array(value, label)
+    if a.shape != tuple(shape) or not np.isfinite(a).all():
+        raise InvalidInputError(f"{label} must be finite numbers of shape {tuple(shape)}, got "
+                                f"{_opt.shown(value)}")
 
 
 def rotation_matrix(rx: float, ry: float, rz: float) -> np.ndarray:
@@ -40,7 +49,7 @@ def rotation_matrix(rx: float, ry: float, rz: float) -> np.ndarray:
     >>> np.allclose(rotation_matrix(0, 0, 90) @ [1, 0, 0], [0, 1, 0])
     True
     """
-    ax, ay, az = np.deg2rad([rx, ry, rz])
+    ax, ay, az = np.deg2rad([_opt.real(v, k) for v, k in ((rx, "rx"), (ry, "ry"), (rz, "rz"))])
     cx, sx, cy, sy, cz, sz = np.cos(ax), np.sin(ax), np.cos(ay), np.sin(ay), np.cos(az), np.sin(az)
     Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
     Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
@@ -68,6 +77,14 @@ class RigCamera:
     band: float
     inverted: bool
 
+    def __post_init__(self):
+        for name, shape in (("K", (3, 3)), ("dist", (5,)), ("R", (3, 3)), ("centre", (3,))):
+            _finite(getattr(self, name), name, shape)
+        for name in ("gain", "offset", "vignetting"):
+            _opt.real(getattr(self, name), name)
+        _opt.share(self.band, "band")
+        _opt.flag(self.inverted, "inverted")
+
     @property
     def rvec_tvec(self) -> tuple[np.ndarray, np.ndarray]:
         """OpenCV ``(rvec, tvec)`` of the world-to-camera transform."""
@@ -89,6 +106,16 @@ class Panel:
     kind: str = "texture"
     seed: int = 0
 
+    def __post_init__(self):
+        for name in ("origin", "u", "v"):
+            _finite(getattr(self, name), name, (3,))
+        for name in ("width", "height"):
+            _opt.number(getattr(self, name), name, positive=True)
+        _opt.choice(self.kind, "kind", ("board", "texture"))
+        _opt.integer(self.seed, "seed")
+        if not np.linalg.norm(np.cross(self.u, self.v)) > 0:
+            raise InvalidInputError("a panel's u and v must span a plane")
+
     @property
     def normal(self) -> np.ndarray:
         n = np.cross(self.u, self.v)
@@ -102,6 +129,10 @@ class BoardPose:
 
     R: np.ndarray
     t: np.ndarray
+
+    def __post_init__(self):
+        _finite(self.R, "R", (3, 3))
+        _finite(self.t, "t", (3,))
 
     def corners_world(self, board: BoardSpec) -> np.ndarray:
         """World coordinates of the inner corners in canonical order, shape ``(N, 3)``."""
@@ -397,6 +428,19 @@ def _camera(rng, key, ref, baseline, focal, image_size, n_bands, index, inverted
                      band=index / max(n_bands - 1, 1), inverted=index in inverted)
 
 
+#: What :func:`make_rig`'s options take: imperfections and distortion up to ten times the
+#: modelled ones (rotations of 20 degrees), images up to 8192 px a side.
+_RIG_RULES = {
+    "seed": _opt.rule(_opt.integer, maximum=2 ** 63),
+    "image_size": _opt.rule(_opt.int_pair, minimum=16, maximum=8192, what="(W, H) px"),
+    "baseline": _opt.rule(_opt.number, positive=True, at_most=1e9),
+    "focal": _opt.rule(_opt.number, at_least=1.0, at_most=1e7),
+    "imperfect": _opt.rule(_opt.number, at_most=10),
+    "noise": _opt.rule(_opt.number, at_most=1),
+    "distortion": _opt.rule(_opt.number, at_most=10, optional=True),
+}
+
+
 def make_rig(rows: int = 3, cols: int = 3, *, seed: int = 0,
              image_size: tuple[int, int] = (320, 240), baseline: float = 40.0,
              focal: float = 300.0, board: BoardSpec | None = None,
@@ -445,7 +489,19 @@ def make_rig(rows: int = 3, cols: int = 3, *, seed: int = 0,
     keys = grid_keys(rows, cols)
     if len(keys) < 2:
         raise InvalidInputError(f"a rig needs at least two cameras, got {rows} x {cols}")
-    board = board or BoardSpec(8, 6, 20.0)
+    o = _opt.check_values(dict(seed=seed, image_size=image_size, baseline=baseline, focal=focal,
+                               imperfect=imperfect, noise=noise, distortion=distortion),
+                          _RIG_RULES)
+    seed, image_size, baseline, focal, imperfect, noise, distortion = o.values()
+    board = BoardSpec(8, 6, 20.0) if board is None else check_board(board)
+    if isinstance(inverted, (str, bytes, Mapping)) or not hasattr(inverted, "__iter__"):
+        raise InvalidInputError(f"inverted must be raster indices of cameras, got "
+                                f"{_opt.shown(inverted)}")
+    inverted = [_opt.integer(i, "an inverted camera's index") for i in inverted]
+    scene_depths = _opt.real_pair(scene_depths, "scene_depths", "two depths (near, far) > 0")
+    if not min(scene_depths) > 0:
+        raise InvalidInputError(f"scene_depths must be two depths (near, far) > 0, got "
+                                f"{_opt.shown(scene_depths)}")
     rng = np.random.default_rng(seed)
     ref = ((rows - 1) // 2, (cols - 1) // 2)
     dist = imperfect if distortion is None else distortion
