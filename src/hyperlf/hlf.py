@@ -256,6 +256,175 @@ _positive = _rule(_opt.number, positive=True)
 MAX_MEDIAN_PASSES = 50
 
 
+# ============================================================================================
+# Checks of the stages' arguments (one line of InvalidInputError before any work)
+# ============================================================================================
+
+#: Widths of :func:`add_coarse_prior`'s pull (disparity px) it takes: float32 keeps their
+#: quotients finite.
+PULL_WIDTH = (1e-9, 1e9)
+#: The range of ``sigma_d`` (nm) of the defocus prior (:class:`DepthParams`,
+#: :func:`defocus_cost`): narrower, ``sigma_d ** 2`` underflows and the prior is 0 / 0.
+SIGMA_D_RANGE = (1e-3, 1e6)
+_sigma_d = _rule(_opt.number, positive=True, at_least=SIGMA_D_RANGE[0], at_most=SIGMA_D_RANGE[1])
+_KINDS = {"biuf": "real numbers", "iu": "integers", "f": "floats"}
+#: The widest Gaussian pre-blur of the occlusion edges (px; ``DepthParams.canny_sigma``):
+#: OpenCV's kernel grows with it.
+MAX_CANNY_SIGMA = 100.0
+_canny_sigma = _rule(_opt.number, at_most=MAX_CANNY_SIGMA)
+#: Canny thresholds are on the 8-bit Sobel magnitude (at most about 1443).
+_canny_threshold = _rule(_opt.number, optional=True, at_most=1e6)
+#: The longest wavelength (nm) the defocus cue takes (``lambda_r``, the views'): its squares
+#: stay finite.
+MAX_WAVELENGTH = 1e6
+_wavelength = _rule(_opt.number, positive=True, at_most=MAX_WAVELENGTH)
+_lambda_r_mode = _opt.word_or(_wavelength, ("per_label", "per_pixel"),
+                              f"'per_label', 'per_pixel' or a wavelength in (0, "
+                              f"{MAX_WAVELENGTH:g}] nm")
+
+
+def _problem(prob) -> "DepthProblem":
+    """``prob`` when it is a :class:`DepthProblem`."""
+    if not isinstance(prob, DepthProblem):
+        raise InvalidInputError(f"prob must be a DepthProblem (from hyperlf.hlf.prepare), got "
+                                f"{type(prob).__name__}")
+    return prob
+
+
+def _depth_params(params) -> "DepthParams":
+    """``params`` as :class:`DepthParams` (None: the defaults)."""
+    return _opt.params_of(params, "params", DepthParams)
+
+
+def _progress(value):
+    """A progress switch: True, False or a bar's description."""
+    if isinstance(value, str):
+        return value
+    return _opt.flag(value, "progress (True, False or a bar's description)")
+
+
+def _finite(a: np.ndarray) -> bool:
+    """Whether every entry of the numeric ``a`` is finite: two reductions, no array the size
+    of ``a`` (NaN propagates through min and max)."""
+    if a.dtype.kind not in "fc" or a.size == 0:
+        return True
+    return bool(np.isfinite(a.min()) and np.isfinite(a.max()))
+
+
+def _array(value, label: str, shape=None, *, ndim: int | None = None, kinds: str = "biuf",
+           finite: bool = False, of: str = "") -> np.ndarray:
+    """``value`` as an array (an ndarray as it is) of ``kinds`` (numpy dtype kinds), of
+    ``shape`` (or ``ndim`` dimensions) where given, finite where asked; ``of`` names where the
+    shape comes from (``" (the problem's H x W)"``)."""
+    a = value if isinstance(value, np.ndarray) else _opt.real_array(value, label, dtype=None)
+    if a.dtype.kind not in kinds:
+        raise InvalidInputError(f"{label} must be an array of {_KINDS[kinds]}, got "
+                                f"{_opt.shown(value)}")
+    got = _opt.shown(value) if a.ndim == 0 else f"shape {a.shape}"
+    if shape is not None and a.shape != tuple(shape):
+        raise InvalidInputError(f"{label} must have shape {tuple(shape)}{of}, got {got}")
+    if ndim is not None and a.ndim != ndim:
+        raise InvalidInputError(f"{label} must be a {ndim}-D array{of}, got {got}")
+    if finite and not _finite(a):
+        raise InvalidInputError(f"{label} must be finite (no NaN or inf)")
+    return a
+
+
+def _map(value, label: str, shape, *, optional: bool = False, finite: bool = True):
+    """An (H, W) map of real numbers (None where ``optional``), finite unless told."""
+    if value is None and optional:
+        return None
+    return _array(value, label, tuple(shape), finite=finite, of=" (an H x W map)")
+
+
+def _volume(value, label: str, shape=None, *, finite: bool = False) -> np.ndarray:
+    """An (L, H, W) volume of real numbers (of ``shape`` where given)."""
+    return _array(value, label, shape, ndim=None if shape else 3, finite=finite,
+                  of=" (an L x H x W volume)")
+
+
+def _mask(value, label: str, shape, *, optional: bool = True, of: str = "the image"):
+    """A bool mask of ``shape`` (bools or numbers; a bool array as it is), None where
+    ``optional``."""
+    if value is None:
+        if optional:
+            return None
+        raise InvalidInputError(f"{label} must be a bool mask of shape {tuple(shape)}, got None")
+    return _opt.bool_mask(value, label, tuple(shape), of=of)
+
+
+def _weight(value, label: str, shape):
+    """None or an (H, W) map of texture weights in [0, 1] (:func:`texture_weight`)."""
+    w = _map(value, label, shape, optional=True)
+    if w is not None and w.size and not (w.min() >= 0 and w.max() <= 1):
+        raise InvalidInputError(f"{label} must hold weights in [0, 1], got values in "
+                                f"[{w.min():g}, {w.max():g}]")
+    return w
+
+
+def _labels(value, label: str = "labels", n: int | None = None) -> np.ndarray:
+    """Finite disparities (L,), ``n`` of them where given (at least one)."""
+    a = _array(value, label, ndim=1, finite=True)
+    if (n is not None and a.size != n) or a.size == 0:
+        want = f"{n}" if n is not None else "at least 1"
+        raise InvalidInputError(f"{label} must hold {want} disparities (one per label), got "
+                                f"{a.size}")
+    return a
+
+
+def _label_map(value, label: str, shape, n_labels: int) -> np.ndarray:
+    """An (H, W) map of label indices in ``0 .. n_labels - 1``."""
+    a = _array(value, label, tuple(shape), kinds="iu", of=" (an H x W map of label indices)")
+    if a.size and not (a.min() >= 0 and a.max() < n_labels):
+        raise InvalidInputError(f"{label} must hold label indices in 0..{n_labels - 1}, got "
+                                f"values in [{a.min()}, {a.max()}]")
+    return a
+
+
+def _pull_width(value, label: str = "width") -> float:
+    """The width of the coarse prior's pull (:data:`PULL_WIDTH`)."""
+    return _opt.number(value, label, positive=True, at_least=PULL_WIDTH[0],
+                       at_most=PULL_WIDTH[1])
+
+
+def _prior(value, shape, sizes=(3, 4), label: str = "prior"):
+    """None or :func:`coarse_prior`'s ``(coarse, strength, width[, confidence])``: finite
+    (H, W) maps and a width."""
+    if value is None:
+        return None
+    if not isinstance(value, (tuple, list)) or len(value) not in sizes:
+        what = " or ".join(map(str, sizes))
+        raise InvalidInputError(f"{label} must be None or the tuple of coarse_prior (coarse, "
+                                f"strength, width, confidence; {what} items), got "
+                                f"{_opt.shown(value)}")
+    items = [_map(value[0], f"{label}'s coarse disparity", shape),
+             _map(value[1], f"{label}'s strength", shape),
+             _pull_width(value[2], f"{label}'s width")]
+    if len(value) == 4:
+        items.append(_map(value[3], f"{label}'s confidence", shape, optional=True))
+    return tuple(items)
+
+
+def _start(value, shape):
+    """None or :func:`coarse_disparity`'s ``(disparity, confidence)``: two finite (H, W) maps."""
+    if value is None:
+        return None
+    if not isinstance(value, (tuple, list)) or len(value) != 2:
+        raise InvalidInputError("start must be None or coarse_disparity's (disparity, "
+                                f"confidence), got {_opt.shown(value)}")
+    return (_map(value[0], "start's disparity", shape),
+            _map(value[1], "start's confidence", shape))
+
+
+def _image_shape(prob: "DepthProblem") -> tuple[int, int]:
+    H, W = prob.lf.image_shape
+    return int(H), int(W)
+
+
+def _volume_shape(prob: "DepthProblem") -> tuple[int, int, int]:
+    return (prob.labels.size, *_image_shape(prob))
+
+
 def _texture_snr(value, label):
     """None, 0 (off) or a number > 1."""
     if value is not None and not (_number(value, label) == 0 or value > 1):
@@ -284,9 +453,9 @@ _DEPTH_RULES = {
     "selection_normalise": _flag,
     "selection_include_ref": _flag,
     "min_selected": _rule(_opt.integer, minimum=1),
-    "canny_sigma": _number,
-    "canny_low": _rule(_opt.number, optional=True),
-    "canny_high": _rule(_opt.number, optional=True),
+    "canny_sigma": _canny_sigma,
+    "canny_low": _canny_threshold,
+    "canny_high": _canny_threshold,
     "edge_dilate": _count,
     "min_half_views": _rule(_opt.integer, minimum=1),
     "missing_views": _rule(_opt.choice, choices=MISSING_VIEWS),
@@ -310,7 +479,7 @@ _DEPTH_RULES = {
     "plane_max_slope": _rule(_opt.number, positive=True, at_most=1),
     "plane_specks": _count,
     "plane_carry": _rule(_opt.number, optional=True),
-    "sigma_d": _positive,
+    "sigma_d": _sigma_d,
     "achromatic_radius": _number,
     "p_eps": _positive,
     "gamma_c": _number,
@@ -334,8 +503,8 @@ _DEPTH_RULES = {
     "max_memory": _rule(_opt.number, positive=True, optional=True),
     "tile_rows": _tile_rows,
     "texture_snr": _texture_snr,
-    "lambda_r": _opt.word_or(_positive, (None, "per_label", "per_pixel"),
-                             "None, 'per_label', 'per_pixel' or a finite number > 0"),
+    "lambda_r": _opt.word_or(_lambda_r_mode, (None,), "None, 'per_label', 'per_pixel' or a "
+                             f"wavelength in (0, {MAX_WAVELENGTH:g}] nm"),
     "median_passes": _opt.word_or(_rule(_opt.integer, minimum=1, maximum=MAX_MEDIAN_PASSES),
                                   ("auto",), f"'auto' or an integer in 1..{MAX_MEDIAN_PASSES}"),
 }
@@ -613,6 +782,18 @@ class DepthResult:
     config: dict = field(default_factory=dict)
     intermediate: dict | None = None
 
+    def __post_init__(self):  # types and shapes only: no pass over the maps
+        self.disparity = _array(self.disparity, "disparity", ndim=2, of=" (an H x W map)")
+        shape = self.disparity.shape
+        for name in ("confidence", "f_c", "f_d"):
+            if name != "f_d" or self.f_d is not None:
+                setattr(self, name, _map(getattr(self, name), name, shape, finite=False))
+        self.labels = _array(self.labels, "labels", ndim=1)
+        for name in ("timings", "config", "intermediate"):
+            value = getattr(self, name)
+            if not isinstance(value, dict) and (name != "intermediate" or value is not None):
+                raise InvalidInputError(f"{name} must be a dict, got {type(value).__name__}")
+
 
 def make_labels(dmin: float, dmax: float, n_labels: int) -> np.ndarray:
     """``n_labels`` disparities evenly spaced over ``[dmin, dmax]`` (float64).
@@ -623,10 +804,14 @@ def make_labels(dmin: float, dmax: float, n_labels: int) -> np.ndarray:
     >>> make_labels(-1, 1, 5).tolist()
     [-1.0, -0.5, 0.0, 0.5, 1.0]
     """
+    from .tiling import check_memory, count_text
+
     n = _opt.integer(n_labels, "n_labels", 2)
-    if not (np.isfinite(dmin) and np.isfinite(dmax) and dmin < dmax):
+    lo, hi = _opt.real(dmin, "dmin"), _opt.real(dmax, "dmax")
+    if not (lo < hi and math.isfinite(hi - lo)):
         raise InvalidInputError(f"disparity range must be finite with min < max, got ({dmin}, {dmax})")
-    return np.linspace(float(dmin), float(dmax), n)
+    check_memory(8.0 * n, f"{count_text(n)} labels", "use fewer labels")
+    return np.linspace(lo, hi, n)
 
 
 # ============================================================================================
@@ -653,16 +838,39 @@ def selection_masks(M_ref, Mq, valid, Mbar):
     >>> selection_masks(M_ref, Mq, True, 1.0)[0].tolist()
     [[True, False]]
     """
+    M_ref = _array(M_ref, "M_ref", ndim=2)
+    Mq = _array(Mq, "Mq")
+    Mbar = _array(Mbar, "Mbar")
+    try:
+        shape = np.broadcast_shapes(M_ref[None].shape, Mq.shape, Mbar.shape)
+    except ValueError:
+        raise InvalidInputError(f"M_ref {M_ref.shape}, Mq {Mq.shape} and Mbar {Mbar.shape} must "
+                                "broadcast to one (L, H, W) shape") from None
+    valid = _opt.bool_mask(valid, "valid", shape, broadcast=True, of="the volume")
+    return _selection_masks(M_ref, Mq, valid, Mbar)
+
+
+def _selection_masks(M_ref, Mq, valid, Mbar):
+    """:func:`selection_masks` on checked arrays."""
     return np.asarray(valid) & ((np.asarray(M_ref)[None] > Mbar) == (np.asarray(Mq) > Mbar))
 
 
 def aggregate_view_reference(acc: dict, Cv, valid, Mq, Mbar, M_ref, use_selection: bool,
                              edge_idx, edge_side) -> None:
     """Numpy reference of :func:`aggregate_view` (same arguments and effect)."""
+    Cv, valid, Mq, Mbar, M_ref, use_selection, edge_idx, edge_side = _aggregation_args(
+        acc, Cv, valid, Mq, Mbar, M_ref, use_selection, edge_idx, edge_side)
+    _aggregate_view_reference(acc, Cv, valid, Mq, Mbar, M_ref, use_selection, edge_idx,
+                              edge_side)
+
+
+def _aggregate_view_reference(acc: dict, Cv, valid, Mq, Mbar, M_ref, use_selection: bool,
+                              edge_idx, edge_side) -> None:
+    """:func:`aggregate_view_reference` on checked arguments."""
     L, H, W = Cv.shape
     valid = np.asarray(valid, bool)
     separate = _separate_selection(acc, use_selection)
-    sel = selection_masks(M_ref, Mq, valid, Mbar) if use_selection else valid
+    sel = _selection_masks(M_ref, Mq, valid, Mbar) if use_selection else valid
     if separate:
         acc["S_sel"] += np.where(sel, Cv, 0.0).astype(np.float32)
         acc["N_sel"] += sel.astype(np.float32)
@@ -684,6 +892,19 @@ def aggregate_view_reference(acc: dict, Cv, valid, Mq, Mbar, M_ref, use_selectio
             acc["E_N_all"][h] += m_all.astype(np.float32)
 
 
+#: The largest magnitude :func:`half_plane_sides` takes (squares and products stay finite).
+MAX_MAGNITUDE = 1e150
+
+
+def _finite_values(value, label: str, shape=None, *, ndim: int | None = None) -> np.ndarray:
+    """Finite real numbers of magnitude at most :data:`MAX_MAGNITUDE` (of ``shape`` or
+    ``ndim`` where given): a few, such as offsets or gradients at edge pixels."""
+    a = _array(value, label, shape, ndim=ndim, finite=True)
+    if a.size and float(np.abs(a).max()) > MAX_MAGNITUDE:
+        raise InvalidInputError(f"{label} must be at most {MAX_MAGNITUDE:g} in magnitude")
+    return a
+
+
 def _new_accumulators(L, H, W, E, selection: bool = True):
     """Sums and counts of :func:`aggregate_view`.  Without view ``selection`` the selected
     views are all valid ones, so each ``*_sel`` entry is its ``*_all`` array itself (half the
@@ -693,6 +914,52 @@ def _new_accumulators(L, H, W, E, selection: bool = True):
     for k in ("S", "N", "E_S", "E_N"):
         acc[f"{k}_sel"] = z(*acc[f"{k}_all"].shape) if selection else acc[f"{k}_all"]
     return acc
+
+
+_ACC_KEYS = ("S_sel", "N_sel", "S_all", "N_all", "E_S_sel", "E_N_sel", "E_S_all", "E_N_all")
+
+
+def _aggregation_args(acc, Cv, valid, Mq, Mbar, M_ref, use_selection, edge_idx, edge_side):
+    """The arguments of :func:`aggregate_view` checked (O(1) but for the E edge pixels):
+    ``(Cv, valid, Mq, Mbar, M_ref, use_selection, edge_idx, edge_side)``, the edges as empty
+    arrays when there are none, ``Mq`` and ``Mbar`` as placeholders without selection."""
+    use_selection = _opt.flag(use_selection, "use_selection")
+    Cv = _volume(Cv, "Cv")
+    L, H, W = Cv.shape
+    valid = _mask(valid, "valid", Cv.shape, optional=False, of="Cv")
+    M_ref = _array(M_ref, "M_ref", (H, W), of=" (Cv's H x W)")
+    if use_selection:
+        Mq = _array(Mq, "Mq", Cv.shape, of=" (Cv's)")
+        Mbar = _array(Mbar, "Mbar", Cv.shape, of=" (Cv's)")
+    else:  # the kernel never reads them
+        Mq = Mbar = np.zeros((1, 1, 1), np.float32)
+    if edge_idx is not None and edge_side is not None:
+        edge_idx = _array(edge_idx, "edge_idx", ndim=1, kinds="biuf")
+    if edge_idx is None or edge_side is None or edge_idx.size == 0:
+        edge_idx = np.zeros(0, np.int64)
+        edge_side = np.zeros(0, np.int8)
+    else:
+        edge_idx = _array(edge_idx, "edge_idx", kinds="iu")
+        if not (edge_idx.min() >= 0 and edge_idx.max() < H * W):
+            raise InvalidInputError(f"edge_idx must hold flat pixel indices in 0..{H * W - 1}, "
+                                    f"got values in [{edge_idx.min()}, {edge_idx.max()}]")
+        edge_side = _array(edge_side, "edge_side", edge_idx.shape, kinds="iu",
+                           of=" (one per edge pixel)")
+        if not (edge_side.min() >= -1 and edge_side.max() <= 1):
+            raise InvalidInputError("edge_side must hold -1, 0 or 1 per edge pixel")
+    E = edge_idx.size
+    if not isinstance(acc, dict) or any(k not in acc for k in _ACC_KEYS):
+        raise InvalidInputError(f"acc must be the dict of accumulators ({', '.join(_ACC_KEYS)}),"
+                                f" got {_opt.shown(acc)}")
+    for k in _ACC_KEYS:  # the edge sums: any count of edge pixels when none are added
+        a = acc[k]
+        want = (L, H, W) if not k.startswith("E_") else (2, L, E) if E else (2, L)
+        if not (isinstance(a, np.ndarray) and a.dtype == np.float32 and a.ndim == 3
+                and a.shape[:len(want)] == want and a.flags.c_contiguous and a.flags.writeable):
+            raise InvalidInputError(f"acc[{k!r}] must be a writeable float32 array of shape "
+                                    f"{want + (('E',) if len(want) == 2 else ())}, got "
+                                    f"{_opt.shown(a)}")
+    return Cv, valid, Mq, Mbar, M_ref, use_selection, edge_idx, edge_side
 
 
 def _separate_selection(acc: dict, use_selection: bool) -> bool:
@@ -714,15 +981,16 @@ def aggregate_view(acc: dict, Cv, valid, Mq, Mbar, M_ref, use_selection: bool,
     ``Mq`` (M of the view at ``q_v``), ``Mbar`` (L, H, W); ``M_ref`` (H, W); ``edge_idx``
     (E,) flat pixel indices; ``edge_side`` (E,) in {-1, 0, 1} (0 = on the line: both halves).
     ``impl="numpy"`` runs :func:`aggregate_view_reference`.
+
+    Checked at every call (one per view and strip): types, shapes and the edge pixels'
+    indices and sides (O(E)); the costs' values are not scanned.
     """
-    if edge_idx is None or edge_side is None or len(edge_idx) == 0:
-        edge_idx = np.zeros(0, np.int64)
-        edge_side = np.zeros(0, np.int8)
-    if not use_selection:  # the kernel never reads them
-        Mq = Mbar = np.zeros((1, 1, 1), np.float32)
+    _opt.choice(impl, "impl", ("auto", "numba", "numpy"))
+    Cv, valid, Mq, Mbar, M_ref, use_selection, edge_idx, edge_side = _aggregation_args(
+        acc, Cv, valid, Mq, Mbar, M_ref, use_selection, edge_idx, edge_side)
     if impl == "numpy":
-        return aggregate_view_reference(acc, Cv, valid, Mq, Mbar, M_ref, use_selection, edge_idx,
-                                        edge_side)
+        return _aggregate_view_reference(acc, Cv, valid, Mq, Mbar, M_ref, use_selection,
+                                         edge_idx, edge_side)
     from . import _hlf_kernels
 
     separate = _separate_selection(acc, use_selection)
@@ -762,6 +1030,10 @@ def neutral_missing_views(C: np.ndarray, n_used: np.ndarray) -> np.ndarray:
     """
     import warnings
 
+    C = _volume(C, "C")
+    n_used = _volume(n_used, "n_used", C.shape)
+    if n_used.size and not (n_used.min() >= 0 and np.isfinite(n_used.max())):
+        raise InvalidInputError("n_used must hold view counts (finite numbers >= 0)")
     n = np.asarray(n_used, np.float32)
     n_max = n.max(axis=0, keepdims=True)
     with warnings.catch_warnings():  # pixels no view sees: all-NaN, stay NaN
@@ -823,6 +1095,13 @@ def reference_edges(ref_img, sigma: float = 1.0, low=None, high=None, dilate: in
     """
     import cv2
 
+    ref_img = _array(ref_img, "ref_img", ndim=2, finite=True)
+    if min(ref_img.shape) < 1:
+        raise InvalidInputError(f"ref_img must be a non-empty image, got shape {ref_img.shape}")
+    sigma = _canny_sigma(sigma, "sigma")
+    low = _canny_threshold(low, "low")
+    high = _canny_threshold(high, "high")
+    dilate = min(_opt.integer(dilate, "dilate"), max(ref_img.shape))  # wider: every pixel
     In = normalise_intensity(ref_img)
     hi_v = float(np.percentile(In, 99.5))
     img8 = np.clip(In / (hi_v if hi_v > 0 else 1.0) * 255.0, 0, 255).astype(np.uint8)
@@ -856,8 +1135,14 @@ def half_plane_sides(gx, gy, offsets) -> np.ndarray:
     >>> half_plane_sides([1.0], [0.0], [(-1, 0), (0, 1), (1, 0)])[:, 0].tolist()
     [-1, 0, 1]
     """
+    gx = _finite_values(gx, "gx", ndim=1)
+    gy = _finite_values(gy, "gy", gx.shape)
+    o = _finite_values(offsets, "offsets")
+    if o.ndim < 1 or o.shape[-1] != 2:
+        raise InvalidInputError(f"offsets must be view offsets (dx, dy), shape (V, 2), got "
+                                f"shape {o.shape}")
     g = np.stack([np.asarray(gx, np.float64), np.asarray(gy, np.float64)], axis=-1)  # (E, 2)
-    o = np.asarray(offsets, np.float64).reshape(-1, 2)
+    o = np.asarray(o, np.float64).reshape(-1, 2)
     dot = o @ g.T  # (V, E)
     tol = 1e-9 * np.linalg.norm(o, axis=1)[:, None] * np.linalg.norm(g, axis=1)[None, :]
     s = np.sign(dot)
@@ -873,6 +1158,45 @@ def half_plane_sides(gx, gy, offsets) -> np.ndarray:
 def defocus_cost_reference(P, valid, wl, lam_r, prior: str = "gaussian", sigma_d: float = 96.5,
                            p_eps: float = 1e-6):
     """Numpy reference of :func:`defocus_cost`."""
+    P, valid, wl, lam_r, sigma_d, p_eps = _defocus_args(P, valid, wl, lam_r, prior, sigma_d,
+                                                        p_eps)
+    return _defocus_cost_reference(P, valid, wl, lam_r, prior, sigma_d, p_eps)
+
+
+def _defocus_args(P, valid, wl, lam_r, prior, sigma_d, p_eps):
+    """The arguments of :func:`defocus_cost` checked (one call per label: types, shapes and
+    the (N,) wavelengths; ``lam_r``'s values only when it is one number):
+    ``(P, valid, wl, lam_r, sigma_d, p_eps)``."""
+    _opt.choice(prior, "prior", tuple(_PRIOR_CODE))
+    P = _array(P, "P", ndim=3, of=" (N, H, W): one profile entry per view")
+    N, H, W = P.shape
+    valid = _opt.bool_mask(valid, "valid", P.shape, broadcast=True, of="P")
+    wl = _wavelengths(wl, "wl", (N,))
+    lam = _array(lam_r, "lam_r")
+    try:
+        fits = np.broadcast_shapes(lam.shape, (H, W)) == (H, W)
+    except ValueError:
+        fits = False
+    if not fits:
+        raise InvalidInputError(f"lam_r must be one wavelength or an (H, W) map of them, "
+                                f"{(H, W)}, got shape {lam.shape}")
+    if prior == "gaussian" and lam.ndim == 0:  # a map's values are not scanned here
+        _wavelength(lam_r, "lam_r")
+    return P, valid, wl, lam_r, _sigma_d(sigma_d, "sigma_d"), _positive(p_eps, "p_eps")
+
+
+def _wavelengths(value, label: str, shape) -> np.ndarray:
+    """Wavelengths (nm) of ``shape``, each finite, > 0 and at most :data:`MAX_WAVELENGTH`."""
+    wl = _array(value, label, shape, finite=True, of=" (one per view)")
+    if wl.size and not (wl.min() > 0 and wl.max() <= MAX_WAVELENGTH):
+        raise InvalidInputError(f"{label} must be wavelengths in (0, {MAX_WAVELENGTH:g}] nm, "
+                                f"got values in [{wl.min():g}, {wl.max():g}]")
+    return wl
+
+
+def _defocus_cost_reference(P, valid, wl, lam_r, prior: str = "gaussian",
+                            sigma_d: float = 96.5, p_eps: float = 1e-6):
+    """:func:`defocus_cost_reference` on checked arguments."""
     P = np.asarray(P, np.float64)
     V = np.asarray(valid, bool)
     wl = np.asarray(wl, np.float64)
@@ -914,10 +1238,11 @@ def defocus_cost(P, valid, wl, lam_r, prior: str = "gaussian", sigma_d: float = 
     (KL(1/n || P*)), ``tv`` (sum of |P*_k+1 - P*_k| along sorted wavelength).  Over the valid
     views only (Pg and P* renormalised), ``P*`` floored at ``p_eps``; 0 where no view is valid.
     """
-    if prior not in _PRIOR_CODE:
-        raise InvalidInputError(f"prior must be one of {tuple(_PRIOR_CODE)}, got {prior!r}")
+    _opt.choice(impl, "impl", ("auto", "numba", "numpy"))
+    P, valid, wl, lam_r, sigma_d, p_eps = _defocus_args(P, valid, wl, lam_r, prior, sigma_d,
+                                                        p_eps)
     if impl == "numpy":
-        return defocus_cost_reference(P, valid, wl, lam_r, prior, sigma_d, p_eps)
+        return _defocus_cost_reference(P, valid, wl, lam_r, prior, sigma_d, p_eps)
     P = np.ascontiguousarray(P, np.float64)
     N, H, W = P.shape
     wl = np.asarray(wl, np.float64)
@@ -965,8 +1290,20 @@ def defocus_volume(In_views, offsets, wl, labels, prior="gaussian", lambda_r="pe
     ``"per_pixel"`` (from the profile at ``f_c``, a (H, W) disparity map) or a number (nm).
     Entries with no valid view get the pixel's worst valid value.
     """
-    In_views = np.asarray(In_views, np.float64)
+    In_views = _array(In_views, "In_views", ndim=3, finite=True, of=" (N, H, W)")
     N, H, W = In_views.shape
+    offsets = _finite_values(offsets, "offsets", (N, 2))
+    wl = _wavelengths(wl, "wl", (N,))
+    labels = _labels(labels)
+    _opt.choice(prior, "prior", tuple(_PRIOR_CODE))
+    lambda_r = _lambda_r_mode(lambda_r, "lambda_r")
+    f_c = _map(f_c, "f_c", (H, W), optional=True)
+    sigma_d = _sigma_d(sigma_d, "sigma_d")
+    achromatic_radius = _opt.number(achromatic_radius, "achromatic_radius")
+    p_eps = _positive(p_eps, "p_eps")
+    _opt.choice(impl, "impl", ("auto", "numba", "numpy"))
+    valid = _mask(valid, "valid", (N, H, W), of="In_views")
+    In_views = np.asarray(In_views, np.float64)
     wl = np.asarray(wl, np.float64)
     lo, hi = float(wl.min()), float(wl.max())
     S = is_rgb = None
@@ -1030,11 +1367,26 @@ def normalise_unary(X, enabled: bool = True, *, mask=None):
     >>> U[:, 0, 0].tolist(), s
     ([0.0, 1.0], 4.0)
     """
+    X = _volume(X, "X")
+    enabled = _opt.flag(enabled, "enabled")
+    mask = _mask(mask, "mask", X.shape[1:], of="X's pixels")
+    return _normalise_unary(X, enabled, mask, "X")
+
+
+def _normalise_unary(X, enabled: bool, mask, label: str):
+    """:func:`normalise_unary` of a checked volume, refusing non-finite costs on the way
+    (their per-pixel minimum and maximum, which it needs anyway, show them)."""
+    if X.shape[0] == 0:
+        raise InvalidInputError(f"{label} must hold at least one label, got shape {X.shape}")
     X = np.asarray(X, np.float32)
-    Y = X - X.min(axis=0, keepdims=True)
+    low = X.min(axis=0, keepdims=True)
+    high = X.max(axis=0)
+    if not (np.isfinite(low).all() and np.isfinite(high).all()):
+        raise InvalidInputError(f"{label} must be finite (no NaN or inf)")
+    Y = X - low
     s = 1.0
     if enabled:
-        rng = Y.max(axis=0)
+        rng = high - low[0]  # = Y.max(axis=0): the rounded difference is monotonic
         if mask is not None and np.any(mask):
             rng = rng[np.asarray(mask, bool)]
         med = float(np.median(rng))
@@ -1160,10 +1512,65 @@ class DepthProblem:
     visibility_rounds: int = 0
     every_label: dict | None = None
 
+    def __post_init__(self):  # the fields' types and shapes (prepare sets the rest later)
+        from .lightfield import LightField
+
+        _opt.check_fields(self, {"lf": _instance(LightField, "a LightField"),
+                                 **_PROBLEM_RULES})
+        if self.ref_img.shape != tuple(self.lf.image_shape) or self.labels.size < 2:
+            raise InvalidInputError(
+                f"ref_img must be the light field's {self.lf.image_shape} reference view and "
+                f"labels at least 2 disparities, got shape {self.ref_img.shape} and "
+                f"{self.labels.size} labels")
+
     @property
     def impl(self) -> str:
         """Kernel implementation of the selection and defocus kernels."""
         return "numpy" if self.params.impl == "numpy" else "numba"
+
+
+def _instance(cls, what: str, *, optional: bool = False):
+    """A rule: ``value`` when it is a ``cls`` (or None where ``optional``)."""
+    def check(value, label):
+        if not isinstance(value, cls) and not (optional and value is None):
+            none = " or None" if optional else ""
+            raise InvalidInputError(f"{label} must be {what}{none}, got {type(value).__name__}")
+        return value
+    return check
+
+
+def _optional(check):
+    """``check`` that lets None pass."""
+    return lambda value, label: None if value is None else check(value, label)
+
+
+#: How :class:`DepthProblem` checks its fields (types and shapes, no pass over the arrays).
+_PROBLEM_RULES = {
+    "metric": _instance(str, "a cost's name"),
+    "view_selection": _flag,
+    "occlusion_split": _flag,
+    "defocus": _rule(_opt.choice, choices=DEFOCUS_MODES),
+    "optimizer": _rule(_opt.choice, choices=OPTIMIZERS),
+    "params": _instance(DepthParams, "a DepthParams"),
+    "labels": lambda value, label: _array(value, label, ndim=1),
+    "disparity_range": _opt.real_pair,
+    "views": _instance(list, "a list of views (r, c)"),
+    "others": _instance(list, "a list of views (r, c)"),
+    "reference": _instance(tuple, "a view (r, c)"),
+    "offsets": lambda value, label: _array(value, label, ndim=3, of=" (R, C, 2)"),
+    "ref_img": lambda value, label: _array(value, label, ndim=2),
+    "In": _instance(dict, "a dict of images per view"),
+    "Mn": _instance(dict, "a dict of images per view"),
+    "M_ref": _optional(lambda value, label: _array(value, label, ndim=2)),
+    "Mbar": _optional(lambda value, label: _array(value, label, ndim=3)),
+    "edges": _optional(lambda value, label: _array(value, label, ndim=2)),
+    "edge_idx": _optional(lambda value, label: _array(value, label, ndim=1, kinds="iu")),
+    "sides": _optional(lambda value, label: _array(value, label, ndim=2, kinds="iu")),
+    "valid": _instance(dict, "a dict of masks per view", optional=True),
+    "window": _rule(_opt.integer, minimum=1, optional=True),
+    "visibility_rounds": _count,
+    "every_label": _instance(dict, "a dict of masks per view", optional=True),
+}
 
 
 def _check_depth_options(lf, metric, view_selection, occlusion_split, defocus, optimizer,
@@ -1357,7 +1764,7 @@ def views_at_every_label(prob: DepthProblem) -> dict:
     dict
         ``(r, c)`` -> bool (H, W) for every other view.
     """
-    out = _seen_at_every_label(prob)
+    out = _seen_at_every_label(_problem(prob))
     none = np.sum(list(out.values()), axis=0) == 0
     return {v: m | none for v, m in out.items()}
 
@@ -1387,6 +1794,8 @@ def _mask_args(prob: DepthProblem, v) -> dict:
 def seen_pixels(prob: DepthProblem, n_used: np.ndarray) -> np.ndarray | None:
     """Reference pixels that carry information: valid, and seen by a valid sample of some
     other view at some label (bool (H, W)); None when the light field has no mask."""
+    prob = _problem(prob)
+    n_used = _volume(n_used, "n_used", _volume_shape(prob))
     if prob.valid is None:
         return None
     return prob.valid[prob.reference] & (np.asarray(n_used) > 0).any(axis=0)
@@ -1407,6 +1816,8 @@ def visible_views(prob: DepthProblem, disparity: np.ndarray) -> dict:
     """
     from .warp import visible_in_view
 
+    prob = _problem(prob)
+    disparity = _map(disparity, "disparity", _image_shape(prob))
     p = prob.params
     d = np.asarray(disparity, np.float64)
     sees = {v: visible_in_view(d, tuple(prob.offsets[v]), margin=float(p.visibility_margin))
@@ -1435,6 +1846,8 @@ class LabelVisibility:
     def __init__(self, prob: "DepthProblem", disparity: np.ndarray):
         from .warp import occlusion_zbuffer
 
+        prob = _problem(prob)
+        disparity = _map(disparity, "disparity", _image_shape(prob))
         p = prob.params
         d = np.asarray(disparity, np.float64)
         self.zbuffers = {v: occlusion_zbuffer(d, tuple(prob.offsets[v])).astype(np.float32)
@@ -1472,7 +1885,7 @@ class LabelVisibility:
 def visibility(prob: "DepthProblem", disparity: np.ndarray):
     """Stage 7's visibility under ``params.visibility_test``: :class:`LabelVisibility`
     (``"hypothesis"``) or :func:`visible_views` (``"estimate"``)."""
-    if prob.params.visibility_test == "estimate":
+    if _problem(prob).params.visibility_test == "estimate":
         return visible_views(prob, disparity)
     return LabelVisibility(prob, disparity)
 
@@ -1685,6 +2098,27 @@ def _strip_correspondence(prob: DepthProblem, rows, scales, sees, cache, bar, cl
     return C, n_used
 
 
+def _sees(sees, prob: DepthProblem):
+    """:func:`correspondence`'s ``sees`` checked: None, a :class:`LabelVisibility` of the
+    problem, or a bool (H, W) mask per other view (:func:`visible_views`)."""
+    shape = _image_shape(prob)
+    if sees is None:
+        return None
+    if isinstance(sees, LabelVisibility):
+        z = next(iter(sees.zbuffers.values()), None)
+        if (sees.labels.size != prob.labels.size or z is None or z.shape != shape
+                or any(v not in sees.zbuffers for v in prob.others)):
+            raise InvalidInputError("sees is a LabelVisibility of another problem (its "
+                                    "labels, image size or views differ)")
+        return sees
+    if not isinstance(sees, dict) or any(v not in sees for v in prob.others):
+        raise InvalidInputError("sees must be None, a LabelVisibility or a dict of bool (H, W) "
+                                f"masks for every other view {prob.others}, got "
+                                f"{_opt.shown(sees)}")
+    return {v: _mask(sees[v], f"sees[{v}]", shape, optional=False, of="the views")
+            for v in prob.others}
+
+
 def correspondence(prob: DepthProblem, *, progress: bool | str = False, timings=None,
                    sees: dict | None = None, strips=None, store: ViewCostStore | None = None):
     """Stage 2 of :func:`depth`: per-view costs streamed into the aggregation (SPEC §5.1-5.2).
@@ -1709,8 +2143,20 @@ def correspondence(prob: DepthProblem, *, progress: bool | str = False, timings=
     """
     from .tiling import check_strips
 
+    prob = _problem(prob)
+    progress = _progress(progress)
+    if timings is not None and not isinstance(timings, dict):
+        raise InvalidInputError(f"timings must be None or a dict (seconds per stage are added "
+                                f"to it), got {type(timings).__name__}")
+    sees = _sees(sees, prob)
+    if store is not None and not isinstance(store, ViewCostStore):
+        raise InvalidInputError(f"store must be None or a ViewCostStore, got "
+                                f"{type(store).__name__}")
     L = prob.labels.size
     H, W = prob.lf.image_shape
+    if strips is not None and not isinstance(strips, (list, tuple, np.ndarray)):
+        raise InvalidInputError(f"strips must be None or a list of row ranges (a, b), got "
+                                f"{_opt.shown(strips)}")
     strips = check_strips(strips, H)
     clock = _Clock({"correspondence_s": 0.0, "selection_split_s": 0.0})
     # kept costs were made with the whole-view scales already
@@ -1758,6 +2204,8 @@ def defocus_cue(prob: DepthProblem, f_c: np.ndarray):
     lambda_r : ndarray or None
         The reference wavelength(s) used.
     """
+    prob = _problem(prob)
+    f_c = _map(f_c, "f_c", _image_shape(prob), optional=True)
     if prob.defocus == "off":
         return None, None
     p = prob.params
@@ -1789,7 +2237,7 @@ def texture_weight(prob: DepthProblem) -> np.ndarray | None:
         does not come from cameras), every weight is 1 (a noise-free image), or the
         optimiser is ``"wta"`` (no neighbours to take a label from: the costs decide alone).
     """
-    t0 = _texture_threshold(prob)
+    t0 = _texture_threshold(_problem(prob))
     if t0 == 0:
         return None
     ref = prob.reference
@@ -1828,11 +2276,17 @@ def unary(C: np.ndarray, D: np.ndarray | None, params: DepthParams, *, informati
     scale_C, scale_D : float, float or None
         The normalisers of :func:`normalise_unary`.
     """
-    U, sC = normalise_unary(C, params.normalise_costs, mask=informative)  # a new volume
+    C = _volume(C, "C")
+    D = None if D is None else _volume(D, "D", C.shape)
+    params = _depth_params(params)
+    informative = _mask(informative, "informative", C.shape[1:], of="C's pixels")
+    weight = _weight(weight, "weight", C.shape[1:])
+    # a new volume; C's and D's values are checked on the way (their per-pixel range)
+    U, sC = _normalise_unary(C, params.normalise_costs, informative, "C")
     U *= params.gamma_c  # in place from here: the MRF stage holds as few volumes as it can
     sD = None
     if D is not None:
-        Dn, sD = normalise_unary(D, params.normalise_costs, mask=informative)
+        Dn, sD = _normalise_unary(D, params.normalise_costs, informative, "D")
         U += Dn
         del Dn
     if informative is not None:
@@ -1858,6 +2312,18 @@ def add_coarse_prior(U: np.ndarray, labels: np.ndarray, coarse: np.ndarray,
     ...                  np.array([[1.0, 0.0]]), width=1.0)[:, 0, :].tolist()
     [[0.0, 0.0], [1.0, 0.0], [1.0, 0.0]]
     """
+    if not (isinstance(U, np.ndarray) and U.dtype.kind == "f" and U.ndim == 3
+            and U.flags.writeable):
+        raise InvalidInputError(f"U must be a writeable (L, H, W) float array (it is added to "
+                                f"in place), got {_opt.shown(U)}")
+    labels = _labels(labels, n=U.shape[0])
+    coarse = _map(coarse, "coarse", U.shape[1:])
+    strength = _map(strength, "strength", U.shape[1:])
+    return _add_pull(U, labels, coarse, strength, _pull_width(width))
+
+
+def _add_pull(U, labels, coarse, strength, width):
+    """:func:`add_coarse_prior` on checked arguments."""
     pull = np.asarray(strength, np.float32)
     c = np.asarray(coarse, np.float32)
     for k, d in enumerate(np.asarray(labels, np.float32)):
@@ -1882,6 +2348,11 @@ def coarse_prior(prob: DepthProblem, weight, start=None, *, progress: bool | str
     estimate, ``(disparity, confidence)`` from :func:`coarse_disparity` with
     ``return_confidence``, reused when made at the same scale.
     """
+    prob = _problem(prob)
+    shape = _image_shape(prob)
+    weight = _weight(weight, "weight", shape)
+    start = _start(start, shape)
+    progress = _progress(progress)
     p = prob.params
     if weight is None or not p.coarse_prior:
         return None
@@ -1952,6 +2423,11 @@ def plane_prior(prob: DepthProblem, weight, prior, *, progress: bool | str = Fal
         ``prior`` with ``coarse`` and ``strength`` replaced under the planes; ``prior`` itself
         when there is no prior or ``params.weak_planes`` is off.
     """
+    prob = _problem(prob)
+    shape = _image_shape(prob)
+    weight = _weight(weight, "weight", shape)
+    _prior(prior, shape, sizes=(4,))  # returned as it is where there is nothing to do
+    progress = _progress(progress)
     p = prob.params
     if prior is None or weight is None or not p.weak_planes:
         return prior
@@ -2053,6 +2529,12 @@ def regularise(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray, *, init=None)
     volume : ndarray, float32 (L, H, W)
         The volume refinement and confidence read (the SGM-aggregated one for SGM).
     """
+    prob = _problem(prob)
+    shape = _volume_shape(prob)
+    U = _volume(U, "U", shape, finite=True)
+    f_c = _map(f_c, "f_c", shape[1:])
+    if init is not None:
+        init = _label_map(init, "init", shape[1:], shape[0])
     p = prob.params
     labels = prob.labels
     step = float(labels[1] - labels[0])
@@ -2092,6 +2574,14 @@ def refine(volume: np.ndarray, labels_map: np.ndarray, labels: np.ndarray,
     """
     from .regularisers import confidence, subpixel_refine
 
+    volume = _volume(volume, "volume", finite=True)
+    shape = volume.shape[1:]
+    labels_map = _label_map(labels_map, "labels_map", shape, volume.shape[0])
+    labels = _labels(labels, n=volume.shape[0])
+    params = _depth_params(params)
+    informative = _mask(informative, "informative", shape, of="volume's pixels")
+    weight = _weight(weight, "weight", shape)
+    prior = _prior(prior, shape)
     if params.refine:
         disp = subpixel_refine(volume, labels_map, labels)
     else:
@@ -2100,7 +2590,7 @@ def refine(volume: np.ndarray, labels_map: np.ndarray, labels: np.ndarray,
     if prior is None:
         conf = confidence(volume, labels_map, floor=floor)
     else:
-        conf = prior_free_confidence(volume, labels_map, labels, prior, floor=floor)
+        conf = _prior_free_confidence(volume, labels_map, labels, prior, 64, floor)
     if informative is not None:
         conf = np.where(np.asarray(informative, bool), conf, np.float32(0)).astype(np.float32)
     if weight is not None:
@@ -2125,6 +2615,20 @@ def prior_free_confidence(volume: np.ndarray, labels_map: np.ndarray, labels: np
     >>> float(confidence(U, lab)[0, 0]), float(prior_free_confidence(U, lab, labels, prior)[0, 0])
     (1.0, 0.0)
     """
+    volume = _volume(volume, "volume", finite=True)
+    labels_map = _label_map(labels_map, "labels_map", volume.shape[1:], volume.shape[0])
+    labels = _labels(labels, n=volume.shape[0])
+    prior = _prior(prior, volume.shape[1:])
+    if prior is None:
+        raise InvalidInputError("prior must be the tuple of coarse_prior (coarse, strength, "
+                                "width[, confidence]), got None")
+    rows = _opt.integer(rows, "rows", 1)
+    floor = _opt.number(floor, "floor", below=1)
+    return _prior_free_confidence(volume, labels_map, labels, prior, rows, floor)
+
+
+def _prior_free_confidence(volume, labels_map, labels, prior, rows, floor):
+    """:func:`prior_free_confidence` on checked arguments."""
     from .regularisers import confidence
 
     coarse, strength, width = (np.asarray(a, np.float32) for a in prior[:3])
@@ -2132,7 +2636,7 @@ def prior_free_confidence(volume: np.ndarray, labels_map: np.ndarray, labels: np
     for r0 in range(0, labels_map.shape[0], int(rows)):
         rs = slice(r0, r0 + int(rows))
         strip = np.array(volume[:, rs], np.float32)  # a copy: the caller's volume stays
-        add_coarse_prior(strip, labels, coarse[rs], -strength[rs], float(width))
+        _add_pull(strip, labels, coarse[rs], -strength[rs], float(width))
         out[rs] = confidence(strip, labels_map[rs], floor=floor)
     return out
 
@@ -2144,9 +2648,11 @@ def post_filter(disparity: np.ndarray, guide: np.ndarray, params: DepthParams, *
     beyond the image's longer side is taken as that side (a window over the whole image)."""
     from .regularisers import weighted_median
 
-    params = _opt.params_of(params, "params", DepthParams)
+    params = _depth_params(params)
     if passes is not None:
         passes = _opt.integer(passes, "passes", maximum=MAX_MEDIAN_PASSES)
+    disparity = _array(disparity, "disparity", ndim=2)
+    guide = _array(guide, "guide", disparity.shape, of=" (the disparity's)")
     if params.median_radius <= 0:
         return disparity
     radius = min(int(params.median_radius), max(disparity.shape))
@@ -2165,6 +2671,9 @@ def median_passes(guide: np.ndarray, params: DepthParams, *, valid=None) -> tupl
     ``params.median_blur_sharp``, at least one (one when the guide has too few edges to tell)
     and at most :data:`MAX_MEDIAN_PASSES`.
     """
+    params = _depth_params(params)
+    guide = _array(guide, "guide", ndim=2)
+    valid = _mask(valid, "valid", guide.shape, of="the guide")
     if params.median_passes != "auto":
         return int(params.median_passes), float("nan")
     from .imageops import edge_blur
@@ -2227,7 +2736,7 @@ def _solve(prob: DepthProblem, C, D, seen, f_c, w, prior, clock, passes: int,
     post-filter.  Returns ``(U, scale_C, scale_D, disparity, confidence, labels)``."""
     U, sC, sD = unary(C, D, prob.params, informative=seen, weight=w)
     if prior is not None:
-        add_coarse_prior(U, prob.labels, *prior[:3])
+        _add_pull(U, prob.labels, *prior[:3])
     lab, vol = regularise(prob, U, f_c, init=init)
     clock.lap("mrf_s" + suffix)
     disp, conf = refine(vol, lab, prob.labels, prob.params, informative=seen, weight=w,
@@ -2250,6 +2759,9 @@ def edge_discount(conf: np.ndarray, disparity: np.ndarray, params: DepthParams) 
     ``params.confidence_edge_jump``; ``conf`` as it is when the width is 0)."""
     from .regularisers import edge_confidence
 
+    disparity = _array(disparity, "disparity", ndim=2, finite=True)
+    conf = _map(conf, "conf", disparity.shape)
+    params = _depth_params(params)
     w = edge_confidence(disparity, width=params.confidence_edge_px,
                         jump=params.confidence_edge_jump)
     return np.asarray(conf, np.float32) * w
@@ -2339,8 +2851,7 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
     clock = _Clock(timings)
     t0 = clock.t
     save_intermediate = _opt.flag(save_intermediate, "save_intermediate")
-    if not isinstance(progress, str):
-        progress = _opt.flag(progress, "progress (True, False or a bar's description)")
+    progress = _progress(progress)
     prob = prepare(lf, disparity_range=disparity_range, n_labels=n_labels, metric=metric,
                    view_selection=view_selection, occlusion_split=occlusion_split,
                    defocus=defocus, optimizer=optimizer, params=params)
