@@ -171,7 +171,7 @@ def test_every_argument_takes_junk_or_refuses_it_in_one_line(which, value):
     (RI.rotation_matrix, "rx", float("nan"), "rx must be a finite number, got nan"),
     (RI.make_rig, "focal", 0, "focal must be a finite number in [1, 1e+07], got 0"),
     (RI.make_rig, "inverted", 3, "inverted must be raster indices of cameras"),
-    (RI.BoardPose, "t", [np.inf, 0, 0], "t must be finite numbers of shape (3,)"),
+    (RI.BoardPose, "t", [np.inf, 0, 0], "t must be finite"),
 ])
 def test_former_failures_name_the_argument(fn, key, value, words):
     with pytest.raises(InvalidInputError) as exc:

@@ -30,8 +30,9 @@ import numpy as np
 
 from .errors import InvalidInputError
 
-__all__ = ["number", "real", "integer", "share", "flag", "choice", "real_array", "real_pair",
-           "int_pair", "index", "float_dtype", "bool_mask", "path_like",
+__all__ = ["number", "real", "integer", "share", "flag", "choice", "real_array", "array",
+           "all_finite", "real_pair", "int_pair", "index", "float_dtype", "bool_mask", "path_like",
+           "text", "instance",
            "shown", "rule", "word_or", "check_fields", "check_values", "params_of", "window",
            "mapping"]
 
@@ -263,6 +264,82 @@ def real_array(value, label: str, dtype=np.float64) -> np.ndarray:
     except (TypeError, ValueError, OverflowError):
         raise InvalidInputError(f"{label} must be an array of real numbers, got "
                                 f"{shown(value)}") from None
+
+
+_KINDS = {"biuf": "real numbers", "iuf": "real numbers", "iu": "integers", "f": "floats"}
+
+
+def all_finite(a: np.ndarray) -> bool:
+    """Whether every entry of the numeric ``a`` is finite: two reductions, no array the size
+    of ``a`` (NaN propagates through min and max)."""
+    if a.dtype.kind not in "fc" or a.size == 0:
+        return True
+    return bool(np.isfinite(a.min()) and np.isfinite(a.max()))
+
+
+def array(value, label: str, shape=None, *, ndim: int | None = None, kinds: str = "biuf",
+          finite: bool = False, bound: float | None = None, of: str = "") -> np.ndarray:
+    """``value`` as an array (an ndarray as it is, no copy) of the numpy dtype ``kinds``, of
+    ``shape`` (or ``ndim`` axes) where given, finite where asked, and of magnitude at most
+    ``bound`` where given (finite then too); ``of`` names where the shape comes from
+    (``" (the problem's H x W)"``).
+
+    Examples
+    --------
+    >>> array([[1, 2]], "offsets", ndim=2).shape
+    (1, 2)
+    >>> array([1.0, np.nan], "labels", finite=True)
+    Traceback (most recent call last):
+    ...
+    hyperlf.errors.InvalidInputError: labels must be finite (no NaN or inf)
+    """
+    a = value if isinstance(value, np.ndarray) else real_array(value, label, dtype=None)
+    if a.dtype.kind not in kinds:
+        raise InvalidInputError(f"{label} must be an array of {_KINDS[kinds]}, got "
+                                f"{shown(value)}")
+    got = shown(value) if a.ndim == 0 else f"shape {a.shape}"
+    if shape is not None and a.shape != tuple(shape):
+        raise InvalidInputError(f"{label} must have shape {tuple(shape)}{of}, got {got}")
+    if ndim is not None and a.ndim != ndim:
+        raise InvalidInputError(f"{label} must be a {ndim}-D array{of}, got {got}")
+    if (finite or bound is not None) and not all_finite(a):
+        raise InvalidInputError(f"{label} must be finite (no NaN or inf)")
+    if bound is not None and a.size and float(np.abs(a).max()) > bound:
+        raise InvalidInputError(f"{label} must be at most {bound:g} in magnitude")
+    return a
+
+
+def text(value, label: str, *, optional: bool = False, printable: bool = False) -> str | None:
+    """``value`` when it is a str (printable where asked: a title, a unit, a file-name stem),
+    or None where ``optional``.
+
+    Examples
+    --------
+    >>> text("Depth", "title")
+    'Depth'
+    """
+    if value is None and optional:
+        return None
+    if not isinstance(value, str) or (printable and not value.isprintable()):
+        what = "printable text (a str)" if printable else "text (a str)"
+        raise InvalidInputError(f"{label} must be {what}{' or None' if optional else ''}, got "
+                                f"{shown(value)}")
+    return value
+
+
+def instance(value, label: str, cls, what: str, *, optional: bool = False):
+    """``value`` when it is a ``cls`` (``what`` names it: ``"a hyperlf.LightField"``), or None
+    where ``optional``.
+
+    Examples
+    --------
+    >>> instance(2, "count", int, "an int")
+    2
+    """
+    if not isinstance(value, cls) and not (optional and value is None):
+        none = " or None" if optional else ""
+        raise InvalidInputError(f"{label} must be {what}{none}, got {type(value).__name__}")
+    return value
 
 
 def rule(check, **options):

@@ -129,8 +129,8 @@ from typing import Any
 
 import numpy as np
 
-from ._options import (bool_mask, check_values, choice, flag, index, integer, mapping, number,
-                       path_like, real_array, real_pair, rule, shown, word_or)
+from ._options import (bool_mask, check_values, choice, flag, index, instance, integer, mapping,
+                       number, path_like, real_array, real_pair, rule, shown, word_or)
 from ._parallel import map_threads
 from ._progress import grid_views, progress_bar
 from .errors import DataNotFoundError, FormatError, InvalidInputError
@@ -202,9 +202,7 @@ def _light_field(lf):
     """``lf`` when it is a :class:`~hyperlf.lightfield.LightField`."""
     from .lightfield import LightField
 
-    if not isinstance(lf, LightField):
-        raise InvalidInputError(f"lf must be a hyperlf.LightField, got {type(lf).__name__}")
-    return lf
+    return instance(lf, "lf", LightField, "a hyperlf.LightField")
 
 
 def _check_lf(lf):

@@ -267,7 +267,6 @@ PULL_WIDTH = (1e-9, 1e9)
 #: :func:`defocus_cost`): narrower, ``sigma_d ** 2`` underflows and the prior is 0 / 0.
 SIGMA_D_RANGE = (1e-3, 1e6)
 _sigma_d = _rule(_opt.number, positive=True, at_least=SIGMA_D_RANGE[0], at_most=SIGMA_D_RANGE[1])
-_KINDS = {"biuf": "real numbers", "iu": "integers", "f": "floats"}
 #: The widest Gaussian pre-blur of the occlusion edges (px; ``DepthParams.canny_sigma``):
 #: OpenCV's kernel grows with it.
 MAX_CANNY_SIGMA = 100.0
@@ -285,10 +284,7 @@ _lambda_r_mode = _opt.word_or(_wavelength, ("per_label", "per_pixel"),
 
 def _problem(prob) -> "DepthProblem":
     """``prob`` when it is a :class:`DepthProblem`."""
-    if not isinstance(prob, DepthProblem):
-        raise InvalidInputError(f"prob must be a DepthProblem (from hyperlf.hlf.prepare), got "
-                                f"{type(prob).__name__}")
-    return prob
+    return _opt.instance(prob, "prob", DepthProblem, "a DepthProblem (from hyperlf.hlf.prepare)")
 
 
 def _depth_params(params) -> "DepthParams":
@@ -303,31 +299,8 @@ def _progress(value):
     return _opt.flag(value, "progress (True, False or a bar's description)")
 
 
-def _finite(a: np.ndarray) -> bool:
-    """Whether every entry of the numeric ``a`` is finite: two reductions, no array the size
-    of ``a`` (NaN propagates through min and max)."""
-    if a.dtype.kind not in "fc" or a.size == 0:
-        return True
-    return bool(np.isfinite(a.min()) and np.isfinite(a.max()))
-
-
-def _array(value, label: str, shape=None, *, ndim: int | None = None, kinds: str = "biuf",
-           finite: bool = False, of: str = "") -> np.ndarray:
-    """``value`` as an array (an ndarray as it is) of ``kinds`` (numpy dtype kinds), of
-    ``shape`` (or ``ndim`` dimensions) where given, finite where asked; ``of`` names where the
-    shape comes from (``" (the problem's H x W)"``)."""
-    a = value if isinstance(value, np.ndarray) else _opt.real_array(value, label, dtype=None)
-    if a.dtype.kind not in kinds:
-        raise InvalidInputError(f"{label} must be an array of {_KINDS[kinds]}, got "
-                                f"{_opt.shown(value)}")
-    got = _opt.shown(value) if a.ndim == 0 else f"shape {a.shape}"
-    if shape is not None and a.shape != tuple(shape):
-        raise InvalidInputError(f"{label} must have shape {tuple(shape)}{of}, got {got}")
-    if ndim is not None and a.ndim != ndim:
-        raise InvalidInputError(f"{label} must be a {ndim}-D array{of}, got {got}")
-    if finite and not _finite(a):
-        raise InvalidInputError(f"{label} must be finite (no NaN or inf)")
-    return a
+#: The one check of an array argument (``_options.array``), by its short local name.
+_array = _opt.array
 
 
 def _map(value, label: str, shape, *, optional: bool = False, finite: bool = True):
@@ -899,10 +872,7 @@ MAX_MAGNITUDE = 1e150
 def _finite_values(value, label: str, shape=None, *, ndim: int | None = None) -> np.ndarray:
     """Finite real numbers of magnitude at most :data:`MAX_MAGNITUDE` (of ``shape`` or
     ``ndim`` where given): a few, such as offsets or gradients at edge pixels."""
-    a = _array(value, label, shape, ndim=ndim, finite=True)
-    if a.size and float(np.abs(a).max()) > MAX_MAGNITUDE:
-        raise InvalidInputError(f"{label} must be at most {MAX_MAGNITUDE:g} in magnitude")
-    return a
+    return _array(value, label, shape, ndim=ndim, bound=MAX_MAGNITUDE)
 
 
 def _new_accumulators(L, H, W, E, selection: bool = True):
@@ -1531,12 +1501,7 @@ class DepthProblem:
 
 def _instance(cls, what: str, *, optional: bool = False):
     """A rule: ``value`` when it is a ``cls`` (or None where ``optional``)."""
-    def check(value, label):
-        if not isinstance(value, cls) and not (optional and value is None):
-            none = " or None" if optional else ""
-            raise InvalidInputError(f"{label} must be {what}{none}, got {type(value).__name__}")
-        return value
-    return check
+    return _opt.rule(_opt.instance, cls=cls, what=what, optional=optional)
 
 
 def _optional(check):
@@ -1577,9 +1542,7 @@ def _check_depth_options(lf, metric, view_selection, occlusion_split, defocus, o
                          params):
     from .lightfield import LightField
 
-    if not isinstance(lf, LightField):
-        raise InvalidInputError(f"lf must be a hyperlf.LightField, got {type(lf).__name__}")
-    if lf.views.ndim != 4:
+    if _opt.instance(lf, "lf", LightField, "a hyperlf.LightField").views.ndim != 4:
         raise InvalidInputError(
             "H-LF matching needs monochrome views (R, C, H, W); this light field has "
             f"{lf.channels} channels per view (an RGB light field: make an H-LF of it with "

@@ -22,7 +22,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ._options import flag, index, integer, int_pair, mapping, number, real_array, shown
+from ._options import flag, index, instance, integer, int_pair, mapping, number, real_array, shown
 from .errors import InvalidInputError
 from .imageops import block_reduce
 
@@ -53,9 +53,7 @@ def _grid(rows, cols) -> tuple[int, int]:
 
 def _light_field(lf) -> "LightField":
     """``lf`` when it is a :class:`LightField`."""
-    if not isinstance(lf, LightField):
-        raise InvalidInputError(f"lf must be a hyperlf.LightField, got {type(lf).__name__}")
-    return lf
+    return instance(lf, "lf", LightField, "a hyperlf.LightField")
 
 
 def filter_layout(rows: int, cols: int, order: str | Sequence[int] = "raster",

@@ -96,22 +96,14 @@ def finite_range(values: np.ndarray) -> tuple[float, float]:
 
 def _light_field(lf):
     """``lf`` when it is a :class:`~hyperlf.lightfield.LightField`."""
-    from .errors import InvalidInputError
     from .lightfield import LightField
 
-    if not isinstance(lf, LightField):
-        raise InvalidInputError(f"lf must be a hyperlf.LightField, got {type(lf).__name__}")
-    return lf
+    return _opt.instance(lf, "lf", LightField, "a hyperlf.LightField")
 
 
 def _text(value, label: str) -> str:
     """``value`` when it is printable text (a title, a unit, a file-name stem)."""
-    if not isinstance(value, str) or not value.isprintable():
-        from .errors import InvalidInputError
-
-        raise InvalidInputError(f"{label} must be printable text (a str), got "
-                                f"{_opt.shown(value)}")
-    return value
+    return _opt.text(value, label, printable=True)
 
 
 def _stem(value) -> str:

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Sequence
 
 from ._atomic import atomic_write_text
-from ._options import path_like, shown
+from ._options import path_like, shown, text
 from .errors import DataNotFoundError, InvalidInputError
 
 __all__ = ["Section", "write_html_report"]
@@ -54,9 +54,7 @@ class Section:
 
 
 def _text(value, label: str) -> str:
-    if not isinstance(value, str):
-        raise InvalidInputError(f"{label} must be text (a str), got {shown(value)}")
-    return value
+    return text(value, label)
 
 
 def _rows(value) -> bool:

@@ -1161,7 +1161,8 @@ def _hue_phi(xy: np.ndarray, white: tuple, theta0: float) -> tuple[np.ndarray, n
 
 def _lut_lookup(phi: np.ndarray, span: float, lut: np.ndarray) -> np.ndarray:
     n = lut.size
-    f = np.clip(np.nan_to_num(phi / span), 0.0, 1.0) * (n - 1)
+    with np.errstate(divide="ignore", invalid="ignore"):  # a span of 0: nan_to_num decides
+        f = np.clip(np.nan_to_num(phi / span), 0.0, 1.0) * (n - 1)
     i = np.minimum(f.astype(np.intp), n - 2)
     t = f - i
     return lut[i] * (1 - t) + lut[i + 1] * t

@@ -1044,9 +1044,7 @@ def _objects(value, label: str):
 
 
 def _text_or_none(value, label: str):
-    if value is not None and not isinstance(value, str):
-        raise InvalidInputError(f"{label} must be text or None, got {_opt.shown(value)}")
-    return value
+    return _opt.text(value, label, optional=True)
 
 
 #: The most random objects :func:`procedural_scene` places (each is ray-cast in every view):

@@ -94,9 +94,7 @@ def _stereo_inputs(ref_corners, corners, board, K_ref, d_ref, K, d) -> tuple:
 
 
 def _label(label) -> str:
-    if not isinstance(label, str):
-        raise InvalidInputError(f"label must be a str, got {_opt.shown(label)}")
-    return label
+    return _opt.text(label, "label")
 
 
 def detect_poses(shots: Mapping, board: BoardSpec, *, names=None, min_poses: int = 3) -> dict:

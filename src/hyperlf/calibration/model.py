@@ -32,26 +32,17 @@ MODES = ("plane", "full")
 def _finite_array(value, label: str, shape, optional: bool = False) -> None:
     """Refuse ``value`` unless it is a finite real array of ``shape`` (or None where
     ``optional``)."""
-    from .._options import real_array
-    from ..errors import InvalidInputError
+    from .._options import array
 
-    if value is None and optional:
-        return
-    a = real_array(value, label)
-    if a.shape != tuple(shape) or not np.isfinite(a).all():
-        raise InvalidInputError(f"{label} must be finite numbers of shape {tuple(shape)}, got "
-                                f"shape {a.shape}")
+    if not (value is None and optional):
+        array(value, label, shape, finite=True)
 
 
 def check_calibration(value) -> "Calibration":
     """``value`` when it is a :class:`Calibration` (the one check of a calibration argument)."""
-    from .._options import shown
-    from ..errors import InvalidInputError
+    from .._options import instance
 
-    if not isinstance(value, Calibration):
-        raise InvalidInputError(f"calibration must be a Calibration (read_calibration reads "
-                                f"one), got {shown(value)}")
-    return value
+    return instance(value, "calibration", Calibration, "a Calibration (read_calibration reads one)")
 
 
 @dataclass

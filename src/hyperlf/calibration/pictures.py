@@ -22,12 +22,7 @@ from .model import Calibration, check_calibration
 
 
 def _title(value, optional: bool = False):
-    if not (isinstance(value, str) or (optional and value is None)):
-        raise InvalidInputError(f"title must be a str{' or None' if optional else ''}, got "
-                                f"{_opt.shown(value)}")
-    return value
-
-__all__ = ["save_corner_pictures", "save_registration_picture", "save_residual_picture"]
+    return _opt.text(value, "title", optional=optional)
 
 
 def _stretch(img: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:

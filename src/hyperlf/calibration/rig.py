@@ -35,10 +35,7 @@ __all__ = ["RigCamera", "Panel", "BoardPose", "SyntheticRig", "make_rig", "rotat
 
 def _finite(value, label: str, shape) -> None:
     """Refuse ``value`` unless it is a finite real array of ``shape``."""
-    a = _opt.real_array(value, label)
-    if a.shape != tuple(shape) or not np.isfinite(a).all():
-        raise InvalidInputError(f"{label} must be finite numbers of shape {tuple(shape)}, got "
-                                f"{_opt.shown(value)}")
+    _opt.array(value, label, shape, finite=True)
 
 
 def rotation_matrix(rx: float, ry: float, rz: float) -> np.ndarray:
