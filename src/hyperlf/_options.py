@@ -32,7 +32,7 @@ from .errors import InvalidInputError
 
 __all__ = ["number", "real", "integer", "share", "flag", "choice", "real_array", "array",
            "all_finite", "real_pair", "int_pair", "index", "float_dtype", "bool_mask", "path_like",
-           "text", "instance",
+           "path_list", "text", "instance",
            "shown", "rule", "word_or", "check_fields", "check_values", "params_of", "window",
            "mapping"]
 
@@ -436,3 +436,25 @@ def path_like(value, label: str = "path", *, folder: bool | None = False):
     if folder is False and os.path.isdir(text):
         raise InvalidInputError(f"{label} {text} is a folder; it must name a file")
     return value
+
+
+def path_list(value, label: str, *, single: bool = False) -> list:
+    """``value`` as a list of at least one path (each by :func:`path_like`, file or folder); a
+    lone path too where ``single``.
+
+    Examples
+    --------
+    >>> path_list(["a.png", "b.png"], "paths")
+    ['a.png', 'b.png']
+    """
+    if single and isinstance(value, (str, os.PathLike)):
+        return [path_like(value, label, folder=None)]
+    try:
+        items = list(value) if not isinstance(value, (str, bytes, dict, os.PathLike)) else None
+    except TypeError:  # not iterable
+        items = None
+    if not items:
+        what = "a path or a list of at least one path" if single else \
+            "a list of at least one path"
+        raise InvalidInputError(f"{label} must be {what}, got {shown(value)}")
+    return [path_like(p, label, folder=None) for p in items]

@@ -261,9 +261,7 @@ def disparity_scores(estimate, truth, *, mask=None, mask_name: str = "all",
     >>> s.rmse, s.bad_0_5, s.n_pixels
     (0.7071067811865476, 50.0, 2)
     """
-    if not isinstance(mask_name, str):
-        raise InvalidInputError(f"mask_name must be a str (the mask's name in reports), got "
-                                f"{_opt.shown(mask_name)}")
+    _opt.text(mask_name, "mask_name")
     err = np.abs(_masked_error(estimate, truth, mask, border))
     return DisparityScores(
         rmse=float(np.sqrt(np.mean(err ** 2))),

@@ -634,27 +634,17 @@ class _ResultSet:
 
 def _as_targets(targets, label: str) -> list[Path]:
     """The targets of a result set: one path, or an iterable of at least one."""
-    from ._options import path_like, shown
+    from ._options import path_list
 
-    if isinstance(targets, (str, os.PathLike)):
-        return [Path(path_like(targets, label, folder=None))]
-    try:
-        items = list(targets) if not isinstance(targets, (bytes, dict)) else None
-    except TypeError:  # not iterable
-        items = None
-    if not items:
-        raise InvalidInputError(f"{label} must be a path or a list of at least one path, got "
-                                f"{shown(targets)}")
-    return [Path(path_like(t, label, folder=None)) for t in items]
+    return [Path(t) for t in path_list(targets, label, single=True)]
 
 
 def _check_record(overwrite, command, argv, provenance=None) -> None:
     """The options of a result set that its manifest records, checked before any work."""
-    from ._options import flag, mapping, shown
+    from ._options import flag, mapping, shown, text
 
     flag(overwrite, "overwrite")
-    if command is not None and not isinstance(command, str):
-        raise InvalidInputError(f"command must be text or None, got {shown(command)}")
+    text(command, "command", optional=True)
     if argv is not None and not isinstance(argv, (list, tuple)):
         raise InvalidInputError(f"argv must be a list of str (the command line) or None, got "
                                 f"{shown(argv)}")

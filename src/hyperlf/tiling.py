@@ -150,9 +150,7 @@ def check_memory(nbytes: float, what: str, remedy: str) -> None:
         or ``nbytes`` is not a number >= 0, ``what`` or ``remedy`` not text.
     """
     _check_bytes(nbytes)
-    for value, label in ((what, "what"), (remedy, "remedy")):
-        if not isinstance(value, str):
-            raise InvalidInputError(f"{label} must be text, got {_opt.shown(value)}")
+    _opt.text(what, "what"), _opt.text(remedy, "remedy")
     avail = available_memory()
     if nbytes > avail:
         # an int beyond a float: at least this (a numpy scalar converts as it is)

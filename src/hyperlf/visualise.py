@@ -251,8 +251,7 @@ def save_mosaic_png(path: str | os.PathLike, views: np.ndarray,
     R, C, H, W = v.shape[:4]
     if wavelengths is not None and _opt.real_array(wavelengths, "wavelengths").shape != (R, C):
         raise InvalidInputError(f"wavelengths must be one per view, shape {(R, C)}")
-    if title is not None and not isinstance(title, str):
-        raise InvalidInputError(f"title must be text or None, got {type(title).__name__}")
+    _opt.text(title, "title", optional=True)
     step = display_step(R * H, C * W, max_side)
     v = v[:, :, ::step, ::step]
     if v.ndim == 4:

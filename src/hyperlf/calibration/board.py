@@ -660,8 +660,7 @@ def check_board_size(image: np.ndarray, board: BoardSpec, corners: np.ndarray, *
     """
     check_board(board)
     corners = check_corners(corners, "corners", board)
-    if not isinstance(name, str):
-        raise InvalidInputError(f"name must be a str, got {_opt.shown(name)}")
+    _opt.text(name, "name")
     grid = largest_grid(image)
     if grid is None or _fits(grid, board):
         return

@@ -63,8 +63,7 @@ def check_images(images: Mapping, names: Mapping | None = None, *,
     """Every image is a finite 2-D grey array and all have one size; returns ``(W, H)``."""
     _opt.mapping(images, "images", optional=False)
     _opt.mapping(names, "names")
-    if not isinstance(what, str):
-        raise InvalidInputError(f"what must be a str, got {_opt.shown(what)}")
+    _opt.text(what, "what")
     if not images:
         raise InvalidInputError(f"no {what}s: give one per camera")
     sizes = {}

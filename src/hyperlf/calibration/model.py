@@ -80,10 +80,8 @@ class CameraCalibration:
 
     def __post_init__(self):
         from .. import _options as _opt
-        from ..errors import InvalidInputError
 
-        if not isinstance(self.name, str):
-            raise InvalidInputError(f"name must be a str, got {_opt.shown(self.name)}")
+        _opt.text(self.name, "name")
         _finite_array(self.position, "position", (2,))
         _opt.number(self.reprojection_error, "reprojection_error")
         for name, shape in (("homography", (3, 3)), ("K", (3, 3)), ("dist", (5,)),

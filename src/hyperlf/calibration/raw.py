@@ -296,8 +296,7 @@ def read_camera_images(files: dict, *, where: str = "", bits: int | None = None,
         _opt.int_pair(k, "a camera of files", 0, what="(row, col)")
         _opt.path_like(p, f"the file of camera {k}", folder=None)
     files = {k: Path(p) for k, p in files.items()}
-    if not isinstance(where, str):
-        raise InvalidInputError(f"where must be a str, got {_opt.shown(where)}")
+    _opt.text(where, "where")
     bits = _opt.integer(bits, "bits", 1, maximum=64, optional=True)
     return_scale = _opt.flag(return_scale, "return_scale")
     keys = list(files)

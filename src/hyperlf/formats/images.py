@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from .._atomic import atomic_path
-from .._options import choice, flag, path_like, real_array, shown
+from .._options import choice, flag, path_like, path_list, real_array, shown, text
 from ..errors import DataNotFoundError, FormatError, HyperLFError, InvalidInputError
 
 __all__ = ["read_image", "read_images_same_size", "write_image", "to_grey", "REC709_WEIGHTS"]
@@ -402,16 +402,7 @@ def write_image(path: str | os.PathLike, array, bit_depth: int = 16) -> Path:
 
 def _path_list(paths, label: str) -> list:
     """``paths`` as a list of at least one path."""
-    try:
-        items = list(paths) if not isinstance(paths, (str, bytes, dict, os.PathLike)) else None
-    except TypeError:  # not iterable
-        items = None
-    if not items:
-        raise InvalidInputError(f"{label} must be a list of at least one path, got "
-                                f"{shown(paths)}")
-    for p in items:
-        path_like(p, label, folder=None)
-    return items
+    return path_list(paths, label)
 
 
 def _labels(labels, n: int) -> list[str]:
@@ -451,8 +442,7 @@ def read_images_same_size(paths, read, where: str, labels=None) -> np.ndarray:
     if not callable(read):
         raise InvalidInputError(f"read must be a function reading one image, got "
                                 f"{type(read).__name__}")
-    if not isinstance(where, str):
-        raise InvalidInputError(f"where must be text, got {shown(where)}")
+    text(where, "where")
     labels = [Path(p).name for p in paths] if labels is None else _labels(labels, len(paths))
     first = read(paths[0])
     stack = np.empty((len(paths),) + first.shape, dtype=np.float32)

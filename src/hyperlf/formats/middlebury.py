@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .._atomic import atomic_write_text
-from .._options import integer, mapping, number, path_like, real_array, shown
+from .._options import integer, mapping, number, path_like, real_array, shown, text
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
 from .images import read_image, write_image
 
@@ -85,8 +85,7 @@ class StereoPair:
             raise InvalidInputError(f"masks must be named by text, got {list(self.masks)!r:.60}")
         self.scale = number(self.scale, "scale", positive=True)
         self.max_disparity = integer(self.max_disparity, "max_disparity")
-        if not isinstance(self.name, str):
-            raise InvalidInputError(f"name must be text, got {shown(self.name)}")
+        text(self.name, "name")
         mapping(self.metadata, "metadata", optional=False)
 
     @property

@@ -14,7 +14,7 @@ import re
 import string
 from typing import Sequence
 
-from .._options import integer, shown
+from .._options import integer, shown, text
 from ..errors import InvalidInputError
 
 __all__ = ["pattern_fields", "expand_pattern"]
@@ -30,8 +30,7 @@ _FIELD_NAME = re.compile(r"(\w+?)(?:\+(\d{1,4}))?")
 def _parse(pattern: str, allowed: Sequence[str], what: str) -> list[tuple]:
     """``(literal, name, offset, spec)`` per part of ``pattern`` (name None after the last
     field); refuses what :func:`pattern_fields` documents."""
-    if not isinstance(what, str):
-        raise InvalidInputError(f"what must be text, got {shown(what)}")
+    text(what, "what")
     if not isinstance(allowed, (list, tuple)) or not allowed or not all(
             isinstance(a, str) for a in allowed):
         raise InvalidInputError(f"allowed must be a list of field names (text), got "
