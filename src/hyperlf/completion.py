@@ -129,8 +129,8 @@ from typing import Any
 
 import numpy as np
 
-from ._options import (bool_mask, check_values, choice, flag, index, instance, integer, mapping,
-                       number, path_like, real_array, real_pair, rule, shown, word_or)
+from ._options import (bool_mask, check_values, choice, flag, index, integer, mapping, number,
+                       path_like, real_array, real_pair, rule, shown, word_or)
 from ._parallel import map_threads
 from ._progress import grid_views, progress_bar
 from .errors import DataNotFoundError, FormatError, InvalidInputError
@@ -200,9 +200,9 @@ class CompletionResult:
 # ----------------------------------------------------------------------------- helpers
 def _light_field(lf):
     """``lf`` when it is a :class:`~hyperlf.lightfield.LightField`."""
-    from .lightfield import LightField
+    from .lightfield import check_light_field
 
-    return instance(lf, "lf", LightField, "a hyperlf.LightField")
+    return check_light_field(lf)
 
 
 def _check_lf(lf):

@@ -1540,9 +1540,9 @@ _PROBLEM_RULES = {
 
 def _check_depth_options(lf, metric, view_selection, occlusion_split, defocus, optimizer,
                          params):
-    from .lightfield import LightField
+    from .lightfield import check_light_field
 
-    if _opt.instance(lf, "lf", LightField, "a hyperlf.LightField").views.ndim != 4:
+    if check_light_field(lf).views.ndim != 4:
         raise InvalidInputError(
             "H-LF matching needs monochrome views (R, C, H, W); this light field has "
             f"{lf.channels} channels per view (an RGB light field: make an H-LF of it with "

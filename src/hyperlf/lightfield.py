@@ -51,8 +51,8 @@ def _grid(rows, cols) -> tuple[int, int]:
     return rows, cols
 
 
-def _light_field(lf) -> "LightField":
-    """``lf`` when it is a :class:`LightField`."""
+def check_light_field(lf) -> "LightField":
+    """``lf`` when it is a :class:`LightField` (the one check of a light-field argument)."""
     return instance(lf, "lf", LightField, "a hyperlf.LightField")
 
 
@@ -271,7 +271,7 @@ def resolve_disparity_range(lf: "LightField", disparity_range=None) -> tuple[flo
         disparities at which even the nearest view is shifted entirely out of the image (such
         labels can match nothing; a typo such as ``1e30`` is the usual cause).
     """
-    _light_field(lf)
+    check_light_field(lf)
     rng = disparity_range if disparity_range is not None else lf.disparity_range
     if rng is None:
         raise InvalidInputError(
@@ -659,7 +659,7 @@ def downscale(lf: LightField, factor: int = 2, *, truth: bool = False) -> LightF
     >>> small.image_shape, small.disparity_range
     ((3, 4), (-1.0, 2.0))
     """
-    _light_field(lf)
+    check_light_field(lf)
     factor = integer(factor, "factor", 1)
     truth = flag(truth, "truth")
     if factor == 1:
@@ -713,7 +713,7 @@ def capture_signature(lf: LightField) -> dict:
     >>> sig["grid"], sig["image_shape"], len(sig["thumbnail"])
     ([1, 2], [16, 16], 64)
     """
-    ref = tuple(_light_field(lf).reference)
+    ref = tuple(check_light_field(lf).reference)
     view = np.asarray(lf.views[ref], np.float64)
     view = view.mean(axis=-1) if view.ndim == 3 else view
     valid = np.ones(view.shape, bool) if lf.valid is None else np.asarray(lf.valid[ref])

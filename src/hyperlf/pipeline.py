@@ -96,9 +96,9 @@ def finite_range(values: np.ndarray) -> tuple[float, float]:
 
 def _light_field(lf):
     """``lf`` when it is a :class:`~hyperlf.lightfield.LightField`."""
-    from .lightfield import LightField
+    from .lightfield import check_light_field
 
-    return _opt.instance(lf, "lf", LightField, "a hyperlf.LightField")
+    return check_light_field(lf)
 
 
 def _text(value, label: str) -> str:
