@@ -231,3 +231,10 @@ def test_the_numpy_cross_term_is_private():
     assert "ncc_cross_accumulate" not in costs.__all__
     assert hasattr(pair, "_ncc_cross_accumulate")
     assert "MAX_VIEW_WINDOW" in dir(lightfield) and "guided_filter" in aggregation.__all__
+
+
+@pytest.mark.parametrize("name", sorted(_bases()))
+def test_every_valid_call_works(name):
+    """The fuzzers replace one argument of these calls: each must run as it is, or every
+    refusal above would pass for the wrong reason."""
+    _no_new_nan(name, _call(name))
