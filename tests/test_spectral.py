@@ -81,6 +81,18 @@ def test_flat_spectrum_is_white():
     np.testing.assert_allclose(sp.xyz_to_srgb_linear(xyz_e, white=E), 1.0, atol=1e-3)
 
 
+@pytest.mark.parametrize("white", [(0.0, 0.0), (0.3, 0.0), (0.3, -0.1), (0.7, 0.3), (0.9, 0.09)])
+def test_white_that_no_adaptation_starts_from_is_refused(white):
+    # y = 0 divided by zero (a warning, then NaN colours); a white whose Bradford cone
+    # response is not positive gave infinite or negative gains: both are one-line errors now
+    with np.errstate(all="raise"):
+        with pytest.raises(InvalidInputError, match="white must be the xy chromaticity"):
+            sp.xyz_to_srgb_linear(np.ones(3), white=white)
+    d65 = sp.xyz_to_srgb_linear(np.array([0.2, 0.3, 0.4]), white=(0.3127, 0.3290))
+    np.testing.assert_allclose(d65, sp.xyz_to_srgb_linear(np.array([0.2, 0.3, 0.4])),
+                               atol=1e-12)
+
+
 def test_spectrum_to_xyz_matches_colour(colour):
     wl = np.arange(380, 781, 5.0)
     refl = sp.reflectance_library("colorchecker", wl)[1][:6]

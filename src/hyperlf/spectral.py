@@ -711,12 +711,23 @@ def linear_to_srgb(x) -> np.ndarray:
     return (np.sign(a) * out).astype(a.dtype, copy=False)
 
 
-def _adaptation_matrix(src_xy, dst_xy) -> np.ndarray:
-    def xyz(w):
-        w = np.asarray(w, dtype=np.float64)
-        return np.array([w[0] / w[1], 1.0, (1 - w[0] - w[1]) / w[1]])
+def _white_xyz(xy) -> np.ndarray:
+    return np.array([xy[0] / xy[1], 1.0, (1 - xy[0] - xy[1]) / xy[1]])
 
-    ls, ld = _BRADFORD @ xyz(src_xy), _BRADFORD @ xyz(dst_xy)
+
+def _adaptation_white(white) -> tuple:
+    """``white`` as an xy pair that a Bradford adaptation can start from: ``y > 0`` and
+    positive cone responses (every real illuminant's white has them)."""
+    xy = _white_tuple(white)
+    if not xy[1] > 0 or not np.all(_BRADFORD @ _white_xyz(xy) > 0):
+        raise InvalidInputError(
+            f"white must be the xy chromaticity of a white light (y > 0, positive Bradford "
+            f"cone responses), like (1/3, 1/3) or (0.3127, 0.3290), got {xy}")
+    return xy
+
+
+def _adaptation_matrix(src_xy, dst_xy) -> np.ndarray:
+    ls, ld = _BRADFORD @ _white_xyz(src_xy), _BRADFORD @ _white_xyz(dst_xy)
     return np.linalg.inv(_BRADFORD) @ np.diag(ld / ls) @ _BRADFORD
 
 
@@ -743,7 +754,7 @@ def xyz_to_srgb_linear(xyz, white=None) -> np.ndarray:
     a = _float(_as_array(xyz, "xyz", last=3))
     M = _M_XYZ_TO_RGB
     if white is not None:
-        M = M @ _adaptation_matrix(_white_tuple(white), (0.3127, 0.3290))
+        M = M @ _adaptation_matrix(_adaptation_white(white), (0.3127, 0.3290))
     return (a @ M.T.astype(a.dtype)).astype(a.dtype, copy=False)
 
 
