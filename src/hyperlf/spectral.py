@@ -716,13 +716,14 @@ def _white_xyz(xy) -> np.ndarray:
 
 
 def _adaptation_white(white) -> tuple:
-    """``white`` as an xy pair that a Bradford adaptation can start from: ``y > 0`` and
-    positive cone responses (every real illuminant's white has them)."""
+    """``white`` as an xy pair that a Bradford adaptation can start from: ``y > 0`` and no cone
+    response 0 (a gain would be infinite).  A negative response is kept: the white of a few
+    bands far apart (410 and 700 nm) has one, and its colours are a rough guess anyway."""
     xy = _white_tuple(white)
-    if not xy[1] > 0 or not np.all(_BRADFORD @ _white_xyz(xy) > 0):
+    if not xy[1] > 0 or not np.all(_BRADFORD @ _white_xyz(xy) != 0):
         raise InvalidInputError(
-            f"white must be the xy chromaticity of a white light (y > 0, positive Bradford "
-            f"cone responses), like (1/3, 1/3) or (0.3127, 0.3290), got {xy}")
+            f"white must be the xy chromaticity of a light (y > 0), like (1/3, 1/3) or "
+            f"(0.3127, 0.3290), got {xy}")
     return xy
 
 
