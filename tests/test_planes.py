@@ -136,7 +136,8 @@ def test_lr_plane_fills_mismatches_with_the_plane_and_occlusions_with_the_backgr
     assert not (block & occluded).any()
     valid = ~block & ~occluded                       # hidden pixels fail the check too
     raw = np.where(valid, truth, 0.0)                # the raw map is wrong there
-    plane, rep = fill_inconsistent(raw, disp_r, valid, "lr-plane", guide)
+    parts = reg.PlaneFillParams(median_radius=0)       # the planes and the fill alone
+    plane, rep = fill_inconsistent(raw, disp_r, valid, "lr-plane", guide, parts)
     fill, rep0 = fill_inconsistent(raw, disp_r, valid, "lr-fill", guide)
     assert np.array_equal(rep, block) and not rep0.any()
     assert np.abs(plane - truth)[block].max() < 1e-3
@@ -145,6 +146,29 @@ def test_lr_plane_fills_mismatches_with_the_plane_and_occlusions_with_the_backgr
     # the pixels the right view cannot see keep the background fill
     assert np.array_equal(plane[occluded], fill[occluded])
     assert np.array_equal(plane[valid], raw[valid])
+
+
+def test_lr_plane_median_removes_a_fill_streak_and_keeps_consistent_pixels():
+    # a background at 5 px, a hidden band (columns 30-39) in front of a surface at 15 px; on
+    # row 20 a wrong pixel at 15 px passed the check just left of the band, so the row fill
+    # (the lower of the two nearest consistent values) copies 15 into the band: a streak
+    y, x = np.mgrid[:H, :W]
+    guide = np.where(x >= 40, 0.8, 0.3)
+    truth = np.where(x >= 40, 15.0, 5.0)
+    valid = ~((x >= 30) & (x < 40))
+    raw = truth.copy()
+    raw[20, 29] = 15.0
+    raw[~valid] = 15.0
+    disp_r = np.full((H, W), 5.0)                    # only the hidden band is unseen ...
+    disp_r[:, 25:] = 15.0                            # ... by the surface at 15 px
+    without, _ = fill_inconsistent(raw, disp_r, valid, "lr-plane", guide,
+                                   reg.PlaneFillParams(median_radius=0))
+    assert np.all(without[20, 30:40] == 15.0) and np.all(without[19, 30:40] == 5.0)
+    with_median, _ = fill_inconsistent(raw, disp_r, valid, "lr-plane", guide)
+    assert np.all(with_median[~valid] == 5.0)        # the band is background on every row
+    assert np.array_equal(with_median[valid], raw[valid])   # consistent pixels untouched
+    fill, _ = fill_inconsistent(raw, disp_r, valid, "lr-fill", guide)
+    assert np.array_equal(fill, without)             # the paper's fill has no median
 
 
 def test_stereo_lr_plane_is_the_default_and_records_its_share():

@@ -1801,7 +1801,8 @@ def _add_stereo_parser(sub) -> None:
     p.add_argument("--occlusion", default=DEFAULT_OCCLUSION, choices=OCCLUSION_MODES,
                    help="pixels that fail the left-right check: lr-plane (default) gives those "
                         "the right view sees the slanted plane of their image region and the "
-                        "hidden ones the background of their row; lr-fill gives all the "
+                        "hidden ones the background of their row, then a median of their "
+                        "surroundings removes the fill's streaks; lr-fill gives all the "
                         "background (the paper's protocol); none keeps the raw map")
     p.add_argument("--no-occlusion", action="store_true",
                    help="the same as --occlusion none")

@@ -53,8 +53,10 @@ Pipeline
    occlusions (no right pixel maps to them: :func:`~hyperlf.regularisers.left_occlusions`)
    and mismatches; a mismatch in a planar region of the left image with enough consistent
    pixels takes that region's plane (:func:`~hyperlf.regularisers.plane_fill`, constants
-   ``plane_params``), everything else the background fill.  ``"none"``: every pixel counts
-   as valid.
+   ``plane_params``), everything else the background fill; then every inconsistent pixel
+   takes the guided weighted median of the filled map around it (radius 5 px, after Hosni et
+   al. 2013; ``PlaneFillParams.median_radius``), which removes the streaks a row fill leaves.
+   ``"none"``: every pixel counts as valid.
 7. **Sub-pixel** (optional): parabola through the optimised volume (SGM: the aggregated
    volume; WTA/graphcut: the data term) at the chosen label, before the fill.
 
@@ -380,7 +382,8 @@ def _value_range(value, label: str) -> tuple[float, float]:
 def fill_inconsistent(disp_l, disp_r, valid, occlusion: str, guide, plane_params=None,
                       drange=(-np.inf, np.inf)):
     """Step 6 after the left-right check (module docstring): the background fill, and for
-    ``occlusion="lr-plane"`` the plane of their region for the mismatches.
+    ``occlusion="lr-plane"`` the plane of their region for the mismatches, then the guided
+    weighted median of the filled map at every inconsistent pixel.
 
     Parameters
     ----------
@@ -392,6 +395,7 @@ def fill_inconsistent(disp_l, disp_r, valid, occlusion: str, guide, plane_params
     guide : ndarray (H, W)
         The left image (its regions carry the planes).
     plane_params : PlaneFillParams, optional
+        Constants of the planes and of the median (``"lr-plane"`` only).
     drange : (float, float)
         Plane values are clipped to it.
 
@@ -418,7 +422,19 @@ def fill_inconsistent(disp_l, disp_r, valid, occlusion: str, guide, plane_params
         planes, replaced = _reg.plane_fill(disp_l, valid, guide, targets=mismatch,
                                            params=plane_params)
         final = np.where(replaced, np.clip(planes, *drange), final).astype(final.dtype)
+        final = _median_of_filled(final, valid, guide, plane_params)
     return final, replaced
+
+
+def _median_of_filled(disp, valid, guide, params) -> np.ndarray:
+    """The inconsistent pixels of a filled map take its guided weighted median
+    (``params.median_radius``, 0: off; :class:`hyperlf.regularisers.PlaneFillParams`)."""
+    p = params or _reg.PlaneFillParams()
+    if p.median_radius == 0:
+        return disp
+    radius = min(p.median_radius, max(disp.shape))
+    median = _reg.weighted_median(disp, guide, radius=radius, sigma=p.median_sigma)
+    return np.where(valid, disp, median).astype(disp.dtype)
 
 
 def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "graphcut",

@@ -29,13 +29,16 @@ import numpy as np
 from ..errors import InvalidInputError
 from .._options import (bool_mask, check_fields, choice, integer, number, params_of, real_array,
                         rule, share, shown)
+from .postprocess import MIN_WMF_SIGMA
 
 __all__ = ["PlaneFillParams", "segment", "fit_plane", "plane_fill", "cost_planes"]
 
 
 @dataclass(frozen=True)
 class PlaneFillParams:
-    """Constants of :func:`plane_fill`.
+    """Constants of the two-view ``"lr-plane"`` occlusion step
+    (:func:`hyperlf.twoview.fill_inconsistent`): :func:`plane_fill`'s, and the guided weighted
+    median that the pixels which failed the left-right check take after the fill.
 
     Attributes
     ----------
@@ -54,6 +57,18 @@ class PlaneFillParams:
         A trusted pixel within this many px of the plane is an inlier.
     min_inliers : float
         Smallest share of inliers among the trusted pixels for the plane to be used.
+    median_radius : int
+        Window radius, px, of the weighted median (:func:`hyperlf.regularisers.weighted_median`,
+        guided by the left image) that replaces the filled values, as Hosni et al. do after
+        their fill: a row fill copies whatever consistent value it meets first, and the
+        median removes the streaks this leaves; 0: off. :func:`plane_fill` does not use it.
+    median_sigma : float
+        The median's guide similarity scale, relative to the guide's mean.
+
+    References
+    ----------
+    .. [1] A. Hosni, C. Rhemann, M. Bleyer, C. Rother, M. Gelautz, "Fast cost-volume filtering
+       for visual correspondence and beyond", IEEE TPAMI 35(2), 2013 (section 3.3).
     """
 
     name: ClassVar[str] = "plane fill"
@@ -64,12 +79,16 @@ class PlaneFillParams:
     min_reliable: float = 0.3
     inlier_tol: float = 1.0
     min_inliers: float = 0.8
+    median_radius: int = 5
+    median_sigma: float = 0.4
 
     def __post_init__(self):
         positive, count = rule(number, positive=True), rule(integer, minimum=1)
         check_fields(self, {"scale": positive, "inlier_tol": positive, "sigma": number,
                             "min_size": count, "min_support": count, "min_reliable": share,
-                            "min_inliers": share}, f"{self.name} ")
+                            "min_inliers": share, "median_radius": rule(integer, maximum=255),
+                            "median_sigma": rule(number, positive=True, at_least=MIN_WMF_SIGMA)},
+                     f"{self.name} ")
 
 
 def _unit_range(guide: np.ndarray) -> np.ndarray:
