@@ -61,7 +61,8 @@ class PlaneFillParams:
         Window radius, px, of the weighted median (:func:`hyperlf.regularisers.weighted_median`,
         guided by the left image) that replaces the filled values, as Hosni et al. do after
         their fill: a row fill copies whatever consistent value it meets first, and the
-        median removes the streaks this leaves; 0: off. :func:`plane_fill` does not use it.
+        median removes the streaks this leaves; 0: off, at most 255. :func:`plane_fill` does
+        not use it.
     median_sigma : float
         The median's guide similarity scale, relative to the guide's mean.
 
