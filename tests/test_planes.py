@@ -152,7 +152,7 @@ def test_lr_plane_median_removes_a_fill_streak_and_keeps_consistent_pixels():
     # a background at 5 px, a hidden band (columns 30-39) in front of a surface at 15 px; on
     # row 20 a wrong pixel at 15 px passed the check just left of the band, so the row fill
     # (the lower of the two nearest consistent values) copies 15 into the band: a streak
-    y, x = np.mgrid[:H, :W]
+    x = np.mgrid[:H, :W][1]
     guide = np.where(x >= 40, 0.8, 0.3)
     truth = np.where(x >= 40, 15.0, 5.0)
     valid = ~((x >= 30) & (x < 40))

@@ -87,6 +87,9 @@ def test_white_that_no_adaptation_starts_from_is_refused(white):
     with np.errstate(all="raise"):
         with pytest.raises(InvalidInputError, match="white must be the xy chromaticity"):
             sp.xyz_to_srgb_linear(np.ones(3), white=white)
+
+
+def test_white_of_two_far_bands_still_adapts_and_d65_is_no_adaptation():
     # the white of two bands far apart (render's rough guess) still adapts, to finite values
     with np.errstate(all="raise"):
         assert np.isfinite(sp.xyz_to_srgb_linear(np.ones(3), white=(0.205, 0.0199))).all()

@@ -715,20 +715,17 @@ def _white_xyz(xy) -> np.ndarray:
     return np.array([xy[0] / xy[1], 1.0, (1 - xy[0] - xy[1]) / xy[1]])
 
 
-def _adaptation_white(white) -> tuple:
-    """``white`` as an xy pair that a Bradford adaptation can start from: ``y > 0`` and no cone
+def _adaptation_to_d65(white) -> np.ndarray:
+    """Bradford adaptation from the xy ``white`` to D65.  It refuses ``y <= 0`` and a cone
     response 0 (a gain would be infinite).  A negative response is kept: the white of a few
     bands far apart (410 and 700 nm) has one, and its colours are a rough guess anyway."""
     xy = _white_tuple(white)
-    if not xy[1] > 0 or not np.all(_BRADFORD @ _white_xyz(xy) != 0):
+    ls = _BRADFORD @ _white_xyz(xy) if xy[1] > 0 else np.zeros(3)
+    if not np.all(ls != 0):
         raise InvalidInputError(
             f"white must be the xy chromaticity of a light (y > 0), like (1/3, 1/3) or "
             f"(0.3127, 0.3290), got {xy}")
-    return xy
-
-
-def _adaptation_matrix(src_xy, dst_xy) -> np.ndarray:
-    ls, ld = _BRADFORD @ _white_xyz(src_xy), _BRADFORD @ _white_xyz(dst_xy)
+    ld = _BRADFORD @ _white_xyz((0.3127, 0.3290))
     return np.linalg.inv(_BRADFORD) @ np.diag(ld / ls) @ _BRADFORD
 
 
@@ -755,7 +752,7 @@ def xyz_to_srgb_linear(xyz, white=None) -> np.ndarray:
     a = _float(_as_array(xyz, "xyz", last=3))
     M = _M_XYZ_TO_RGB
     if white is not None:
-        M = M @ _adaptation_matrix(_adaptation_white(white), (0.3127, 0.3290))
+        M = M @ _adaptation_to_d65(white)
     return (a @ M.T.astype(a.dtype)).astype(a.dtype, copy=False)
 
 
