@@ -248,6 +248,33 @@ def test_expansion_terms_kernel_is_the_numpy_reference_bit_for_bit(L, H, W, seed
             assert (caps[0][:, :-1] >= 0).all() and (caps[1][:-1] >= 0).all()
 
 
+@settings(max_examples=40, deadline=None)
+@given(H=st.integers(1, 9), W=st.integers(1, 9), seed=st.integers(0, 2**16),
+       share=st.floats(0.0, 1.0))
+def test_restricted_terms_kernel_is_the_numpy_reference_bit_for_bit(H, W, seed, share):
+    """A restricted move's graph (unary terms, pairs and their order) from the numba kernel
+    equals the numpy reference exactly, for any set of active pixels (none and all included),
+    and a pixel with a fixed left and upper neighbour carries both of their capacities."""
+    from hyperlf.regularisers import _kernels
+    from hyperlf.regularisers import graphcuts as G
+
+    rng = np.random.default_rng(seed)
+    active = rng.random((H, W)) < share
+    du, capx, capy = rng.standard_normal((H, W)), rng.random((H, W)), rng.random((H, W))
+    ref = G._restricted_terms_numpy(active, du, capx, capy)
+    got = _kernels.restricted_terms(active, du, capx, capy)
+    for a, b in zip(got, ref):
+        assert a.dtype == b.dtype
+        np.testing.assert_array_equal(a, b)
+    d, src, dst, caps = got
+    assert d.size == active.sum() and src.size == (active[:, 1:] & active[:, :-1]).sum() + \
+        (active[1:] & active[:-1]).sum()
+    ys, xs = np.nonzero(active)
+    expect = du[ys, xs] + np.where((xs > 0) & ~active[ys, xs - 1], capx[ys, xs - 1], 0.0) + \
+        np.where((ys > 0) & ~active[ys - 1, xs], capy[ys - 1, xs], 0.0)
+    np.testing.assert_allclose(d, expect, rtol=1e-12, atol=1e-12)
+
+
 @settings(max_examples=15, deadline=None)
 @given(L=st.integers(1, 4), H=st.integers(1, 5), W=st.integers(1, 5), seed=st.integers(0, 2**16),
        weight=st.floats(0.0, 3.0), potts=st.booleans())

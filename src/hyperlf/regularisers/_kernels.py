@@ -3,7 +3,8 @@
 Each kernel has a numpy reference beside its user that the tests compare it with:
 :func:`sgm_path` <-> ``semiglobal._sgm_numpy_direction``, :func:`weighted_median` <->
 ``postprocess._weighted_median_numpy``, :func:`plane_scores` <-> ``planes._plane_scores_numpy``,
-:func:`expansion_terms` <-> ``graphcuts._move_terms_numpy``.
+:func:`expansion_terms` <-> ``graphcuts._move_terms_numpy``, :func:`restricted_terms` <->
+``graphcuts._restricted_terms_numpy``.
 """
 
 from __future__ import annotations
@@ -168,3 +169,58 @@ def expansion_terms(c_alpha, alpha, f, unary_f, Vm, wx, wy, du, capx, capy):  # 
             if y > 0:
                 d -= wy[y - 1, x] * vpa
             du[y, x] = d
+
+
+
+@numba.njit(cache=True)
+def restricted_terms(active, du, capx, capy):  # pragma: no cover - numba
+    """The terms of a move whose variables are only the ``active`` pixels:
+    ``graphcuts._restricted_terms_numpy``, the same values in the same order.
+
+    Node ``i`` is the ``i``-th active pixel in row-major order.  Returns ``(d, src, dst, caps)``:
+    the nodes' unary terms, and the pairs with both pixels active (the right pairs, then the
+    down pairs, each row-major).  A pair whose first pixel is fixed adds its capacity to the
+    second pixel's term (right pairs before down pairs); a pair with a fixed second pixel drops.
+    """
+    H, W = active.shape
+    idx = np.full((H, W), -1, dtype=np.int64)
+    n = 0
+    m = 0
+    for y in range(H):
+        for x in range(W):
+            if active[y, x]:
+                idx[y, x] = n
+                n += 1
+                if x > 0 and active[y, x - 1]:
+                    m += 1
+                if y > 0 and active[y - 1, x]:
+                    m += 1
+    d = np.empty(n, dtype=np.float64)
+    src = np.empty(m, dtype=np.int64)
+    dst = np.empty(m, dtype=np.int64)
+    caps = np.empty(m, dtype=np.float64)
+    k = 0
+    for y in range(H):
+        for x in range(W):
+            if active[y, x]:
+                v = du[y, x]
+                if x > 0:
+                    if active[y, x - 1]:
+                        src[k] = idx[y, x - 1]
+                        dst[k] = idx[y, x]
+                        caps[k] = capx[y, x - 1]
+                        k += 1
+                    else:
+                        v += capx[y, x - 1]
+                d[idx[y, x]] = v
+    for y in range(1, H):
+        for x in range(W):
+            if active[y, x]:
+                if active[y - 1, x]:
+                    src[k] = idx[y - 1, x]
+                    dst[k] = idx[y, x]
+                    caps[k] = capy[y - 1, x]
+                    k += 1
+                else:
+                    d[idx[y, x]] += capy[y - 1, x]
+    return d, src, dst, caps

@@ -247,19 +247,20 @@ def _full_move(g, du, capx, capy) -> np.ndarray:
     return g.get_grid_segments(nodes)
 
 
-def _restricted_move(g, active, du, capx, capy) -> np.ndarray:
-    """Solve one expansion move whose variables are only the ``active`` pixels.
+def _restricted_terms_numpy(active, du, capx, capy):
+    """The numpy reference of :func:`hyperlf.regularisers._kernels.restricted_terms`.
 
     ``du``, ``capx``, ``capy`` are the move's terms as if every pixel were a variable (see
     :func:`graphcut`'s notes).  A fixed pixel ``p`` has ``x_p = 0``, so the pairwise term
     ``cap * (1 - x_p) * x_q`` becomes ``cap * x_q``: its capacity moves into ``q``'s unary
-    term; with ``q`` fixed the term vanishes.  Returns the boolean switch map ``(H, W)``.
+    term; with ``q`` fixed the term vanishes.  Returns ``(d, src, dst, caps)``: the active
+    pixels' unary terms in row-major order, and the pairs between active pixels by their
+    row-major ranks.
     """
     H, W = active.shape
     du = du.copy()
     idx = np.full((H, W), -1, dtype=np.int64)
-    n = int(active.sum())
-    idx[active] = np.arange(n)
+    idx[active] = np.arange(int(active.sum()))
     src, dst, caps = [], [], []
     for cap, ap, aq, ip, iq, sl_q in (
             (capx[:, :-1], active[:, :-1], active[:, 1:], idx[:, :-1], idx[:, 1:],
@@ -271,15 +272,22 @@ def _restricted_move(g, active, du, capx, capy) -> np.ndarray:
         src.append(ip[both])
         dst.append(iq[both])
         caps.append(cap[both])
-    nodes = g.add_nodes(n)
-    i = np.concatenate(src)
-    if i.size:
-        c_all = np.concatenate(caps)
-        g.add_edges(nodes[i], nodes[np.concatenate(dst)], c_all, np.zeros_like(c_all))
-    d = du[active]
+    return du[active], np.concatenate(src), np.concatenate(dst), np.concatenate(caps)
+
+
+def _restricted_move(g, active, du, capx, capy) -> np.ndarray:
+    """Solve one expansion move whose variables are only the ``active`` pixels (terms:
+    :func:`_restricted_terms_numpy`, computed by its numba kernel); returns the boolean
+    switch map ``(H, W)``."""
+    from . import _kernels
+
+    d, src, dst, caps = _kernels.restricted_terms(active, du, capx, capy)
+    nodes = g.add_nodes(d.size)
+    if src.size:
+        g.add_edges(nodes[src], nodes[dst], caps, np.zeros_like(caps))
     g.add_grid_tedges(nodes, np.maximum(d, 0.0), np.maximum(-d, 0.0))
     g.maxflow()
-    switch = np.zeros((H, W), dtype=bool)
+    switch = np.zeros(active.shape, dtype=bool)
     switch[active] = g.get_grid_segments(nodes)
     return switch
 
