@@ -52,7 +52,7 @@ from hyperlf import costs
 from hyperlf import regularisers as reg
 from hyperlf._atomic import atomic_write_text
 from hyperlf.formats.middlebury import read_middlebury
-from hyperlf.metrics import disparity_scores
+from hyperlf.metrics import bad_pixel_breakdown, disparity_scores
 from hyperlf.twoview import (DEFAULT_OCCLUSION, OCCLUSION_MODES, compute_volumes,
                             default_params, default_window, stereo_from_volumes)
 from hyperlf.warp import visible_in_view
@@ -99,6 +99,28 @@ def visible_mask(pair) -> np.ndarray:
         return pair.eval_mask("nonocc")
     gt = np.where(pair.valid, pair.gt_disparity, np.nan)
     return visible_in_view(gt, (1.0, 0.0), margin=1.0) & pair.valid
+
+
+def pixel_classes(pair, valid) -> dict:
+    """Where a pixel's match is, from the ground truth: seen by the right camera
+    (:func:`visible_mask`), outside the right image (``x - d < 0``) or hidden behind a nearer
+    surface; each split by the left-right check of the estimate (``valid``: consistent, else
+    filled).  A partition of the pixels with ground truth."""
+    gt = np.where(pair.valid, pair.gt_disparity, np.nan)
+    visible = visible_mask(pair)
+    with np.errstate(invalid="ignore"):
+        outside = ~visible & (np.arange(gt.shape[1])[None, :] - gt < 0)
+    where = {"visible": visible, "hidden": ~visible & ~outside,
+             "match outside the image": outside}
+    return {f"{k}, {state}": cls & v for k, cls in where.items()
+            for state, v in (("consistent", valid), ("filled", ~valid))}
+
+
+def breakdown(est, valid, pair, mask) -> dict:
+    """bad5.0's points by :func:`pixel_classes` (% of the evaluated pixels)."""
+    parts = bad_pixel_breakdown(est, pair.gt_disparity, 5.0, pixel_classes(pair, valid),
+                                mask=mask)
+    return {k: v.as_dict() for k, v in parts.items()}
 
 
 def score(est, pair, mask, mask_name) -> dict:
@@ -267,10 +289,32 @@ def markdown(results: dict, scenes, meta: dict) -> str:
                       fmt(c["seconds"], 1)]
         out.append("| " + " | ".join(cells) + " |")
     out.append("")
+    out += breakdown_markdown(results, scenes)
     out.append(f"Rows: `cost` = red-vs-blue with our pipeline (LR check + {meta['occlusion']} fill); "
                "`opencv-sgbm` = cv2.StereoSGBM on 8-bit red/blue, invalid pixels background-filled; "
                "`ncc red-red` = same-spectrum control.")
     return "\n".join(out) + "\n"
+
+
+def breakdown_markdown(results: dict, scenes) -> list[str]:
+    """Where the default cost's bad5.0 points lie (:func:`pixel_classes`), one table per
+    optimiser."""
+    out = []
+    for row in results["rows"]:
+        parts = {s: row["scenes"][s]["breakdown"] for s in scenes
+                 if "breakdown" in row["scenes"].get(s, {})}
+        if not parts:
+            continue
+        out += [f"Where `{row['label']}` + {row['optimizer']} has its bad5.0 points: share of "
+                "the evaluated pixels / points of bad5.0 there (too large / too small, i.e. "
+                "the estimate nearer / farther than the truth).", "",
+                "| pixels | " + " | ".join(parts) + " |", "|---|" + "---|" * len(parts)]
+        for cls in next(iter(parts.values())):
+            out.append(f"| {cls} | " + " | ".join(
+                f"{p[cls]['share']:.2f} / **{p[cls]['bad']:.2f}** ({p[cls]['too_large']:.2f} / "
+                f"{p[cls]['too_small']:.2f})" for p in parts.values()) + " |")
+        out.append("")
+    return out
 
 
 def main(argv=None) -> int:
@@ -366,6 +410,7 @@ def main(argv=None) -> int:
                         f"bad1 {s['bad1']:6.2f} visible bad5 {s['bad5_visible']:6.2f}  "
                         f"{secs:6.1f} s (cost {vols[2]:.1f})")
                     if m == pic_metric:
+                        s["breakdown"] = breakdown(res.disparity, res.valid, pair, mask)
                         from hyperlf.visualise import save_disparity_png, save_error_png
                         gt = pair.gt_disparity
                         save_error_png(out / f"{sname}_{m}_{opt}_error.png", res.disparity, gt,

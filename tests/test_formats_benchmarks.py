@@ -202,3 +202,61 @@ def test_save_dispatch(tmp_path, rng):
         with pytest.raises(InvalidInputError, match="overwrite=True"):
             save_lightfield(lf, p, bit_depth=8)
         save_lightfield(lf, p, bit_depth=8, overwrite=True)  # the CLI's call signature
+
+
+def _table1():
+    import importlib
+    import sys
+    from pathlib import Path
+
+    bench = str(Path(__file__).resolve().parents[1] / "benchmarks")
+    if bench not in sys.path:
+        sys.path.insert(0, bench)
+    return importlib.import_module("table1")
+
+
+def test_table1_pixel_classes_of_a_square_in_front_of_a_wall():
+    """Table 1's failure classes from the ground truth: a square at 8 px before a wall at 2 px
+    hides the 6 px of wall left of it from the right camera, the first 2 columns match outside
+    the right image, and the classes split every pixel once, by the left-right check too."""
+    t1 = _table1()
+    H, W = 12, 40
+    gt = np.full((H, W), 2.0, np.float32)
+    gt[3:9, 20:30] = 8.0
+    img = np.zeros((H, W, 3), np.float32)
+    pair = StereoPair(left=img, right=img, gt_disparity=gt, name="toy")
+    valid = np.zeros((H, W), bool)
+    valid[:, ::2] = True
+    classes = t1.pixel_classes(pair, valid)
+    assert len(classes) == 6
+    np.testing.assert_array_equal(sum(c.astype(int) for c in classes.values()), 1)
+    hidden = classes["hidden, consistent"] | classes["hidden, filled"]
+    outside = classes["match outside the image, consistent"] | \
+        classes["match outside the image, filled"]
+    assert outside.all(axis=0).tolist() == [True, True] + [False] * (W - 2)
+    cols = np.nonzero(hidden[3:9].all(axis=0))[0]
+    assert set(range(14, 20)) <= set(cols) <= set(range(13, 20))   # the z-test's 1 px margin
+    assert not hidden[:3].any() and not hidden[9:].any()
+    assert not (classes["visible, filled"] & valid).any()
+    # a map that carries the square 3 px over the hidden wall: all bad, all too large
+    est = gt.copy()
+    est[3:9, 17:20] = 8.0
+    b = t1.breakdown(est, valid, pair, np.ones((H, W), bool))
+    hid = b["hidden, consistent"]["too_large"] + b["hidden, filled"]["too_large"]
+    assert hid == pytest.approx(100 * 18 / (H * W))
+    assert sum(v["bad"] for v in b.values()) == pytest.approx(100 * 18 / (H * W))
+
+
+def test_table1_pixel_classes_on_art():
+    """On Art (no masks of its own), the classes from its ground truth: about three quarters of
+    the pixels seen by the right camera, a tenth whose match leaves its image."""
+    t1 = _table1()
+    p = read_middlebury(require_dataset("art"))
+    m = p.eval_mask("all")
+    classes = t1.pixel_classes(p, np.ones(m.shape, bool))
+    share = {k.split(",")[0]: classes[k][m].mean() for k in classes if k.endswith("consistent")}
+    assert share["visible"] == pytest.approx(0.734, abs=0.005)
+    assert share["match outside the image"] == pytest.approx(0.096, abs=0.005)
+    assert share["hidden"] == pytest.approx(0.170, abs=0.005)
+    b = t1.breakdown(p.gt_disparity, np.ones(m.shape, bool), p, m)
+    assert all(v["bad"] == 0.0 for v in b.values())

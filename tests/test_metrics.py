@@ -2,6 +2,8 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from hyperlf import InvalidInputError
 from hyperlf import metrics as m
@@ -105,3 +107,58 @@ def test_cube_scores_stream_the_whole_cube_values(tmp_path):
     with pytest.raises(FormatError, match="not a readable HDF5 file"):
         with open_gt_cube(tmp_path / "junk.h5"):
             pass
+
+
+def test_bad_pixel_breakdown_finds_a_fattened_foreground_where_it_is():
+    """A foreground square carried 3 px over its background on its left side: the breakdown
+    puts exactly those pixels in the class beside the square, all of them too large."""
+    gt = np.full((20, 30), 2.0)
+    gt[5:15, 12:22] = 12.0
+    est = gt.copy()
+    est[5:15, 9:12] = 12.0                 # 30 px fattened
+    est[0, 0] = np.nan                     # one missing estimate
+    strip = np.zeros(gt.shape, bool)
+    strip[:, 6:12] = True
+    b = m.bad_pixel_breakdown(est, gt, 5.0, {"strip": strip, "rest": ~strip})
+    n = gt.size
+    assert b["strip"].share == pytest.approx(100 * 120 / n)
+    assert b["strip"].too_large == pytest.approx(100 * 30 / n)
+    assert b["strip"].too_small == 0.0 and b["strip"].missing == 0.0
+    assert b["rest"].missing == pytest.approx(100 / n) and b["rest"].too_large == 0.0
+    assert b["strip"].bad + b["rest"].bad == pytest.approx(m.bad_pixels(est, gt, 5.0))
+    # the mask counts: evaluated on the strip alone, the fattened pixels are a quarter
+    only = m.bad_pixel_breakdown(est, gt, 5.0, {"strip": strip}, mask=strip)
+    assert only["strip"].share == 100.0 and only["strip"].too_large == pytest.approx(25.0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**16), tau=st.floats(0.0, 3.0), holes=st.floats(0.0, 0.3))
+def test_bad_pixel_breakdown_of_a_partition_adds_up_to_bad_pixels(seed, tau, holes):
+    rng = np.random.default_rng(seed)
+    gt = rng.normal(0, 2, (9, 11))
+    gt[rng.random(gt.shape) < 0.1] = np.nan               # unknown truth is never counted
+    est = gt + rng.normal(0, 3, gt.shape)
+    est[rng.random(gt.shape) < holes] = np.nan
+    mask = rng.random(gt.shape) < 0.9
+    if not (mask & np.isfinite(gt)).any():
+        mask[:] = True
+        gt[0, 0] = 0.0
+    label = rng.integers(0, 3, gt.shape)
+    b = m.bad_pixel_breakdown(est, gt, tau, {str(k): label == k for k in range(3)}, mask=mask)
+    assert list(b) == ["0", "1", "2"]
+    assert sum(v.share for v in b.values()) == pytest.approx(100.0)
+    assert sum(v.bad for v in b.values()) == pytest.approx(m.bad_pixels(est, gt, tau, mask=mask))
+    for v in b.values():
+        assert v.bad == pytest.approx(v.too_large + v.too_small + v.missing)
+        assert 0.0 <= v.bad <= v.share + 1e-9
+
+
+@pytest.mark.parametrize("classes, match", [
+    ([np.ones((2, 2), bool)], "classes must be a dict"),
+    ({"a": np.ones((3, 2), bool)}, "class 'a' has shape"),
+    ({1: np.ones((2, 2), bool)}, "class's name must be text"),
+    ({"a": "x"}, "class 'a'"),
+])
+def test_bad_pixel_breakdown_refuses_bad_classes_in_one_line(classes, match):
+    with pytest.raises(InvalidInputError, match=match):
+        m.bad_pixel_breakdown(np.zeros((2, 2)), np.zeros((2, 2)), 1.0, classes)

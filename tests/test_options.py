@@ -428,6 +428,8 @@ def _library_calls():
         "xyz_to_srgb": (spectral.xyz_to_srgb, {"xyz": rng.random((3, 3))}),
         "xyz_to_xy": (spectral.xyz_to_xy, {"xyz": rng.random((3, 3))}),
         "bad_pixels": (metrics.bad_pixels, {**pair, "tau": 1.0}),
+        "bad_pixel_breakdown": (metrics.bad_pixel_breakdown,
+                                {**pair, "tau": 1.0, "classes": {"all": truth > -1}}),
         "badpix": (metrics.badpix, pair),
         "disparity_scores": (metrics.disparity_scores, pair),
         "psnr": (metrics.psnr, pair),

@@ -20,6 +20,8 @@ from .errors import InvalidInputError
 __all__ = [
     "evaluation_mask",
     "bad_pixels",
+    "BadPixelShare",
+    "bad_pixel_breakdown",
     "rmse",
     "mse_x100",
     "badpix",
@@ -129,6 +131,92 @@ def bad_pixels(estimate, truth, tau: float, *, mask=None, border: int = 0) -> fl
     tau = _opt.number(tau, "tau")
     err = _masked_error(estimate, truth, mask, border)
     return float(100.0 * np.mean(np.abs(err) > tau))
+
+
+@dataclass(frozen=True)
+class BadPixelShare:
+    """One class of pixels in :func:`bad_pixel_breakdown`, every field in % of all evaluated
+    pixels (so that the classes of a partition add up to the whole).
+
+    Attributes
+    ----------
+    share : float
+        The class's evaluated pixels.
+    bad : float
+        Its bad pixels: ``too_large + too_small + missing``.
+    too_large, too_small : float
+        Its bad pixels whose estimate exceeds the truth by more than ``tau`` (a nearer
+        surface: a fattened foreground), or falls short of it by more than ``tau``.
+    missing : float
+        Its pixels without a finite estimate (always bad).
+    """
+
+    share: float
+    bad: float
+    too_large: float
+    too_small: float
+    missing: float
+
+    def as_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+def bad_pixel_breakdown(estimate, truth, tau: float, classes, *, mask=None,
+                        border: int = 0) -> dict[str, BadPixelShare]:
+    """Where bad-tau's points lie: per named class of pixels, its share of the evaluated pixels
+    and its bad pixels, by the sign of their error.
+
+    For a failure analysis: the classes may be, for a rectified pair, the pixels the other
+    camera sees, those it does not and those whose match leaves its image, each split by
+    whether the left-right check kept the estimate.  Every figure is a percentage of *all*
+    evaluated pixels (:func:`evaluation_mask`), so a partition's ``bad`` figures add up to
+    :func:`bad_pixels`; classes may also overlap or leave pixels out.
+
+    Parameters
+    ----------
+    estimate, truth : array_like
+        Estimated and true disparity, same shape (px), as for :func:`bad_pixels`.
+    tau : float
+        Error threshold, px.
+    classes : mapping of str to array_like of bool
+        The classes, each a boolean map of the disparity's shape.
+    mask : array_like of bool, optional
+        Extra evaluation mask (:func:`evaluation_mask`).
+    border : int
+        Frame excluded on every side, pixels.
+
+    Returns
+    -------
+    dict of str to BadPixelShare
+        In the order of ``classes``.
+
+    Examples
+    --------
+    >>> est, gt = np.array([[0.0, 9.0, 0.0, 1.0]]), np.zeros((1, 4))
+    >>> left = np.array([[True, True, False, False]])
+    >>> b = bad_pixel_breakdown(est, gt, 5.0, {"left": left, "right": ~left})
+    >>> b["left"].share, b["left"].too_large, b["right"].bad
+    (50.0, 25.0, 0.0)
+    """
+    est, gt = _pair(estimate, truth)
+    tau = _opt.number(tau, "tau")
+    classes = _opt.mapping(classes, "classes", optional=False)
+    m = evaluation_mask(gt, mask, border=border)
+    n = int(m.sum())
+    if n == 0:
+        raise InvalidInputError("no pixel to evaluate: the mask (and border) exclude everything")
+    finite = np.isfinite(est)
+    with np.errstate(invalid="ignore"):
+        err = np.where(finite, est - gt, 0.0)
+    kinds = {"too_large": err > tau, "too_small": err < -tau, "missing": ~finite}
+    out = {}
+    for name, cls in classes.items():
+        name = _opt.text(name, "a class's name")
+        sel = m & _opt.bool_mask(cls, f"class {name!r}", gt.shape)
+        counts = {k: 100.0 * int((sel & v).sum()) / n for k, v in kinds.items()}
+        out[name] = BadPixelShare(share=100.0 * int(sel.sum()) / n, bad=sum(counts.values()),
+                                  **counts)
+    return out
 
 
 def rmse(estimate, truth, *, mask=None, border: int = 0) -> float:
