@@ -29,8 +29,10 @@ Usage::
         --scenes tsukuba,teddy --metrics ncc,census --optimizers sgm --out benchmarks/results/table1
     python benchmarks/table1.py --tune            # grid on Venus first, then the table
 
-Writes ``table1.md`` (also printed), ``table1.json`` (every figure, timing and parameter) and
-error / disparity pictures for the default metric into ``--out``.
+Writes ``table1.md`` (also printed; it ends with where the default metric's bad5.0 points
+lie: :func:`pixel_classes`, :func:`hyperlf.metrics.bad_pixel_breakdown`), ``table1.json`` (every
+figure, timing and parameter) and error / disparity pictures for the default metric into
+``--out``.
 """
 
 from __future__ import annotations

@@ -133,8 +133,15 @@ def bad_pixels(estimate, truth, tau: float, *, mask=None, border: int = 0) -> fl
     return float(100.0 * np.mean(np.abs(err) > tau))
 
 
+class _Record:
+    """A result whose fields read as a dict (for JSON reports)."""
+
+    def as_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
 @dataclass(frozen=True)
-class BadPixelShare:
+class BadPixelShare(_Record):
     """One class of pixels in :func:`bad_pixel_breakdown`, every field in % of all evaluated
     pixels (so that the classes of a partition add up to the whole).
 
@@ -156,9 +163,6 @@ class BadPixelShare:
     too_large: float
     too_small: float
     missing: float
-
-    def as_dict(self) -> dict:
-        return dict(self.__dict__)
 
 
 def bad_pixel_breakdown(estimate, truth, tau: float, classes, *, mask=None,
@@ -289,7 +293,7 @@ def badpix(estimate, truth, threshold: float = 0.07, *, mask=None,
 
 
 @dataclass(frozen=True)
-class DisparityScores:
+class DisparityScores(_Record):
     """Disparity metrics on one mask (percentages in %, errors in px).
 
     Attributes
@@ -316,9 +320,6 @@ class DisparityScores:
     n_pixels: int
     mask: str
     border: int
-
-    def as_dict(self) -> dict:
-        return dict(self.__dict__)
 
 
 def disparity_scores(estimate, truth, *, mask=None, mask_name: str = "all",
