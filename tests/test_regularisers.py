@@ -717,6 +717,17 @@ def test_weighted_median_numba_matches_numpy(rng):
         np.testing.assert_array_equal(R.weighted_median(d, g, r, s, impl="numba"),
                                       R.weighted_median(d, g, r, s, impl="numpy"))
     np.testing.assert_array_equal(R.weighted_median(d, g, 0), d.astype(np.float32))
+    # a mask filters only its pixels, with the same medians there, in both implementations
+    mask = rng.random(d.shape) < 0.3
+    full = R.weighted_median(d, g, 2, 0.1)
+    for impl in ("numba", "numpy"):
+        part = R.weighted_median(d, g, 2, 0.1, impl=impl, mask=mask)
+        np.testing.assert_array_equal(part[mask], full[mask])
+        np.testing.assert_array_equal(part[~mask], d.astype(np.float32)[~mask])
+    np.testing.assert_array_equal(R.weighted_median(d, g, 2, 0.1, mask=np.ones(d.shape, bool)),
+                                  full)
+    with pytest.raises(InvalidInputError, match="mask has shape"):
+        R.weighted_median(d, g, 2, mask=np.ones((2, 2), bool))
     with pytest.raises(InvalidInputError):
         R.weighted_median(d, g[:, :5], 2)
     with pytest.raises(InvalidInputError):

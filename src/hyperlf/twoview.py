@@ -433,7 +433,7 @@ def _median_of_filled(disp, valid, guide, params) -> np.ndarray:
     if p.median_radius == 0:
         return disp
     radius = min(p.median_radius, max(disp.shape))
-    median = _reg.weighted_median(disp, guide, radius=radius, sigma=p.median_sigma)
+    median = _reg.weighted_median(disp, guide, radius=radius, sigma=p.median_sigma, mask=~valid)
     return np.where(valid, disp, median).astype(disp.dtype)
 
 

@@ -76,8 +76,9 @@ def sgm_path(C, acc, starts_y, starts_x, dy, dx, p1, p2map, mode):  # pragma: no
 
 
 @numba.njit(parallel=True, cache=True)
-def weighted_median(d, g, r, sigma, out):  # pragma: no cover - numba
-    """Guided weighted median of ``d`` into ``out`` (window radius ``r``, borders replicated)."""
+def weighted_median(d, g, r, sigma, mask, out):  # pragma: no cover - numba
+    """Guided weighted median of ``d`` into ``out`` (window radius ``r``, borders replicated)
+    at the pixels of ``mask``; the others copy ``d``."""
     H, W = d.shape
     n = (2 * r + 1) * (2 * r + 1)
     c = 1.0 / (2.0 * sigma * sigma)
@@ -85,6 +86,9 @@ def weighted_median(d, g, r, sigma, out):  # pragma: no cover - numba
         v = np.empty(n)
         w = np.empty(n)
         for x in range(W):
+            if not mask[y, x]:
+                out[y, x] = d[y, x]
+                continue
             gp = g[y, x]
             k = 0
             tot = 0.0

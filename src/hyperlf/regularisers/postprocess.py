@@ -9,7 +9,7 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from ..warp import coordinate_taps
-from .._options import check_fields, choice, integer, number, real_array, rule
+from .._options import bool_mask, check_fields, choice, integer, number, real_array, rule
 from ._checks import check_cost, check_label_map, check_labels, gather
 
 __all__ = ["left_right_check", "left_occlusions", "fill_occlusions", "right_cost_from_left",
@@ -471,7 +471,7 @@ def _weighted_median_numpy(d, g, r, sigma):
 
 
 def weighted_median(disparity, guide, radius: int = 7, sigma: float = 0.1,
-                    impl: str = "auto") -> np.ndarray:
+                    impl: str = "auto", *, mask=None) -> np.ndarray:
     """Guided weighted median of a disparity map: an edge-aware post-filter.
 
     It moves depth edges onto image edges (window-based costs "fatten" foreground objects by
@@ -496,6 +496,9 @@ def weighted_median(disparity, guide, radius: int = 7, sigma: float = 0.1,
         Guide similarity scale, relative to the guide's mean.
     impl : {"auto", "numba", "numpy"}
         ``"numpy"`` is the reference (memory ~ 16 (2r+1)^2 H W bytes); ``"auto"`` is numba.
+    mask : array_like of bool, shape (H, W), optional
+        The pixels to filter (default: all); the others keep their disparity.  Their
+        neighbours' values still enter the medians.  The numba version computes only these.
 
     Returns
     -------
@@ -511,12 +514,14 @@ def weighted_median(disparity, guide, radius: int = 7, sigma: float = 0.1,
     """
     d, g, r, sigma = _wmf_args(disparity, guide, radius, sigma)
     choice(impl, "impl", ("auto", "numpy", "numba"))
+    m = np.ones(d.shape, bool) if mask is None else \
+        np.ascontiguousarray(bool_mask(mask, "mask", d.shape, of="the disparity"))
     if r == 0:
         return d.astype(np.float32)
     if impl == "numpy":
-        return _weighted_median_numpy(d, g, r, sigma).astype(np.float32)
+        return np.where(m, _weighted_median_numpy(d, g, r, sigma), d).astype(np.float32)
     from . import _kernels
 
     out = np.empty(d.shape, np.float64)
-    _kernels.weighted_median(d, g, r, sigma, out)
+    _kernels.weighted_median(d, g, r, sigma, m, out)
     return out.astype(np.float32)
