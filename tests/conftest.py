@@ -64,6 +64,19 @@ def require_dataset(name: str):
     return dataset_path(name)
 
 
+def benchmark_script(name: str):
+    """A script of ``benchmarks/`` imported as a module (that folder put on ``sys.path``, as
+    the scripts import their ``_common`` helpers by name)."""
+    import importlib
+    import sys
+    from pathlib import Path
+
+    folder = str(Path(__file__).resolve().parents[1] / "benchmarks")
+    if folder not in sys.path:
+        sys.path.insert(0, folder)
+    return importlib.import_module(name)
+
+
 def write_shifted_pair(folder, *, seed: int = 0, rows: int = 30, width: int = 40,
                        start: int = 5, shift: int = 3):
     """A rectified pair of 16-bit PNGs cut from one random texture, the right one ``shift``

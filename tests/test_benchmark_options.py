@@ -6,22 +6,14 @@ results that record the defaults."""
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import sys
-from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
-
-
-def _script(name: str):
-    if str(BENCHMARKS) not in sys.path:
-        sys.path.insert(0, str(BENCHMARKS))
-    return importlib.import_module(name)
+from conftest import benchmark_script as _script
 
 
 _json = st.recursive(st.none() | st.booleans() | st.integers() | st.text(max_size=5)

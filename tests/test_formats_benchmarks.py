@@ -14,7 +14,7 @@ from hyperlf.formats import (StereoPair, is_hci_scene, load_lightfield, read_hci
                              read_middlebury, read_pfm, save_lightfield, write_image,
                              write_middlebury, write_pfm)
 
-from conftest import require_dataset
+from conftest import benchmark_script, require_dataset
 
 
 # ----------------------------------------------------------------------------- HCI, synthetic
@@ -204,22 +204,11 @@ def test_save_dispatch(tmp_path, rng):
         save_lightfield(lf, p, bit_depth=8, overwrite=True)  # the CLI's call signature
 
 
-def _table1():
-    import importlib
-    import sys
-    from pathlib import Path
-
-    bench = str(Path(__file__).resolve().parents[1] / "benchmarks")
-    if bench not in sys.path:
-        sys.path.insert(0, bench)
-    return importlib.import_module("table1")
-
-
 def test_table1_pixel_classes_of_a_square_in_front_of_a_wall():
     """Table 1's failure classes from the ground truth: a square at 8 px before a wall at 2 px
     hides the 6 px of wall left of it from the right camera, the first 2 columns match outside
     the right image, and the classes split every pixel once, by the left-right check too."""
-    t1 = _table1()
+    t1 = benchmark_script("table1")
     H, W = 12, 40
     gt = np.full((H, W), 2.0, np.float32)
     gt[3:9, 20:30] = 8.0
@@ -250,7 +239,7 @@ def test_table1_pixel_classes_of_a_square_in_front_of_a_wall():
 def test_table1_pixel_classes_on_art():
     """On Art (no masks of its own), the classes from its ground truth: about three quarters of
     the pixels seen by the right camera, a tenth whose match leaves its image."""
-    t1 = _table1()
+    t1 = benchmark_script("table1")
     p = read_middlebury(require_dataset("art"))
     m = p.eval_mask("all")
     classes = t1.pixel_classes(p, np.ones(m.shape, bool))

@@ -175,7 +175,6 @@ def expansion_terms(c_alpha, alpha, f, unary_f, Vm, wx, wy, du, capx, capy):  # 
             du[y, x] = d
 
 
-
 @numba.njit(cache=True)
 def restricted_terms(active, du, capx, capy):  # pragma: no cover - numba
     """The terms of a move whose variables are only the ``active`` pixels:
