@@ -275,6 +275,31 @@ def test_restricted_terms_kernel_is_the_numpy_reference_bit_for_bit(H, W, seed, 
     np.testing.assert_allclose(d, expect, rtol=1e-12, atol=1e-12)
 
 
+@settings(max_examples=40, deadline=None)
+@given(L=st.integers(1, 5), H=st.integers(1, 8), W=st.integers(1, 8), seed=st.integers(0, 2**16),
+       share=st.floats(0.0, 1.0))
+def test_move_delta_is_the_energy_difference(L, H, W, seed, share):
+    """A move's energy change, from the numba kernel and from its numpy reference, equals the
+    whole energy after the move less the whole energy before it, for any set of switched
+    pixels, with per-pair weights and a pair term that depends on the order of its labels."""
+    from hyperlf.regularisers import _kernels
+    from hyperlf.regularisers import graphcuts as G
+
+    rng = np.random.default_rng(seed)
+    c = rng.random((L, H, W)).astype(np.float32)
+    f = rng.integers(0, L, (H, W)).astype(np.intp)
+    alpha = int(rng.integers(0, L))
+    switch = (rng.random((H, W)) < share) & (f != alpha)
+    Vm, wx, wy = rng.random((L, L)), rng.random((H, W - 1)), rng.random((H - 1, W))
+    f_new = np.where(switch, alpha, f)
+    expect = G._energy(f_new, G.gather(c, f_new), Vm, wx, wy) - \
+        G._energy(f, G.gather(c, f), Vm, wx, wy)
+    args = (switch, c[alpha], alpha, f, G.gather(c, f), Vm, wx, wy)
+    got, ref = _kernels.move_delta(*args), G._move_delta_numpy(*args)
+    assert ref == pytest.approx(expect, rel=1e-9, abs=1e-9)
+    assert got == pytest.approx(ref, rel=1e-12, abs=1e-12)
+
+
 @settings(max_examples=15, deadline=None)
 @given(L=st.integers(1, 4), H=st.integers(1, 5), W=st.integers(1, 5), seed=st.integers(0, 2**16),
        weight=st.floats(0.0, 3.0), potts=st.booleans())

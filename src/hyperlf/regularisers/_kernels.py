@@ -4,7 +4,7 @@ Each kernel has a numpy reference beside its user that the tests compare it with
 :func:`sgm_path` <-> ``semiglobal._sgm_numpy_direction``, :func:`weighted_median` <->
 ``postprocess._weighted_median_numpy``, :func:`plane_scores` <-> ``planes._plane_scores_numpy``,
 :func:`expansion_terms` <-> ``graphcuts._move_terms_numpy``, :func:`restricted_terms` <->
-``graphcuts._restricted_terms_numpy``.
+``graphcuts._restricted_terms_numpy``, :func:`move_delta` <-> ``graphcuts._move_delta_numpy``.
 """
 
 from __future__ import annotations
@@ -227,3 +227,37 @@ def restricted_terms(active, du, capx, capy):  # pragma: no cover - numba
                 else:
                     d[idx[y, x]] += capy[y - 1, x]
     return d, src, dst, caps
+
+
+@numba.njit(cache=True)
+def move_delta(switch, c_alpha, alpha, f, unary_f, Vm, wx, wy):  # pragma: no cover - numba
+    """The change of the MRF energy when the ``switch`` pixels of ``f`` take ``alpha``:
+    ``graphcuts._move_delta_numpy``, up to the order of the sum.
+
+    Only the switched pixels and the pairs that hold one are read.  A pair of two switched
+    pixels is counted once, from its left or upper pixel.  Serial, so that the sum's order does
+    not depend on the number of threads.
+    """
+    H, W = f.shape
+    total = 0.0
+    for y in range(H):
+        for x in range(W):
+            if not switch[y, x]:
+                continue
+            fp = f[y, x]
+            total += np.float64(c_alpha[y, x]) - unary_f[y, x]
+            if x + 1 < W:
+                fq = f[y, x + 1]
+                nq = alpha if switch[y, x + 1] else fq
+                total += wx[y, x] * (Vm[alpha, nq] - Vm[fp, fq])
+            if x > 0 and not switch[y, x - 1]:
+                fq = f[y, x - 1]
+                total += wx[y, x - 1] * (Vm[fq, alpha] - Vm[fq, fp])
+            if y + 1 < H:
+                fq = f[y + 1, x]
+                nq = alpha if switch[y + 1, x] else fq
+                total += wy[y, x] * (Vm[alpha, nq] - Vm[fp, fq])
+            if y > 0 and not switch[y - 1, x]:
+                fq = f[y - 1, x]
+                total += wy[y - 1, x] * (Vm[fq, alpha] - Vm[fq, fp])
+    return total

@@ -292,8 +292,27 @@ def _restricted_move(g, active, du, capx, capy) -> np.ndarray:
     return switch
 
 
+def _move_delta_numpy(switch, c_alpha, alpha, f, unary_f, Vm, wx, wy) -> float:
+    """The numpy reference of :func:`hyperlf.regularisers._kernels.move_delta`: the energy of
+    ``f`` with the ``switch`` pixels at ``alpha``, less the energy of ``f``, summed over the
+    terms that change (the switched pixels' unary terms and the pairs that hold one)."""
+    f_new = np.where(switch, alpha, f)
+    delta = float((c_alpha[switch].astype(np.float64) - unary_f[switch]).sum())
+    for w, p, q in ((wx, np.s_[:, :-1], np.s_[:, 1:]), (wy, np.s_[:-1, :], np.s_[1:, :])):
+        touched = switch[p] | switch[q]
+        new = Vm[f_new[p][touched], f_new[q][touched]]
+        old = Vm[f[p][touched], f[q][touched]]
+        delta += float((w[touched] * (new - old)).sum())
+    return delta
+
+
 class _Expansion:
-    """State of one alpha-expansion run: the labelling, its unary terms and its energy."""
+    """State of one alpha-expansion run: the labelling, its unary terms and its energy.
+
+    An accepted move updates ``f`` and ``unary_f`` in place and the energy by the move's change
+    (:func:`hyperlf.regularisers._kernels.move_delta`), which reads only the switched pixels;
+    :meth:`exact_energy` recomputes it over the whole image, as each cycle ends.
+    """
 
     def __init__(self, c, f, Vm, wx, wy, candidates):
         import maxflow
@@ -309,6 +328,8 @@ class _Expansion:
 
     def move(self, alpha: int) -> bool:
         """Try the expansion move for ``alpha``; True when it lowered the energy."""
+        from . import _kernels
+
         f = self.f
         du = _move_terms(self.c, alpha, f, self.unary_f, self.Vm, self.wx, self.wy,
                          self.capx, self.capy)
@@ -322,13 +343,20 @@ class _Expansion:
             switch = _restricted_move(self.graph, active, du, self.capx, self.capy)
         if not switch.any():
             return False
-        f_new = np.where(switch, alpha, f)
-        unary_new = np.where(switch, self.c[alpha], self.unary_f)
-        e_new = _energy(f_new, unary_new, self.Vm, self.wx, self.wy)
-        if e_new < self.energy - 1e-12 * max(1.0, abs(self.energy)):
-            self.f, self.unary_f, self.energy = f_new, unary_new, e_new
+        c_alpha = self.c[alpha]
+        delta = _kernels.move_delta(switch, c_alpha, alpha, f, self.unary_f, self.Vm, self.wx,
+                                    self.wy)
+        if delta < -1e-12 * max(1.0, abs(self.energy)):
+            f[switch] = alpha
+            self.unary_f[switch] = c_alpha[switch]
+            self.energy += delta
             return True
         return False
+
+    def exact_energy(self) -> float:
+        """Recompute the energy over the whole image (removes the updates' rounding)."""
+        self.energy = _energy(self.f, self.unary_f, self.Vm, self.wx, self.wy)
+        return self.energy
 
 
 def _progress_hooks(progress, n_moves: int):
@@ -362,6 +390,7 @@ def _run_cycles(state: _Expansion, L, max_cycles, order, seed, bar, callback):
             improved |= state.move(int(alpha))
             if bar is not None:
                 bar.update(1)
+        state.exact_energy()
         if callback is not None:
             callback(cycle, max_cycles, state.energy)
         if not improved:
@@ -435,9 +464,10 @@ def graphcut(cost, smoothness: str = "truncated_linear", weight: float = 1.0,
     ``E10 = V(α, f_q)``, ``E11 = 0`` (times ``w_pq``) and is written as
     ``E00 + (E10 - E00) x_p + (E11 - E10) x_q + (E01 + E10 - E00 - E11) (1 - x_p) x_q``; the
     last coefficient is >= 0 by the triangle inequality (clipped at 0 against round-off) [2]_.
-    All terms are assembled with numpy arrays; the graph uses ``add_grid_edges`` (one directed
-    edge per pair) and ``add_grid_tedges``.  A move is accepted only if the energy, recomputed
-    exactly, decreases, so the energy never rises.
+    The terms are assembled by numba kernels (their numpy references are in this module); the
+    graph uses ``add_grid_edges`` (one directed edge per pair) and ``add_grid_tedges``.  A move is accepted only if the energy's change, summed
+    over the terms it changes, is negative, so the energy never rises; the energy is recomputed
+    over the whole image as each cycle ends.
 
     References
     ----------
