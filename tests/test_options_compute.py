@@ -122,8 +122,8 @@ def test_every_argument_is_taken_or_refused_in_one_line(option, value):
 @pytest.mark.parametrize("name, keyword, value, words", [
     ("gradients", "In", "x", "In must be an array of real numbers"),
     ("gradients", "method", np.zeros(2), "gradient method must be one of central, sobel"),
-    ("bin_weights", "values", float("nan"), "values must hold finite values"),
-    ("auto_sigma_w", "M", 1e300, "M must hold finite values of size at most 1e+150"),
+    ("bin_weights", "values", float("nan"), "values must be finite (no NaN or inf)"),
+    ("auto_sigma_w", "M", 1e300, "M must be at most 1e+150 in magnitude"),
     ("edge_weights", "sigma_w", "x", "sigma_w must be a finite number >= 0 or None"),
     ("magnitude_direction", "gy", np.zeros(3), "gx and gy must have the same shape"),
     ("prepare_from_gradients", "params", 2.5, "params must be a DescriptorParams"),

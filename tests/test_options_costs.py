@@ -200,7 +200,7 @@ def test_the_costly_ones_too(argument, value):
     ("view_costs", {"offset": None}, "offset must be two finite numbers (dx, dy)"),
     ("view_costs", {"ref_img": None}, "ref_img and img must be 2-D images of one shape"),
     ("view_moments", {"view_valid": 0}, "view_valid has shape ()"),
-    ("guide_image", {"image": "x"}, "the guide must be a non-empty 2-D array"),
+    ("guide_image", {"image": "x"}, "the guide must be an array of real numbers, got 'x'"),
     ("guided_filter", {"radius": 10 ** 400}, "radius must be an integer in 1..127"),
     ("aggregate_volume", {"out": "x"}, "out must be a writeable float32 array"),
     ("aggregate_pair", {"dmin": 2.5}, "dmin must be an integer"),

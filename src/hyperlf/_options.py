@@ -277,12 +277,14 @@ def all_finite(a: np.ndarray) -> bool:
     return bool(np.isfinite(a.min()) and np.isfinite(a.max()))
 
 
-def array(value, label: str, shape=None, *, ndim: int | None = None, kinds: str = "biuf",
-          finite: bool = False, bound: float | None = None, of: str = "") -> np.ndarray:
+def array(value, label: str, shape=None, *, ndim: int | tuple[int, ...] | None = None,
+          kinds: str = "biuf", empty: bool = True, finite: bool = False,
+          bound: float | None = None, of: str = "") -> np.ndarray:
     """``value`` as an array (an ndarray as it is, no copy) of the numpy dtype ``kinds``, of
-    ``shape`` (or ``ndim`` axes) where given, finite where asked, and of magnitude at most
-    ``bound`` where given (finite then too); ``of`` names where the shape comes from
-    (``" (the problem's H x W)"``).
+    ``shape`` (or ``ndim`` axes, an int or a tuple of those allowed) where given, non-empty
+    unless ``empty``, finite where asked, and of magnitude at most ``bound`` where given
+    (finite then too); ``of`` names where the shape comes from (``" (the problem's H x W)"``).
+    Without ``finite`` or ``bound`` an ndarray is checked in O(1): nothing is scanned.
 
     Examples
     --------
@@ -300,8 +302,11 @@ def array(value, label: str, shape=None, *, ndim: int | None = None, kinds: str 
     got = shown(value) if a.ndim == 0 else f"shape {a.shape}"
     if shape is not None and a.shape != tuple(shape):
         raise InvalidInputError(f"{label} must have shape {tuple(shape)}{of}, got {got}")
-    if ndim is not None and a.ndim != ndim:
-        raise InvalidInputError(f"{label} must be a {ndim}-D array{of}, got {got}")
+    ndims = (ndim,) if isinstance(ndim, int) else ndim
+    if (ndims is not None and a.ndim not in ndims) or (a.size == 0 and not empty):
+        want = "" if ndims is None else " " + " or ".join(f"{n}-D" for n in ndims)
+        some = "" if empty else " non-empty"
+        raise InvalidInputError(f"{label} must be a{some}{want} array{of}, got {got}")
     if (finite or bound is not None) and not all_finite(a):
         raise InvalidInputError(f"{label} must be finite (no NaN or inf)")
     if bound is not None and a.size and float(np.abs(a).max()) > bound:

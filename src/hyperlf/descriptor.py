@@ -103,7 +103,7 @@ from typing import Iterator, Union
 import numpy as np
 from scipy import ndimage
 
-from ._options import (check_fields, choice, flag, integer, number, params_of, real_array, rule,
+from ._options import (array, check_fields, choice, flag, integer, number, params_of, rule,
                        shown, word_or)
 from .errors import InvalidInputError
 
@@ -279,18 +279,14 @@ def _real_values(value, label: str, *, two_d: bool = False, at_least: float | No
                  ) -> np.ndarray:
     """``value`` as a non-empty float64 array (2-D where ``two_d``) of finite values of size at
     most :data:`_MAX_GRADIENT` (``>= at_least`` where given): the public helpers' one check
-    (one pass over the data; the descriptor's own pipeline calls their unchecked cores)."""
-    a = real_array(value, label)
-    if (two_d and a.ndim != 2) or a.size == 0:
-        what = "a non-empty 2-D (H, W) array" if two_d else "a non-empty array"
-        raise InvalidInputError(f"{label} must be {what}, got shape {a.shape}")
-    with np.errstate(invalid="ignore"):
-        ok = bool(np.all(np.abs(a) <= _MAX_GRADIENT))
-        ok = ok and (at_least is None or bool(np.all(a >= at_least)))
-    if not ok:
-        low = f" and >= {at_least:g}" if at_least is not None else ""
-        raise InvalidInputError(f"{label} must hold finite values of size at most "
-                                f"{_MAX_GRADIENT:g}{low}")
+    (:func:`hyperlf._options.array`; the descriptor's own pipeline calls their unchecked
+    cores)."""
+    a = array(value, label, ndim=2 if two_d else None, empty=False, bound=_MAX_GRADIENT,
+              of=" (H, W)" if two_d else "")
+    a = np.asarray(a, dtype=np.float64)
+    if at_least is not None and not bool(np.all(a >= at_least)):
+        raise InvalidInputError(f"{label} must be >= {at_least:g} everywhere, got a minimum of "
+                                f"{a.min():g}")
     return a
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._options import choice, integer, number, real_array, shown, window
+from .._options import array, choice, integer, number, shown, window
 from ..errors import InvalidInputError
 
 __all__ = ["IMPLS", "AUTO_IMPL", "MAX_VIEW_WINDOW", "MIN_SCALE", "check_pair", "check_disp",
@@ -93,23 +93,11 @@ def map_side(shape) -> int:
     return max(int(shape[-2]), int(shape[-1]), MAX_VIEW_WINDOW // 2)
 
 
-#: Real-number dtype kinds the helpers take (no bools, text or objects).
-_REAL_KINDS = "iuf"
-
-
 def check_map(value, label: str, ndim, *, empty: bool = False) -> np.ndarray:
     """``value`` as a numpy array of real numbers (an ndarray is returned as it is, no copy)
-    with ``ndim`` axes (an int, or a tuple of the ones allowed), non-empty unless ``empty``.
-    O(1) for an ndarray: nothing is scanned."""
-    a = value if isinstance(value, np.ndarray) else real_array(value, label, dtype=None)
-    ndims = (ndim,) if isinstance(ndim, int) else tuple(ndim)
-    if a.dtype.kind not in _REAL_KINDS or a.ndim not in ndims or (a.size == 0 and not empty):
-        want = " or ".join(f"{n}-D" for n in ndims)
-        got = f"shape {a.shape}, dtype {a.dtype}" if isinstance(value, np.ndarray) \
-            else shown(value)
-        raise InvalidInputError(f"{label} must be a non-empty {want} array of real numbers, "
-                                f"got {got}")
-    return a
+    with ``ndim`` axes (an int, or a tuple of the ones allowed), non-empty unless ``empty``:
+    :func:`hyperlf._options.array` without bools.  O(1) for an ndarray: nothing is scanned."""
+    return array(value, label, ndim=ndim, kinds="iuf", empty=empty)
 
 
 def check_shape(shape, label: str = "shape") -> tuple[int, int]:
