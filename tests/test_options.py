@@ -179,6 +179,23 @@ def test_real_arrays_and_keyword_values():
     assert checked == {"n": 4, "other": "kept"} and type(checked["n"]) is int
 
 
+def test_array_takes_several_ndims_and_a_non_empty_rule():
+    """The one array check: a tuple of allowed axis counts, emptiness refused only when asked,
+    bools only where the kinds allow them, and an ndarray returned as it is."""
+    a = np.zeros((2, 3))
+    assert opt.array(a, "a", ndim=(2, 3)) is a
+    assert opt.array(np.zeros((0, 3)), "a", ndim=2).shape == (0, 3)
+    for value, words in ((np.zeros(4), "a must be a non-empty 2-D or 3-D array, got shape (4,)"),
+                         (np.zeros((0, 3)), "a must be a non-empty 2-D or 3-D array, got shape "
+                                            "(0, 3)"),
+                         (np.ones((2, 2), bool), "a must be an array of real numbers")):
+        with pytest.raises(InvalidInputError) as exc:
+            opt.array(value, "a", ndim=(2, 3), kinds="iuf", empty=False)
+        assert str(exc.value).startswith(words), str(exc.value)
+    with pytest.raises(InvalidInputError, match="^a must be a non-empty array, got"):
+        opt.array([], "a", empty=False)
+
+
 def test_windows_and_bands_beyond_the_image_are_refused():
     """They asked for terabytes (a 100001 px window on a 28 px image) before any message. A
     window may reach past the image on one side (a default window on a tiny image)."""
