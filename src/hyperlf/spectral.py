@@ -76,12 +76,21 @@ _XYZ_ALIASES = ("CIE 1931", "XYZ")
 
 #: IEC 61966-2-1 sRGB primaries and D65 white -> XYZ (Y of white = 1). Derived from the
 #: primaries x,y = (0.64, 0.33), (0.30, 0.60), (0.15, 0.06) and D65 (0.3127, 0.3290).
+#: The D65 white point's xy chromaticity (IEC 61966-2-1).
+_D65_XY = (0.3127, 0.3290)
+
+
+def _xy_to_XYZ(xy) -> np.ndarray:
+    """CIE xy chromaticities ``(..., 2)`` -> XYZ ``(..., 3)`` at luminance ``Y = 1``."""
+    xy = np.asarray(xy, dtype=np.float64)
+    x, y = xy[..., 0], xy[..., 1]
+    return np.stack([x / y, np.ones_like(x), (1 - x - y) / y], axis=-1)
+
+
 def _srgb_matrix() -> np.ndarray:
-    prim = np.array([[0.64, 0.33], [0.30, 0.60], [0.15, 0.06]])
-    white = np.array([0.3127, 0.3290])
-    P = np.stack([prim[:, 0] / prim[:, 1], np.ones(3), (1 - prim.sum(1)) / prim[:, 1]])
-    W = np.array([white[0] / white[1], 1.0, (1 - white.sum()) / white[1]])
-    return P * np.linalg.solve(P, W)[None, :]
+    """Linear sRGB -> XYZ: the primaries' XYZ scaled so that RGB (1, 1, 1) is the D65 white."""
+    P = _xy_to_XYZ([[0.64, 0.33], [0.30, 0.60], [0.15, 0.06]]).T
+    return P * np.linalg.solve(P, _xy_to_XYZ(_D65_XY))[None, :]
 
 
 _M_RGB_TO_XYZ = _srgb_matrix()
@@ -711,21 +720,17 @@ def linear_to_srgb(x) -> np.ndarray:
     return (np.sign(a) * out).astype(a.dtype, copy=False)
 
 
-def _white_xyz(xy) -> np.ndarray:
-    return np.array([xy[0] / xy[1], 1.0, (1 - xy[0] - xy[1]) / xy[1]])
-
-
 def _adaptation_to_d65(white) -> np.ndarray:
     """Bradford adaptation from the xy ``white`` to D65.  It refuses ``y <= 0`` and a cone
     response 0 (a gain would be infinite).  A negative response is kept: the white of a few
     bands far apart (410 and 700 nm) has one, and its colours are a rough guess anyway."""
     xy = _white_tuple(white)
-    ls = _BRADFORD @ _white_xyz(xy) if xy[1] > 0 else np.zeros(3)
+    ls = _BRADFORD @ _xy_to_XYZ(xy) if xy[1] > 0 else np.zeros(3)
     if not np.all(ls != 0):
         raise InvalidInputError(
             f"white must be the xy chromaticity of a light (y > 0), like (1/3, 1/3) or "
             f"(0.3127, 0.3290), got {xy}")
-    ld = _BRADFORD @ _white_xyz((0.3127, 0.3290))
+    ld = _BRADFORD @ _xy_to_XYZ(_D65_XY)
     return np.linalg.inv(_BRADFORD) @ np.diag(ld / ls) @ _BRADFORD
 
 
