@@ -505,6 +505,46 @@ def test_spectra_metrics_and_scenes_take_any_option_or_refuse_it_in_one_line(opt
         _build_or_refuse(_LIBRARY[name][1], **{keyword: value})
 
 
+#: Explicit objects of every kind, with every texture key, a ring and a stick: the fuzzer below
+#: replaces one of their values (``(key,)``, ``("texture", key)`` or ``("shape", key)``).
+_OBJECTS = (
+    {"kind": "plane", "disparity": 0.0, "name": "background",
+     "texture": {"pattern": "noise", "period": 0.1, "chips": [1, 2],
+                 "waves": [[1.0, 0.5, 0.2], [0.3, 1.0, 1.0]]}},
+    {"kind": "plane", "disparity": 0.6, "rect": [0.1, 0.1, 0.5, 0.9], "gradient": [0.2, 0.1],
+     "shape": {"kind": "ring", "hole": 0.5},
+     "texture": {"pattern": "patches", "colors": 4, "salt": 7, "jitter": [0.1, 0.2]}},
+    {"kind": "plane", "disparity": 0.4, "rect": [0.5, 0.0, 1.0, 1.0],
+     "shape": {"kind": "stick", "ends": [[0.6, 0.1], [0.9, 0.9]], "width": 0.1},
+     "texture": {"pattern": "stripes", "angle": 30.0}},
+    {"kind": "box", "disparity": 0.8, "rect": [0.2, 0.2, 0.4, 0.4], "depth": 0.3},
+    {"kind": "sphere", "disparity": 0.9, "center": [0.7, 0.6], "radius": 0.2},
+)
+_OBJECT_KEYS = sorted({(i, (k,)) for i, o in enumerate(_OBJECTS) for k in o}
+                      | {(i, (part, k)) for i, o in enumerate(_OBJECTS)
+                         for part in ("texture", "shape") for k in o.get(part, {})})
+
+
+@settings(max_examples=300, deadline=None, derandomize=True)
+@given(st.sampled_from(_OBJECT_KEYS), JUNK)
+def test_any_object_value_is_taken_or_refused_in_one_line(where, value):
+    """Junk in any key of an explicit object of ``procedural_scene`` (its texture and shape
+    included) is taken or refused in one line, with no warning (an overflow warned)."""
+    import warnings
+
+    from hyperlf import synthesis
+
+    i, key = where
+    objects = [dict(o, **{p: dict(o[p]) for p in ("texture", "shape") if p in o})
+               for o in _OBJECTS]
+    target = objects[i] if len(key) == 1 else objects[i][key[0]]
+    target[key[-1]] = value
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        _build_or_refuse(synthesis.procedural_scene, rows=1, cols=2, height=12, width=12,
+                         disparity_range=(-1.0, 1.0), objects=objects)
+
+
 def test_a_scene_beyond_the_memory_is_refused_before_any_work(monkeypatch):
     from hyperlf import synthesis, tiling
 

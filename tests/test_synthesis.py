@@ -137,7 +137,8 @@ def test_warp_residual_is_tiny_for_smooth_textures():
     """With smooth textures (no point-sampled edges) warping is exact up to interpolation."""
     smooth = {"pattern": "noise", "period": 0.4}
     objects = [dict(o, texture=smooth) for o in S.SCENES["solids"]["objects"]]
-    objects[1] = dict(objects[1], kind="plane", gradient=[0.8, -0.5])  # slanted, not a box
+    box = {k: v for k, v in objects[1].items() if k != "depth"}  # a plane has no depth
+    objects[1] = dict(box, kind="plane", gradient=[0.8, -0.5])  # slanted, not a box
     lf = S.procedural_scene(objects=objects, seed=1, **SMALL)
     g = lf.gt_disparity[lf.reference]
     for (r, c) in [(0, 0), (4, 5), (2, 3), (0, 4)]:
@@ -287,6 +288,49 @@ def test_bad_shapes_are_named(shape):
     with pytest.raises(InvalidInputError, match=name):
         S.procedural_scene(**SMALL, objects=[{"kind": "plane", "disparity": 0.0}, obj],
                            disparity_range=(0.0, 1.0))
+
+
+_BG = {"kind": "plane", "disparity": 0.0}
+
+
+@pytest.mark.parametrize("obj, words", [
+    ({"kind": "sphere", "centre": [0.5, 0.5], "radius": 0.2, "disparity": 0.5},
+     "objects[1] has an unknown key 'centre'; a sphere takes kind, disparity, texture, name, "
+     "center, radius"),
+    ({"kind": "sphere", "center": [0.5, 0.5], "radius": 0.2},
+     "objects[1] needs 'disparity': a sphere is given by disparity, center, radius"),
+    ({"kind": "box", "disparity": 0.5}, "objects[1] needs 'rect'"),
+    ({"kind": "sphere", "center": [1e300, 0.5], "radius": 0.2, "disparity": 0.5},
+     "objects[1]['center'] must be (u, v), finite and at most 1e+06 in size"),
+    ({"kind": "plane", "disparity": 0.5, "rect": [0.6, 0.1, 0.2, 0.9]},
+     "objects[1]['rect'] must have u0 < u1 and v0 < v1"),
+    ({"kind": "plane", "disparity": 0.5, "texture": {"patern": "checker"}},
+     "objects[1]['texture'] has an unknown key 'patern'"),
+    ({"kind": "plane", "disparity": 0.5, "texture": {"pattern": "noise", "waves": []}},
+     "objects[1]['texture']['waves'] must be a non-empty list"),
+    ({"kind": "plane", "disparity": 0.5, "texture": {"colors": 10 ** 9}},
+     "objects[1]['texture']['colors'] must be an integer in 1..64"),
+    ({"kind": "sphere", "center": [0.5, 0.5], "radius": 0.2, "disparity": -2.0},
+     "sphere disparity -2.0 is below the scene's disparity range"),
+])
+def test_bad_objects_are_refused_in_one_line_naming_the_key(obj, words):
+    """An explicit object's kind, keys and values are checked before any work: a misspelt key
+    (``centre``), a missing one, numbers the ray casting would overflow on (they raised
+    ValueError, KeyError and TypeError or warned of an overflow), a sphere at infinity."""
+    with pytest.raises(InvalidInputError) as exc:
+        S.procedural_scene(**SMALL, objects=[_BG, obj], disparity_range=(-1.0, 1.0))
+    assert str(exc.value).startswith(words) and "\n" not in str(exc.value), str(exc.value)
+
+
+def test_a_scene_rebuilt_from_its_metadata_is_the_same():
+    """The completed object descriptions in the metadata pass the checks and give the same
+    light field again."""
+    a = S.procedural_scene(seed=4, rows=2, cols=2, height=24, width=32, n_objects=4,
+                           kinds=("fronto", "slanted", "box", "sphere", "ring", "stick"))
+    b = S.procedural_scene(seed=9, rows=2, cols=2, height=24, width=32,
+                           objects=a.metadata["objects"])
+    np.testing.assert_array_equal(a.views, b.views)
+    np.testing.assert_array_equal(a.gt_disparity, b.gt_disparity)
 
 
 def test_metadata_records_parameters_and_is_json(scenes):

@@ -51,6 +51,7 @@ __all__ = [
     "SCENES",
     "named_scene",
     "MAX_OBJECTS",
+    "MAX_OBJECT_VALUE",
     "MAX_SUPERSAMPLE",
 ]
 
@@ -847,34 +848,40 @@ def _plane_shape_px(o: Mapping[str, Any], H: int, W: int) -> dict | None:
 
 
 def _shape_px(shape: Mapping[str, Any], rect_px: list, H: int, W: int) -> dict:
-    """A plane's ``shape`` (fractions of the image) in pixels, checked: ``{"kind": "ring",
-    "hole": h}`` is the ellipse inscribed in the plane's rect with a hole of ``h`` (0-1,
-    default 0.6) times its size; ``{"kind": "stick", "ends": [[u0, v0], [u1, v1]], "width":
-    w}`` the points within ``w / 2`` (a fraction of ``min(H, W)``, default 0.02) of the segment
-    between the two ends."""
-    kind = shape.get("kind") if isinstance(shape, Mapping) else None
-    if kind not in _SHAPES:
-        raise InvalidInputError(f"unknown plane shape {shape!r}; give a dict whose 'kind' is one "
-                                f"of {', '.join(_SHAPES)}")
-    if rect_px is None:
+    """A plane's ``shape`` (fractions of the image, checked by :func:`_check_shape`) in pixels:
+    ``{"kind": "ring", "hole": h}`` is the ellipse inscribed in the plane's rect with a hole of
+    ``h`` (0-1, default 0.6) times its size; ``{"kind": "stick", "ends": [[u0, v0], [u1, v1]],
+    "width": w}`` the points within ``w / 2`` (a fraction of ``min(H, W)``, default 0.02) of
+    the segment between the two ends."""
+    if shape["kind"] == "ring":
+        x0, y0, x1, y1 = rect_px
+        return {"kind": "ring", "hole": float(shape.get("hole", 0.6)),
+                "centre": ((x0 + x1) / 2, (y0 + y1) / 2), "axes": ((x1 - x0) / 2, (y1 - y0) / 2)}
+    (u0, v0), (u1, v1) = np.asarray(shape["ends"], dtype=np.float64)
+    return {"kind": "stick", "width": float(shape.get("width", 0.02)) * min(H, W),
+            "ends": ((u0 * W - 0.5, v0 * H - 0.5), (u1 * W - 0.5, v1 * H - 0.5))}
+
+
+def _check_shape(shape, label: str, rect) -> None:
+    """A plane's ``shape`` (:func:`_shape_px`): a ring or a stick, inside the plane's ``rect``."""
+    if not isinstance(shape, Mapping):
+        raise InvalidInputError(f"{label} must be a dict whose 'kind' is one of "
+                                f"{', '.join(_SHAPES)}, got {_opt.shown(shape)}")
+    kind = _opt.choice(shape.get("kind"), f"{label}['kind'] (a plane's shape)", _SHAPES)
+    if rect is None:
         raise InvalidInputError(f"a {kind} plane needs a rect")
     if kind == "ring":
-        hole = float(shape.get("hole", 0.6))
-        if not 0.0 <= hole < 1.0:
-            raise InvalidInputError(f"a ring's hole must be in [0, 1), got {hole}")
-        x0, y0, x1, y1 = rect_px
-        return {"kind": kind, "hole": hole, "centre": ((x0 + x1) / 2, (y0 + y1) / 2),
-                "axes": ((x1 - x0) / 2, (y1 - y0) / 2)}
-    ends = np.asarray(shape.get("ends", ()), float)
-    if ends.shape != (2, 2) or not np.isfinite(ends).all():
-        raise InvalidInputError(f"a stick needs 'ends': [[u0, v0], [u1, v1]], got "
-                                f"{shape.get('ends')!r}")
-    (u0, v0), (u1, v1) = ends
-    width = float(shape.get("width", 0.02)) * min(H, W)
-    if not width > 0:
-        raise InvalidInputError(f"a stick's width must be > 0, got {shape.get('width')}")
-    return {"kind": kind, "width": width,
-            "ends": ((u0 * W - 0.5, v0 * H - 0.5), (u1 * W - 0.5, v1 * H - 0.5))}
+        _check_keys(shape, label, ("kind", "hole"), "a ring")
+        _opt.number(shape.get("hole", 0.6), f"{label}['hole'] (a ring's hole)", below=1.0)
+        return
+    _check_keys(shape, label, ("kind", "ends", "width"), "a stick")
+    ends = _opt.real_array(shape.get("ends", ()), f"{label}['ends']")
+    if ends.shape != (2, 2) or not (np.abs(ends) <= MAX_OBJECT_VALUE).all():
+        raise InvalidInputError(f"a stick needs 'ends': [[u0, v0], [u1, v1]], finite and at "
+                                f"most {MAX_OBJECT_VALUE:g} in size, got "
+                                f"{_opt.shown(shape.get('ends'))}")
+    _opt.number(shape.get("width", 0.02), f"{label}['width'] (a stick's width)", positive=True,
+                at_most=MAX_OBJECT_VALUE)
 
 
 def _pick_chips(rng: np.random.Generator, refl_mean: np.ndarray, k: int) -> list[int]:
@@ -981,6 +988,14 @@ def _thin_object(rng: np.random.Generator, kind: str, cu: float, cv: float, d: f
                       "width": width}}
 
 
+def _check_inverse_depth(inverse_depth: float, what: str) -> None:
+    """Refuse an object whose nearest point is at or beyond infinity (``d + d0`` below
+    :data:`_MIN_INVERSE_DEPTH`)."""
+    if inverse_depth < _MIN_INVERSE_DEPTH:
+        raise InvalidInputError(f"{what} is below the scene's disparity range; widen "
+                                f"disparity_range")
+
+
 def _build_surface(o: dict, H: int, W: int, f: float, d0: float) -> _Surface:
     cx, cy = (W - 1) / 2.0, (H - 1) / 2.0
     kind = o["kind"]
@@ -996,16 +1011,15 @@ def _build_surface(o: dict, H: int, W: int, f: float, d0: float) -> _Surface:
             xr, yr, rect_px = cx, cy, None
         a, b = gx / W, gy / H
         c = d - a * (xr - cx) - b * (yr - cy)
-        if c + d0 <= 0:
-            raise InvalidInputError(
-                f"plane disparity {d} is below the scene's disparity range; widen disparity_range"
-            )
+        _check_inverse_depth(c + d0, f"plane disparity {d}")
         return _Plane(o, dict(base, n=np.array([a, b, (c + d0) / f]), rect_px=rect_px,
                               shape=_plane_shape_px(o, H, W)))
     if kind == "sphere":
         u, v = o["center"]
         rpx = float(o["radius"]) * min(H, W)
-        zf = f / (float(o["disparity"]) + d0)           # depth of the front point
+        d = float(o["disparity"])
+        _check_inverse_depth(d + d0, f"sphere disparity {d}")
+        zf = f / (d + d0)                                # depth of the front point
         rho = rpx * zf / f
         zc = zf + rho
         X = (u * W - 0.5 - cx) * zc / f
@@ -1016,7 +1030,7 @@ def _build_surface(o: dict, H: int, W: int, f: float, d0: float) -> _Surface:
         rect = o["rect"]
         d = float(o["disparity"])
         back = d - float(o.get("depth", 0.5))
-        if back + d0 <= 0:
+        if back + d0 < _MIN_INVERSE_DEPTH:
             raise InvalidInputError("box depth reaches behind infinity; reduce 'depth'")
         z0, z1 = f / (d + d0), f / (back + d0)
         x0, x1 = (rect[0] * W - 0.5 - cx) * z0 / f, (rect[2] * W - 0.5 - cx) * z0 / f
@@ -1035,11 +1049,14 @@ def _kinds(value, label: str) -> tuple[str, ...]:
 
 
 def _objects(value, label: str):
-    """None, or a sequence of object descriptions (mappings)."""
+    """None, or a sequence of object descriptions (mappings), each checked
+    (:func:`_check_object`)."""
     if value is not None and not (isinstance(value, (list, tuple))
                                   and all(isinstance(o, Mapping) for o in value)):
         raise InvalidInputError(f"{label} must be None or a list of object descriptions "
                                 f"(dicts), got {_opt.shown(value)}")
+    for i, o in enumerate(value or ()):
+        _check_object(o, f"{label}[{i}]")
     return value
 
 
@@ -1101,6 +1118,115 @@ def _reflectances(reflectance_source: str) -> tuple[np.ndarray, np.ndarray]:
     lib_wl, lib_refl = spectral.reflectance_library(reflectance_source)
     lib_wl = np.asarray(lib_wl, dtype=np.float64)
     return lib_wl, np.clip(np.asarray(lib_refl, dtype=np.float64), 0.0, 1.0)
+
+
+#: Largest size of an explicit object's numbers (disparities, gradients, rects and centres in
+#: fractions of the image, radii, depths, texture periods): far beyond any scene, and the ray
+#: casting stays finite.
+MAX_OBJECT_VALUE = 1e6
+#: Smallest inverse depth ``d + d0`` (px per baseline) of an object's nearest point: nearer to
+#: infinity than this, the ray casting overflows.
+_MIN_INVERSE_DEPTH = 1e-6
+#: Most colours a texture may ask for (``"colors"``): each is a chip of the library.
+_MAX_TEXTURE_COLOURS = 64
+
+#: The keys of an explicit object, per kind (every kind also takes kind, disparity, texture,
+#: name).
+_OBJECT_KEYS = {"plane": ("rect", "gradient", "shape"), "fronto": ("rect", "gradient", "shape"),
+                "slanted": ("rect", "gradient", "shape"), "box": ("rect", "depth"),
+                "sphere": ("center", "radius")}
+_TEXTURE_KEYS = ("pattern", "period", "chips", "colors", "angle", "salt", "jitter", "waves")
+
+
+def _bounded(value, label: str) -> float:
+    """A finite number within +-:data:`MAX_OBJECT_VALUE`."""
+    v = _opt.real(value, label)
+    if abs(v) > MAX_OBJECT_VALUE:
+        raise InvalidInputError(f"{label} must be at most {MAX_OBJECT_VALUE:g} in size, got "
+                                f"{_opt.shown(value)}")
+    return v
+
+
+def _bounded_list(value, label: str, n: int, what: str) -> list[float]:
+    """``n`` finite numbers within +-:data:`MAX_OBJECT_VALUE` (``what`` names them)."""
+    a = _opt.real_array(value, label) if isinstance(value, (list, tuple, np.ndarray)) else None
+    if a is None or a.shape != (n,) or not (np.abs(a) <= MAX_OBJECT_VALUE).all():
+        raise InvalidInputError(f"{label} must be {what}, finite and at most "
+                                f"{MAX_OBJECT_VALUE:g} in size, got {_opt.shown(value)}")
+    return [float(v) for v in a]
+
+
+def _check_keys(o: Mapping, label: str, allowed: Sequence[str], what: str) -> None:
+    extra = [k for k in o if k not in allowed]
+    if extra:
+        raise InvalidInputError(f"{label} has an unknown key {_opt.shown(extra[0])}; {what} "
+                                f"takes {', '.join(allowed)}")
+
+
+def _check_texture(t, label: str) -> None:
+    """An object's ``texture``: None or a mapping of :data:`_TEXTURE_KEYS` (missing ones come
+    from the seed, :func:`_complete_texture`)."""
+    if t is None:
+        return
+    if not isinstance(t, Mapping):
+        raise InvalidInputError(f"{label} must be None or a dict, got {_opt.shown(t)}")
+    _check_keys(t, label, _TEXTURE_KEYS, "a texture")
+    if "pattern" in t:
+        _opt.choice(t["pattern"], f"{label}['pattern']", _PATTERNS)
+    if "period" in t:
+        _opt.number(t["period"], f"{label}['period']", positive=True, at_most=MAX_OBJECT_VALUE)
+    if "chips" in t:
+        chips = t["chips"]
+        if not isinstance(chips, (list, tuple)) or not chips:
+            raise InvalidInputError(f"{label}['chips'] must be a non-empty list of reflectance "
+                                    f"library indices, got {_opt.shown(chips)}")
+        for c in chips:
+            _opt.integer(c, f"{label}['chips'] entries")
+    if "colors" in t:
+        _opt.integer(t["colors"], f"{label}['colors']", 1, maximum=_MAX_TEXTURE_COLOURS)
+    if "angle" in t:
+        _bounded(t["angle"], f"{label}['angle']")
+    if "salt" in t:
+        _opt.integer(t["salt"], f"{label}['salt']")
+    if "jitter" in t:
+        _bounded_list(t["jitter"], f"{label}['jitter']", 2, "two phases")
+    if "waves" in t:
+        waves = t["waves"]
+        if not isinstance(waves, (list, tuple)) or not waves:
+            raise InvalidInputError(f"{label}['waves'] must be a non-empty list of [fx, fy, "
+                                    f"phase], got {_opt.shown(waves)}")
+        for w in waves:
+            _bounded_list(w, f"{label}['waves'] entries", 3, "[fx, fy, phase]")
+
+
+def _check_object(o: Mapping, label: str) -> None:
+    """One explicit object description (:func:`procedural_scene`'s ``objects``), refused in
+    one line before any work: its kind, its keys, and each value's type and range."""
+    kind = _opt.choice(o.get("kind"), f"{label}['kind']", tuple(_OBJECT_KEYS))
+    _check_keys(o, label, ("kind", "disparity", "texture", "name") + _OBJECT_KEYS[kind],
+                f"a {kind}")
+    needs = ("disparity",) + {"box": ("rect",), "sphere": ("center", "radius")}.get(kind, ())
+    for key in needs:
+        if o.get(key) is None:
+            raise InvalidInputError(f"{label} needs {key!r}: a {kind} is given by "
+                                    f"{', '.join(needs)}")
+    _bounded(o["disparity"], f"{label}['disparity']")
+    if o.get("rect") is not None:
+        u0, v0, u1, v1 = _bounded_list(o["rect"], f"{label}['rect']", 4, "[u0, v0, u1, v1]")
+        if not (u0 < u1 and v0 < v1):
+            raise InvalidInputError(f"{label}['rect'] must have u0 < u1 and v0 < v1, got "
+                                    f"{_opt.shown(o['rect'])}")
+    if "gradient" in o:
+        _bounded_list(o["gradient"], f"{label}['gradient']", 2, "(gx, gy)")
+    if o.get("shape") is not None:
+        _check_shape(o["shape"], f"{label}['shape']", o.get("rect"))
+    if "depth" in o:
+        _opt.number(o["depth"], f"{label}['depth']", at_most=MAX_OBJECT_VALUE)
+    if kind == "sphere":
+        _bounded_list(o["center"], f"{label}['center']", 2, "(u, v)")
+        _opt.number(o["radius"], f"{label}['radius']", positive=True, at_most=MAX_OBJECT_VALUE)
+    _opt.text(o.get("name"), f"{label}['name']", optional=True)
+    _check_texture(o.get("texture"), f"{label}['texture']")
 
 
 def _scene_objects(objects: Sequence[Mapping[str, Any]] | None, scene_rng: np.random.Generator,
@@ -1338,7 +1464,9 @@ def procedural_scene(seed: int = 0, *, rows: int = 5, cols: int = 6, height: int
         d of the nearest point}``; rect/centre in fractions of the image. ``texture``:
         ``{"pattern": "checker"|"stripes"|"noise"|"patches", "period": fraction,
         "chips": [library indices], "angle": deg, ...}``; missing values come from ``seed``.
-        The completed description is stored in ``metadata["objects"]``.
+        The completed description is stored in ``metadata["objects"]``. Every object is
+        checked before any work: a key its kind does not take (``"centre"`` for
+        ``"center"``) is refused, and numbers may be at most :data:`MAX_OBJECT_VALUE` in size.
     filter_shape, fwhm, quantum_efficiency :
         As in :func:`from_rgb_lightfield`.
     focal_length : float, optional
