@@ -122,6 +122,22 @@ def test_unregister_and_errors():
         costs.unregister_cost("sad")
 
 
+@pytest.mark.parametrize("metric, words", [
+    ("census", "metric 'census' has no option 'sigma': its options are those of "
+               "hyperlf.costs.census_volume"),
+    ("auto", "metric 'census-rsncc' has no option 'sigma': its options are those of "
+             "hyperlf.costs.rsncc_volume; a fusion also takes weights and rsncc_window, "
+             "census_window, and passes the rest to its first part"),
+])
+def test_an_unknown_cost_option_is_named_with_where_the_options_are(metric, words):
+    """It was the TypeError's own words ("rsncc_volume() got an unexpected keyword argument")."""
+    left = np.random.default_rng(0).random((12, 20))
+    with pytest.raises(InvalidInputError) as exc:
+        costs.cost_volume(left, left, 0, 3, metric=metric, sigma=2.0)
+    assert str(exc.value) == words
+    assert callable(getattr(costs, words.split("hyperlf.costs.")[1].split(";")[0]))
+
+
 def test_auto_and_builtin_names():
     assert costs.get_cost("auto").name == costs.AUTO_METRIC == "census-rsncc"
     assert costs.cost_names() == ("ssd", "ncc", "rsncc", "census", "bwncc", "bwncc-paper",

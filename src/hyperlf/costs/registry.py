@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import re
 from collections.abc import Mapping
 from typing import Any, Iterator, Sequence
 
@@ -473,12 +474,25 @@ METRICS: Mapping[str, Any] = _MetricsView()
 
 @contextlib.contextmanager
 def _bad_parameters(name: str):
+    """An option the cost's volume function does not take, refused in one line that names it
+    and says where the cost's options are documented."""
     try:
         yield
     except TypeError as e:  # unknown keyword for this cost
-        if "unexpected keyword" not in str(e):
+        found = re.search(r"(\w+)\(\) got an unexpected keyword argument '(\w+)'", str(e))
+        if found is None:
             raise
-        raise InvalidInputError(f"bad parameter for metric {name!r}: {e}") from None
+        func, option = found.groups()
+        from . import pair
+
+        where = f"hyperlf.costs.{func}" if hasattr(pair, func) else f"{func}()"
+        cost, fused = get_cost(name), ""
+        if isinstance(cost, FusedCost):
+            windows = ", ".join(f"{p}_window" for p in cost.parts)
+            fused = (f"; a fusion also takes weights and {windows}, and passes the rest to its "
+                     f"first part")
+        raise InvalidInputError(f"metric {name!r} has no option {option!r}: its options are "
+                                f"those of {where}{fused}") from None
 
 
 def _checked(metric, window, impl, image) -> tuple[Cost, int | None]:
