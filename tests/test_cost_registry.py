@@ -136,6 +136,10 @@ def test_an_unknown_cost_option_is_named_with_where_the_options_are(metric, word
         costs.cost_volume(left, left, 0, 3, metric=metric, sigma=2.0)
     assert str(exc.value) == words
     assert callable(getattr(costs, words.split("hyperlf.costs.")[1].split(";")[0]))
+    for odd in ("", "a\nb"):  # any text may be a keyword; the message stays one line
+        with pytest.raises(InvalidInputError) as exc:
+            costs.cost_volume(left, left, 0, 3, metric=metric, **{odd: 1})
+        assert f"has no option {odd!r}:" in str(exc.value) and "\n" not in str(exc.value)
 
 
 def test_auto_and_builtin_names():

@@ -479,10 +479,11 @@ def _bad_parameters(name: str):
     try:
         yield
     except TypeError as e:  # unknown keyword for this cost
-        found = re.search(r"(\w+)\(\) got an unexpected keyword argument '(\w+)'", str(e))
+        found = re.search(r"(\w+)\(\) got an unexpected keyword argument (.*)$", str(e),
+                          re.DOTALL)
         if found is None:
             raise
-        func, option = found.groups()
+        func, option = found[1], shown(found[2].strip("'"))
         from . import pair
 
         where = f"hyperlf.costs.{func}" if hasattr(pair, func) else f"{func}()"
@@ -491,7 +492,7 @@ def _bad_parameters(name: str):
             windows = ", ".join(f"{p}_window" for p in cost.parts)
             fused = (f"; a fusion also takes weights and {windows}, and passes the rest to its "
                      f"first part")
-        raise InvalidInputError(f"metric {name!r} has no option {option!r}: its options are "
+        raise InvalidInputError(f"metric {name!r} has no option {option}: its options are "
                                 f"those of {where}{fused}") from None
 
 
