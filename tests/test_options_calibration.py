@@ -148,10 +148,36 @@ def test_every_argument_takes_junk_or_refuses_it_in_one_line(which, value):
         assert _finite(out) or (fn in (RI.BoardPose, RI.Panel, CameraCalibration))
 
 
+#: The arguments that map cameras (or names, geometry entries) to values.
+_MAPPINGS = [(fn, key) for fn, kw in _calls().items() for key, v in kw.items()
+             if isinstance(v, dict) and v]
+
+
+@settings(max_examples=400, deadline=None, derandomize=True)
+@given(st.sampled_from(range(len(_MAPPINGS))), st.booleans(),
+       JUNK | st.tuples(st.integers(-2, 3), st.integers(-2, 3)))
+def test_every_mapping_takes_junk_inside_or_refuses_it_in_one_line(which, as_key, value):
+    """Junk as one entry's value, or as a camera key beside the others (a NumPy scalar key
+    compared with a ``(row, col)`` pair gave an array, whose truth value raised ValueError)."""
+    fn, key = _MAPPINGS[which]
+    table = dict(_calls()[fn][key])
+    first = next(iter(table))
+    if as_key:
+        try:
+            table[value] = table[first]
+        except TypeError:  # not hashable: not a key at all
+            return
+    else:
+        table[first] = value
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        _build_or_refuse(fn, **{**_calls()[fn], key: table})
+
+
 @pytest.mark.parametrize("fn, key, value, words", [
     (B.canonical_order, "cols", "x", "cols must be an integer in 1..200"),
     (B.order_like, "anchor", np.zeros(3), "anchor must be the (20, 2) corners"),
-    (B.camera_label, "key", [1], "camera must be a (row, col) pair or a hashable label"),
+    (B.camera_label, "key", [1], "camera must be a (row, col) pair, a name (str) or an int"),
     (bundle.bundle_adjust, "ref", 5, "ref must be an integer in 0..1, got 5"),
     (bundle.bundle_adjust, "obs", [], "obs must be a non-empty list"),
     (full.intrinsics, "size", None, "size must be (W, H) of the images"),
@@ -172,6 +198,8 @@ def test_every_argument_takes_junk_or_refuses_it_in_one_line(which, value):
     (RI.make_rig, "focal", 0, "focal must be a finite number in [1, 1e+07], got 0"),
     (RI.make_rig, "inverted", 3, "inverted must be raster indices of cameras"),
     (RI.BoardPose, "t", [np.inf, 0, 0], "t must be finite"),
+    (B.orders_like, "corners", {np.float32(0.0): np.zeros((20, 2))},
+     "a camera of corners must be a (row, col) pair, a name (str) or an int, got np.float32"),
 ])
 def test_former_failures_name_the_argument(fn, key, value, words):
     with pytest.raises(InvalidInputError) as exc:

@@ -125,22 +125,35 @@ def check_corners(corners, label: str, board: BoardSpec, *, unseen: bool = True)
 
 def check_corner_sets(corners, label: str, board: BoardSpec) -> Mapping:
     """``corners``: a mapping camera -> corners (:func:`check_corners`, NaN for unseen)."""
-    _opt.mapping(corners, label, optional=False)
+    check_keys(corners, label)
     for k, c in corners.items():
         check_corners(c, f"{label}[{_opt.shown(k)}]", board)
     return corners
 
 
 def check_key(key, label: str = "camera") -> object:
-    """``key`` when it names a camera: a ``(row, col)`` pair, or any other hashable label."""
-    try:
-        hash(key)
-    except TypeError:
-        raise InvalidInputError(f"{label} must be a (row, col) pair or a hashable label, got "
-                                f"{_opt.shown(key)}") from None
-    if isinstance(key, tuple) and len(key) != 2:
-        raise InvalidInputError(f"{label} must be a (row, col) pair, got {_opt.shown(key)}")
+    """``key`` when it names a camera: a ``(row, col)`` pair of hashable entries, a name (str)
+    or an int.  Other labels are refused: a NumPy scalar compared with a pair gives an array,
+    not a truth value."""
+    ok = isinstance(key, (str, int)) and not isinstance(key, bool)
+    if isinstance(key, tuple) and len(key) == 2:
+        try:
+            hash(key)
+            ok = True
+        except TypeError:  # an unhashable entry
+            ok = False
+    if not ok:
+        raise InvalidInputError(f"{label} must be a (row, col) pair, a name (str) or an int, "
+                                f"got {_opt.shown(key)}")
     return key
+
+
+def check_keys(table, label: str) -> Mapping:
+    """``table``: a mapping whose keys are cameras (:func:`check_key`)."""
+    _opt.mapping(table, label, optional=False)
+    for k in table:
+        check_key(k, f"a camera of {label}")
+    return table
 
 
 def camera_label(key, names: Mapping | None = None) -> str:

@@ -30,8 +30,8 @@ from .. import _options as _opt
 from .._parallel import map_threads
 from ..errors import InvalidInputError
 from .board import (DETECT_THREADS, BoardSpec, camera_label, check_board, check_board_size,
-                    check_corners, check_key, detect_board, grid_symmetries, orders_like,
-                    turn_report)
+                    check_corners, check_key, check_keys, detect_board, grid_symmetries,
+                    orders_like, turn_report)
 from .grid import check_grid, check_images
 from .model import Calibration, CameraCalibration
 
@@ -285,7 +285,7 @@ def _array_axes(centres: np.ndarray) -> np.ndarray:
 
 def rectification(Ks: Mapping, Rs: Mapping, ts: Mapping, reference, size) -> dict:
     """Rectifying rotations, shared camera matrix, positions (baselines) and baseline."""
-    keys = list(_opt.mapping(Ks, "Ks", optional=False))
+    keys = list(check_keys(Ks, "Ks"))
     for table, what in ((Rs, "Rs"), (ts, "ts")):
         if set(_opt.mapping(table, what, optional=False)) != set(keys):
             raise InvalidInputError(f"Ks, Rs and ts must have the same cameras, got {what} "

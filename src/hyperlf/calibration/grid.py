@@ -8,7 +8,7 @@ import numpy as np
 
 from .. import _options as _opt
 from ..errors import InvalidInputError
-from .board import camera_label
+from .board import camera_label, check_keys
 
 __all__ = ["check_grid", "check_images", "grid_keys"]
 
@@ -61,7 +61,7 @@ def check_grid(keys, reference=None) -> tuple[tuple[int, int], tuple[int, int]]:
 def check_images(images: Mapping, names: Mapping | None = None, *,
                  what: str = "image") -> tuple[int, int]:
     """Every image is a finite 2-D grey array and all have one size; returns ``(W, H)``."""
-    _opt.mapping(images, "images", optional=False)
+    check_keys(images, "images")
     _opt.mapping(names, "names")
     _opt.text(what, "what")
     if not images:

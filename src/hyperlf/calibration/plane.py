@@ -34,7 +34,7 @@ import numpy as np
 from .. import _options as _opt
 from ..errors import InvalidInputError
 from .board import (BoardSpec, camera_label, check_board, check_corner_sets, check_corners,
-                    check_key, detect_boards, grid_symmetries, image_turn, orders_like,
+                    check_key, check_keys, detect_boards, grid_symmetries, image_turn, orders_like,
                     turn_report)
 from .grid import check_grid, check_images
 from .model import Calibration, CameraCalibration
@@ -67,7 +67,7 @@ def _in(key, table: Mapping, label: str = "reference"):
 def _corner_table(corners) -> Mapping:
     """``corners``: a non-empty mapping camera -> ``(N, 2)`` corners, one ``N`` for all (NaN:
     unseen)."""
-    _opt.mapping(corners, "corners", optional=False)
+    check_keys(corners, "corners")
     shapes = set()
     for k, c in corners.items():
         a = _opt.real_array(c, f"corners[{_opt.shown(k)}]")
@@ -368,8 +368,8 @@ def resolve_positions(offsets: Mapping, pose_centres: Mapping, reference) -> tup
     ``(x, y)`` (the physical direction). The score is the cosine between the two sets of
     offsets: near 1 when they agree, near 0 when the pose centres cannot tell the sign.
     """
-    _opt.mapping(offsets, "offsets", optional=False)
-    _opt.mapping(pose_centres, "pose_centres", optional=False)
+    check_keys(offsets, "offsets")
+    check_keys(pose_centres, "pose_centres")
     _in(reference, offsets)
     for k in offsets:
         o, c = _opt.real_array(offsets[k], "offsets"), _opt.real_array(pose_centres.get(k),

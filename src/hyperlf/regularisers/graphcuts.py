@@ -465,9 +465,9 @@ def graphcut(cost, smoothness: str = "truncated_linear", weight: float = 1.0,
     ``E00 + (E10 - E00) x_p + (E11 - E10) x_q + (E01 + E10 - E00 - E11) (1 - x_p) x_q``; the
     last coefficient is >= 0 by the triangle inequality (clipped at 0 against round-off) [2]_.
     The terms are assembled by numba kernels (their numpy references are in this module); the
-    graph uses ``add_grid_edges`` (one directed edge per pair) and ``add_grid_tedges``.  A move is accepted only if the energy's change, summed
-    over the terms it changes, is negative, so the energy never rises; the energy is recomputed
-    over the whole image as each cycle ends.
+    graph uses ``add_grid_edges`` (one directed edge per pair) and ``add_grid_tedges``.  A move
+    is accepted only if the energy's change, summed over the terms it changes, is negative, so
+    the energy never rises; the energy is recomputed over the whole image as each cycle ends.
 
     References
     ----------
