@@ -132,6 +132,11 @@ def band_grid(rows: int, cols: int, lambda_min: float = 410.0,
         [float(lambda_min)])
 
 
+#: Largest view offset (baselines) :func:`view_disparity_from_reference` takes: its sampling
+#: grids are float32, and no array is a million baselines wide.
+_MAX_OFFSET = 1e6
+
+
 def view_disparity_from_reference(gt_ref: np.ndarray, offset: tuple[float, float],
                                   *, tol: float = 0.05, iterations: int = 2) -> np.ndarray:
     """Ground-truth disparity of another view from the reference's ground truth.
@@ -168,6 +173,9 @@ def view_disparity_from_reference(gt_ref: np.ndarray, offset: tuple[float, float
         raise InvalidInputError(f"gt_ref must be an (H, W) map, got shape {g.shape}")
     H, W = g.shape
     dx, dy = _opt.real_pair(offset, "offset", "two finite numbers (dx, dy)")
+    if max(abs(dx), abs(dy)) > _MAX_OFFSET:
+        raise InvalidInputError(f"offset must be at most {_MAX_OFFSET:g} baselines in size, got "
+                                f"{_opt.shown(offset)}")
     tol = _opt.number(tol, "tol", at_most=1e6)  # px; compared with float32 maps
     iterations = _opt.integer(iterations, "iterations", maximum=100)
     fw = forward_warp_disparity(g, (dx, dy))

@@ -24,14 +24,13 @@ A cost knows
 from __future__ import annotations
 
 import contextlib
-import math
 import re
 from collections.abc import Mapping
 from typing import Any, Iterator, Sequence
 
 import numpy as np
 
-from .._options import choice, flag, integer, mapping, shown
+from .._options import choice, flag, integer, mapping, number, shown
 from ..errors import InvalidInputError
 from ._validate import IMPLS, check_window
 from .pair import fuse, right_validity, row_moments
@@ -311,7 +310,7 @@ class FusedCost(Cost):
             raise InvalidInputError(
                 f"{self.name} needs {len(self.parts)} weights, one per part "
                 f"({', '.join(self.parts)}), each finite and >= 0 and not all 0; got "
-                f"{weights!r}")
+                f"{shown(weights)}")
         return w
 
     def view_moments(self, ref_img, img, shifts, *, window=None, valid=None, **options):
@@ -426,10 +425,11 @@ def weights_tuple(weights) -> tuple | None:
     all 0 (of any length), else None: the rule every fusion weight follows (the count is the
     cost's to check, :meth:`FusedCost.check_weights`)."""
     try:
-        w = () if isinstance(weights, (str, bytes)) else tuple(float(x) for x in weights)
-    except (TypeError, ValueError):
+        w = () if isinstance(weights, (str, bytes, Mapping)) else \
+            tuple(number(x, "weight") for x in weights)
+    except (TypeError, InvalidInputError):  # not a sequence, or an entry not a number >= 0
         return None
-    return w if any(w) and all(math.isfinite(x) and x >= 0 for x in w) else None
+    return w if any(w) else None
 
 
 def fusion_weights(name: str, weights) -> tuple:

@@ -1,0 +1,121 @@
+"""Junk inside a container argument: one entry of a dict or a sequence replaced by junk, or
+junk added as a key or an entry, in every function of the option fuzzers' call tables
+(``test_options``, ``test_options_api_io``, ``test_options_compute``, ``test_options_costs``,
+``test_options_hlf``; calibration's mappings are fuzzed in ``test_options_calibration``).
+Each call is taken or refused in one line of a hyperlf error, with no NumPy warning.  The
+top-level fuzzers replace a whole argument and never reached inside one: a huge integer among
+a fusion's weights raised OverflowError, text weights were taken, and a view offset beyond
+float32 warned of an overflow."""
+
+from __future__ import annotations
+
+import functools
+import warnings
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import test_options as T
+import test_options_api_io as A
+import test_options_compute as CO
+import test_options_costs as CS
+import test_options_hlf as HL
+from hyperlf.errors import InvalidInputError
+
+
+def _base(entry):
+    """``(function, keyword arguments)`` of a call-table entry (the tables that wrap their
+    base arguments in a lambda keep them as its second default)."""
+    fn, call = entry
+    if callable(call):
+        call = call.__defaults__[1] if call.__defaults__ and len(call.__defaults__) > 1 \
+            else None
+    return (fn, call) if isinstance(call, dict) else None
+
+
+@functools.lru_cache(maxsize=1)
+def _tables() -> dict:
+    tables = {}
+    for mod, name in ((T, "_render_calls"), (T, "_completion_stage_calls"),
+                      (T, "_matching_calls"), (T, "_library_calls"), (A, "_calls"),
+                      (CO, "_calls"), (HL, "_stage_calls"), (CS, "_bases")):
+        for key, entry in getattr(mod, name)().items():
+            if (base := _base(entry)) is not None:
+                tables[f"{mod.__name__}.{key}"] = base
+    return tables
+
+
+def _container(value) -> bool:
+    """A dict, or a short sequence of scalars or tuples (not of arrays)."""
+    if isinstance(value, dict):
+        return bool(value)
+    return (isinstance(value, (list, tuple)) and 0 < len(value) < 50
+            and not isinstance(value[0], np.ndarray))
+
+
+_SITES = sorted((name, key) for name, (_, kw) in _tables().items()
+                for key, value in kw.items() if _container(value))
+
+
+def _with_junk(value, junk, as_entry: bool):
+    """``value`` (a dict or a sequence) with its first entry replaced by ``junk``, or with
+    ``junk`` added (as a key of a dict); None where junk cannot be a key."""
+    if isinstance(value, dict):
+        out, first = dict(value), next(iter(value))
+        if not as_entry:
+            out[first] = junk
+            return out
+        try:
+            out[junk] = out[first]
+        except TypeError:  # unhashable
+            return None
+        return out
+    out = list(value)
+    if as_entry:
+        out.append(junk)
+    else:
+        out[0] = junk
+    return tuple(out) if isinstance(value, tuple) else out
+
+
+def test_the_sites_cover_every_table():
+    assert len(_SITES) >= 30 and {n.split(".")[0] for n, _ in _SITES} >= {
+        "test_options", "test_options_compute", "test_options_costs"}
+
+
+@settings(max_examples=500, deadline=None, derandomize=True)
+@given(st.sampled_from(_SITES), st.booleans(),
+       T.JUNK | st.tuples(st.integers(-2, 3), st.integers(-2, 3)))
+def test_junk_inside_a_container_is_taken_or_refused_in_one_line(site, as_entry, junk):
+    name, key = site
+    fn, kw = _tables()[name]
+    value = _with_junk(kw[key], junk, as_entry)
+    if value is None:
+        return
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        T._build_or_refuse(fn, **{**kw, key: value})
+
+
+@pytest.mark.parametrize("weights, words", [
+    ([1, 10 ** 400], "census-rsncc needs 2 weights, one per part (rsncc, census), each "
+                     "finite and >= 0 and not all 0; got [1, 1000"),
+    (["1", "3"], "census-rsncc needs 2 weights"),
+    ({"rsncc": 1, "census": 3}, "census-rsncc needs 2 weights"),
+])
+def test_fusion_weights_are_numbers(weights, words):
+    from hyperlf import costs
+
+    with pytest.raises(InvalidInputError) as exc:
+        costs.fusion_weights("auto", weights)
+    assert str(exc.value).startswith(words) and "\n" not in str(exc.value)
+    assert costs.fusion_weights("auto", np.array([1, 3])) == (1.0, 3.0)
+
+
+def test_a_view_offset_beyond_float32_is_refused():
+    from hyperlf import synthesis
+
+    with pytest.raises(InvalidInputError, match="^offset must be at most 1e"):
+        synthesis.view_disparity_from_reference(np.zeros((4, 5)), (3.4e38, 0.0))
