@@ -1143,7 +1143,6 @@ _MAX_TEXTURE_COLOURS = 64
 _OBJECT_KEYS = {"plane": ("rect", "gradient", "shape"), "fronto": ("rect", "gradient", "shape"),
                 "slanted": ("rect", "gradient", "shape"), "box": ("rect", "depth"),
                 "sphere": ("center", "radius")}
-_TEXTURE_KEYS = ("pattern", "period", "chips", "colors", "angle", "salt", "jitter", "waves")
 
 
 def _bounded(value, label: str) -> float:
@@ -1165,46 +1164,45 @@ def _bounded_list(value, label: str, n: int, what: str) -> list[float]:
 
 
 def _check_keys(o: Mapping, label: str, allowed: Sequence[str], what: str) -> None:
+    """Refuse a key of ``o`` not in ``allowed`` (``what`` names the thing that takes them)."""
     extra = [k for k in o if k not in allowed]
     if extra:
         raise InvalidInputError(f"{label} has an unknown key {_opt.shown(extra[0])}; {what} "
                                 f"takes {', '.join(allowed)}")
 
 
+def _entries(value, label: str, what: str, each) -> None:
+    """A non-empty list of ``what``, each entry passing the rule ``each``."""
+    if not isinstance(value, (list, tuple)) or not value:
+        raise InvalidInputError(f"{label} must be a non-empty list of {what}, got "
+                                f"{_opt.shown(value)}")
+    for entry in value:
+        each(entry, f"{label} entries")
+
+
+#: The rule of each texture key (:func:`_complete_texture` fills the missing ones).
+_TEXTURE_RULES = {
+    "pattern": _opt.rule(_opt.choice, choices=_PATTERNS),
+    "period": _opt.rule(_opt.number, positive=True, at_most=MAX_OBJECT_VALUE),
+    "chips": _opt.rule(_entries, what="reflectance library indices", each=_opt.integer),
+    "colors": _opt.rule(_opt.integer, minimum=1, maximum=_MAX_TEXTURE_COLOURS),
+    "angle": _bounded,
+    "salt": _opt.integer,
+    "jitter": _opt.rule(_bounded_list, n=2, what="two phases"),
+    "waves": _opt.rule(_entries, what="[fx, fy, phase]",
+                       each=_opt.rule(_bounded_list, n=3, what="[fx, fy, phase]")),
+}
+
+
 def _check_texture(t, label: str) -> None:
-    """An object's ``texture``: None or a mapping of :data:`_TEXTURE_KEYS` (missing ones come
-    from the seed, :func:`_complete_texture`)."""
+    """An object's ``texture``: None or a mapping of :data:`_TEXTURE_RULES`' keys."""
     if t is None:
         return
     if not isinstance(t, Mapping):
         raise InvalidInputError(f"{label} must be None or a dict, got {_opt.shown(t)}")
-    _check_keys(t, label, _TEXTURE_KEYS, "a texture")
-    if "pattern" in t:
-        _opt.choice(t["pattern"], f"{label}['pattern']", _PATTERNS)
-    if "period" in t:
-        _opt.number(t["period"], f"{label}['period']", positive=True, at_most=MAX_OBJECT_VALUE)
-    if "chips" in t:
-        chips = t["chips"]
-        if not isinstance(chips, (list, tuple)) or not chips:
-            raise InvalidInputError(f"{label}['chips'] must be a non-empty list of reflectance "
-                                    f"library indices, got {_opt.shown(chips)}")
-        for c in chips:
-            _opt.integer(c, f"{label}['chips'] entries")
-    if "colors" in t:
-        _opt.integer(t["colors"], f"{label}['colors']", 1, maximum=_MAX_TEXTURE_COLOURS)
-    if "angle" in t:
-        _bounded(t["angle"], f"{label}['angle']")
-    if "salt" in t:
-        _opt.integer(t["salt"], f"{label}['salt']")
-    if "jitter" in t:
-        _bounded_list(t["jitter"], f"{label}['jitter']", 2, "two phases")
-    if "waves" in t:
-        waves = t["waves"]
-        if not isinstance(waves, (list, tuple)) or not waves:
-            raise InvalidInputError(f"{label}['waves'] must be a non-empty list of [fx, fy, "
-                                    f"phase], got {_opt.shown(waves)}")
-        for w in waves:
-            _bounded_list(w, f"{label}['waves'] entries", 3, "[fx, fy, phase]")
+    _check_keys(t, label, tuple(_TEXTURE_RULES), "a texture")
+    for key, value in t.items():
+        _TEXTURE_RULES[key](value, f"{label}[{key!r}]")
 
 
 def _check_object(o: Mapping, label: str) -> None:
