@@ -74,8 +74,6 @@ CIE1931 = "CIE 1931 2 Degree Standard Observer"
 #: Names that mean "the CIE 1931 colour matching functions" in :func:`camera_sensitivities`.
 _XYZ_ALIASES = ("CIE 1931", "XYZ")
 
-#: IEC 61966-2-1 sRGB primaries and D65 white -> XYZ (Y of white = 1). Derived from the
-#: primaries x,y = (0.64, 0.33), (0.30, 0.60), (0.15, 0.06) and D65 (0.3127, 0.3290).
 #: The D65 white point's xy chromaticity (IEC 61966-2-1).
 _D65_XY = (0.3127, 0.3290)
 
@@ -93,6 +91,8 @@ def _srgb_matrix() -> np.ndarray:
     return P * np.linalg.solve(P, _xy_to_XYZ(_D65_XY))[None, :]
 
 
+#: IEC 61966-2-1 sRGB primaries and D65 white -> XYZ (Y of white = 1). Derived from the
+#: primaries x,y = (0.64, 0.33), (0.30, 0.60), (0.15, 0.06) and D65 (0.3127, 0.3290).
 _M_RGB_TO_XYZ = _srgb_matrix()
 _M_XYZ_TO_RGB = np.linalg.inv(_M_RGB_TO_XYZ)
 _M_RGB_TO_XYZ.setflags(write=False)
