@@ -1,11 +1,11 @@
 """Junk inside a container argument: one entry of a dict or a sequence replaced by junk, or
 junk added as a key or an entry, in every function of the option fuzzers' call tables
-(``test_options``, ``test_options_api_io``, ``test_options_compute``, ``test_options_costs``,
-``test_options_hlf``; calibration's mappings are fuzzed in ``test_options_calibration``).
-Each call is taken or refused in one line of a hyperlf error, with no NumPy warning.  The
-top-level fuzzers replace a whole argument and never reached inside one: a huge integer among
-a fusion's weights raised OverflowError, text weights were taken, and a view offset beyond
-float32 warned of an overflow."""
+(``test_options``, ``test_options_api_io``, ``test_options_calibration``,
+``test_options_compute``, ``test_options_costs``, ``test_options_hlf``).  Each call is taken
+or refused in one line of a hyperlf error, with no NumPy warning.  The top-level fuzzers
+replace a whole argument and never reached inside one: a NumPy scalar among a calibration's
+cameras raised ValueError, a huge integer among a fusion's weights OverflowError, text weights
+were taken, and a view offset beyond float32 warned of an overflow."""
 
 from __future__ import annotations
 
@@ -19,6 +19,7 @@ from hypothesis import strategies as st
 
 import test_options as T
 import test_options_api_io as A
+import test_options_calibration as CA
 import test_options_compute as CO
 import test_options_costs as CS
 import test_options_hlf as HL
@@ -44,6 +45,8 @@ def _tables() -> dict:
         for key, entry in getattr(mod, name)().items():
             if (base := _base(entry)) is not None:
                 tables[f"{mod.__name__}.{key}"] = base
+    for fn, kw in CA._calls().items():  # keyed by the function itself
+        tables[f"{CA.__name__}.{fn.__name__}"] = (fn, kw)
     return tables
 
 
@@ -81,11 +84,12 @@ def _with_junk(value, junk, as_entry: bool):
 
 
 def test_the_sites_cover_every_table():
-    assert len(_SITES) >= 30 and {n.split(".")[0] for n, _ in _SITES} >= {
-        "test_options", "test_options_compute", "test_options_costs"}
+    assert len(_SITES) >= 40 and {n.split(".")[0] for n, _ in _SITES} >= {
+        "test_options", "test_options_calibration", "test_options_compute",
+        "test_options_costs"}
 
 
-@settings(max_examples=500, deadline=None, derandomize=True)
+@settings(max_examples=800, deadline=None, derandomize=True)
 @given(st.sampled_from(_SITES), st.booleans(),
        T.JUNK | st.tuples(st.integers(-2, 3), st.integers(-2, 3)))
 def test_junk_inside_a_container_is_taken_or_refused_in_one_line(site, as_entry, junk):

@@ -28,6 +28,7 @@ import numpy as np
 
 from .. import _options as _opt
 from .._parallel import map_threads
+from ..warp import MAX_AXIS
 from ..errors import InvalidInputError
 from .board import (DETECT_THREADS, BoardSpec, camera_label, check_board, check_board_size,
                     check_corners, check_key, check_keys, detect_board, grid_symmetries,
@@ -40,6 +41,12 @@ __all__ = ["calibrate_full", "detect_poses", "intrinsics", "extrinsics", "relati
 
 #: A camera whose stereo RMS against the reference is above this (px) is also tried turned.
 TURN_TRY_RMS = 1.0
+
+
+def _image_size(size) -> tuple[int, int]:
+    """``(W, H)`` of the images, each at most :data:`hyperlf.warp.MAX_AXIS` px (OpenCV takes
+    sizes as 32-bit ints)."""
+    return _opt.int_pair(size, "size", 1, maximum=MAX_AXIS, what="(W, H) of the images")
 
 
 def _shot_lists(shots, names) -> Mapping:
@@ -138,7 +145,7 @@ def intrinsics(corners: Mapping, board: BoardSpec, size) -> tuple:
 
     check_board(board)
     _pose_corners(corners, "corners", board)
-    size = _opt.int_pair(size, "size", 1, what="(W, H) of the images")
+    size = _image_size(size)
     obj = board.object_points().astype(np.float32)
     poses = sorted(corners)
     img = [corners[p].astype(np.float32).reshape(-1, 1, 2) for p in poses]
@@ -157,7 +164,7 @@ def extrinsics(ref_corners: Mapping, corners: Mapping, board: BoardSpec, K_ref, 
 
     ref_corners, corners, K_ref, d_ref, K, d = _stereo_inputs(ref_corners, corners, board,
                                                               K_ref, d_ref, K, d)
-    size = _opt.int_pair(size, "size", 1, what="(W, H) of the images")
+    size = _image_size(size)
     _label(label)
     shared = sorted(set(ref_corners) & set(corners))
     if not shared:
@@ -302,7 +309,7 @@ def rectification(Ks: Mapping, Rs: Mapping, ts: Mapping, reference, size) -> dic
                                                         and np.isfinite(t).all()):
             raise InvalidInputError(f"camera {k} needs a finite rotation Rs (3, 3) and "
                                     f"translation ts (3,), got shapes {R.shape}, {t.shape}")
-    W, H = _opt.int_pair(size, "size", 1, what="(W, H) of the images")
+    W, H = _image_size(size)
     centres = {k: -Rs[k].T @ ts[k] for k in keys}        # in the reference camera's frame
     C = np.stack([centres[k] for k in keys])
     A = _array_axes(C)
