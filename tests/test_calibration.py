@@ -14,6 +14,8 @@ import re
 import cv2
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from conftest import require_dataset
 from hyperlf.calibration import (BoardSpec, apply_calibration, calibrate, calibrate_full,
@@ -22,7 +24,7 @@ from hyperlf.calibration import (BoardSpec, apply_calibration, calibrate, calibr
 from hyperlf.calibration.board import camera_label, place_partial_grid
 from hyperlf.calibration.parallax import factor_rank1
 from hyperlf.calibration.rig import BoardPose, make_rig, rotation_matrix
-from hyperlf.errors import FormatError, InvalidInputError
+from hyperlf.errors import FormatError, HyperLFError, InvalidInputError
 
 SEED = 5  # the development runs used other seeds
 
@@ -475,6 +477,7 @@ def _with_info_range(text: str, value: str) -> str:
     (lambda t: re.sub(r"(homography = \[\s*\[\s*)([-0-9.e]+)", r"\1nan", t, count=1),
      "NaN or infinite"),
     (lambda t: _with_info_range(t, "[-3, 0, 3]"), "'disparity_range' in [info] must be two"),
+    (lambda t: _with_info_range(t, "[[], 3]"), "'disparity_range' in [info] must be two"),
 ])
 def test_malformed_calibration_files_are_one_line_format_errors(tmp_path, plane_cal, edit,
                                                                   words):
@@ -484,6 +487,55 @@ def test_malformed_calibration_files_are_one_line_format_errors(tmp_path, plane_
         read_calibration(p)
     assert "\n" not in str(exc.value) and words in str(exc.value)
     assert exc.value.exit_code == 3
+
+
+def _entries(doc, at=()):
+    """Every path to a value in a TOML document (the first three entries of each list)."""
+    items = doc.items() if isinstance(doc, dict) else enumerate(doc[:3]) \
+        if isinstance(doc, list) else ()
+    for key, value in items:
+        yield at + (key,)
+        yield from _entries(value, at + (key,))
+
+
+_TOML_JUNK = st.recursive(
+    st.integers(-3, 40) | st.integers(-2 ** 63, 2 ** 63 - 1) | st.floats() | st.text(max_size=4)
+    | st.booleans(), lambda inner: st.lists(inner, max_size=3)
+    | st.dictionaries(st.text(max_size=3), inner, max_size=2), max_leaves=6)
+
+
+@settings(max_examples=300, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data(), value=_TOML_JUNK, drop=st.booleans())
+def test_any_value_of_a_calibration_file_is_read_or_one_line(plane_cal, data, value, drop):
+    """Any entry of a calibration file replaced by TOML junk (nested lists and tables
+    included) or dropped: read, or one line of a hyperlf error (a list inside
+    ``disparity_range`` raised TypeError)."""
+    import copy
+    import tempfile
+
+    import tomli_w
+    try:
+        import tomllib
+    except ImportError:  # Python < 3.11
+        import tomli as tomllib
+
+    with tempfile.TemporaryDirectory() as folder:
+        path = write_calibration(plane_cal, f"{folder}/cal.toml")
+        doc = tomllib.loads(path.read_text())
+        where = data.draw(st.sampled_from(sorted(_entries(copy.deepcopy(doc)), key=str)))
+        table = doc
+        for key in where[:-1]:
+            table = table[key]
+        if drop and isinstance(table, dict):
+            del table[where[-1]]
+        else:
+            table[where[-1]] = value
+        path.write_text(tomli_w.dumps(doc))
+        try:
+            read_calibration(path)
+        except HyperLFError as exc:
+            assert "\n" not in str(exc) and str(exc)
 
 
 # ----------------------------------------------------------------------------- applying

@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from .._atomic import atomic_write_text
+from .._options import shown
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
 from .board import BoardSpec
 from .model import MODES, Calibration, CameraCalibration
@@ -158,23 +159,30 @@ class _Reader:
         val = self.get(table, key, where)
         if not (isinstance(val, list) and len(val) == n and all(
                 isinstance(v, int) and not isinstance(v, bool) and v >= low for v in val)):
-            raise self.fail(f"'{key}'{where} must be {n} integers >= {low}, got {val!r}")
+            raise self.fail(f"'{key}'{where} must be {n} integers >= {low}, got {shown(val)}")
         return tuple(val)
+
+
+def _is_number(val) -> bool:
+    """A TOML int or float (not a bool)."""
+    return isinstance(val, (int, float)) and not isinstance(val, bool)
 
 
 def _all_numbers(val) -> bool:
     """Whether ``val`` is a number or (nested) lists of numbers: TOML ints and floats only."""
     if isinstance(val, list):
         return all(_all_numbers(v) for v in val)
-    return isinstance(val, (int, float)) and not isinstance(val, bool)
+    return _is_number(val)
 
 
 def _check_info(rd: _Reader, info: dict) -> dict:
     """The ``[info]`` entries that later steps read: ``disparity_range`` is two numbers."""
     rng = info.get("disparity_range")
-    if rng is not None and not (_all_numbers(rng) and isinstance(rng, list) and len(rng) == 2
-                                and all(math.isfinite(v) for v in rng) and rng[0] < rng[1]):
-        raise rd.fail(f"'disparity_range' in [info] must be two numbers MIN < MAX, got {rng!r}")
+    if rng is not None and not (isinstance(rng, list) and len(rng) == 2
+                                and all(_is_number(v) and math.isfinite(v) for v in rng)
+                                and rng[0] < rng[1]):
+        raise rd.fail(f"'disparity_range' in [info] must be two numbers MIN < MAX, got "
+                      f"{shown(rng)}")
     return info
 
 
@@ -184,7 +192,7 @@ def _read_camera(rd: _Reader, t: Any, i: int, mode: str, grid) -> tuple:
         raise rd.fail(f"camera entry {i + 1} is not a table")
     r, c = (rd.get(t, k, where) for k in ("row", "col"))
     if not all(isinstance(v, int) and not isinstance(v, bool) for v in (r, c)):
-        raise rd.fail(f"'row' and 'col'{where} must be integers, got {r!r}, {c!r}")
+        raise rd.fail(f"'row' and 'col'{where} must be integers, got {shown(r)}, {shown(c)}")
     if not (0 <= r < grid[0] and 0 <= c < grid[1]):
         raise rd.fail(f"camera ({r}, {c}) is outside the {grid[0]} x {grid[1]} grid")
     err = rd.get(t, "reprojection_error", where)
@@ -230,13 +238,13 @@ def read_calibration(path: str | os.PathLike) -> Calibration:
     doc = _read_doc(path)
     rd = _Reader(path)
     if doc.get("format") != CALIBRATION_FORMAT:
-        raise rd.fail(f"format is {doc.get('format')!r}, expected '{CALIBRATION_FORMAT}'")
+        raise rd.fail(f"format is {shown(doc.get('format'))}, expected '{CALIBRATION_FORMAT}'")
     if doc.get("version") != VERSION:
-        raise rd.fail(f"version {doc.get('version')!r} is not supported (this hyperlf reads "
+        raise rd.fail(f"version {shown(doc.get('version'))} is not supported (this hyperlf reads "
                       f"version {VERSION})")
     mode = rd.get(doc, "mode")
     if mode not in MODES:
-        raise rd.fail(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
+        raise rd.fail(f"mode must be one of {', '.join(MODES)}, got {shown(mode)}")
     grid = rd.ints(doc, "grid", 2, 1)
     ref = rd.ints(doc, "reference", 2, 0)
     if not (ref[0] < grid[0] and ref[1] < grid[1]):
@@ -259,7 +267,7 @@ def read_calibration(path: str | os.PathLike) -> Calibration:
                       f"{', '.join(missing) or 'a repeated camera'}")
     baseline = rd.get(doc, "baseline")
     if not isinstance(baseline, (int, float)) or not (math.isfinite(baseline) and baseline > 0):
-        raise rd.fail(f"'baseline' must be a number > 0, got {baseline!r}")
+        raise rd.fail(f"'baseline' must be a number > 0, got {shown(baseline)}")
     plane = rd.array(doc, "board_plane", (4,)) if mode == "plane" else None
     info = doc.get("info", {})
     return Calibration(mode=mode, grid=grid, reference=ref,
