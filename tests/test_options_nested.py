@@ -27,12 +27,16 @@ from hyperlf.errors import InvalidInputError
 
 
 def _base(entry):
-    """``(function, keyword arguments)`` of a call-table entry (the tables that wrap their
-    base arguments in a lambda keep them as its second default)."""
+    """``(function, keyword arguments)`` of a call-table entry.  The tables that wrap their
+    base arguments in a lambda keep them as its second default, or (``_with``) in its closure
+    beside the function; a lambda that passes other arguments of its own is skipped."""
     fn, call = entry
     if callable(call):
-        call = call.__defaults__[1] if call.__defaults__ and len(call.__defaults__) > 1 \
-            else None
+        cells = [c.cell_contents for c in call.__closure__ or ()]
+        if call.__defaults__ and len(call.__defaults__) > 1:
+            call = call.__defaults__[1]
+        elif len(cells) == 2 and any(c is fn for c in cells):
+            call = next(c for c in cells if c is not fn)
     return (fn, call) if isinstance(call, dict) else None
 
 
@@ -123,3 +127,19 @@ def test_a_view_offset_beyond_float32_is_refused():
 
     with pytest.raises(InvalidInputError, match="^offset must be at most 1e"):
         synthesis.view_disparity_from_reference(np.zeros((4, 5)), (3.4e38, 0.0))
+
+
+def test_former_overflows_inside_containers_are_refused_or_ignored():
+    """An infinity in a recorded capture signature (a manifest is JSON, which has Infinity)
+    means "cannot tell", as other malformed records do; a disparity range with an integer
+    beyond a float, and HCI sub-grid indices that are infinite or not whole, are refused."""
+    from hyperlf import lightfield
+    from hyperlf.formats import read_hci_scene
+
+    sig = {"grid": [3, 3], "image_shape": [60, 80], "reference": [1, 1]}
+    assert lightfield.signature_mismatch(dict(sig, grid=[float("inf"), 3]), sig) is None
+    with pytest.raises(InvalidInputError, match="^disparity_range must be"):
+        lightfield.check_disparity_range([0, 10 ** 400])
+    for cols in ([float("inf")], [2.7], [0, 0]):
+        with pytest.raises(InvalidInputError, match=r"^cols must be distinct indices in 0\.\."):
+            read_hci_scene(A._files() / "hci", cols=cols)

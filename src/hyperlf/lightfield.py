@@ -240,7 +240,7 @@ def check_disparity_range(disparity_range) -> tuple[float, float]:
     """
     try:
         dmin, dmax = (float(v) for v in disparity_range)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # OverflowError: an int beyond a float
         raise InvalidInputError(
             f"disparity_range must be (dmin, dmax), got {shown(disparity_range)}") from None
     if not (np.isfinite(dmin) and np.isfinite(dmax) and dmin < dmax):
@@ -755,7 +755,7 @@ def signature_mismatch(recorded: dict, sig: dict) -> str | None:
                 unit = " px (W x H)" if order < 0 else ""
                 return f"its {what} is {a}{unit}, not {b}{unit}"
         return _geometry_mismatch(recorded, sig) or _thumbnail_mismatch(recorded, sig)
-    except (KeyError, TypeError, ValueError, IndexError):
+    except (KeyError, TypeError, ValueError, IndexError, OverflowError):
         return None
 
 

@@ -17,7 +17,7 @@ from typing import Iterable
 
 import numpy as np
 
-from .._options import path_like
+from .._options import int_pair, integer, path_like, shown
 from .._paths import leads_outside
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
 from ..lightfield import LightField, centre_view
@@ -93,11 +93,8 @@ def _cfg_grid(cfg: dict, path: Path) -> tuple[int, int] | None:
 
 def _grid_from(folder: Path, cfg: dict, grid) -> tuple[int, int]:
     if grid is not None:
-        try:
-            R, C = (int(v) for v in grid)
-        except (TypeError, ValueError, OverflowError):
-            raise InvalidInputError(f"grid must be (rows, cols), got {grid!r}") from None
-        return _check_grid(R, C, f"grid={grid!r}", InvalidInputError)
+        R, C = int_pair(grid, "grid", 1, what="(rows, cols)")
+        return _check_grid(R, C, f"grid={shown(grid)}", InvalidInputError)
     from_cfg = _cfg_grid(cfg, folder / "parameters.cfg")
     if from_cfg is not None:
         return from_cfg
@@ -110,16 +107,17 @@ def _grid_from(folder: Path, cfg: dict, grid) -> tuple[int, int]:
 
 
 def _select(sel: Iterable[int] | None, n: int, what: str) -> list[int]:
+    """The indices ``sel`` into a grid axis of ``n`` cameras (None: all): distinct integers
+    in ``0..n - 1`` (an integral float such as ``2.0`` is taken, ``2.7`` is not)."""
     if sel is None:
         return list(range(n))
     try:
-        out = [int(v) for v in sel]
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{what} must be a sequence of indices, got {sel!r}") from None
-    if not out or any(v < 0 or v >= n for v in out) or len(set(out)) != len(out):
-        raise InvalidInputError(
-            f"{what} must be distinct indices in 0..{n - 1}, got {out}"
-        )
+        out = [integer(v, what, maximum=n - 1) for v in sel]
+    except (TypeError, InvalidInputError):
+        out = None
+    if not out or len(set(out)) != len(out):
+        raise InvalidInputError(f"{what} must be distinct indices in 0..{n - 1}, got "
+                                f"{shown(sel)}")
     return out
 
 
