@@ -10,6 +10,7 @@ were taken, and a view offset beyond float32 warned of an overflow."""
 from __future__ import annotations
 
 import functools
+import tempfile
 import warnings
 
 import numpy as np
@@ -102,7 +103,9 @@ def test_junk_inside_a_container_is_taken_or_refused_in_one_line(site, as_entry,
     value = _with_junk(kw[key], junk, as_entry)
     if value is None:
         return
-    with warnings.catch_warnings():
+    with tempfile.TemporaryDirectory() as folder, pytest.MonkeyPatch.context() as mp, \
+            warnings.catch_warnings():
+        mp.chdir(folder)  # the writers' relative paths ("rf", "b") land there
         warnings.simplefilter("error", RuntimeWarning)
         T._build_or_refuse(fn, **{**kw, key: value})
 
