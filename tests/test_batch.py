@@ -250,6 +250,23 @@ def test_find_captures_takes_folders_patterns_and_files(captures, tmp_path):
         batch.find_captures([tmp_path / "empty"])
 
 
+@pytest.mark.parametrize("recorded, shown", [
+    ([1, 2], "([1, 2])"), (["--labels", "a\nb"], "(--labels a b)"), (None, "(none)"),
+    ("x", "('x')"), (["--labels", "8"], "(--labels 8)")])
+def test_a_marker_edited_by_hand_is_named_in_one_line(captures, tmp_path, recorded, shown):
+    """A batch folder's marker holding anything as its options: refused in one line that
+    shows them (a list of numbers raised TypeError in the message's join)."""
+    import json
+
+    out = tmp_path / "out"
+    (out / "frame0").mkdir(parents=True)   # a result: the recorded options bind
+    (out / batch.BATCH_FILE).write_text(json.dumps({"depth_args": recorded}))
+    with pytest.raises(InvalidInputError) as exc:
+        batch.plan_batch([captures], out, depth_args=["--labels", "9"])
+    assert f"made with other depth options {shown};" in str(exc.value)
+    assert "\n" not in str(exc.value)
+
+
 def test_output_names_are_unique():
     paths = [Path("a/x"), Path("b/x"), Path("c/x.h5"), Path("d/y.h5"), Path("e/.h5")]
     assert batch._names(paths) == ["x", "x-2", "x-3", "y", "capture"]

@@ -210,12 +210,20 @@ def _record_options(out: Path, depth_args: Sequence[str], overwrite: bool) -> No
                                     "some results may have other options; run it again with "
                                     "--overwrite")
         if before.get("depth_args") != list(depth_args):
-            old = " ".join(before.get("depth_args") or []) or "none"
+            old = _recorded_args(before.get("depth_args"))
             raise InvalidInputError(
                 f"-o {out}: made with other depth options ({old}); give another folder, the "
                 "same options, or --overwrite to recompute")
     out.mkdir(parents=True, exist_ok=True)
     _write_marker(marker, {"depth_args": list(depth_args), "overwrite_unfinished": overwrite})
+
+
+def _recorded_args(args) -> str:
+    """The depth options a batch folder's marker records, on one line ("none" without any;
+    a marker edited by hand may hold anything)."""
+    text = " ".join(args) if isinstance(args, list) and all(isinstance(a, str) for a in args) \
+        else _opt.shown(args) if args else ""
+    return " ".join(text.split()) or "none"
 
 
 def _holds_results(out: Path) -> bool:
