@@ -52,7 +52,27 @@ def _tables() -> dict:
                 tables[f"{mod.__name__}.{key}"] = base
     for fn, kw in CA._calls().items():  # keyed by the function itself
         tables[f"{CA.__name__}.{fn.__name__}"] = (fn, kw)
+    tables.update(_render_bases())
     return tables
+
+
+def _render_bases() -> dict:
+    """The rendering calls with every argument a keyword (``test_options``' table passes the
+    cube by position, which the fuzzer cannot reach into)."""
+    from hyperlf import render
+
+    rng = np.random.default_rng(0)
+    cube = rng.random((2, 3, 4, 10, 12)).astype(np.float32)
+    wl, white = [450.0, 520.0, 590.0, 650.0], [1.0, 1.0, 1.0, 1.0]
+    offsets = np.stack(np.meshgrid(np.arange(3) - 1.0, np.arange(2) - 0.5), -1)
+    light = dict(offsets=offsets, wavelengths=np.array(wl))
+    return {f"render.{fn.__name__}": (fn, kw) for fn, kw in (
+        (render.refocus, dict(views_or_cube=cube, disparity=0.5, white=white, **light)),
+        (render.focal_stack, dict(views_or_cube=cube, disparities=[0.0, 1.0], **light)),
+        (render.emulate_camera, dict(cube=cube[0], wavelengths=wl, white=white)),
+        (render.spectrum_at, dict(cube=cube, wavelengths=wl, x=3, y=4, view=[0, 1])),
+        (render.camera_matrix, dict(camera="CIE 1931", wavelengths=wl, white=white)),
+        (render.fit_ccm, dict(camera="CIE 1931", wavelengths=wl, white=white)))}
 
 
 def _container(value) -> bool:
@@ -135,7 +155,8 @@ def test_a_view_offset_beyond_float32_is_refused():
 def test_former_overflows_inside_containers_are_refused_or_ignored():
     """An infinity in a recorded capture signature (a manifest is JSON, which has Infinity)
     means "cannot tell", as other malformed records do; a disparity range with an integer
-    beyond a float, and HCI sub-grid indices that are infinite or not whole, are refused."""
+    beyond a float, a white of 1e308 (an overflow) and HCI sub-grid indices that are infinite
+    or not whole are refused."""
     from hyperlf import lightfield
     from hyperlf.formats import read_hci_scene
 
@@ -143,6 +164,10 @@ def test_former_overflows_inside_containers_are_refused_or_ignored():
     assert lightfield.signature_mismatch(dict(sig, grid=[float("inf"), 3]), sig) is None
     with pytest.raises(InvalidInputError, match="^disparity_range must be"):
         lightfield.check_disparity_range([0, 10 ** 400])
+    from hyperlf import render
+
+    with pytest.raises(InvalidInputError, match="^white must be at most 1e"):
+        render.camera_matrix("CIE 1931", [450.0, 520.0, 590.0, 650.0], white=[1e308, 1, 1, 1])
     for cols in ([float("inf")], [2.7], [0, 0]):
         with pytest.raises(InvalidInputError, match=r"^cols must be distinct indices in 0\.\."):
             read_hci_scene(A._files() / "hci", cols=cols)

@@ -350,7 +350,7 @@ def _white_spd(white, wl: np.ndarray) -> np.ndarray:
         raise InvalidInputError(
             f"white must be an illuminant name or a finite array of shape {wl.shape} (one "
             f"value per band), got shape {w.shape}")
-    return w
+    return spectral.check_magnitude(w, "white")
 
 
 def _camera_S(camera, wl: np.ndarray) -> np.ndarray:
@@ -363,7 +363,7 @@ def _camera_S(camera, wl: np.ndarray) -> np.ndarray:
             f"got {S.shape}")
     if not np.all(np.isfinite(S)):
         raise InvalidInputError("camera sensitivities contain NaN or inf")
-    return S
+    return spectral.check_magnitude(S, "camera sensitivities")
 
 
 def _is_xyz(S: np.ndarray, wl: np.ndarray) -> bool:

@@ -905,7 +905,20 @@ def illuminant_values(illuminant, wl: np.ndarray) -> np.ndarray | None:
         )
     if not np.all(np.isfinite(ill)):
         raise InvalidInputError("illuminant contains NaN or infinite values")
-    return ill
+    return check_magnitude(ill, "illuminant")
+
+
+#: Largest value of a spectrum a user gives (an illuminant, a white, a camera's
+#: sensitivities): far beyond any light, and a product of two of them stays finite.
+MAX_SPECTRAL_VALUE = 1e100
+
+
+def check_magnitude(values: np.ndarray, label: str) -> np.ndarray:
+    """``values`` (finite) when none is larger than :data:`MAX_SPECTRAL_VALUE` in size."""
+    if values.size and float(np.abs(values).max()) > MAX_SPECTRAL_VALUE:
+        raise InvalidInputError(f"{label} must be at most {MAX_SPECTRAL_VALUE:g} in size, got "
+                                f"{float(np.abs(values).max()):g}")
+    return values
 
 
 def _spectral_axis(arr: np.ndarray, n: int, axis: int, name: str) -> np.ndarray:
