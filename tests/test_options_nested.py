@@ -44,8 +44,7 @@ def _base(entry):
 @functools.lru_cache(maxsize=1)
 def _tables() -> dict:
     tables = {}
-    for mod, name in ((T, "_render_calls"), (T, "_completion_stage_calls"),
-                      (T, "_matching_calls"), (T, "_library_calls"), (A, "_calls"),
+    for mod, name in ((T, "_matching_calls"), (T, "_library_calls"), (A, "_calls"),
                       (CO, "_calls"), (HL, "_stage_calls"), (CS, "_bases")):
         for key, entry in getattr(mod, name)().items():
             if (base := _base(entry)) is not None:

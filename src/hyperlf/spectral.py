@@ -914,11 +914,9 @@ MAX_SPECTRAL_VALUE = 1e100
 
 
 def check_magnitude(values: np.ndarray, label: str) -> np.ndarray:
-    """``values`` (finite) when none is larger than :data:`MAX_SPECTRAL_VALUE` in size."""
-    if values.size and float(np.abs(values).max()) > MAX_SPECTRAL_VALUE:
-        raise InvalidInputError(f"{label} must be at most {MAX_SPECTRAL_VALUE:g} in size, got "
-                                f"{float(np.abs(values).max()):g}")
-    return values
+    """``values`` (finite) when none is larger than :data:`MAX_SPECTRAL_VALUE` in size
+    (:func:`hyperlf._options.array`'s bound)."""
+    return _opt.array(values, label, bound=MAX_SPECTRAL_VALUE)
 
 
 def _spectral_axis(arr: np.ndarray, n: int, axis: int, name: str) -> np.ndarray:
