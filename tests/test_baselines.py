@@ -150,7 +150,7 @@ def test_validation(name, grey_lf):
         f(grey_lf.replace(disparity_range=None))
     with pytest.raises(InvalidInputError):
         f(grey_lf, disparity_range=(1.0, -1.0))
-    with pytest.raises(InvalidInputError, match="unknown parameter"):
+    with pytest.raises(InvalidInputError, match="^unknown key 'no_such_parameter' in params"):
         f(grey_lf, no_such_parameter=1)
     one = LightField(views=grey_lf.views[:1, :1], disparity_range=(-1, 1))
     with pytest.raises(InvalidInputError):

@@ -136,7 +136,8 @@ def test_grid_defaults_are_the_ones_lightfield_uses():
     assert np.array_equal(lf.positions, pos) and lf.reference == centre_view(2, 3)
 
 
-@pytest.mark.parametrize("bad", [(1.0, 1.0), (np.nan, 1.0), (0.0,), "ab", None])
+@pytest.mark.parametrize("bad", [(1.0, 1.0), (np.nan, 1.0), (0.0,), "ab", None, ("0", "2"),
+                                 [0, 10 ** 400], np.zeros((2, 2))])
 def test_check_disparity_range_rejects_what_is_not_an_ordered_finite_pair(bad):
     from hyperlf.lightfield import check_disparity_range
 

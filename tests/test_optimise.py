@@ -41,11 +41,15 @@ def test_make_params_fills_defaults_and_keeps_given_values():
 
 def test_make_params_names_the_allowed_keys():
     with pytest.raises(InvalidInputError,
-                       match=r"unknown parameter\(s\) \['weight'\] for optimizer 'sgm' "
-                             r"\(allowed: p1, p2, paths, smoothness"):
+                       match=r"^unknown key 'weight' in params; optimizer 'sgm' takes p1, "
+                             r"p2, paths, smoothness"):
         R.make_params("sgm", {"weight": 2.0})
-    with pytest.raises(InvalidInputError, match="allowed: none"):
+    with pytest.raises(InvalidInputError, match="optimizer 'wta' takes no keys$"):
         R.make_params("wta", {"p1": 1.0})
+    for key in (3, ("p1",), np.float64(1.0)):  # keys of other types, with a name beside them
+        with pytest.raises(InvalidInputError, match=r"^unknown key [^;]* in params; "
+                                                    r"optimizer 'sgm' takes p1"):
+            R.make_params("sgm", {"p1": 1.0, key: 2.0, "zz": 1})
     with pytest.raises(InvalidInputError, match="optimizer must be one of graphcut, sgm, wta"):
         R.make_params("icm", {})
     with pytest.raises(InvalidInputError, match="params must be a dict"):

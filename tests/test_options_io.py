@@ -165,8 +165,9 @@ def test_the_completion_stages_take_any_option_or_refuse_it_in_one_line(option, 
     ("write_pfm", "scale", None, "PFM scale must be a finite number, got None"),
     ("write_image", "bit_depth", np.ones(3), "bit_depth must be one of 8, 16, 32, got array("),
     ("write_capture", "progress", 1, "progress must be True or False, got 1"),
-    ("save_lightfield", "compression", "gzip", "unknown option(s) 'compression' for a capture "
-                                               "folder (allowed: image_format)"),
+    ("save_lightfield", "compression", "gzip", "unknown key 'compression' in the options of "
+                                               "save_lightfield; a capture folder takes "
+                                               "image_format"),
     ("write_cube_h5", "metadata", "x", "metadata must be a dict (or None), got str"),
     ("write_ply", "comment", 5, "comment must be one line of ASCII text or None, got 5"),
     ("write_middlebury", "pair", None, "pair must be a StereoPair, got NoneType"),

@@ -24,6 +24,7 @@ import test_options_calibration as CA
 import test_options_compute as CO
 import test_options_costs as CS
 import test_options_hlf as HL
+import test_options_io as IO
 from hyperlf.errors import InvalidInputError
 
 
@@ -45,14 +46,35 @@ def _base(entry):
 def _tables() -> dict:
     tables = {}
     for mod, name in ((T, "_matching_calls"), (T, "_library_calls"), (A, "_calls"),
-                      (CO, "_calls"), (HL, "_stage_calls"), (CS, "_bases")):
+                      (CO, "_calls"), (HL, "_stage_calls"), (CS, "_bases"),
+                      (IO, "_writer_calls")):
         for key, entry in getattr(mod, name)().items():
             if (base := _base(entry)) is not None:
                 tables[f"{mod.__name__}.{key}"] = base
     for fn, kw in CA._calls().items():  # keyed by the function itself
         tables[f"{CA.__name__}.{fn.__name__}"] = (fn, kw)
+    for key, entry in IO._stage_calls()[0].items():
+        tables[f"{IO.__name__}.{key}"] = _base(entry)
     tables.update(_render_bases())
+    tables.update(_pipeline_bases())
     return tables
+
+
+def _pipeline_bases() -> dict:
+    """Depth, completion and completion's two stages that the option fuzzers call through
+    lambdas with arguments of their own, here with every argument a keyword."""
+    from hyperlf import completion, hlf, synthesis
+
+    lf = synthesis.procedural_scene(seed=1, rows=2, cols=2, height=12, width=16,
+                                    disparity_range=(-1.0, 1.0))
+    ref = lf.gt_disparity[lf.reference]
+    stereo = dict(params={"p1": 0.5, "p2": 2.0}, disparity_range=(-2.0, 2.0))
+    return {f"pipeline.{fn.__name__}": (fn, kw) for fn, kw in (
+        (hlf.depth, dict(lf=lf, disparity_range=(-1.0, 1.0), n_labels=4)),
+        (completion.complete, dict(lf=lf, disparity=ref, params={"p1": 0.5, "p2": 2.0},
+                                   infer={"radius": 2, "rounds": 1}, max_iter=2)),
+        (completion.pairwise_disparities, dict(
+            lf=lf, initial=completion.propagate_disparity(lf, ref), **stereo)))}
 
 
 def _render_bases() -> dict:
@@ -110,7 +132,7 @@ def _with_junk(value, junk, as_entry: bool):
 def test_the_sites_cover_every_table():
     assert len(_SITES) >= 40 and {n.split(".")[0] for n, _ in _SITES} >= {
         "test_options", "test_options_calibration", "test_options_compute",
-        "test_options_costs"}
+        "test_options_costs", "test_options_io", "pipeline", "render"}
 
 
 @settings(max_examples=800, deadline=None, derandomize=True)
@@ -170,3 +192,27 @@ def test_former_overflows_inside_containers_are_refused_or_ignored():
     for cols in ([float("inf")], [2.7], [0, 0]):
         with pytest.raises(InvalidInputError, match=r"^cols must be distinct indices in 0\.\."):
             read_hci_scene(A._files() / "hci", cols=cols)
+
+
+def test_a_stranger_key_of_any_type_is_named_in_one_line():
+    """Keys of several types beside the names a dict of options takes: sorting them for the
+    message raised TypeError (completion's ``infer``; a fusion's part options too).  Six such
+    checks, each with its own message, are now one: ``_options.mapping(keys=...)``."""
+    from hyperlf import baselines, completion, synthesis
+    from hyperlf.costs import FusedCost
+
+    lf = synthesis.procedural_scene(seed=1, rows=2, cols=2, height=12, width=16,
+                                    disparity_range=(-1.0, 1.0))
+    calls = {
+        "infer": lambda: completion.complete(lf, lf.gt_disparity[lf.reference],
+                                             infer={"radius": 2, (1, 2): 1, "x": 2}),
+        "params": lambda: baselines.tao2013(lf, x=1, y=2),
+        "x: part_options": lambda: FusedCost("x", ("rsncc", "census"),
+                                             part_options={3: {}, "ncc": {}}),
+    }
+    for label, call in calls.items():
+        with pytest.raises(InvalidInputError) as exc:
+            call()
+        text = str(exc.value)
+        assert text.startswith("unknown key ") and f" in {label}; " in text, text
+        assert "\n" not in text

@@ -295,7 +295,7 @@ _BG = {"kind": "plane", "disparity": 0.0}
 
 @pytest.mark.parametrize("obj, words", [
     ({"kind": "sphere", "centre": [0.5, 0.5], "radius": 0.2, "disparity": 0.5},
-     "objects[1] has an unknown key 'centre'; a sphere takes kind, disparity, texture, name, "
+     "unknown key 'centre' in objects[1]; a sphere takes kind, disparity, texture, name, "
      "center, radius"),
     ({"kind": "sphere", "center": [0.5, 0.5], "radius": 0.2},
      "objects[1] needs 'disparity': a sphere is given by disparity, center, radius"),
@@ -305,7 +305,7 @@ _BG = {"kind": "plane", "disparity": 0.0}
     ({"kind": "plane", "disparity": 0.5, "rect": [0.6, 0.1, 0.2, 0.9]},
      "objects[1]['rect'] must have u0 < u1 and v0 < v1"),
     ({"kind": "plane", "disparity": 0.5, "texture": {"patern": "checker"}},
-     "objects[1]['texture'] has an unknown key 'patern'"),
+     "unknown key 'patern' in objects[1]['texture']"),
     ({"kind": "plane", "disparity": 0.5, "texture": {"pattern": "noise", "waves": []}},
      "objects[1]['texture']['waves'] must be a non-empty list"),
     ({"kind": "plane", "disparity": 0.5, "texture": {"colors": 10 ** 9}},

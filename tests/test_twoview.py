@@ -209,7 +209,7 @@ def test_input_validation():
         stereo(L, R, (0, 8), occlusion="median")
     with pytest.raises(InvalidInputError, match="metric"):
         stereo(L, R, (0, 8), metric="sad")
-    with pytest.raises(InvalidInputError, match="unknown parameter"):
+    with pytest.raises(InvalidInputError, match="^unknown key 'weight' in params"):
         stereo(L, R, (0, 8), optimizer="sgm", params={"weight": 2.0})
     with pytest.raises(InvalidInputError, match="channel"):
         stereo(np.dstack([L] * 3), np.dstack([R] * 3), (0, 8), channel=(0, 3))

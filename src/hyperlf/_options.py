@@ -255,15 +255,35 @@ def shown(value, limit: int = 60) -> str:
 
 
 def real_array(value, label: str, dtype=np.float64) -> np.ndarray:
-    """``value`` as an array of ``dtype`` (its own where ``dtype`` is None); text, mappings and
-    ragged lists are refused (values too large for ``dtype`` become inf, for the caller's own
-    finiteness rule)."""
+    """``value`` as an array of ``dtype`` (its own where ``dtype`` is None); text (numerals
+    included: ``"2"`` is not a number to this library), mappings and ragged lists are refused
+    (values too large for ``dtype`` become inf, for the caller's own finiteness rule).
+
+    Examples
+    --------
+    >>> real_array([1, 2.5], "offsets")
+    array([1. , 2.5])
+    >>> real_array(["1", "2"], "offsets")
+    Traceback (most recent call last):
+    ...
+    hyperlf.errors.InvalidInputError: offsets must be an array of real numbers, got ['1', '2']
+    """
     try:
+        raw = np.asarray(value)
+        if _holds_text(raw):
+            raise TypeError
         with np.errstate(over="ignore"):
-            return np.asarray(value, dtype=dtype)
+            return raw.astype(dtype, copy=False) if dtype is not None else raw
     except (TypeError, ValueError, OverflowError):
         raise InvalidInputError(f"{label} must be an array of real numbers, got "
                                 f"{shown(value)}") from None
+
+
+def _holds_text(a: np.ndarray) -> bool:
+    """Whether ``a`` is text, or an object array with text or a mapping among its entries."""
+    if a.dtype.kind in "USV":
+        return True
+    return a.dtype.kind == "O" and any(isinstance(v, (str, bytes, Mapping)) for v in a.flat)
 
 
 _KINDS = {"biuf": "real numbers", "iuf": "real numbers", "iu": "integers", "f": "floats"}
@@ -413,12 +433,24 @@ def window(value, label: str, *, side: int | None = None, of: str = "the image")
     return n
 
 
-def mapping(value, label: str, *, optional: bool = True) -> Mapping | None:
+def mapping(value, label: str, *, optional: bool = True, keys=None,
+            taker: str | None = None) -> Mapping | None:
     """``value`` when it is a mapping (a dict of options, images by camera), or None where
-    ``optional``."""
+    ``optional``.  Where ``keys`` (names) is given, a key not among them is refused, naming
+    what ``taker`` (default ``label``) takes; a key of any type is shown by its repr.
+
+    Examples
+    --------
+    >>> mapping({"p1": 2}, "params", keys=("p1", "p2"), taker="sgm")
+    {'p1': 2}
+    """
     if not isinstance(value, Mapping) and not (value is None and optional):
         none = " (or None)" if optional else ""
         raise InvalidInputError(f"{label} must be a dict{none}, got {type(value).__name__}")
+    strangers = [k for k in value or () if k not in keys] if keys is not None else []
+    if strangers:
+        raise InvalidInputError(f"unknown key {shown(strangers[0])} in {label}; "
+                                f"{taker or label} takes {', '.join(keys) or 'no keys'}")
     return value
 
 

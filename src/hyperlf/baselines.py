@@ -147,7 +147,7 @@ from typing import Any, Callable
 import numpy as np
 
 from . import regularisers as _reg
-from ._options import check_values, choice, flag, integer, number, rule, word_or
+from ._options import check_values, choice, flag, integer, mapping, number, rule, word_or
 from ._progress import progress_bar
 from .errors import InvalidInputError
 from .lightfield import LightField, resolve_disparity_range
@@ -314,11 +314,7 @@ def label_disparities(lf: LightField, n_labels, disparity_range=None) -> np.ndar
 def _merge(method: str, params: dict) -> dict:
     """``params`` over :data:`DEFAULTS` of ``method``, every value checked by :data:`_RULES`."""
     p = dict(DEFAULTS[method])
-    unknown = sorted(set(params) - set(p))
-    if unknown:
-        raise InvalidInputError(
-            f"unknown parameter(s) for {method}: {', '.join(unknown)}; "
-            f"allowed: {', '.join(sorted(p))}")
+    mapping(params, "params", keys=sorted(p), taker=method)
     p.update(params)
     checked = check_values(p, _RULES[method])
     # integers in their canonical type (a window of 9.0 is 9); numbers stay as given

@@ -1162,12 +1162,10 @@ def _check_infer(infer) -> dict | None:
     if infer is True:
         return {}
     if not isinstance(infer, dict):
-        raise InvalidInputError(f"infer must be True, False or a dict of options, got {infer!r}")
-    allowed = {"radius", "sigma_d", "sigma_g", "min_weight", "rounds", "impl"}
-    unknown = set(infer) - allowed
-    if unknown:
-        raise InvalidInputError(f"unknown infer option(s) {sorted(unknown)} "
-                                f"(allowed: {', '.join(sorted(allowed))})")
+        raise InvalidInputError(f"infer must be True, False or a dict of options, got "
+                                f"{shown(infer)}")
+    mapping(infer, "infer", keys=("radius", "sigma_d", "sigma_g", "min_weight", "rounds",
+                                  "impl"))
     kw = dict(infer)
     _infer_params(kw.get("radius", 6), kw.get("sigma_d", 0.5), kw.get("sigma_g", 0.1),
                   kw.get("min_weight", 0.05), kw.get("rounds", 3))

@@ -22,7 +22,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ._options import flag, index, instance, integer, int_pair, mapping, number, real_array, shown
+from ._options import (flag, index, instance, integer, int_pair, mapping, number, real_array,
+                       real_pair, shown)
 from .errors import InvalidInputError
 from .imageops import block_reduce
 
@@ -238,12 +239,8 @@ def check_disparity_range(disparity_range) -> tuple[float, float]:
     >>> check_disparity_range([-2, 2])
     (-2.0, 2.0)
     """
-    try:
-        dmin, dmax = (float(v) for v in disparity_range)
-    except (TypeError, ValueError, OverflowError):  # OverflowError: an int beyond a float
-        raise InvalidInputError(
-            f"disparity_range must be (dmin, dmax), got {shown(disparity_range)}") from None
-    if not (np.isfinite(dmin) and np.isfinite(dmax) and dmin < dmax):
+    dmin, dmax = real_pair(disparity_range, "disparity_range", "(dmin, dmax), finite")
+    if not dmin < dmax:
         raise InvalidInputError(
             f"disparity_range must be finite with min < max, got {shown(disparity_range)}")
     return dmin, dmax

@@ -879,10 +879,10 @@ def _check_shape(shape, label: str, rect) -> None:
     if rect is None:
         raise InvalidInputError(f"a {kind} plane needs a rect")
     if kind == "ring":
-        _check_keys(shape, label, ("kind", "hole"), "a ring")
+        _opt.mapping(shape, label, keys=("kind", "hole"), taker="a ring")
         _opt.number(shape.get("hole", 0.6), f"{label}['hole'] (a ring's hole)", below=1.0)
         return
-    _check_keys(shape, label, ("kind", "ends", "width"), "a stick")
+    _opt.mapping(shape, label, keys=("kind", "ends", "width"), taker="a stick")
     ends = _opt.real_array(shape.get("ends", ()), f"{label}['ends']")
     if ends.shape != (2, 2) or not (np.abs(ends) <= MAX_OBJECT_VALUE).all():
         raise InvalidInputError(f"a stick needs 'ends': [[u0, v0], [u1, v1]], finite and at "
@@ -1163,14 +1163,6 @@ def _bounded_list(value, label: str, n: int, what: str) -> list[float]:
     return [float(v) for v in a]
 
 
-def _check_keys(o: Mapping, label: str, allowed: Sequence[str], what: str) -> None:
-    """Refuse a key of ``o`` not in ``allowed`` (``what`` names the thing that takes them)."""
-    extra = [k for k in o if k not in allowed]
-    if extra:
-        raise InvalidInputError(f"{label} has an unknown key {_opt.shown(extra[0])}; {what} "
-                                f"takes {', '.join(allowed)}")
-
-
 def _entries(value, label: str, what: str, each) -> None:
     """A non-empty list of ``what``, each entry passing the rule ``each``."""
     if not isinstance(value, (list, tuple)) or not value:
@@ -1200,7 +1192,7 @@ def _check_texture(t, label: str) -> None:
         return
     if not isinstance(t, Mapping):
         raise InvalidInputError(f"{label} must be None or a dict, got {_opt.shown(t)}")
-    _check_keys(t, label, tuple(_TEXTURE_RULES), "a texture")
+    _opt.mapping(t, label, keys=tuple(_TEXTURE_RULES), taker="a texture")
     for key, value in t.items():
         _TEXTURE_RULES[key](value, f"{label}[{key!r}]")
 
@@ -1209,8 +1201,8 @@ def _check_object(o: Mapping, label: str) -> None:
     """One explicit object description (:func:`procedural_scene`'s ``objects``), refused in
     one line before any work: its kind, its keys, and each value's type and range."""
     kind = _opt.choice(o.get("kind"), f"{label}['kind']", tuple(_OBJECT_KEYS))
-    _check_keys(o, label, ("kind", "disparity", "texture", "name") + _OBJECT_KEYS[kind],
-                f"a {kind}")
+    _opt.mapping(o, label, keys=("kind", "disparity", "texture", "name") + _OBJECT_KEYS[kind],
+                 taker=f"a {kind}")
     needs = ("disparity",) + {"box": ("rect",), "sphere": ("center", "radius")}.get(kind, ())
     for key in needs:
         if o.get(key) is None:

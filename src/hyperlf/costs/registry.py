@@ -223,10 +223,8 @@ class FusedCost(Cost):
         for p, o in (part_options or {}).items():
             mapping(o, f"{name}: part_options[{p!r}]", optional=False)
         self.part_options = {p: dict(o) for p, o in (part_options or {}).items()}
-        strangers = sorted(set(self.part_options) - set(self.parts))
-        if strangers:
-            raise InvalidInputError(f"{name}: part_options name costs that are not among its "
-                                    f"parts ({', '.join(self.parts)}): {', '.join(strangers)}")
+        mapping(self.part_options, f"{name}: part_options", keys=self.parts,
+                taker=f"{name} (its parts)")
         self.weights = self.check_weights(weights) if weights is not None \
             else (1.0,) * len(self.parts)
         self.description = description

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataNotFoundError, FormatError, HyperLFError, InvalidInputError
-from .._options import check_values, flag, path_like
+from .._options import check_values, flag, mapping, path_like
 from ..lightfield import LightField
 from . import capture, envi, hci, hdf5, images, middlebury, pfm
 from .capture import (CAPTURE_FORMAT, MANIFEST, gt_cube_file, is_capture, read_capture,
@@ -354,12 +354,8 @@ def save_lightfield(lf: LightField, path: str | os.PathLike, *, bit_depth: int =
     p = Path(path_like(path, folder=not h5))
     check_values(dict(bit_depth=bit_depth, overwrite=overwrite, progress=progress),
                  capture._WRITE_RULES)
-    allowed = ("compression",) if h5 else ("image_format",)
-    unknown = sorted(set(kwargs) - set(allowed))
-    if unknown:
-        raise InvalidInputError(f"unknown option(s) {', '.join(map(repr, unknown))} for "
-                                f"{'an HDF5 file' if h5 else 'a capture folder'} (allowed: "
-                                f"{allowed[0]})")
+    mapping(kwargs, "the options of save_lightfield", keys=("compression",) if h5 else ("image_format",),
+            taker="an HDF5 file" if h5 else "a capture folder")
     if h5:
         if p.exists() and not overwrite:
             raise InvalidInputError(f"{p} exists; choose another name or pass overwrite=True")

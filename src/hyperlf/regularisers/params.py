@@ -146,13 +146,8 @@ def make_params(name: str, values: dict[str, Any] | None = None):
     if cls is None:
         raise InvalidInputError(
             f"optimizer must be one of {', '.join(OPTIMISERS)}, got {name!r}")
-    values = mapping(values, "params") or {}
-    allowed = [f.name for f in fields(cls)]
-    unknown = sorted(set(values) - set(allowed))
-    if unknown:
-        raise InvalidInputError(
-            f"unknown parameter(s) {unknown} for optimizer {name!r} "
-            f"(allowed: {', '.join(allowed) or 'none'})")
+    values = mapping(values, "params", keys=[f.name for f in fields(cls)],
+                     taker=f"optimizer {name!r}") or {}
     return cls(**values)
 
 
