@@ -305,6 +305,26 @@ def test_the_sweep_and_the_spectrum_figure_too(keyword, value):
                              **{"wavelengths": wl, "points": [(2, 3)], keyword: value})
 
 
+@pytest.mark.parametrize("keyword, value", [("title", "a\x00b"), ("labels", ["\U000cef6c"]),
+                                            ("ylabel", "x\ny")])
+def test_figure_texts_are_printable(keyword, value, tmp_path):
+    """A figure's title and labels: a character no font has a glyph for (control, unassigned)
+    was drawn as a box with a matplotlib warning; it is now refused by name."""
+    from hyperlf import render, visualise
+
+    cube = np.random.default_rng(0).random((1, 1, 4, 10, 12)).astype(np.float32)
+    wl = np.array([450.0, 520.0, 590.0, 650.0])
+    words = f"^{keyword}(\\[0\\])? must be printable text"
+    with pytest.raises(InvalidInputError, match=words):
+        visualise.save_spectrum_plot(tmp_path / "p.png", wl, cube[0, 0, :, 0, 0],
+                                     **{keyword: value})
+    if keyword != "ylabel":
+        with pytest.raises(InvalidInputError, match=words):
+            render.save_spectrum_figure(path=tmp_path / "s.png", cube=cube, wavelengths=wl,
+                                        points=[(2, 3)], **{keyword: value})
+    assert not list(tmp_path.iterdir())
+
+
 @functools.lru_cache(maxsize=1)
 def _completion_stage_calls():
     """:func:`completion.pairwise_disparities` and :func:`completion.refine_disparity` on a

@@ -76,6 +76,13 @@ def _robust_range(values: np.ndarray, vmin=None, vmax=None) -> tuple[float, floa
     return lo, hi
 
 
+def _figure_texts(**texts) -> None:
+    """Titles and labels of a figure are printable text (None for no title): a control or
+    unassigned character has no glyph in any font."""
+    for label, value in texts.items():
+        _opt.text(value, label, optional=True, printable=True)
+
+
 def save_disparity_png(path: str | os.PathLike, disparity: np.ndarray, *, title: str = "disparity",
                        vmin: float | None = None, vmax: float | None = None,
                        cmap: str = "turbo", label: str = "disparity (px / baseline)") -> Path:
@@ -110,6 +117,7 @@ def save_disparity_png(path: str | os.PathLike, disparity: np.ndarray, *, title:
     if d.ndim != 2:
         raise InvalidInputError(f"disparity must be 2-D, got shape {d.shape}")
     _opt.path_like(path)
+    _figure_texts(title=title, label=label)
     plt = pyplot()
     _opt.choice(cmap, "cmap", tuple(plt.colormaps()))
     lo, hi = _robust_range(d, vmin, vmax)
@@ -251,7 +259,7 @@ def save_mosaic_png(path: str | os.PathLike, views: np.ndarray,
     R, C, H, W = v.shape[:4]
     if wavelengths is not None and _opt.real_array(wavelengths, "wavelengths").shape != (R, C):
         raise InvalidInputError(f"wavelengths must be one per view, shape {(R, C)}")
-    _opt.text(title, "title", optional=True)
+    _figure_texts(title=title)
     step = display_step(R * H, C * W, max_side)
     v = v[:, :, ::step, ::step]
     if v.ndim == 4:
@@ -299,6 +307,7 @@ def save_share_mosaic_png(path: str | os.PathLike, shares: np.ndarray, *, title:
         The PNG.
     """
     _opt.path_like(path)
+    _figure_texts(title=title, label=label)
     v = _opt.real_array(shares, "shares", np.float32)
     if v.ndim != 4:
         raise InvalidInputError(f"shares must be (R, C, H, W), got {v.shape}")
@@ -349,6 +358,8 @@ def save_spectrum_plot(path: str | os.PathLike, wavelengths: np.ndarray,
                                or len(labels) != len(sp)):
         raise InvalidInputError(f"labels must be one text per spectrum ({len(sp)}), got "
                                 f"{_opt.shown(labels)}")
+    _figure_texts(title=title, ylabel=ylabel, **{f"labels[{i}]": t
+                                                 for i, t in enumerate(labels or ())})
     if sp.shape[-1] != wl.size:
         raise InvalidInputError(
             f"spectra have {sp.shape[-1]} samples but there are {wl.size} wavelengths"

@@ -22,7 +22,7 @@ from .model import Calibration, check_calibration
 
 
 def _title(value, optional: bool = False):
-    return _opt.text(value, "title", optional=optional)
+    return _opt.text(value, "title", optional=optional, printable=True)
 
 
 def _stretch(img: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
