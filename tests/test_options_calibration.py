@@ -7,6 +7,7 @@ of finite input."""
 from __future__ import annotations
 
 import functools
+import re
 import warnings
 
 import numpy as np
@@ -180,6 +181,19 @@ def test_former_failures_name_the_argument(fn, key, value, words):
     with pytest.raises(InvalidInputError) as exc:
         fn(**{**_calls()[fn], key: value})
     assert str(exc.value).startswith(words) and "\n" not in str(exc.value)
+
+
+def test_a_camera_or_pose_without_observations_is_refused():
+    """The nested fuzzer replaced the first observation's camera by the other one: camera 0
+    had nothing to fit, and its residual was the mean of an empty slice (NaN, a warning)."""
+    kw = _calls()[bundle.bundle_adjust]
+    (_, _, c1), (_, _, c0) = kw["obs"]
+    for obs, words in (([(1, 0, c1), (1, 0, c0)], "obs holds no observation of camera 0 (of 2)"),
+                       ([(0, 0, c1), (1, 0, c0)], "obs holds no observation of pose 1 (of 2)")):
+        extra = {"pose_r0": np.zeros((2, 3)), "pose_t0": np.array([[-40.0, -30, 350]] * 2)} \
+            if "pose" in words else {}
+        with pytest.raises(InvalidInputError, match=f"^{re.escape(words)}; each"):
+            bundle.bundle_adjust(**{**kw, "obs": obs, **extra})
 
 
 def test_a_saturation_beyond_float32_is_refused_before_any_warp(tmp_path):

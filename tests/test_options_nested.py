@@ -108,9 +108,14 @@ _SITES = sorted((name, key) for name, (_, kw) in _tables().items()
                 for key, value in kw.items() if _container(value))
 
 
-def _with_junk(value, junk, as_entry: bool):
+def _with_junk(value, junk, as_entry: bool, inner: bool = False):
     """``value`` (a dict or a sequence) with its first entry replaced by ``junk``, or with
-    ``junk`` added (as a key of a dict); None where junk cannot be a key."""
+    ``junk`` added (as a key of a dict); None where junk cannot be a key.  Where ``inner`` and
+    the first entry is itself a container, the junk goes one level down, into that entry."""
+    head = next(iter(value.values())) if isinstance(value, dict) else value[0]
+    if inner and _container(head):
+        changed = _with_junk(head, junk, as_entry)
+        return None if changed is None else _with_junk(value, changed, False)
     if isinstance(value, dict):
         out, first = dict(value), next(iter(value))
         if not as_entry:
@@ -137,11 +142,11 @@ def test_the_sites_cover_every_table():
 
 @settings(max_examples=800, deadline=None, derandomize=True)
 @given(st.sampled_from(_SITES), st.booleans(),
-       T.JUNK | st.tuples(st.integers(-2, 3), st.integers(-2, 3)))
-def test_junk_inside_a_container_is_taken_or_refused_in_one_line(site, as_entry, junk):
+       T.JUNK | st.tuples(st.integers(-2, 3), st.integers(-2, 3)), st.booleans())
+def test_junk_inside_a_container_is_taken_or_refused_in_one_line(site, as_entry, junk, inner):
     name, key = site
     fn, kw = _tables()[name]
-    value = _with_junk(kw[key], junk, as_entry)
+    value = _with_junk(kw[key], junk, as_entry, inner)
     if value is None:
         return
     with tempfile.TemporaryDirectory() as folder, pytest.MonkeyPatch.context() as mp, \

@@ -125,7 +125,9 @@ def _finite_rows(value, label: str, width: int, rows: int | None = None) -> np.n
 
 
 def _observations(obs, n_points: int, n_cams: int, n_poses: int) -> list:
-    """``obs`` as a non-empty list of ``(camera, pose, (n_points, 2) finite corners)``."""
+    """``obs`` as a non-empty list of ``(camera, pose, (n_points, 2) finite corners)``, with
+    every camera and every pose observed at least once (one that is not has nothing to fit
+    its parameters to)."""
     what = (f"obs must be a non-empty list of (camera index < {n_cams}, pose index < {n_poses}, "
             f"({n_points}, 2) corners)")
     if isinstance(obs, (str, bytes, dict)) or not hasattr(obs, "__len__") or not len(obs):
@@ -142,6 +144,12 @@ def _observations(obs, n_points: int, n_cams: int, n_poses: int) -> list:
         if uv.shape != (n_points, 2) or not np.isfinite(uv).all():
             raise InvalidInputError(f"{what}, got corners of shape {uv.shape} (or not finite)")
         out.append((c, p, uv))
+    for what, n, seen in (("camera", n_cams, {o[0] for o in out}),
+                          ("pose", n_poses, {o[1] for o in out})):
+        if len(seen) < n:
+            lost = min(set(range(n)) - seen)
+            raise InvalidInputError(f"obs holds no observation of {what} {lost} (of {n}); "
+                                    f"each {what} needs at least one")
     return out
 
 
