@@ -1399,83 +1399,40 @@ def _scratch_store(out_path: Path, shape) -> "_H5Store":
 
 def _register_all(lf, disp, wl, bidx, out_path, occlusion_tol, max_iter, fill, compression,
                   progress, timings, cfg, t_all, name, infer=None):
-    from .formats.hdf5 import CubeWriter
-
+    """Stages 4 and 5 of :func:`complete` (and the naive baseline): registration,
+    propagation, then inference and fill view by view, in memory or streamed to
+    ``out_path`` through a scratch store."""
     R, C = lf.grid_shape
     H, W = lf.image_shape
-    B = R * C
-    shape = (R, C, B, H, W)
-    views = [(r, c) for r in range(R) for c in range(C)]
-    if out_path is not None:
-        out_path = Path(out_path)
+    shape = (R, C, R * C, H, W)
+    out_path = None if out_path is None else Path(out_path)
     store = _MemStore(shape) if out_path is None else _scratch_store(out_path, shape)
+    finish = _Finish(lf, disp, wl, fill, infer)
     try:
         t0 = time.perf_counter()
-        direct = 0
-        for v in progress_bar(views, "registration", total=len(views), enabled=progress):
-            cube_v, mask_v = register_view(lf, disp, v, bidx, occlusion_tol)
-            store.put(v, cube_v, mask_v)
-            direct += int(mask_v.sum())
+        direct = _register_views(lf, store, disp, bidx, occlusion_tol, progress)
         timings["registration"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        propagated, passes = (0, 0)
-        if max_iter > 0:
-            propagated, passes = _propagate(lf, store, disp, occlusion_tol, max_iter, progress)
+        propagated, passes = (_propagate(lf, store, disp, occlusion_tol, max_iter, progress)
+                              if max_iter > 0 else (0, 0))
         timings["propagation"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        n_valid = 0
-        n_inferred = 0
-        t_infer = 0.0
-
-        def finish(v, cv, mv):
-            """Stage 5 for one view: inference, then the fill of what is still missing."""
-            nonlocal n_valid, n_inferred, t_infer
-            n_valid += int(mv.sum())
-            iv = np.zeros(mv.shape, dtype=bool)
-            if infer is not None and not mv.all():
-                t1 = time.perf_counter()
-                cv, iv = infer_missing(cv, mv, disp[v], lf.views[v], **infer)
-                t_infer += time.perf_counter() - t1
-                n_inferred += int(iv.sum())
-            return fill_missing(cv, mv | iv, wl, fill), iv
-
         if out_path is None:
-            inferred = np.zeros(shape, dtype=bool) if infer is not None else None
-            for v in views:
-                store.cube[v], iv = finish(v, store.cube[v], store.mask[v])
-                if inferred is not None:
-                    inferred[v] = iv
-            cube, mask = store.cube, store.mask
+            cube, mask, inferred = _finish_in_memory(store, finish)
         else:
-            md = {"completion": {k: (v if isinstance(v, (int, float, str, bool, type(None)))
-                                     else repr(v)) for k, v in cfg.items()}, "method": name,
-                  # geometry, so renderers can refocus non-uniform arrays from the file alone
-                  "positions": np.asarray(lf.positions).tolist(),
-                  "reference": list(lf.reference),
-                  # 1/N resolution (``lightfield.downscale``), so that a copied file says so
-                  "downscale": int(lf.metadata.get("downscale", 1))
-                  if isinstance(lf.metadata.get("downscale", 1), int) else 1}
-            with CubeWriter(out_path, shape, wl, compression=compression, metadata=md) as wr:
-                for v in progress_bar(views, "inference and output", total=len(views),
-                                      enabled=progress, unit="view"):
-                    cv, mv = store.get(v)
-                    filled, iv = finish(v, cv, mv)
-                    # a pixel renders when each band holds data: registered or inferred
-                    wr.write_view(v[0], v[1], filled, (mv | iv).all(axis=0))
-                    wr.write_view_extra("band_mask", v[0], v[1], mv)
-                    if infer is not None:
-                        wr.write_view_extra("inferred_mask", v[0], v[1], iv)
+            _finish_to_file(out_path, store, finish, wl, compression,
+                            _cube_metadata(lf, cfg, name), progress)
             cube, mask, inferred = None, None, None
-        timings["inference"] = t_infer
-        timings["output"] = time.perf_counter() - t0 - t_infer
+        timings["inference"] = finish.seconds
+        timings["output"] = time.perf_counter() - t0 - finish.seconds
     finally:
         store.close()
     timings["total"] = time.perf_counter() - t_all
-    total = R * C * B * H * W
+    total = R * C * R * C * H * W
     stats = {
-        "completed_pct": 100.0 * (n_valid + n_inferred) / total,
-        "registered_pct": 100.0 * n_valid / total,
-        "inferred_pct": 100.0 * n_inferred / total,
+        "completed_pct": 100.0 * (finish.n_valid + finish.n_inferred) / total,
+        "registered_pct": 100.0 * finish.n_valid / total,
+        "inferred_pct": 100.0 * finish.n_inferred / total,
         "own": R * C * H * W,
         "direct": direct - R * C * H * W,
         "propagated": propagated,
@@ -1485,3 +1442,76 @@ def _register_all(lf, disp, wl, bidx, out_path, occlusion_tol, max_iter, fill, c
     }
     return CompletionResult(cube=cube, path=out_path, mask=mask, wavelengths=wl, band_index=bidx,
                             disparities=disp, stats=stats, inferred=inferred)
+
+
+def _register_views(lf, store, disp, bidx, occlusion_tol, progress) -> int:
+    """Stage 4: every view's registered bands into ``store``; the count of entries set."""
+    direct = 0
+    for v in grid_views(*lf.grid_shape, "registration", enabled=progress):
+        cube_v, mask_v = register_view(lf, disp, v, bidx, occlusion_tol)
+        store.put(v, cube_v, mask_v)
+        direct += int(mask_v.sum())
+    return direct
+
+
+class _Finish:
+    """Stage 5 for one view: inference of the entries no view observed (where ``infer`` is
+    given), then the fill of what is still missing; counts the registered and inferred
+    entries and the inference's time."""
+
+    def __init__(self, lf, disp, wl, fill, infer):
+        self.lf, self.disp, self.wl, self.fill, self.infer = lf, disp, wl, fill, infer
+        self.n_valid = self.n_inferred = 0
+        self.seconds = 0.0
+
+    def __call__(self, v, cv, mv):
+        """The filled cube of view ``v`` and its inferred entries."""
+        self.n_valid += int(mv.sum())
+        iv = np.zeros(mv.shape, dtype=bool)
+        if self.infer is not None and not mv.all():
+            t1 = time.perf_counter()
+            cv, iv = infer_missing(cv, mv, self.disp[v], self.lf.views[v], **self.infer)
+            self.seconds += time.perf_counter() - t1
+            self.n_inferred += int(iv.sum())
+        return fill_missing(cv, mv | iv, self.wl, self.fill), iv
+
+
+def _finish_in_memory(store: "_MemStore", finish: _Finish):
+    """Stage 5 in place in the in-memory store: ``(cube, mask, inferred or None)``."""
+    R, C = store.cube.shape[:2]
+    inferred = np.zeros(store.cube.shape, dtype=bool) if finish.infer is not None else None
+    for v in ((r, c) for r in range(R) for c in range(C)):
+        store.cube[v], iv = finish(v, store.cube[v], store.mask[v])
+        if inferred is not None:
+            inferred[v] = iv
+    return store.cube, store.mask, inferred
+
+
+def _finish_to_file(out_path, store, finish: _Finish, wl, compression, metadata, progress):
+    """Stage 5 view by view from the scratch store into the cube file at ``out_path``."""
+    from .formats.hdf5 import CubeWriter
+
+    R, C = finish.lf.grid_shape
+    H, W = finish.lf.image_shape
+    with CubeWriter(out_path, (R, C, R * C, H, W), wl, compression=compression,
+                    metadata=metadata) as wr:
+        for v in grid_views(R, C, "inference and output", enabled=progress):
+            cv, mv = store.get(v)
+            filled, iv = finish(v, cv, mv)
+            # a pixel renders when each band holds data: registered or inferred
+            wr.write_view(v[0], v[1], filled, (mv | iv).all(axis=0))
+            wr.write_view_extra("band_mask", v[0], v[1], mv)
+            if finish.infer is not None:
+                wr.write_view_extra("inferred_mask", v[0], v[1], iv)
+
+
+def _cube_metadata(lf, cfg: dict, name: str) -> dict:
+    """What a cube file records of its making: the settings, the method, the geometry (so
+    that renderers can refocus non-uniform arrays from the file alone) and the downscale
+    (1/N resolution, :func:`hyperlf.lightfield.downscale`, so that a copied file says so)."""
+    downscale = lf.metadata.get("downscale", 1)
+    return {"completion": {k: (v if isinstance(v, (int, float, str, bool, type(None)))
+                               else repr(v)) for k, v in cfg.items()},
+            "method": name, "positions": np.asarray(lf.positions).tolist(),
+            "reference": list(lf.reference),
+            "downscale": int(downscale) if isinstance(downscale, int) else 1}
