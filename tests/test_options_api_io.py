@@ -302,6 +302,10 @@ def _refusal(name: str, keyword: str, value):
     ("expand_pattern", "r", "x", "r must be an integer"),
     ("write_html_report", "sections", [1], "sections must be a list of hyperlf.report.Section"),
     ("Section", "pictures", [("missing.png", 5)], "caption must be text (a str), got 5"),
+    # checked whether the scene's parameters.cfg makes it needless or not ('x' was a
+    # TypeError on a scene without one)
+    ("read_hci_scene", "disparity_margin", "x", "disparity_margin must be a finite number in "
+                                                "[0, 1000], got 'x'"),
 ])
 def test_former_failures_name_the_argument_and_what_it_takes(name, keyword, value, words):
     err = _refusal(name, keyword, value)

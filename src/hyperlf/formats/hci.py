@@ -17,7 +17,7 @@ from typing import Iterable
 
 import numpy as np
 
-from .._options import int_pair, integer, path_like, shown
+from .._options import int_pair, integer, number, path_like, shown
 from .._paths import leads_outside
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
 from ..lightfield import LightField, centre_view
@@ -27,6 +27,10 @@ from .pfm import read_pfm
 __all__ = ["read_hci_scene", "is_hci_scene", "HCI_LICENCE"]
 
 HCI_LICENCE = "CC BY-NC-SA 4.0 (cite Honauer et al., ACCV 2016)"
+
+#: Largest ``disparity_margin`` of :func:`read_hci_scene` (px): a wider range only adds labels
+#: that no surface takes.
+MAX_MARGIN = 1000.0
 _CAM = re.compile(r"^input_Cam(\d{3})\.png$")
 
 
@@ -137,7 +141,7 @@ def read_hci_scene(folder: str | os.PathLike, *, grid=None, rows=None, cols=None
         cols=range(2, 8)`` for a 5 x 6 array. Default: all.
     disparity_margin : float
         Margin (px) added on both sides when the disparity range is derived from the ground
-        truth (scenes without ``parameters.cfg``).
+        truth (scenes without ``parameters.cfg``); 0 to :data:`MAX_MARGIN`.
 
     Returns
     -------
@@ -161,6 +165,7 @@ def read_hci_scene(folder: str | os.PathLike, *, grid=None, rows=None, cols=None
         When a file cannot be decoded or views differ in size.
     """
     root = Path(path_like(folder, "folder", folder=None))
+    disparity_margin = number(disparity_margin, "disparity_margin", at_most=MAX_MARGIN)
     if not root.is_dir():
         raise DataNotFoundError(f"HCI scene folder {root} does not exist")
     cfg_path = root / "parameters.cfg"
@@ -169,17 +174,7 @@ def read_hci_scene(folder: str | os.PathLike, *, grid=None, rows=None, cols=None
     R, C = _grid_from(root, cfg, grid)
     rsel = _select(rows, R, "rows")
     csel = _select(cols, C, "cols")
-
-    files = [[root / f"input_Cam{C * r + c:03d}.png" for c in csel] for r in rsel]
-    missing = [f.name for row in files for f in row if not f.is_file()]
-    if missing:
-        shown = ", ".join(missing[:8]) + (f" and {len(missing) - 8} more" if len(missing) > 8 else "")
-        raise DataNotFoundError(
-            f"HCI scene {root} is missing {len(missing)} view(s): {shown}; "
-            "download the complete scene, or load a sub-grid (hyperlf synth hci --grid R,C; "
-            "read_hci_scene(rows=, cols=) in Python)"
-        )
-    flat = [f for row in files for f in row]
+    flat = _view_files(root, C, rsel, csel)
     gt_path = root / "gt_disp_lowres.pfm"
     _check_inside(root, [*flat, gt_path])
     views = read_images_same_size(flat, lambda f: read_image(f, as_float=True, channels="rgb"),
@@ -191,26 +186,8 @@ def read_hci_scene(folder: str | os.PathLike, *, grid=None, rows=None, cols=None
     centre = centre_view(R, C)
     centre_in = centre[0] in rsel and centre[1] in csel
     reference = (rsel.index(centre[0]), csel.index(centre[1])) if centre_in else None
-
-    gt = None
-    if gt_path.is_file():
-        gt_full = read_pfm(gt_path)
-        if gt_full.ndim != 2 or gt_full.shape != views.shape[2:4]:
-            raise FormatError(
-                f"{gt_path} has shape {gt_full.shape} but the views are {views.shape[2:4]}; "
-                "use the lowres ground truth that matches the input views"
-            )
-        gt = gt_full
-
-    disparity_range = None
-    meta = cfg.get("meta", {})
-    dmin, dmax = meta.get("disp_min"), meta.get("disp_max")
-    if isinstance(dmin, (int, float)) and isinstance(dmax, (int, float)) and dmin < dmax:
-        disparity_range = (float(dmin), float(dmax))
-    elif gt is not None and np.isfinite(gt).any():
-        ok = gt[np.isfinite(gt)]
-        disparity_range = (math.floor(float(ok.min())) - disparity_margin,
-                           math.ceil(float(ok.max())) + disparity_margin)
+    gt = _ground_truth(gt_path, views.shape[2:4])
+    disparity_range = _disparity_range(cfg, gt, disparity_margin)
 
     metadata = {
         "source": "HCI 4D light field benchmark",
@@ -234,3 +211,43 @@ def read_hci_scene(folder: str | os.PathLike, *, grid=None, rows=None, cols=None
         gt_disparity=gt if centre_in else None,
         metadata=metadata,
     )
+
+
+def _view_files(root: Path, C: int, rsel: list, csel: list) -> list[Path]:
+    """The sub-grid's view files in raster order; every missing one named in one refusal."""
+    files = [root / f"input_Cam{C * r + c:03d}.png" for r in rsel for c in csel]
+    missing = [f.name for f in files if not f.is_file()]
+    if missing:
+        shown = ", ".join(missing[:8]) + (f" and {len(missing) - 8} more" if len(missing) > 8 else "")
+        raise DataNotFoundError(
+            f"HCI scene {root} is missing {len(missing)} view(s): {shown}; "
+            "download the complete scene, or load a sub-grid (hyperlf synth hci --grid R,C; "
+            "read_hci_scene(rows=, cols=) in Python)"
+        )
+    return files
+
+
+def _ground_truth(gt_path: Path, shape: tuple[int, int]) -> np.ndarray | None:
+    """``gt_disp_lowres.pfm`` where the scene has it, of the views' ``shape``."""
+    if not gt_path.is_file():
+        return None
+    gt = read_pfm(gt_path)
+    if gt.ndim != 2 or gt.shape != shape:
+        raise FormatError(
+            f"{gt_path} has shape {gt.shape} but the views are {shape}; "
+            "use the lowres ground truth that matches the input views"
+        )
+    return gt
+
+
+def _disparity_range(cfg: dict, gt: np.ndarray | None, margin: float):
+    """``[meta] disp_min/disp_max`` of ``parameters.cfg``, else the ground truth's range
+    widened to whole pixels and by ``margin``, else None."""
+    meta = cfg.get("meta", {})
+    dmin, dmax = meta.get("disp_min"), meta.get("disp_max")
+    if isinstance(dmin, (int, float)) and isinstance(dmax, (int, float)) and dmin < dmax:
+        return float(dmin), float(dmax)
+    if gt is not None and np.isfinite(gt).any():
+        ok = gt[np.isfinite(gt)]
+        return math.floor(float(ok.min())) - margin, math.ceil(float(ok.max())) + margin
+    return None
