@@ -240,82 +240,91 @@ def _default_offsets(R: int, C: int, reference=None) -> tuple[np.ndarray, tuple[
 
 
 def _make_source(obj, wavelengths=None, offsets=None, mask=None, reference=None) -> _Source:
-    """Resolve the input of refocus / all_focus / focal_stack into a :class:`_Source`."""
+    """Resolve the input of refocus / all_focus / focal_stack into a :class:`_Source`: a
+    spectral light field, a cube file, or a cube / views array with its wavelengths."""
     if _is_lightfield(obj):
-        lf = obj
-        if not lf.is_spectral:
-            raise InvalidInputError(
-                "the LightField is not spectral (views must be (R, C, H, W) with wavelengths); "
-                "pass lf.gt_cube with lf.cube_wavelengths to refocus a cube")
-        data, wl = lf.views, np.asarray(lf.wavelengths, dtype=np.float64)
-        if wavelengths is not None:
-            wl = _opt.real_array(wavelengths, "wavelengths")
-        if offsets is None:
-            offsets = lf.offsets
-        if reference is None:
-            reference = lf.reference
+        data, wl, offsets, reference = _lightfield_input(obj, wavelengths, offsets, reference)
         kind = "views"
     elif _is_cubefile(obj):
-        data = obj.cube
+        data, kind = obj.cube, "cube"
         wl = _opt.real_array(obj.wavelengths if wavelengths is None else wavelengths,
                              "wavelengths")
-        if mask is None:
-            mask = obj.mask
-        elif mask is False:
-            mask = None
-        kind = "cube"
+        mask = obj.mask if mask is None else mask
     else:
-        data = obj if _is_h5_dataset(obj) else np.asarray(obj)
-        if not _is_h5_dataset(data) and (data.dtype == object
-                                         or not np.issubdtype(data.dtype, np.number)):
-            raise InvalidInputError(
-                f"expected a numeric cube or views array, got dtype {data.dtype}")
-        if data.ndim == 5:
-            kind = "cube"
-        elif data.ndim == 4:
-            kind = "views"
-        else:
-            raise InvalidInputError(
-                "expected a cube (R, C, B, H, W) or H-LF views (R, C, H, W), got shape "
-                f"{tuple(data.shape)}")
+        data, kind = _array_input(obj)
         if wavelengths is None:
             raise InvalidInputError(
                 "wavelengths are required: (B,) band centres for a cube, (R, C) filter "
                 "wavelengths for H-LF views")
         wl = _opt.real_array(wavelengths, "wavelengths")
-    if mask is False:
-        mask = None
     shape = tuple(int(s) for s in data.shape)
-    if kind == "cube":  # unknown wavelengths (all NaN) allow the profiles that need none
+    wl, mask_shape = _source_wavelengths(kind, wl, shape)
+    mask = _check_mask(None if mask is False else mask, mask_shape)
+    offsets, reference = _source_geometry(offsets, reference, *shape[:2])
+    return _Source(data, kind, wl, mask=mask, offsets=offsets, reference=reference)
+
+
+def _lightfield_input(lf, wavelengths, offsets, reference):
+    """A spectral light field's views, and its wavelengths, offsets and reference where the
+    call gives none."""
+    if not lf.is_spectral:
+        raise InvalidInputError(
+            "the LightField is not spectral (views must be (R, C, H, W) with wavelengths); "
+            "pass lf.gt_cube with lf.cube_wavelengths to refocus a cube")
+    wl = (np.asarray(lf.wavelengths, dtype=np.float64) if wavelengths is None
+          else _opt.real_array(wavelengths, "wavelengths"))
+    return (lf.views, wl, lf.offsets if offsets is None else offsets,
+            lf.reference if reference is None else reference)
+
+
+def _array_input(obj):
+    """A numeric array (or HDF5 dataset) and its kind: ``"cube"`` (5-D) or ``"views"``
+    (4-D)."""
+    data = obj if _is_h5_dataset(obj) else np.asarray(obj)
+    if not _is_h5_dataset(data) and (data.dtype == object
+                                     or not np.issubdtype(data.dtype, np.number)):
+        raise InvalidInputError(f"expected a numeric cube or views array, got dtype {data.dtype}")
+    if data.ndim not in (4, 5):
+        raise InvalidInputError(
+            "expected a cube (R, C, B, H, W) or H-LF views (R, C, H, W), got shape "
+            f"{tuple(data.shape)}")
+    return data, "cube" if data.ndim == 5 else "views"
+
+
+def _source_wavelengths(kind: str, wl: np.ndarray, shape: tuple) -> tuple:
+    """The wavelengths checked against the data's ``shape`` (a cube's band centres, all NaN
+    where unknown, which the profiles that need none allow; one finite filter wavelength per
+    view), and the shape of a mask of the data."""
+    if kind == "cube":
         wl = wl.ravel() if spectral.wavelengths_unknown(wl) else spectral.as_wavelengths(wl)
         if wl.size != shape[2]:
             raise InvalidInputError(
                 f"the cube has {shape[2]} bands but {wl.size} wavelengths were given")
-        mshape = shape[:2] + shape[3:]
-    else:
-        if wl.shape != shape[:2]:
-            raise InvalidInputError(
-                f"H-LF views {shape} need one filter wavelength per view, shape {shape[:2]}; "
-                f"got {wl.shape} (for a cube pass an (R, C, B, H, W) array)")
-        if not np.all(np.isfinite(wl)):
-            raise InvalidInputError("view wavelengths contain NaN or inf")
-        mshape = shape
-    mask = _check_mask(mask, mshape)
-    R, C = shape[:2]
+        return wl, shape[:2] + shape[3:]
+    if wl.shape != shape[:2]:
+        raise InvalidInputError(
+            f"H-LF views {shape} need one filter wavelength per view, shape {shape[:2]}; "
+            f"got {wl.shape} (for a cube pass an (R, C, B, H, W) array)")
+    if not np.all(np.isfinite(wl)):
+        raise InvalidInputError("view wavelengths contain NaN or inf")
+    return wl, shape
+
+
+def _source_geometry(offsets, reference, R: int, C: int) -> tuple:
+    """The views' ``(R, C, 2)`` offsets (default: a regular grid) and the reference (default:
+    the view at offset 0, else the grid's default centre)."""
     if offsets is None:
-        offsets, reference = _default_offsets(R, C, reference)
-    else:
-        offsets = _opt.real_array(offsets, "offsets")
-        if offsets.shape != (R, C, 2):
-            raise InvalidInputError(
-                f"offsets must have shape ({R}, {C}, 2) as (dx, dy) per view, got {offsets.shape}")
-        if not np.all(np.isfinite(offsets)):
-            raise InvalidInputError("offsets contain NaN or inf")
-        if reference is None:
-            zero = np.argwhere(np.all(np.abs(offsets) < 1e-9, axis=-1))
-            reference = tuple(int(v) for v in zero[0]) if len(zero) else _default_offsets(R, C)[1]
-        reference = _opt.index(reference, "reference", (R, C))
-    return _Source(data, kind, wl, mask=mask, offsets=offsets, reference=reference)
+        return _default_offsets(R, C, reference)
+    offsets = _opt.real_array(offsets, "offsets")
+    if offsets.shape != (R, C, 2):
+        raise InvalidInputError(
+            f"offsets must have shape ({R}, {C}, 2) as (dx, dy) per view, got {offsets.shape}")
+    if not np.all(np.isfinite(offsets)):
+        raise InvalidInputError("offsets contain NaN or inf")
+    if reference is None:
+        zero = np.argwhere(np.all(np.abs(offsets) < 1e-9, axis=-1))
+        reference = tuple(int(v) for v in zero[0]) if len(zero) else _default_offsets(R, C)[1]
+    return offsets, _opt.index(reference, "reference", (R, C))
 
 
 # ============================================================================ profiles

@@ -218,7 +218,8 @@ def _view_files(root: Path, C: int, rsel: list, csel: list) -> list[Path]:
     files = [root / f"input_Cam{C * r + c:03d}.png" for r in rsel for c in csel]
     missing = [f.name for f in files if not f.is_file()]
     if missing:
-        shown = ", ".join(missing[:8]) + (f" and {len(missing) - 8} more" if len(missing) > 8 else "")
+        more = f" and {len(missing) - 8} more" if len(missing) > 8 else ""
+        shown = ", ".join(missing[:8]) + more
         raise DataNotFoundError(
             f"HCI scene {root} is missing {len(missing)} view(s): {shown}; "
             "download the complete scene, or load a sub-grid (hyperlf synth hci --grid R,C; "
