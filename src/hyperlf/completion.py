@@ -512,8 +512,6 @@ def pairwise_disparities(lf, initial: np.ndarray, *, metric: str = "rsncc", opti
     confidence : ndarray of float32 (R, C, H, W)
     """
     from . import costs as _costs
-    from . import regularisers as _reg
-    from . import twoview as _stereo
 
     lf = _check_lf(lf)
     R, C = lf.grid_shape
@@ -528,56 +526,100 @@ def pairwise_disparities(lf, initial: np.ndarray, *, metric: str = "rsncc", opti
     if init.shape != (R, C, H, W):
         raise InvalidInputError(f"initial must have shape {(R, C, H, W)}, got {init.shape}")
     opt = _optimiser_params(optimizer, params)
-    sum_wd = np.zeros((R, C, H, W), dtype=np.float32)
-    sum_w = np.zeros((R, C, H, W), dtype=np.float32)
-    cnt = np.zeros((R, C, H, W), dtype=np.uint8)
+    drange = drange if drange is not None else lf.disparity_range
+    merge = _PairMerge((R, C, H, W))
+    pairs = _neighbour_pairs(lf)
+    for a, b, kind, base in progress_bar(pairs, "pairwise stereo", total=len(pairs),
+                                         enabled=progress):
+        tr = (lambda x: x) if kind == "h" else (lambda x: np.ascontiguousarray(x.T))
+        L_img, R_img = tr(lf.views[a]), tr(lf.views[b])
+        ia, ib = tr(init[a]), tr(init[b])
+        kmin, kmax = _pair_labels(ia, ib, band, drange, base)
+        if L_img.mean() <= 0 or R_img.mean() <= 0:
+            continue
+        sides = _match_pair(L_img, R_img, ia, ib, kmin, kmax, base, metric=metric, window=window,
+                            opt=opt, guidance=guidance, band=band)
+        back = (lambda x: x) if kind == "h" else (lambda x: x.T)
+        for v, (d_, c_, ok) in zip((a, b), sides):
+            merge.add(v, back(d_ / base), back(c_), back(ok))
+    return merge.result()
+
+
+def _neighbour_pairs(lf) -> list:
+    """Every horizontal and vertical pair of neighbouring views as ``(a, b, kind, base)``,
+    ordered so that the baseline ``base`` (px per unit of disparity) from ``a`` to ``b`` is
+    positive; pairs at the same position are left out."""
+    R, C = lf.grid_shape
     pairs = [((r, c), (r, c + 1), "h") for r in range(R) for c in range(C - 1)]
     pairs += [((r, c), (r + 1, c), "v") for r in range(R - 1) for c in range(C)]
-    drange = drange if drange is not None else lf.disparity_range
-    for a, b, kind in progress_bar(pairs, "pairwise stereo", total=len(pairs), enabled=progress):
+    out = []
+    for a, b, kind in pairs:
         off = _offset(lf, b, a)
         base = off[0] if kind == "h" else off[1]
         if abs(base) < 1e-9:
             continue
-        if base < 0:  # positions decrease along the grid: swap roles
-            a, b, base = b, a, -base
-        tr = (lambda x: x) if kind == "h" else (lambda x: np.ascontiguousarray(x.T))
-        L_img, R_img = tr(lf.views[a]), tr(lf.views[b])
-        ia, ib = tr(init[a]), tr(init[b])
-        vals = np.concatenate([ia[np.isfinite(ia)], ib[np.isfinite(ib)]])
-        if vals.size:
-            lo, hi = float(vals.min()) - band, float(vals.max()) + band
-        elif drange is not None:
-            lo, hi = float(drange[0]), float(drange[1])
-        else:
-            raise InvalidInputError("no initial disparity and no disparity_range for the stereo")
-        kmin, kmax = int(np.floor(lo * base)), int(np.ceil(hi * base))
-        if kmax - kmin < 2:
-            kmin, kmax = kmin - 1, kmax + 1
-        if L_img.mean() <= 0 or R_img.mean() <= 0:
-            continue
-        cl, cr = _stereo.compute_volumes(L_img, R_img, kmin, kmax, metric, window=window,
-                                             need_right=True)
-        labels = np.arange(kmin, kmax + 1, dtype=np.float64)
-        s = _volume_std(cl)
-        side = dict(kmin=kmin, base=base, labels=labels, opt=opt, guidance=guidance, band=band)
-        dL, cL = _side_disparity(cl, s, init=ia, img=L_img, **side)
-        del cl  # each side's volume goes as soon as it is used
-        dR, cR = _side_disparity(cr, s, init=ib, img=R_img, **side)
-        del cr
-        okL = _reg.left_right_check(dL, dR, tol=1.0)
-        okR = _reg.left_right_check(dR[:, ::-1], dL[:, ::-1], tol=1.0)[:, ::-1]
-        back = (lambda x: x) if kind == "h" else (lambda x: x.T)
-        for v, d_, c_, ok in ((a, dL, cL, okL), (b, dR, cR, okR)):
-            d_v, c_v, ok_v = back(d_ / base), back(c_), back(ok)
-            w = np.where(ok_v, c_v + 1e-3, 0.0).astype(np.float32)
-            sum_wd[v] += w * np.where(ok_v, d_v, 0.0)
-            sum_w[v] += w
-            cnt[v] += ok_v.astype(np.uint8)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        merged = np.where(sum_w > 0, sum_wd / np.maximum(sum_w, 1e-12), np.nan).astype(np.float32)
-        conf = np.where(cnt > 0, sum_w / np.maximum(cnt, 1), 0.0).astype(np.float32)
-    return merged, np.clip(conf, 0.0, 1.0)
+        out.append((a, b, kind, base) if base > 0 else (b, a, kind, -base))
+    return out
+
+
+def _pair_labels(ia, ib, band: float, drange, base: float) -> tuple[int, int]:
+    """The pair's integer label range: both views' initial disparities +- ``band``, else
+    ``drange``, in px of this pair's baseline (at least 3 labels)."""
+    vals = np.concatenate([ia[np.isfinite(ia)], ib[np.isfinite(ib)]])
+    if vals.size:
+        lo, hi = float(vals.min()) - band, float(vals.max()) + band
+    elif drange is not None:
+        lo, hi = float(drange[0]), float(drange[1])
+    else:
+        raise InvalidInputError("no initial disparity and no disparity_range for the stereo")
+    kmin, kmax = int(np.floor(lo * base)), int(np.ceil(hi * base))
+    return (kmin - 1, kmax + 1) if kmax - kmin < 2 else (kmin, kmax)
+
+
+def _match_pair(L_img, R_img, ia, ib, kmin, kmax, base, *, metric, window, opt, guidance, band):
+    """Guided stereo of one rectified pair: for each side its disparity (px), confidence and
+    left-right consistency."""
+    from . import regularisers as _reg
+    from . import twoview as _stereo
+
+    cl, cr = _stereo.compute_volumes(L_img, R_img, kmin, kmax, metric, window=window,
+                                     need_right=True)
+    labels = np.arange(kmin, kmax + 1, dtype=np.float64)
+    s = _volume_std(cl)
+    side = dict(kmin=kmin, base=base, labels=labels, opt=opt, guidance=guidance, band=band)
+    dL, cL = _side_disparity(cl, s, init=ia, img=L_img, **side)
+    del cl  # each side's volume goes as soon as it is used
+    dR, cR = _side_disparity(cr, s, init=ib, img=R_img, **side)
+    del cr
+    okL = _reg.left_right_check(dL, dR, tol=1.0)
+    okR = _reg.left_right_check(dR[:, ::-1], dL[:, ::-1], tol=1.0)[:, ::-1]
+    return (dL, cL, okL), (dR, cR, okR)
+
+
+class _PairMerge:
+    """The confidence-weighted mean of every pair's consistent estimates, view by view."""
+
+    def __init__(self, shape):
+        self.sum_wd = np.zeros(shape, dtype=np.float32)
+        self.sum_w = np.zeros(shape, dtype=np.float32)
+        self.count = np.zeros(shape, dtype=np.uint8)
+
+    def add(self, v, d, c, ok) -> None:
+        """One pair's estimate ``d`` (disparity per baseline) of view ``v``, its confidence
+        ``c`` and where it is consistent ``ok``."""
+        w = np.where(ok, c + 1e-3, 0.0).astype(np.float32)
+        self.sum_wd[v] += w * np.where(ok, d, 0.0)
+        self.sum_w[v] += w
+        self.count[v] += ok.astype(np.uint8)
+
+    def result(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(merged, confidence)``: NaN / 0 where no pair was consistent."""
+        sum_w, cnt = self.sum_w, self.count
+        with np.errstate(invalid="ignore", divide="ignore"):
+            merged = np.where(sum_w > 0, self.sum_wd / np.maximum(sum_w, 1e-12),
+                              np.nan).astype(np.float32)
+            conf = np.where(cnt > 0, sum_w / np.maximum(cnt, 1), 0.0).astype(np.float32)
+        return merged, np.clip(conf, 0.0, 1.0)
 
 
 # ----------------------------------------------------------------------------- stage 3
