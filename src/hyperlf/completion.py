@@ -1217,34 +1217,13 @@ def _check_infer(infer) -> dict | None:
 def _view_disparities(lf, disparity, *, metric, optimizer, band, guidance, window, params,
                       wls_lambda, edge_sigma, init_confidence, stereo_confidence, keep_initial,
                       progress, timings, cfg, fill_confidence=0.5):
+    """Stages 1-3 of :func:`complete`: every view's initial disparity, its background fill,
+    pairwise stereo and the refinement; ``(initial, refined)``, each ``(R, C, H, W)``."""
     R, C = lf.grid_shape
-    H, W = lf.image_shape
-    if disparity is None:
-        try:
-            from .hlf import depth as _depth
-        except ImportError as exc:  # pragma: no cover - depth is part of the library
-            raise InvalidInputError("no disparity given and hyperlf.hlf is unavailable") from exc
-        t0 = time.perf_counter()
-        disparity = _depth(lf, progress=progress).disparity
-        timings["depth"] = time.perf_counter() - t0
-        cfg["disparity_source"] = "hyperlf.hlf.depth (estimated reference disparity)"
-    d = np.asarray(disparity, dtype=np.float32)
-    if d.shape == (R, C, H, W):
-        cfg["disparity_source"] = cfg.get("disparity_source", "per-view maps given")
-        init = d.copy()
-        timings["initialisation"] = 0.0
-        if np.isfinite(init).all():  # nothing to estimate
-            timings["stereo"] = timings["refinement"] = 0.0
-            return init, init
-    elif d.shape == (H, W):
-        cfg.setdefault("disparity_source", "reference map given")
-        t0 = time.perf_counter()
-        init = propagate_disparity(lf, d)
-        timings["initialisation"] = time.perf_counter() - t0
-    else:
-        raise InvalidInputError(
-            f"disparity must be None, the reference map {(H, W)} or per-view maps {(R, C, H, W)}; "
-            f"got shape {d.shape}")
+    init, per_view = _initial_disparities(lf, disparity, progress, timings, cfg)
+    if per_view and np.isfinite(init).all():  # nothing to estimate
+        timings["stereo"] = timings["refinement"] = 0.0
+        return init, init
     t0 = time.perf_counter()
     bg = np.empty_like(init)
     for r in range(R):
@@ -1253,8 +1232,7 @@ def _view_disparities(lf, disparity, *, metric, optimizer, band, guidance, windo
     timings["background_fill"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     if optimizer is None:
-        merged = np.full_like(init, np.nan)
-        conf = np.zeros_like(init)
+        merged, conf = np.full_like(init, np.nan), np.zeros_like(init)
     else:
         merged, conf = pairwise_disparities(lf, bg, metric=metric, optimizer=optimizer,
                                             band=band, guidance=guidance, window=window,
@@ -1262,26 +1240,62 @@ def _view_disparities(lf, disparity, *, metric, optimizer, band, guidance, windo
     timings["stereo"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     out = np.empty_like(init)
-    for r, c in grid_views(R, C, "refinement (WLS)", enabled=progress):
-        has = np.isfinite(init[r, c])
-        if has.all():
-            out[r, c] = init[r, c]
-            continue
-        # two data terms in the holes: background fill and stereo (c1 z1 + c2 z2 form)
-        c1 = np.where(has, init_confidence, np.where(np.isfinite(bg[r, c]),
-                                                     fill_confidence, 0.0))
-        z1 = np.where(has, init[r, c], bg[r, c])
-        okm = np.isfinite(merged[r, c]) & ~has
-        c2 = np.where(okm, stereo_confidence * conf[r, c], 0.0)
-        z2 = np.where(okm, merged[r, c], 0.0)
-        cw = c1 + c2
-        with np.errstate(invalid="ignore", divide="ignore"):
-            z = np.where(cw > 0, (c1 * np.nan_to_num(z1) + c2 * z2) / np.maximum(cw, 1e-12),
-                         np.nan)
-        ref = refine_disparity(lf.views[r, c], z, cw, lam=wls_lambda, edge_sigma=edge_sigma)
-        out[r, c] = np.where(has, init[r, c], ref) if keep_initial else ref
+    for v in grid_views(R, C, "refinement (WLS)", enabled=progress):
+        out[v] = _refined_view(lf.views[v], init[v], bg[v], merged[v], conf[v],
+                               init_confidence=init_confidence,
+                               fill_confidence=fill_confidence,
+                               stereo_confidence=stereo_confidence, wls_lambda=wls_lambda,
+                               edge_sigma=edge_sigma, keep_initial=keep_initial)
     timings["refinement"] = time.perf_counter() - t0
     return init, out
+
+
+def _initial_disparities(lf, disparity, progress, timings, cfg) -> tuple[np.ndarray, bool]:
+    """Stage 1: the views' initial disparities ``(R, C, H, W)`` (NaN holes) from per-view maps,
+    a reference map warped to every view, or hlf depth's reference map where none is given;
+    and whether per-view maps were given."""
+    R, C = lf.grid_shape
+    H, W = lf.image_shape
+    if disparity is None:
+        from .hlf import depth as _depth
+
+        t0 = time.perf_counter()
+        disparity = _depth(lf, progress=progress).disparity
+        timings["depth"] = time.perf_counter() - t0
+        cfg["disparity_source"] = "hyperlf.hlf.depth (estimated reference disparity)"
+    d = np.asarray(disparity, dtype=np.float32)
+    if d.shape == (R, C, H, W):
+        cfg["disparity_source"] = cfg.get("disparity_source", "per-view maps given")
+        timings["initialisation"] = 0.0
+        return d.copy(), True
+    if d.shape != (H, W):
+        raise InvalidInputError(
+            f"disparity must be None, the reference map {(H, W)} or per-view maps "
+            f"{(R, C, H, W)}; got shape {d.shape}")
+    cfg.setdefault("disparity_source", "reference map given")
+    t0 = time.perf_counter()
+    init = propagate_disparity(lf, d)
+    timings["initialisation"] = time.perf_counter() - t0
+    return init, False
+
+
+def _refined_view(image, init, bg, merged, conf, *, init_confidence, fill_confidence,
+                  stereo_confidence, wls_lambda, edge_sigma, keep_initial) -> np.ndarray:
+    """Stage 3 for one view: the WLS refinement of two data terms in the holes of ``init``,
+    its background fill and the stereo estimate (the ``c1 z1 + c2 z2`` form)."""
+    has = np.isfinite(init)
+    if has.all():
+        return init
+    c1 = np.where(has, init_confidence, np.where(np.isfinite(bg), fill_confidence, 0.0))
+    z1 = np.where(has, init, bg)
+    okm = np.isfinite(merged) & ~has
+    c2 = np.where(okm, stereo_confidence * conf, 0.0)
+    z2 = np.where(okm, merged, 0.0)
+    cw = c1 + c2
+    with np.errstate(invalid="ignore", divide="ignore"):
+        z = np.where(cw > 0, (c1 * np.nan_to_num(z1) + c2 * z2) / np.maximum(cw, 1e-12), np.nan)
+    ref = refine_disparity(image, z, cw, lam=wls_lambda, edge_sigma=edge_sigma)
+    return np.where(has, init, ref) if keep_initial else ref
 
 
 def complete(lf, disparity=None, out_path=None, *, metric: str = "rsncc",
