@@ -903,70 +903,89 @@ class _H5Store:
 def _propagate(lf, store, disparities, occlusion_tol, max_iter, progress=False) -> tuple[int, int]:
     """Fill missing entries from 4-neighbours (Gauss-Seidel passes). Returns (filled, passes)."""
     R, C = lf.grid_shape
-    H, W = lf.image_shape
     total = 0
     passes = 0
     for it in range(int(max_iter)):
         passes += 1
-        changed = 0
-        for r, c in grid_views(R, C, f"propagation, pass {it + 1}", enabled=progress):
-            v = (r, c)
-            cube_v, mask_v = store.get(v)
-            missing = ~mask_v
-            if not missing.any():
-                continue
-            dv = np.asarray(disparities[v], dtype=np.float64)
-            nbrs = [(r + dr, c + dc) for dr, dc in ((0, 1), (0, -1), (1, 0), (-1, 0))
-                    if 0 <= r + dr < R and 0 <= c + dc < C]
-            # The footprint of each neighbour and its occlusion check depend on the view
-            # pair only, not on the band: compute them once per view and pass.
-            todo = np.flatnonzero(missing.any(axis=0).ravel() & np.isfinite(dv).ravel())
-            if todo.size == 0:
-                continue
-            ty, tx = np.divmod(todo, W)
-            dt = dv.ravel()[todo]
-            geom = []
-            for w in nbrs:
-                ox, oy = _offset(lf, w, v)
-                inside, idx, wts = bilinear_taps(tx - dt * ox, ty - dt * oy, (H, W))
-                if occlusion_tol is not None:
-                    inside = inside & _footprint_ok(
-                        np.asarray(disparities[w], np.float64).ravel(), idx, wts, d=dt,
-                        scale=max(np.hypot(ox, oy), 1.0), tol=float(occlusion_tol))
-                geom.append((w, inside, idx, wts))
-            pos = np.full(H * W, -1, dtype=np.intp)
-            pos[todo] = np.arange(todo.size)
-            for b in np.nonzero(missing.reshape(missing.shape[0], -1).any(axis=1))[0]:
-                pix = np.flatnonzero(missing[b].ravel() & (pos >= 0))
-                if pix.size == 0:
-                    continue
-                sel = pos[pix]
-                acc = np.zeros(pix.size)
-                n = np.zeros(pix.size)
-                for w, inside, idx_all, wts_all in geom:
-                    img_w, m_w = store.get_band(w, b)
-                    if not m_w.any():
-                        continue
-                    idx = tuple(i[sel] for i in idx_all)
-                    wts = tuple(x[sel] for x in wts_all)
-                    ok = inside[sel] & _footprint_ok(m_w.ravel(), idx, wts)
-                    if not ok.any():
-                        continue
-                    val = gather_taps(img_w.ravel(), idx, wts)
-                    acc[ok] += val[ok]
-                    n[ok] += 1
-                got = n > 0
-                if got.any():
-                    img = cube_v[b].copy()
-                    m = mask_v[b].copy()
-                    img.ravel()[pix[got]] = (acc[got] / n[got]).astype(np.float32)
-                    m.ravel()[pix[got]] = True
-                    store.put_band(v, b, img, m)
-                    changed += int(got.sum())
+        changed = sum(_propagate_view(lf, store, disparities, v, occlusion_tol)
+                      for v in grid_views(R, C, f"propagation, pass {it + 1}", enabled=progress))
         total += changed
         if changed == 0:
             break
     return total, passes
+
+
+def _propagate_view(lf, store, disparities, v, occlusion_tol) -> int:
+    """One view's missing entries that a 4-neighbour observes, each the mean of the
+    neighbours' bilinear samples whose footprints pass the occlusion check; the count set."""
+    H, W = lf.image_shape
+    cube_v, mask_v = store.get(v)
+    missing = ~mask_v
+    if not missing.any():
+        return 0
+    dv = np.asarray(disparities[v], dtype=np.float64)
+    todo = np.flatnonzero(missing.any(axis=0).ravel() & np.isfinite(dv).ravel())
+    if todo.size == 0:
+        return 0
+    geom = _neighbour_taps(lf, disparities, v, todo, dv.ravel()[todo], occlusion_tol)
+    pos = np.full(H * W, -1, dtype=np.intp)
+    pos[todo] = np.arange(todo.size)
+    changed = 0
+    for b in np.nonzero(missing.reshape(missing.shape[0], -1).any(axis=1))[0]:
+        pix = np.flatnonzero(missing[b].ravel() & (pos >= 0))
+        if pix.size == 0:
+            continue
+        acc, n = _neighbour_mean(store, b, pos[pix], geom)
+        got = n > 0
+        if got.any():
+            img = cube_v[b].copy()
+            m = mask_v[b].copy()
+            img.ravel()[pix[got]] = (acc[got] / n[got]).astype(np.float32)
+            m.ravel()[pix[got]] = True
+            store.put_band(v, b, img, m)
+            changed += int(got.sum())
+    return changed
+
+
+def _neighbour_taps(lf, disparities, v, todo, dt, occlusion_tol) -> list:
+    """For each 4-neighbour ``w`` of view ``v``: where the pixels ``todo`` (disparities
+    ``dt``) land in it, as ``(w, inside, idx, wts)`` bilinear taps.  They depend on the view
+    pair only, not on the band, so they are computed once per view and pass."""
+    R, C = lf.grid_shape
+    H, W = lf.image_shape
+    r, c = v
+    ty, tx = np.divmod(todo, W)
+    geom = []
+    for w in [(r + dr, c + dc) for dr, dc in ((0, 1), (0, -1), (1, 0), (-1, 0))
+              if 0 <= r + dr < R and 0 <= c + dc < C]:
+        ox, oy = _offset(lf, w, v)
+        inside, idx, wts = bilinear_taps(tx - dt * ox, ty - dt * oy, (H, W))
+        if occlusion_tol is not None:
+            inside = inside & _footprint_ok(
+                np.asarray(disparities[w], np.float64).ravel(), idx, wts, d=dt,
+                scale=max(np.hypot(ox, oy), 1.0), tol=float(occlusion_tol))
+        geom.append((w, inside, idx, wts))
+    return geom
+
+
+def _neighbour_mean(store, b: int, sel: np.ndarray, geom: list) -> tuple:
+    """Band ``b``'s sum and count over the neighbours that observe the taps ``sel`` of
+    ``geom`` (:func:`_neighbour_taps`) with their whole footprint."""
+    acc = np.zeros(sel.size)
+    n = np.zeros(sel.size)
+    for w, inside, idx_all, wts_all in geom:
+        img_w, m_w = store.get_band(w, b)
+        if not m_w.any():
+            continue
+        idx = tuple(i[sel] for i in idx_all)
+        wts = tuple(x[sel] for x in wts_all)
+        ok = inside[sel] & _footprint_ok(m_w.ravel(), idx, wts)
+        if not ok.any():
+            continue
+        val = gather_taps(img_w.ravel(), idx, wts)
+        acc[ok] += val[ok]
+        n[ok] += 1
+    return acc, n
 
 
 # ----------------------------------------------------------------------------- stage 5
