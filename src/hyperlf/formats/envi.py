@@ -195,13 +195,41 @@ def read_envi(path: str | os.PathLike):
     """
     p = Path(path_like(path, folder=None))
     base = _base(p)
+    hdr = _header_file(p, base)
+    h = _parse_header(hdr)
+    W, H, B, dt, offset, il = _layout(hdr, h)
+    data_file = _data_file(hdr, h, base)
+    n = W * H * B
+    size = data_file.stat().st_size
+    if size < offset + n * dt.itemsize:
+        raise FormatError(
+            f"{data_file} is too small: {size} bytes for {B} bands of {W} x {H} {dt.name} samples "
+            f"after a {offset}-byte offset ({offset + n * dt.itemsize} bytes); the file is truncated"
+        )
+    raw = np.fromfile(data_file, dtype=dt, count=n, offset=offset)
+    if il == "bsq":
+        cube = raw.reshape(B, H, W)
+    elif il == "bil":
+        cube = raw.reshape(H, B, W).transpose(1, 0, 2)
+    else:
+        cube = raw.reshape(H, W, B).transpose(2, 0, 1)
+    cube = np.ascontiguousarray(cube).astype(dt.newbyteorder("="), copy=False)
+    return cube, _wavelengths(hdr, h, B), h
+
+
+def _header_file(p: Path, base: Path) -> Path:
+    """The ``.hdr`` of ``p`` (the header itself, its data file or their base name)."""
     hdr = base.with_name(base.name + ".hdr")
     if not hdr.is_file() and p.suffix.lower() not in (".hdr", ".img"):
         alt = p.with_suffix(".hdr")
         hdr = alt if alt.is_file() else hdr
     if not hdr.is_file():
         raise DataNotFoundError(f"ENVI header {hdr} does not exist")
-    h = _parse_header(hdr)
+    return hdr
+
+
+def _layout(hdr: Path, h: dict) -> tuple:
+    """``(W, H, B, dtype, header offset, interleave)`` of the header ``h``, each checked."""
     W, H, B = _int(hdr, h, "samples"), _int(hdr, h, "lines"), _int(hdr, h, "bands")
     if min(W, H, B) < 1:
         raise FormatError(f"{hdr}: samples, lines and bands must be positive, got {W}, {H}, {B}")
@@ -220,46 +248,37 @@ def read_envi(path: str | os.PathLike):
     if il not in _INTERLEAVES:
         raise FormatError(f"{hdr}: interleave must be bsq, bil or bip, got {il!r}")
     dt = np.dtype(ENVI_DTYPES[code]).newbyteorder("<" if order == 0 else ">")
-    data_file = None
-    if "data file" in h:
-        cand = hdr.parent / h["data file"]
-        data_file = cand if cand.is_file() else None
-    if data_file is None:
-        for suf in _DATA_SUFFIXES:
-            cand = base.with_name(base.name + suf)
-            if cand.is_file() and cand != hdr:
-                data_file = cand
-                break
-    if data_file is None:
-        raise DataNotFoundError(
-            f"ENVI data file for {hdr} not found (tried {base.name}.img/.dat/.raw/...)"
-        )
-    n = W * H * B
-    size = data_file.stat().st_size
-    if size < offset + n * dt.itemsize:
-        raise FormatError(
-            f"{data_file} is too small: {size} bytes for {B} bands of {W} x {H} {dt.name} samples "
-            f"after a {offset}-byte offset ({offset + n * dt.itemsize} bytes); the file is truncated"
-        )
-    raw = np.fromfile(data_file, dtype=dt, count=n, offset=offset)
-    if il == "bsq":
-        cube = raw.reshape(B, H, W)
-    elif il == "bil":
-        cube = raw.reshape(H, B, W).transpose(1, 0, 2)
-    else:
-        cube = raw.reshape(H, W, B).transpose(2, 0, 1)
-    cube = np.ascontiguousarray(cube).astype(dt.newbyteorder("="), copy=False)
-    wl = None
-    if "wavelength" in h:
-        try:
-            wl = np.array([float(v) for v in h["wavelength"].replace("\n", " ").split(",") if v.strip()])
-        except ValueError:
-            raise FormatError(f"{hdr}: the wavelength list holds a non-number") from None
-        if wl.size != B:
-            raise FormatError(f"{hdr}: {wl.size} wavelengths listed for {B} bands")
-        units = h.get("wavelength units", "nanometers").lower()
-        if units in ("micrometers", "micrometres", "microns", "um"):
-            wl = wl * 1000.0
-        elif units in ("millimeters", "mm"):
-            wl = wl * 1e6
-    return cube, wl, h
+    return W, H, B, dt, offset, il
+
+
+def _data_file(hdr: Path, h: dict, base: Path) -> Path:
+    """The data file: the header's ``data file`` where it exists, else the base name with
+    one of the usual suffixes."""
+    if "data file" in h and (hdr.parent / h["data file"]).is_file():
+        return hdr.parent / h["data file"]
+    for suf in _DATA_SUFFIXES:
+        cand = base.with_name(base.name + suf)
+        if cand.is_file() and cand != hdr:
+            return cand
+    raise DataNotFoundError(
+        f"ENVI data file for {hdr} not found (tried {base.name}.img/.dat/.raw/...)"
+    )
+
+
+def _wavelengths(hdr: Path, h: dict, B: int) -> np.ndarray | None:
+    """The header's band centres in nm (micrometres and millimetres converted), or None."""
+    if "wavelength" not in h:
+        return None
+    try:
+        wl = np.array([float(v) for v in h["wavelength"].replace("\n", " ").split(",")
+                       if v.strip()])
+    except ValueError:
+        raise FormatError(f"{hdr}: the wavelength list holds a non-number") from None
+    if wl.size != B:
+        raise FormatError(f"{hdr}: {wl.size} wavelengths listed for {B} bands")
+    units = h.get("wavelength units", "nanometers").lower()
+    if units in ("micrometers", "micrometres", "microns", "um"):
+        wl = wl * 1000.0
+    elif units in ("millimeters", "mm"):
+        wl = wl * 1e6
+    return wl
