@@ -398,25 +398,44 @@ def measured_disparity_range(views: np.ndarray, valid: np.ndarray, positions: np
     -------
     (float, float) or None
     """
-    import cv2
-
-    views = real_array(views, "views", None)
-    if views.ndim != 4 or not views.size or not (np.issubdtype(views.dtype, np.number)
-                                                 or views.dtype == bool):
-        raise InvalidInputError(f"views must be numbers (R, C, H, W), got shape {views.shape}")
-    R, C, H, W = views.shape
-    valid = bool_mask(valid, "valid", views.shape, of="the views")
-    positions = real_array(positions, "positions")
-    if positions.shape != (R, C, 2) or not np.isfinite(positions).all():
-        raise InvalidInputError(f"positions must be finite ({R}, {C}, 2), got shape "
-                                f"{positions.shape}")
-    reference = index(reference, "reference", (R, C))
+    views, valid, positions, reference = _range_inputs(views, valid, positions, reference)
     o = check_values(dict(work_size=work_size, max_parallax=max_parallax, margin=margin,
                           min_points=min_points, max_residual=max_residual),
                      {**SEARCH_RULES, "margin": rule(number, positive=True, at_most=1e3),
                       "min_points": rule(integer, minimum=1),
                       "max_residual": rule(number, positive=True)})
     work_size, max_parallax, margin, min_points, max_residual = o.values()
+    flows, offsets = _hub_flows(views, valid, positions, reference, work_size, max_parallax)
+    if not flows:
+        return None
+    d, use = _point_disparities(np.stack(flows), np.stack(offsets), max_residual)
+    if use.sum() < min_points:
+        return None
+    lo, hi = np.percentile(d[use], [1, 99]) * margin
+    return float(np.floor(min(lo, 0.0))), float(np.ceil(max(hi, 0.0)))
+
+
+def _range_inputs(views, valid, positions, reference) -> tuple:
+    """The checked inputs of :func:`measured_disparity_range`."""
+    views = real_array(views, "views", None)
+    if views.ndim != 4 or not views.size or not (np.issubdtype(views.dtype, np.number)
+                                                 or views.dtype == bool):
+        raise InvalidInputError(f"views must be numbers (R, C, H, W), got shape {views.shape}")
+    R, C = views.shape[:2]
+    valid = bool_mask(valid, "valid", views.shape, of="the views")
+    positions = real_array(positions, "positions")
+    if positions.shape != (R, C, 2) or not np.isfinite(positions).all():
+        raise InvalidInputError(f"positions must be finite ({R}, {C}, 2), got shape "
+                                f"{positions.shape}")
+    return views, valid, positions, index(reference, "reference", (R, C))
+
+
+def _hub_flows(views, valid, positions, reference, work_size, max_parallax) -> tuple:
+    """The flows of the hub camera's textured points in every other mostly valid view at
+    the matching scale, with those views' offsets from the hub (px at that scale)."""
+    import cv2
+
+    R, C, H, W = views.shape
     scale = min(1.0, work_size / max(W, H))
     size = (max(1, int(round(W * scale))), max(1, int(round(H * scale))))
 
@@ -438,17 +457,17 @@ def measured_disparity_range(views: np.ndarray, valid: np.ndarray, positions: np
             flows.append(match_flows(feat_ref, feature_image(small(views[k])), pts, ok,
                                      half=half, radius=radius)[0])
             offsets.append(o)
-    if not flows:
-        return None
-    F, O = np.stack(flows), np.stack(offsets)            # (V, N, 2), (V, 2)
+    return flows, offsets
+
+
+def _point_disparities(F: np.ndarray, O: np.ndarray, max_residual: float) -> tuple:
+    """Each point's least-squares disparity ``d`` of ``flow_v = -d o_v`` over the views that
+    matched it (``F`` (V, N, 2), NaN where unmatched; ``O`` (V, 2)), and which points to use:
+    matched in two views at least and within ``max_residual`` px of the fit on average."""
     hit = np.all(np.isfinite(F), axis=2)                 # (V, N)
     Fz = np.where(hit[..., None], F, 0.0)
     den = (hit * (O * O).sum(1)[:, None]).sum(0)
     d = -np.einsum("vnk,vk->n", Fz, O) / np.maximum(den, 1e-12)
     resid = np.where(hit, np.linalg.norm(Fz + d[None, :, None] * O[:, None], axis=2), 0.0)
     mean_resid = resid.sum(0) / np.maximum(hit.sum(0), 1)
-    use = (hit.sum(0) >= 2) & (mean_resid <= max_residual)  # consistent across the views
-    if use.sum() < min_points:
-        return None
-    lo, hi = np.percentile(d[use], [1, 99]) * margin
-    return float(np.floor(min(lo, 0.0))), float(np.ceil(max(hi, 0.0)))
+    return d, (hit.sum(0) >= 2) & (mean_resid <= max_residual)
