@@ -154,48 +154,9 @@ def read_middlebury(folder: str | os.PathLike, scale: float | None = None) -> St
     scale = number(scale, "scale", optional=True, at_least=1e-6, at_most=1e6)
     if not root.is_dir():
         raise DataNotFoundError(f"Middlebury scene folder {root} does not exist")
-    name = root.name
-    if (root / "imL.png").is_file() or (root / "groundtruth.png").is_file():
-        need = ["imL.png", "imR.png", "groundtruth.png", "info.txt"]
-        missing = [f for f in need if not (root / f).is_file()]
-        if missing:
-            raise DataNotFoundError(
-                f"Middlebury v2 scene {root} is missing {', '.join(missing)}"
-            )
-        file_scale, maxd = _read_info(root / "info.txt")
-        s = float(scale) if scale is not None else file_scale
-        left = read_image(root / "imL.png", channels="rgb")
-        right = read_image(root / "imR.png", channels="rgb")
-        raw = _grey(root / "groundtruth.png")
-        masks = {}
-        for m in MASK_NAMES:
-            if (root / f"{m}.png").is_file():
-                mk = _grey(root / f"{m}.png")
-                _check_same(name, left, mk, f"{m}.png")
-                masks[m] = mk == 255
-        layout = "v2"
-        files = ("imL.png", "imR.png", "groundtruth.png")
-    else:
-        cands = sorted(f for f in os.listdir(root) if re.fullmatch(r".+1_true\.png", f))
-        if not cands:
-            raise DataNotFoundError(
-                f"{root} is not a Middlebury scene: expected imL.png/imR.png/groundtruth.png/"
-                "info.txt (v2) or <name>1.png/<name>5.png/<name>1_true.png (2005)"
-            )
-        stem = cands[0][: -len("1_true.png")]
-        need = [f"{stem}1.png", f"{stem}5.png", f"{stem}1_true.png"]
-        missing = [f for f in need if not (root / f).is_file()]
-        if missing:
-            raise DataNotFoundError(f"Middlebury 2005 scene {root} is missing {', '.join(missing)}")
-        s = float(scale) if scale is not None else _DEFAULT_2005_SCALE
-        left = read_image(root / need[0], channels="rgb")
-        right = read_image(root / need[1], channels="rgb")
-        raw = _grey(root / need[2])
-        masks = {}
-        maxd = None
-        layout = "2005"
-        files = tuple(need)
-        name = stem or name
+    v2 = (root / "imL.png").is_file() or (root / "groundtruth.png").is_file()
+    left, right, raw, masks, s, maxd, layout, files, name = (
+        _read_v2 if v2 else _read_2005)(root, scale)
     if not (math.isfinite(s) and s > 0):
         raise InvalidInputError(f"scale must be positive, got {scale}")
     _check_same(name, left, right, files[1])
@@ -210,6 +171,50 @@ def read_middlebury(folder: str | os.PathLike, scale: float | None = None) -> St
         metadata={"source": "Middlebury stereo", "layout": layout, "folder": str(root),
                   "files": list(files), "encoding": "srgb"},
     )
+
+
+def _read_v2(root: Path, scale: float | None) -> tuple:
+    """A v2 scene (``imL``, ``imR``, ``groundtruth``, ``info.txt``, masks): ``(left, right,
+    raw ground truth, masks, scale, max disparity, layout, files, name)``."""
+    need = ["imL.png", "imR.png", "groundtruth.png", "info.txt"]
+    missing = [f for f in need if not (root / f).is_file()]
+    if missing:
+        raise DataNotFoundError(
+            f"Middlebury v2 scene {root} is missing {', '.join(missing)}"
+        )
+    file_scale, maxd = _read_info(root / "info.txt")
+    s = float(scale) if scale is not None else file_scale
+    left = read_image(root / "imL.png", channels="rgb")
+    right = read_image(root / "imR.png", channels="rgb")
+    raw = _grey(root / "groundtruth.png")
+    masks = {}
+    for m in MASK_NAMES:
+        if (root / f"{m}.png").is_file():
+            mk = _grey(root / f"{m}.png")
+            _check_same(root.name, left, mk, f"{m}.png")
+            masks[m] = mk == 255
+    return (left, right, raw, masks, s, maxd, "v2", ("imL.png", "imR.png", "groundtruth.png"),
+            root.name)
+
+
+def _read_2005(root: Path, scale: float | None) -> tuple:
+    """A 2005 scene (``<name>1``, ``<name>5``, ``<name>1_true``), as :func:`_read_v2`."""
+    cands = sorted(f for f in os.listdir(root) if re.fullmatch(r".+1_true\.png", f))
+    if not cands:
+        raise DataNotFoundError(
+            f"{root} is not a Middlebury scene: expected imL.png/imR.png/groundtruth.png/"
+            "info.txt (v2) or <name>1.png/<name>5.png/<name>1_true.png (2005)"
+        )
+    stem = cands[0][: -len("1_true.png")]
+    need = [f"{stem}1.png", f"{stem}5.png", f"{stem}1_true.png"]
+    missing = [f for f in need if not (root / f).is_file()]
+    if missing:
+        raise DataNotFoundError(f"Middlebury 2005 scene {root} is missing {', '.join(missing)}")
+    s = float(scale) if scale is not None else _DEFAULT_2005_SCALE
+    left = read_image(root / need[0], channels="rgb")
+    right = read_image(root / need[1], channels="rgb")
+    raw = _grey(root / need[2])
+    return left, right, raw, {}, s, None, "2005", tuple(need), stem or root.name
 
 
 def write_middlebury(folder: str | os.PathLike, pair: StereoPair) -> Path:
