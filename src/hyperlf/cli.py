@@ -1222,21 +1222,39 @@ def _cmd_complete(args, dest) -> list[Path]:
       hyperlf complete lab-capture --downscale 4 -o first-cube   # 1/4 resolution, a quick look
       hyperlf render cube3/cube.h5 --camera 'Nikon 5100' -o rgb3
     """
-    from . import metrics, render, visualise
-    from .completion import complete, read_band_mask
-    from .formats import ChunkedImages, load_lightfield, open_gt_cube, read_pfm, write_image
-    from .lightfield import BlockMeanCube
+    from .completion import complete
+    from .formats import load_lightfield, open_cube_h5
 
     lf = load_lightfield(args.input, cube=False)  # a ground-truth cube is scored from disk
-    out = dest
-    n = args.downscale
+    lf, disparity = _completion_input(args, lf)
+    res = complete(lf, disparity, out_path=dest / "cube.h5", metric=args.metric,
+                   optimizer=None if args.stereo == "none" else args.stereo,
+                   infer=not args.no_infer, progress=_bars(args))
+    written = [res.path, _missing_bands_png(dest / "missing_bands.png", res.path,
+                                            lf.views.shape[:4], inferred=not args.no_infer)]
+    with open_cube_h5(res.path) as cf:
+        written.append(_cube_picture(args, dest, cf, lf))
+        _score_cube(args, cf, lf)
+    _say(args, f"{res.stats['completed_pct']:.1f} % of (view, band, pixel) entries completed "
+               f"({res.stats['registered_pct']:.1f} % registered, "
+               f"{res.stats['inferred_pct']:.1f} % inferred) in "
+               f"{res.stats['timings']['total']:.1f} s")
+    return written
+
+
+def _completion_input(args, lf) -> tuple:
+    """The light field to complete (made small by ``--downscale``) and its reference
+    disparity: ``--disparity``, the ground truth (``--use-ground-truth``), or None (depth
+    first)."""
+    from .formats import read_pfm
+
     disparity = None
     if args.disparity is not None:  # checked before the light field is made small
         _check_disparity_source(args, lf)
         disparity = _complete_disparity(args, read_pfm(_check_input_file(args.disparity,
                                                                          "--disparity")),
                                         lf.image_shape)
-    if n > 1:
+    if args.downscale > 1:
         lf = _downscaled(args, lf, None)
     if disparity is None and args.use_ground_truth:
         if lf.gt_disparity is None:
@@ -1245,44 +1263,58 @@ def _cmd_complete(args, dest) -> list[Path]:
     elif disparity is None:
         _say(args, "no --disparity given: estimating the reference disparity first "
                    "('hyperlf depth' with the default settings)")
-    res = complete(lf, disparity, out_path=out / "cube.h5", metric=args.metric,
-                   optimizer=None if args.stereo == "none" else args.stereo,
-                   infer=not args.no_infer, progress=_bars(args))
-    completed = np.empty(lf.views.shape[:4], np.float32)  # share of bands per view pixel
-    for v in np.ndindex(*lf.grid_shape):  # view by view: the masks are the cube's size
-        mask = read_band_mask(res.path, view=v)
-        if not args.no_infer:
-            mask |= read_band_mask(res.path, view=v, name="inferred_mask")
-        completed[v] = mask.mean(axis=0)
-    written = [res.path,
-               visualise.save_share_mosaic_png(
-                   out / "missing_bands.png", completed,
-                   title="share of bands completed per pixel (registered or inferred)",
-                   label="1: every band holds data")]
-    from .formats import open_cube_h5
+    return lf, disparity
 
-    with open_cube_h5(res.path) as cf:
-        if lf.wavelengths is None:
-            written.append(_save_reference_bands(out / "reference_bands.png", cf, lf.reference))
-            _say(args, "the views have no wavelengths: the cube's bands are the cameras in "
-                       "raster order (reference_bands.png), entries neither observed nor "
-                       "inferred are 0, and no colour rendering is made")
-        else:
-            srgb = render.emulate_camera(cf, camera="CIE 1931", output="srgb",
-                                         exposure="percentile", views=lf.reference)
-            written.append(write_image(out / "reference_srgb.png", srgb, bit_depth=8))
-        with open_gt_cube(args.input) as gt_cube:  # its bands follow the wavelengths
-            if gt_cube is not None and lf.wavelengths is not None:
-                gt_cube = ChunkedImages(gt_cube)  # views inflated on every core
-                psnr, sam = metrics.cube_scores(ChunkedImages(cf.cube), gt_cube if n == 1
-                                                else BlockMeanCube(gt_cube, n))
-                _say(args, f"against the ground-truth cube: PSNR {psnr:.2f} dB, SAM "
-                           f"{sam:.2f} deg")
-    _say(args, f"{res.stats['completed_pct']:.1f} % of (view, band, pixel) entries completed "
-               f"({res.stats['registered_pct']:.1f} % registered, "
-               f"{res.stats['inferred_pct']:.1f} % inferred) in "
-               f"{res.stats['timings']['total']:.1f} s")
-    return written
+
+def _missing_bands_png(path: Path, cube_path: Path, shape, *, inferred: bool) -> Path:
+    """The share of bands holding data (registered, or inferred where ``inferred``) per view
+    pixel, read view by view (the masks are the cube's size)."""
+    from . import visualise
+    from .completion import read_band_mask
+
+    completed = np.empty(shape, np.float32)
+    for v in np.ndindex(*shape[:2]):
+        mask = read_band_mask(cube_path, view=v)
+        if inferred:
+            mask |= read_band_mask(cube_path, view=v, name="inferred_mask")
+        completed[v] = mask.mean(axis=0)
+    return visualise.save_share_mosaic_png(
+        path, completed, title="share of bands completed per pixel (registered or inferred)",
+        label="1: every band holds data")
+
+
+def _cube_picture(args, dest: Path, cf, lf) -> Path:
+    """The reference view in sRGB, or every camera's band on the reference where the
+    wavelengths are unknown."""
+    from . import render
+    from .formats import write_image
+
+    if lf.wavelengths is None:
+        path = _save_reference_bands(dest / "reference_bands.png", cf, lf.reference)
+        _say(args, "the views have no wavelengths: the cube's bands are the cameras in "
+                   "raster order (reference_bands.png), entries neither observed nor "
+                   "inferred are 0, and no colour rendering is made")
+        return path
+    srgb = render.emulate_camera(cf, camera="CIE 1931", output="srgb", exposure="percentile",
+                                 views=lf.reference)
+    return write_image(dest / "reference_srgb.png", srgb, bit_depth=8)
+
+
+def _score_cube(args, cf, lf) -> None:
+    """PSNR and SAM against the input's ground-truth cube where it has one (its block means
+    under ``--downscale``), read view by view."""
+    from . import metrics
+    from .formats import ChunkedImages, open_gt_cube
+    from .lightfield import BlockMeanCube
+
+    n = args.downscale
+    with open_gt_cube(args.input) as gt_cube:  # its bands follow the wavelengths
+        if gt_cube is not None and lf.wavelengths is not None:
+            gt_cube = ChunkedImages(gt_cube)  # views inflated on every core
+            psnr, sam = metrics.cube_scores(ChunkedImages(cf.cube), gt_cube if n == 1
+                                            else BlockMeanCube(gt_cube, n))
+            _say(args, f"against the ground-truth cube: PSNR {psnr:.2f} dB, SAM "
+                       f"{sam:.2f} deg")
 
 
 # --------------------------------------------------------------------------- cube commands
