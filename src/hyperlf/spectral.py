@@ -63,6 +63,8 @@ __all__ = [
     "reflectance_library",
     "load_filter_transmissions",
     "filter_response",
+    "FILTER_SHAPES",
+    "MAX_FWHM",
     "sample_widths",
     "as_wavelengths",
     "illuminant_values",
@@ -1517,53 +1519,9 @@ def filter_response(center_nm, wavelengths, shape: str = "dirac", *, fwhm: float
     c = c_arr.reshape(-1)
     if not np.all(np.isfinite(c)):
         raise InvalidInputError("center_nm contains NaN or infinite values")
-    shape = str(shape).lower()
-    if shape == "dirac":
-        order = np.argsort(wl, kind="stable")
-        s = wl[order]
-        if np.any(c < s[0] - 1e-9) or np.any(c > s[-1] + 1e-9):
-            raise InvalidInputError(
-                f"dirac filter centre(s) outside the wavelengths {s[0]:g}-{s[-1]:g} nm; "
-                "add samples there or use shape='gaussian'"
-            )
-        W = np.zeros((c.size, wl.size))
-        if s.size == 1:
-            W[:, 0] = 1.0
-        else:
-            j = np.clip(np.searchsorted(s, c, side="right") - 1, 0, s.size - 2)
-            gap = s[j + 1] - s[j]
-            t = np.where(gap > 0, (c - s[j]) / np.where(gap > 0, gap, 1), 0.0)
-            t = np.clip(t, 0.0, 1.0)
-            rows = np.arange(c.size)
-            W[rows, order[j]] += 1 - t
-            W[rows, order[j + 1]] += t
-    elif shape == "gaussian":
-        if not (np.isfinite(fwhm) and fwhm > 0):
-            raise InvalidInputError(f"fwhm must be > 0 nm, got {fwhm}")
-        sigma = fwhm / (2 * np.sqrt(2 * np.log(2)))
-        W = np.exp(-0.5 * ((wl[None, :] - c[:, None]) / sigma) ** 2) * sample_widths(wl)[None, :]
-    elif shape == "thorlabs":
-        f_wl, trans, centres = load_filter_transmissions(path)
-        k = np.argmin(np.abs(centres[None, :] - c[:, None]), axis=1)
-        if align == "centroid":
-            band = trans >= 0.01 * trans.max(axis=1, keepdims=True)
-            tb = np.where(band, trans, 0.0)
-            ref = (tb * f_wl).sum(1) / tb.sum(1)
-        elif align == "nominal":
-            ref = centres
-        else:
-            raise InvalidInputError(f"align must be 'centroid' or 'nominal', got {align!r}")
-        shift = c - ref[k]  # (M,)
-        # T(λ - shift) sampled on wl; zero outside the measured range
-        q = wl[None, :] - shift[:, None]
-        W = np.empty((c.size, wl.size))
-        for m in range(c.size):  # one row per filter, vectorised over wavelengths
-            W[m] = np.interp(q[m], f_wl, trans[k[m]], left=0.0, right=0.0)
-        W *= sample_widths(wl)[None, :]
-    else:
-        raise InvalidInputError(
-            f"unknown filter shape {shape!r}; use 'dirac', 'gaussian' or 'thorlabs'"
-        )
+    shape = _opt.choice(shape.lower() if isinstance(shape, str) else shape, "shape",
+                        tuple(FILTER_SHAPES))
+    W = FILTER_SHAPES[shape](c, wl, fwhm=fwhm, path=path, align=align)
     tot = W.sum(axis=1, keepdims=True)
     if np.any(~(tot > 0)):
         bad = c[~(tot[:, 0] > 0)]
@@ -1573,4 +1531,65 @@ def filter_response(center_nm, wavelengths, shape: str = "dirac", *, fwhm: float
         )
     W = W / tot
     return W[0] if scalar else W
+
+
+def _dirac_weights(c: np.ndarray, wl: np.ndarray, **_) -> np.ndarray:
+    """The spectrum sampled at each centre: linear-interpolation (hat) weights on the two
+    neighbouring samples; the centres must lie within the wavelengths."""
+    order = np.argsort(wl, kind="stable")
+    s = wl[order]
+    if np.any(c < s[0] - 1e-9) or np.any(c > s[-1] + 1e-9):
+        raise InvalidInputError(
+            f"dirac filter centre(s) outside the wavelengths {s[0]:g}-{s[-1]:g} nm; "
+            "add samples there or use shape='gaussian'"
+        )
+    W = np.zeros((c.size, wl.size))
+    if s.size == 1:
+        W[:, 0] = 1.0
+        return W
+    j = np.clip(np.searchsorted(s, c, side="right") - 1, 0, s.size - 2)
+    gap = s[j + 1] - s[j]
+    t = np.where(gap > 0, (c - s[j]) / np.where(gap > 0, gap, 1), 0.0)
+    t = np.clip(t, 0.0, 1.0)
+    rows = np.arange(c.size)
+    W[rows, order[j]] += 1 - t
+    W[rows, order[j + 1]] += t
+    return W
+
+
+def _gaussian_weights(c: np.ndarray, wl: np.ndarray, *, fwhm, **_) -> np.ndarray:
+    """A Gaussian of full width at half maximum ``fwhm`` nm (at most :data:`MAX_FWHM`) on
+    each centre, times the sample widths."""
+    fwhm = _opt.number(fwhm, "fwhm", positive=True, at_most=MAX_FWHM)
+    sigma = fwhm / (2 * np.sqrt(2 * np.log(2)))
+    return np.exp(-0.5 * ((wl[None, :] - c[:, None]) / sigma) ** 2) * sample_widths(wl)[None, :]
+
+
+def _thorlabs_weights(c: np.ndarray, wl: np.ndarray, *, path, align, **_) -> np.ndarray:
+    """The measured transmission of the Thorlabs filter whose nominal centre is nearest,
+    moved onto each centre (by its centroid or its nominal centre), times the sample
+    widths; zero outside the measured range."""
+    _opt.choice(align, "align", ("centroid", "nominal"))
+    f_wl, trans, centres = load_filter_transmissions(path)
+    k = np.argmin(np.abs(centres[None, :] - c[:, None]), axis=1)
+    if align == "centroid":
+        band = trans >= 0.01 * trans.max(axis=1, keepdims=True)
+        tb = np.where(band, trans, 0.0)
+        ref = (tb * f_wl).sum(1) / tb.sum(1)
+    else:
+        ref = centres
+    q = wl[None, :] - (c - ref[k])[:, None]  # T(lambda - shift) sampled on wl
+    W = np.empty((c.size, wl.size))
+    for m in range(c.size):  # one row per filter, vectorised over wavelengths
+        W[m] = np.interp(q[m], f_wl, trans[k[m]], left=0.0, right=0.0)
+    return W * sample_widths(wl)[None, :]
+
+
+#: Band-pass filter shapes by name (SPEC §6): each gives the raw weights ``(M, N)`` of ``M``
+#: centres on ``N`` wavelengths, which :func:`filter_response` normalises.
+FILTER_SHAPES = {"dirac": _dirac_weights, "gaussian": _gaussian_weights,
+                 "thorlabs": _thorlabs_weights}
+
+#: Largest full width at half maximum of a Gaussian filter, nm (wider than any spectrum here).
+MAX_FWHM = 1000.0
 

@@ -37,6 +37,7 @@ from . import _options as _opt
 from . import tiling
 from ._progress import grid_views
 from .errors import InvalidInputError
+from .spectral import FILTER_SHAPES, MAX_FWHM
 from .lightfield import (LightField, centre_view, check_disparity_range, filter_layout,
                          grid_positions, view_offsets)
 from .warp import forward_warp_disparity
@@ -265,15 +266,14 @@ def _band_weights(cube_wl: np.ndarray, filter_shape: str, fwhm: float,
     (normalised to unit sum, so a flat unit spectrum gives 1 before illuminant and QE), the
     illuminant SPD (normalised to max 1 on ``wl``) and the quantum efficiency. Dirac filters
     sample the spectrum at the band centres; other shapes integrate on a 1 nm grid.
+    ``filter_shape`` and ``fwhm`` are checked by the callers' rules (:data:`_SCENE_RULES`).
     """
     from . import spectral
 
     if filter_shape == "dirac":
         wl = cube_wl.astype(np.float64)
         Wt = np.eye(wl.size)
-    elif filter_shape in ("gaussian", "thorlabs"):
-        if not (np.isfinite(fwhm) and fwhm > 0):
-            raise InvalidInputError(f"filter fwhm must be > 0 nm, got {fwhm}")
+    else:
         lo = max(spectral_range[0], math.floor(cube_wl.min() - 3 * fwhm))
         hi = min(spectral_range[1], math.ceil(cube_wl.max() + 3 * fwhm))
         wl = np.arange(lo, hi + 0.5, 1.0)
@@ -289,10 +289,6 @@ def _band_weights(cube_wl: np.ndarray, filter_shape: str, fwhm: float,
                     f"{lo:g}..{hi:g} nm; use a narrower band range"
                 )
             Wt[:, b] = t / s
-    else:
-        raise InvalidInputError(
-            f"unknown filter_shape {filter_shape!r}; use 'dirac', 'gaussian' or 'thorlabs'"
-        )
     if illuminant is not None:
         e = np.asarray(spectral.illuminant_spd(illuminant, wl), dtype=np.float64)
         if e.shape != wl.shape or not np.all(np.isfinite(e)) or e.max() <= 0:
@@ -1093,8 +1089,8 @@ _SCENE_RULES = {
     "texture_scale": _opt.rule(_opt.number, positive=True),
     "supersample": _opt.rule(_opt.integer, minimum=1, maximum=MAX_SUPERSAMPLE),
     "objects": _objects,
-    "filter_shape": _opt.rule(_opt.choice, choices=("dirac", "gaussian", "thorlabs")),
-    "fwhm": _opt.rule(_opt.number, positive=True),
+    "filter_shape": _opt.rule(_opt.choice, choices=tuple(FILTER_SHAPES)),
+    "fwhm": _opt.rule(_opt.number, positive=True, at_most=MAX_FWHM),
     # px; within 1e-6..1e12 the projections stay finite (1e300 overflowed them)
     "focal_length": _opt.rule(_opt.number, positive=True, at_least=1e-6, at_most=1e12,
                               optional=True),
