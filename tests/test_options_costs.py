@@ -196,8 +196,14 @@ def test_the_costly_ones_too(argument, value):
     ("view_shifts", {"labels": 1e300}, "labels must be finite numbers (1-D)"),
     ("view_validity", {"mask": np.zeros((3, 3))}, "mask has shape (3, 3)"),
     ("tap_validity", {"sx": float("nan")}, "sx must be a finite number, got nan"),
-    ("average_over_shift", {"half": -1}, "half must be a finite number >= 0, got -1"),
-    ("view_costs", {"offset": None}, "offset must be two finite numbers (dx, dy)"),
+    ("average_over_shift", {"half": -1}, "half must be a finite number in [0, 1e+12], got -1"),
+    # an overflow in the box's weights with impl "numpy" or "numba" (the base call's "auto"
+    # never drew it; found by fuzzing the other options under each mode)
+    ("average_over_shift", {"half": 1e308, "impl": "numpy"}, "half must be a finite number in "
+                                                            "[0, 1e+12]"),
+    ("average_over_shift", {"shifts": [(0.0, 0.0), (1e300, 0.0)]}, "shifts must be finite "
+                                                                   "(sx, sy) pairs of at most"),
+    ("view_costs", {"offset": None}, "offset must be an array of real numbers, got None"),
     ("view_costs", {"ref_img": None}, "ref_img and img must be 2-D images of one shape"),
     ("view_moments", {"view_valid": 0}, "view_valid has shape ()"),
     ("guide_image", {"image": "x"}, "the guide must be an array of real numbers, got 'x'"),

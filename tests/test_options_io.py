@@ -193,7 +193,8 @@ def test_the_writers_name_the_argument_and_what_it_takes(name, keyword, value, w
     ("infer_missing", "radius", 10 ** 6, "infer radius 1000000 px reaches past the 16 x 12 px "
                                          "view; use at most 16"),
     ("fill_missing", "wavelengths", np.zeros((3, 3)), "wavelengths must have shape (4,)"),
-    ("background_fill", "disparity", None, "disparity must be a 2-D map, got shape ()"),
+    ("background_fill", "disparity", None, "disparity must be an array of real numbers, got "
+                                              "None"),
     ("read_band_mask", "view", "x", "view must be 2 integers within (2, 2)"),
 ])
 def test_the_stages_name_the_argument_and_what_it_takes(name, keyword, value, words):

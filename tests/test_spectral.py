@@ -339,14 +339,19 @@ def test_filter_response_shapes():
 @pytest.mark.parametrize("options, words", [
     # a text fwhm raised TypeError from np.isfinite; the option fuzzer's base call is a
     # Dirac filter, which ignores fwhm, so it never reached the Gaussian
-    (dict(shape="gaussian", fwhm="x"), "fwhm must be a finite number in (0, 1000], got 'x'"),
-    (dict(shape="gaussian", fwhm=1e308), "fwhm must be a finite number in (0, 1000]"),
+    (dict(shape="gaussian", fwhm="x"), "fwhm must be a finite number in [0.001, 1000], got "
+                                       "'x'"),
+    (dict(shape="gaussian", fwhm=1e-300), "fwhm must be a finite number in [0.001, 1000]"),
+    (dict(shape="gaussian", fwhm=1e308), "fwhm must be a finite number in [0.001, 1000]"),
     (dict(shape=["dirac"]), "shape must be one of dirac, gaussian, thorlabs, got ['dirac']"),
     (dict(shape="thorlabs", align=None), "align must be one of centroid, nominal, got None"),
+    # a centre of 1e308 overflowed the Gaussian's square
+    (dict(shape="gaussian", center_nm=1e308), "center_nm must be wavelengths in (0, 1e+06] nm"),
 ])
 def test_filter_options_are_refused_by_name(options, words):
     with pytest.raises(InvalidInputError) as exc:
-        sp.filter_response(550, np.arange(400, 701, 10.0), **options)
+        sp.filter_response(**{"center_nm": 550, "wavelengths": np.arange(400, 701, 10.0),
+                              **options})
     assert str(exc.value).startswith(words)
 
 
@@ -354,7 +359,8 @@ def test_a_scene_s_gaussian_filters_take_a_bounded_fwhm():
     """fwhm=1e308 overflowed the sampling grid's bounds (OverflowError from math.floor)."""
     from hyperlf import synthesis
 
-    with pytest.raises(InvalidInputError, match=r"^fwhm must be a finite number in \(0, 1000\]"):
+    with pytest.raises(InvalidInputError,
+                       match=r"^fwhm must be a finite number in \[0\.001, 1000\]"):
         synthesis.procedural_scene(seed=1, rows=2, cols=2, height=12, width=12,
                                    filter_shape="gaussian", fwhm=1e308)
     assert tuple(sp.FILTER_SHAPES) == ("dirac", "gaussian", "thorlabs")

@@ -256,8 +256,9 @@ def shown(value, limit: int = 60) -> str:
 
 def real_array(value, label: str, dtype=np.float64) -> np.ndarray:
     """``value`` as an array of ``dtype`` (its own where ``dtype`` is None); text (numerals
-    included: ``"2"`` is not a number to this library), mappings and ragged lists are refused
-    (values too large for ``dtype`` become inf, for the caller's own finiteness rule).
+    included: ``"2"`` is not a number to this library), None (numpy would read it as NaN),
+    mappings and ragged lists are refused (values too large for ``dtype`` become inf, for the
+    caller's own finiteness rule).
 
     Examples
     --------
@@ -280,10 +281,12 @@ def real_array(value, label: str, dtype=np.float64) -> np.ndarray:
 
 
 def _holds_text(a: np.ndarray) -> bool:
-    """Whether ``a`` is text, or an object array with text or a mapping among its entries."""
+    """Whether ``a`` is text, or an object array with text, None or a mapping among its
+    entries."""
     if a.dtype.kind in "USV":
         return True
-    return a.dtype.kind == "O" and any(isinstance(v, (str, bytes, Mapping)) for v in a.flat)
+    return a.dtype.kind == "O" and any(v is None or isinstance(v, (str, bytes, Mapping))
+                                       for v in a.flat)
 
 
 _KINDS = {"biuf": "real numbers", "iuf": "real numbers", "iu": "integers", "f": "floats"}

@@ -169,6 +169,7 @@ import numpy as np
 from ._kernel_args import kernel_input
 from ._progress import progress_bar
 from . import _options as _opt
+from . import spectral as _spectral
 from .costs import (DENSE_VIEWS, ROW_BLOCK, AggregationParams, aggregate_volume, cost_names,
                     fusion_weights, get_cost, light_field_window, tap_validity, view_costs)
 from .imageops import fill_masked, gradient_magnitude, normalise_intensity
@@ -274,8 +275,8 @@ _canny_sigma = _rule(_opt.number, at_most=MAX_CANNY_SIGMA)
 #: Canny thresholds are on the 8-bit Sobel magnitude (at most about 1443).
 _canny_threshold = _rule(_opt.number, optional=True, at_most=1e6)
 #: The longest wavelength (nm) the defocus cue takes (``lambda_r``, the views'): its squares
-#: stay finite.
-MAX_WAVELENGTH = 1e6
+#: stay finite (:data:`hyperlf.spectral.MAX_WAVELENGTH`).
+MAX_WAVELENGTH = _spectral.MAX_WAVELENGTH
 _wavelength = _rule(_opt.number, positive=True, at_most=MAX_WAVELENGTH)
 _lambda_r_mode = _opt.word_or(_wavelength, ("per_label", "per_pixel"),
                               f"'per_label', 'per_pixel' or a wavelength in (0, "

@@ -64,7 +64,9 @@ __all__ = [
     "load_filter_transmissions",
     "filter_response",
     "FILTER_SHAPES",
+    "MIN_FWHM",
     "MAX_FWHM",
+    "MAX_WAVELENGTH",
     "sample_widths",
     "as_wavelengths",
     "illuminant_values",
@@ -155,9 +157,8 @@ def as_wavelengths(wavelengths, name: str = "wavelengths") -> np.ndarray:
     array([550.])
     """
     try:
-        with np.errstate(over="ignore"):  # too large for a float: inf, refused below
-            wl = np.asarray(wavelengths, dtype=np.float64)
-    except (TypeError, ValueError, OverflowError):
+        wl = _opt.real_array(wavelengths, name)  # too large for a float: inf, refused below
+    except InvalidInputError:
         raise InvalidInputError(
             f"{name} must be a sequence of numbers in nm, got {type(wavelengths).__name__}"
         ) from None
@@ -174,7 +175,15 @@ def as_wavelengths(wavelengths, name: str = "wavelengths") -> np.ndarray:
             "it again")
     if not np.all(np.isfinite(wl)):
         raise InvalidInputError(f"{name} contains NaN or infinite values; pass finite nm values")
+    if not (wl.min() > 0 and wl.max() <= MAX_WAVELENGTH):
+        raise InvalidInputError(f"{name} must be wavelengths in (0, {MAX_WAVELENGTH:g}] nm, got "
+                                f"values in [{wl.min():g}, {wl.max():g}]")
     return wl
+
+
+#: The longest wavelength (nm) any function takes: squares of wavelengths and of their
+#: differences stay finite.
+MAX_WAVELENGTH = 1e6
 
 
 def _as_array(x, name: str, last: int | None = None) -> np.ndarray:
@@ -1516,9 +1525,7 @@ def filter_response(center_nm, wavelengths, shape: str = "dirac", *, fwhm: float
     wl = as_wavelengths(wavelengths)
     c_arr = _opt.real_array(center_nm, "center_nm")
     scalar = c_arr.ndim == 0
-    c = c_arr.reshape(-1)
-    if not np.all(np.isfinite(c)):
-        raise InvalidInputError("center_nm contains NaN or infinite values")
+    c = as_wavelengths(c_arr.reshape(-1), "center_nm")
     shape = _opt.choice(shape.lower() if isinstance(shape, str) else shape, "shape",
                         tuple(FILTER_SHAPES))
     W = FILTER_SHAPES[shape](c, wl, fwhm=fwhm, path=path, align=align)
@@ -1560,7 +1567,7 @@ def _dirac_weights(c: np.ndarray, wl: np.ndarray, **_) -> np.ndarray:
 def _gaussian_weights(c: np.ndarray, wl: np.ndarray, *, fwhm, **_) -> np.ndarray:
     """A Gaussian of full width at half maximum ``fwhm`` nm (at most :data:`MAX_FWHM`) on
     each centre, times the sample widths."""
-    fwhm = _opt.number(fwhm, "fwhm", positive=True, at_most=MAX_FWHM)
+    fwhm = _opt.number(fwhm, "fwhm", at_least=MIN_FWHM, at_most=MAX_FWHM)
     sigma = fwhm / (2 * np.sqrt(2 * np.log(2)))
     return np.exp(-0.5 * ((wl[None, :] - c[:, None]) / sigma) ** 2) * sample_widths(wl)[None, :]
 
@@ -1590,6 +1597,7 @@ def _thorlabs_weights(c: np.ndarray, wl: np.ndarray, *, path, align, **_) -> np.
 FILTER_SHAPES = {"dirac": _dirac_weights, "gaussian": _gaussian_weights,
                  "thorlabs": _thorlabs_weights}
 
-#: Largest full width at half maximum of a Gaussian filter, nm (wider than any spectrum here).
-MAX_FWHM = 1000.0
+#: Full width at half maximum of a Gaussian filter, nm: at least MIN_FWHM (the Gaussian's
+#: exponent stays finite over any wavelengths) and at most MAX_FWHM (wider than any spectrum).
+MIN_FWHM, MAX_FWHM = 1e-3, 1000.0
 

@@ -37,7 +37,7 @@ from . import _options as _opt
 from . import tiling
 from ._progress import grid_views
 from .errors import InvalidInputError
-from .spectral import FILTER_SHAPES, MAX_FWHM
+from .spectral import FILTER_SHAPES, MAX_FWHM, MIN_FWHM
 from .lightfield import (LightField, centre_view, check_disparity_range, filter_layout,
                          grid_positions, view_offsets)
 from .warp import forward_warp_disparity
@@ -1090,7 +1090,7 @@ _SCENE_RULES = {
     "supersample": _opt.rule(_opt.integer, minimum=1, maximum=MAX_SUPERSAMPLE),
     "objects": _objects,
     "filter_shape": _opt.rule(_opt.choice, choices=tuple(FILTER_SHAPES)),
-    "fwhm": _opt.rule(_opt.number, positive=True, at_most=MAX_FWHM),
+    "fwhm": _opt.rule(_opt.number, at_least=MIN_FWHM, at_most=MAX_FWHM),
     # px; within 1e-6..1e12 the projections stay finite (1e300 overflowed them)
     "focal_length": _opt.rule(_opt.number, positive=True, at_least=1e-6, at_most=1e12,
                               optional=True),

@@ -318,6 +318,7 @@ def sample_bilinear(image: np.ndarray, x: np.ndarray, y: np.ndarray,
     _check_edge(edge)
     fill = _opt.real(fill, "fill", nan=True)
     _opt.float_dtype(dtype)
+    x, y = _opt.real_array(x, "x"), _opt.real_array(y, "y")
     _broadcast_xy(x, y)
     img = _image(image)
     H, W = img.shape[:2]

@@ -201,11 +201,13 @@ def _check_views(ref_img, img) -> tuple[int, int]:
 
 
 def _check_shifts(shifts) -> np.ndarray:
-    """``shifts`` as finite ``(sx, sy)`` pairs, float64 ``(L, 2)``."""
+    """``shifts`` as finite ``(sx, sy)`` pairs, float64 ``(L, 2)``, each at most
+    :data:`MAX_SHIFT` px in size."""
     sh = real_array(shifts, "shifts")
-    if sh.ndim != 2 or sh.shape[1] != 2 or not np.isfinite(sh).all():
-        raise InvalidInputError(f"shifts must be finite (sx, sy) pairs, shape (L, 2), got "
-                                f"{shown(shifts)}")
+    if sh.ndim != 2 or sh.shape[1] != 2 or not np.isfinite(sh).all() or \
+            (sh.size and np.abs(sh).max() > MAX_SHIFT):
+        raise InvalidInputError(f"shifts must be finite (sx, sy) pairs of at most {MAX_SHIFT:g} "
+                                f"px, shape (L, 2), got {shown(shifts)}")
     return sh
 
 
@@ -342,7 +344,8 @@ def average_over_shift(cost, shifts, half: float, *, valid=None,
     shifts : sequence of (sx, sy)
         The view's shift at each label, in label order.
     half : float
-        Half-width in px of shift; 0, or less than half a label step, leaves ``cost`` as it is.
+        Half-width in px of shift (at most :data:`MAX_SHIFT`); 0, or less than half a label
+        step, leaves ``cost`` as it is.
     valid : ndarray of bool, shape (L, H, W), optional
         Entries that may enter an average (an entry with no valid neighbour keeps its value).
     impl : {"auto", "numpy", "numba"}
@@ -366,7 +369,7 @@ def average_over_shift(cost, shifts, half: float, *, valid=None,
     if len(s) != len(C):
         raise InvalidInputError(f"shifts must give one (sx, sy) per label ({len(C)}), got "
                                 f"{len(s)}")
-    half = number(half, "half")
+    half = number(half, "half", at_most=MAX_SHIFT)
     if valid is not None:
         valid = bool_mask(valid, "valid", C.shape, broadcast=True, of="the cost")
     impl = check_impl(impl, "census")
@@ -377,7 +380,8 @@ def average_over_shift(cost, shifts, half: float, *, valid=None,
     if not delta > 0 or half / delta < 0.5:
         return C
     t = np.concatenate([[0.0], np.cumsum(step)])
-    w = np.clip((half + delta / 2 - np.abs(t[:, None] - t[None, :])) / delta, 0.0, 1.0)
+    with np.errstate(over="ignore"):  # a box far wider than a tiny step: weight 1, clipped
+        w = np.clip((half + delta / 2 - np.abs(t[:, None] - t[None, :])) / delta, 0.0, 1.0)
     v = None if valid is None else np.asarray(valid, bool)
     if impl == "numba":
         return _average_over_shift_numba(C, w, v)
