@@ -760,8 +760,8 @@ def test_census_without_support_weights_is_the_hamming_distance(rng):
         parts[fusion.parts.index("census")] = weighted
         np.testing.assert_array_equal(fusion.pair_volume(left, right, -2, 7),
                                       costs.fuse(parts, dmin=-2))
-    with pytest.raises(InvalidInputError, match=r"^unknown key 'ncc' in x: part_options; x \(its parts\) takes "
-                                                 r"rsncc, census$"):
+    with pytest.raises(InvalidInputError, match=r"^unknown key 'ncc' in x: part_options; "
+                                                 r"x \(its parts\) takes rsncc, census$"):
         FusedCost("x", ("rsncc", "census"), part_options={"ncc": {}})
     for bad in (0.0, -1.0, float("nan"), float("inf"), "0.1", True):
         with pytest.raises(InvalidInputError, match="support_gamma"):

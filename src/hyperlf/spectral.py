@@ -1565,8 +1565,8 @@ def _dirac_weights(c: np.ndarray, wl: np.ndarray, **_) -> np.ndarray:
 
 
 def _gaussian_weights(c: np.ndarray, wl: np.ndarray, *, fwhm, **_) -> np.ndarray:
-    """A Gaussian of full width at half maximum ``fwhm`` nm (at most :data:`MAX_FWHM`) on
-    each centre, times the sample widths."""
+    """A Gaussian of full width at half maximum ``fwhm`` nm (:data:`MIN_FWHM` to
+    :data:`MAX_FWHM`) on each centre, times the sample widths."""
     fwhm = _opt.number(fwhm, "fwhm", at_least=MIN_FWHM, at_most=MAX_FWHM)
     sigma = fwhm / (2 * np.sqrt(2 * np.log(2)))
     return np.exp(-0.5 * ((wl[None, :] - c[:, None]) / sigma) ** 2) * sample_widths(wl)[None, :]

@@ -144,12 +144,12 @@ def _observations(obs, n_points: int, n_cams: int, n_poses: int) -> list:
         if uv.shape != (n_points, 2) or not np.isfinite(uv).all():
             raise InvalidInputError(f"{what}, got corners of shape {uv.shape} (or not finite)")
         out.append((c, p, uv))
-    for what, n, seen in (("camera", n_cams, {o[0] for o in out}),
+    for kind, n, seen in (("camera", n_cams, {o[0] for o in out}),
                           ("pose", n_poses, {o[1] for o in out})):
         if len(seen) < n:
             lost = min(set(range(n)) - seen)
-            raise InvalidInputError(f"obs holds no observation of {what} {lost} (of {n}); "
-                                    f"each {what} needs at least one")
+            raise InvalidInputError(f"obs holds no observation of {kind} {lost} (of {n}); "
+                                    f"each {kind} needs at least one")
     return out
 
 

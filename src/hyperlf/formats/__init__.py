@@ -354,7 +354,8 @@ def save_lightfield(lf: LightField, path: str | os.PathLike, *, bit_depth: int =
     p = Path(path_like(path, folder=not h5))
     check_values(dict(bit_depth=bit_depth, overwrite=overwrite, progress=progress),
                  capture._WRITE_RULES)
-    mapping(kwargs, "the options of save_lightfield", keys=("compression",) if h5 else ("image_format",),
+    mapping(kwargs, "the options of save_lightfield",
+            keys=("compression",) if h5 else ("image_format",),
             taker="an HDF5 file" if h5 else "a capture folder")
     if h5:
         if p.exists() and not overwrite:

@@ -204,7 +204,8 @@ def read_envi(path: str | os.PathLike):
     if size < offset + n * dt.itemsize:
         raise FormatError(
             f"{data_file} is too small: {size} bytes for {B} bands of {W} x {H} {dt.name} samples "
-            f"after a {offset}-byte offset ({offset + n * dt.itemsize} bytes); the file is truncated"
+            f"after a {offset}-byte offset ({offset + n * dt.itemsize} bytes); the file is "
+            "truncated"
         )
     raw = np.fromfile(data_file, dtype=dt, count=n, offset=offset)
     if il == "bsq":
