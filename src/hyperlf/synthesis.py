@@ -37,9 +37,9 @@ from . import _options as _opt
 from . import tiling
 from ._progress import grid_views
 from .errors import InvalidInputError
-from .spectral import FILTER_SHAPES, MAX_FWHM, MIN_FWHM
 from .lightfield import (LightField, centre_view, check_disparity_range, filter_layout,
                          grid_positions, view_offsets)
+from .spectral import FILTER_SHAPES, MAX_FWHM, MIN_FWHM
 from .warp import forward_warp_disparity
 
 __all__ = [

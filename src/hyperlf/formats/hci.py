@@ -31,6 +31,7 @@ HCI_LICENCE = "CC BY-NC-SA 4.0 (cite Honauer et al., ACCV 2016)"
 #: Largest ``disparity_margin`` of :func:`read_hci_scene` (px): a wider range only adds labels
 #: that no surface takes.
 MAX_MARGIN = 1000.0
+
 _CAM = re.compile(r"^input_Cam(\d{3})\.png$")
 
 
@@ -219,9 +220,8 @@ def _view_files(root: Path, C: int, rsel: list, csel: list) -> list[Path]:
     missing = [f.name for f in files if not f.is_file()]
     if missing:
         more = f" and {len(missing) - 8} more" if len(missing) > 8 else ""
-        shown = ", ".join(missing[:8]) + more
         raise DataNotFoundError(
-            f"HCI scene {root} is missing {len(missing)} view(s): {shown}; "
+            f"HCI scene {root} is missing {len(missing)} view(s): {', '.join(missing[:8])}{more}; "
             "download the complete scene, or load a sub-grid (hyperlf synth hci --grid R,C; "
             "read_hci_scene(rows=, cols=) in Python)"
         )
