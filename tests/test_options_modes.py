@@ -68,18 +68,18 @@ def _text_options(fn, base: dict) -> dict:
 
 @functools.lru_cache(maxsize=1)
 def _sites() -> list:
-    """``(table entry, mode keyword, mode)`` for every other mode the call takes with its
-    base arguments."""
+    """``(table entry, mode keyword, mode)`` for every other mode the call names.  Whether
+    the base arguments suit a mode is not asked: the answer may depend on the data found
+    (a Thorlabs filter) and so differ between runs; a mode they do not suit is refused in
+    one line, as the junk is."""
     sites = []
     for name, (fn, base) in N._tables().items():
         for key, value in _text_options(fn, base).items():
             words = _refusal(fn, {**base, key: "__no such mode__"})
             m = _CHOICES.match(words or "")
-            if not m:
-                continue
-            for mode in (c.strip() for c in m.group(2).split(",")):
-                if mode != value and _refusal(fn, {**base, key: mode}) is None:
-                    sites.append((name, key, mode))
+            if m:
+                sites += [(name, key, mode) for mode in (c.strip() for c in m.group(2).split(","))
+                          if mode != value]
     return sites
 
 
