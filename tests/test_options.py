@@ -6,9 +6,13 @@ with one line of :class:`InvalidInputError` before any work, never a ``TypeError
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import doctest
+import tempfile
+import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -29,6 +33,19 @@ JUNK = (st.none() | st.booleans() | st.text(max_size=6) | st.integers()
         | st.lists(st.integers(), max_size=2) | st.dictionaries(st.text(max_size=2), st.none())
         | st.floats(width=32).map(np.float32) | st.integers(-9, 9).map(np.int64)
         | st.just(np.zeros(2)) | st.just(np.zeros((3, 3))) | st.just(np.bool_(True)))
+
+
+@contextlib.contextmanager
+def _in_temp_folder(warn: str | None = None, category=Warning):
+    """A fresh temporary working folder for a call, yielded as a Path: the writers' relative
+    paths land there, never in the checkout.  Where ``warn`` is given it is the warning
+    filter's action (``"error"``, ``"ignore"``) for ``category`` inside."""
+    with tempfile.TemporaryDirectory() as folder, pytest.MonkeyPatch.context() as mp, \
+            warnings.catch_warnings():
+        mp.chdir(folder)
+        if warn is not None:
+            warnings.simplefilter(warn, category)
+        yield Path(folder)
 
 
 def _build_or_refuse(cls, **kwargs):
@@ -156,15 +173,12 @@ def test_a_label_count_is_an_integer_of_at_least_two(n):
 def test_completion_takes_any_option_or_refuses_it_in_one_line(name, value):
     """``completion.complete``'s options (``band='x'``, ``max_iter=inf``, ``out_path=2.5``
     and 40-odd more were TypeErrors or ValueErrors from deep inside)."""
-    import tempfile
-
     from hyperlf import completion, synthesis
 
     lf = synthesis.procedural_scene(seed=1, rows=2, cols=2, height=12, width=12,
                                     disparity_range=(-1.0, 1.0))
     options = {"disparity": lf.gt_disparity[lf.reference], name: value}
-    with tempfile.TemporaryDirectory() as folder, pytest.MonkeyPatch.context() as mp:
-        mp.chdir(folder)  # an out_path such as 'x' is written there
+    with _in_temp_folder():  # an out_path such as 'x' is written there
         _build_or_refuse(completion.complete, lf=lf, **options)
 
 
@@ -289,8 +303,6 @@ def test_rendering_takes_any_option_or_refuses_it_in_one_line(option, value):
 def test_the_sweep_and_the_spectrum_figure_too(keyword, value):
     """``formats=None``, ``stem=10**400``, ``points=None`` and ``labels=True`` were
     tracebacks; the files go into a temporary folder."""
-    import tempfile
-
     from hyperlf import render
 
     cube = np.random.default_rng(0).random((2, 3, 4, 10, 12)).astype(np.float32)

@@ -22,7 +22,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hyperlf.errors import DataNotFoundError, HyperLFError, InvalidInputError
-from test_options import _keywords
+from test_options import _in_temp_folder, _keywords
 from test_options_io import SAFE_JUNK, _fuzz, _scene
 
 
@@ -242,8 +242,7 @@ _OPTION_LIST = _options()
 
 def test_every_valid_call_works():
     for name, (_, call) in _calls().items():
-        with tempfile.TemporaryDirectory() as folder, pytest.MonkeyPatch.context() as mp:
-            mp.chdir(folder)
+        with _in_temp_folder():
             call()
 
 
@@ -260,11 +259,10 @@ def test_the_io_helpers_take_any_argument_or_refuse_it_in_one_line(option, value
 
 
 def _refusal(name: str, keyword: str, value):
-    with tempfile.TemporaryDirectory() as folder, pytest.MonkeyPatch.context() as mp:
-        mp.chdir(folder)
+    with _in_temp_folder() as folder:
         with pytest.raises(HyperLFError) as err:
             _calls()[name][1](**{keyword: value})
-        assert "\n" not in str(err.value) and not any(Path(folder).iterdir())
+        assert "\n" not in str(err.value) and not any(folder.iterdir())
     return err.value
 
 

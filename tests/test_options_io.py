@@ -9,7 +9,6 @@ from __future__ import annotations
 import functools
 import os
 import tempfile
-import warnings
 
 import numpy as np
 import pytest
@@ -17,7 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hyperlf.errors import InvalidInputError
-from test_options import JUNK, _build_or_refuse, _keywords
+from test_options import JUNK, _build_or_refuse, _in_temp_folder, _keywords
 
 
 def _inside(value) -> bool:
@@ -33,10 +32,7 @@ def _fuzz(calls: dict, option: tuple[str, str], value) -> None:
     """Call ``calls[name]`` with ``keyword=value`` in a fresh temporary working folder; a
     numpy warning on the way is a failure too."""
     name, keyword = option
-    with tempfile.TemporaryDirectory() as folder, pytest.MonkeyPatch.context() as mp, \
-            warnings.catch_warnings():
-        mp.chdir(folder)
-        warnings.simplefilter("error")
+    with _in_temp_folder("error"):
         _build_or_refuse(calls[name][1], **{keyword: value})
 
 

@@ -12,8 +12,6 @@ from __future__ import annotations
 import functools
 import inspect
 import re
-import tempfile
-import warnings
 
 import numpy as np
 import pytest
@@ -33,20 +31,14 @@ _CHOICES = re.compile(r"^(.+?) must be one of (.+?), got ")
 def _call(fn, kw):
     """``fn(**kw)`` in a temporary working folder, a RuntimeWarning raised: the result, or
     None where it was refused in one line."""
-    with tempfile.TemporaryDirectory() as folder, pytest.MonkeyPatch.context() as mp, \
-            warnings.catch_warnings():
-        mp.chdir(folder)
-        warnings.simplefilter("error", RuntimeWarning)
+    with T._in_temp_folder("error", RuntimeWarning):
         return T._build_or_refuse(fn, **kw)
 
 
 def _refusal(fn, kw) -> str | None:
     """Why ``fn(**kw)`` is refused (any other exception: its type), or None where it runs."""
     try:
-        with tempfile.TemporaryDirectory() as folder, pytest.MonkeyPatch.context() as mp, \
-                warnings.catch_warnings():
-            mp.chdir(folder)
-            warnings.simplefilter("ignore")
+        with T._in_temp_folder("ignore"):
             fn(**kw)
     except HyperLFError as exc:
         return str(exc)

@@ -10,8 +10,6 @@ were taken, and a view offset beyond float32 warned of an overflow."""
 from __future__ import annotations
 
 import functools
-import tempfile
-import warnings
 
 import numpy as np
 import pytest
@@ -68,13 +66,14 @@ def _pipeline_bases() -> dict:
     lf = synthesis.procedural_scene(seed=1, rows=2, cols=2, height=12, width=16,
                                     disparity_range=(-1.0, 1.0))
     ref = lf.gt_disparity[lf.reference]
-    stereo = dict(params={"p1": 0.5, "p2": 2.0}, disparity_range=(-2.0, 2.0))
+    sgm = {"p1": 0.5, "p2": 2.0}
     return {f"pipeline.{fn.__name__}": (fn, kw) for fn, kw in (
         (hlf.depth, dict(lf=lf, disparity_range=(-1.0, 1.0), n_labels=4)),
-        (completion.complete, dict(lf=lf, disparity=ref, params={"p1": 0.5, "p2": 2.0},
+        (completion.complete, dict(lf=lf, disparity=ref, params=sgm,
                                    infer={"radius": 2, "rounds": 1}, max_iter=2)),
         (completion.pairwise_disparities, dict(
-            lf=lf, initial=completion.propagate_disparity(lf, ref), **stereo)))}
+            lf=lf, initial=completion.propagate_disparity(lf, ref), params=sgm,
+            disparity_range=(-2.0, 2.0))))}
 
 
 def _render_bases() -> dict:
@@ -149,10 +148,7 @@ def test_junk_inside_a_container_is_taken_or_refused_in_one_line(site, as_entry,
     value = _with_junk(kw[key], junk, as_entry, inner)
     if value is None:
         return
-    with tempfile.TemporaryDirectory() as folder, pytest.MonkeyPatch.context() as mp, \
-            warnings.catch_warnings():
-        mp.chdir(folder)  # the writers' relative paths ("rf", "b") land there
-        warnings.simplefilter("error", RuntimeWarning)
+    with T._in_temp_folder("error", RuntimeWarning):
         T._build_or_refuse(fn, **{**kw, key: value})
 
 
