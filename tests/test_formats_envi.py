@@ -96,3 +96,32 @@ def test_errors(tmp_path, rng):
         write_envi(tmp_path / "c", rng.random((2, 3)))
     with pytest.raises(InvalidInputError):
         write_envi(tmp_path / "c", rng.random((2, 3, 4)), interleave="xyz")
+
+
+def test_files_found_by_the_reader_stay_in_the_folder(tmp_path, rng):
+    """A header's ``data file`` and the files found beside the named one must not lead out of
+    its folder (an absolute or ``..`` name, a symlink); a file named by the caller is read."""
+    cube = rng.random((2, 3, 4)).astype(np.float32)
+    outside, inside = tmp_path / "outside", tmp_path / "scene"
+    outside.mkdir()
+    inside.mkdir()
+    write_envi(outside / "c", cube)
+    hdr = (outside / "c.hdr").read_text()
+    for name in ("../outside/c.img", str(outside / "c.img")):
+        (inside / "a.hdr").write_text(hdr + f"data file = {name}\n")
+        with pytest.raises(FormatError, match="resolves outside the header's folder"):
+            read_envi(inside / "a.hdr")
+    (inside / "a.hdr").write_text(hdr)
+    os.symlink(outside / "c.img", inside / "a.img")
+    with pytest.raises(FormatError, match="copy the data file beside its header"):
+        read_envi(inside / "a.hdr")
+    np.testing.assert_array_equal(read_envi(inside / "a.img")[0], cube)  # named: read
+    os.symlink(outside / "c.hdr", inside / "b.hdr")
+    (inside / "b.img").write_bytes((outside / "c.img").read_bytes())
+    with pytest.raises(FormatError, match="header .* resolves outside its folder"):
+        read_envi(inside / "b.img")
+    np.testing.assert_array_equal(read_envi(inside / "b.hdr")[0], cube)
+    (inside / "sub").mkdir()
+    (inside / "sub" / "d.img").write_bytes((outside / "c.img").read_bytes())
+    (inside / "d.hdr").write_text(hdr + "data file = sub/d.img\n")
+    np.testing.assert_array_equal(read_envi(inside / "d.hdr")[0], cube)

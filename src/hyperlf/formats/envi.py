@@ -17,6 +17,7 @@ import numpy as np
 
 from .._atomic import atomic_path, atomic_write_text
 from .._options import choice, path_like, real_array
+from .._paths import leads_outside
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
 from ..spectral import wavelengths_unknown
 
@@ -191,14 +192,17 @@ def read_envi(path: str | os.PathLike):
     DataNotFoundError
         When the header or the data file is missing.
     FormatError
-        When the header is malformed or the data file has the wrong size.
+        When the header is malformed, the data file has the wrong size, or a file the reader
+        finds itself (the header's ``data file``, or the header or data file beside the one
+        named) resolves outside the named file's folder: by an absolute or ``..`` name, or by
+        a symlink. A file named in ``path`` is read wherever it leads.
     """
     p = Path(path_like(path, folder=None))
     base = _base(p)
     hdr = _header_file(p, base)
     h = _parse_header(hdr)
     W, H, B, dt, offset, il = _layout(hdr, h)
-    data_file = _data_file(hdr, h, base)
+    data_file = _data_file(hdr, h, base, p)
     n = W * H * B
     size = data_file.stat().st_size
     if size < offset + n * dt.itemsize:
@@ -226,6 +230,10 @@ def _header_file(p: Path, base: Path) -> Path:
         hdr = alt if alt.is_file() else hdr
     if not hdr.is_file():
         raise DataNotFoundError(f"ENVI header {hdr} does not exist")
+    if hdr != p and leads_outside(p.parent, hdr):
+        raise FormatError(f"ENVI header {hdr} of {p.name} resolves outside its folder (to "
+                          f"{os.path.realpath(hdr)}); copy the header beside the data file, "
+                          "or name the header itself")
     return hdr
 
 
@@ -252,18 +260,30 @@ def _layout(hdr: Path, h: dict) -> tuple:
     return W, H, B, dt, offset, il
 
 
-def _data_file(hdr: Path, h: dict, base: Path) -> Path:
+def _data_file(hdr: Path, h: dict, base: Path, given: Path) -> Path:
     """The data file: the header's ``data file`` where it exists, else the base name with
-    one of the usual suffixes."""
+    one of the usual suffixes; refused where it resolves outside the header's folder."""
     if "data file" in h and (hdr.parent / h["data file"]).is_file():
-        return hdr.parent / h["data file"]
+        return _beside(hdr, hdr.parent / h["data file"], given)
     for suf in _DATA_SUFFIXES:
         cand = base.with_name(base.name + suf)
         if cand.is_file() and cand != hdr:
-            return cand
+            return _beside(hdr, cand, given)
     raise DataNotFoundError(
         f"ENVI data file for {hdr} not found (tried {base.name}.img/.dat/.raw/...)"
     )
+
+
+def _beside(hdr: Path, data: Path, given: Path) -> Path:
+    """``data``, unless the reader found it (the caller named another file) and it leads out
+    of the header's folder: by an absolute or ``..`` name in the header, or by a symlink."""
+    if data != given and leads_outside(hdr.parent, data):
+        raise FormatError(
+            f"{hdr}: its data file {data.name!r} resolves outside the header's folder (to "
+            f"{os.path.realpath(data)}); copy the data file beside its header, or name the "
+            "data file itself"
+        )
+    return data
 
 
 def _wavelengths(hdr: Path, h: dict, B: int) -> np.ndarray | None:
