@@ -904,83 +904,121 @@ def _accumulate(src: _Source, plan: _Plan, disparities: Sequence, aperture=None,
     num = [np.zeros((H, W, K), np.float32) for _ in ds]
     den = [np.zeros((H, W, Kd), np.float32) for _ in ds]
     cnt = [np.zeros((H, W), np.int32) for _ in ds]
-    yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
-    if plan.band_matrix is not None:
-        idx, M = _used_bands(plan.band_matrix)
-        identity = idx.size == K and np.array_equal(M, np.eye(K))
+    grid = np.mgrid[0:H, 0:W].astype(np.float64)
+    bands = _profile_bands(plan)
+    todo = _contributing_views(src, plan, ap)
+    for r, c in progress_bar(todo, desc, total=len(todo), enabled=progress, unit="view"):
+        img, wv = _view_channels(src, plan, r, c, ap[r, c], bands)
+        img, good, goodf = _valid_pixels(src, img, r, c)
+        offset = tuple(float(v) for v in src.offsets[r, c])
+        vd = None
+        if occlusion == "views":
+            vd = np.asarray(view_disparities[r, c], dtype=np.float64)
+        for i, d in enumerate(ds):
+            samp, valid, q = _sample_view(img, good, goodf, d, offset, grid)
+            if np.ndim(d) != 0:
+                valid &= np.isfinite(d)
+                if occlusion in ("views", "zbuffer") and q is not None:
+                    other = vd if occlusion == "views" else forward_warp_disparity(d, offset)
+                    valid &= _agrees(other, d, q, tol)
+            _add_samples(num[i], den[i], cnt[i], samp, valid, wv, cube=src.kind == "cube")
+    return num, den, cnt
+
+
+def _contributing_views(src: _Source, plan: _Plan, ap: np.ndarray) -> list[tuple[int, int]]:
+    """The views with a non-zero aperture weight and, for views, a non-zero profile weight."""
     todo = [(r, c) for r in range(src.R) for c in range(src.C) if ap[r, c] > 0]
     if plan.view_weights is not None:
         todo = [(r, c) for r, c in todo if np.any(plan.view_weights[r, c] != 0)]
     if not todo:
         raise InvalidInputError("no view contributes to this profile (check the wavelength, "
                                 "weights and aperture)")
-    for r, c in progress_bar(todo, desc, total=len(todo), enabled=progress, unit="view"):
-        if src.kind == "cube":
-            bands = src.read_bands(r, c, idx)
-            img = np.ascontiguousarray(np.moveaxis(bands, 0, -1)) if identity \
-                else _project(bands, M)
-            wv = np.float32(ap[r, c])
-        else:
-            im = src.read_view(r, c)
-            if plan.view_scale is not None:
-                im = im * np.float32(plan.view_scale[r, c])
-            img = im[..., None]
-            wv = (plan.view_weights[r, c] * ap[r, c]).astype(np.float32)
-        finite = np.isfinite(img)
-        good = finite.all(axis=-1)  # a NaN in any used band invalidates the pixel
-        if not good.all():
-            img = np.where(finite, img, np.float32(0))
-        vm = src.view_mask(r, c)
-        if vm is not None:
-            good &= vm
-        goodf = None if good.all() else good.astype(np.float32)[..., None]
-        dx, dy = (float(v) for v in src.offsets[r, c])
-        centre = dx == 0.0 and dy == 0.0
-        vd = None
-        if occlusion == "views":
-            vd = np.asarray(view_disparities[r, c], dtype=np.float64)
-        for i, d in enumerate(ds):
-            scalar = np.ndim(d) == 0
-            qx = qy = None
-            if centre:
-                samp, valid = img, good.copy()
-            elif scalar:
-                samp, valid = _sample_shift(img, -d * dx, -d * dy)
-                if goodf is not None:
-                    gs, _ = _sample_shift(goodf, -d * dx, -d * dy)
-                    valid &= gs[..., 0] > 1.0 - 1e-4
-            else:
-                dd = np.where(np.isfinite(d), d, 0.0)
-                qx, qy = xx - dd * dx, yy - dd * dy
-                samp, valid = _sample_map(img, qx, qy)
-                if goodf is not None:
-                    gs, _ = _sample_map(goodf, qx, qy)
-                    valid &= gs[..., 0] > 1.0 - 1e-4
-            if not scalar:
-                finite_d = np.isfinite(d)
-                valid &= finite_d
-                if occlusion in ("views", "zbuffer") and not centre:
-                    other = vd if occlusion == "views" else forward_warp_disparity(d, (dx, dy))
-                    ix = np.clip(np.rint(qx), 0, W - 1).astype(np.intp)
-                    iy = np.clip(np.rint(qy), 0, H - 1).astype(np.intp)
-                    dv = other[iy, ix]
-                    with np.errstate(invalid="ignore"):
-                        valid &= np.abs(dv - np.where(finite_d, d, np.nan)) <= tol
-            if src.kind == "cube":
-                if valid.all() and wv == 1:
-                    num[i] += samp
-                    den[i] += 1.0
-                else:
-                    wmap = (valid * wv).astype(np.float32)[..., None]
-                    num[i] += samp * wmap
-                    den[i] += wmap
-                cnt[i] += valid
-            else:
-                w = valid[..., None].astype(np.float32) * wv
-                num[i] += samp * w  # samples outside are 0 and have weight 0
-                den[i] += w
-                cnt[i] += valid
-    return num, den, cnt
+    return todo
+
+
+def _profile_bands(plan: _Plan):
+    """``(bands read, their matrix, whether it is the identity)`` of a cube's profile, or None."""
+    if plan.band_matrix is None:
+        return None
+    idx, M = _used_bands(plan.band_matrix)
+    return idx, M, idx.size == plan.K and np.array_equal(M, np.eye(plan.K))
+
+
+def _view_channels(src: _Source, plan: _Plan, r: int, c: int, ap_rc, bands):
+    """View ``(r, c)`` as the profile's channels ``(H, W, K)`` (a cube) or its one band
+    ``(H, W, 1)`` (views), and the weight of its samples."""
+    if src.kind == "cube":
+        idx, M, identity = bands
+        b = src.read_bands(r, c, idx)
+        img = np.ascontiguousarray(np.moveaxis(b, 0, -1)) if identity else _project(b, M)
+        return img, np.float32(ap_rc)
+    im = src.read_view(r, c)
+    if plan.view_scale is not None:
+        im = im * np.float32(plan.view_scale[r, c])
+    return im[..., None], (plan.view_weights[r, c] * ap_rc).astype(np.float32)
+
+
+def _valid_pixels(src: _Source, img: np.ndarray, r: int, c: int):
+    """``img`` with its non-finite samples zeroed, the pixels valid in every channel and in
+    the view's mask, and those as float weights ``(H, W, 1)`` (None where all are valid)."""
+    finite = np.isfinite(img)
+    good = finite.all(axis=-1)  # a NaN in any used band invalidates the pixel
+    if not good.all():
+        img = np.where(finite, img, np.float32(0))
+    vm = src.view_mask(r, c)
+    if vm is not None:
+        good &= vm
+    return img, good, None if good.all() else good.astype(np.float32)[..., None]
+
+
+def _sample_view(img, good, goodf, d, offset: tuple, grid: np.ndarray):
+    """The view sampled at ``p - d (dx, dy)``: samples, their validity, and the sample
+    positions ``(qx, qy)`` where ``d`` is a map (None for a plane or the reference)."""
+    dx, dy = offset
+    if dx == 0.0 and dy == 0.0:
+        return img, good.copy(), None
+    if np.ndim(d) == 0:
+        return (*_sample_masked(_sample_shift, img, goodf, -d * dx, -d * dy), None)
+    yy, xx = grid
+    dd = np.where(np.isfinite(d), d, 0.0)
+    q = (xx - dd * dx, yy - dd * dy)
+    return (*_sample_masked(_sample_map, img, goodf, *q), q)
+
+
+def _sample_masked(sample, img: np.ndarray, goodf, *where):
+    """``sample(img, *where)``, its validity narrowed to samples of valid pixels only."""
+    samp, valid = sample(img, *where)
+    if goodf is not None:
+        gs, _ = sample(goodf, *where)
+        valid &= gs[..., 0] > 1.0 - 1e-4
+    return samp, valid
+
+
+def _agrees(other: np.ndarray, d: np.ndarray, q: tuple, tol: float) -> np.ndarray:
+    """Whether the view's own disparity ``other`` at the nearest pixel of ``q`` agrees with
+    ``d`` within ``tol`` (the view sees the surface, not a nearer one)."""
+    H, W = d.shape
+    ix = np.clip(np.rint(q[0]), 0, W - 1).astype(np.intp)
+    iy = np.clip(np.rint(q[1]), 0, H - 1).astype(np.intp)
+    with np.errstate(invalid="ignore"):
+        return np.abs(other[iy, ix] - np.where(np.isfinite(d), d, np.nan)) <= tol
+
+
+def _add_samples(num, den, cnt, samp, valid, wv, *, cube: bool) -> None:
+    """Add the valid samples, weighted by ``wv``, to ``num``, ``den`` and ``cnt`` in place
+    (samples outside a view are 0 and have weight 0)."""
+    if not cube:
+        w = valid[..., None].astype(np.float32) * wv
+        num += samp * w
+        den += w
+    elif valid.all() and wv == 1:
+        num += samp
+        den += 1.0
+    else:
+        wmap = (valid * wv).astype(np.float32)[..., None]
+        num += samp * wmap
+        den += wmap
+    cnt += valid
 
 
 def _average(num: np.ndarray, den: np.ndarray, plan: _Plan) -> np.ndarray:
