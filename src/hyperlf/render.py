@@ -565,60 +565,76 @@ def band_index(wavelengths, lam: float) -> int:
 
 def _make_plan(profile, src: _Source, white_balance: bool = True, illuminant=None, white=None,
                output: str = "camera", ccm="fit", ccm_source: str = "auto") -> _Plan:
+    """How ``profile`` turns the bands of ``src`` into output channels: all bands, one band,
+    a camera (a name, a CSV path or ``(B, 3)`` sensitivities), or weights."""
     if output not in _OUTPUTS:
         raise InvalidInputError(f"output must be 'camera' or 'srgb', got {output!r}")
     encode = output == "srgb"
-    if src.kind == "cube":
-        wl_bands = src.wavelengths
-        view_wl = None
-    else:
-        view_wl = src.wavelengths
-        wl_bands = np.unique(view_wl)
-    B = wl_bands.size
-    one = np.ones(1)
+    view_wl = None if src.kind == "cube" else src.wavelengths
+    wl_bands = src.wavelengths if view_wl is None else np.unique(view_wl)
     if profile is None or (isinstance(profile, str) and profile.lower() == "bands"):
-        if src.kind == "cube":
-            return _Plan(B, np.eye(B, dtype=np.float32), None, None, np.ones(B), None, np.ones(B),
-                         encode, "khw", "all bands")
-        idx = np.searchsorted(wl_bands, view_wl)
-        vw = np.zeros((src.R, src.C, B))
-        vw[np.arange(src.R)[:, None], np.arange(src.C)[None, :], idx] = 1.0
-        return _Plan(B, None, vw, None, np.ones(B), None, np.ones(B), encode, "khw", "all bands")
+        return _all_bands_plan(src, wl_bands, view_wl, encode)
     if _is_number(profile):
-        lam = _opt.real(profile, "a band profile's wavelength (nm)")
-        b = band_index(wl_bands, lam)
-        if src.kind == "cube":
-            M = np.zeros((B, 1))
-            M[b, 0] = 1.0
-            return _Plan(1, M, None, None, one, None, one, encode, "hw",
-                         f"band {wl_bands[b]:g} nm")
-        vw = (np.abs(view_wl - wl_bands[b]) < 1e-9).astype(np.float64)[..., None]
-        return _Plan(1, None, vw, None, one, None, one, encode, "hw", f"band {wl_bands[b]:g} nm")
-    if isinstance(profile, (str, os.PathLike)):
-        return _camera_plan(profile, wl_bands, white_balance, illuminant, white, output, ccm,
-                            ccm_source, src.kind, view_wl)
-    arr = _opt.real_array(profile, "profile")
-    if arr.shape == (B, 3):
-        return _camera_plan(arr, wl_bands, white_balance, illuminant, white, output, ccm,
-                            ccm_source, src.kind, view_wl)
+        return _band_plan(src, wl_bands, view_wl, profile, encode)
+    arr = None if isinstance(profile, (str, os.PathLike)) else _opt.real_array(profile, "profile")
+    if arr is None or arr.shape == (wl_bands.size, 3):
+        return _camera_plan(profile if arr is None else arr, wl_bands, white_balance,
+                            illuminant, white, output, ccm, ccm_source, src.kind, view_wl)
+    return _weights_plan(src, wl_bands, view_wl, arr, encode)
+
+
+def _linear_plan(K: int, band_matrix, view_weights, encode: bool, layout: str,
+                 description: str) -> _Plan:
+    """A plan without colour stages: unit gain, no colour matrix, a white of ones."""
+    ones = np.ones(K)
+    return _Plan(K, band_matrix, view_weights, None, ones, None, ones, encode, layout,
+                 description)
+
+
+def _view_bands(wl_bands: np.ndarray, view_wl: np.ndarray) -> np.ndarray:
+    """The index in ``wl_bands`` of each view's band ``(R, C)``."""
+    return np.searchsorted(wl_bands, view_wl)
+
+
+def _all_bands_plan(src: _Source, wl_bands, view_wl, encode: bool) -> _Plan:
+    """Every band as its own channel, bands first."""
+    B = wl_bands.size
+    if src.kind == "cube":
+        return _linear_plan(B, np.eye(B, dtype=np.float32), None, encode, "khw", "all bands")
+    vw = np.zeros((src.R, src.C, B))
+    vw[np.arange(src.R)[:, None], np.arange(src.C)[None, :], _view_bands(wl_bands, view_wl)] = 1
+    return _linear_plan(B, None, vw, encode, "khw", "all bands")
+
+
+def _band_plan(src: _Source, wl_bands, view_wl, profile, encode: bool) -> _Plan:
+    """The one band nearest the wavelength ``profile`` (nm), within the bands' spacing."""
+    b = band_index(wl_bands, _opt.real(profile, "a band profile's wavelength (nm)"))
+    label = f"band {wl_bands[b]:g} nm"
+    if src.kind == "cube":
+        M = np.zeros((wl_bands.size, 1))
+        M[b, 0] = 1.0
+        return _linear_plan(1, M, None, encode, "hw", label)
+    vw = (np.abs(view_wl - wl_bands[b]) < 1e-9).astype(np.float64)[..., None]
+    return _linear_plan(1, None, vw, encode, "hw", label)
+
+
+def _weights_plan(src: _Source, wl_bands, view_wl, arr: np.ndarray, encode: bool) -> _Plan:
+    """One channel weighted over the bands ``(B,)`` (normalised to sum 1 for a cube), or over
+    the views ``(R, C)``."""
+    B = wl_bands.size
     if not np.all(np.isfinite(arr)):
         raise InvalidInputError("profile weights contain NaN or inf")
-    if arr.shape == (B,):
+    if src.kind == "cube" and arr.shape == (B,):
         s = float(arr.sum())
         w = arr / s if abs(s) > 1e-12 else arr
-        if src.kind == "cube":
-            return _Plan(1, w[:, None], None, None, one, None, one, encode, "hw",
-                         "weighted bands")
+        return _linear_plan(1, w[:, None], None, encode, "hw", "weighted bands")
+    if src.kind == "views" and arr.shape in ((B,), (src.R, src.C)):
         if np.any(arr < 0):
             raise InvalidInputError("per-view weights must be non-negative for H-LF views")
-        idx = np.searchsorted(wl_bands, view_wl)
-        return _Plan(1, None, arr[idx][..., None], None, one, None, one, encode, "hw",
-                     "weighted bands")
-    if src.kind == "views" and arr.shape == (src.R, src.C):
-        if np.any(arr < 0):
-            raise InvalidInputError("per-view weights must be non-negative for H-LF views")
-        return _Plan(1, None, arr[..., None], None, one, None, one, encode, "hw",
-                     "weighted views")
+        if arr.shape == (B,):
+            return _linear_plan(1, None, arr[_view_bands(wl_bands, view_wl)][..., None],
+                                encode, "hw", "weighted bands")
+        return _linear_plan(1, None, arr[..., None], encode, "hw", "weighted views")
     expected = f"({B},) over the bands" + (f" or ({src.R}, {src.C}) per view"
                                             if src.kind == "views" else "")
     raise InvalidInputError(
