@@ -125,3 +125,15 @@ def test_files_found_by_the_reader_stay_in_the_folder(tmp_path, rng):
     (inside / "sub" / "d.img").write_bytes((outside / "c.img").read_bytes())
     (inside / "d.hdr").write_text(hdr + "data file = sub/d.img\n")
     np.testing.assert_array_equal(read_envi(inside / "d.hdr")[0], cube)
+
+
+@pytest.mark.parametrize("description", [None, 5, "a}\nsamples = 2", "two\nlines", "{x"])
+def test_a_description_that_would_break_the_header_is_refused(tmp_path, description):
+    with pytest.raises(InvalidInputError, match="description must"):
+        write_envi(tmp_path / "c", np.ones((2, 3, 4), np.float32), description=description)
+    assert not list(tmp_path.iterdir())
+
+
+def test_the_description_round_trips(tmp_path):
+    hdr = write_envi(tmp_path / "c", np.ones((2, 3, 4), np.float32), description="bench 3, 20 C")
+    assert read_envi(hdr)[2]["description"] == "bench 3, 20 C"

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .._atomic import atomic_path, atomic_write_text
-from .._options import choice, path_like, real_array
+from .._options import choice, path_like, real_array, shown, text
 from .._paths import leads_outside
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
 from ..spectral import wavelengths_unknown
@@ -54,6 +54,7 @@ def write_envi(path_hdr_or_base: str | os.PathLike, cube, wavelengths=None,
     interleave : {"bsq", "bil", "bip"}
     axes : {"auto", "bhw", "hwb"}
     description : str
+        One line of printable text without braces (the header's ``description = {...}``).
 
     Returns
     -------
@@ -62,6 +63,11 @@ def write_envi(path_hdr_or_base: str | os.PathLike, cube, wavelengths=None,
     """
     path_like(path_hdr_or_base)
     choice(axes, "axes", ("auto", "bhw", "hwb"))
+    il = choice(str(interleave).lower(), "interleave", _INTERLEAVES)
+    text(description, "description", printable=True)
+    if "{" in description or "}" in description:
+        raise InvalidInputError(f"description must not hold braces (they delimit it in the "
+                                f"header), got {shown(description)}")
     a = real_array(cube, "cube", None)
     if a.ndim != 3 or a.size == 0:
         raise InvalidInputError(f"an ENVI cube must be 3-D (B, H, W) or (H, W, B), got {a.shape}")
@@ -70,6 +76,17 @@ def write_envi(path_hdr_or_base: str | os.PathLike, cube, wavelengths=None,
     wl = None if wavelengths is None else real_array(wavelengths, "wavelengths").ravel()
     if wl is not None and wavelengths_unknown(wl):
         wl = None  # unknown (a cube completed without wavelengths): no wavelength line
+    a = _bands_first(a, wl, axes)
+    base = _base(path_hdr_or_base)
+    hdr, img = base.with_name(base.name + ".hdr"), base.with_name(base.name + ".img")
+    with atomic_path(img) as tmp:
+        np.ascontiguousarray(_interleaved(a, il), dtype="<f4").tofile(tmp)
+    atomic_write_text(hdr, _header_text(a.shape, wl, il, description))
+    return hdr
+
+
+def _bands_first(a: np.ndarray, wl: np.ndarray | None, axes: str) -> np.ndarray:
+    """``a`` as (B, H, W), its axes named by ``axes`` or found from the wavelengths."""
     if axes == "auto":
         if wl is None or a.shape[0] == wl.size:
             axes = "bhw"
@@ -81,41 +98,26 @@ def write_envi(path_hdr_or_base: str | os.PathLike, cube, wavelengths=None,
             )
     if axes == "hwb":
         a = np.moveaxis(a, 2, 0)
-    elif axes != "bhw":
-        raise InvalidInputError(f"axes must be 'auto', 'bhw' or 'hwb', got {axes!r}")
-    B, H, W = a.shape
-    if wl is not None and wl.size != B:
-        raise InvalidInputError(f"{wl.size} wavelengths for a cube with {B} bands")
-    il = str(interleave).lower()
-    if il == "bsq":
-        data = a
-    elif il == "bil":
-        data = np.transpose(a, (1, 0, 2))
-    elif il == "bip":
-        data = np.transpose(a, (1, 2, 0))
-    else:
-        raise InvalidInputError(f"interleave must be 'bsq', 'bil' or 'bip', got {interleave!r}")
-    base = _base(path_hdr_or_base)
-    hdr, img = base.with_name(base.name + ".hdr"), base.with_name(base.name + ".img")
-    lines = [
-        "ENVI",
-        f"description = {{{description}}}",
-        f"samples = {W}",
-        f"lines = {H}",
-        f"bands = {B}",
-        "header offset = 0",
-        "file type = ENVI Standard",
-        "data type = 4",
-        f"interleave = {il}",
-        "byte order = 0",
-    ]
+    if wl is not None and wl.size != a.shape[0]:
+        raise InvalidInputError(f"{wl.size} wavelengths for a cube with {a.shape[0]} bands")
+    return a
+
+
+def _interleaved(a: np.ndarray, il: str) -> np.ndarray:
+    """The (B, H, W) cube ``a`` in the order of the interleave ``il``."""
+    return {"bsq": a, "bil": np.transpose(a, (1, 0, 2)), "bip": np.transpose(a, (1, 2, 0))}[il]
+
+
+def _header_text(shape: tuple, wl: np.ndarray | None, il: str, description: str) -> str:
+    """The header of a float32, little-endian cube of ``shape`` (B, H, W)."""
+    B, H, W = shape
+    lines = ["ENVI", f"description = {{{description}}}", f"samples = {W}", f"lines = {H}",
+             f"bands = {B}", "header offset = 0", "file type = ENVI Standard", "data type = 4",
+             f"interleave = {il}", "byte order = 0"]
     if wl is not None:
         lines.append("wavelength units = Nanometers")
         lines.append("wavelength = {" + ", ".join(f"{v:.6g}" for v in wl) + "}")
-    with atomic_path(img) as tmp:
-        np.ascontiguousarray(data, dtype="<f4").tofile(tmp)
-    atomic_write_text(hdr, "\n".join(lines) + "\n")
-    return hdr
+    return "\n".join(lines) + "\n"
 
 
 def _parse_header(hdr: Path) -> dict[str, str]:
