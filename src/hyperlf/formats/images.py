@@ -356,48 +356,53 @@ def write_image(path: str | os.PathLike, array, bit_depth: int = 16) -> Path:
         arr = arr[..., 0]
     if arr.ndim not in (2, 3) or (arr.ndim == 3 and arr.shape[2] != 3) or arr.size == 0:
         raise InvalidInputError(f"an image must be (H, W) or (H, W, 3), got shape {arr.shape}")
+    out = np.ascontiguousarray(_samples(arr, bit_depth, p))
+    with atomic_path(p) as tmp:
+        _encode(tmp, out, p)
+    return p
+
+
+def _samples(arr: np.ndarray, bit_depth: int, p: Path) -> np.ndarray:
+    """The samples written for ``arr``: integers verbatim, floats quantised from [0, 1] (or
+    float32 for a 32-bit TIFF)."""
     if arr.dtype == np.bool_:
-        arr = arr.astype(np.uint8) * 255
+        return arr.astype(np.uint8) * 255
     if arr.dtype in (np.uint8, np.uint16):
-        out = arr
-    elif np.issubdtype(arr.dtype, np.integer):
+        return arr
+    if np.issubdtype(arr.dtype, np.integer):
         raise InvalidInputError(
             f"integer images must be uint8 or uint16, got {arr.dtype}; convert or pass floats in [0, 1]"
         )
-    elif np.issubdtype(arr.dtype, np.floating):
-        if not np.all(np.isfinite(arr)):
-            raise InvalidInputError(f"cannot write {p}: the image contains NaN or inf")
-        if bit_depth == 8:
-            out = np.rint(np.clip(arr, 0.0, 1.0) * 255.0).astype(np.uint8)
-        elif bit_depth == 16:
-            out = np.rint(np.clip(arr, 0.0, 1.0) * 65535.0).astype(np.uint16)
-        elif bit_depth == 32:
-            if ext not in _TIFF:
-                raise InvalidInputError(
-                    f"cannot write {p}: 32-bit float images need a .tif/.tiff file, not {ext}"
-                )
-            out = arr.astype(np.float32)
-        else:
-            raise InvalidInputError(f"bit_depth must be 8, 16 or 32, got {bit_depth!r}")
-    else:
+    if not np.issubdtype(arr.dtype, np.floating):
         raise InvalidInputError(f"cannot write an image of dtype {arr.dtype}")
-    out = np.ascontiguousarray(out)
-    with atomic_path(p) as tmp:
-        if ext in _TIFF:
-            import tifffile
+    if not np.all(np.isfinite(arr)):
+        raise InvalidInputError(f"cannot write {p}: the image contains NaN or inf")
+    if bit_depth == 32:
+        if p.suffix.lower() not in _TIFF:
+            raise InvalidInputError(f"cannot write {p}: 32-bit float images need a .tif/.tiff "
+                                    f"file, not {p.suffix.lower()}")
+        return arr.astype(np.float32)
+    top = 255.0 if bit_depth == 8 else 65535.0
+    return np.rint(np.clip(arr, 0.0, 1.0) * top).astype(np.uint8 if bit_depth == 8 else np.uint16)
 
-            tifffile.imwrite(tmp, out, photometric="rgb" if out.ndim == 3 else "minisblack")
-        else:
-            import cv2
 
-            bgr = np.ascontiguousarray(out[..., ::-1]) if out.ndim == 3 else out
-            # encode in memory, write with Python: cv2.imwrite crashes on names that are not
-            # UTF-8 (a lone surrogate in the str)
-            ok, buf = cv2.imencode(tmp.suffix or ".png", bgr)
-            if not ok:
-                raise FormatError(f"OpenCV failed to encode {p}")
-            tmp.write_bytes(buf.tobytes())
-    return p
+def _encode(tmp: Path, out: np.ndarray, p: Path) -> None:
+    """Write ``out`` to ``tmp`` in the codec of ``p``'s suffix (TIFF by tifffile, PNG by
+    OpenCV)."""
+    if p.suffix.lower() in _TIFF:
+        import tifffile
+
+        tifffile.imwrite(tmp, out, photometric="rgb" if out.ndim == 3 else "minisblack")
+        return
+    import cv2
+
+    bgr = np.ascontiguousarray(out[..., ::-1]) if out.ndim == 3 else out
+    # encode in memory, write with Python: cv2.imwrite crashes on names that are not UTF-8 (a
+    # lone surrogate in the str)
+    ok, buf = cv2.imencode(tmp.suffix or ".png", bgr)
+    if not ok:
+        raise FormatError(f"OpenCV failed to encode {p}")
+    tmp.write_bytes(buf.tobytes())
 
 
 def _path_list(paths, label: str) -> list:
