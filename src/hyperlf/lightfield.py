@@ -576,53 +576,63 @@ class LightField:
             f"image size  : {W} x {H} px (W x H)"
             + ("" if self.channels == 1 else f", {self.channels} channels"),
             f"reference   : view {self.reference}",
+            *_describe_bands(self.wavelengths, self.reference),
+            _describe_baselines(self.offsets),
         ]
-        if self.wavelengths is not None:
-            wl = self.wavelengths
-            step = np.diff(np.sort(wl.ravel()))
-            step_txt = f", step {step.min():g} nm" if step.size and np.allclose(step, step[0]) else ""
-            distinct = np.unique(wl).size
-            lines.append(f"bands       : {wl.size} filter{'s' if wl.size > 1 else ''}"
-                         + (f" ({distinct} distinct)" if distinct < wl.size else "")
-                         + f", {wl.min():g}..{wl.max():g} nm{step_txt}")
-            lines.append(f"reference   : sees {wl[self.reference]:g} nm")
-            rows = ["  " + " ".join(f"{v:6.1f}" for v in row) for row in wl]
-            lines.append("wavelengths :\n" + "\n".join(rows))
-        else:
-            lines.append("bands       : none (colour / grey light field)")
-        off = self.offsets
-        lines.append(
-            f"baselines   : x {off[..., 0].min():g}..{off[..., 0].max():g}, "
-            f"y {off[..., 1].min():g}..{off[..., 1].max():g} (relative to reference)"
-        )
         if self.disparity_range is not None:
             lines.append(
                 f"disparity   : {self.disparity_range[0]:g}..{self.disparity_range[1]:g} px/baseline"
             )
-        gt = self.reference_gt_disparity
-        if gt is not None:
-            ok = np.isfinite(gt)
-            if ok.any():
-                lines.append(
-                    f"ground truth: disparity {float(gt[ok].min()):.3f}..{float(gt[ok].max()):.3f} px"
-                    + (" (reference view; every view has its own)"
-                       if self.gt_disparity.ndim == 4 else " (reference view)")
-                )
         if self.gt_cube is not None:
             cube = (self.gt_cube.shape[2], self.cube_wavelengths)
-        if cube is not None:
-            bands, cwl = cube
-            known = cwl is not None and np.size(cwl) and np.isfinite(cwl).all()
-            lines.append(f"ground truth: cube with {bands} bands per view"
-                         + (f" ({np.min(cwl):g}..{np.max(cwl):g} nm)" if known else ""))
+        lines += _describe_truth(self.reference_gt_disparity, self.gt_disparity, cube)
         if self.valid is not None:
             lines.append(_describe_valid(self.valid))
         vmin, vmax = float(self.views.min()), float(self.views.max())
         lines.append(f"intensity   : {vmin:.4g}..{vmax:.4g}")
-        for k, v in self.metadata.items():
-            if isinstance(v, (str, int, float, bool)):
-                lines.append(f"{k:<12}: {v}")
+        lines += [f"{k:<12}: {v}" for k, v in self.metadata.items()
+                  if isinstance(v, (str, int, float, bool))]
         return "\n".join(lines)
+
+
+def _describe_bands(wl: np.ndarray | None, reference: tuple[int, int]) -> list[str]:
+    """The lines of :meth:`LightField.describe` on the filters: range, step, the grid's."""
+    if wl is None:
+        return ["bands       : none (colour / grey light field)"]
+    step = np.diff(np.sort(wl.ravel()))
+    step_txt = f", step {step.min():g} nm" if step.size and np.allclose(step, step[0]) else ""
+    distinct = np.unique(wl).size
+    rows = ["  " + " ".join(f"{v:6.1f}" for v in row) for row in wl]
+    return [f"bands       : {wl.size} filter{'s' if wl.size > 1 else ''}"
+            + (f" ({distinct} distinct)" if distinct < wl.size else "")
+            + f", {wl.min():g}..{wl.max():g} nm{step_txt}",
+            f"reference   : sees {wl[reference]:g} nm",
+            "wavelengths :\n" + "\n".join(rows)]
+
+
+def _describe_baselines(off: np.ndarray) -> str:
+    """The line of :meth:`LightField.describe` on the views' positions."""
+    return (f"baselines   : x {off[..., 0].min():g}..{off[..., 0].max():g}, "
+            f"y {off[..., 1].min():g}..{off[..., 1].max():g} (relative to reference)")
+
+
+def _describe_truth(gt: np.ndarray | None, gt_all, cube) -> list[str]:
+    """The lines of :meth:`LightField.describe` on the ground truth: the reference's
+    disparity range and a cube's bands (``cube`` is ``(bands, wavelengths)`` or None)."""
+    lines = []
+    ok = None if gt is None else np.isfinite(gt)
+    if ok is not None and ok.any():
+        lines.append(
+            f"ground truth: disparity {float(gt[ok].min()):.3f}..{float(gt[ok].max()):.3f} px"
+            + (" (reference view; every view has its own)"
+               if gt_all.ndim == 4 else " (reference view)")
+        )
+    if cube is not None:
+        bands, cwl = cube
+        known = cwl is not None and np.size(cwl) and np.isfinite(cwl).all()
+        lines.append(f"ground truth: cube with {bands} bands per view"
+                     + (f" ({np.min(cwl):g}..{np.max(cwl):g} nm)" if known else ""))
+    return lines
 
 
 def downscale(lf: LightField, factor: int = 2, *, truth: bool = False) -> LightField:
