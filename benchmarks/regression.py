@@ -95,6 +95,18 @@ def cases():
     yield "warp_ref", warp.warp_to_reference(lf.views[0, 0], gt, (1.0, -1.0))[0]
     yield "warp_fwd", warp.forward_warp_disparity(gt, (1.0, -1.0))
     yield "shiftmap", hlf.shift_map(lf.views[0, 0], 0.4, -0.6, 2)[0]
+    Iv = lf.views.reshape(-1, *lf.views.shape[2:]) / lf.views.max()
+    ov, wv = lf.offsets.reshape(-1, 2), lf.wavelengths.ravel()
+    vmask = np.ones(Iv.shape, bool); vmask[2, :4, :6] = False
+    fc = lf.gt_disparity[lf.reference]
+    for tag, kw in [("label", {}), ("pixel", dict(lambda_r="per_pixel", f_c=fc)),
+                    ("fixed", dict(lambda_r=550.0)), ("flat", dict(prior="flat")),
+                    ("pixel_valid", dict(lambda_r="per_pixel", f_c=fc, valid=vmask)),
+                    ("label_valid", dict(valid=vmask))]:
+        Dv, lam = hlf.defocus_volume(Iv, ov, wv, labels, **kw)
+        yield f"defocus_{tag}", Dv
+        if lam is not None:
+            yield f"defocus_{tag}_lambda", lam
     c = rng.random((6, 20, 24)).astype(np.float32)
     yield "reg_sgm", regularisers.sgm(c, 0.2, 1.0)
     yield "reg_gc", regularisers.graphcut(c, weight=0.3, truncation=2.0)

@@ -1277,45 +1277,64 @@ def defocus_volume(In_views, offsets, wl, labels, prior="gaussian", lambda_r="pe
     In_views = np.asarray(In_views, np.float64)
     wl = np.asarray(wl, np.float64)
     lo, hi = float(wl.min()), float(wl.max())
-    S = is_rgb = None
+    S = is_rgb = lam_fixed = None
     if prior == "gaussian":
         S, is_rgb = _camera_matrix(camera, wl)
-    lam_fixed = None
-    if prior == "gaussian" and lambda_r == "per_pixel":
-        if f_c is None:
-            raise InvalidInputError("lambda_r='per_pixel' needs the correspondence map f_c")
-        from .warp import warp_to_reference
-        P = np.empty((N, H, W))
-        V = np.empty((N, H, W), bool)
-        for v in range(N):
-            P[v], V[v] = warp_to_reference(In_views[v], f_c, tuple(offsets[v]), fill=0.0)
-            if valid is not None:
-                m, _ = warp_to_reference(np.asarray(valid[v], np.float64), f_c,
-                                         tuple(offsets[v]), fill=0.0)
-                V[v] &= m >= 1.0 - 1e-9
-        lam_fixed = _lambda_r(P, V, S, is_rgb, lo, hi, achromatic_radius)
-    elif prior == "gaussian" and lambda_r != "per_label":
-        lam_fixed = np.full((H, W), float(lambda_r))
-    L = len(labels)
-    D = np.empty((L, H, W), np.float32)
-    anyvalid = np.zeros((L, H, W), bool)
+        if lambda_r == "per_pixel":
+            if f_c is None:
+                raise InvalidInputError("lambda_r='per_pixel' needs the correspondence map f_c")
+            P, V = _views_at_map(In_views, offsets, valid, f_c)
+            lam_fixed = _lambda_r(P, V, S, is_rgb, lo, hi, achromatic_radius)
+        elif lambda_r != "per_label":
+            lam_fixed = np.full((H, W), float(lambda_r))
+    D = np.empty((len(labels), H, W), np.float32)
+    anyvalid = np.zeros((len(labels), H, W), bool)
     for k, d in enumerate(labels):
-        P = np.empty((N, H, W))
-        V = np.empty((N, H, W), bool)
-        for v in range(N):
-            sx, sy = -d * offsets[v][0], -d * offsets[v][1]
-            P[v], V[v] = shift_map(In_views[v], sx, sy, 0)
-            if valid is not None:
-                V[v] &= tap_validity(valid[v], sx, sy)
+        P, V = _views_at_label(In_views, offsets, valid, d)
+        lr = 0.0
         if prior == "gaussian":
             lr = lam_fixed if lam_fixed is not None else _lambda_r(P, V, S, is_rgb, lo, hi,
                                                                    achromatic_radius)
-        else:
-            lr = 0.0
         D[k] = defocus_cost(P, V, wl, lr, prior, sigma_d, p_eps, impl)
         anyvalid[k] = V.any(axis=0)
     D = _reg.fill_invalid(np.where(anyvalid, D, np.nan).astype(np.float32))
     return D, lam_fixed
+
+
+def _views_at_label(views: np.ndarray, offsets: np.ndarray, valid, d: float):
+    """Every view (N, H, W) shifted to the reference at the plane ``d`` (edge taps 0), and
+    where its samples are valid."""
+    P = np.empty(views.shape)
+    V = np.empty(views.shape, bool)
+    for v in range(views.shape[0]):
+        P[v], V[v] = _view_at_label(views[v], None if valid is None else valid[v], offsets[v], d)
+    return P, V
+
+
+def _view_at_label(view: np.ndarray, valid_v, offset, d: float):
+    """One view shifted to the reference at the plane ``d`` (edge taps 0), and where its
+    samples are valid (every bilinear tap valid in ``valid_v`` where given)."""
+    sx, sy = -d * offset[0], -d * offset[1]
+    out, ok = shift_map(view, sx, sy, 0)
+    if valid_v is not None:
+        ok = ok & tap_validity(valid_v, sx, sy)
+    return out, ok
+
+
+def _views_at_map(views: np.ndarray, offsets: np.ndarray, valid, f_c: np.ndarray):
+    """Every view (N, H, W) warped to the reference at the disparity map ``f_c``, and where
+    its samples are valid (every tap valid)."""
+    from .warp import warp_to_reference
+
+    P = np.empty(views.shape)
+    V = np.empty(views.shape, bool)
+    for v in range(views.shape[0]):
+        P[v], V[v] = warp_to_reference(views[v], f_c, tuple(offsets[v]), fill=0.0)
+        if valid is not None:
+            m, _ = warp_to_reference(np.asarray(valid[v], np.float64), f_c, tuple(offsets[v]),
+                                     fill=0.0)
+            V[v] &= m >= 1.0 - 1e-9
+    return P, V
 
 
 # ============================================================================================
@@ -1604,9 +1623,8 @@ def _mean_gradient(prob: DepthProblem) -> np.ndarray:
     for v in prob.others:
         o = prob.offsets[v]
         for k, d in enumerate(prob.labels):
-            m, ok = shift_map(prob.Mn[v], -d * o[0], -d * o[1], 0)
-            if prob.valid is not None:
-                ok = ok & tap_validity(prob.valid[v], -d * o[0], -d * o[1])
+            m, ok = _view_at_label(prob.Mn[v], None if prob.valid is None else prob.valid[v],
+                                   o, d)
             Msum[k] += np.where(ok, m, 0.0)
             Mcnt[k] += ok
     return (Msum / np.maximum(Mcnt, 1)).astype(np.float32)
