@@ -2222,10 +2222,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     malformed file, 4 missing file, 130 interrupted (SIGINT), 143 terminated (SIGTERM), 129
     hung up (SIGHUP). An interrupted or failed command leaves its output as it was before.
     """
-    from .outputs import received_interrupt, signals_as_exceptions
+    from .outputs import signals_as_exceptions
 
-    parser = build_parser()
     argv = sys.argv[1:] if argv is None else [os.fspath(a) for a in argv]
+    args = _parse(argv)
+    if isinstance(args, int):
+        return args
+    args.argv = ["hyperlf", *argv]  # what made the result set, for its manifest
+    with signals_as_exceptions():
+        return _run_reporting(args, argv)
+
+
+def _parse(argv: list[str]):
+    """The parsed arguments, or the exit status of a refusal (its message printed)."""
+    parser = build_parser()
     if any("\0" in a for a in argv):
         print("hyperlf: error: an argument contains a NUL character, which no file name or "
               "option value may hold; remove it",
@@ -2244,39 +2254,44 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
-    args.argv = ["hyperlf", *argv]  # what made the result set, for its manifest
-    with signals_as_exceptions():
-        try:
-            _check_combinations(args, argv)
-            return _run(args)
-        except HyperLFError as exc:
-            print(f"hyperlf {args.command}: error: {_one_line(str(exc))}", file=sys.stderr)
-            return exc.exit_code
-        except MemoryError:
-            print(f"hyperlf {args.command}: error: out of memory; reduce the size of the work "
-                  "(--size, --grid, --labels) or free memory", file=sys.stderr)
-            return 2
-        except BrokenPipeError:  # output piped into e.g. `head`, which closed early
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-            return 141
-        except OSError as exc:  # the output checks come first; this is the last resort
-            where = f": {exc.filename}" if exc.filename else ""
-            print(f"hyperlf {args.command}: error: {_one_line(str(exc.strerror or exc))}"
-                  f"{_one_line(where)}", file=sys.stderr)
-            if isinstance(exc, FileNotFoundError):
-                return 4
-            return 2 if exc.errno in (errno.ENAMETOOLONG, errno.ELOOP) else 1
-        except KeyboardInterrupt as exc:  # Ctrl-C, or Terminated (SIGTERM, SIGHUP)
-            return _interrupted(args, exc)
-        except Exception as exc:
-            # a signal that came while Python ran code that wraps what it raises (Python 3.11
-            # turns an exception in a class's __set_name__, e.g. while colour-science is being
-            # imported, into "RuntimeError: Error calling __set_name__"; C code that called
-            # back into Python turns it into its own error): the run was stopped, not broken
-            cause = _interrupt_cause(exc) or received_interrupt()
-            if cause is None:
-                raise
-            return _interrupted(args, cause)
+    return args
+
+
+def _run_reporting(args, argv: list[str]) -> int:
+    """Run the subcommand; every failure becomes one line on stderr and its exit status."""
+    from .outputs import received_interrupt
+
+    try:
+        _check_combinations(args, argv)
+        return _run(args)
+    except HyperLFError as exc:
+        print(f"hyperlf {args.command}: error: {_one_line(str(exc))}", file=sys.stderr)
+        return exc.exit_code
+    except MemoryError:
+        print(f"hyperlf {args.command}: error: out of memory; reduce the size of the work "
+              "(--size, --grid, --labels) or free memory", file=sys.stderr)
+        return 2
+    except BrokenPipeError:  # output piped into e.g. `head`, which closed early
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
+    except OSError as exc:  # the output checks come first; this is the last resort
+        where = f": {exc.filename}" if exc.filename else ""
+        print(f"hyperlf {args.command}: error: {_one_line(str(exc.strerror or exc))}"
+              f"{_one_line(where)}", file=sys.stderr)
+        if isinstance(exc, FileNotFoundError):
+            return 4
+        return 2 if exc.errno in (errno.ENAMETOOLONG, errno.ELOOP) else 1
+    except KeyboardInterrupt as exc:  # Ctrl-C, or Terminated (SIGTERM, SIGHUP)
+        return _interrupted(args, exc)
+    except Exception as exc:
+        # a signal that came while Python ran code that wraps what it raises (Python 3.11
+        # turns an exception in a class's __set_name__, e.g. while colour-science is being
+        # imported, into "RuntimeError: Error calling __set_name__"; C code that called
+        # back into Python turns it into its own error): the run was stopped, not broken
+        cause = _interrupt_cause(exc) or received_interrupt()
+        if cause is None:
+            raise
+        return _interrupted(args, cause)
 
 
 def _interrupt_cause(exc: BaseException) -> KeyboardInterrupt | None:
