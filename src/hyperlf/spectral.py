@@ -342,63 +342,76 @@ def _data_file(path, dataset: str, what: str, hint: str) -> Path:
 
 @lru_cache(maxsize=8)
 def _parse_camspec(path: str, mtime_ns: int) -> dict:
+    """The cameras of the camspec text file ``path``: name -> (wavelengths, (33, 3))."""
+    lines = _camspec_lines(path)
+    cameras: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    j = 0
+    while j < len(lines):
+        lineno, line = lines[j]
+        if _numbers(line) is not None:
+            raise FormatError(
+                f"{path}:{lineno}: numeric line without a camera name before it; the camspec "
+                "format is a name line followed by 3 lines (R, G, B) of 33 values"
+            )
+        sens = _camspec_camera(path, lines[j:j + 4])
+        if sens is None:  # header line (URL, description, separator)
+            j += 1
+            continue
+        if line in cameras:
+            raise FormatError(f"{path}:{lineno}: camera {line!r} appears twice")
+        wl = np.arange(400.0, 721.0, 10.0)
+        wl.setflags(write=False)
+        sens.setflags(write=False)
+        cameras[line] = (wl, sens)
+        j += 4
+    if not cameras:
+        raise FormatError(f"{path} contains no camera; is it the camspec database text file?")
+    return cameras
+
+
+def _camspec_lines(path: str) -> list[tuple[int, str]]:
+    """The non-blank lines of ``path`` with their numbers, stripped."""
     try:
         text = Path(path).read_text(encoding="utf-8-sig")
     except UnicodeDecodeError:
         raise FormatError(f"{path} is not a UTF-8 text file; expected the camspec database") from None
     except OSError as exc:
         raise FormatError(f"cannot read {path}: {exc.strerror or exc}") from None
+    return [(i + 1, ln.strip()) for i, ln in enumerate(text.splitlines()) if ln.strip()]
 
-    def numbers(line: str):
-        try:
-            return [float(t) for t in line.split()]
-        except ValueError:
-            return None
 
-    lines = [(i + 1, ln.strip()) for i, ln in enumerate(text.splitlines())]
-    lines = [(i, ln) for i, ln in lines if ln]
-    wl = np.arange(400.0, 721.0, 10.0)
-    cameras: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    j = 0
-    while j < len(lines):
-        lineno, line = lines[j]
-        if numbers(line) is not None:
+def _numbers(line: str) -> list[float] | None:
+    """The line's whitespace-separated numbers, or None where one is not a number."""
+    try:
+        return [float(t) for t in line.split()]
+    except ValueError:
+        return None
+
+
+def _camspec_camera(path: str, block: list[tuple[int, str]]) -> np.ndarray | None:
+    """The ``(33, 3)`` sensitivities of the camera named on ``block``'s first line and given
+    on the three lines after it, or None where no numeric line follows (a header line)."""
+    (lineno, name), following = block[0], []
+    for _, ln in block[1:]:
+        values = _numbers(ln)
+        if values is None:
+            break
+        following.append(values)
+    if not following:
+        return None
+    if len(following) != 3:
+        raise FormatError(f"{path}:{lineno}: camera {name!r} has {len(following)} data "
+                          "line(s), expected 3 (R, G, B)")
+    for (ln_no, _), values in zip(block[1:], following):
+        if len(values) != 33:
             raise FormatError(
-                f"{path}:{lineno}: numeric line without a camera name before it; the camspec "
-                "format is a name line followed by 3 lines (R, G, B) of 33 values"
+                f"{path}:{ln_no}: camera {name!r} has {len(values)} values on a line, expected "
+                "33 (400-720 nm in 10 nm steps)"
             )
-        following = [numbers(ln) for _, ln in lines[j + 1:j + 4]]
-        n_numeric = 0
-        for f in following:
-            if f is None:
-                break
-            n_numeric += 1
-        if n_numeric == 0:  # header line (URL, description, separator)
-            j += 1
-            continue
-        if n_numeric != 3:
-            raise FormatError(
-                f"{path}:{lineno}: camera {line!r} has {n_numeric} data line(s), expected 3 (R, G, B)"
-            )
-        for (ln_no, _), f in zip(lines[j + 1:j + 4], following):
-            if len(f) != wl.size:
-                raise FormatError(
-                    f"{path}:{ln_no}: camera {line!r} has {len(f)} values on a line, expected "
-                    f"{wl.size} (400-720 nm in 10 nm steps)"
-                )
-        sens = np.array(following, dtype=np.float64).T  # (33, 3)
-        if not np.all(np.isfinite(sens)):
-            raise FormatError(f"{path}:{lineno}: camera {line!r} has non-finite values")
-        if line in cameras:
-            raise FormatError(f"{path}:{lineno}: camera {line!r} appears twice")
-        wl_c = wl.copy()
-        wl_c.setflags(write=False)
-        sens.setflags(write=False)
-        cameras[line] = (wl_c, sens)
-        j += 4
-    if not cameras:
-        raise FormatError(f"{path} contains no camera; is it the camspec database text file?")
-    return cameras
+    sens = np.array(following, dtype=np.float64).T  # (33, 3)
+    if not np.all(np.isfinite(sens)):
+        raise FormatError(f"{path}:{lineno}: camera {name!r} has non-finite values")
+    return sens
 
 
 def load_camspec(path: str | os.PathLike | None = None) -> dict[str, tuple[np.ndarray, np.ndarray]]:
