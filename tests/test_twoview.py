@@ -302,3 +302,25 @@ def test_confidence_ranks_the_consistent_pixels_first_and_the_depth_edges_last()
         bad = np.abs(new.disparity - gt) > 2
         ratios.append(sparsification(new.confidence, bad) / sparsification(old.confidence, bad))
     assert np.mean(ratios) < 0.85, ratios
+
+
+def test_stereo_from_volumes_refuses_bad_inputs_before_any_solve(monkeypatch, rng):
+    """A right volume, a guide or a fill that cannot work is refused before the left map is
+    solved (seconds to minutes on a real pair), and a guide is named."""
+    from hyperlf import twoview
+
+    def solve(*args, **kwargs):
+        raise AssertionError("solved before the inputs were checked")
+
+    monkeypatch.setattr(twoview, "_optimise", solve)
+    cl = rng.random((4, 12, 16)).astype(np.float32)
+    g = rng.random((12, 16))
+    bad = {"needs the right-referenced volume": dict(cost_right=None),
+           "needs guide_left": dict(cost_right=cl, occlusion="lr-plane"),
+           "cost_right shape": dict(cost_right=cl[:, :5], guide_left=g),
+           "guide_right must be an image": dict(cost_right=cl, guide_left=g,
+                                                 guide_right=np.zeros((3, 3))),
+           "guide_left image contains NaN": dict(cost_right=cl, guide_left=g * np.nan)}
+    for words, kw in bad.items():
+        with pytest.raises(InvalidInputError, match=words):
+            twoview.stereo_from_volumes(cl, dmin=0, **{"occlusion": "lr-fill", **kw})

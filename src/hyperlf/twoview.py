@@ -83,6 +83,7 @@ from . import costs as _costs
 from . import regularisers as _reg
 from ._options import bool_mask, choice, flag, integer, mapping, params_of, real_array, shown
 from .costs._validate import MAX_DISPARITY
+from .regularisers._checks import check_guide
 from .errors import InvalidInputError
 
 __all__ = [
@@ -352,6 +353,29 @@ def _data_scale(cost_left: np.ndarray, dmin: int) -> float:
     return s if s > 0 and np.isfinite(s) else 1.0
 
 
+def _right_volume(cost_right, shape: tuple, occlusion: str, guide_left):
+    """The right-referenced volume the occlusion handling needs (None for ``"none"``),
+    checked with what the fill needs before any solve starts."""
+    if occlusion == "none":
+        return None
+    if cost_right is None:
+        raise InvalidInputError(f"occlusion={occlusion!r} needs the right-referenced volume")
+    if occlusion == "lr-plane" and guide_left is None:
+        raise InvalidInputError("occlusion='lr-plane' needs guide_left (the left image): "
+                                "pass it, or use occlusion='lr-fill'")
+    cr = real_array(cost_right, "cost_right", np.float32)
+    if cr.shape != shape:
+        raise InvalidInputError(f"cost_right shape {cr.shape} != cost_left shape {shape}")
+    return cr
+
+
+def _scaled_data(cost: np.ndarray, s: float, overwrite: bool) -> np.ndarray:
+    """The data term of ``cost`` divided by the volume's spread ``s``."""
+    D = _reg.data_term(cost, overwrite=overwrite)
+    D /= np.float32(s)  # in place: one volume-sized temporary fewer
+    return D
+
+
 def _optimise(D: np.ndarray, params, guide, labels, subpixel: bool, progress: bool):
     """Return (integer label map, float disparity, volume used for confidence)."""
     res = _reg.optimise(D, params, guide=guide, labels=labels, progress=progress)
@@ -488,28 +512,22 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
     cl = real_array(cost_left, "cost_left", np.float32)
     if cl.ndim != 3:
         raise InvalidInputError(f"cost_left must be (L, H, W), got {cl.shape}")
+    for guide, label in ((guide_left, "guide_left"), (guide_right, "guide_right")):
+        if guide is not None:  # checked before any solve, and named
+            check_guide(guide, *cl.shape[1:], label)
+    cr = _right_volume(cost_right, cl.shape, occlusion, guide_left)
     Lc = cl.shape[0]
     labels = np.arange(dmin, dmin + Lc, dtype=np.float64)
     s = _data_scale(cl, dmin)
     t0 = time.perf_counter()
-    DL = _reg.data_term(cl, overwrite=overwrite)
-    DL /= np.float32(s)  # in place: one volume-sized temporary fewer
-    fl, disp_l, vol_l = _optimise(DL, opt, guide_left, labels, subpixel, progress)
+    fl, disp_l, vol_l = _optimise(_scaled_data(cl, s, overwrite), opt, guide_left, labels,
+                                  subpixel, progress)
     conf = _reg.confidence(vol_l, fl, floor=cp.floor)
     disp_r = None
     replaced = np.zeros(disp_l.shape, dtype=bool)
-    if occlusion != "none":
-        if cost_right is None:
-            raise InvalidInputError(f"occlusion={occlusion!r} needs the right-referenced volume")
-        if occlusion == "lr-plane" and guide_left is None:
-            raise InvalidInputError("occlusion='lr-plane' needs guide_left (the left image): "
-                                    "pass it, or use occlusion='lr-fill'")
-        cr = real_array(cost_right, "cost_right", np.float32)
-        if cr.shape != cl.shape:
-            raise InvalidInputError(f"cost_right shape {cr.shape} != cost_left shape {cl.shape}")
-        DR = _reg.data_term(cr, overwrite=overwrite)
-        DR /= np.float32(s)
-        fr, _, _ = _optimise(DR, opt, guide_right, labels, False, progress)
+    if cr is not None:
+        fr, _, _ = _optimise(_scaled_data(cr, s, overwrite), opt, guide_right, labels, False,
+                             progress)
         disp_r = labels[fr].astype(np.float32)
         valid = _reg.left_right_check(labels[fl], disp_r, tol=1.0)
         final, replaced = fill_inconsistent(disp_l, disp_r, valid, occlusion, guide_left,

@@ -59,16 +59,16 @@ def check_labels(labels, L: int) -> np.ndarray:
     return lv
 
 
-def check_guide(guide, H: int, W: int) -> np.ndarray:
+def check_guide(guide, H: int, W: int, label: str = "guide") -> np.ndarray:
     """A finite guide image as float64 ``(H, W, K)``."""
-    g = real_array(guide, "guide")
+    g = real_array(guide, label)
     if g.ndim == 2:
         g = g[:, :, None]
     if g.ndim != 3 or g.shape[:2] != (H, W):
         raise InvalidInputError(
-            f"guide must be an image of shape {(H, W)} or {(H, W)} + (K,), got {np.shape(guide)}")
+            f"{label} must be an image of shape {(H, W)} or {(H, W)} + (K,), got {np.shape(guide)}")
     if not np.all(np.isfinite(g)):
-        raise InvalidInputError("guide image contains NaN or infinite values")
+        raise InvalidInputError(f"{label} image contains NaN or infinite values")
     return g
 
 
