@@ -1,0 +1,120 @@
+"""Bad input is refused before any long work starts.  The option fuzzers check that junk is
+taken or refused in one line, not *when*: ``twoview.stereo_from_volumes`` solved the whole
+left map (seconds to minutes on a real pair) before it refused a right volume of the wrong
+shape or a guide it could not use.  Here the start of long work is a sentinel (the first step
+of any progress bar, or a call of the regularisers' solver), and each argument of the calls
+that do long work takes each kind of junk: a value refused without the sentinel must be
+refused with it, that is before long work."""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import importlib
+import pkgutil
+
+import numpy as np
+import pytest
+
+import test_options as T
+import test_options_modes as M
+import test_options_nested as N
+import hyperlf
+from hyperlf._options import shown
+from hyperlf.errors import HyperLFError
+
+#: The calls of the fuzzers' tables whose base arguments reach long work.
+_TABLE_SITES = (
+    "test_options.stereo_from_volumes", "test_options.procedural_scene",
+    "test_options_api_io.write_lightfield_pictures", "test_options_compute.emulate_camera",
+    "test_options_hlf.correspondence", "test_options_hlf.regularise",
+    "test_options_io.write_capture", "test_options_io.save_lightfield",
+    "test_options_io.naive_completion", "test_options_io.naive_completion to a file",
+    "render.refocus", "render.focal_stack", "render.emulate_camera", "pipeline.depth",
+    "pipeline.complete", "pipeline.pairwise_disparities")
+
+
+class _LongWork(BaseException):
+    """Raised where long work would start (not an Exception: nothing may swallow it)."""
+
+
+def _first_step(items, *args, **kwargs):
+    for _ in items:
+        raise _LongWork
+    return iter(())
+
+
+def _solve(*args, **kwargs):
+    raise _LongWork
+
+
+@functools.lru_cache(maxsize=1)
+def _patches() -> tuple:
+    """``(module, attribute, sentinel)`` for every module's progress bar and solver."""
+    from hyperlf import regularisers
+
+    solver = regularisers.optimise
+    out = []
+    for info in pkgutil.walk_packages(hyperlf.__path__, "hyperlf."):
+        mod = importlib.import_module(info.name)
+        if hasattr(mod, "progress_bar"):
+            out.append((mod, "progress_bar", _first_step))
+        if getattr(mod, "optimise", None) is solver:
+            out.append((mod, "optimise", _solve))
+    return tuple(out)
+
+
+@contextlib.contextmanager
+def _sentinels():
+    saved = [(mod, name, getattr(mod, name)) for mod, name, _ in _patches()]
+    try:
+        for mod, name, sentinel in _patches():
+            setattr(mod, name, sentinel)
+        yield
+    finally:
+        for mod, name, value in saved:
+            setattr(mod, name, value)
+
+
+def _outcome(fn, kw: dict, *, sentinels: bool) -> str:
+    """``"long work"``, ``"refused: <message>"``, ``"ran"`` or the type of another error."""
+    with contextlib.ExitStack() as stack:
+        stack.enter_context(T._in_temp_folder("ignore"))
+        if sentinels:
+            stack.enter_context(_sentinels())
+        try:
+            fn(**kw)
+        except _LongWork:
+            return "long work"
+        except HyperLFError as exc:
+            return f"refused: {exc}"
+        except Exception as exc:  # noqa: BLE001 - judged by the other fuzzers
+            return type(exc).__name__
+    return "ran"
+
+
+def _sites() -> dict:
+    from hyperlf import twoview
+
+    rng = np.random.default_rng(0)
+    left = rng.random((20, 28)).astype(np.float32)
+    return {**{name: N._tables()[name] for name in _TABLE_SITES},
+            "twoview.stereo": (twoview.stereo, dict(left=left, right=np.roll(left, -2, axis=1),
+                                                    disparity_range=(0, 4)))}
+
+
+@pytest.mark.parametrize("name", [*_TABLE_SITES, "twoview.stereo"])
+def test_refused_before_long_work(name):
+    fn, base = _sites()[name]
+    assert _outcome(fn, base, sentinels=True) == "long work", \
+        f"{name}'s base call no longer reaches long work; update _TABLE_SITES"
+    late = []
+    for key in base:
+        for junk in M.JUNK:
+            kw = {**base, key: junk}
+            if _outcome(fn, kw, sentinels=True) != "long work":
+                continue
+            plain = _outcome(fn, kw, sentinels=False)
+            if plain.startswith("refused"):
+                late.append(f"{key}={shown(junk)}: {plain}")
+    assert not late, f"{name} refused only after long work started: " + "; ".join(late[:4])
