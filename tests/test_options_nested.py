@@ -154,7 +154,8 @@ def test_junk_inside_a_container_is_taken_or_refused_in_one_line(site, as_entry,
 
 @pytest.mark.parametrize("weights, words", [
     ([1, 10 ** 400], "census-rsncc needs 2 weights, one per part (rsncc, census), each "
-                     "finite and >= 0 and not all 0; got [1, 1000"),
+                     "finite and >= 0, not all 0, with a finite sum; got [1, 1000"),
+    ([1e308, 1e308], "census-rsncc needs 2 weights"),
     (["1", "3"], "census-rsncc needs 2 weights"),
     ({"rsncc": 1, "census": 3}, "census-rsncc needs 2 weights"),
 ])

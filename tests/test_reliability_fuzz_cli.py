@@ -656,6 +656,31 @@ def test_found_bug_stays_fixed(name, world, capfd):
     check(run, folder, _written_check(run))
 
 
+#: Refused only after long work had started (found by running the fuzzers with the start of
+#: long work as a sentinel, ``test_options_early``); each must now be refused before it.
+REFUSED_LATE = {
+    "refocus --profile bands (every band: no picture to write, refused after refocusing)":
+        lambda w, o: ["refocus", w.cap, "--profile=bands", "-o", o / "r"],
+    "depth --fusion-weights whose sum overflows (refused after the views were read)":
+        lambda w, o: ["depth", w.cap, "--labels=4", "--fusion-weights=1e308,1e308",
+                      "-o", o / "d"],
+}
+
+
+@pytest.mark.parametrize("name", sorted(REFUSED_LATE))
+def test_refused_before_long_work(name, world, capfd):
+    from test_options_early import _LongWork, _sentinels
+
+    folder = world.fresh()
+    with _sentinels():
+        try:
+            run = run_main(REFUSED_LATE[name](world, folder), capfd)
+        except _LongWork:
+            pytest.fail(f"{name}: long work started before the refusal")
+    assert run.code == 2
+    check(run, folder)
+
+
 def test_non_utf8_output_name_does_not_crash(world, tmp_path):
     """A file name that is not UTF-8 (here byte 0xff) reaches Python as a lone surrogate;
     OpenCV's imwrite given such a str crashed the whole process (SIGSEGV); images are now

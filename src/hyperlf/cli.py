@@ -178,8 +178,9 @@ def _range_arg(text: str) -> tuple[float, float]:
 
 
 def _fusion_weights_arg(text: str) -> tuple[float, ...]:
-    """``--fusion-weights W1,W2[,...]``: finite numbers >= 0, not all 0 (whether their count
-    fits the cost is checked with ``--metric``, :func:`hyperlf.costs.fusion_weights`)."""
+    """``--fusion-weights W1,W2[,...]``: finite numbers >= 0, not all 0, with a finite sum
+    (whether their count fits the cost is checked with ``--metric``,
+    :func:`hyperlf.costs.fusion_weights`)."""
     from .costs.registry import weights_tuple
 
     try:
@@ -189,7 +190,8 @@ def _fusion_weights_arg(text: str) -> tuple[float, ...]:
             f"expected numbers separated by commas, like 1,4; got {text!r}") from None
     if w is None:
         raise argparse.ArgumentTypeError(
-            f"expected finite numbers >= 0, not all 0, like 1,4; got {text!r}")
+            f"expected finite numbers >= 0, not all 0, with a finite sum, like 1,4; got "
+            f"{text!r}")
     return w
 
 
@@ -1368,6 +1370,10 @@ def _profile_arg(text: str):
             return np.loadtxt(path, delimiter=",", ndmin=1).astype(np.float64).ravel()
         except (OSError, ValueError) as exc:
             raise InvalidInputError(f"cannot read weights from {path}: {exc}") from None
+    if text.strip().lower() == "bands":  # the library's every-band profile: not one picture
+        raise InvalidInputError("--profile bands would give one image per band, which refocus "
+                                "cannot write as a picture; name a camera, band:NM or "
+                                "weights:FILE")
     return text
 
 

@@ -705,8 +705,8 @@ class DepthParams:
             raise InvalidInputError(f"params.{e}") from None
 
     def _check_fusion_weights(self) -> None:
-        """``fusion_weights``: None, or finite numbers >= 0, not all 0, kept as a tuple (which
-        cost they fit is checked by :func:`depth`)."""
+        """``fusion_weights``: None, or finite numbers >= 0, not all 0, with a finite sum, kept
+        as a tuple (which cost they fit is checked by :func:`depth`)."""
         from .costs.registry import weights_tuple
 
         w = self.fusion_weights
@@ -715,7 +715,8 @@ class DepthParams:
         t = weights_tuple(w)
         if t is None:
             raise InvalidInputError("params.fusion_weights must be None or one finite number "
-                                    f">= 0 per part of the fused cost, not all 0; got {w!r}")
+                                    f">= 0 per part of the fused cost, not all 0, with a "
+                                    f"finite sum; got {w!r}")
         object.__setattr__(self, "fusion_weights", t)
 
     @property

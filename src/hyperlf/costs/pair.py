@@ -11,6 +11,8 @@ directly.  The papers behind the costs are listed in :mod:`hyperlf.costs` (Refer
 from __future__ import annotations
 
 import functools
+import math
+from collections.abc import Mapping
 from typing import Sequence
 
 import numpy as np
@@ -1155,6 +1157,18 @@ def _own_float32(given, array) -> bool:
         and array.flags.writeable and array.flags.owndata
 
 
+def weights_tuple(weights) -> tuple | None:
+    """``weights`` as a tuple of floats if they are a sequence of finite numbers >= 0, not
+    all 0, with a finite sum (of any length), else None: the rule every fusion weight follows
+    (the count is the cost's to check, :meth:`hyperlf.costs.FusedCost.check_weights`)."""
+    try:
+        w = () if isinstance(weights, (str, bytes, Mapping)) else \
+            tuple(number(x, "weight") for x in weights)
+    except (TypeError, InvalidInputError):  # not a sequence, or an entry not a number >= 0
+        return None
+    return w if any(w) and math.isfinite(sum(w)) else None
+
+
 def fuse(volumes: Sequence[np.ndarray], weights: Sequence[float] | None = None, dmin: int = 0,
          valid=None, *, scales: Sequence[float] | None = None, impl: str = "auto",
          overwrite: bool = False, centre: str = "min") -> np.ndarray:
@@ -1176,13 +1190,11 @@ def fuse(volumes: Sequence[np.ndarray], weights: Sequence[float] | None = None, 
     shape = vols[0].shape
     if any(v.shape != shape for v in vols) or len(shape) != 3:
         raise InvalidInputError(f"volumes must be (L, H, W) of equal shape, got {[v.shape for v in vols]}")
-    w = np.ones(len(vols)) if weights is None else real_array(weights, "weights")
-    with np.errstate(over="ignore"):
-        ok = w.shape == (len(vols),) and np.isfinite(w).all() and (w >= 0).all() and \
-            0 < w.sum() < np.inf
-    if not ok:
-        raise InvalidInputError(f"weights must be {len(vols)} non-negative numbers with a "
-                                f"positive sum, got {shown(weights)}")
+    w = (1.0,) * len(vols) if weights is None else weights_tuple(weights)
+    if w is None or len(w) != len(vols):
+        raise InvalidInputError(f"weights must be {len(vols)} finite numbers >= 0, not all 0, "
+                                f"with a finite sum, got {shown(weights)}")
+    w = np.asarray(w, np.float64)
     if scales is None:
         sds = [None] * len(vols)
     elif isinstance(scales, (list, tuple, np.ndarray)) and np.ndim(scales) == 1:

@@ -30,10 +30,10 @@ from typing import Any, Iterator, Sequence
 
 import numpy as np
 
-from .._options import choice, flag, integer, mapping, number, shown
+from .._options import choice, flag, integer, mapping, shown
 from ..errors import InvalidInputError
 from ._validate import IMPLS, check_window
-from .pair import fuse, right_validity, row_moments
+from .pair import fuse, right_validity, row_moments, weights_tuple
 
 __all__ = [
     "Cost",
@@ -189,8 +189,9 @@ class FusedCost(Cost):
     parts : sequence of str
         Names of registered costs.
     weights : sequence of float
-        One per part (default all 1), each finite and >= 0, not all 0; the pair and the
-        light-field volumes also take ``weights=`` per call (:meth:`check_weights`).
+        One per part (default all 1), each finite and >= 0, not all 0, with a finite sum;
+        the pair and the light-field volumes also take ``weights=`` per call
+        (:meth:`check_weights`).
     view_window_part : int, optional
         Which part a light-field ``window`` applies to.
     part_options : mapping, optional
@@ -296,7 +297,8 @@ class FusedCost(Cost):
                     centre=self.view_centre)
 
     def check_weights(self, weights) -> tuple:
-        """``weights`` as a tuple of floats, one per part, each finite and >= 0, not all 0.
+        """``weights`` as a tuple of floats, one per part, each finite and >= 0, not all 0,
+        with a finite sum.
 
         Raises
         ------
@@ -307,7 +309,8 @@ class FusedCost(Cost):
         if w is None or len(w) != len(self.parts):
             raise InvalidInputError(
                 f"{self.name} needs {len(self.parts)} weights, one per part "
-                f"({', '.join(self.parts)}), each finite and >= 0 and not all 0; got "
+                f"({', '.join(self.parts)}), each finite and >= 0, not all 0, with a finite "
+                f"sum; got "
                 f"{shown(weights)}")
         return w
 
@@ -418,18 +421,6 @@ def resolve_metric(name: str) -> str:
     return get_cost(name).name
 
 
-def weights_tuple(weights) -> tuple | None:
-    """``weights`` as a tuple of floats if they are a sequence of finite numbers >= 0, not
-    all 0 (of any length), else None: the rule every fusion weight follows (the count is the
-    cost's to check, :meth:`FusedCost.check_weights`)."""
-    try:
-        w = () if isinstance(weights, (str, bytes, Mapping)) else \
-            tuple(number(x, "weight") for x in weights)
-    except (TypeError, InvalidInputError):  # not a sequence, or an entry not a number >= 0
-        return None
-    return w if any(w) else None
-
-
 def fusion_weights(name: str, weights) -> tuple:
     """``weights`` checked for the fused cost ``name``: one float per part, in its order.
 
@@ -437,7 +428,7 @@ def fusion_weights(name: str, weights) -> tuple:
     ------
     InvalidInputError
         ``name`` is not a fusion (one cost has nothing to weight), or the weights are not
-        one finite number >= 0 per part, not all 0.
+        one finite number >= 0 per part, not all 0, with a finite sum.
 
     Examples
     --------
