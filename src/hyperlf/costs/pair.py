@@ -1181,6 +1181,26 @@ def fuse(volumes: Sequence[np.ndarray], weights: Sequence[float] | None = None, 
     and the fill in one kernel, same float64 arithmetic).  ``overwrite``: the volumes are not
     used again, so under ``"numba"`` the C-contiguous float32 ones are normalised in place
     and the first one holds the result (the same numbers, without new volumes)."""
+    vols, w, sds = _fusion_inputs(volumes, weights, scales)
+    shape = vols[0].shape
+    dmin = check_dmin(dmin)
+    if valid is not None:
+        bool_mask(valid, "valid", shape, broadcast=True, of="the volumes")
+    choice(centre, "centre", NORMALISE_CENTRES)
+    overwrite = flag(overwrite, "overwrite")
+    if check_impl(impl, "normalise") == "numba":
+        return _fuse_numba(vols, w, sds, dmin, valid, overwrite, centre)
+    out = np.zeros(shape, np.float64)
+    for wi, v, sd in zip(w, vols, sds):
+        if wi:
+            out += wi * normalise_volume(v, dmin, valid, sd=sd, impl="numpy", centre=centre)
+    out /= w.sum()
+    return fill_out_of_image(out.astype(np.float32), dmin, valid)
+
+
+def _fusion_inputs(volumes, weights, scales) -> tuple[list, np.ndarray, list]:
+    """The volumes of :func:`fuse` (equal ``(L, H, W)`` shapes), their weights (float64) and
+    their normalisers' scales (None where measured here), each checked."""
     if isinstance(volumes, np.ndarray) or not isinstance(volumes, (list, tuple)):
         raise InvalidInputError(f"volumes must be a list of (L, H, W) arrays, got "
                                 f"{shown(volumes)}")
@@ -1194,7 +1214,6 @@ def fuse(volumes: Sequence[np.ndarray], weights: Sequence[float] | None = None, 
     if w is None or len(w) != len(vols):
         raise InvalidInputError(f"weights must be {len(vols)} finite numbers >= 0, not all 0, "
                                 f"with a finite sum, got {shown(weights)}")
-    w = np.asarray(w, np.float64)
     if scales is None:
         sds = [None] * len(vols)
     elif isinstance(scales, (list, tuple, np.ndarray)) and np.ndim(scales) == 1:
@@ -1204,31 +1223,27 @@ def fuse(volumes: Sequence[np.ndarray], weights: Sequence[float] | None = None, 
     if len(sds) != len(vols):
         raise InvalidInputError(f"scales must give one number per volume ({len(vols)}), got "
                                 f"{shown(scales)}")
-    dmin = check_dmin(dmin)
-    if valid is not None:
-        bool_mask(valid, "valid", shape, broadcast=True, of="the volumes")
-    choice(centre, "centre", NORMALISE_CENTRES)
-    overwrite = flag(overwrite, "overwrite")
-    if check_impl(impl, "normalise") == "numba":
-        from ._kernels import fuse_fill
+    return vols, np.asarray(w, np.float64), sds
 
-        Lc, H, W = shape
-        if valid is None:
-            valid = candidate_validity((H, W), dmin, dmin + Lc - 1)
-        ok = kernel_input(np.broadcast_to(np.asarray(valid, bool), shape))
-        keep = [i for i in range(len(vols)) if w[i]]
-        parts = tuple(normalise_volume(vols[i], dmin, ok, sd=sds[i], impl="numba",
-                                       overwrite=overwrite, centre=centre) for i in keep)
-        own = overwrite and _own_float32(vols[keep[0]], parts[0])
-        out = parts[0] if own else np.empty(shape, np.float32)
-        fuse_fill(parts, np.ascontiguousarray(w[keep]), ok, out)  # reads, then writes, each entry
-        return out
-    out = np.zeros(shape, np.float64)
-    for wi, v, sd in zip(w, vols, sds):
-        if wi:
-            out += wi * normalise_volume(v, dmin, valid, sd=sd, impl="numpy", centre=centre)
-    out /= w.sum()
-    return fill_out_of_image(out.astype(np.float32), dmin, valid)
+
+def _fuse_numba(vols: list, w: np.ndarray, sds: list, dmin: int, valid, overwrite: bool,
+                centre: str) -> np.ndarray:
+    """:func:`fuse` by the numba kernels: the weighted sum and the out-of-image fill in one
+    pass, the result in the first volume where ``overwrite`` lets it."""
+    from ._kernels import fuse_fill
+
+    shape = vols[0].shape
+    Lc, H, W = shape
+    if valid is None:
+        valid = candidate_validity((H, W), dmin, dmin + Lc - 1)
+    ok = kernel_input(np.broadcast_to(np.asarray(valid, bool), shape))
+    keep = [i for i in range(len(vols)) if w[i]]
+    parts = tuple(normalise_volume(vols[i], dmin, ok, sd=sds[i], impl="numba",
+                                   overwrite=overwrite, centre=centre) for i in keep)
+    own = overwrite and _own_float32(vols[keep[0]], parts[0])
+    out = parts[0] if own else np.empty(shape, np.float32)
+    fuse_fill(parts, np.ascontiguousarray(w[keep]), ok, out)  # reads, then writes, each entry
+    return out
 
 
 def fused_volume(left, right, dmin, dmax, window=None, impl: str = "auto",
