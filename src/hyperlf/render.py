@@ -102,7 +102,7 @@ import numpy as np
 
 from . import _options as _opt
 from . import spectral
-from ._atomic import atomic_path
+from ._atomic import atomic_path, atomic_write_text
 from ._progress import progress_bar
 from .errors import InvalidInputError
 from .lightfield import centre_view, grid_positions
@@ -572,7 +572,7 @@ def _make_plan(profile, src: _Source, white_balance: bool = True, illuminant=Non
     encode = output == "srgb"
     view_wl = None if src.kind == "cube" else src.wavelengths
     wl_bands = src.wavelengths if view_wl is None else np.unique(view_wl)
-    if profile is None or (isinstance(profile, str) and profile.lower() == "bands"):
+    if _all_bands(profile):
         return _all_bands_plan(src, wl_bands, view_wl, encode)
     if _is_number(profile):
         return _band_plan(src, wl_bands, view_wl, profile, encode)
@@ -581,6 +581,11 @@ def _make_plan(profile, src: _Source, white_balance: bool = True, illuminant=Non
         return _camera_plan(profile if arr is None else arr, wl_bands, white_balance,
                             illuminant, white, output, ccm, ccm_source, src.kind, view_wl)
     return _weights_plan(src, wl_bands, view_wl, arr, encode)
+
+
+def _all_bands(profile) -> bool:
+    """Whether ``profile`` asks for every band (None or ``"bands"``), not one image."""
+    return profile is None or (isinstance(profile, str) and profile.lower() == "bands")
 
 
 def _linear_plan(K: int, band_matrix, view_weights, encode: bool, layout: str,
@@ -1407,8 +1412,6 @@ def focal_sweep(views_or_cube, offsets=None, disparities=None, profile="CIE 1931
         ``{"frames": [Path, ...], "gif": Path or None, "mp4": Path or None,
         "webm": Path or None, "disparities": ndarray, "table": Path}``.
     """
-    from .formats.images import write_image
-
     if out_dir is None:
         raise InvalidInputError("focal_sweep needs out_dir, the folder to write the frames to")
     if disparities is None:
@@ -1421,31 +1424,16 @@ def focal_sweep(views_or_cube, offsets=None, disparities=None, profile="CIE 1931
     if not isinstance(stem, str) or not stem or os.sep in stem or "/" in stem:
         raise InvalidInputError("stem must be a file name without a folder, e.g. 'refocus', "
                                 f"got {_opt.shown(stem)}")  # the frames go into out_dir
-    if isinstance(formats, str):
-        formats = (formats,)
-    if not isinstance(formats, Iterable) or isinstance(formats, dict):
-        raise InvalidInputError(f"formats must be a sequence of 'gif', 'mp4' and 'webm', got "
-                                f"{_opt.shown(formats)}")
-    fmts = [str(f).lower().lstrip(".") for f in formats]
-    for f in fmts:
-        if f != "gif" and f not in _VIDEOS:
-            raise InvalidInputError(f"unknown animation format {f!r}; use any of 'gif', 'mp4' "
-                                    "and 'webm'")
+    fmts = _animation_formats(formats)
+    if _all_bands(profile):
+        raise InvalidInputError("a focal sweep needs an image profile (a camera, a band or "
+                                "weights), not all bands")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     frames = focal_stack(views_or_cube, offsets, list(ds), profile, wavelengths=wavelengths,
                          output=output, exposure=exposure,
                          exposure_percentile=exposure_percentile, progress=progress, **kwargs)
-    if frames[0].ndim == 3 and frames[0].shape[-1] != 3:
-        raise InvalidInputError("a focal sweep needs an image profile (a camera, a band or "
-                                "weights), not all bands")
-    paths = []
-    for i, f in enumerate(frames):
-        paths.append(write_image(out / f"{stem}_{i:03d}.png", np.nan_to_num(f),
-                                 bit_depth=bit_depth))
-    table = out / f"{stem}_frames.csv"   # which disparity each frame is focused at
-    table.write_text("frame,file,disparity\n" + "".join(
-        f"{i},{q.name},{d:.6g}\n" for i, (q, d) in enumerate(zip(paths, ds))), encoding="utf-8")
+    paths, table = _write_frames(out, stem, frames, ds, bit_depth)
     u8 = [_to_uint8_rgb(f) for f in frames]
     if annotate:
         u8 = [_annotate(f, f"d = {d:+.2f}") for f, d in zip(u8, ds)]
@@ -1457,6 +1445,33 @@ def focal_sweep(views_or_cube, offsets=None, disparities=None, profile="CIE 1931
         if fmt in fmts:
             result[fmt] = _write_video(out / f"{stem}.{fmt}", u8, fps, *codec)
     return result
+
+
+def _animation_formats(formats) -> list[str]:
+    """``formats`` as lower-case names among ``gif``, ``mp4`` and ``webm``."""
+    if isinstance(formats, str):
+        formats = (formats,)
+    if not isinstance(formats, Iterable) or isinstance(formats, dict):
+        raise InvalidInputError(f"formats must be a sequence of 'gif', 'mp4' and 'webm', got "
+                                f"{_opt.shown(formats)}")
+    fmts = [str(f).lower().lstrip(".") for f in formats]
+    for f in fmts:
+        if f != "gif" and f not in _VIDEOS:
+            raise InvalidInputError(f"unknown animation format {f!r}; use any of 'gif', 'mp4' "
+                                    "and 'webm'")
+    return fmts
+
+
+def _write_frames(out: Path, stem: str, frames: list, ds: np.ndarray, bit_depth: int):
+    """The frames as PNGs and a table of the disparity each is focused at: their paths."""
+    from .formats.images import write_image
+
+    paths = [write_image(out / f"{stem}_{i:03d}.png", np.nan_to_num(f), bit_depth=bit_depth)
+             for i, f in enumerate(frames)]
+    table = out / f"{stem}_frames.csv"
+    atomic_write_text(table, "frame,file,disparity\n" + "".join(
+        f"{i},{q.name},{d:.6g}\n" for i, (q, d) in enumerate(zip(paths, ds))))
+    return paths, table
 
 
 # ============================================================================ spectra
