@@ -93,17 +93,31 @@ def _outcome(fn, kw: dict, *, sentinels: bool) -> str:
     return "ran"
 
 
+#: Calls with long work that the fuzzers' tables reach only through lambdas.
+_OWN_SITES = ("twoview.stereo", "render.focal_sweep", "baselines.tao2013",
+              "baselines.wang2015", "baselines.lin2015")
+
+
+@functools.lru_cache(maxsize=1)
 def _sites() -> dict:
-    from hyperlf import twoview
+    from hyperlf import baselines, render, synthesis, twoview
 
     rng = np.random.default_rng(0)
     left = rng.random((20, 28)).astype(np.float32)
-    return {**{name: N._tables()[name] for name in _TABLE_SITES},
-            "twoview.stereo": (twoview.stereo, dict(left=left, right=np.roll(left, -2, axis=1),
-                                                    disparity_range=(0, 4)))}
+    lf = synthesis.procedural_scene(seed=1, rows=2, cols=2, height=12, width=16,
+                                    disparity_range=(-1.0, 1.0))
+    own = {"twoview.stereo": (twoview.stereo, dict(left=left, right=np.roll(left, -2, axis=1),
+                                                   disparity_range=(0, 4))),
+           "render.focal_sweep": (render.focal_sweep, dict(
+               views_or_cube=lf.gt_cube, offsets=lf.offsets, disparities=[0.0, 0.5],
+               profile="CIE 1931", wavelengths=lf.cube_wavelengths, out_dir="sweep",
+               formats=("gif",)))}
+    for fn in (baselines.tao2013, baselines.wang2015, baselines.lin2015):
+        own[f"baselines.{fn.__name__}"] = (fn, dict(lf=lf, n_labels=4))
+    return {**{name: N._tables()[name] for name in _TABLE_SITES}, **own}
 
 
-@pytest.mark.parametrize("name", [*_TABLE_SITES, "twoview.stereo"])
+@pytest.mark.parametrize("name", [*_TABLE_SITES, *_OWN_SITES])
 def test_refused_before_long_work(name):
     fn, base = _sites()[name]
     assert _outcome(fn, base, sentinels=True) == "long work", \
