@@ -3,6 +3,7 @@
 import doctest
 import importlib
 import pkgutil
+import tempfile
 
 import numpy as np
 import pytest
@@ -18,7 +19,9 @@ def test_the_public_modules_are_found():
 
 
 @pytest.mark.parametrize("name", MODULES)
-def test_examples_run(name):
+def test_examples_run(name, tmp_path, monkeypatch):
+    # the examples' tempfile.mkdtemp() folders go into the test's own, which pytest removes
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
     module = importlib.import_module(name)
     # numpy's own printing, whatever an imported package (colour-science) has set
     with np.printoptions(legacy=False):
