@@ -8,6 +8,7 @@ import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -383,6 +384,9 @@ def test_a_local_cluster_keeps_its_scratch_inside_the_batch_folder(captures, tmp
         return real(workers, scheduler, scratch)
 
     monkeypatch.setattr(batch, "_client", spy)
+    system = tmp_path / "system-temp"  # the scheduler's scratch went there (dask's default)
+    system.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(system))
     tasks = batch.plan_batch([captures / "frame0"], tmp_path / "b",
                              depth_args=["--labels", str(LABELS)])
     stale = tmp_path / "b" / f"{batch.SCRATCH_PREFIX}999999999-x"
@@ -391,3 +395,4 @@ def test_a_local_cluster_keeps_its_scratch_inside_the_batch_folder(captures, tmp
     assert rows[0].status == "done"
     assert seen["scratch"].parent == tmp_path / "b"
     assert not seen["scratch"].exists() and not stale.exists()
+    assert list(system.iterdir()) == []

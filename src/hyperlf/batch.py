@@ -422,6 +422,7 @@ def _client(workers: int, scheduler: str | None, scratch: Path | None = None):
     numba parallelises inside each capture) whose scratch files go to ``scratch`` (dask's
     default is a shared folder of the system's, which it leaves behind)."""
     try:
+        import dask
         from dask.distributed import Client, LocalCluster
     except ImportError:
         raise InvalidInputError("hyperlf batch needs dask.distributed: pip install "
@@ -440,10 +441,12 @@ def _client(workers: int, scheduler: str | None, scratch: Path | None = None):
     # this process closes the cluster on an interrupt, and the workers print no traceback.
     main = threading.current_thread() is threading.main_thread()  # signal() works only there
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
-    try:
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.ERROR,
-                               local_directory=None if scratch is None else os.fspath(scratch))
+    here = {} if scratch is None else {"temporary-directory": os.fspath(scratch)}
+    try:  # the scheduler's scratch too (it takes dask's temporary-directory, not the option)
+        with dask.config.set(here):
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=None, silence_logs=logging.ERROR,
+                                   local_directory=None if scratch is None else os.fspath(scratch))
     finally:
         if main:
             signal.signal(signal.SIGINT, previous)
