@@ -86,10 +86,8 @@ TUNE_GRID = {
 
 def load_scene(name: str):
     pair = read_middlebury(data_path(name))
-    gt = pair.gt_disparity
-    dmax = max(int(pair.max_disparity), int(math.ceil(float(np.nanmax(gt)))))
     mask_name = "all" if "all" in pair.masks else "gt"
-    return pair, (0, dmax), pair.eval_mask("all"), mask_name
+    return pair, pair.search_range, pair.eval_mask("all"), mask_name
 
 
 def visible_mask(pair) -> np.ndarray:

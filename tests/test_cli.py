@@ -180,6 +180,81 @@ def test_stereo_command_writes_disparity_products(tmp_path):
                  "-o", str(out)]) == 2  # no range given: usage error with a hint
 
 
+def _scene_folder(folder, shift=4, dmax=7):
+    """A v2 Middlebury scene folder: a textured pair shifted by ``shift`` px, ground truth
+    ``shift`` with an unknown band, and an evaluation mask without its first rows."""
+    from hyperlf.formats import StereoPair, write_middlebury
+
+    rng = np.random.default_rng(5)
+    tex = np.repeat(rng.random((40, 70 + shift))[..., None], 3, axis=2).astype(np.float32)
+    gt = np.full((40, 70), float(shift), np.float32)
+    gt[:, :3] = np.nan
+    mask = np.ones((40, 70), bool)
+    mask[:5] = False
+    return write_middlebury(folder, StereoPair(
+        left=tex[:, shift:shift + 70], right=tex[:, :70], gt_disparity=gt,
+        masks={"all": mask}, scale=8.0, max_disparity=dmax))
+
+
+def test_stereo_of_a_scene_folder_takes_its_range_and_scores_its_map(tmp_path, capsys,
+                                                                      monkeypatch):
+    """A Middlebury scene folder given alone: matched over its own range, scored against its
+    ground truth on its evaluation mask, with an error picture."""
+    from hyperlf import twoview
+    from hyperlf.formats import read_pfm
+
+    scene = _scene_folder(tmp_path / "scene")
+    seen = {}
+    real = twoview.stereo
+
+    def spy(left, right, disparity_range, **kw):
+        seen["range"] = disparity_range
+        return real(left, right, disparity_range, **kw)
+
+    monkeypatch.setattr(twoview, "stereo", spy)
+    capsys.readouterr()
+    assert main(["stereo", str(scene), "-o", str(tmp_path / "o")]) == 0
+    assert seen["range"] == (0, 7)
+    d = read_pfm(tmp_path / "o" / "disparity.pfm")
+    bad = np.abs(d - 4) > 5
+    bad[:5] = False  # outside the mask
+    bad[:, :3] = False  # no ground truth
+    want = 100 * bad.sum() / (35 * 67)
+    err = capsys.readouterr().err
+    line = next(ln for ln in err.splitlines() if "against the ground truth" in ln)
+    assert f"(all, {35 * 67} px): bad5.0 {want:.2f} %" in line
+    assert (tmp_path / "o" / "disparity_error.png").is_file()
+    assert main(["-q", "stereo", str(scene), "--disparity-range", "0,5",
+                 "-o", str(tmp_path / "p")]) == 0
+    assert seen["range"] == (0, 5)
+
+
+@pytest.mark.parametrize("inputs, words", [
+    (lambda s: [s, s / "imR.png"], "is a folder: give a Middlebury scene folder alone"),
+    (lambda s: [s / "imL.png"], "give the right image after"),
+    (lambda s: [s.parent], "is not a Middlebury scene"),
+])
+def test_stereo_refuses_a_scene_folder_with_a_right_image_or_an_image_alone(
+        tmp_path, capsys, inputs, words):
+    scene = _scene_folder(tmp_path / "scene")
+    capsys.readouterr()
+    code = main(["-q", "stereo", *map(str, inputs(scene)), "-o", str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip()
+    assert code in (2, 4) and words in err and "\n" not in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_stereo_of_tsukubas_folder_reproduces_table_1(tmp_path, capsys):
+    """The command on the scene folder gives Table 1's figures (``auto``, graph cuts, red
+    vs blue; BENCHMARKS.md)."""
+    from conftest import require_dataset
+
+    scene = require_dataset("middlebury/tsukuba")
+    capsys.readouterr()
+    assert main(["stereo", str(scene), "--channel", "0,2", "-o", str(tmp_path / "o")]) == 0
+    assert "bad5.0 1.64 %, bad2.0 3.05 %, bad1.0 4.14 %" in capsys.readouterr().err
+
+
 def test_refocus_refuses_a_sweep_the_memory_cannot_hold(tmp_path, capsys, monkeypatch):
     """Every frame of a sweep is held until the animations are written: 100000 frames ran the
     machine out of memory; a sweep above the memory available is refused in one line."""

@@ -134,6 +134,8 @@ def test_middlebury_real(name):
         assert gt.max() < 59
     if name == "art":
         assert p.masks == {} and 100 < gt.max() < 130
+    # the range Table 1 searches: to the ground truth's largest value where it is higher
+    assert p.search_range == (0, {"tsukuba": 15, "teddy": 59, "venus": 20, "art": 119}[name])
 
 
 @pytest.mark.parametrize("name, agree", [("tsukuba", 0.999), ("teddy", 0.99), ("venus", 0.995)])

@@ -836,37 +836,85 @@ def _cmd_stereo(args, dest) -> list[Path]:
     holds about 20-70 bytes per pixel and disparity; a pair and range that cannot fit in the
     memory available are refused before any matching.
 
+    A Middlebury scene folder given alone (imL/imR or view1/view5 with their ground truth, as
+    in $HYPERLF_DATA/middlebury) is matched over its own range unless --disparity-range says
+    otherwise, and its map is scored against the ground truth on the scene's evaluation mask
+    (bad-pixel shares on stderr, disparity_error.png), as Table 1 scores it.
+
     examples:
       hyperlf stereo imL.png imR.png --disparity-range 0,59 -o out
       hyperlf stereo imL.png imR.png --channel 0,2 --metric bwncc --disparity-range 0,15 -o out   # red vs blue
       hyperlf stereo imL.png imR.png --disparity-range 0,59 --occlusion lr-fill -o out   # the paper's fill
+      hyperlf stereo $HYPERLF_DATA/middlebury/art --channel 0,2 -o art   # Table 1's Art, scored
     """
     from .pipeline import save_disparity_outputs
     from .twoview import stereo
 
     _check_fusion_weights(args)
-    left, right = _read_stereo_image(args.left), _read_stereo_image(args.right)
-    if args.disparity_range is None:
-        raise InvalidInputError("give --disparity-range MIN,MAX (integers, px; left x matches "
-                                "right x - d)")
-    lo, hi = args.disparity_range
-    if lo != int(lo) or hi != int(hi):
-        raise InvalidInputError(f"--disparity-range must be integers, got {lo:g},{hi:g}")
-    _check_pair_memory((int(lo), int(hi)), left.shape[:2])
-    channel = args.channel
-    res = stereo(left, right, (int(lo), int(hi)), metric=args.metric, optimizer=args.optimizer,
+    left, right, pair = _stereo_inputs(args)
+    lo, hi = _stereo_range(args, pair)
+    _check_pair_memory((lo, hi), left.shape[:2])
+    res = stereo(left, right, (lo, hi), metric=args.metric, optimizer=args.optimizer,
                  occlusion="none" if args.no_occlusion else args.occlusion,
                  subpixel=args.subpixel, aggregation=_aggregation_of(args),
-                 channel=channel, progress=_bars(args),
+                 channel=args.channel, progress=_bars(args),
                  cost_params=None if args.fusion_weights is None
                  else {"weights": args.fusion_weights},
                  confidence_params=_stereo_confidence_params(args))
+    truth = None if pair is None else pair.gt_disparity
     written = save_disparity_outputs(dest, res.disparity,
                                       f"{res.metric} + {res.optimizer}", confidence=res.confidence,
-                                      unit="px")
+                                      unit="px", truth=truth, error_vmax=STEREO_ERROR_VMAX)
     t = res.timings
     _say(args, f"cost {t['cost']:.1f} s, optimiser {t['optimiser']:.1f} s, total {t['total']:.1f} s")
+    if pair is not None:
+        _say_stereo_scores(args, res.disparity, pair)
     return written
+
+
+#: The error at the top of a scored pair's error picture (px): Table 1's bad5.0 threshold.
+STEREO_ERROR_VMAX = 5.0
+
+
+def _stereo_inputs(args):
+    """``(left, right, scene)``: two images, or a Middlebury scene folder's two views and the
+    scene (None for two images)."""
+    from .formats import read_middlebury
+
+    if args.right is not None:
+        if Path(args.left).is_dir():
+            raise InvalidInputError(f"{args.left} is a folder: give a Middlebury scene folder "
+                                    "alone, or two images")
+        return _read_stereo_image(args.left), _read_stereo_image(args.right), None
+    if not Path(args.left).is_dir():
+        raise InvalidInputError(f"give the right image after {args.left}, or a Middlebury "
+                                "scene folder alone")
+    pair = read_middlebury(args.left)
+    return pair.left, pair.right, pair
+
+
+def _stereo_range(args, pair) -> tuple[int, int]:
+    """``--disparity-range`` as integers, else a scene folder's own range."""
+    if args.disparity_range is None:
+        if pair is None:
+            raise InvalidInputError("give --disparity-range MIN,MAX (integers, px; left x "
+                                    "matches right x - d)")
+        return pair.search_range
+    lo, hi = args.disparity_range
+    if lo != int(lo) or hi != int(hi):
+        raise InvalidInputError(f"--disparity-range must be integers, got {lo:g},{hi:g}")
+    return int(lo), int(hi)
+
+
+def _say_stereo_scores(args, disparity: np.ndarray, pair) -> None:
+    """Bad-pixel shares against a scene's ground truth on its evaluation mask (``all``
+    where the scene has one, else every pixel with ground truth), as Table 1 scores."""
+    from .metrics import disparity_scores
+
+    name = "all" if "all" in pair.masks else "every pixel with ground truth"
+    s = disparity_scores(disparity, pair.gt_disparity, mask=pair.eval_mask("all"))
+    _say(args, f"against the ground truth ({name}, {s.n_pixels} px): bad5.0 {s.bad_5:.2f} %, "
+               f"bad2.0 {s.bad_2:.2f} %, bad1.0 {s.bad_1:.2f} %, RMSE {s.rmse:.3f} px")
 
 
 def _stereo_confidence_params(args):
@@ -1824,10 +1872,14 @@ def _add_stereo_parser(sub) -> None:
     from .twoview import DEFAULT_OCCLUSION, OCCLUSION_MODES
 
     p = _subcommand(sub, "stereo", _cmd_stereo, help="cross-spectral two-view stereo")
-    p.add_argument("left", help="left image of the rectified pair (disparity is its)")
-    p.add_argument("right", help="right image, seeing the same rows")
+    p.add_argument("left", help="left image of the rectified pair (disparity is its), or a "
+                                "Middlebury scene folder (v2 or 2005 layout) alone: its two "
+                                "views, search range and ground truth")
+    p.add_argument("right", nargs="?", default=None,
+                   help="right image, seeing the same rows (none for a scene folder)")
     p.add_argument("--disparity-range", type=_range_arg, default=None, metavar="MIN,MAX",
-                   help="integer disparity search range in px (needed; write "
+                   help="integer disparity search range in px (needed for two images; a "
+                        "scene folder's default is 0 to its largest disparity; write "
                         "--disparity-range=-8,8 for a negative MIN)")
     _add_metric_option(p, help="matching cost (default auto: the library's cross-spectral "
                                "default)")

@@ -180,8 +180,8 @@ def write_lightfield_pictures(lf, out: str | os.PathLike, stem: str = "") -> lis
 def save_disparity_outputs(out: str | os.PathLike, disparity: np.ndarray, title: str,
                            *, truth: np.ndarray | None = None,
                            confidence: np.ndarray | None = None,
-                           stem: str = "disparity", unit: str = "px per baseline"
-                           ) -> list[Path]:
+                           stem: str = "disparity", unit: str = "px per baseline",
+                           error_vmax: float = 1.0) -> list[Path]:
     """Write a disparity map as PFM (exact), 16-bit PNG and a colour-mapped picture.
 
     The 16-bit PNG holds ``(disparity - offset) * 256`` rounded; the offset is written to a
@@ -203,6 +203,10 @@ def save_disparity_outputs(out: str | os.PathLike, disparity: np.ndarray, title:
         File-name stem (default ``"disparity"``).
     unit : str
         The disparity's unit, for the ``.txt`` (a pair's disparity is in px).
+    error_vmax : float
+        The error (in the disparity's unit) at the top of the error picture's colour map:
+        1 for a light field's sub-pixel disparities, the bad-pixel threshold for a pair's
+        (in (0, 1e6]).
 
     Returns
     -------
@@ -219,6 +223,7 @@ def save_disparity_outputs(out: str | os.PathLike, disparity: np.ndarray, title:
     _map(truth, "truth", shape, optional=True)
     _map(confidence, "confidence", shape, optional=True)
     _text(title, "title"), _stem(stem), _text(unit, "unit")
+    error_vmax = _opt.number(error_vmax, "error_vmax", positive=True, at_most=1e6)
     written = [write_pfm(out / f"{stem}.pfm", disparity)]
     d = np.nan_to_num(np.asarray(disparity, dtype=np.float64), nan=0.0)
     offset = float(min(0.0, np.floor(d.min())))
@@ -229,7 +234,8 @@ def save_disparity_outputs(out: str | os.PathLike, disparity: np.ndarray, title:
         f"disparity = value / 256 + ({offset:g})   # {unit}; exact values in {stem}.pfm\n"))
     written.append(visualise.save_disparity_png(out / f"{stem}.png", disparity, title=title))
     if truth is not None:
-        written.append(visualise.save_error_png(out / f"{stem}_error.png", disparity, truth))
+        written.append(visualise.save_error_png(out / f"{stem}_error.png", disparity, truth,
+                                                vmax=error_vmax))
     if confidence is not None:
         written.append(write_pfm(out / "confidence.pfm", confidence))
         written.append(visualise.save_disparity_png(out / "confidence.png", confidence,

@@ -93,6 +93,14 @@ class StereoPair:
         """Pixels with known ground truth, shape (H, W)."""
         return np.isfinite(self.gt_disparity)
 
+    @property
+    def search_range(self) -> tuple[int, int]:
+        """``(0, dmax)``, the disparities Table 1 searches: ``max_disparity`` widened to
+        reach the ground truth's largest value (Venus's reaches 19.75 with a maximum of 19)."""
+        known = self.gt_disparity[self.valid]
+        top = int(math.ceil(float(known.max()))) if known.size else 0
+        return 0, max(int(self.max_disparity), top)
+
     def eval_mask(self, name: str = "all") -> np.ndarray:
         """The named mask and known ground truth, or just known ground truth if absent."""
         if not isinstance(name, str):
