@@ -57,22 +57,34 @@ def read_pfm(path: str | os.PathLike) -> np.ndarray:
     if not p.is_file():
         raise DataNotFoundError(f"PFM file {p} does not exist")
     try:
-        buf = p.read_bytes()
+        with open(p, "rb") as f:
+            channels, w, h, dtype, start = _pfm_header(p, f.read(256))
+            have = os.fstat(f.fileno()).st_size - start
+            n = w * h * channels
+            if have != 4 * n:
+                raise FormatError(_size_mismatch(p, w, h, channels, have))
+            f.seek(start)
+            data = np.fromfile(f, dtype=dtype, count=n)
     except OSError as exc:
         raise FormatError(f"cannot read PFM file {p}: {exc.strerror or exc}") from None
-    m = _HEADER.match(buf[:256])
+    shape = (h, w) if channels == 1 else (h, w, 3)
+    return np.ascontiguousarray(np.flipud(data.reshape(shape)).astype(np.float32))
+
+
+def _pfm_header(p: Path, head: bytes) -> tuple:
+    """``(channels, width, height, dtype, data offset)`` of the PFM header at the start of
+    ``head``, each checked."""
+    m = _HEADER.match(head)
     if m is None:
-        head = buf[:2]
-        if head not in (b"Pf", b"PF"):
+        if head[:2] not in (b"Pf", b"PF"):
             raise FormatError(
                 f"{p} is not a PFM file: it must start with 'Pf' (grey) or 'PF' (colour), "
-                f"found {head!r}; re-export the map as PFM"
+                f"found {head[:2]!r}; re-export the map as PFM"
             )
         raise FormatError(
             f"{p} has a malformed PFM header: expected 'Pf|PF', then 'width height', then a "
             "non-zero scale, separated by whitespace; re-export the map as PFM"
         )
-    channels = 3 if m["id"] == b"PF" else 1
     w, h = int(m["w"]), int(m["h"])
     try:
         scale = float(m["scale"])
@@ -85,23 +97,19 @@ def read_pfm(path: str | os.PathLike) -> np.ndarray:
             f"{p} has PFM scale {m['scale'].decode(errors='replace')!r}; it must be a non-zero "
             "number (negative = little-endian)"
         )
-    start = m.end()
-    n = w * h * channels
-    have = len(buf) - start
-    if have < 4 * n:
-        raise FormatError(
-            f"{p} is truncated: the header declares {w} x {h} x {channels} float32 values "
-            f"({4 * n} bytes) but only {have} bytes follow; the file was cut short, copy it again"
-        )
-    if have > 4 * n:
-        raise FormatError(
-            f"{p} has {have - 4 * n} bytes more than its header declares ({w} x {h} x {channels} "
-            "float32 values); the header or the data is corrupt"
-        )
     dtype = np.dtype("<f4") if scale < 0 else np.dtype(">f4")
-    data = np.frombuffer(buf, dtype=dtype, count=n, offset=start)
-    shape = (h, w) if channels == 1 else (h, w, 3)
-    return np.ascontiguousarray(np.flipud(data.reshape(shape)).astype(np.float32))
+    return 3 if m["id"] == b"PF" else 1, w, h, dtype, m.end()
+
+
+def _size_mismatch(p: Path, w: int, h: int, channels: int, have: int) -> str:
+    """Why ``have`` bytes after the header do not hold ``w x h x channels`` float32 values."""
+    n = w * h * channels
+    if have < 4 * n:
+        return (f"{p} is truncated: the header declares {w} x {h} x {channels} float32 values "
+                f"({4 * n} bytes) but only {have} bytes follow; the file was cut short, copy it "
+                "again")
+    return (f"{p} has {have - 4 * n} bytes more than its header declares ({w} x {h} x "
+            f"{channels} float32 values); the header or the data is corrupt")
 
 
 def write_pfm(path: str | os.PathLike, array, scale: float = -1.0) -> Path:
