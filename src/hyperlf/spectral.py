@@ -343,12 +343,12 @@ def _data_file(path, dataset: str, what: str, hint: str) -> Path:
 @lru_cache(maxsize=8)
 def _parse_camspec(path: str, mtime_ns: int) -> dict:
     """The cameras of the camspec text file ``path``: name -> (wavelengths, (33, 3))."""
-    lines = _camspec_lines(path)
+    lines = _text_lines(path, "the camspec database")
     cameras: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     j = 0
     while j < len(lines):
         lineno, line = lines[j]
-        if _numbers(line) is not None:
+        if _numbers(line.split()) is not None:
             raise FormatError(
                 f"{path}:{lineno}: numeric line without a camera name before it; the camspec "
                 "format is a name line followed by 3 lines (R, G, B) of 33 values"
@@ -369,21 +369,22 @@ def _parse_camspec(path: str, mtime_ns: int) -> dict:
     return cameras
 
 
-def _camspec_lines(path: str) -> list[tuple[int, str]]:
-    """The non-blank lines of ``path`` with their numbers, stripped."""
+def _text_lines(path, expected: str) -> list[tuple[int, str]]:
+    """The non-blank lines of the text file ``path`` with their numbers, stripped (a UTF-8
+    byte-order mark dropped); ``expected`` names the content for the refusals."""
     try:
         text = Path(path).read_text(encoding="utf-8-sig")
     except UnicodeDecodeError:
-        raise FormatError(f"{path} is not a UTF-8 text file; expected the camspec database") from None
+        raise FormatError(f"{path} is not a UTF-8 text file; expected {expected}") from None
     except OSError as exc:
         raise FormatError(f"cannot read {path}: {exc.strerror or exc}") from None
     return [(i + 1, ln.strip()) for i, ln in enumerate(text.splitlines()) if ln.strip()]
 
 
-def _numbers(line: str) -> list[float] | None:
-    """The line's whitespace-separated numbers, or None where one is not a number."""
+def _numbers(tokens) -> list[float] | None:
+    """The tokens as floats, or None where one is not a number."""
     try:
-        return [float(t) for t in line.split()]
+        return [float(t) for t in tokens]
     except ValueError:
         return None
 
@@ -393,7 +394,7 @@ def _camspec_camera(path: str, block: list[tuple[int, str]]) -> np.ndarray | Non
     on the three lines after it, or None where no numeric line follows (a header line)."""
     (lineno, name), following = block[0], []
     for _, ln in block[1:]:
-        values = _numbers(ln)
+        values = _numbers(ln.split())
         if values is None:
             break
         following.append(values)
@@ -451,11 +452,31 @@ def load_camspec(path: str | os.PathLike | None = None) -> dict[str, tuple[np.nd
     return dict(_parse_camspec(str(p.resolve()), p.stat().st_mtime_ns))
 
 
-def _parse_float(token: str) -> float | None:
-    try:
-        return float(token)
-    except ValueError:
-        return None
+def _csv_tokens(line: str) -> list[str]:
+    """The line's values: comma-separated (one trailing comma tolerated), else by
+    whitespace."""
+    if "," not in line:
+        return line.split()
+    tokens = [t.strip() for t in line.split(",")]
+    return tokens[:-1] if tokens[-1] == "" else tokens
+
+
+def _sensitivity_row(p: Path, lineno: int, line: str) -> list[float]:
+    """One row ``wavelength_nm, r, g, b`` of a sensitivity file, checked."""
+    tokens = _csv_tokens(line)
+    values = _numbers(tokens)
+    if values is None or not tokens:
+        raise FormatError(
+            f"{p}:{lineno}: non-numeric value in {line[:60]!r}; expected 4 numbers "
+            "wavelength_nm, r, g, b"
+        )
+    if len(values) != 4:
+        raise FormatError(
+            f"{p}:{lineno}: {len(values)} column(s), expected 4 (wavelength_nm, r, g, b)"
+        )
+    if not all(math.isfinite(v) for v in values):
+        raise FormatError(f"{p}:{lineno}: NaN or infinite value; all values must be finite")
+    return values
 
 
 def load_sensitivities_csv(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
@@ -489,41 +510,10 @@ def load_sensitivities_csv(path: str | os.PathLike) -> tuple[np.ndarray, np.ndar
     p = expand_user(path)
     if not p.is_file():
         raise DataNotFoundError(f"sensitivity file {p} does not exist; check the path")
-    try:
-        text = p.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError:
-        raise FormatError(f"{p} is not a UTF-8 text file; expected CSV rows wavelength_nm,r,g,b") from None
-    except OSError as exc:
-        raise FormatError(f"cannot read {p}: {exc.strerror or exc}") from None
-    rows: list[list[float]] = []
-    seen_content = False
-    for lineno, raw in enumerate(text.splitlines(), start=1):
-        line = raw.strip()
-        if not line or line.startswith("#"):
-            continue
-        if "," in line:
-            tokens = [t.strip() for t in line.split(",")]
-            if tokens and tokens[-1] == "":  # tolerate one trailing comma
-                tokens = tokens[:-1]
-        else:
-            tokens = line.split()
-        values = [_parse_float(t) for t in tokens]
-        if any(v is None for v in values) or not tokens:
-            if not seen_content:  # header row
-                seen_content = True
-                continue
-            raise FormatError(
-                f"{p}:{lineno}: non-numeric value in {line[:60]!r}; expected 4 numbers "
-                "wavelength_nm, r, g, b"
-            )
-        seen_content = True
-        if len(values) != 4:
-            raise FormatError(
-                f"{p}:{lineno}: {len(values)} column(s), expected 4 (wavelength_nm, r, g, b)"
-            )
-        if not all(math.isfinite(v) for v in values):
-            raise FormatError(f"{p}:{lineno}: NaN or infinite value; all values must be finite")
-        rows.append(values)  # type: ignore[arg-type]
+    lines = [(n, ln) for n, ln in _text_lines(p, "CSV rows wavelength_nm,r,g,b")
+             if not ln.startswith("#")]
+    rows = [_sensitivity_row(p, n, ln) for k, (n, ln) in enumerate(lines)
+            if k or _numbers(_csv_tokens(ln)) is not None]  # the first may be a header
     if len(rows) < 2:
         raise FormatError(
             f"{p} has {len(rows)} data row(s); expected at least 2 rows of wavelength_nm, r, g, b"
@@ -1439,11 +1429,7 @@ def reflectance_library(source: str = "auto", wavelengths=None) -> tuple[np.ndar
 
 @lru_cache(maxsize=4)
 def _parse_filters(path: str, mtime_ns: int):
-    try:
-        text = Path(path).read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError:
-        raise FormatError(f"{path} is not a UTF-8 text file") from None
-    lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
+    lines = [ln for _, ln in _text_lines(path, "a filter transmission table (CSV)")]
     if len(lines) < 3:
         raise FormatError(f"{path} has too few lines for a filter transmission table")
     header = [h.strip() for h in lines[0].split(",")]
@@ -1457,8 +1443,8 @@ def _parse_filters(path: str, mtime_ns: int):
         centres.append(float(m.group(1)))
     rows = []
     for k, ln in enumerate(lines[1:], start=2):
-        vals = [_parse_float(t.strip()) for t in ln.split(",")]
-        if len(vals) != len(header) or any(v is None for v in vals):
+        vals = _numbers(t.strip() for t in ln.split(","))
+        if vals is None or len(vals) != len(header):
             raise FormatError(
                 f"{path}: line {k} does not have {len(header)} numeric columns"
             )
