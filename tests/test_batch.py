@@ -359,7 +359,7 @@ def test_a_batch_runs_on_a_scheduler_that_is_already_there(captures, tmp_path):
     from hyperlf.cli import main
 
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
-                      dashboard_address=None) as cluster:
+                      dashboard_address=None, scheduler_kwargs=batch._PRIVATE_HTTP) as cluster:
         out = tmp_path / "b"
         assert main(["-q", "batch", str(captures / "frame1"), "--labels", str(LABELS),
                      "--scheduler", cluster.scheduler_address, "-o", str(out)]) == 0
@@ -372,6 +372,28 @@ def test_a_batch_runs_on_a_scheduler_that_is_already_there(captures, tmp_path):
         batch._connect_once(f"tcp://127.0.0.1:{port}")
     assert time.monotonic() - start < 5
     batch._connect_once("inproc://nothing-to-open")  # left to dask
+
+
+def test_the_local_schedulers_http_server_is_private_and_takes_a_free_port(tmp_path):
+    """Two local clusters at once (two batches): each scheduler's HTTP server listens on this
+    machine only, on a port of its own, without the warning that port 8787 is in use."""
+    import warnings
+
+    clusters = []
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            for k in range(2):
+                (tmp_path / str(k)).mkdir()
+                clusters.append(batch._client(1, None, tmp_path / str(k)))
+        socks = [s.getsockname() for _, c in clusters
+                 for s in c.scheduler.http_server._sockets.values()]
+        assert {host for host, _ in socks} == {"127.0.0.1"}
+        assert len({port for _, port in socks}) == 2
+    finally:
+        for client, cluster in clusters:
+            client.close()
+            cluster.close()
 
 
 def test_a_local_cluster_keeps_its_scratch_inside_the_batch_folder(captures, tmp_path,

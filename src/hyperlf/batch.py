@@ -417,6 +417,12 @@ def _connect_once(scheduler: str) -> None:
         socket.create_connection((host, port), timeout=20).close()
 
 
+#: The local scheduler's HTTP server (health checks; no dashboard) on a free port of this
+#: machine only: without an address it takes port 8787, and a second batch running at the same
+#: time warned that the port was in use.
+_PRIVATE_HTTP = {"dashboard": False, "dashboard_address": "127.0.0.1:0"}
+
+
 def _client(workers: int, scheduler: str | None, scratch: Path | None = None):
     """A dask client of an existing scheduler or of a new LocalCluster (one thread a worker:
     numba parallelises inside each capture) whose scratch files go to ``scratch`` (dask's
@@ -446,7 +452,8 @@ def _client(workers: int, scheduler: str | None, scratch: Path | None = None):
         with dask.config.set(here):
             cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                    dashboard_address=None, silence_logs=logging.ERROR,
-                                   local_directory=None if scratch is None else os.fspath(scratch))
+                                   local_directory=None if scratch is None else os.fspath(scratch),
+                                   scheduler_kwargs=_PRIVATE_HTTP)
     finally:
         if main:
             signal.signal(signal.SIGINT, previous)
@@ -457,8 +464,6 @@ def run_batch(tasks: Sequence[CaptureTask], *, workers: int = 2, scheduler: str 
               progress: bool = True) -> list[CaptureResult]:
     """Run every unfinished task on dask and return one :class:`CaptureResult` per task, in
     the order of ``tasks`` (finished ones are measured here, not resubmitted)."""
-    from ._progress import progress_bar
-
     if not isinstance(tasks, (list, tuple)) or not all(isinstance(t, CaptureTask)
                                                        for t in tasks):
         raise InvalidInputError(f"tasks must be a list of hyperlf.batch.CaptureTask, got "
@@ -477,38 +482,53 @@ def run_batch(tasks: Sequence[CaptureTask], *, workers: int = 2, scheduler: str 
         else:
             results[i] = done
     if todo:
-        from dask.distributed import as_completed
+        home = None if scheduler else Path(tasks[0].output).parent
+        with _cluster(workers, scheduler, home) as client:
+            results.update(_run_on(client, tasks, todo, progress))
+    return [results[i] for i in range(len(tasks))]
 
-        scratch = None
-        if not scheduler:  # the local workers' scratch files, inside the batch folder
-            home = Path(tasks[0].output).parent
-            _remove_stale_scratch(home)
-            scratch = Path(tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{os.getpid()}-", dir=home))
+
+@contextlib.contextmanager
+def _cluster(workers: int, scheduler: str | None, home: Path | None):
+    """A dask client (:func:`_client`), closed with its local cluster at the end; a local
+    cluster's scratch folder is made in ``home`` (the batch folder) and removed with it."""
+    scratch = None
+    if home is not None:  # the local workers' scratch files, inside the batch folder
+        _remove_stale_scratch(home)
+        scratch = Path(tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{os.getpid()}-", dir=home))
+    try:
+        client, cluster = _client(workers, scheduler, scratch)
         try:
-            client, cluster = _client(workers, scheduler, scratch)
-        except BaseException:
-            if scratch is not None:
-                shutil.rmtree(scratch, ignore_errors=True)
-            raise
-        try:
-            token = uuid.uuid4().hex[:12]  # keys unique on a shared scheduler
-            futures = {client.submit(run_capture, tasks[i], key=f"hyperlf-depth-{token}-{i}",
-                                     pure=False): i for i in todo}
-            for fut in progress_bar(as_completed(futures), "captures", total=len(futures),
-                                    enabled=progress, unit="capture"):
-                i = futures[fut]
-                try:
-                    results[i] = fut.result()
-                except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker after retries
-                    results[i] = CaptureResult(tasks[i].name, tasks[i].capture, "failed",
-                                               message=" ".join(str(exc).split())[:300])
+            yield client
         finally:
             client.close()
             if cluster is not None:
                 cluster.close()
-            if scratch is not None:
-                shutil.rmtree(scratch, ignore_errors=True)
-    return [results[i] for i in range(len(tasks))]
+    finally:
+        if scratch is not None:
+            shutil.rmtree(scratch, ignore_errors=True)
+
+
+def _run_on(client, tasks: Sequence[CaptureTask], todo: list[int],
+            progress: bool) -> dict[int, CaptureResult]:
+    """Each task of ``todo`` run on ``client``: its result, or its failure as a result."""
+    from dask.distributed import as_completed
+
+    from ._progress import progress_bar
+
+    token = uuid.uuid4().hex[:12]  # keys unique on a shared scheduler
+    futures = {client.submit(run_capture, tasks[i], key=f"hyperlf-depth-{token}-{i}",
+                             pure=False): i for i in todo}
+    results = {}
+    for fut in progress_bar(as_completed(futures), "captures", total=len(futures),
+                            enabled=progress, unit="capture"):
+        i = futures[fut]
+        try:
+            results[i] = fut.result()
+        except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker after retries
+            results[i] = CaptureResult(tasks[i].name, tasks[i].capture, "failed",
+                                       message=" ".join(str(exc).split())[:300])
+    return results
 
 
 def write_summary(out: str | os.PathLike, rows: Sequence[CaptureResult]) -> list[Path]:
