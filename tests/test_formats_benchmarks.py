@@ -154,6 +154,32 @@ def test_ground_truth_z_test_finds_middlebury_nonocc(name, agree):
     assert np.mean(~seen[m] & ~nonocc) >= 0.8 * np.mean(~nonocc)
 
 
+@pytest.mark.parametrize("layout", ["v2", "2005"])
+def test_a_middlebury_file_linked_from_outside_is_refused(tmp_path, rng, layout):
+    """A scene's image or mask that is a symlink leading out of its folder is refused before
+    anything is read (as for HCI scenes and captures)."""
+    import os
+
+    from hyperlf.errors import InvalidInputError
+    from hyperlf.formats import StereoPair, write_middlebury
+
+    img = rng.random((6, 8, 3)).astype(np.float32)
+    scene = write_middlebury(tmp_path / "scene", StereoPair(
+        left=img, right=img, gt_disparity=np.ones((6, 8), np.float32),
+        masks={"nonocc": np.ones((6, 8), bool)}, scale=4.0, max_disparity=3))
+    if layout == "2005":
+        for old, new in (("imL", "art1"), ("imR", "art5"), ("groundtruth", "art1_true")):
+            os.rename(scene / f"{old}.png", scene / f"{new}.png")
+        linked = "art5.png"
+    else:
+        linked = "nonocc.png"
+    outside = tmp_path / "elsewhere.png"
+    os.rename(scene / linked, outside)
+    os.symlink(outside, scene / linked)
+    with pytest.raises(InvalidInputError, match=f"{linked} leads outside the folder"):
+        read_middlebury(scene)
+
+
 def test_middlebury_round_trip_and_errors(tmp_path, rng):
     H, W = 6, 8
     gt = rng.integers(1, 60, size=(H, W)) / 4.0

@@ -18,7 +18,7 @@ from typing import Iterable
 import numpy as np
 
 from .._options import int_pair, integer, number, path_like, shown
-from .._paths import leads_outside
+from .._paths import check_inside
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
 from ..lightfield import LightField, centre_view
 from .images import read_image, read_images_same_size
@@ -51,14 +51,6 @@ def _number(text: str):
         except ValueError:
             return text.strip()
     return v
-
-
-def _check_inside(root: Path, files) -> None:
-    """Refuse scene files that lead outside the scene folder (symlinks), before reading."""
-    for f in files:
-        if os.path.lexists(f) and leads_outside(root, f):
-            raise InvalidInputError(f"HCI scene {root}: {f.name} leads outside the folder (a "
-                                    "symlink); copy the files into the folder")
 
 
 def _read_cfg(path: Path) -> dict[str, dict[str, object]]:
@@ -170,14 +162,14 @@ def read_hci_scene(folder: str | os.PathLike, *, grid=None, rows=None, cols=None
     if not root.is_dir():
         raise DataNotFoundError(f"HCI scene folder {root} does not exist")
     cfg_path = root / "parameters.cfg"
-    _check_inside(root, [cfg_path])
+    check_inside(root, [cfg_path], "HCI scene")
     cfg = _read_cfg(cfg_path) if cfg_path.is_file() else {}
     R, C = _grid_from(root, cfg, grid)
     rsel = _select(rows, R, "rows")
     csel = _select(cols, C, "cols")
     flat = _view_files(root, C, rsel, csel)
     gt_path = root / "gt_disp_lowres.pfm"
-    _check_inside(root, [*flat, gt_path])
+    check_inside(root, [*flat, gt_path], "HCI scene")
     views = read_images_same_size(flat, lambda f: read_image(f, as_float=True, channels="rgb"),
                                   f"HCI scene {root}")
     views = views.reshape(len(rsel), len(csel), *views.shape[1:])

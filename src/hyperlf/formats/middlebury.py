@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .._atomic import atomic_write_text
+from .._paths import check_inside
 from .._options import integer, mapping, number, path_like, real_array, shown, text
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
 from .images import read_image, write_image
@@ -157,6 +158,8 @@ def read_middlebury(folder: str | os.PathLike, scale: float | None = None) -> St
         When the folder or a required file is missing.
     FormatError
         When a file is malformed or sizes disagree.
+    InvalidInputError
+        When a file of the scene leads outside its folder (a symlink), before any is read.
     """
     root = Path(path_like(folder, "folder", folder=None))
     scale = number(scale, "scale", optional=True, at_least=1e-6, at_most=1e6)
@@ -190,6 +193,8 @@ def _read_v2(root: Path, scale: float | None) -> tuple:
         raise DataNotFoundError(
             f"Middlebury v2 scene {root} is missing {', '.join(missing)}"
         )
+    check_inside(root, [root / f for f in (*need, *(f"{m}.png" for m in MASK_NAMES))],
+                 "Middlebury scene")
     file_scale, maxd = _read_info(root / "info.txt")
     s = float(scale) if scale is not None else file_scale
     left = read_image(root / "imL.png", channels="rgb")
@@ -218,6 +223,7 @@ def _read_2005(root: Path, scale: float | None) -> tuple:
     missing = [f for f in need if not (root / f).is_file()]
     if missing:
         raise DataNotFoundError(f"Middlebury 2005 scene {root} is missing {', '.join(missing)}")
+    check_inside(root, [root / f for f in need], "Middlebury scene")
     s = float(scale) if scale is not None else _DEFAULT_2005_SCALE
     left = read_image(root / need[0], channels="rgb")
     right = read_image(root / need[1], channels="rgb")
