@@ -76,14 +76,20 @@ def check_fits(calibration: Calibration, images: Mapping, names: Mapping | None 
             f"the images do not fit the calibration ({calibration.grid[0]} x "
             f"{calibration.grid[1]} cameras): missing {[camera_label(k) for k in miss]}, "
             f"unknown {[camera_label(k) for k in extra] if extra else []}")
-    W, H = calibration.image_size
     for key, img in images.items():
-        a = _opt.real_array(img, f"the image of camera {camera_label(key, names)}", None)
-        if a.shape != (H, W) or not (np.issubdtype(a.dtype, np.number) or a.dtype == bool):
-            raise InvalidInputError(
-                f"camera {camera_label(key, names)}: image is {a.shape[::-1]} (W x H, channels "
-                f"last) but the calibration was made for {W} x {H} grey images; use the "
-                "calibration of this array and resolution")
+        check_image_size(calibration, key, img, names)
+
+
+def check_image_size(calibration: Calibration, key, img, names: Mapping | None = None) -> None:
+    """Raise InvalidInputError unless ``img``, camera ``key``'s, is a grey image of the size
+    the calibration was made for."""
+    W, H = calibration.image_size
+    a = _opt.real_array(img, f"the image of camera {camera_label(key, names)}", None)
+    if a.shape != (H, W) or not (np.issubdtype(a.dtype, np.number) or a.dtype == bool):
+        raise InvalidInputError(
+            f"camera {camera_label(key, names)}: image is {a.shape[::-1]} (W x H, channels "
+            f"last) but the calibration was made for {W} x {H} grey images; use the "
+            "calibration of this array and resolution")
 
 
 def apply_calibration(calibration: Calibration, images: Mapping, *, names=None,

@@ -112,12 +112,17 @@ def check_dead(calibration, dead) -> set:
 
 
 def _check_dead(calibration, dead, images) -> set:
-    """:func:`check_dead`, and a raw image for every live camera."""
+    """:func:`check_dead`, and a raw image of the calibrated size for every live camera."""
+    from .apply import check_image_size
+
     dead = check_dead(calibration, dead)
     missing = [k for k in calibration.cameras if k not in dead and k not in images]
     if missing:
         raise InvalidInputError(f"no raw image for camera {missing[0][0]},{missing[0][1]}; "
                                 "give one per camera, or name it dead")
+    for k in calibration.cameras:
+        if k not in dead:
+            check_image_size(calibration, k, images[k])
     return dead
 
 
@@ -198,15 +203,43 @@ def ingest(images: Mapping, calibration, *, wavelengths=None, dark=None, flat=No
     saturation = check_saturation(saturation, positive=True)
     if disparity_range is not None:
         disparity_range = check_disparity_range(disparity_range)
-    if wavelengths is not None:
-        wl = _opt.real_array(wavelengths, "wavelengths")
-        R, C = calibration.grid
-        if wl.size != R * C or not np.isfinite(wl).all() or not (wl > 0).all():
-            raise InvalidInputError(f"wavelengths must be {R * C} positive wavelengths (nm), "
-                                    f"one per camera ({R} x {C}), got {_opt.shown(wavelengths)}")
+    wl = _check_wavelengths(wavelengths, calibration.grid)
     for frame, what in ((dark, "dark"), (flat, "flat")):
         if frame is not None and not isinstance(frame, Mapping):
             _opt.real_array(frame, what)
+    fixed = _corrected(images, dead, dark, flat, saturation)  # before the warp: no signal
+    views, valid = apply_calibration(calibration, fixed)   # refuses images of another size
+    for (r, c) in dead:
+        valid[r, c] = False
+        views[r, c] = 0.0
+    _check_reference_valid(calibration, valid, saturation)
+    rng = disparity_range if disparity_range is not None else \
+        calibration.info.get("disparity_range")
+    if rng is None:  # a full calibration (or positions from the board): measure the scene
+        rng = measured_disparity_range(views, valid, calibration.positions(),
+                                       calibration.reference)
+    return LightField(views=views, wavelengths=wl, positions=calibration.positions(),
+                      reference=tuple(calibration.reference),
+                      disparity_range=None if rng is None else tuple(float(v) for v in rng),
+                      metadata={"calibration": capture_geometry(calibration)}, valid=valid)
+
+
+def _check_wavelengths(wavelengths, grid) -> np.ndarray | None:
+    """One positive wavelength (nm) per camera, as the grid ``(R, C)``, or None."""
+    if wavelengths is None:
+        return None
+    wl = _opt.real_array(wavelengths, "wavelengths")
+    R, C = grid
+    if wl.size != R * C or not np.isfinite(wl).all() or not (wl > 0).all():
+        raise InvalidInputError(f"wavelengths must be {R * C} positive wavelengths (nm), "
+                                f"one per camera ({R} x {C}), got {_opt.shown(wavelengths)}")
+    return wl.reshape(R, C)
+
+
+def _corrected(images, dead, dark, flat, saturation) -> dict:
+    """Every live camera's image dark- and flat-corrected, saturated pixels NaN; zeros for
+    the dead ones.  A live camera without signal is refused (the first one found), before
+    anything is warped."""
     fixed, silent = {}, []
     for k, img in images.items():
         if k in dead:
@@ -217,23 +250,8 @@ def ingest(images: Mapping, calibration, *, wavelengths=None, dark=None, flat=No
         if saturation is not None:  # judged on the raw values; NaN makes the warp mark it
             out[np.asarray(img) >= saturation] = np.nan
         fixed[k] = out
-    shape = next(iter(fixed.values())).shape
-    fixed.update({k: np.zeros(shape, np.float32) for k in dead})
-    views, valid = apply_calibration(calibration, fixed)   # refuses images of another size
     if silent:
         raise InvalidInputError(silent[0])
-    for (r, c) in dead:
-        valid[r, c] = False
-        views[r, c] = 0.0
-    _check_reference_valid(calibration, valid, saturation)
-    wl = None if wavelengths is None else \
-        np.asarray(wavelengths, np.float64).reshape(calibration.grid)
-    rng = disparity_range if disparity_range is not None else \
-        calibration.info.get("disparity_range")
-    if rng is None:  # a full calibration (or positions from the board): measure the scene
-        rng = measured_disparity_range(views, valid, calibration.positions(),
-                                       calibration.reference)
-    return LightField(views=views, wavelengths=wl, positions=calibration.positions(),
-                      reference=tuple(calibration.reference),
-                      disparity_range=None if rng is None else tuple(float(v) for v in rng),
-                      metadata={"calibration": capture_geometry(calibration)}, valid=valid)
+    shape = next(iter(fixed.values())).shape
+    fixed.update({k: np.zeros(shape, np.float32) for k in dead})
+    return fixed
