@@ -996,20 +996,11 @@ def bwncc_volume(left, right, dmin, dmax, variant="default", window=None, tau_re
                                                     descriptor_impl)
         t_desc += t_d
     acc = _BwnccAccumulator(L.shape[0], L.shape[1], dmin, dmax, impl)
-    itL = iter_descriptor_blocks(pL, block=block, impl=descriptor_impl)
-    itR = iter_descriptor_blocks(pR, block=block, impl=descriptor_impl)
-    while True:
-        t0 = time.perf_counter()
-        try:
-            slA, A = next(itL)
-            slB, B = next(itR)
-        except StopIteration:
-            break
-        t_desc += time.perf_counter() - t0
-        t0 = time.perf_counter()
-        acc.add_block(A, B, n_all[slA], tau_rel, tauA, tauB)
-        del A, B
-        t_cross += time.perf_counter() - t0
+    t_d, t_c = _accumulate_blocks(acc, iter_descriptor_blocks(pL, block=block,
+                                                              impl=descriptor_impl),
+                                  iter_descriptor_blocks(pR, block=block, impl=descriptor_impl),
+                                  n_all, tau_rel, tauA, tauB)
+    t_desc, t_cross = t_desc + t_d, t_cross + t_c
     t0 = time.perf_counter()
     res = acc.finish(eps, return_scores)
     t_fin = time.perf_counter() - t0
@@ -1022,6 +1013,27 @@ def bwncc_volume(left, right, dmin, dmax, variant="default", window=None, tau_re
             timings["stats_s"] = acc.t_stats
             timings["xterm_s"] = acc.t_xterm
     return res
+
+
+def _accumulate_blocks(acc, blocks_left, blocks_right, n_all, tau_rel, tauA, tauB):
+    """Both views' descriptor blocks, one pair at a time, into ``acc``: the seconds spent
+    making the blocks and matching them."""
+    import time
+
+    t_desc = t_cross = 0.0
+    while True:
+        t0 = time.perf_counter()
+        try:
+            slA, A = next(blocks_left)
+            slB, B = next(blocks_right)
+        except StopIteration:
+            break
+        t_desc += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        acc.add_block(A, B, n_all[slA], tau_rel, tauA, tauB)
+        del A, B
+        t_cross += time.perf_counter() - t0
+    return t_desc, t_cross
 
 
 # --------------------------------------------------------------------------------------------
