@@ -52,8 +52,8 @@ from ..imageops import fill_masked, gradient_magnitude, normalise_intensity
 from ..warp import axis_taps, axis_valid, shift_map
 from .._options import bool_mask, flag, integer, number, real, real_array, real_pair, shown
 from ..errors import InvalidInputError
-from .pair import (_constants, bwncc_finish, census_transform, channel_stats, fill_out_of_image,
-                   inv_sigma, pad_replicate, rsncc_rho, window_stats)
+from .pair import (_constants, _patch_sizes, bwncc_finish, census_transform, channel_stats,
+                   fill_out_of_image, inv_sigma, pad_replicate, rsncc_rho, window_stats)
 from ._validate import (MAX_VIEW_WINDOW, check_bytes, check_impl, check_map, check_shape,
                         check_window)
 
@@ -443,15 +443,10 @@ def bwncc_view_volume(ref_img, img, shifts, *, paper: bool = False, window=None,
                                 f"{shown(cache)}")
     params = DescriptorParams.paper() if paper else DescriptorParams.default()
     variant = "bwncc-paper" if paper else "bwncc"
-    if window is not None:
-        n_all = np.full(params.n_channels, int(window), np.int64)
-    elif paper:
-        n_all = np.full(params.n_channels, 5, np.int64)
-    else:
-        n_all = params.channel_levels
+    H, W = ref_img.shape
+    n_all = _patch_sizes(params, variant, window, max(H, W))
     ref_cache = {} if cache is None else cache
     L = len(shifts)
-    H, W = ref_img.shape
     a, b = (0, H) if rows is None else rows
     accF = np.zeros((L, b - a, W))
     accB = np.zeros((L, b - a, W))
