@@ -836,8 +836,9 @@ def _cmd_stereo(args, dest) -> list[Path]:
     holds about 20-70 bytes per pixel and disparity; a pair and range that cannot fit in the
     memory available are refused before any matching.
 
-    A Middlebury scene folder given alone (imL/imR or view1/view5 with their ground truth, as
-    in $HYPERLF_DATA/middlebury) is matched over its own range unless --disparity-range says
+    A Middlebury scene folder given alone (imL/imR, or <name>1/<name>5 of 2005, with their
+    ground truth, as in $HYPERLF_DATA/middlebury) is matched over its own range unless
+    --disparity-range says
     otherwise, and its map is scored against the ground truth on the scene's evaluation mask
     (bad-pixel shares on stderr, disparity_error.png), as Table 1 scores it.
 
