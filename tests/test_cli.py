@@ -229,6 +229,20 @@ def test_stereo_of_a_scene_folder_takes_its_range_and_scores_its_map(tmp_path, c
     assert seen["range"] == (0, 5)
 
 
+def test_stereo_of_a_scene_folder_without_ground_truth_is_not_scored(tmp_path, capsys):
+    from hyperlf.formats import StereoPair, write_middlebury
+
+    img = np.random.default_rng(0).random((20, 30, 3)).astype(np.float32)
+    scene = write_middlebury(tmp_path / "scene", StereoPair(
+        left=img, right=img, gt_disparity=np.full((20, 30), np.nan, np.float32), scale=4.0,
+        max_disparity=3))
+    capsys.readouterr()
+    assert main(["stereo", str(scene), "-o", str(tmp_path / "o")]) == 0
+    assert "the scene has no pixel with ground truth; its map is not scored" in \
+        capsys.readouterr().err
+    assert (tmp_path / "o" / "disparity.pfm").is_file()
+
+
 @pytest.mark.parametrize("inputs, words", [
     (lambda s: [s, s / "imR.png"], "is a folder: give a Middlebury scene folder alone"),
     (lambda s: [s / "imL.png"], "give the right image after"),

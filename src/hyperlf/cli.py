@@ -913,7 +913,12 @@ def _say_stereo_scores(args, disparity: np.ndarray, pair) -> None:
     from .metrics import disparity_scores
 
     name = "all" if "all" in pair.masks else "every pixel with ground truth"
-    s = disparity_scores(disparity, pair.gt_disparity, mask=pair.eval_mask("all"))
+    mask = pair.eval_mask("all")
+    if not mask.any():
+        where = " in its mask 'all'" if "all" in pair.masks else ""
+        _say(args, f"the scene has no pixel with ground truth{where}; its map is not scored")
+        return
+    s = disparity_scores(disparity, pair.gt_disparity, mask=mask)
     _say(args, f"against the ground truth ({name}, {s.n_pixels} px): bad5.0 {s.bad_5:.2f} %, "
                f"bad2.0 {s.bad_2:.2f} %, bad1.0 {s.bad_1:.2f} %, RMSE {s.rmse:.3f} px")
 
