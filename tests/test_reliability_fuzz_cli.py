@@ -146,6 +146,7 @@ class World:
     outputs: Path
     shots: Path    # board shots of a 1 x 3 synthetic array, Cam-{index}.png, 160 x 120 px
     cal: Path      # its calibration folder (calibration.toml)
+    scene: Path    # a Middlebury v2 scene folder of the stereo pair, ground truth 3 px
 
     def fresh(self) -> Path:
         """A new, empty folder for one example."""
@@ -185,10 +186,16 @@ def world(tmp_path_factory) -> World:
     assert main(["-q", "calibrate", str(root / "shots"), "--pattern=Cam-{index}.png",
                  "--grid=1,3", f"--board={rig.board.cols},{rig.board.rows}",
                  "--focal-px=150", "-o", str(root / "cal")]) == 0
+    from hyperlf.formats import StereoPair, write_middlebury
+
+    pair = np.repeat(tex[..., None], 3, axis=2)
+    write_middlebury(root / "scene", StereoPair(
+        left=pair[:, 2:34], right=pair[:, 5:37], gt_disparity=np.full((24, 32), 3.0, np.float32),
+        scale=8.0, max_disparity=6))
     return World(cap=root / "cap", h5=root / "lf.h5", cube=root / "cap" / "gt_cube.h5",
                  pfm=root / "d.pfm", left=root / "l.png", right=root / "r.png",
                  weights=root / "w.csv", outputs=tmp_path_factory.mktemp("fuzz-out"),
-                 shots=root / "shots", cal=root / "cal")
+                 shots=root / "shots", cal=root / "cal", scene=root / "scene")
 
 
 # ----------------------------------------------------------------------------- running
@@ -253,7 +260,8 @@ def _lightfield_written(out: Path) -> bool:
 # Each case: (strategy of the hostile value, argv(world, value, out), outputs written on exit 0).
 # The value always travels as --option=VALUE so that a value starting with '-' is a value.
 #: Placeholders a value may be, for an existing input of the wrong (or right) kind.
-_INPUTS = {"@pfm": "pfm", "@left": "left", "@cap": "cap", "@cube": "cube", "@h5": "h5"}
+_INPUTS = {"@pfm": "pfm", "@left": "left", "@cap": "cap", "@cube": "cube", "@h5": "h5",
+           "@scene": "scene"}
 
 
 def _input(world: World, value: str) -> str:
@@ -366,6 +374,12 @@ CASES = {
                                                  "--disparity-range=0,4", "--metric=ncc",
                                                  "--optimizer=wta", f"--confidence-floor={v}",
                                                  "-o", o / "s"], None),
+    "stereo-scene-range": (lists_of(numbers(small=(-40, 40))),
+                           lambda w, v, o: ["stereo", w.scene, f"--disparity-range={v}",
+                                            "--optimizer=wta", "-o", o / "s"], None),
+    "stereo-scene": (INPUT_TEXT,
+                     lambda w, v, o: ["stereo", "--optimizer=wta", "-o", o / "s", "--",
+                                      _input(w, v)], None),
     "stereo-left": (INPUT_TEXT,
                     lambda w, v, o: ["stereo", "--disparity-range=0,4", "-o", o / "s", "--",
                                      v, w.right], None),
