@@ -77,12 +77,14 @@ def cases():
     yield "allfocus", render.all_focus(cube, offs, disparity=gt, wavelengths=wl)
     yield "allfocus_views", render.all_focus(cube, offs, disparity=gt, wavelengths=wl,
                                              view_disparities=lf.gt_disparity, occlusion="views")
-    yield "allfocus_none", render.all_focus(cube, offs, disparity=gt, wavelengths=wl, occlusion="none")
+    yield "allfocus_none", render.all_focus(cube, offs, disparity=gt, wavelengths=wl,
+                                            occlusion="none")
     yield "refocus_lf", render.refocus(lf, None, 0.5)
     yield "allfocus_lf", render.all_focus(lf, disparity=gt)
     m = np.ones(cube.shape[:2] + cube.shape[3:], bool); m[0, 0, :5] = False
     cn = cube.copy(); cn[1, 1, 0, 3, 4] = np.nan
-    yield "refocus_masked", render.refocus(cn, offs, disparity=0.3, wavelengths=wl, mask=m, aperture=1.0)
+    yield "refocus_masked", render.refocus(cn, offs, disparity=0.3, wavelengths=wl, mask=m,
+                                           aperture=1.0)
     yield "refocus_band", render.refocus(cube, offs, 0.2, profile=float(wl[2]), wavelengths=wl)
     yield "allfocus_lf_masked", render.all_focus(lf, disparity=gt, mask=m, aperture=1.5)
     for meth in ["tao2013", "wang2015", "lin2015"]:

@@ -83,8 +83,8 @@ from . import costs as _costs
 from . import regularisers as _reg
 from ._options import bool_mask, choice, flag, integer, mapping, params_of, real_array, shown
 from .costs._validate import MAX_DISPARITY
-from .regularisers._checks import check_guide
 from .errors import InvalidInputError
+from .regularisers._checks import check_guide
 
 __all__ = [
     "OPTIMIZERS",
