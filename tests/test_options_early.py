@@ -100,12 +100,11 @@ _OWN_SITES = ("twoview.stereo", "render.focal_sweep", "baselines.tao2013",
 
 @functools.lru_cache(maxsize=1)
 def _sites() -> dict:
-    from hyperlf import baselines, render, synthesis, twoview
+    from hyperlf import baselines, render, twoview
 
     rng = np.random.default_rng(0)
     left = rng.random((20, 28)).astype(np.float32)
-    lf = synthesis.procedural_scene(seed=1, rows=2, cols=2, height=12, width=16,
-                                    disparity_range=(-1.0, 1.0))
+    lf = N._tables()["pipeline.depth"][1]["lf"]  # the nested fuzzer's small light field
     own = {"twoview.stereo": (twoview.stereo, dict(left=left, right=np.roll(left, -2, axis=1),
                                                    disparity_range=(0, 4))),
            "render.focal_sweep": (render.focal_sweep, dict(

@@ -181,7 +181,7 @@ def _fusion_weights_arg(text: str) -> tuple[float, ...]:
     """``--fusion-weights W1,W2[,...]``: finite numbers >= 0, not all 0, with a finite sum
     (whether their count fits the cost is checked with ``--metric``,
     :func:`hyperlf.costs.fusion_weights`)."""
-    from .costs.registry import weights_tuple
+    from .costs.pair import weights_tuple
 
     try:
         w = weights_tuple([float(v) for v in text.split(",")])
@@ -912,13 +912,14 @@ def _say_stereo_scores(args, disparity: np.ndarray, pair) -> None:
     where the scene has one, else every pixel with ground truth), as Table 1 scores."""
     from .metrics import disparity_scores
 
-    name = "all" if "all" in pair.masks else "every pixel with ground truth"
+    has_all = "all" in pair.masks
     mask = pair.eval_mask("all")
     if not mask.any():
-        where = " in its mask 'all'" if "all" in pair.masks else ""
+        where = " in its mask 'all'" if has_all else ""
         _say(args, f"the scene has no pixel with ground truth{where}; its map is not scored")
         return
     s = disparity_scores(disparity, pair.gt_disparity, mask=mask)
+    name = "all" if has_all else "every pixel with ground truth"
     _say(args, f"against the ground truth ({name}, {s.n_pixels} px): bad5.0 {s.bad_5:.2f} %, "
                f"bad2.0 {s.bad_2:.2f} %, bad1.0 {s.bad_1:.2f} %, RMSE {s.rmse:.3f} px")
 

@@ -707,7 +707,7 @@ class DepthParams:
     def _check_fusion_weights(self) -> None:
         """``fusion_weights``: None, or finite numbers >= 0, not all 0, with a finite sum, kept
         as a tuple (which cost they fit is checked by :func:`depth`)."""
-        from .costs.registry import weights_tuple
+        from .costs.pair import weights_tuple
 
         w = self.fusion_weights
         if w is None:

@@ -463,9 +463,8 @@ def _csv_tokens(line: str) -> list[str]:
 
 def _sensitivity_row(p: Path, lineno: int, line: str) -> list[float]:
     """One row ``wavelength_nm, r, g, b`` of a sensitivity file, checked."""
-    tokens = _csv_tokens(line)
-    values = _numbers(tokens)
-    if values is None or not tokens:
+    values = _numbers(_csv_tokens(line))  # a non-blank line has at least one token
+    if values is None:
         raise FormatError(
             f"{p}:{lineno}: non-numeric value in {line[:60]!r}; expected 4 numbers "
             "wavelength_nm, r, g, b"
