@@ -8,9 +8,12 @@ Tests that need real data skip with a clear message when HYPERLF_DATA is unset, 
 from __future__ import annotations
 
 import ast
+import contextlib
+import functools
 import inspect
 import os
 import textwrap
+import types
 
 
 def _share_the_cores_among_workers() -> None:
@@ -97,6 +100,112 @@ def sparsification(conf, loss, *, rmse: bool = False) -> float:
     running = np.cumsum(np.asarray(loss).ravel()[order]) / np.arange(1, np.size(loss) + 1)
     picked = running[(np.linspace(0.05, 1, 20) * np.size(loss)).astype(int) - 1]
     return float(np.mean(np.sqrt(picked) if rmse else picked))
+
+
+# ----------------------------------------------------------------------------- long work
+class LongWork(BaseException):
+    """Raised where long work would start (not an Exception: nothing may swallow it)."""
+
+
+@functools.lru_cache(maxsize=1)
+def _long_work_sites() -> tuple:
+    """``(module, name)`` of every module's progress bar and solver: long work starts at the
+    first step of a progress bar or at a call of :func:`hyperlf.regularisers.optimise`."""
+    import importlib
+    import pkgutil
+
+    import hyperlf
+    from hyperlf import regularisers
+
+    out = []
+    for info in pkgutil.walk_packages(hyperlf.__path__, "hyperlf."):
+        mod = importlib.import_module(info.name)
+        if hasattr(mod, "progress_bar"):
+            out.append((mod, "progress_bar"))
+        if getattr(mod, "optimise", None) is regularisers.optimise:
+            out.append((mod, "optimise"))
+    return tuple(out)
+
+
+@contextlib.contextmanager
+def _long_work_replaced(wrap):
+    """Each site's function replaced by ``wrap(name, original)`` for the block."""
+    saved = [(mod, name, getattr(mod, name)) for mod, name in _long_work_sites()]
+    try:
+        for mod, name, original in saved:
+            setattr(mod, name, wrap(name, original))
+        yield
+    finally:
+        for mod, name, original in saved:
+            setattr(mod, name, original)
+
+
+def _at_start(name, original, then):
+    """``original`` that calls ``then()`` where long work starts."""
+    if name == "optimise":
+        def solve(*args, **kwargs):
+            then()
+            return original(*args, **kwargs)
+        return solve
+
+    def bar(items, *args, **kwargs):
+        for item in original(items, *args, **kwargs):
+            then()
+            yield item
+    return bar
+
+
+def _stop():
+    raise LongWork
+
+
+def long_work_stopped():
+    """A context in which the start of long work raises :class:`LongWork`."""
+    return _long_work_replaced(lambda name, original: _at_start(name, original, _stop))
+
+
+@contextlib.contextmanager
+def long_work_seen():
+    """A context in which long work runs; yields a namespace whose ``started`` turns true
+    where it starts."""
+    seen = types.SimpleNamespace(started=False)
+
+    def mark():
+        seen.started = True
+
+    with _long_work_replaced(lambda name, original: _at_start(name, original, mark)):
+        yield seen
+
+
+# ----------------------------------------------------------------------------- temp folder
+@pytest.fixture(scope="session", autouse=True)
+def _private_temp_folder(tmp_path_factory):
+    """The system's temporary folder, for this test process only (``TMPDIR`` and ``tempfile``
+    pointed into pytest's own base folder), so that :func:`_nothing_left_in_temp` can see
+    what a test leaves there and the machine's ``/tmp`` gets nothing."""
+    import tempfile
+
+    folder = tmp_path_factory.mktemp("system-temp")
+    saved = os.environ.get("TMPDIR"), tempfile.tempdir
+    os.environ["TMPDIR"], tempfile.tempdir = str(folder), None
+    try:
+        yield folder
+    finally:
+        if saved[0] is None:
+            os.environ.pop("TMPDIR", None)
+        else:
+            os.environ["TMPDIR"] = saved[0]
+        tempfile.tempdir = saved[1]
+
+
+@pytest.fixture(autouse=True)
+def _nothing_left_in_temp(_private_temp_folder):
+    """A test (and the commands it runs) leaves nothing in the system's temporary folder:
+    a command writes only its output, and a test's own files go to ``tmp_path``."""
+    before = set(os.listdir(_private_temp_folder))
+    yield
+    left = sorted(set(os.listdir(_private_temp_folder)) - before)
+    assert not left, f"left in the temporary folder: {left[:5]}"
 
 
 @pytest.fixture

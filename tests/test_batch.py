@@ -354,12 +354,15 @@ def test_a_batch_that_fails_before_its_first_capture_leaves_no_folder(captures, 
 def test_a_batch_runs_on_a_scheduler_that_is_already_there(captures, tmp_path):
     """``--scheduler``: a batch runs on a cluster that is already there, and an address
     nothing listens at is refused at once, not after the client's 20 s of retries."""
+    import dask
     from dask.distributed import LocalCluster
 
     from hyperlf.cli import main
 
-    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
-                      dashboard_address=None, scheduler_kwargs=batch._PRIVATE_HTTP) as cluster:
+    scratch = {"temporary-directory": str(tmp_path)}  # not dask's default, $TMPDIR
+    with dask.config.set(scratch), LocalCluster(
+            n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None,
+            scheduler_kwargs=batch._PRIVATE_HTTP) as cluster:
         out = tmp_path / "b"
         assert main(["-q", "batch", str(captures / "frame1"), "--labels", str(LABELS),
                      "--scheduler", cluster.scheduler_address, "-o", str(out)]) == 0

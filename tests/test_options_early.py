@@ -10,16 +10,14 @@ from __future__ import annotations
 
 import contextlib
 import functools
-import importlib
-import pkgutil
 
 import numpy as np
 import pytest
 
+from conftest import LongWork, long_work_stopped
 import test_options as T
 import test_options_modes as M
 import test_options_nested as N
-import hyperlf
 from hyperlf._options import shown
 from hyperlf.errors import HyperLFError
 
@@ -34,57 +32,15 @@ _TABLE_SITES = (
     "pipeline.complete", "pipeline.pairwise_disparities")
 
 
-class _LongWork(BaseException):
-    """Raised where long work would start (not an Exception: nothing may swallow it)."""
-
-
-def _first_step(items, *args, **kwargs):
-    for _ in items:
-        raise _LongWork
-    return iter(())
-
-
-def _solve(*args, **kwargs):
-    raise _LongWork
-
-
-@functools.lru_cache(maxsize=1)
-def _patches() -> tuple:
-    """``(module, attribute, sentinel)`` for every module's progress bar and solver."""
-    from hyperlf import regularisers
-
-    solver = regularisers.optimise
-    out = []
-    for info in pkgutil.walk_packages(hyperlf.__path__, "hyperlf."):
-        mod = importlib.import_module(info.name)
-        if hasattr(mod, "progress_bar"):
-            out.append((mod, "progress_bar", _first_step))
-        if getattr(mod, "optimise", None) is solver:
-            out.append((mod, "optimise", _solve))
-    return tuple(out)
-
-
-@contextlib.contextmanager
-def _sentinels():
-    saved = [(mod, name, getattr(mod, name)) for mod, name, _ in _patches()]
-    try:
-        for mod, name, sentinel in _patches():
-            setattr(mod, name, sentinel)
-        yield
-    finally:
-        for mod, name, value in saved:
-            setattr(mod, name, value)
-
-
 def _outcome(fn, kw: dict, *, sentinels: bool) -> str:
     """``"long work"``, ``"refused: <message>"``, ``"ran"`` or the type of another error."""
     with contextlib.ExitStack() as stack:
         stack.enter_context(T._in_temp_folder("ignore"))
         if sentinels:
-            stack.enter_context(_sentinels())
+            stack.enter_context(long_work_stopped())
         try:
             fn(**kw)
-        except _LongWork:
+        except LongWork:
             return "long work"
         except HyperLFError as exc:
             return f"refused: {exc}"

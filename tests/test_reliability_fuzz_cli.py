@@ -9,7 +9,9 @@ format-pattern strings, comma lists of the wrong length, NUL bytes. For every ex
   (1, "other hyperlf error", never turned out to be the right answer for an option value);
 * stderr holds no traceback, and a failure is exactly one line (``-q`` silences progress) with
   no Python warning beside it, and leaves nothing behind in its output folder;
-* a success really wrote its outputs; no example touches the shared inputs.
+* a success really wrote its outputs; no example touches the shared inputs;
+* a refusal comes before long work starts (the first step of a progress bar or a call of the
+  solver, ``conftest.long_work_seen``), not after minutes of work.
 
 Each example writes into a fresh folder, so no output is ever reused. Numbers that would be
 valid and expensive (many labels, large grids) are drawn either small or astronomically large
@@ -35,6 +37,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from hyperlf.cli import main
+
+from conftest import LongWork, long_work_seen, long_work_stopped
 
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 EXIT_CODES = {0, 2, 3, 4}
@@ -605,9 +609,12 @@ def fuzz_one(world: World, capfd, name: str, value: str) -> Run:
     _, build, _ = CASES[name]
     before = world.inputs()
     folder = world.fresh()
-    run = run_main(build(world, value, folder), capfd)
+    with long_work_seen() as seen:
+        run = run_main(build(world, value, folder), capfd)
     check(run, folder, _written_check(run))
     assert world.inputs() == before, f"the inputs changed: {run.argv!r}"
+    assert run.code == 0 or not seen.started, \
+        f"refused after long work started: {run.argv!r}\n{run.err.strip()}"
     return run
 
 
@@ -683,16 +690,28 @@ REFUSED_LATE = {
 
 @pytest.mark.parametrize("name", sorted(REFUSED_LATE))
 def test_refused_before_long_work(name, world, capfd):
-    from test_options_early import _LongWork, _sentinels
-
     folder = world.fresh()
-    with _sentinels():
+    with long_work_stopped():
         try:
             run = run_main(REFUSED_LATE[name](world, folder), capfd)
-        except _LongWork:
+        except LongWork:
             pytest.fail(f"{name}: long work started before the refusal")
     assert run.code == 2
     check(run, folder)
+
+
+def test_a_refusal_after_long_work_fails_the_fuzzers(world, capfd, monkeypatch):
+    """The fuzzers' check of *when* a value is refused is live: a refusal planted in the
+    last stage of ``depth``, after the views were matched and the labels solved, fails it."""
+    from hyperlf import hlf
+    from hyperlf.errors import InvalidInputError
+
+    def refuse(*args, **kwargs):
+        raise InvalidInputError("a planted refusal")
+
+    monkeypatch.setattr(hlf, "edge_discount", refuse)
+    with pytest.raises(AssertionError, match="refused after long work started"):
+        fuzz_one(world, capfd, "depth-labels", "4")
 
 
 def test_non_utf8_output_name_does_not_crash(world, tmp_path):

@@ -346,13 +346,13 @@ def test_focal_sweep_writes_frames_gif_and_mp4(planes, tmp_path):
 def test_focal_sweep_of_every_band_is_refused_before_any_work(planes, tmp_path, profile):
     """A sweep's frames are pictures: every band (one image per band) is refused before the
     stack is refocused, and no folder is made."""
-    from test_options_early import _LongWork, _sentinels
+    from conftest import LongWork, long_work_stopped
 
-    with _sentinels(), pytest.raises(InvalidInputError, match="not all bands"):
+    with long_work_stopped(), pytest.raises(InvalidInputError, match="not all bands"):
         try:
             render.focal_sweep(planes.gt_cube, planes.offsets, [0.0, 1.0], profile,
                                wavelengths=planes.cube_wavelengths, out_dir=tmp_path / "s")
-        except _LongWork:
+        except LongWork:
             pytest.fail("refocused before the refusal")
     assert not (tmp_path / "s").exists()
 
