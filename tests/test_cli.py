@@ -342,6 +342,9 @@ def test_depth_command_on_a_synthetic_capture(tmp_path, capsys):
                  "--save-intermediate", "-o", str(out)]) == 0
     err = capsys.readouterr().err
     assert "RMSE" in err  # scored against the capture's ground truth
+    timing = next(line for line in err.splitlines() if line.startswith("hlf: "))
+    assert " s in all (prepare " in timing and "correspondence " in timing  # stage names
+    assert "_" not in timing and "total" not in timing, timing  # not the timings' keys
     d = read_pfm(out / "disparity.pfm")
     assert d.shape == (40, 48) and np.isfinite(d).all()
     for name in ("disparity.png", "disparity_error.png", "correspondence_only.pfm"):
