@@ -101,7 +101,8 @@ def test_a_folder_without_a_manifest_is_still_read_as_a_light_field(depth_result
     plain.mkdir()
     os.link(depth_result / "disparity.png", plain / "disparity.png")
     assert main(["info", str(plain)]) != 0  # loose images: what it said before
-    assert "no capture.toml" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "no capture.toml" in err and "'hyperlf ingest'" in err  # where raw images go
 
 
 @settings(max_examples=60, deadline=None,

@@ -131,7 +131,8 @@ def load_lightfield(path: str | os.PathLike, *, cube: bool = True, **kwargs) -> 
         if any(f.suffix.lower() in (".png", ".tif", ".tiff") for f in p.iterdir()):
             raise DataNotFoundError(
                 f"{p} holds images but no {MANIFEST}; an unfinished capture or a folder of "
-                f"loose images. hyperlf loads {_SUPPORTED}"
+                f"loose images (raw camera images become a capture with 'hyperlf calibrate' "
+                f"and 'hyperlf ingest'). hyperlf loads {_SUPPORTED}"
             )
         raise FormatError(f"{p} is not a light field: hyperlf loads {_SUPPORTED}")
     if p.suffix.lower() in _H5:
