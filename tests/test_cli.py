@@ -53,6 +53,19 @@ def test_bad_argument_is_a_usage_error(capsys):
     assert "expected two integers" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("extra", ["--downscale=4", "a\nb"])
+def test_an_unknown_argument_is_named_by_its_command(tmp_path, capsys, extra):
+    """argparse reported a command's unknown argument as the top parser's ('hyperlf: error:
+    ... see hyperlf --help'), and a newline in it on a second line."""
+    with pytest.raises(SystemExit) as exc:
+        main(["refocus", str(tmp_path), "-o", str(tmp_path / "r"), extra])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and err.count("\n") == 1
+    assert err.startswith("hyperlf refocus: error: unrecognized arguments: ")
+    assert err.rstrip().endswith("see 'hyperlf refocus --help'")
+    assert not (tmp_path / "r").exists()
+
+
 def test_missing_input_exit_code_and_one_line(tmp_path, capsys):
     code = main(["info", str(tmp_path / "nothing-here")])
     err = capsys.readouterr().err.strip()

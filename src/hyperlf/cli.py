@@ -340,7 +340,7 @@ class _Parser(argparse.ArgumentParser):
     """An argument parser whose usage errors are one line on stderr (exit 2)."""
 
     def error(self, message: str):
-        self.exit(2, f"{self.prog}: error: {message}; see '{self.prog} --help'\n")
+        self.exit(2, f"{self.prog}: error: {_one_line(message)}; see '{self.prog} --help'\n")
 
 
 def _check_input_file(path, what: str) -> Path:
@@ -2138,6 +2138,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"hyperlf {__version__}")
     parser.add_argument("-q", "--quiet", action="store_true", help=_QUIET_HELP)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    parser.commands = sub.choices  # each command's parser, for its own usage errors
     _add_demo_parser(sub)
     _add_synth_parser(sub)
     _add_calibrate_parser(sub)
@@ -2319,7 +2320,10 @@ def _parse(argv: list[str]):
               file=sys.stderr)
         return 2
     try:
-        args = parser.parse_args(argv)
+        args, extra = parser.parse_known_args(argv)
+        if extra:  # named by the command they were given to, with its --help
+            command = parser.commands.get(getattr(args, "command", None), parser)
+            command.error(f"unrecognized arguments: {' '.join(extra)}")
     except ValueError as exc:  # argparse's own failures on odd values (e.g. '--opt=--')
         print(f"hyperlf: error: {_one_line(str(exc))}; see 'hyperlf --help'", file=sys.stderr)
         return 2
