@@ -171,8 +171,13 @@ def test_render_refocus_spectrum_on_a_capture_cube(tmp_path, capfd):
     assert rows[0] == "wavelength_nm,value" and len(rows) == 1 + 12
 
 
-def test_stereo_command_writes_disparity_products(tmp_path):
+def test_stereo_command_writes_disparity_products(tmp_path, monkeypatch):
+    from hyperlf import visualise
     from hyperlf.formats import read_pfm, write_image
+
+    labels, real = [], visualise.save_disparity_png
+    monkeypatch.setattr(visualise, "save_disparity_png",
+                        lambda *a, **kw: labels.append(kw.get("label")) or real(*a, **kw))
 
     rng = np.random.default_rng(3)
     tex = rng.random((40, 74)).astype(np.float32)
@@ -189,6 +194,7 @@ def test_stereo_command_writes_disparity_products(tmp_path):
     for name in ("disparity_16bit.png", "disparity_16bit.txt", "disparity.png", "confidence.png",
                  "confidence.pfm"):
         assert (out / name).is_file(), name
+    assert labels == ["disparity (px)", "confidence"]  # a pair's disparity is in px
     assert main(["-q", "stereo", str(tmp_path / "l.png"), str(tmp_path / "r.png"),
                  "-o", str(out)]) == 2  # no range given: usage error with a hint
 

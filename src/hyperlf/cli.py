@@ -872,7 +872,8 @@ def _cmd_stereo(args, dest) -> list[Path]:
     truth = None if pair is None else pair.gt_disparity
     written = save_disparity_outputs(dest, res.disparity,
                                       f"{res.metric} + {res.optimizer}", confidence=res.confidence,
-                                      unit="px", truth=truth, error_vmax=STEREO_ERROR_VMAX)
+                                      unit="px", truth=truth, error_vmax=STEREO_ERROR_VMAX,
+                                      label="disparity (px)")
     t = res.timings
     _say(args, f"cost {t['cost']:.1f} s, optimiser {t['optimiser']:.1f} s, total {t['total']:.1f} s")
     if pair is not None:

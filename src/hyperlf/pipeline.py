@@ -181,7 +181,8 @@ def save_disparity_outputs(out: str | os.PathLike, disparity: np.ndarray, title:
                            *, truth: np.ndarray | None = None,
                            confidence: np.ndarray | None = None,
                            stem: str = "disparity", unit: str = "px per baseline",
-                           error_vmax: float = 1.0) -> list[Path]:
+                           error_vmax: float = 1.0,
+                           label: str = "disparity (px / baseline)") -> list[Path]:
     """Write a disparity map as PFM (exact), 16-bit PNG and a colour-mapped picture.
 
     The 16-bit PNG holds ``(disparity - offset) * 256`` rounded; the offset is written to a
@@ -207,6 +208,8 @@ def save_disparity_outputs(out: str | os.PathLike, disparity: np.ndarray, title:
         The error (in the disparity's unit) at the top of the error picture's colour map:
         1 for a light field's sub-pixel disparities, the bad-pixel threshold for a pair's
         (in (0, 1e6]).
+    label : str
+        The colour bar's label in the picture (a pair's: ``"disparity (px)"``).
 
     Returns
     -------
@@ -222,7 +225,7 @@ def save_disparity_outputs(out: str | os.PathLike, disparity: np.ndarray, title:
     shape = _map(disparity, "disparity").shape
     _map(truth, "truth", shape, optional=True)
     _map(confidence, "confidence", shape, optional=True)
-    _text(title, "title"), _stem(stem), _text(unit, "unit")
+    _text(title, "title"), _stem(stem), _text(unit, "unit"), _text(label, "label")
     error_vmax = _opt.number(error_vmax, "error_vmax", positive=True, at_most=1e6)
     written = [write_pfm(out / f"{stem}.pfm", disparity)]
     d = np.nan_to_num(np.asarray(disparity, dtype=np.float64), nan=0.0)
@@ -232,7 +235,8 @@ def save_disparity_outputs(out: str | os.PathLike, disparity: np.ndarray, title:
     written.append(atomic_write_text(
         out / f"{stem}_16bit.txt",
         f"disparity = value / 256 + ({offset:g})   # {unit}; exact values in {stem}.pfm\n"))
-    written.append(visualise.save_disparity_png(out / f"{stem}.png", disparity, title=title))
+    written.append(visualise.save_disparity_png(out / f"{stem}.png", disparity, title=title,
+                                                label=label))
     if truth is not None:
         written.append(visualise.save_error_png(out / f"{stem}_error.png", disparity, truth,
                                                 vmax=error_vmax))
