@@ -28,3 +28,25 @@ def test_examples_run(name, tmp_path, monkeypatch):
         result = doctest.testmod(module, optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE,
                                  report=True, verbose=False)
     assert result.failed == 0, f"{result.failed} of {result.attempted} examples failed in {name}"
+
+
+def _readme_python() -> list[str]:
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    return [block.split("```", 1)[0] for block in text.split("```python\n")[1:]]
+
+
+def test_the_readmes_python_runs_and_scores_its_map(tmp_path, monkeypatch, capsys):
+    """The README's Python example, as a new user pastes it: it runs, and the default depth
+    of its procedural scene scores as that scene should (RMSE under 0.5 px)."""
+    blocks = _readme_python()
+    assert blocks, "the README has no Python example"
+    monkeypatch.chdir(tmp_path)
+    scope = {}
+    for block in blocks:
+        exec(compile(block, "README.md", "exec"), scope)
+    assert scope["metrics"].hci_scores(scope["res"].disparity,
+                                       scope["lf"].reference_gt_disparity).rmse < 0.5
+    assert scope["done"].cube.shape[:3] == (*scope["lf"].grid_shape, scope["lf"].n_views)
+    assert "DisparityScores(rmse=" in capsys.readouterr().out

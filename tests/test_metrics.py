@@ -44,8 +44,12 @@ def test_missing_estimate_counts_as_bad():
 
 
 def test_shape_mismatch():
-    with pytest.raises(InvalidInputError, match="shape"):
+    with pytest.raises(InvalidInputError, match="shape") as exc:
         m.rmse(np.zeros((2, 2)), np.zeros((3, 3)))
+    assert "reference_gt_disparity" not in str(exc.value)
+    # a light field's per-view truth given for the reference's map: the message says which
+    with pytest.raises(InvalidInputError, match="compare with its reference_gt_disparity"):
+        m.rmse(np.zeros((2, 2)), np.zeros((3, 3, 2, 2)))
 
 
 def test_psnr_and_sam():

@@ -46,9 +46,10 @@ def _pair(estimate, truth) -> tuple[np.ndarray, np.ndarray]:
     est = _opt.real_array(estimate, "estimate")
     gt = _opt.real_array(truth, "truth")
     if est.shape != gt.shape:
-        raise InvalidInputError(
-            f"estimate has shape {est.shape} but ground truth has {gt.shape}; they must match"
-        )
+        hint = ("; a light field's gt_disparity holds every view's: compare with its "
+                "reference_gt_disparity" if gt.ndim == 4 and gt.shape[2:] == est.shape else "")
+        raise InvalidInputError(f"estimate has shape {est.shape} but ground truth has "
+                                f"{gt.shape}; they must match{hint}")
     return est, gt
 
 
