@@ -124,20 +124,25 @@ def plane_scores(P, dx, dy, A, B, c, min_inside, out):  # pragma: no cover - num
     ``min_inside`` of them do.  Numpy reference: ``planes._plane_scores_numpy``.
     """
     n, L = P.shape
-    for i in numba.prange(A.size):
-        for j in range(B.size):
-            for k in range(c.size):
-                s = 0.0
-                m = 0
-                for q in range(n):
-                    f = c[k] + A[i] * dx[q] + B[j] * dy[q]
-                    if f < 0.0 or f > L - 1:
-                        continue
-                    l0 = min(int(f), L - 2)
-                    t = f - l0
-                    s += (1.0 - t) * P[q, l0] + t * P[q, l0 + 1]
-                    m += 1
-                out[i, j, k] = s / m if m >= min_inside and m > 0 else np.inf
+    nb, nc = B.size, c.size
+    for ij in numba.prange(A.size * nb):  # every slope pair in parallel (3 x 3 near the best)
+        i = ij // nb
+        j = ij - i * nb
+        s = np.zeros(nc)
+        m = np.zeros(nc, np.int64)
+        for q in range(n):  # a sample's row of costs read once, along its labels
+            ax = A[i] * dx[q]
+            by = B[j] * dy[q]
+            for k in range(nc):
+                f = c[k] + ax + by
+                if f < 0.0 or f > L - 1:
+                    continue
+                l0 = min(int(f), L - 2)
+                t = f - l0
+                s[k] += (1.0 - t) * P[q, l0] + t * P[q, l0 + 1]
+                m[k] += 1
+        for k in range(nc):
+            out[i, j, k] = s[k] / m[k] if m[k] >= min_inside and m[k] > 0 else np.inf
 
 
 @numba.njit(cache=True, inline="always")
