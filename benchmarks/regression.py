@@ -4,7 +4,7 @@ every array bit for bit with a recording made before the change.
     python benchmarks/regression.py save before.npz      # on the commit before the change
     python benchmarks/regression.py compare before.npz   # after; ends "0 not bit-identical"
 
-About 160 arrays (every cost volume in both implementations, two-view stereo for every cost x
+About 180 arrays (every cost volume in both implementations, two-view stereo for every cost x
 optimiser, every light-field cost, H-LF depth with every cue and optimiser, completion,
 rendering, the baselines, warp and the regularisers) in under a minute on 2 cores.  Run both
 with the same environment (``HYPERLF_DATA`` set or unset in both: it changes the synthetic
@@ -57,6 +57,20 @@ def cases():
         if res.f_d is not None:
             yield f"d_{name}_fd", res.f_d
         yield f"d_{name}_U", res.intermediate["unary"]
+    # the texture weight, coarse prior and weak planes (on for captures from cameras): a flat,
+    # noisy band over most of the views (the noise estimate needs it to be the majority), on
+    # views large enough for the planes' tiles
+    big = synthesis.procedural_scene(seed=2, rows=3, cols=3, height=96, width=112,
+                                     disparity_range=(-1.5, 1.5))
+    noisy = big.views.copy()
+    noisy[:, :, 30:] = 0.5
+    noisy += 0.004 * np.random.default_rng(5).standard_normal(noisy.shape)
+    cam = big.replace(views=noisy.astype(np.float32),
+                      metadata={**big.metadata, "calibration": {"mode": "plane"}})
+    res = hlf.depth(cam, n_labels=17, save_intermediate=True)
+    yield "d_camera_disp", res.disparity
+    yield "d_camera_conf", res.confidence
+    yield "d_camera_weight", res.intermediate["texture_weight"]
     gt = lf.gt_disparity[lf.reference]
     cr = completion.complete(lf, gt)
     yield "comp_cube", cr.cube; yield "comp_mask", cr.mask
