@@ -439,6 +439,10 @@ def test_plane_says_why_the_parallax_was_not_used(tmp_path, rig, plane_shots):
         "parallax_unused"] == why
     assert "parallax_unused" not in register_plane(plane_shots, rig.board,
                                                    positions_from="board").info
+    # asked for positions from parallax, the same shots are refused, saying why
+    with pytest.raises(InvalidInputError, match=r"no usable parallax around the board \(\d+ "
+                                                r"points, median flow [\d.]+ px\)"):
+        register_plane(plane_shots, rig.board, positions_from="parallax", min_parallax_px=1e6)
 
 
 # ----------------------------------------------------------------------------- files

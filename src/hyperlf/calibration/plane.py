@@ -472,6 +472,20 @@ def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=No
                                       work_size=work_size, max_parallax=max_parallax)[1:]
     Hs, errs, resid = board_homographies(corners, ref, names)
     geo = board_geometry(corners, board, size, ref, focal_px=focal_px)
+    info = _board_info(geo, corners, board, ref, names, focal_px)
+    offsets = {k: np.asarray(v[:2]) for k, v in geo["centres"].items()}
+    if par is not None:  # measured by turned_cameras on these corners
+        offsets = _parallax_offsets(par, offsets, info, positions_from, min_parallax_px)
+    pos, agree = resolve_positions(offsets, geo["centres"], ref)
+    info["sign_agreement"] = agree
+    cal = _plane_calibration(grid, ref, size, Hs, errs, pos, geo, board, names, info)
+    _check_positions_agree(cal.info)
+    cal.residuals, cal.corners = resid, corners
+    return cal
+
+
+def _board_info(geo: dict, corners: dict, board: BoardSpec, ref, names, focal_px) -> dict:
+    """The calibration's ``info`` from the board poses (and the cameras found turned)."""
     info = {"board_pose_rms": geo["rms"], "positions_from": "board",
             "focal_given": bool(focal_px), "focal_std_px": geo["focal_std"],
             **turn_report({k: c for k, c in corners.items() if k != ref},
@@ -481,33 +495,34 @@ def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=No
     # problem is singular)
     info["focal_determined"] = bool(focal_px) or bool(
         np.isfinite(geo["focal_std"]) and 0 < geo["focal_std"] < FOCAL_TOLERANCE * geo["focal"])
-    offsets = {k: np.asarray(v[:2]) for k, v in geo["centres"].items()}
-    if par is not None:  # measured by turned_cameras on these corners
-        info.update(parallax_points=par["n_points"], parallax_rms=par["rms"],
-                    parallax_median_flow=par["median_flow"])
-        usable = (par["n_points"] >= 8 and par["median_flow"] >= min_parallax_px
-                  and all(np.all(np.isfinite(o)) for o in par["offsets"].values()))
-        if usable:
-            offsets, info["positions_from"] = par["offsets"], "parallax"
-            if np.isfinite(par["reach"]):  # |d| of 99 % of the points, px per baseline
-                m = float(np.ceil(1.25 * par["reach"]))
-                info["disparity_range"] = [-m, m]
-        elif positions_from == "auto":  # why not, for the user (calibrate says it)
-            info["parallax_unused"] = (
-                f"{par['n_points']} points off the board plane with a median flow of "
-                f"{par['median_flow']:.2f} px; at least 8 points and {min_parallax_px:g} px "
-                "are needed")
-        else:
-            raise InvalidInputError(
-                f"no usable parallax around the board ({par['n_points']} points, median flow "
-                f"{par['median_flow']:.2f} px); the scene beside the board needs texture at "
-                "other depths, or use positions from the board poses")
-    pos, agree = resolve_positions(offsets, geo["centres"], ref)
-    info["sign_agreement"] = agree
-    cal = _plane_calibration(grid, ref, size, Hs, errs, pos, geo, board, names, info)
-    _check_positions_agree(cal.info)
-    cal.residuals, cal.corners = resid, corners
-    return cal
+    return info
+
+
+def _parallax_offsets(par: dict, offsets: dict, info: dict, positions_from: str,
+                      min_parallax_px: float) -> dict:
+    """The cameras' offsets from the scene's parallax when it is usable, else ``offsets``
+    (the board poses'; with ``positions_from="parallax"`` that is refused); ``info`` takes
+    what was measured, the disparity range it implies, or why it was not used."""
+    info.update(parallax_points=par["n_points"], parallax_rms=par["rms"],
+                parallax_median_flow=par["median_flow"])
+    usable = (par["n_points"] >= 8 and par["median_flow"] >= min_parallax_px
+              and all(np.all(np.isfinite(o)) for o in par["offsets"].values()))
+    if usable:
+        info["positions_from"] = "parallax"
+        if np.isfinite(par["reach"]):  # |d| of 99 % of the points, px per baseline
+            m = float(np.ceil(1.25 * par["reach"]))
+            info["disparity_range"] = [-m, m]
+        return par["offsets"]
+    if positions_from == "auto":  # why not, for the user (calibrate says it)
+        info["parallax_unused"] = (
+            f"{par['n_points']} points off the board plane with a median flow of "
+            f"{par['median_flow']:.2f} px; at least 8 points and {min_parallax_px:g} px "
+            "are needed")
+        return offsets
+    raise InvalidInputError(
+        f"no usable parallax around the board ({par['n_points']} points, median flow "
+        f"{par['median_flow']:.2f} px); the scene beside the board needs texture at "
+        "other depths, or use positions from the board poses")
 
 
 #: Largest RMS (baselines) by which the positions from parallax may differ from the board
