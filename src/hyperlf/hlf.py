@@ -2124,41 +2124,18 @@ def correspondence(prob: DepthProblem, *, progress: bool | str = False, timings=
     n_used : ndarray
         Views used per ``(d, p)`` before the occlusion split.
     """
-    from .tiling import check_strips
-
     prob = _problem(prob)
     progress = _progress(progress)
-    if timings is not None and not isinstance(timings, dict):
-        raise InvalidInputError(f"timings must be None or a dict (seconds per stage are added "
-                                f"to it), got {type(timings).__name__}")
-    sees = _sees(sees, prob)
-    if store is not None and not isinstance(store, ViewCostStore):
-        raise InvalidInputError(f"store must be None or a ViewCostStore, got "
-                                f"{type(store).__name__}")
-    L = prob.labels.size
-    H, W = prob.lf.image_shape
-    if strips is not None and not isinstance(strips, (list, tuple, np.ndarray)):
-        raise InvalidInputError(f"strips must be None or a list of row ranges (a, b), got "
-                                f"{_opt.shown(strips)}")
-    strips = check_strips(strips, H)
+    sees, strips = _correspondence_inputs(prob, timings, sees, strips, store)
     clock = _Clock({"correspondence_s": 0.0, "selection_split_s": 0.0})
     # kept costs were made with the whole-view scales already
     scales = None if store is not None and store.get(prob.others[0], strips[0]) is not None \
         else view_scales(prob, strips)
     clock.lap("scales_s")
-    cache: dict = {}
     n = len(prob.others) * len(strips)
     desc = progress if isinstance(progress, str) else "views"
     bar = progress_bar(range(n), desc, total=n, enabled=bool(progress), unit="view")
-    if len(strips) == 1:
-        C, n_used = _strip_correspondence(prob, strips[0], scales, sees, cache, bar, clock,
-                                          store)
-    else:
-        C = np.empty((L, H, W), np.float32)
-        n_used = np.empty((L, H, W), np.float32)
-        for a, b in strips:
-            C[:, a:b], n_used[:, a:b] = _strip_correspondence(prob, (a, b), scales, sees,
-                                                              cache, bar, clock, store)
+    C, n_used = _all_strips(prob, strips, scales, sees, bar, clock, store)
     next(bar, None)  # closes the bar
     if not np.isfinite(C).any():
         dmin, dmax = prob.disparity_range
@@ -2174,6 +2151,36 @@ def correspondence(prob: DepthProblem, *, progress: bool | str = False, timings=
         timings.update(clock.timings)
         if len(strips) == 1:
             timings.pop("scales_s", None)
+    return C, n_used
+
+
+def _correspondence_inputs(prob: DepthProblem, timings, sees, strips, store):
+    """:func:`correspondence`'s checks of its other arguments: ``(sees, strips)`` checked."""
+    from .tiling import check_strips
+
+    if timings is not None and not isinstance(timings, dict):
+        raise InvalidInputError(f"timings must be None or a dict (seconds per stage are added "
+                                f"to it), got {type(timings).__name__}")
+    sees = _sees(sees, prob)
+    if store is not None and not isinstance(store, ViewCostStore):
+        raise InvalidInputError(f"store must be None or a ViewCostStore, got "
+                                f"{type(store).__name__}")
+    if strips is not None and not isinstance(strips, (list, tuple, np.ndarray)):
+        raise InvalidInputError(f"strips must be None or a list of row ranges (a, b), got "
+                                f"{_opt.shown(strips)}")
+    return sees, check_strips(strips, prob.lf.image_shape[0])
+
+
+def _all_strips(prob: DepthProblem, strips, scales, sees, bar, clock, store):
+    """``(C, n_used)`` of every strip of rows, put together (one strip: its own arrays)."""
+    cache: dict = {}
+    if len(strips) == 1:
+        return _strip_correspondence(prob, strips[0], scales, sees, cache, bar, clock, store)
+    shape = (prob.labels.size, *prob.lf.image_shape)
+    C, n_used = np.empty(shape, np.float32), np.empty(shape, np.float32)
+    for a, b in strips:
+        C[:, a:b], n_used[:, a:b] = _strip_correspondence(prob, (a, b), scales, sees, cache,
+                                                          bar, clock, store)
     return C, n_used
 
 
