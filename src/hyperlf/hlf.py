@@ -2757,6 +2757,15 @@ def edge_discount(conf: np.ndarray, disparity: np.ndarray, params: DepthParams) 
     return np.asarray(conf, np.float32) * w
 
 
+def _matched(prob: DepthProblem, keep_counts: bool, **options):
+    """:func:`correspondence` (``options``) and what :func:`depth` reads off it: ``(C,
+    n_used or None unless kept, the pixels some view sees, the winner-takes-all map)``."""
+    C, n_used = correspondence(prob, **options)
+    seen = seen_pixels(prob, n_used)
+    f_c = prob.labels[np.argmin(C, axis=0)].astype(np.float32)
+    return C, (n_used if keep_counts else None), seen, f_c
+
+
 def _visibility_start(prob: DepthProblem, clock: _Clock, progress):
     """What the visibility rounds of :func:`depth` start from: ``(start, sees, first, rounds,
     store)``, the half-resolution estimate (None without one), its visibility for the main
@@ -2853,11 +2862,8 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
     clock.lap("coarse_prior_s")
     prior = plane_prior(prob, w, prior, progress=progress)
     clock.lap("plane_prior_s")
-    C, n_used = correspondence(prob, progress=progress, timings=timings, sees=sees, strips=strips,
-                               store=store)
-    clock.lap()
-    seen, n_used = seen_pixels(prob, n_used), (n_used if save_intermediate else None)
-    f_c = prob.labels[np.argmin(C, axis=0)].astype(np.float32)
+    C, n_used, seen, f_c = _matched(prob, save_intermediate, progress=progress, timings=timings,
+                                    sees=sees, strips=strips, store=store)
     clock.lap()
     D, lam_r = defocus_cue(prob, f_c)
     f_d = None if D is None else prob.labels[np.argmin(D, axis=0)].astype(np.float32)
@@ -2868,12 +2874,11 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
     for k in range(first + 1, first + rounds + 1):
         sees = visibility(prob, disp)
         C = U = None  # the new round's volumes replace them: not both at once
-        C, n_used = correspondence(prob, progress=f"views, visibility round {k}" if progress
-                                   else False, sees=sees, strips=strips, store=store)
+        C, n_used, seen, f_c = _matched(
+            prob, save_intermediate, progress=f"views, visibility round {k}" if progress
+            else False, sees=sees, strips=strips, store=store)
         if store is not None and k == first + rounds:
             store.clear()  # the last round's: the MRF's memory
-        seen, n_used = seen_pixels(prob, n_used), (n_used if save_intermediate else None)
-        f_c = prob.labels[np.argmin(C, axis=0)].astype(np.float32)
         clock.lap(f"visibility_round{k}_correspondence_s")
         U, sC, sD, disp, conf, lab = _solve(prob, C, D, seen, f_c, w, prior, clock, passes,
                                             suffix=f"_round{k}", init=lab)
