@@ -269,6 +269,23 @@ def test_costs_are_kept_only_when_they_fit(monkeypatch):
     assert not one.config["visibility_costs_kept"]  # no later round needs them
 
 
+def test_kept_costs_are_let_go_before_the_last_rounds_solve(monkeypatch):
+    """The last round needs the kept costs for its matching only: they are let go before its
+    graph cut, whose memory they would add to."""
+    from hyperlf import hlf
+
+    events = []
+    clear, regularise = hlf.ViewCostStore.clear, hlf.regularise
+    monkeypatch.setattr(hlf.ViewCostStore, "clear",
+                        lambda self: events.append("clear") or clear(self))
+    monkeypatch.setattr(hlf, "regularise",
+                        lambda *a, **kw: events.append("solve") or regularise(*a, **kw))
+    lf = synthesis.procedural_scene(seed=0, rows=3, cols=3, height=40, width=48)
+    res = depth(lf, n_labels=10, params=DepthParams(visibility_rounds=3))
+    assert res.config["visibility_costs_kept"]
+    assert events[-2:] == ["clear", "solve"] and events.count("clear") == 1, events
+
+
 def test_further_rounds_lower_the_error_at_depth_edges_again():
     """The default's three rounds, each after the first moving the labels before by one
     graph-cut cycle, against one round: through the paper's 5 x 6 array the error within 4 px

@@ -2757,10 +2757,13 @@ def edge_discount(conf: np.ndarray, disparity: np.ndarray, params: DepthParams) 
     return np.asarray(conf, np.float32) * w
 
 
-def _matched(prob: DepthProblem, keep_counts: bool, **options):
+def _matched(prob: DepthProblem, keep_counts: bool, *, last: bool = False, **options):
     """:func:`correspondence` (``options``) and what :func:`depth` reads off it: ``(C,
-    n_used or None unless kept, the pixels some view sees, the winner-takes-all map)``."""
+    n_used or None unless kept, the pixels some view sees, the winner-takes-all map)``.
+    ``last``: the kept view costs are not needed again, and are let go at once."""
     C, n_used = correspondence(prob, **options)
+    if last and options.get("store") is not None:
+        options["store"].clear()  # before anything else is made: the MRF's memory
     seen = seen_pixels(prob, n_used)
     f_c = prob.labels[np.argmin(C, axis=0)].astype(np.float32)
     return C, (n_used if keep_counts else None), seen, f_c
@@ -2875,10 +2878,9 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
         sees = visibility(prob, disp)
         C = U = None  # the new round's volumes replace them: not both at once
         C, n_used, seen, f_c = _matched(
-            prob, save_intermediate, progress=f"views, visibility round {k}" if progress
-            else False, sees=sees, strips=strips, store=store)
-        if store is not None and k == first + rounds:
-            store.clear()  # the last round's: the MRF's memory
+            prob, save_intermediate, last=k == first + rounds,
+            progress=f"views, visibility round {k}" if progress else False, sees=sees,
+            strips=strips, store=store)
         clock.lap(f"visibility_round{k}_correspondence_s")
         U, sC, sD, disp, conf, lab = _solve(prob, C, D, seen, f_c, w, prior, clock, passes,
                                             suffix=f"_round{k}", init=lab)
