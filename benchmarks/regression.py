@@ -58,7 +58,8 @@ def cases():
             yield f"d_{name}_fd", res.f_d
         yield f"d_{name}_U", res.intermediate["unary"]
     # the texture weight, coarse prior and weak planes (on for captures from cameras): a flat,
-    # noisy band over most of the views (the noise estimate needs it to be the majority), on
+    # noisy band over most of the views (the procedural texture, which grows under binning,
+    # reads as noise-free to imageops.noise_sigma once it holds most pixels; BENCHMARKS), on
     # views large enough for the planes' tiles
     big = synthesis.procedural_scene(seed=2, rows=3, cols=3, height=96, width=112,
                                      disparity_range=(-1.5, 1.5))

@@ -845,9 +845,9 @@ def _cmd_stereo(args, dest) -> list[Path]:
 
     A Middlebury scene folder given alone (imL/imR, or <name>1/<name>5 of 2005, with their
     ground truth, as in $HYPERLF_DATA/middlebury) is matched over its own range unless
-    --disparity-range says
-    otherwise, and its map is scored against the ground truth on the scene's evaluation mask
-    (bad-pixel shares on stderr, disparity_error.png), as Table 1 scores it.
+    --disparity-range says otherwise, and its map is scored against the ground truth on the
+    scene's evaluation mask (bad-pixel shares on stderr, disparity_error.png), as Table 1
+    scores it.
 
     examples:
       hyperlf stereo imL.png imR.png --disparity-range 0,59 -o out

@@ -2757,13 +2757,14 @@ def edge_discount(conf: np.ndarray, disparity: np.ndarray, params: DepthParams) 
     return np.asarray(conf, np.float32) * w
 
 
-def _matched(prob: DepthProblem, keep_counts: bool, *, last: bool = False, **options):
-    """:func:`correspondence` (``options``) and what :func:`depth` reads off it: ``(C,
-    n_used or None unless kept, the pixels some view sees, the winner-takes-all map)``.
+def _matched(prob: DepthProblem, keep_counts: bool, *, store: ViewCostStore | None = None,
+             last: bool = False, **options):
+    """:func:`correspondence` (``store`` and ``options``) and what :func:`depth` reads off it:
+    ``(C, n_used or None unless kept, the pixels some view sees, the winner-takes-all map)``.
     ``last``: the kept view costs are not needed again, and are let go at once."""
-    C, n_used = correspondence(prob, **options)
-    if last and options.get("store") is not None:
-        options["store"].clear()  # before anything else is made: the MRF's memory
+    C, n_used = correspondence(prob, store=store, **options)
+    if last and store is not None:
+        store.clear()  # before anything else is made: the MRF's memory
     seen = seen_pixels(prob, n_used)
     f_c = prob.labels[np.argmin(C, axis=0)].astype(np.float32)
     return C, (n_used if keep_counts else None), seen, f_c
