@@ -1933,34 +1933,54 @@ def _depth_confidence_defaults() -> dict:
 def _add_depth_parser(sub) -> None:
     p = _subcommand(sub, "depth", _cmd_depth, help="disparity of the reference view of an H-LF")
     p.add_argument("input", help="capture folder, .h5 light field or HCI scene folder")
-    p.add_argument("--method", default="hlf", choices=["hlf", *_baseline_choices()],
+    _add_depth_matching_options(p.add_argument_group("matching"))
+    _add_depth_regularisation_options(p.add_argument_group("regularisation and post-filter"))
+    _add_depth_weak_texture_options(p.add_argument_group("weakly textured regions"))
+    _add_depth_visibility_options(p.add_argument_group("views that cannot see a pixel"))
+    _add_depth_resource_options(p.add_argument_group("time and memory"))
+    _add_depth_output_options(p.add_argument_group("outputs"))
+
+
+def _add_depth_matching_options(g) -> None:
+    """depth's search range, cost and the cues besides correspondence."""
+    g.add_argument("--method", default="hlf", choices=["hlf", *_baseline_choices()],
                    help="hlf (ours, default) or a baseline")
-    p.add_argument("--disparity-range", type=_range_arg, default=None, metavar="MIN,MAX",
+    g.add_argument("--disparity-range", type=_range_arg, default=None, metavar="MIN,MAX",
                    help="px per baseline (default: the capture's metadata); write "
                         "--disparity-range=-2,2 when MIN is negative")
-    p.add_argument("--labels", type=_labels_arg, default=64,
+    g.add_argument("--labels", type=_labels_arg, default=64,
                    help="number of disparity labels (64)")
-    _add_metric_option(p, light_field=True,
+    _add_metric_option(g, light_field=True,
                        help="correspondence cost of hlf: auto (default, = census-rsncc), rsncc, "
                             "census, ncc, or the descriptor costs fused, bwncc, bwncc-paper "
                             "(about 50x slower)")
-    _add_optimizer_option(p)
-    p.add_argument("--view-selection", action="store_true",
+    _add_fusion_weights_option(g)
+    g.add_argument("--view-selection", action="store_true",
                    help="enable the paper's local view selection (off by default: it did not "
                         "help on the tuning scenes)")
-    p.add_argument("--occlusion-split", action="store_true",
+    g.add_argument("--occlusion-split", action="store_true",
                    help="enable the occlusion-aware half-plane split (off by default)")
-    p.add_argument("--defocus", default="off", choices=_defocus_choices(),
+    g.add_argument("--defocus", default="off", choices=_defocus_choices(),
                    help="spectral-aware defocus cost (off by default; 'paper' is the literal one)")
-    p.add_argument("--median-radius", type=_int_at_least(0, "--median-radius", 64), default=None,
+    _add_aggregation_options(g)
+
+
+def _add_depth_regularisation_options(g) -> None:
+    """depth's optimiser and the post-filter that snaps depth edges to image edges."""
+    _add_optimizer_option(g)
+    g.add_argument("--median-radius", type=_int_at_least(0, "--median-radius", 64), default=None,
                    metavar="PX",
                    help="radius of the guided weighted-median post-filter that snaps depth "
                         "edges to image edges (default 4; 0 turns it off)")
-    p.add_argument("--median-passes", type=_median_passes_arg, default=None, metavar="N",
+    g.add_argument("--median-passes", type=_median_passes_arg, default=None, metavar="N",
                    help="how often the post-filter runs (default auto: once, and once more "
                         "per 0.4 px of the reference view's edge blur above 0.8 px, since "
                         "soft views carry the foreground further over the background)")
-    p.add_argument("--texture-snr", type=_texture_snr_arg,
+
+
+def _add_depth_weak_texture_options(g) -> None:
+    """depth's handling of pixels whose window holds too little texture to match."""
+    g.add_argument("--texture-snr", type=_texture_snr_arg,
                    default=None, metavar="T",
                    help="pixels whose matching window holds less texture than T times the "
                         "sensor noise (estimated from the reference view) count less, so that "
@@ -1969,11 +1989,13 @@ def _add_depth_parser(sub) -> None:
                         "off; default: 2 for captures made by 'hyperlf ingest' from camera "
                         "images, off for rendered and synthetic light fields, whose "
                         "pixel-scale texture one image cannot tell from noise)")
-    _add_coarse_prior_options(p)
-    _add_weak_planes_option(p)
-    _add_unseen_options(p)
-    _add_fusion_weights_option(p)
-    p.add_argument("--visibility-rounds", type=_visibility_rounds_arg, default=None,
+    _add_coarse_prior_options(g)
+    _add_weak_planes_option(g)
+
+
+def _add_depth_visibility_options(g) -> None:
+    """depth's visibility rounds and what it does where views cannot see a candidate depth."""
+    g.add_argument("--visibility-rounds", type=_visibility_rounds_arg, default=None,
                    metavar="N",
                    help="re-match N times, each candidate depth of a pixel over only the "
                         "views that see it there under the previous estimate (sharper depth "
@@ -1984,7 +2006,12 @@ def _add_depth_parser(sub) -> None:
                         "at least 256 px on their shorter side whose costs fit in 3 GB "
                         "(512 x 512, 64 labels, 30 views), 1 on larger ones, else 0; 1 saves "
                         "about a sixth of the time where a scene has few depth edges)")
-    p.add_argument("--max-memory", type=_memory_arg, default=None, metavar="SIZE",
+    _add_unseen_options(g)
+
+
+def _add_depth_resource_options(g) -> None:
+    """depth's memory budget and its quick look at 1/N resolution."""
+    g.add_argument("--max-memory", type=_memory_arg, default=None, metavar="SIZE",
                    help="memory budget of the hlf method, e.g. 6G or 512M (default 16G, which "
                         "leaves room on a 24 GB machine, or the memory available now when that "
                         "is less): above it the correspondence stage "
@@ -1993,13 +2020,17 @@ def _add_depth_parser(sub) -> None:
                         "matching pass for its "
                         "normalisers (up to twice the matching time); a budget that even the "
                         "thinnest strips exceed is refused before any work")
-    p.add_argument("--downscale", type=_downscale_arg, default=1, metavar="N",
+    g.add_argument("--downscale", type=_downscale_arg, default=1, metavar="N",
                    help="match at 1/N of the resolution (means of N x N pixel blocks), "
                         "about N^2 times faster, for a first look at a large capture: the maps "
                         "are N times smaller and their disparities in their own px (1/N of "
                         "the full-resolution values; --disparity-range stays in the input's "
                         "px); metric depth and the point cloud keep their unit (default 1)")
-    p.add_argument("--min-confidence", type=_min_confidence_arg, default=0.0, metavar="C",
+
+
+def _add_depth_output_options(g) -> None:
+    """depth's output folder and what its confidence leaves out of the metric outputs."""
+    g.add_argument("--min-confidence", type=_min_confidence_arg, default=0.0, metavar="C",
                    help="leave pixels whose confidence (confidence.pfm/png) is below C out of "
                         "the metric outputs: NaN in depth.pfm, no point in points.ply, whose "
                         "points carry their confidence as a property either way. With the "
@@ -2008,12 +2039,11 @@ def _add_depth_parser(sub) -> None:
                         "surroundings (confidence 0) and those within 2 px of a depth edge, "
                         "0.15 also those whose own costs were ambiguous (0.1); disparity.pfm "
                         "stays whole (default 0: keep every pixel)")
-    _add_confidence_options(p, **_depth_confidence_defaults())
-    _add_aggregation_options(p)
-    p.add_argument("--save-intermediate", action="store_true",
+    _add_confidence_options(g, **_depth_confidence_defaults())
+    g.add_argument("--save-intermediate", action="store_true",
                    help="also write correspondence-only and defocus-only maps, and the "
                         "textureless-region weight when it was used")
-    _add_output_folder(p)
+    _add_output_folder(g)
 
 
 def _add_batch_parser(sub) -> None:
@@ -2022,43 +2052,55 @@ def _add_batch_parser(sub) -> None:
     p.add_argument("inputs", nargs="+", metavar="INPUT",
                    help="capture folder, .h5 light field, a folder of them, or a glob pattern "
                         "(quote it)")
-    p.add_argument("--workers", type=_workers_arg, default=2,
+    _add_batch_cluster_options(p.add_argument_group("cluster"))
+    _add_batch_depth_options(p.add_argument_group("depth of each capture (see 'hyperlf depth "
+                                                  "--help')"))
+    g = p.add_argument_group("outputs")
+    g.add_argument("-o", "--output", required=True,
+                   help="output folder: one result set per capture and the summary")
+    g.add_argument("--overwrite", action="store_true",
+                   help="recompute every capture, also those with results (needed to change "
+                        "the depth options of an existing batch folder)")
+
+
+def _add_batch_cluster_options(g) -> None:
+    """batch's local cluster or the scheduler it uses instead."""
+    g.add_argument("--workers", type=_workers_arg, default=2,
                    help="worker processes of the local cluster (default 2; each runs one "
                         "capture at a time, using every core numba is given)")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+    g.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="use an existing dask scheduler instead of a local cluster, e.g. "
                         "tcp://scheduler-host:8786 (its workers need hyperlf installed and must see "
                         "the input and output paths)")
-    p.add_argument("--disparity-range", type=_range_arg, default=None, metavar="MIN,MAX",
+
+
+def _add_batch_depth_options(g) -> None:
+    """The depth options batch hands on to every capture's run."""
+    g.add_argument("--disparity-range", type=_range_arg, default=None, metavar="MIN,MAX",
                    help="as for depth (default: each capture's metadata)")
-    p.add_argument("--labels", type=_labels_arg, default=None,
+    g.add_argument("--labels", type=_labels_arg, default=None,
                    help="number of disparity labels (depth's default, 64)")
-    _add_metric_option(p, light_field=True, help="correspondence cost (depth's default, auto)")
-    _add_optimizer_option(p)
-    p.add_argument("--median-radius", type=int, default=None, metavar="PX",
+    _add_metric_option(g, light_field=True, help="correspondence cost (depth's default, auto)")
+    _add_optimizer_option(g)
+    g.add_argument("--median-radius", type=int, default=None, metavar="PX",
                    help="as for depth")
-    p.add_argument("--median-passes", type=_median_passes_arg, default=None, metavar="N",
+    g.add_argument("--median-passes", type=_median_passes_arg, default=None, metavar="N",
                    help="as for depth")
-    p.add_argument("--texture-snr", type=_texture_snr_arg, default=None, metavar="T",
+    g.add_argument("--texture-snr", type=_texture_snr_arg, default=None, metavar="T",
                    help="as for depth")
-    _add_coarse_prior_options(p, brief=True)
-    _add_weak_planes_option(p, brief=True)
-    _add_unseen_options(p, brief=True)
-    _add_fusion_weights_option(p, brief=True)
-    p.add_argument("--min-confidence", type=_min_confidence_arg, default=None, metavar="C",
+    _add_coarse_prior_options(g, brief=True)
+    _add_weak_planes_option(g, brief=True)
+    _add_unseen_options(g, brief=True)
+    _add_fusion_weights_option(g, brief=True)
+    g.add_argument("--min-confidence", type=_min_confidence_arg, default=None, metavar="C",
                    help="as for depth (captures with metric outputs)")
-    _add_confidence_options(p, **_depth_confidence_defaults(), brief=True)
-    p.add_argument("--downscale", type=_downscale_arg, default=1, metavar="N",
+    _add_confidence_options(g, **_depth_confidence_defaults(), brief=True)
+    g.add_argument("--downscale", type=_downscale_arg, default=1, metavar="N",
                    help="as for depth: every capture matched at 1/N resolution, and its "
                         "scores taken at that resolution (default 1)")
-    p.add_argument("--max-memory", type=_memory_arg, default=None, metavar="SIZE",
+    g.add_argument("--max-memory", type=_memory_arg, default=None, metavar="SIZE",
                    help="as for depth, for each capture: with N workers on one machine give "
                         "each at most 1/N of its memory")
-    p.add_argument("-o", "--output", required=True,
-                   help="output folder: one result set per capture and the summary")
-    p.add_argument("--overwrite", action="store_true",
-                   help="recompute every capture, also those with results (needed to change "
-                        "the depth options of an existing batch folder)")
 
 
 def _add_complete_parser(sub) -> None:
