@@ -1,5 +1,6 @@
 """The command-line tool: help, exit codes, and the demo/synth/info/convert chain."""
 
+import argparse
 import subprocess
 import sys
 
@@ -40,6 +41,24 @@ def test_synth_help_names_every_named_scene(capsys):
     listed = out.split("a named scene:")[1].split("(default")[0]
     assert sorted(n.strip() for n in listed.split(",")) == sorted(SCENES)
 
+
+@pytest.mark.parametrize("command, titles", [
+    ("depth", ["matching", "regularisation and post-filter", "weakly textured regions",
+               "views that cannot see a pixel", "time and memory", "outputs"]),
+    ("batch", ["cluster", "depth of each capture (see 'hyperlf depth --help')", "outputs"]),
+])
+def test_long_commands_group_their_options(command, titles):
+    """depth's thirty options came as one flat list; each now sits under a title, and a new
+    option has to be put under one too: only -h and -q stay in the untitled group."""
+    from hyperlf.cli import build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    groups = sub.choices[command]._action_groups
+    assert [g.title for g in groups[2:]] == titles
+    untitled = [o for a in groups[1]._group_actions for o in a.option_strings]
+    assert sorted(untitled) == ["--help", "--quiet", "-h", "-q"]
+    assert all(g._group_actions for g in groups[2:])
 
 def test_no_command_prints_help_and_fails(capsys):
     assert main([]) == 2
