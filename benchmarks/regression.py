@@ -130,35 +130,63 @@ def cases():
     yield "reg_gcm", regularisers.graphcut_multiscale(c, weight=0.3, truncation=2.0)
     yield "reg_wm", regularisers.weighted_median(c[0] * 5, c[1], 3, 0.1)
 
-def main():
-    mode, path = sys.argv[1], sys.argv[2]
+def _save(path):
     t0 = time.time()
-    if mode == "save":
-        out = {}
-        for k, v in cases():
-            out[k] = np.asarray(v)
-        np.savez_compressed(path, **out)
-        print(f"saved {len(out)} arrays in {time.time()-t0:.0f}s")
-        return
+    out = {k: np.asarray(v) for k, v in cases()}
+    np.savez_compressed(path, **out)
+    print(f"saved {len(out)} arrays in {time.time()-t0:.0f}s")
+    return 0
+
+
+def _difference(k, r, v):
+    """None when ``v`` is ``r`` bit for bit (NaN where NaN), else a line saying how not."""
+    if r.shape != v.shape:
+        return f"SHAPE {k} {r.shape} {v.shape}"
+    if np.array_equal(r, v, equal_nan=True):
+        return None
+    d = np.nanmax(np.abs(r.astype(np.float64) - v.astype(np.float64))) if r.size else 0
+    nd = int((~((r == v) | (np.isnan(r.astype(float)) & np.isnan(v.astype(float))))).sum())
+    return f"DIFF {k}: max abs {d:.3g}, {nd}/{r.size} entries differ"
+
+
+def _compare(path):
+    t0 = time.time()
     ref = np.load(path)
-    seen = set(); bad = 0; inexact = 0
+    seen, bad, inexact = set(), 0, 0
     for k, v in cases():
         seen.add(k)
         v = np.asarray(v)
         if k not in ref:
-            print("NEW", k); continue
-        r = ref[k]
-        if r.shape != v.shape:
-            print("SHAPE", k, r.shape, v.shape); bad += 1; continue
-        if r.dtype != v.dtype:
-            print("DTYPE", k, r.dtype, v.dtype)
-        if np.array_equal(r, v, equal_nan=True):
+            print("NEW", k)
             continue
-        d = np.nanmax(np.abs(r.astype(np.float64) - v.astype(np.float64))) if r.size else 0
-        nd = int((~((r == v) | (np.isnan(r.astype(float)) & np.isnan(v.astype(float))))).sum())
-        print(f"DIFF {k}: max abs {d:.3g}, {nd}/{r.size} entries differ")
-        inexact += 1
-    for k in set(ref.files) - seen:
+        if ref[k].dtype != v.dtype:
+            print("DTYPE", k, ref[k].dtype, v.dtype)
+        line = _difference(k, ref[k], v)
+        if line:
+            print(line)
+            bad += line.startswith("SHAPE")
+            inexact += line.startswith("DIFF")
+    missing = sorted(set(ref.files) - seen)
+    for k in missing:
         print("MISSING", k)
-    print(f"compared {len(seen)} arrays in {time.time()-t0:.0f}s: {bad} shape errors, {inexact} not bit-identical")
-main()
+    print(f"compared {len(seen)} arrays in {time.time()-t0:.0f}s: {bad} shape errors, "
+          f"{inexact} not bit-identical")
+    return 1 if bad or inexact or missing else 0
+
+
+def main(argv=None):
+    import argparse
+
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter,
+                                     epilog="exit status: 0 all bit-identical (or saved), 1 "
+                                            "something differs, 2 a usage error")
+    parser.add_argument("mode", choices=["save", "compare"],
+                        help="save a recording, or compare this code with one")
+    parser.add_argument("path", help="the recording (.npz)")
+    args = parser.parse_args(argv)
+    return _save(args.path) if args.mode == "save" else _compare(args.path)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
