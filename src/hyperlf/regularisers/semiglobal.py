@@ -69,61 +69,70 @@ def _sgm_starts(H, W, dy, dx):
     return ys[start].astype(np.int64), xs[start].astype(np.int64)
 
 
+def _scan_front(C, acc, p2map, dy, dx):
+    """How one path direction walks the volume: the order of its fronts (rows when ``dy``,
+    else columns), a front's costs, its P2 and its accumulator, and the shift of a front's
+    predecessors along it (``dx`` for rows, 0 for columns)."""
+    H, W, _ = C.shape
+    if dy != 0:  # predecessor of (y, x) is (y - dy, x - dx)
+        order = range(H) if dy > 0 else range(H - 1, -1, -1)
+        return order, (lambda i: C[i]), (lambda i: p2map[i]), (lambda i: acc[i]), dx
+    order = range(W) if dx > 0 else range(W - 1, -1, -1)
+    return order, (lambda i: C[:, i]), (lambda i: p2map[:, i]), (lambda i: acc[:, i]), 0
+
+
+def _predecessors(prev, shift):
+    """The previous front's values at each front index ``j`` (those of ``j - shift``), and
+    whether ``j`` has a predecessor at all."""
+    pv = np.empty_like(prev)
+    has = np.ones(prev.shape[0], dtype=bool)
+    if shift == 0:
+        pv[:] = prev
+    elif shift > 0:
+        pv[shift:] = prev[:-shift]
+        pv[:shift] = 0.0
+        has[:shift] = False
+    else:
+        pv[:shift] = prev[-shift:]
+        pv[shift:] = 0.0
+        has[shift:] = False
+    return pv, has
+
+
+def _path_minimum(pv, p1, p2, mode):
+    """``min_k [L(p - r, k) + V(l, k)]`` for every label ``l`` of a front, and the
+    predecessors' own minimum; ``mode`` 0 is ``p1p2``, else truncated linear (a distance
+    transform both ways)."""
+    L = pv.shape[1]
+    mprev = pv.min(axis=1, keepdims=True)
+    jump = mprev + p2[:, None]
+    if mode == 0:
+        v = pv.copy()
+        if L > 1:
+            v[:, 1:] = np.minimum(v[:, 1:], pv[:, :-1] + p1)
+            v[:, :-1] = np.minimum(v[:, :-1], pv[:, 1:] + p1)
+        return np.minimum(v, jump), mprev
+    dt = pv.copy()
+    for l in range(1, L):
+        np.minimum(dt[:, l], dt[:, l - 1] + p1, out=dt[:, l])
+    for l in range(L - 2, -1, -1):
+        np.minimum(dt[:, l], dt[:, l + 1] + p1, out=dt[:, l])
+    return np.minimum(dt, jump), mprev
+
+
 def _sgm_numpy_direction(C, acc, dy, dx, p1, p2map, mode):
     """Reference: one path direction, vectorised along the scan front (a row or a column)."""
-    H, W, L = C.shape
-    if dy != 0:
-        # process rows; predecessor of (y, x) is (y - dy, x - dx)
-        order = range(H) if dy > 0 else range(H - 1, -1, -1)
-        n_front = W
-        get_c = lambda i: C[i]  # noqa: E731
-        get_p2 = lambda i: p2map[i]  # noqa: E731
-        add = lambda i, v: acc.__setitem__(i, acc[i] + v)  # noqa: E731
-        shift = dx
-    else:
-        order = range(W) if dx > 0 else range(W - 1, -1, -1)
-        n_front = H
-        get_c = lambda i: C[:, i]  # noqa: E731
-        get_p2 = lambda i: p2map[:, i]  # noqa: E731
-        add = lambda i, v: acc.__setitem__((slice(None), i), acc[:, i] + v)  # noqa: E731
-        shift = 0
+    order, costs_of, p2_of, acc_of, shift = _scan_front(C, acc, p2map, dy, dx)
     prev = None
     for i in order:
-        c = get_c(i).astype(np.float64)
-        if prev is None:
-            cur = c
-        else:
-            # predecessor values along the front: front index j has predecessor j - shift
-            pv = np.empty_like(prev)
-            has = np.ones(n_front, dtype=bool)
-            if shift == 0:
-                pv[:] = prev
-            elif shift > 0:
-                pv[shift:] = prev[:-shift]
-                pv[:shift] = 0.0
-                has[:shift] = False
-            else:
-                pv[:shift] = prev[-shift:]
-                pv[shift:] = 0.0
-                has[shift:] = False
-            mprev = pv.min(axis=1, keepdims=True)
-            jump = mprev + get_p2(i)[:, None]
-            if mode == 0:
-                v = pv.copy()
-                if L > 1:
-                    v[:, 1:] = np.minimum(v[:, 1:], pv[:, :-1] + p1)
-                    v[:, :-1] = np.minimum(v[:, :-1], pv[:, 1:] + p1)
-                v = np.minimum(v, jump)
-            else:
-                dt = pv.copy()
-                for l in range(1, L):
-                    np.minimum(dt[:, l], dt[:, l - 1] + p1, out=dt[:, l])
-                for l in range(L - 2, -1, -1):
-                    np.minimum(dt[:, l], dt[:, l + 1] + p1, out=dt[:, l])
-                v = np.minimum(dt, jump)
+        c = costs_of(i).astype(np.float64)
+        cur = c
+        if prev is not None:
+            pv, has = _predecessors(prev, shift)
+            v, mprev = _path_minimum(pv, p1, p2_of(i), mode)
             cur = c + v - mprev
             cur[~has] = c[~has]
-        add(i, cur)
+        acc_of(i)[...] += cur
         prev = cur
 
 
