@@ -412,3 +412,59 @@ def test_an_hci_scene_is_not_read_through_symlinks_out_of_it(tmp_path):
     proc = run_cli("synth", "hci", scene, "--grid", "2,2", "-o", tmp_path / "out")
     assert_one_line_error(proc, 2, "leads outside the folder (a symlink)")
     assert not (tmp_path / "out").exists()
+
+
+# ------------------------------------------------------------------ no room for the results
+def _with_file_size_limit(limit):
+    """A ``preexec_fn``: files of the subprocess may grow to ``limit`` bytes (``ulimit -f``);
+    Python ignores SIGXFSZ, so a write past it fails with EFBIG, as on a full disk."""
+    import resource
+
+    return lambda: resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+
+@pytest.mark.parametrize("name", ["depth", "stereo", "complete", "render", "synth"])
+def test_no_room_for_the_results_is_one_line_and_keeps_the_previous_set(name, capture, pair,
+                                                                        tmp_path):
+    """A write that finds no room (a full disk, a quota, ``ulimit -f``) says so in one line
+    with what to do, exit 1, and the previous result set stays as it was. Before, HDF5's own
+    text came through (a staging path, a time stamp), and `complete` ended in a traceback:
+    closing its scratch file failed too and hid the first error."""
+    out = tmp_path / "out"
+    args = [*_folder_commands(capture, pair)[name], "-o", out]
+    assert run_cli(*args).returncode == 0
+    before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    paths = listing(tmp_path)
+    env = {**os.environ, "PYTHONPATH": SRC + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    proc = subprocess.run([sys.executable, "-m", "hyperlf.cli", "-q", *map(str, args),
+                           "--overwrite"], capture_output=True, text=True, timeout=300, env=env,
+                          preexec_fn=_with_file_size_limit(512))
+    assert_one_line_error(proc, 1, "did not fit", "size limit", "ulimit -f", "-o")
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+    assert listing(tmp_path) == paths  # and no staging folder left beside it
+
+
+def test_no_room_is_found_behind_the_error_that_hid_it():
+    """HDF5 puts the errno in its text, and closing a file on a full disk raises a
+    RuntimeError while the OSError is handled; other errors are not taken for it."""
+    import errno
+
+    from hyperlf.cli import _no_room_code
+
+    def chained(first, then):
+        try:
+            try:
+                raise first
+            except BaseException:
+                raise then
+        except BaseException as exc:
+            return exc
+
+    h5 = OSError("Can't write data (file write failed: errno = 28, error message = 'x')")
+    assert _no_room_code(h5) == errno.ENOSPC
+    assert _no_room_code(chained(h5, RuntimeError("Can't decrement id ref count"))) == 28
+    assert _no_room_code(OSError(errno.EDQUOT, "Disk quota exceeded")) == errno.EDQUOT
+    assert _no_room_code(chained(OSError(errno.EFBIG, "File too large"), ValueError())) == 27
+    for other in (OSError(errno.EACCES, "Permission denied"), RuntimeError("errno = 13"),
+                  ValueError("errno = 28"), None):
+        assert _no_room_code(other) is None

@@ -2395,8 +2395,9 @@ def _run_reporting(args, argv: list[str]) -> int:
         return 141
     except OSError as exc:  # the output checks come first; this is the last resort
         where = f": {exc.filename}" if exc.filename else ""
-        print(f"hyperlf {args.command}: error: {_one_line(str(exc.strerror or exc))}"
-              f"{_one_line(where)}", file=sys.stderr)
+        message = _no_room_message(args, exc) or (f"{_one_line(str(exc.strerror or exc))}"
+                                                  f"{_one_line(where)}")
+        print(f"hyperlf {args.command}: error: {message}", file=sys.stderr)
         if isinstance(exc, FileNotFoundError):
             return 4
         return 2 if exc.errno in (errno.ENAMETOOLONG, errno.ELOOP) else 1
@@ -2409,8 +2410,51 @@ def _run_reporting(args, argv: list[str]) -> int:
         # back into Python turns it into its own error): the run was stopped, not broken
         cause = _interrupt_cause(exc) or received_interrupt()
         if cause is None:
-            raise
+            no_room = _no_room_message(args, exc)
+            if no_room is None:
+                raise
+            print(f"hyperlf {args.command}: error: {no_room}", file=sys.stderr)
+            return 1
         return _interrupted(args, cause)
+
+
+#: errno values of a write that found no room: the disk full, a file over the size limit
+#: (``ulimit -f``), the disk quota spent.
+_NO_ROOM = {getattr(errno, n): text for n, text in (
+    ("ENOSPC", "no space left on the device; free space there"),
+    ("EFBIG", "a file grew past the size limit; raise it (ulimit -f)"),
+    ("EDQUOT", "the disk quota is spent; free space within it")) if hasattr(errno, n)}
+
+
+def _no_room_code(exc: BaseException | None) -> int | None:
+    """The errno of :data:`_NO_ROOM` behind ``exc`` or an exception it was raised from or
+    while handling, else None. HDF5 reports it in its own text (staging paths, a time stamp,
+    ``errno = 27``), from closing a file also as a RuntimeError."""
+    import re
+
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        code = getattr(exc, "errno", None)
+        if code not in _NO_ROOM and isinstance(exc, (OSError, RuntimeError)):
+            found = re.search(r"errno = (\d+)", str(exc))
+            code = int(found.group(1)) if found else None
+        if code in _NO_ROOM:
+            return code
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
+def _no_room_message(args, exc: BaseException) -> str | None:
+    """The one line for a write that found no room, or None for any other error."""
+    code = _no_room_code(exc)
+    if code is None:
+        return None
+    output = getattr(args, "output", None)
+    where = f" while writing {_one_line(repr(str(output)))}" if output else ""
+    problem, fix = _NO_ROOM[code].split("; ")
+    return (f"the results did not fit: {problem}{where}; {fix} or write them elsewhere with "
+            "-o (the output was left as it was)")
 
 
 def _interrupt_cause(exc: BaseException) -> KeyboardInterrupt | None:

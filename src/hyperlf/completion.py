@@ -1500,8 +1500,13 @@ def _register_all(lf, disp, wl, bidx, out_path, occlusion_tol, max_iter, fill, c
             cube, mask, inferred = None, None, None
         timings["inference"] = finish.seconds
         timings["output"] = time.perf_counter() - t0 - finish.seconds
-    finally:
-        store.close()
+    except BaseException:
+        # the scratch file goes either way; a close that fails too (HDF5 cannot flush to a
+        # full disk) must not hide why the run failed
+        with contextlib.suppress(Exception):
+            store.close()
+        raise
+    store.close()
     timings["total"] = time.perf_counter() - t_all
     total = R * C * R * C * H * W
     stats = {
