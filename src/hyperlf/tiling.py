@@ -120,7 +120,13 @@ def parse_memory(text) -> int:
 
 
 def format_memory(nbytes: float) -> str:
-    """``"1.5 GiB"``-style text of a byte count (for messages)."""
+    """``"1.5 GiB"``-style text of a byte count (for messages).
+
+    Examples
+    --------
+    >>> format_memory(1.5 * 2 ** 30), format_memory(3 * 2 ** 20), format_memory(512)
+    ('1.5 GiB', '3 MiB', '512 B')
+    """
     nbytes = _opt.number(nbytes, "nbytes")
     for unit, scale in (("GiB", 2 ** 30), ("MiB", 2 ** 20), ("KiB", 2 ** 10)):
         if nbytes >= scale:
@@ -129,7 +135,13 @@ def format_memory(nbytes: float) -> str:
 
 
 def available_memory() -> int:
-    """Bytes of memory available now (``MemAvailable`` on Linux, else the physical memory)."""
+    """Bytes of memory available now (``MemAvailable`` on Linux, else the physical memory).
+
+    Examples
+    --------
+    >>> available_memory() > 0
+    True
+    """
     try:
         with open("/proc/meminfo", encoding="ascii") as f:
             for line in f:
@@ -148,6 +160,17 @@ def check_memory(nbytes: float, what: str, remedy: str) -> None:
     InvalidInputError
         ``"{what} would need about ... of memory, more than the ... available; {remedy}"``;
         or ``nbytes`` is not a number >= 0, ``what`` or ``remedy`` not text.
+
+    Examples
+    --------
+    An exbibyte is refused, before anything is allocated, with the remedy given:
+
+    >>> from hyperlf.errors import InvalidInputError
+    >>> try:
+    ...     check_memory(2 ** 60, "this volume", "use fewer labels")
+    ... except InvalidInputError as exc:
+    ...     print(str(exc).split(" would")[0], "/", str(exc).rsplit("; ", 1)[1])
+    this volume / use fewer labels
     """
     _check_bytes(nbytes)
     _opt.text(what, "what"), _opt.text(remedy, "remedy")
@@ -183,7 +206,16 @@ def _image_size(shape, label: str = "shape") -> tuple[int, int]:
 def check_label_volume(n_labels: int, shape) -> None:
     """Refuse ``n_labels`` whose float32 volume over images of ``shape`` ``(..., H, W)``
     exceeds the memory available (:func:`check_memory`): one volume, a lower bound of any
-    matcher's need."""
+    matcher's need.
+
+    Examples
+    --------
+    64 labels over 512 x 512 px views need 64 MiB of float32 volume, which any machine
+    running this has:
+
+    >>> check_label_volume(64, (30, 512, 512)) is None
+    True
+    """
     n_labels = _opt.integer(n_labels, "n_labels", 1)
     H, W = _image_size(shape)
     check_memory(4.0 * n_labels * H * W, f"{count_text(n_labels)} labels on {W} x {H} px views",
@@ -197,7 +229,13 @@ def count_text(n: int) -> str:
 
 def row_strips(height: int, rows: int) -> list[tuple[int, int]]:
     """Full-width strips of ``rows`` rows (a multiple of :data:`hyperlf.costs.ROW_BLOCK`; the
-    last one shorter) covering ``height`` rows in order."""
+    last one shorter) covering ``height`` rows in order.
+
+    Examples
+    --------
+    >>> row_strips(100, 32)
+    [(0, 32), (32, 64), (64, 96), (96, 100)]
+    """
     from .costs import ROW_BLOCK
 
     height = _opt.integer(height, "height", maximum=2 ** 31)
@@ -209,7 +247,13 @@ def row_strips(height: int, rows: int) -> list[tuple[int, int]]:
 
 def check_strips(strips, height: int) -> list[tuple[int, int]]:
     """``strips`` as a list of ``(a, b)`` covering rows ``0 .. height - 1`` in order, each
-    starting on the :data:`hyperlf.costs.ROW_BLOCK` grid; None = one strip of every row."""
+    starting on the :data:`hyperlf.costs.ROW_BLOCK` grid; None = one strip of every row.
+
+    Examples
+    --------
+    >>> check_strips(None, 10), check_strips([(0, 32), (32, 50)], 50)
+    ([(0, 10)], [(0, 32), (32, 50)])
+    """
     from .costs import check_rows
 
     height = _opt.integer(height, "height", 1, maximum=2 ** 31)
@@ -246,6 +290,14 @@ def depth_memory(shape, n_labels: int, n_views: int, *, strip_rows: int | None =
         Rows per strip of the correspondence stage; None = one strip.
     selection : bool
         View selection on (its per-label maps).
+
+    Examples
+    --------
+    Strips of rows lower the peak of the correspondence stage:
+
+    >>> whole = depth_memory((512, 512), 64, 30)
+    >>> bool(depth_memory((512, 512), 64, 30, strip_rows=64) < whole)
+    True
     """
     H, W, n_labels, n_views = _sizes(shape, n_labels, n_views)
     strip_rows = _opt.integer(strip_rows, "strip_rows", 1, optional=True)
@@ -287,6 +339,19 @@ def plan(shape, n_labels: int, n_views: int, max_memory: float | None, *,
     InvalidInputError
         Even strips of :data:`hyperlf.costs.ROW_BLOCK` rows would not fit: the message says
         how much is needed.
+
+    Examples
+    --------
+    One strip when the estimate fits the budget, else the tallest strips that fit, in
+    order and covering every row:
+
+    >>> plan((512, 512), 64, 30, 16 * 2 ** 30)
+    [(0, 512)]
+    >>> whole = depth_memory((512, 512), 64, 30)
+    >>> thinnest = depth_memory((512, 512), 64, 30, strip_rows=32)
+    >>> strips = plan((512, 512), 64, 30, (whole + thinnest) / 2)
+    >>> len(strips) > 1, strips[0][0], strips[-1][1]
+    (True, 0, 512)
     """
     from .costs import ROW_BLOCK
 
