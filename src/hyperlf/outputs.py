@@ -84,6 +84,23 @@ def deferred_signals() -> Iterator[None]:
     always runs in the main thread, whichever thread the kernel picked) and raised again, under
     the previous handlers, when the block ends. Outside the main thread the block runs
     unprotected.
+
+    Examples
+    --------
+    A SIGTERM that arrives while the results are moved waits for the move to end:
+
+    >>> import signal
+    >>> from hyperlf.errors import Terminated
+    >>> events = []
+    >>> try:
+    ...     with signals_as_exceptions():
+    ...         with deferred_signals():
+    ...             signal.raise_signal(signal.SIGTERM)
+    ...             events.append("moved")
+    ... except Terminated:
+    ...     events.append("stopped")
+    >>> events
+    ['moved', 'stopped']
     """
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -182,6 +199,13 @@ def raise_if_interrupted() -> None:
 
     Called before a result set is moved into place, so that a run whose interrupt was lost
     never publishes its results as if nothing had happened.
+
+    Examples
+    --------
+    Nothing to raise when no signal came:
+
+    >>> raise_if_interrupted() is None
+    True
     """
     if _RECEIVED:
         _forget_deferred()
@@ -192,7 +216,13 @@ def received_interrupt() -> KeyboardInterrupt | None:
     """The interrupt of the first signal received in the current :func:`signals_as_exceptions`
     block (None if none came), for code that must tell an exception a signal turned into (C
     code that called back into Python when the handler raised, e.g. matplotlib's resampler:
-    "ValueError: Invalid affine transformation matrix") from a genuine failure."""
+    "ValueError: Invalid affine transformation matrix") from a genuine failure.
+
+    Examples
+    --------
+    >>> received_interrupt() is None
+    True
+    """
     return _interrupt(_RECEIVED[0]) if _RECEIVED else None
 
 
@@ -216,6 +246,17 @@ def signals_as_exceptions() -> Iterator[None]:
     later. An interrupt that Python loses (raised inside a ``__del__`` or weakref callback) is
     remembered and raised again by :func:`raise_if_interrupted`. The previous handlers are
     restored at the end. Outside the main thread this does nothing.
+
+    Examples
+    --------
+    >>> import signal
+    >>> from hyperlf.errors import Terminated
+    >>> try:
+    ...     with signals_as_exceptions():
+    ...         signal.raise_signal(signal.SIGTERM)
+    ... except Terminated as exc:
+    ...     print("clean-up ran; exit status", exc.exit_code)
+    clean-up ran; exit status 143
     """
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -315,6 +356,15 @@ def manifest_files(folder: str | os.PathLike) -> set[str] | None:
     -------
     set of str or None
         Relative POSIX paths; None when :data:`MANIFEST` is missing, a symlink or unreadable.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "result"
+    >>> with result_folder(out) as stage:
+    ...     _ = (stage / "a.txt").write_text("1")
+    >>> manifest_files(out)
+    {'a.txt'}
     """
     doc = read_manifest(folder)
     return None if doc is None else set(doc["files"])
@@ -375,6 +425,20 @@ def check_replaceable(target: str | os.PathLike, *, overwrite: bool) -> None:
     A missing target or an empty folder may always be written. A file may be replaced with
     ``overwrite``. A folder may be replaced with ``overwrite`` only when it holds nothing but a
     previous result set (see :func:`foreign_entries`). A symlink is never replaced.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from hyperlf.errors import InvalidInputError
+    >>> f = pathlib.Path(tempfile.mkdtemp()) / "map.pfm"
+    >>> _ = f.write_bytes(b"old")
+    >>> try:
+    ...     check_replaceable(f, overwrite=False)
+    ... except InvalidInputError as exc:
+    ...     print(str(exc).split("; ")[1])
+    choose another name or pass --overwrite
+    >>> check_replaceable(f, overwrite=True) is None
+    True
     """
     from ._options import flag, path_like
 
@@ -430,6 +494,16 @@ def clean_stale(folder: str | os.PathLike) -> list[Path]:
     ``.hyperlf-<token>.lock`` that the run holds while it lives. A lock nobody holds marks a dead
     run: an ``.old`` entry whose target is missing is put back (the run died between the two
     renames of a replacement), everything else of that run is removed. Live runs are left alone.
+
+    Examples
+    --------
+    A run killed while it wrote left its staging folder and an unheld lock:
+
+    >>> import tempfile, pathlib
+    >>> d = pathlib.Path(tempfile.mkdtemp())
+    >>> (d / ".hyperlf-abc.new").mkdir(); (d / ".hyperlf-abc.lock").touch()
+    >>> [p.name for p in clean_stale(d)], list(d.iterdir())
+    (['.hyperlf-abc.new'], [])
     """
     from ._options import path_like
 
