@@ -31,7 +31,14 @@ __all__ = [
 
 
 def pyplot():
-    """matplotlib's ``pyplot`` on the non-interactive Agg backend (imported on first use)."""
+    """matplotlib's ``pyplot`` on the non-interactive Agg backend (imported on first use).
+
+    Examples
+    --------
+    >>> plt = pyplot()
+    >>> plt.get_backend().lower()
+    'agg'
+    """
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -42,7 +49,19 @@ def pyplot():
 
 def save_figure(fig, path) -> Path:
     """Write a matplotlib figure atomically (format from the suffix, PNG by default), close it
-    and return the path: every picture hyperlf draws is written here."""
+    and return the path: every picture hyperlf draws is written here.
+
+    Examples
+    --------
+    The figure is closed once written:
+
+    >>> import tempfile, pathlib
+    >>> plt = pyplot()
+    >>> fig = plt.figure()
+    >>> path = save_figure(fig, pathlib.Path(tempfile.mkdtemp()) / "f.png")
+    >>> path.is_file(), plt.fignum_exists(fig.number)
+    (True, False)
+    """
     plt = pyplot()
     if not hasattr(fig, "savefig"):
         raise InvalidInputError(f"fig must be a matplotlib figure, got {type(fig).__name__}")
@@ -58,7 +77,15 @@ def save_figure(fig, path) -> Path:
 def display_step(rows: int, cols: int, max_side: int) -> int:
     """The stride (1, 2, ...) that brings a picture of ``rows`` x ``cols`` pixels to at most
     ``max_side`` on its longer side: a grid of views is subsampled to what a figure shows
-    before it is drawn, so that a picture of large images costs what a small one does."""
+    before it is drawn, so that a picture of large images costs what a small one does.
+
+    Examples
+    --------
+    A 1600 x 1200 mosaic is drawn from every second pixel to fit 800 px:
+
+    >>> display_step(1200, 1600, 800), display_step(100, 100, 800)
+    (2, 1)
+    """
     rows, cols = (_opt.integer(n, name, maximum=2 ** 31) for n, name in ((rows, "rows"),
                                                                          (cols, "cols")))
     max_side = _opt.integer(max_side, "max_side", 1)
@@ -160,6 +187,13 @@ def save_error_png(path: str | os.PathLike, estimate: np.ndarray, truth: np.ndar
     -------
     Path
         The written PNG.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "error.png"
+    >>> save_error_png(out, np.zeros((8, 8)), np.ones((8, 8))).is_file()
+    True
     """
     est, tru = _opt.real_array(estimate, "estimate"), _opt.real_array(truth, "truth")
     if est.shape != tru.shape:
@@ -213,6 +247,14 @@ def false_colour(views: np.ndarray, wavelengths: np.ndarray) -> np.ndarray:
     Returns
     -------
     ndarray, shape (..., H, W, 3), sRGB-encoded in [0, 1]
+
+    Examples
+    --------
+    A view behind a 450 nm filter is tinted blue, one behind 650 nm red:
+
+    >>> tinted = false_colour(np.ones((2, 4, 4)), np.array([450.0, 650.0]))
+    >>> tinted.shape, int(tinted[0, 0, 0].argmax()), int(tinted[1, 0, 0].argmax())
+    ((2, 4, 4, 3), 2, 0)
     """
     v = _opt.real_array(views, "views", np.float32)
     if v.ndim < 2 or not np.isfinite(v).all():
@@ -251,6 +293,14 @@ def save_mosaic_png(path: str | os.PathLike, views: np.ndarray,
     -------
     Path
         The written PNG.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> views = np.random.default_rng(0).random((2, 3, 16, 16))
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "views.png"
+    >>> save_mosaic_png(out, views, np.full((2, 3), 550.0)).is_file()
+    True
     """
     _opt.path_like(path)
     v = _opt.real_array(views, "views", np.float32)
@@ -350,6 +400,14 @@ def save_spectrum_plot(path: str | os.PathLike, wavelengths: np.ndarray,
     -------
     Path
         The written PNG.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "spectrum.png"
+    >>> wavelengths = np.array([450.0, 550.0, 650.0])
+    >>> save_spectrum_plot(out, wavelengths, np.array([0.2, 0.5, 0.9])).is_file()
+    True
     """
     _opt.path_like(path)
     wl = _opt.real_array(wavelengths, "wavelengths")
