@@ -229,6 +229,16 @@ def sample_widths(wavelengths) -> np.ndarray:
     -------
     ndarray, shape (N,)
         Widths in nm, in the order of ``wavelengths``.
+
+    Examples
+    --------
+    On a uniform grid every sample weighs the grid step. Below, the 20 nm gap gives 430 nm a
+    width of 20 nm and 410 nm (half-way to each neighbour) 15 nm, in the order given:
+
+    >>> sample_widths([400.0, 410.0, 420.0]).tolist()
+    [10.0, 10.0, 10.0]
+    >>> sample_widths([430.0, 400.0, 410.0]).tolist()
+    [20.0, 10.0, 15.0]
     """
     wl = as_wavelengths(wavelengths)
     if wl.size == 1:
@@ -315,6 +325,16 @@ def cmfs(wavelengths, observer: str = CIE1931) -> np.ndarray:
     -------
     ndarray, shape (N, 3)
         x̄ȳz̄ linearly interpolated from the 1 nm table; zero outside the table.
+
+    Examples
+    --------
+    ȳ is the photopic luminous efficiency V(λ), which peaks at 1 at 555 nm; past the end of
+    the table (830 nm) all three functions are 0:
+
+    >>> cmfs([555.0, 900.0])[:, 1].tolist()
+    [1.0, 0.0]
+    >>> cmfs(np.arange(400.0, 701.0, 10.0)).shape
+    (31, 3)
     """
     wl = as_wavelengths(wavelengths)
     table_wl, table = _cmf_table(_observer(observer))
@@ -447,6 +467,18 @@ def load_camspec(path: str | os.PathLike | None = None) -> dict[str, tuple[np.nd
         No path given and ``HYPERLF_DATA`` unset, or the file does not exist.
     FormatError
         The file does not follow the format above.
+
+    Examples
+    --------
+    A stand-in file with one camera in the camspec layout (an R line of 1s, a G line of 2s and
+    a B line of 3s), so that this runs without the data; the lines become columns, 400-720 nm:
+
+    >>> import pathlib, tempfile
+    >>> f = pathlib.Path(tempfile.mkdtemp()) / "camspec.txt"
+    >>> _ = f.write_text("My camera\\n" + "".join(" ".join([v] * 33) + "\\n" for v in "123"))
+    >>> wl, sens = load_camspec(f)["My camera"]
+    >>> wl[[0, 1, -1]].tolist(), sens.shape, sens[0].tolist()
+    ([400.0, 410.0, 720.0], (33, 3), [1.0, 2.0, 3.0])
     """
     p = _data_file(path, "camspec", "camspec database", "the path of camspec_database.txt")
     return dict(_parse_camspec(str(p.resolve()), p.stat().st_mtime_ns))
@@ -503,6 +535,17 @@ def load_sensitivities_csv(path: str | os.PathLike) -> tuple[np.ndarray, np.ndar
         The file does not exist.
     FormatError
         Any malformed content, with the line number.
+
+    Examples
+    --------
+    A two-row file with a header line, read back as written:
+
+    >>> import pathlib, tempfile
+    >>> f = pathlib.Path(tempfile.mkdtemp()) / "camera.csv"
+    >>> _ = f.write_text("wavelength_nm,r,g,b\\n500,0.1,0.8,0.2\\n600,0.9,0.3,0.0\\n")
+    >>> wl, sens = load_sensitivities_csv(f)
+    >>> wl.tolist(), sens.tolist()
+    ([500.0, 600.0], [[0.1, 0.8, 0.2], [0.9, 0.3, 0.0]])
     """
     from .datasets import expand_user
 
@@ -550,6 +593,12 @@ def list_cameras() -> list[str]:
         ``"CIE 1931"`` and ``"XYZ"`` (the CIE 1931 CMFs), colour-science's
         ``colour.MSDS_CAMERA_SENSITIVITIES`` cameras, and the 28 camspec cameras (Jiang et al.
         2013) when ``HYPERLF_DATA`` points to the data.
+
+    Examples
+    --------
+    >>> names = list_cameras()
+    >>> names[:2], "Sigma SDMerill (NPL)" in names
+    (['CIE 1931', 'XYZ'], True)
     """
     return list(_XYZ_ALIASES) + _colour_camera_names() + _camspec_names_if_available()
 
@@ -612,7 +661,8 @@ def camera_sensitivities(name_or_path, wavelengths) -> np.ndarray:
     name_or_path : str or path-like
         ``"CIE 1931"`` / ``"XYZ"`` (the CIE 1931 2-degree CMFs x̄ȳz̄), a camera name from
         :func:`list_cameras` (case- and punctuation-insensitive; a unique prefix or substring,
-        e.g. ``"nikon d5100"`` or ``"sdmerill"``, is enough), or the path of a CSV file with
+        e.g. ``"sdmerill"``, or ``"nikon d5100"`` among camspec's cameras, which need
+        ``HYPERLF_DATA``, is enough), or the path of a CSV file with
         columns ``wavelength_nm, r, g, b`` (see :func:`load_sensitivities_csv`).
     wavelengths : array_like, shape (N,)
         nm.
@@ -629,6 +679,16 @@ def camera_sensitivities(name_or_path, wavelengths) -> np.ndarray:
         Unknown or ambiguous name (the message lists close names).
     DataNotFoundError, FormatError
         A CSV path that does not exist or is malformed.
+
+    Examples
+    --------
+    "CIE 1931" gives the CMFs themselves (ȳ is 1 at 555 nm); a part of a name is enough:
+
+    >>> S = camera_sensitivities("CIE 1931", [450.0, 555.0, 650.0])
+    >>> S.shape, bool(np.allclose(S, cmfs([450.0, 555.0, 650.0]))), float(S[1, 1])
+    ((3, 3), True, 1.0)
+    >>> camera_sensitivities("sdmerill", np.arange(400.0, 701.0, 10.0)).shape
+    (31, 3)
     """
     wl = as_wavelengths(wavelengths)
     if _looks_like_path(name_or_path):
@@ -766,6 +826,17 @@ def xyz_to_srgb_linear(xyz, white=None) -> np.ndarray:
     -------
     ndarray, shape (..., 3)
         Unclipped linear sRGB (out-of-gamut colours have components outside [0, 1]).
+
+    Examples
+    --------
+    The XYZ of D65 (x, y = 0.3127, 0.3290 at Y = 1) is sRGB's white; with ``white`` the
+    equal-energy white, XYZ = (1, 1, 1), is adapted onto it:
+
+    >>> x, y = 0.3127, 0.3290
+    >>> np.round(xyz_to_srgb_linear([x / y, 1.0, (1 - x - y) / y]), 4).tolist()
+    [1.0, 1.0, 1.0]
+    >>> np.round(xyz_to_srgb_linear([1.0, 1.0, 1.0], white=(1 / 3, 1 / 3)), 4).tolist()
+    [1.0, 1.0, 1.0]
     """
     a = _float(_as_array(xyz, "xyz", last=3))
     M = _M_XYZ_TO_RGB
@@ -784,6 +855,17 @@ def srgb_linear_to_xyz(rgb) -> np.ndarray:
     Returns
     -------
     ndarray, shape (..., 3)
+
+    Examples
+    --------
+    White goes to D65's XYZ and pure red to the red primary, whose Y is the well-known
+    luminance weight 0.2126; the two conversions undo each other:
+
+    >>> np.round(srgb_linear_to_xyz([[1.0, 1.0, 1.0], [1.0, 0.0, 0.0]]), 4).tolist()
+    [[0.9505, 1.0, 1.0891], [0.4124, 0.2126, 0.0193]]
+    >>> rgb = np.array([0.2, 0.5, 0.9])
+    >>> bool(np.allclose(xyz_to_srgb_linear(srgb_linear_to_xyz(rgb)), rgb))
+    True
     """
     a = _float(_as_array(rgb, "rgb", last=3))
     return (a @ _M_RGB_TO_XYZ.T.astype(a.dtype)).astype(a.dtype, copy=False)
@@ -798,6 +880,17 @@ def xyz_to_srgb(xyz, white=None, *, clip: bool = False) -> np.ndarray:
     Returns
     -------
     ndarray, shape (..., 3)
+
+    Examples
+    --------
+    An 18 % grey under D65 encodes to ``1.055 * 0.18 ** (1 / 2.4) - 0.055``; a light twice as
+    bright as white clips to 1:
+
+    >>> white = srgb_linear_to_xyz([1.0, 1.0, 1.0])
+    >>> np.round(xyz_to_srgb(0.18 * white), 4).tolist()
+    [0.4614, 0.4614, 0.4614]
+    >>> np.round(xyz_to_srgb(2 * white, clip=True), 4).tolist()
+    [1.0, 1.0, 1.0]
     """
     lin = xyz_to_srgb_linear(xyz, white=white)
     if _opt.flag(clip, "clip"):
@@ -818,6 +911,13 @@ def xyz_to_xy(xyz, fallback=(1 / 3, 1 / 3)) -> np.ndarray:
     Returns
     -------
     ndarray, shape (..., 2)
+
+    Examples
+    --------
+    D65's XYZ gives its chromaticity (0.3127, 0.3290); black gives the fallback, E:
+
+    >>> np.round(xyz_to_xy([[0.95047, 1.0, 1.08883], [0.0, 0.0, 0.0]]), 4).tolist()
+    [[0.3127, 0.329], [0.3333, 0.3333]]
     """
     a = _float(_as_array(xyz, "xyz", last=3))
     fallback = _opt.real_array(fallback, "fallback")  # NaN may mark black as unknown
@@ -851,6 +951,17 @@ def illuminant_spd(name: str, wavelengths) -> np.ndarray:
     ndarray, shape (N,)
         Linear interpolation of the tabulated SPD; the end values are held outside the table
         (colour-science's constant extrapolation). Scaled to mean 1 over ``wavelengths``.
+
+    Examples
+    --------
+    E is flat. CIE A (a 2856 K Planckian radiator) is tabulated as 100 at 560 nm and 14.708 at
+    400 nm, a ratio the normalisation keeps:
+
+    >>> illuminant_spd("E", [400.0, 500.0, 600.0]).tolist()
+    [1.0, 1.0, 1.0]
+    >>> s = illuminant_spd("A", [400.0, 560.0, 700.0])
+    >>> round(float(s[0] / s[1]), 4), round(float(s.mean()), 4)
+    (0.1471, 1.0)
     """
     wl = as_wavelengths(wavelengths)
     table_wl, table = _illuminant_table(str(name))
@@ -995,6 +1106,19 @@ def spectrum_to_xyz(spectra, wavelengths, *, illuminant=None, normalise: str | N
     ------
     InvalidInputError
         Shape mismatch, or the wavelengths lie outside the CMFs (no luminance).
+
+    Examples
+    --------
+    A flat spectrum, the equal-energy white E, has Y = 1 and chromaticity (1/3, 1/3); lit by
+    D65, the perfect reflector takes D65's chromaticity (0.3127, 0.3290):
+
+    >>> wl = np.arange(380.0, 781.0, 5.0)
+    >>> xyz = spectrum_to_xyz(np.ones(wl.size), wl)
+    >>> round(float(xyz[1]), 4), np.round(xyz_to_xy(xyz), 4).tolist()
+    (1.0, [0.3333, 0.3333])
+    >>> d65 = spectrum_to_xyz(np.ones(wl.size), wl, illuminant="D65")
+    >>> np.round(xyz_to_xy(d65), 4).tolist()
+    [0.3127, 0.329]
     """
     _opt.choice(normalise, "normalise", ("equal-energy", "white", None, "none"))
     wl = as_wavelengths(wavelengths)
@@ -1051,6 +1175,17 @@ def spectrum_to_rgb(spectra, wavelengths, *, camera="CIE 1931", white_balance: b
     ------
     InvalidInputError
         Shape mismatch, or a channel with zero response over the bands while white-balancing.
+
+    Examples
+    --------
+    White-balanced, a flat spectrum reads (1, 1, 1) whatever the camera; the RGB axis takes
+    the place of the spectral axis:
+
+    >>> wl = np.arange(400.0, 701.0, 10.0)
+    >>> np.round(spectrum_to_rgb(np.ones(wl.size), wl, camera="sdmerill"), 4).tolist()
+    [1.0, 1.0, 1.0]
+    >>> spectrum_to_rgb(np.ones((2, wl.size, 4, 5)), wl, axis=1).shape
+    (2, 3, 4, 5)
     """
     _opt.flag(white_balance, "white_balance")
     wl = as_wavelengths(wavelengths)
@@ -1120,6 +1255,18 @@ def rgb_to_spectrum(rgb_linear, wavelengths) -> np.ndarray:
     -------
     ndarray, shape (..., N)
         float32 for float32 input, else float64.
+
+    Examples
+    --------
+    Grey (1, 1, 1) becomes the flat spectrum 1, and under D65 the XYZ of a spectrum gives its
+    RGB back:
+
+    >>> wl = np.arange(380.0, 781.0, 5.0)
+    >>> bool(np.allclose(rgb_to_spectrum([1.0, 1.0, 1.0], wl), 1.0, atol=1e-4))
+    True
+    >>> s = rgb_to_spectrum([0.8, 0.4, 0.1], wl)
+    >>> np.round(xyz_to_srgb_linear(spectrum_to_xyz(s, wl, illuminant="D65")), 3).tolist()
+    [0.8, 0.4, 0.1]
     """
     wl = as_wavelengths(wavelengths)
     a = _float(_as_array(rgb_linear, "rgb_linear", last=3))
@@ -1248,6 +1395,18 @@ def dominant_wavelength(xy, white=(1 / 3, 1 / 3), *, lut_size: int = _DW_LUT_SIZ
         nm; negative complementary wavelength for purples; NaN where ``xy`` equals the white
         point or is not finite.
     purple : ndarray of bool, shape (...)
+
+    Examples
+    --------
+    A monochromatic light is its own dominant wavelength; a mix of 450 nm and 650 nm light is
+    a purple, returned as minus its complementary wavelength:
+
+    >>> wl, purple = dominant_wavelength(xyz_to_xy(cmfs([550.0, 600.0])))
+    >>> np.round(wl, 2).tolist(), purple.tolist()
+    ([550.0, 600.0], [False, False])
+    >>> wl, purple = dominant_wavelength(xyz_to_xy(cmfs([450.0, 650.0]).sum(axis=0)))
+    >>> bool(wl < 0), bool(purple)
+    (True, True)
     """
     a = _check_xy(xy)
     w = _white_tuple(white)
@@ -1291,6 +1450,17 @@ def dominant_wavelength_for_filters(xy, lambda_min: float, lambda_max: float,
     -------
     ndarray, shape (...)
         nm, always within ``[lambda_min, lambda_max]``.
+
+    Examples
+    --------
+    With filters from 520 to 700 nm, 550 nm light keeps its wavelength, 500 nm light is
+    clipped to 520 nm and the white E takes the middle of the range:
+
+    >>> xy = xyz_to_xy(cmfs([550.0, 500.0]))
+    >>> np.round(dominant_wavelength_for_filters(xy, 520, 700), 2).tolist()
+    [550.0, 520.0]
+    >>> float(dominant_wavelength_for_filters([1 / 3, 1 / 3], 520, 700))
+    610.0
     """
     lo, hi = _opt.real(lambda_min, "lambda_min"), _opt.real(lambda_max, "lambda_max")
     if not lo <= hi:
@@ -1365,6 +1535,18 @@ def load_munsell(path: str | os.PathLike | None = None) -> tuple[np.ndarray, np.
     wavelengths : ndarray, shape (421,)
     reflectances : ndarray, shape (1269, 421)
         In [0, 1]; read-only (cached), copy before modifying.
+
+    Examples
+    --------
+    A stand-in file of the same layout (a flat grey), so that this runs without the data:
+    380-800 nm in 1 nm steps is 421 samples, and the 4 columns after the 1269th are dropped:
+
+    >>> import os, tempfile, scipy.io
+    >>> f = os.path.join(tempfile.mkdtemp(), "munsell.mat")
+    >>> scipy.io.savemat(f, {"munsell": np.full((421, 1273), 0.5)})
+    >>> wl, refl = load_munsell(f)
+    >>> wl[[0, -1]].tolist(), refl.shape
+    ([380.0, 800.0], (1269, 421))
     """
     p = _data_file(path, "munsell", "Munsell file", "the .mat path")
     return _parse_munsell(str(p.resolve()), p.stat().st_mtime_ns)
@@ -1401,6 +1583,18 @@ def reflectance_library(source: str = "auto", wavelengths=None) -> tuple[np.ndar
     -------
     wavelengths : ndarray, shape (N,)
     reflectances : ndarray, shape (n, N)
+
+    Examples
+    --------
+    The ColorChecker, 380-780 nm in 5 nm steps. Its six neutral patches (18-23) have nominal
+    optical densities D of 0.05 to 1.5; under D65 their luminance factors are 10**-D, to 0.01:
+
+    >>> wl, refl = reflectance_library("colorchecker")
+    >>> refl.shape, wl[[0, -1]].tolist()
+    ((24, 81), [380.0, 780.0])
+    >>> Y = spectrum_to_xyz(refl[18:], wl, illuminant="D65")[:, 1]
+    >>> bool(np.allclose(Y, 10 ** -np.array([0.05, 0.23, 0.44, 0.70, 1.05, 1.5]), atol=0.01))
+    True
     """
     from .datasets import has_data
 
@@ -1478,6 +1672,18 @@ def load_filter_transmissions(path: str | os.PathLike | None = None):
     centres : ndarray, shape (F,)
         Nominal centre wavelengths from the column names, nm (the shipped file has filters at
         430-460 and 660-780 nm only).
+
+    Examples
+    --------
+    A stand-in table with one filter, in percent, so that this runs without the data: the
+    values become fractions and the centre is read from the column name:
+
+    >>> import pathlib, tempfile
+    >>> f = pathlib.Path(tempfile.mkdtemp()) / "filters.csv"
+    >>> _ = f.write_text("wavelength_nm,FBH550-10\\n540,0\\n550,80\\n560,0\\n")
+    >>> wl, trans, centres = load_filter_transmissions(f)
+    >>> wl.tolist(), trans.tolist(), centres.tolist()
+    ([540.0, 550.0, 560.0], [[0.0, 0.8, 0.0]], [550.0])
     """
     p = _data_file(path, "thorlabs", "filter file", "the CSV path")
     return _parse_filters(str(p.resolve()), p.stat().st_mtime_ns)
@@ -1519,6 +1725,18 @@ def filter_response(center_nm, wavelengths, shape: str = "dirac", *, fwhm: float
     InvalidInputError
         Unknown shape, bad fwhm, a Dirac centre outside the wavelengths, or a filter that does
         not overlap the wavelengths.
+
+    Examples
+    --------
+    A Gaussian's weights sum to 1 and, half its FWHM from the centre, are half its peak; a
+    Dirac half-way between two samples weighs each by 1/2:
+
+    >>> wl = np.arange(500.0, 601.0, 1.0)
+    >>> w = filter_response(550, wl, "gaussian", fwhm=10)
+    >>> round(float(w.sum()), 6), round(float(w[55] / w[50]), 4)
+    (1.0, 0.5)
+    >>> filter_response(555, [550.0, 560.0]).tolist()
+    [0.5, 0.5]
     """
     wl = as_wavelengths(wavelengths)
     c_arr = _opt.real_array(center_nm, "center_nm")
