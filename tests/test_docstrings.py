@@ -10,12 +10,16 @@ import pytest
 
 import hyperlf
 
-MODULES = sorted(m.name for m in pkgutil.walk_packages(hyperlf.__path__, "hyperlf.")
-                 if not m.name.rsplit(".", 1)[-1].startswith("_"))
+# the package itself too: walk_packages lists only what is below it, so the examples of the
+# top-level functions (hyperlf.load, hyperlf.depth, ...) never ran before
+MODULES = ["hyperlf"] + sorted(
+    m.name for m in pkgutil.walk_packages(hyperlf.__path__, "hyperlf.")
+    if not m.name.rsplit(".", 1)[-1].startswith("_"))
 
 
 def test_the_public_modules_are_found():
-    assert {"hyperlf.costs", "hyperlf.regularisers", "hyperlf.hlf", "hyperlf.warp"} <= set(MODULES)
+    assert {"hyperlf", "hyperlf.costs", "hyperlf.regularisers", "hyperlf.hlf",
+            "hyperlf.warp"} <= set(MODULES)
 
 
 @pytest.mark.parametrize("name", MODULES)
