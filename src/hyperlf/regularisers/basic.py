@@ -48,6 +48,12 @@ def data_term(cost, *, overwrite: bool = False) -> np.ndarray:
     -------
     ndarray, float32, shape (L, H, W)
         ``cost - min_l cost[l]``.
+
+    Examples
+    --------
+    >>> cost = np.array([[[3.0, 1.0]], [[2.0, 5.0]], [[4.0, 0.0]]])  # 3 labels, 1 x 2 px
+    >>> data_term(cost)[:, 0].tolist()
+    [[1.0, 1.0], [0.0, 5.0], [2.0, 0.0]]
     """
     overwrite = flag(overwrite, "overwrite")
     c = check_cost(cost)
@@ -69,6 +75,12 @@ def wta(cost) -> np.ndarray:
     -------
     ndarray, int32, shape (H, W)
         Label indices; ties go to the lowest index.
+
+    Examples
+    --------
+    >>> cost = np.array([[[3.0, 1.0]], [[2.0, 5.0]], [[4.0, 0.0]]])  # 3 labels, 1 x 2 px
+    >>> wta(cost).tolist()
+    [[1, 2]]
     """
     c = check_cost(cost)
     return np.argmin(c, axis=0).astype(np.int32)

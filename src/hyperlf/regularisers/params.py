@@ -153,7 +153,13 @@ def make_params(name: str, values: dict[str, Any] | None = None):
 
 def params_dict(params) -> dict[str, Any]:
     """The fields of an optimiser's parameters (one of :data:`OPTIMISERS`' classes) as a plain
-    dict (without the name)."""
+    dict (without the name).
+
+    Examples
+    --------
+    >>> params_dict(make_params("sgm", {"p1": 0.5, "p2": 2.0}))["p2"]
+    2.0
+    """
     if not isinstance(params, tuple(OPTIMISERS.values())):
         raise InvalidInputError(f"params must be the parameters of an optimiser (one of "
                                 f"{', '.join(c.__name__ for c in OPTIMISERS.values())}), got "

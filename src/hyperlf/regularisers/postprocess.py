@@ -183,6 +183,15 @@ def right_cost_from_left(cost_left, labels=None) -> np.ndarray:
     Returns
     -------
     ndarray, float32, shape (L, H, W)
+
+    Examples
+    --------
+    Label 1 reads the left cost one pixel to the right; the last right pixel has no left
+    pixel at that label and gets its worst valid cost, 3:
+
+    >>> left = np.arange(8.0).reshape(2, 1, 4)
+    >>> left[1, 0].tolist(), right_cost_from_left(left)[1, 0].tolist()
+    ([4.0, 5.0, 6.0, 7.0], [5.0, 6.0, 7.0, 3.0])
     """
     c = check_cost(cost_left, "cost_left")
     L, H, W = c.shape
