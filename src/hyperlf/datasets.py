@@ -79,6 +79,23 @@ def data_root(root: str | os.PathLike | None = None) -> Path:
     ------
     DataNotFoundError
         When neither is set or the folder does not exist.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from unittest import mock
+    >>> folder = tempfile.mkdtemp()
+    >>> data_root(folder) == Path(folder)                   # an explicit root wins
+    True
+    >>> with mock.patch.dict(os.environ, {ENV_VAR: folder}):    # restored after the block
+    ...     print(data_root() == Path(folder))
+    True
+    >>> with mock.patch.dict(os.environ):
+    ...     _ = os.environ.pop(ENV_VAR, None)
+    ...     data_root()
+    Traceback (most recent call last):
+    ...
+    hyperlf.errors.DataNotFoundError: the benchmark data location is unknown: set HYPERLF_DATA ...
     """
     if root is not None:
         path_like(root, "root", folder=None)
@@ -149,6 +166,22 @@ def has_data(name: str | None = None) -> bool:
     ------
     InvalidInputError
         ``name`` is neither None nor a dataset name or path.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from unittest import mock
+    >>> root = Path(tempfile.mkdtemp())
+    >>> with mock.patch.dict(os.environ, {ENV_VAR: str(root)}):     # restored after the block
+    ...     before = has_data(), has_data("tsukuba")
+    ...     (root / "middlebury" / "tsukuba").mkdir(parents=True)
+    ...     after = has_data("tsukuba")
+    >>> before, after
+    ((True, False), True)
+    >>> with mock.patch.dict(os.environ):
+    ...     _ = os.environ.pop(ENV_VAR, None)
+    ...     print(has_data())                               # no data root at all
+    False
     """
     if name is not None:
         path_like(name, "name", folder=None)

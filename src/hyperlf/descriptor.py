@@ -300,7 +300,19 @@ def _gradient_pair(gx, gy, *, two_d: bool = False) -> tuple[np.ndarray, np.ndarr
 
 
 def normalise(image) -> np.ndarray:
-    """``In = I / mean(I)`` in float64 (SPEC §2 step 1). The mean must be positive."""
+    """``In = I / mean(I)`` in float64 (SPEC §2 step 1). The mean must be positive.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hyperlf.descriptor import normalise
+    >>> In = normalise([[1, 2], [3, 6]])            # divided by the mean, 3
+    >>> In.tolist(), In.dtype.name
+    ([[0.333..., 0.666...], [1.0, 2.0]], 'float64')
+    >>> img = np.random.default_rng(0).random((8, 10)) + 0.5
+    >>> bool(np.allclose(normalise(img), normalise(7.0 * img)))    # a global gain cancels
+    True
+    """
     img = _as_image(image)
     m = float(np.mean(img))
     if not m > 0:
@@ -316,6 +328,20 @@ def gradients(In, method: str = "sobel"):
     ``sqrt(gx^2 + gy^2)``; ``Theta = (atan2(gy, gx) mod pi) / pi`` in ``[0, 1)``, bit-exactly
     invariant under ``(gx, gy) -> (-gx, -gy)`` (see the module docstring).  ``In``: a finite
     2-D image (values at most 1e150 in size).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hyperlf.descriptor import gradients
+    >>> ramp = 1.0 + 0.1 * np.arange(10) * np.ones((8, 1))     # slope 0.1 along x
+    >>> gx, gy, M, Theta = gradients(ramp, "central")
+    >>> bool(np.allclose(gx[:, 1:-1], 0.1)), bool(np.all(gy == 0)), bool(np.all(Theta == 0))
+    (True, True, True)
+    >>> round(float(gx[0, 0]), 6)       # the first column is repeated past the border
+    0.05
+    >>> gx, gy, M, Theta = gradients(ramp.T)                    # "sobel", slope 0.1 along y
+    >>> bool(np.allclose(gy[1:-1], 0.2)), bool(np.allclose(Theta, 0.5))   # Sobel: 2 x slope
+    (True, True)
     """
     choice(method, "gradient method", _GRADIENTS)
     return _gradients(_real_values(In, "In", two_d=True), method)
@@ -338,6 +364,15 @@ def magnitude_direction(gx, gy):
     """``M = sqrt(gx^2 + gy^2)`` and ``Theta = (atan2(gy, gx) mod pi) / pi`` in ``[0, 1)``.
 
     ``gx`` and ``gy``: arrays of one shape, finite, at most 1e150 in size (so that ``M^2`` is).
+
+    Examples
+    --------
+    >>> from hyperlf.descriptor import magnitude_direction
+    >>> M, Theta = magnitude_direction([3.0, 0.0, 1.0, -1.0], [4.0, 1.0, 1.0, -1.0])
+    >>> M.round(6).tolist()
+    [5.0, 1.0, 1.414214, 1.414214]
+    >>> Theta.round(4).tolist()     # (1, 1) and (-1, -1) share a direction (mod pi)
+    [0.2952, 0.5, 0.25, 0.25]
     """
     return _magnitude_direction(*_gradient_pair(gx, gy))
 
@@ -364,6 +399,19 @@ def bin_weights(values, params: DescriptorParams | None = None):
     (float64).  Bin ``k`` covers ``[k (1-o) s, k (1-o) s + s)``; values at or past the end of
     the last bin go to the last bin only; negative values go to bin 0.  ``values`` must be
     finite.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hyperlf.descriptor import DescriptorParams, bin_weights
+    >>> p = DescriptorParams(bin_width=1.0, overlap=0.25, n_bins=4)
+    >>> p.bin_starts.tolist()                   # bin k covers [start, start + 1)
+    [0.0, 0.75, 1.5, 2.25]
+    >>> idx0, w0, idx1, w1 = bin_weights([0.5, 0.8, 1.6, 10.0, -1.0], p)
+    >>> idx0.tolist(), idx1.tolist()            # 0.8 lies in [0, 1) and in [0.75, 1.75)
+    ([0, 0, 1, 3, 0], [-1, 1, 2, -1, -1])
+    >>> w0.tolist(), w1.tolist()                # a value counts fully in each bin it falls in
+    ([1.0, 1.0, 1.0, 1.0, 1.0], [0.0, 1.0, 1.0, 0.0, 0.0])
     """
     return _bin_weights(_real_values(values, "values"),
                         params_of(params, "params", DescriptorParams))
@@ -394,6 +442,17 @@ def auto_sigma_w(M) -> float:
     """``median(M^2) / ln 2`` (0 only if ``M`` is 0 everywhere; see the module docstring).
 
     ``M``: gradient magnitudes, finite, ``>= 0`` and at most 1e150.
+
+    Examples
+    --------
+    >>> import math
+    >>> from hyperlf.descriptor import auto_sigma_w
+    >>> bool(math.isclose(auto_sigma_w([0.0, 1.0, 2.0]), 1 / math.log(2)))   # median(M^2) = 1
+    True
+    >>> bool(math.isclose(auto_sigma_w([0.0, 0.0, 0.0, 2.0]), 4 / math.log(2)))   # non-zero M^2
+    True
+    >>> auto_sigma_w([0.0, 0.0])
+    0.0
     """
     return _auto_sigma_w(_real_values(M, "M", at_least=0.0))
 
@@ -413,6 +472,19 @@ def edge_weights(M, params: DescriptorParams | None = None, sigma_w: float | Non
 
     ``M``: gradient magnitudes as :func:`auto_sigma_w` takes them; ``sigma_w``: a finite number
     ``>= 0`` (0: ``M`` is taken as 0 everywhere), default from ``params``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hyperlf.descriptor import DescriptorParams, edge_weights
+    >>> a1, a3, sigma_w = edge_weights([0.0, 1.0, 2.0])         # sigma_w "auto" = 1 / ln 2
+    >>> a1.round(6).tolist(), a3.round(6).tolist()              # the median pixel gets a3 = 1/2
+    ([0.5, 0.25, 0.03125], [0.0, 0.5, 0.9375])
+    >>> bool(np.allclose(2 * a1 + a3, 1.0))                     # a1 + a2 + a3 = 1
+    True
+    >>> a1, a3, sigma_w = edge_weights([0.4], DescriptorParams.paper())   # fixed sigma_w = 0.16
+    >>> sigma_w, round(float(a1[0]), 6)                         # 0.5 * exp(-0.16 / 0.16)
+    (0.16, 0.18394)
     """
     return _edge_weights(_real_values(M, "M", at_least=0.0),
                          params_of(params, "params", DescriptorParams),
@@ -507,6 +579,20 @@ def prepare(image, params: DescriptorParams | None = None) -> PreparedDescriptor
     ------
     InvalidInputError
         Not a finite 2-D image with a positive mean, or a prepared view with other params.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hyperlf.descriptor import descriptor, gradients, normalise, prepare
+    >>> img = np.random.default_rng(1).random((16, 20)) + 0.5
+    >>> prep = prepare(img)
+    >>> prep.shape, bool(np.array_equal(prep.M, gradients(normalise(img))[2]))
+    ((16, 20), True)
+    >>> D = descriptor(prep, channels=[0, 300, 611])        # only three channels computed
+    >>> D.shape, bool(np.allclose(D, descriptor(img)[[0, 300, 611]]))
+    ((3, 16, 20), True)
+    >>> prepare(prep) is prep
+    True
     """
     if isinstance(image, PreparedDescriptor):
         if params is not None and params_of(params, "params", DescriptorParams) != image.params:
@@ -524,7 +610,21 @@ def prepare(image, params: DescriptorParams | None = None) -> PreparedDescriptor
 
 def prepare_from_gradients(gx, gy, params: DescriptorParams | None = None) -> PreparedDescriptor:
     """Like :func:`prepare` but from given gradients (for tests and custom gradient operators):
-    ``gx`` and ``gy`` 2-D of one shape, as :func:`magnitude_direction` takes them."""
+    ``gx`` and ``gy`` 2-D of one shape, as :func:`magnitude_direction` takes them.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hyperlf.descriptor import DescriptorParams, descriptor, prepare_from_gradients
+    >>> p = DescriptorParams()
+    >>> prep = prepare_from_gradients(np.zeros((8, 10)), np.full((8, 10), 0.1))   # all along y
+    >>> bool(np.allclose(prep.M, 0.1)), bool(np.allclose(prep.Theta, 0.5))
+    (True, True)
+    >>> h2 = descriptor(prep, channels=slice(p.n_bins, 2 * p.n_bins), weighted=False)
+    >>> k = int(prep.t_idx0[0, 0])                          # the direction bin of Theta = 0.5
+    >>> bool(np.allclose(h2[k], 1.0)), bool(np.allclose(np.delete(h2, k, axis=0), 0.0))
+    (True, True)
+    """
     params = params_of(params, "params", DescriptorParams)
     gx, gy = _gradient_pair(gx, gy, two_d=True)
     M, Theta = _magnitude_direction(gx, gy)
@@ -611,6 +711,18 @@ def descriptor_reference(image, params: DescriptorParams | None = None, channels
     (``[Q(u) in bin k]``, times ``M(u)`` for h3), filters them with the separable Gaussian
     window (``correlate1d``, ``mode='nearest'`` = replicate border), divides by their sum over
     ``k`` and multiplies by the edge weight.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hyperlf.descriptor import DescriptorParams, descriptor_reference
+    >>> img = np.random.default_rng(2).random((16, 20)) + 0.5
+    >>> D = descriptor_reference(img)
+    >>> D.shape, D.dtype.name, DescriptorParams().n_channels
+    ((612, 16, 20), 'float32', 612)
+    >>> level = D.reshape(3, 204, 16, 20).sum(axis=1)       # D_p(w) of each window sums to 1
+    >>> bool(np.allclose(level, 1.0, atol=1e-5))
+    True
     """
     weighted = flag(weighted, "weighted")
     prep = prepare(image, params)
@@ -731,6 +843,18 @@ def iter_descriptor_blocks(image, params: DescriptorParams | None = None, block:
     InvalidInputError
         At the call (before the first block): a bad image, ``params``, ``block``, ``impl`` or
         ``weighted``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hyperlf.descriptor import descriptor_reference, iter_descriptor_blocks
+    >>> img = np.random.default_rng(3).random((16, 20)) + 0.5
+    >>> blocks = list(iter_descriptor_blocks(img, block=100, impl="numpy"))
+    >>> [(s.start, s.stop) for s, _ in blocks][-2:], blocks[-1][1].shape
+    ([(500, 600), (600, 612)], (12, 16, 20))
+    >>> whole = np.concatenate([b for _, b in blocks])
+    >>> bool(np.array_equal(whole, descriptor_reference(img)))
+    True
     """
     block = integer(block, "block", 1)
     choice(impl, "impl", _IMPLS)

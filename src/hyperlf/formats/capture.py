@@ -95,6 +95,18 @@ def is_capture(folder: str | os.PathLike) -> bool:
     Returns
     -------
     bool
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from hyperlf.lightfield import LightField
+    >>> folder = tempfile.mkdtemp()
+    >>> is_capture(folder)                          # an empty folder
+    False
+    >>> lf = LightField(views=np.full((2, 2, 8, 10), 0.5, dtype=np.float32))
+    >>> man = write_capture(lf, os.path.join(folder, "cap"))
+    >>> is_capture(man.parent), is_capture(man)     # the folder, not the manifest file
+    (True, False)
     """
     p = Path(path_like(folder, "folder", folder=None))
     return p.is_dir() and (p / MANIFEST).is_file()
@@ -387,7 +399,26 @@ def _manifest_metadata(doc: dict, root: Path, bit_depth: int) -> dict[str, Any]:
 def gt_cube_file(folder: str | os.PathLike) -> Path | None:
     """The ground-truth cube file a capture's manifest names (checked to stay inside the
     folder, as :func:`read_capture` does), or None when it names none; for reading the cube
-    view by view (:func:`hyperlf.formats.open_gt_cube`)."""
+    view by view (:func:`hyperlf.formats.open_gt_cube`).
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from hyperlf.lightfield import LightField
+    >>> cube = np.random.default_rng(0).random((2, 2, 3, 8, 10)).astype(np.float32)
+    >>> lf = LightField(views=cube[:, :, 0], gt_cube=cube, cube_wavelengths=[450, 550, 650])
+    >>> man = write_capture(lf, os.path.join(tempfile.mkdtemp(), "cap"))
+    >>> f = gt_cube_file(man.parent)
+    >>> f == man.parent / "gt_cube.h5"
+    True
+    >>> from hyperlf.formats.hdf5 import read_cube_h5
+    >>> bool(np.array_equal(read_cube_h5(f)[0], cube))
+    True
+    >>> lf = LightField(views=cube[:, :, 0])
+    >>> man = write_capture(lf, os.path.join(tempfile.mkdtemp(), "cap"))
+    >>> print(gt_cube_file(man.parent))             # no ground-truth cube
+    None
+    """
     root = Path(path_like(folder, "folder", folder=None))
     man, doc = _read_manifest(root)
     cspec = doc.get("gt_cube")
@@ -714,6 +745,28 @@ def write_capture(lightfield: LightField, folder: str | os.PathLike, *, bit_dept
     lists/numbers, other objects their ``str``. ``metadata["calibration"]`` becomes the
     ``[calibration]`` table; keys the reader adds (``capture_folder``, ``bit_depth``) are not
     written back.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from hyperlf.lightfield import LightField
+    >>> rng = np.random.default_rng(1)
+    >>> lf = LightField(views=rng.random((2, 2, 8, 10)).astype(np.float32),
+    ...                 wavelengths=[[450.0, 500.0], [550.0, 600.0]], disparity_range=(-1.0, 1.0))
+    >>> man = write_capture(lf, os.path.join(tempfile.mkdtemp(), "cap"))
+    >>> man.name, sorted(p.name for p in man.parent.iterdir())
+    ('capture.toml', ['capture.toml', 'view_r0_c0.png', 'view_r0_c1.png', 'view_r1_c0.png',
+    'view_r1_c1.png'])
+    >>> back = read_capture(man.parent)
+    >>> back.views.shape, back.wavelengths.tolist(), back.disparity_range
+    ((2, 2, 8, 10), [[450.0, 500.0], [550.0, 600.0]], (-1.0, 1.0))
+    >>> bool(np.abs(back.views - lf.views).max() <= 0.5 / 65535 + 1e-7)   # 16-bit PNG views
+    True
+    >>> man = write_capture(lf, man.parent, bit_depth=32, overwrite=True)   # float32 TIFF views
+    >>> bool(np.array_equal(read_capture(man.parent).views, lf.views))
+    True
+    >>> sorted(p.suffix for p in man.parent.iterdir())     # the old PNG views are removed
+    ['.tif', '.tif', '.tif', '.tif', '.toml']
     """
     import tomli_w
 

@@ -60,6 +60,23 @@ def write_envi(path_hdr_or_base: str | os.PathLike, cube, wavelengths=None,
     -------
     Path
         The header file.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> cube = np.random.default_rng(0).random((3, 8, 10)).astype(np.float32)      # (B, H, W)
+    >>> hdr = write_envi(os.path.join(tempfile.mkdtemp(), "scene"), cube, [450, 550, 650])
+    >>> sorted(p.name for p in hdr.parent.iterdir())
+    ['scene.hdr', 'scene.img']
+    >>> (hdr.parent / "scene.img").stat().st_size           # 3 * 8 * 10 float32 samples
+    960
+    >>> back, wl, header = read_envi(hdr)
+    >>> bool(np.array_equal(back, cube)), wl.tolist(), header["interleave"]
+    (True, [450.0, 550.0, 650.0], 'bsq')
+    >>> hwb = np.moveaxis(cube, 0, -1)          # (H, W, B): told apart by the 3 wavelengths
+    >>> hdr = write_envi(hdr, hwb, [450, 550, 650], interleave="bip")
+    >>> bool(np.array_equal(read_envi(hdr)[0], cube))       # read back as (B, H, W)
+    True
     """
     path_like(path_hdr_or_base)
     choice(axes, "axes", ("auto", "bhw", "hwb"))
@@ -172,7 +189,7 @@ def _int(hdr: Path, h: dict, key: str, default=None) -> int:
 
 
 def read_envi(path: str | os.PathLike):
-    """Read an ENVI image.
+    r"""Read an ENVI image.
 
     Parameters
     ----------
@@ -198,6 +215,21 @@ def read_envi(path: str | os.PathLike):
         finds itself (the header's ``data file``, or the header or data file beside the one
         named) resolves outside the named file's folder: by an absolute or ``..`` name, or by
         a symlink. A file named in ``path`` is read wherever it leads.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> cube = np.arange(2 * 3 * 4, dtype=np.uint16).reshape(2, 3, 4) * 1000     # (B, H, W)
+    >>> np.transpose(cube, (1, 0, 2)).astype(">u2").tofile(folder / "raw.img")    # big-endian bil
+    >>> _ = (folder / "raw.hdr").write_text(
+    ...     "ENVI\nsamples = 4\nlines = 3\nbands = 2\ndata type = 12\nbyte order = 1\n"
+    ...     "interleave = bil\nwavelength units = Micrometers\nwavelength = {0.45,\n 0.55}\n")
+    >>> back, wl, header = read_envi(folder / "raw")        # the base name finds both files
+    >>> back.shape, back.dtype.name, bool(np.array_equal(back, cube))
+    ((2, 3, 4), 'uint16', True)
+    >>> wl.round(6).tolist(), header["data type"]          # micrometres become nm
+    ([450.0, 550.0], '12')
     """
     p = Path(path_like(path, folder=None))
     base = _base(p)

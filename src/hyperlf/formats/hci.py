@@ -37,7 +37,19 @@ _CAM = re.compile(r"^input_Cam(\d{3})\.png$")
 
 def is_hci_scene(folder: str | os.PathLike) -> bool:
     """True when ``folder`` (any path) is a folder holding ``input_Cam000.png``: an HCI 4D LF
-    scene, as :func:`~hyperlf.formats.capture.is_capture` tells a capture."""
+    scene, as :func:`~hyperlf.formats.capture.is_capture` tells a capture.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> from hyperlf.formats.images import write_image
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> is_hci_scene(folder)
+    False
+    >>> _ = write_image(folder / "input_Cam000.png", np.zeros((8, 10), dtype=np.uint8))
+    >>> is_hci_scene(folder), is_hci_scene(folder / "input_Cam000.png")
+    (True, False)
+    """
     p = Path(path_like(folder, "folder", folder=None))
     return p.is_dir() and (p / "input_Cam000.png").is_file()
 
@@ -156,6 +168,28 @@ def read_hci_scene(folder: str | os.PathLike, *, grid=None, rows=None, cols=None
         When the folder or any selected view is missing (all missing files are named).
     FormatError
         When a file cannot be decoded or views differ in size.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> from hyperlf.formats.images import write_image
+    >>> from hyperlf.formats.pfm import write_pfm
+    >>> folder = pathlib.Path(tempfile.mkdtemp()) / "tiny"
+    >>> folder.mkdir()
+    >>> rgb = np.random.default_rng(0).integers(0, 256, (3, 3, 8, 10, 3), dtype=np.uint8)
+    >>> for i in range(9):                          # a 3 x 3 grid, view index 3 * r + c
+    ...     _ = write_image(folder / f"input_Cam{i:03d}.png", rgb[i // 3, i % 3])
+    >>> _ = write_pfm(folder / "gt_disp_lowres.pfm", np.full((8, 10), 1.25, dtype=np.float32))
+    >>> lf = read_hci_scene(folder)
+    >>> lf.views.shape, lf.reference, lf.metadata["centre_view"]
+    ((3, 3, 8, 10, 3), (1, 1), 'input_Cam004.png')
+    >>> bool(np.allclose(lf.views, rgb / 255))      # sRGB values scaled to [0, 1]
+    True
+    >>> lf.positions[2, 1].tolist(), float(lf.gt_disparity[0, 0]), lf.disparity_range
+    ([1.0, 2.0], 1.25, (0.5, 2.5))
+    >>> sub = read_hci_scene(folder, rows=[0, 1], cols=[1, 2])      # a 2 x 2 corner
+    >>> sub.views.shape, sub.reference, sub.gt_disparity is None    # the centre is view (1, 0)
+    ((2, 2, 8, 10, 3), (1, 0), False)
     """
     root = Path(path_like(folder, "folder", folder=None))
     disparity_margin = number(disparity_margin, "disparity_margin", at_most=MAX_MARGIN)

@@ -337,6 +337,25 @@ def write_lightfield_h5(path: str | os.PathLike, lf: LightField,
     Returns
     -------
     Path
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from hyperlf.lightfield import LightField
+    >>> rng = np.random.default_rng(0)
+    >>> lf = LightField(views=rng.random((2, 2, 8, 10)).astype(np.float32),
+    ...                 wavelengths=[[450.0, 500.0], [550.0, 600.0]],
+    ...                 gt_disparity=rng.random((8, 10)), disparity_range=(-1.0, 2.0))
+    >>> p = write_lightfield_h5(os.path.join(tempfile.mkdtemp(), "lf.h5"), lf)
+    >>> p.name
+    'lf.h5'
+    >>> back = read_lightfield_h5(p)
+    >>> bool(np.array_equal(back.views, lf.views)), back.views.dtype.name
+    (True, 'float32')
+    >>> bool(np.array_equal(back.gt_disparity, lf.gt_disparity))
+    True
+    >>> back.wavelengths.tolist(), back.disparity_range, back.reference
+    ([[450.0, 500.0], [550.0, 600.0]], (-1.0, 2.0), (0, 0))
     """
     h5py = _h5py()
     path_like(path)
@@ -409,7 +428,26 @@ def _images(f, name: str, data, **options) -> None:
 def open_lightfield_gt_cube(path: str | os.PathLike):
     """The ground-truth cube of a light-field file as a lazy ``(R, C, B, H, W)`` h5py dataset
     (None when it has none), checked and its read errors reported as :func:`read_lightfield_h5`
-    does; a context manager."""
+    does; a context manager.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from hyperlf.lightfield import LightField
+    >>> rng = np.random.default_rng(1)
+    >>> cube = rng.random((2, 2, 3, 8, 10)).astype(np.float32)
+    >>> lf = LightField(views=cube[:, :, 0], gt_cube=cube, cube_wavelengths=[450, 550, 650])
+    >>> p = write_lightfield_h5(os.path.join(tempfile.mkdtemp(), "lf.h5"), lf)
+    >>> with open_lightfield_gt_cube(p) as ds:      # nothing is read yet
+    ...     shape, band = ds.shape, ds[1, 0, 2]     # reads band 2 of view (1, 0) only
+    >>> shape, bool(np.array_equal(band, cube[1, 0, 2]))
+    ((2, 2, 3, 8, 10), True)
+    >>> lf = LightField(views=cube[:, :, 0])         # no ground-truth cube
+    >>> p = write_lightfield_h5(os.path.join(tempfile.mkdtemp(), "lf.h5"), lf)
+    >>> with open_lightfield_gt_cube(p) as ds:
+    ...     print(ds)
+    None
+    """
     with _open_read(path, LF_FORMAT) as (_, f):
         yield f["gt_cube"] if "gt_cube" in f else None
 
@@ -433,6 +471,24 @@ def read_lightfield_h5(path: str | os.PathLike, *, cube: bool = True) -> LightFi
         When the file does not exist.
     FormatError
         When it is not a hyperlf light-field HDF5 file or is incomplete/corrupt.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from hyperlf.lightfield import LightField
+    >>> rng = np.random.default_rng(2)
+    >>> cube = rng.random((2, 2, 3, 8, 10)).astype(np.float32)
+    >>> lf = LightField(views=cube[:, :, 1], gt_cube=cube, cube_wavelengths=[450, 550, 650],
+    ...                 metadata={"scene": "noise"})
+    >>> p = write_lightfield_h5(os.path.join(tempfile.mkdtemp(), "lf.h5"), lf)
+    >>> back = read_lightfield_h5(p)
+    >>> bool(np.array_equal(back.gt_cube, cube)), back.cube_wavelengths.tolist()
+    (True, [450.0, 550.0, 650.0])
+    >>> back.metadata["scene"], back.grid_shape
+    ('noise', (2, 2))
+    >>> light = read_lightfield_h5(p, cube=False)   # the views without the cube
+    >>> light.gt_cube is None, bool(np.array_equal(light.views, lf.views))
+    (True, True)
     """
     cube = flag(cube, "cube")
     with _open_read(path, LF_FORMAT) as (p, f):
@@ -649,6 +705,18 @@ def write_cube_h5(path: str | os.PathLike, cube, wavelengths, *, mask=None,
     Returns
     -------
     Path
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> rng = np.random.default_rng(3)
+    >>> cube = rng.random((2, 2, 3, 8, 10)).astype(np.float32)
+    >>> mask = rng.random((2, 2, 8, 10)) > 0.2
+    >>> p = write_cube_h5(os.path.join(tempfile.mkdtemp(), "cube.h5"), cube, [450, 550, 650],
+    ...                   mask=mask, metadata={"method": "example"})
+    >>> back, wl, m = read_cube_h5(p)
+    >>> bool(np.array_equal(back, cube)), bool(np.array_equal(m, mask)), wl.tolist()
+    (True, True, [450.0, 550.0, 650.0])
     """
     path_like(path)
     mapping(metadata, "metadata")
@@ -784,6 +852,20 @@ def open_cube_h5(path: str | os.PathLike) -> CubeFile:
     CubeFile
         ``cube`` (an h5py dataset, ``[R, C, B, H, W]``), ``wavelengths``, ``mask``,
         ``metadata``.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> cube = np.arange(2 * 3 * 4 * 6 * 8, dtype=np.float32).reshape(2, 3, 4, 6, 8)
+    >>> wl = [450, 520, 590, 660]
+    >>> p = write_cube_h5(os.path.join(tempfile.mkdtemp(), "cube.h5"), cube, wl,
+    ...                   metadata={"method": "ramp"})
+    >>> with open_cube_h5(p) as cf:
+    ...     print(cf.shape, cf.wavelengths.tolist(), cf.mask, cf.metadata["method"])
+    ...     v = cf.view(1, 2)                        # reads the (B, H, W) cube of one view
+    (2, 3, 4, 6, 8) [450.0, 520.0, 590.0, 660.0] None ramp
+    >>> v.shape, bool(np.array_equal(v, cube[1, 2]))
+    ((4, 6, 8), True)
     """
     return CubeFile(path)
 
@@ -801,6 +883,17 @@ def read_cube_h5(path: str | os.PathLike):
     cube : ndarray of float32, shape (R, C, B, H, W)
     wavelengths : ndarray of float64, shape (B,)
     mask : ndarray of bool, shape (R, C, H, W), or None
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> cube = np.random.default_rng(4).random((1, 2, 3, 8, 10))
+    >>> p = write_cube_h5(os.path.join(tempfile.mkdtemp(), "cube.h5"), cube, [500, 600, 700])
+    >>> back, wl, mask = read_cube_h5(p)
+    >>> back.dtype.name, back.shape, wl.dtype.name, mask is None
+    ('float32', (1, 2, 3, 8, 10), 'float64', True)
+    >>> bool(np.array_equal(back, cube.astype(np.float32)))   # float64 input stored as float32
+    True
     """
     with open_cube_h5(path) as cf:
         _check_fits(cf.path, "cube", cf.cube.size * 4)

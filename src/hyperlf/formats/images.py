@@ -268,6 +268,22 @@ def read_image(path: str | os.PathLike, *, as_float: bool = True,
     FormatError
         When the file cannot be decoded, is a folder, or would need more memory than
         ``HYPERLF_MAX_IMAGE_BYTES`` / :data:`MAX_IMAGE_BYTES` (checked from its header).
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> rgb = np.zeros((8, 10, 3), dtype=np.uint8)
+    >>> rgb[..., 0], rgb[..., 2] = 255, 51                  # red 1.0, blue 0.2
+    >>> p = write_image(os.path.join(tempfile.mkdtemp(), "rgb.png"), rgb)
+    >>> raw = read_image(p, as_float=False)                 # the stored samples
+    >>> raw.shape, raw.dtype.name, bool(np.array_equal(raw, rgb))
+    ((8, 10, 3), 'uint8', True)
+    >>> im = read_image(p)                                  # float32, scaled by 255
+    >>> im.dtype.name, [round(float(v), 6) for v in im[0, 0]]
+    ('float32', [1.0, 0.0, 0.2])
+    >>> grey = read_image(p, channels="grey")               # 0.2126 * 1 + 0.0722 * 0.2
+    >>> grey.shape, round(float(grey[0, 0]), 5)
+    ((8, 10), 0.22704)
     """
     p = Path(path_like(path, folder=None))
     as_float = flag(as_float, "as_float")
@@ -316,6 +332,16 @@ def to_grey(rgb) -> np.ndarray:
     Returns
     -------
     ndarray of float32, shape (...)
+
+    Examples
+    --------
+    >>> round(float(to_grey([1.0, 0.0, 0.0])), 6)    # pure red: the red weight
+    0.2126
+    >>> g = to_grey(np.ones((8, 10, 3)))            # white: the weights sum to 1
+    >>> g.shape, g.dtype.name, bool(np.allclose(g, 1.0))
+    ((8, 10), 'float32', True)
+    >>> round(float(to_grey([0.2, 0.4, 0.6])), 4)   # 0.2126 * 0.2 + 0.7152 * 0.4 + 0.0722 * 0.6
+    0.3719
     """
     a = np.asarray(rgb)
     if a.ndim < 1 or a.shape[-1] != 3:
@@ -343,6 +369,24 @@ def write_image(path: str | os.PathLike, array, bit_depth: int = 16) -> Path:
     -------
     Path
         The written file.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> folder = tempfile.mkdtemp()
+    >>> a = np.random.default_rng(0).random((8, 10))
+    >>> p = write_image(os.path.join(folder, "a.png"), a)               # 16 bits by default
+    >>> back = read_image(p)
+    >>> back.shape, back.dtype.name
+    ((8, 10), 'float32')
+    >>> bool(np.abs(back - a).max() <= 0.5 / 65535 + 1e-7)    # within half a 16-bit step
+    True
+    >>> q = write_image(os.path.join(folder, "a.tif"), a, bit_depth=32)   # float32 TIFF
+    >>> bool(np.array_equal(read_image(q), a.astype(np.float32)))
+    True
+    >>> u = np.arange(80, dtype=np.uint8).reshape(8, 10)              # integers: written verbatim
+    >>> bool(np.array_equal(read_image(write_image(p, u), as_float=False), u))
+    True
     """
     p = Path(path_like(path))
     ext = p.suffix.lower()
@@ -440,6 +484,24 @@ def read_images_same_size(paths, read, where: str, labels=None) -> np.ndarray:
     Returns
     -------
     ndarray of float32, shape (N, ...)
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> folder = tempfile.mkdtemp()
+    >>> rng = np.random.default_rng(1)
+    >>> ims = [rng.integers(0, 256, (8, 10), dtype=np.uint8) for _ in range(3)]
+    >>> paths = [write_image(os.path.join(folder, f"v{i}.png"), im) for i, im in enumerate(ims)]
+    >>> stack = read_images_same_size(paths, read_image, "example")
+    >>> stack.shape, stack.dtype.name
+    ((3, 8, 10), 'float32')
+    >>> bool(np.allclose(stack, np.stack(ims) / 255))
+    True
+    >>> p = write_image(os.path.join(folder, "small.png"), np.zeros((4, 5), dtype=np.uint8))
+    >>> read_images_same_size(paths + [p], read_image, "example")
+    Traceback (most recent call last):
+    ...
+    hyperlf.errors.FormatError: example: small.png is 5 x 4 px but v0.png is 10 x 8; ...
     """
     from .._parallel import thread_pool
 
