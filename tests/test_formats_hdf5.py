@@ -208,6 +208,8 @@ def test_parallel_chunks_are_the_bytes_hdf5_writes(tmp_path, rng, monkeypatch, n
         np.testing.assert_array_equal(ours[1], data)
         back = read_images(theirs, (1,))  # and read back in parallel
         assert back.dtype == theirs.dtype and back.shape == data.shape
+        # and spelled as h5py's own read spells it: 'float32', not '<f4' (big-endian stays)
+        assert repr(back.dtype) == repr(theirs[1].dtype)
         np.testing.assert_array_equal(back, data)
         np.testing.assert_array_equal(read_images(theirs, (1, 1, 3)), data[1, 3])
         np.testing.assert_array_equal(read_images(theirs), theirs[()])  # chunks never written

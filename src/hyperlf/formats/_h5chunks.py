@@ -154,7 +154,9 @@ def read_images(ds, index: tuple[int, ...] = ()) -> np.ndarray:
     level, lead = _gzip_level(ds), _chunk_index(ds, index)
     if level is None or lead is None or threads() == 1:
         return ds[index]
-    out = np.empty(ds.shape[len(lead):], dtype=ds.dtype)
+    # h5py spells a native dtype with its byte order ('<f4'); its own reads give the plain one
+    dtype = ds.dtype.newbyteorder("=") if ds.dtype.isnative else ds.dtype
+    out = np.empty(ds.shape[len(lead):], dtype=dtype)
     keys = list(product(*(range(n) for n in out.shape[:-2])))
     shuffle = bool(ds.shuffle)
     tasks = (functools.partial(_unfiltered, _stored(ds, lead + key + (0, 0)), out[key], shuffle)
