@@ -2170,7 +2170,14 @@ def _add_spectrum_parser(sub) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The ``hyperlf`` argument parser: one small function per subcommand."""
+    """The ``hyperlf`` argument parser: one small function per subcommand.
+
+    Examples
+    --------
+    >>> args = build_parser().parse_args(["depth", "capture", "-o", "out"])
+    >>> args.labels, args.metric, args.optimizer
+    (64, 'auto', 'graphcut')
+    """
     parser = _Parser(
         prog="hyperlf",
         description="Hyperspectral light fields: depth from a camera array whose views each "
@@ -2337,6 +2344,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     Exit statuses: 0 success, 1 other error, 2 bad usage or impossible input, 3 unreadable or
     malformed file, 4 missing file, 130 interrupted (SIGINT), 143 terminated (SIGTERM), 129
     hung up (SIGHUP). An interrupted or failed command leaves its output as it was before.
+
+    Examples
+    --------
+    The exit status comes back; the output path is printed even with ``-q``, and a refusal
+    is one line on stderr (here: the output would replace the input):
+
+    >>> import os, tempfile
+    >>> scene = os.path.join(tempfile.mkdtemp(), "scene")
+    >>> main(["-q", "synth", "procedural", "--size", "16,20", "--grid", "2,2", "-o", scene])
+    /.../scene
+    0
+    >>> main(["-q", "depth", scene, "-o", scene])
+    2
     """
     from .outputs import signals_as_exceptions
 
