@@ -236,6 +236,24 @@ def ncc_view_volume(ref_img, img, shifts, window: int = 5, tau_rel: float = 1e-5
         Flat-patch threshold relative to the view's mean patch variance (NCC 0 below it).
     rows : (int, int), optional
         Only the reference rows ``a .. b - 1`` (``(L, b - a, W)``; :func:`view_costs`).
+
+    Examples
+    --------
+    The view is the reference moved 2 px to the right, times 3 plus 2, so a reference pixel
+    ``p`` sits at ``p + (2, 0)`` in it: at that shift NCC is 1 (cost 0) on columns 6 to 17
+    (clear of the borders and of the columns ``np.roll`` wrapped round), and every other shift,
+    whole or half pixel, costs more:
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import ncc_view_volume
+    >>> ref = np.random.default_rng(0).random((16, 24)) + 0.5
+    >>> view = 3.0 * np.roll(ref, 2, axis=1) + 2.0
+    >>> shifts = [(sx, 0.0) for sx in (0.0, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0)]
+    >>> C = ncc_view_volume(ref, view, shifts)
+    >>> C.shape, np.unique(C.argmin(axis=0)[:, 6:-6]).tolist()       # label 4: shift (2, 0)
+    ((7, 16, 24), [4])
+    >>> round(float(C[4, :, 6:-6].max()), 3)
+    0.0
     """
     _check_view_args(ref_img, img, shifts, window, rows, tau_rel=tau_rel)
     L = len(shifts)
@@ -263,6 +281,24 @@ def rsncc_view_volume(ref_img, img, shifts, window: int = 5, tau_rel: float = 1e
     the result is that of two separate single-channel NCCs.  Arguments as
     :func:`ncc_view_volume`; ``impl``: of ``rho`` (:func:`hyperlf.costs.pair.rsncc_rho`);
     float32 ``(L, H, W)``.
+
+    Examples
+    --------
+    The view is the reference moved 2 px to the right with its contrast reversed (``3 - I``):
+    at the shift ``(2, 0)`` the intensity NCC is -1 and the gradient NCC 1, so the cost is
+    ``rho(2) + rho(0) = 2 rho(0)``, that of an exact copy, on columns 6 to 17 (clear of the
+    borders and of the columns ``np.roll`` wrapped round); every other shift costs more:
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import rho, rsncc_view_volume
+    >>> ref = np.random.default_rng(0).random((16, 24)) + 0.5
+    >>> view = 3.0 - np.roll(ref, 2, axis=1)
+    >>> shifts = [(sx, 0.0) for sx in (0.0, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0)]
+    >>> C = rsncc_view_volume(ref, view, shifts)
+    >>> np.unique(C.argmin(axis=0)[:, 6:-6]).tolist(), round(float(C[4, :, 6:-6].max()), 3)
+    ([4], -0.254)
+    >>> round(2 * float(rho(0.0)), 3)
+    -0.254
     """
     _check_view_args(ref_img, img, shifts, window, rows, tau_rel=tau_rel, rs_tau=rs_tau)
     L = len(shifts)
@@ -289,6 +325,23 @@ def census_view_volume(ref_img, img, shifts, window: int = 7, impl: str = "numba
     ``impl="numpy"``: the reference (shift with :func:`hyperlf.warp.shift_map`, then
     :func:`hyperlf.costs.census_transform` and a popcount); ``"numba"``: one fused kernel,
     identical results.  ``rows`` ``(a, b)``: only the reference rows ``a .. b - 1``.
+
+    Examples
+    --------
+    The view is the reference moved 2 px to the right: at the shift ``(2, 0)`` no census bit
+    differs on columns 6 to 17 (clear of the borders and of the columns ``np.roll`` wrapped
+    round), and the fused kernel gives what the reference implementation gives:
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import census_view_volume
+    >>> ref = np.random.default_rng(0).random((16, 24)) + 0.5
+    >>> view = np.roll(ref, 2, axis=1)
+    >>> shifts = [(float(sx), 0.0) for sx in range(5)]
+    >>> C = census_view_volume(ref, view, shifts)
+    >>> np.unique(C.argmin(axis=0)[:, 6:-6]).tolist(), float(C[2, :, 6:-6].max())
+    ([2], 0.0)
+    >>> bool(np.array_equal(census_view_volume(ref, view, shifts, impl="numpy"), C))
+    True
     """
     _check_view_args(ref_img, img, shifts, window, rows)
     impl = check_impl(impl, "census")
@@ -433,6 +486,21 @@ def bwncc_view_volume(ref_img, img, shifts, *, paper: bool = False, window=None,
         if they fit in :data:`REF_CACHE_BYTES`, its channel statistics.
     rows : (int, int), optional
         Only the reference rows ``a .. b - 1`` (:func:`view_costs`).
+
+    Examples
+    --------
+    The view is the reference moved 2 px to the right; among whole and half-pixel shifts the
+    cost is lowest at ``(2, 0)`` on columns 6 to 17 (clear of the borders and of the columns
+    ``np.roll`` wrapped round):
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import bwncc_view_volume
+    >>> ref = np.random.default_rng(0).random((16, 24)) + 0.5
+    >>> view = np.roll(ref, 2, axis=1)
+    >>> shifts = [(sx, 0.0) for sx in (0.0, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0)]
+    >>> C = bwncc_view_volume(ref, view, shifts)
+    >>> C.shape, C.dtype.name, np.unique(C.argmin(axis=0)[:, 6:-6]).tolist()   # label 4: (2, 0)
+    ((7, 16, 24), 'float32', [4])
     """
     from ..descriptor import DescriptorParams, iter_descriptor_blocks, prepare
     _check_view_args(ref_img, img, shifts, window, rows, default_window=True, tau_rel=tau_rel,
@@ -483,7 +551,17 @@ def view_shifts(offset, labels) -> list[tuple[float, float]]:
     """``[(sx, sy)]`` per label: ``(-d dx, -d dy)`` for ``offset = (dx, dy)``.
 
     ``offset``: two finite numbers; ``labels``: finite numbers (1-D), whose shifts stay
-    finite."""
+    finite.
+
+    Examples
+    --------
+    Label ``d`` of a view at offset ``(dx, dy)`` from the reference samples the view at
+    ``p - d (dx, dy)``:
+
+    >>> from hyperlf.costs import view_shifts
+    >>> [(float(sx), float(sy)) for sx, sy in view_shifts((1, -2), [0.5, 1.0, 2.0])]
+    [(-0.5, 1.0), (-1.0, 2.0), (-2.0, 4.0)]
+    """
     dx, dy = real_pair(offset, "offset", "two finite numbers (dx, dy)")
     lab = _check_labels(labels)
     with np.errstate(over="ignore"):
@@ -570,6 +648,18 @@ def tap_validity(mask, sx: float, sy: float) -> np.ndarray:
     Returns
     -------
     ndarray of bool, shape (H, W)
+
+    Examples
+    --------
+    A row whose pixel 2 has no data.  Shifted by half a pixel, pixel ``x`` reads pixels ``x``
+    and ``x + 1``, so pixels 1 and 2 lose their sample; shifted by a whole pixel, it reads
+    ``x + 1`` alone, so only pixel 1 does (the last pixel's taps are clamped to itself):
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import tap_validity
+    >>> mask = np.array([[True, True, False, True]])
+    >>> tap_validity(mask, 0.5, 0.0).tolist(), tap_validity(mask, 1.0, 0.0).tolist()
+    ([[True, False, False, True]], [[True, False, True, True]])
     """
     m = mask if isinstance(mask, np.ndarray) and mask.dtype == np.bool_ else \
         check_map(mask, "mask", 2).astype(bool)
@@ -586,7 +676,18 @@ def tap_validity(mask, sx: float, sy: float) -> np.ndarray:
 
 def check_rows(rows, height: int):
     """``rows`` as ``(a, b)`` ints with ``0 <= a < b <= height`` and ``a`` a multiple of
-    :data:`ROW_BLOCK`, or None; else :class:`~hyperlf.errors.InvalidInputError`."""
+    :data:`ROW_BLOCK`, or None; else :class:`~hyperlf.errors.InvalidInputError`.
+
+    Examples
+    --------
+    >>> from hyperlf.costs import ROW_BLOCK, check_rows
+    >>> ROW_BLOCK, check_rows((32, 64), 100), check_rows(None, 100)
+    (32, (32, 64), None)
+    >>> check_rows((10, 20), 100)
+    Traceback (most recent call last):
+        ...
+    hyperlf.errors.InvalidInputError: rows must be (a, b) with ... a multiple of 32, got (10, 20)
+    """
     height = integer(height, "height")
     if rows is None:
         return None
@@ -748,6 +849,29 @@ def view_moments(ref_img, img, offset, labels, metric: str = "ncc", window: int 
     list of (n, mean, m2) or None
         Per part of the cost, its :func:`hyperlf.costs.row_moments` on the strip; None for a
         cost without whole-volume scales.
+
+    Examples
+    --------
+    Offset ``(1, 0)`` and labels 0, 1, 2: the sample ``x - d`` is in the 24 columns for
+    ``24 - d`` of them, so each part of ``census-rsncc`` counts ``40 (24 + 23 + 22) = 2760``
+    valid entries.  Two strips that cover the 40 rows, joined in row order, give the whole
+    view's standard deviations exactly; ``ncc`` has no whole-volume scales:
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import moments_std, view_moments
+    >>> ref = np.random.default_rng(0).random((40, 24)) + 0.5
+    >>> view = np.roll(ref, -1, axis=1)
+    >>> labels = [0.0, 1.0, 2.0]
+    >>> whole = view_moments(ref, view, (1, 0), labels, "census-rsncc")
+    >>> [int(n.sum()) for n, mean, m2 in whole]
+    [2760, 2760]
+    >>> top, bottom = (view_moments(ref, view, (1, 0), labels, "census-rsncc", rows=rows)
+    ...                for rows in ((0, 32), (32, 40)))
+    >>> joined = [[np.concatenate(pair) for pair in zip(t, b)] for t, b in zip(top, bottom)]
+    >>> [moments_std(*j) == moments_std(*w) for j, w in zip(joined, whole)]
+    [True, True]
+    >>> view_moments(ref, view, (1, 0), labels, "ncc") is None
+    True
     """
     from .registry import get_cost
     cost = get_cost(metric, light_field=True)

@@ -86,6 +86,17 @@ def candidate_validity(shape, dmin: int, dmax: int) -> np.ndarray:
 
     A read-only broadcast view of an ``(L, 1, W)`` array (no ``L*H*W`` memory); use
     ``np.array(...)`` for a writable copy.  ``shape`` is ``(H, W)`` (or any shape ending in them).
+
+    Examples
+    --------
+    Candidate ``d`` of pixel ``x`` reads the right image at ``x - d``, outside it for ``x < d``:
+
+    >>> from hyperlf.costs import candidate_validity
+    >>> valid = candidate_validity((2, 5), 0, 2)
+    >>> valid.shape, valid.flags.writeable
+    ((3, 2, 5), False)
+    >>> valid[:, 0].astype(int).tolist()        # row 0 at disparities 0, 1 and 2
+    [[1, 1, 1, 1, 1], [0, 1, 1, 1, 1], [0, 0, 1, 1, 1]]
     """
     H, W, dmin, dmax = _validity_args(shape, dmin, dmax)
     d = np.arange(dmin, dmax + 1)[:, None, None]
@@ -108,6 +119,15 @@ def right_validity(shape, dmin: int, dmax: int) -> np.ndarray:
     """Boolean ``valid_R[L, H, W]``: True where the right pixel's partner ``x_r + d`` is inside.
 
     The right-referenced counterpart of :func:`candidate_validity` (read-only broadcast view).
+
+    Examples
+    --------
+    Right pixel ``x_r`` at disparity ``d`` pairs with left ``x_r + d``, beyond the image for the
+    last ``d`` columns:
+
+    >>> from hyperlf.costs import right_validity
+    >>> right_validity((2, 5), 0, 2)[:, 0].astype(int).tolist()
+    [[1, 1, 1, 1, 1], [1, 1, 1, 1, 0], [1, 1, 1, 0, 0]]
     """
     H, W, dmin, dmax = _validity_args(shape, dmin, dmax)
     d = np.arange(dmin, dmax + 1)[:, None, None]
@@ -120,6 +140,17 @@ def fill_out_of_image(cost: np.ndarray, dmin: int, valid: np.ndarray | None = No
 
     Invalid entries get the pixel's worst (largest) valid cost; a pixel with no valid candidate
     gets 0 for every disparity.  ``valid`` defaults to :func:`candidate_validity`.
+
+    Examples
+    --------
+    Four pixels at disparities 1 and 2: pixel 0 has no valid candidate, so both of its costs
+    become 0; pixel 1 has one, disparity 1, whose cost 2 replaces its invalid disparity 2:
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import fill_out_of_image
+    >>> cost = np.array([[[1.0, 2.0, 3.0, 4.0]], [[5.0, 6.0, 7.0, 8.0]]], np.float32)
+    >>> fill_out_of_image(cost, 1)[:, 0].tolist()
+    [[0.0, 2.0, 3.0, 4.0], [0.0, 2.0, 7.0, 8.0]]
     """
     Lc, H, W = _volume(cost, "cost", writeable=True).shape
     dmin = check_dmin(dmin)
@@ -197,6 +228,20 @@ def rho(x):
     ``x``: a number or an array of real numbers with ``|x| <= RHO_MAX`` (beyond it ``exp``
     overflows); a number is checked whole, an array by its dtype and by the overflow (its
     NaNs are not searched for: this runs per block of labels).
+
+    Examples
+    --------
+    ``rho`` is lowest at 0 and again at 2, ``-log(1 + exp(-2))``, and highest at 1,
+    ``-log(2 exp(-1)) = 1 - log 2``; so ``rho(1 - NCC)`` costs a reversed contrast (NCC -1) as
+    little as a match (NCC 1):
+
+    >>> import math
+    >>> import numpy as np
+    >>> from hyperlf.costs import rho
+    >>> [round(float(v), 3) for v in rho(np.array([0.0, 1.0, 2.0]))]
+    [-0.127, 0.307, -0.127]
+    >>> round(-math.log(1 + math.exp(-2)), 3), round(1 - math.log(2), 3)
+    (-0.127, 0.307)
     """
     if isinstance(x, (list, tuple)):
         x = real_array(x, "x", dtype=None)
@@ -240,7 +285,19 @@ RHO_TABLE_INTERVALS = 1 << 16
 @functools.lru_cache(maxsize=1)
 def rho_table() -> np.ndarray:
     """:func:`rho` at ``RHO_TABLE_INTERVALS + 1`` evenly spaced ``|x|`` from 0 to 2 (the range
-    of ``1 - NCC``), float64, read-only."""
+    of ``1 - NCC``), float64, read-only.
+
+    Examples
+    --------
+    The table's first, middle and last entries are ``rho`` at 0, 1 and 2 (see :func:`rho`):
+
+    >>> from hyperlf.costs import rho_table
+    >>> table = rho_table()
+    >>> len(table), table.flags.writeable
+    (65537, False)
+    >>> [round(float(table[i]), 3) for i in (0, 32768, 65536)]
+    [-0.127, 0.307, -0.127]
+    """
     table = _rho(np.linspace(0.0, 2.0, RHO_TABLE_INTERVALS + 1))
     table.flags.writeable = False
     return table
@@ -256,6 +313,20 @@ def rsncc_rho(xi_i, xi_g, rs_tau: float, out: np.ndarray, impl: str = "auto") ->
     formula where ``|1 - xi|`` is beyond 2), instead of the formula's three transcendental
     functions per term; the float32 results differ from the reference's by at most one unit in
     their last place at the largest costs (``2^-24`` at ``rs_tau <= 1``).
+
+    Examples
+    --------
+    A match (both NCCs 1) and a contrast reversal (intensity NCC -1, gradient NCC 1) both cost
+    ``2 rho(0)``; patches with nothing in common (both NCCs 0) cost ``2 rho(1)``:
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import rho, rsncc_rho
+    >>> xi_i, xi_g = np.array([1.0, -1.0, 0.0]), np.array([1.0, 1.0, 0.0])
+    >>> out = rsncc_rho(xi_i, xi_g, 1.0, np.empty(3, np.float32))
+    >>> [round(float(v), 3) for v in out]
+    [-0.254, -0.254, 0.614]
+    >>> round(2 * float(rho(0.0)), 3), round(2 * float(rho(1.0)), 3)
+    (-0.254, 0.614)
     """
     impl = check_impl(impl, "rsncc")
     rs_tau = _constants(rs_tau=rs_tau)["rs_tau"]
@@ -285,7 +356,15 @@ def rsncc_rho(xi_i, xi_g, rs_tau: float, out: np.ndarray, impl: str = "auto") ->
 
 def pad_replicate(maps: np.ndarray, r: int) -> np.ndarray:
     """Pad the last two axes by ``r`` with replicated borders (same dtype); ``r`` at most
-    the maps' longer side (:func:`hyperlf.costs._validate.map_side`)."""
+    the maps' longer side (:func:`hyperlf.costs._validate.map_side`).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hyperlf.costs import pad_replicate
+    >>> pad_replicate(np.array([[1, 2], [3, 4]]), 1).tolist()
+    [[1, 1, 2, 2], [1, 1, 2, 2], [3, 3, 4, 4], [3, 3, 4, 4]]
+    """
     maps = check_map(maps, "maps", tuple(range(2, 33)))
     r = integer(r, "r", maximum=map_side(maps.shape))
     if r == 0:
@@ -298,7 +377,21 @@ def box_mean(image: np.ndarray, n: int) -> np.ndarray:
     """Mean over the ``n x n`` window centred on each pixel, float64, replicate border.
 
     ``image``: 2-D real numbers; ``n``: an odd window, at most ``2 side + 1`` for the
-    image's :func:`hyperlf.costs._validate.map_side`."""
+    image's :func:`hyperlf.costs._validate.map_side`.
+
+    Examples
+    --------
+    A constant image is its own mean; on a ramp the first column's window holds the replicated
+    first value twice, ``(0 + 0 + 1) / 3``, and the inner columns keep their values:
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import box_mean
+    >>> bool((box_mean(np.full((4, 5), 2.5), 3) == 2.5).all())
+    True
+    >>> ramp = np.tile(np.arange(5.0), (3, 1))
+    >>> [round(float(v), 3) for v in box_mean(ramp, 3)[1]]
+    [0.333, 1.0, 2.0, 3.0, 3.667]
+    """
     image = check_map(image, "image", 2)
     n = check_window(n, "n", side=map_side(image.shape))
     img = np.ascontiguousarray(image, dtype=np.float64)
@@ -325,6 +418,19 @@ def window_stats(image: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     ``var = E[c^2] - E[c]^2`` is computed on centred values (no catastrophic cancellation; a
     naive float32 version loses patch variances of ~1e-4 on values of ~0.5, SPEC §3).  ``var``
     is clipped at 0.
+
+    Examples
+    --------
+    On columns 0, 2, 0, 2 the 3 x 3 window of column 1 holds 0, 2, 0 in each row: mean 2/3,
+    variance ``4/3 - (2/3)^2 = 8/9``.  A flat image has no variance:
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import window_stats
+    >>> mean, var = window_stats(np.tile([0.0, 2.0], (4, 2)), 3)
+    >>> round(float(mean[1, 1]), 3), round(float(var[1, 1]), 3), round(8 / 9, 3)
+    (0.667, 0.889, 0.889)
+    >>> float(window_stats(np.full((4, 4), 7.0), 3)[1].max())
+    0.0
     """
     img = np.asarray(check_map(image, "image", 2), dtype=np.float64)
     n = check_window(n, "n", side=map_side(img.shape))
@@ -340,7 +446,17 @@ def inv_sigma(var: np.ndarray, tau: float) -> np.ndarray:
     """``1 / sqrt(var)`` where ``var >= tau`` and ``var > 0``, else 0 (so that ``xi = 0``).
 
     ``var``: an array of real numbers; ``tau``: a finite number >= 0, or such numbers
-    broadcastable to ``var`` (one per channel)."""
+    broadcastable to ``var`` (one per channel).
+
+    Examples
+    --------
+    Variances 4 and 0.25 give ``1 / 2`` and ``1 / 0.5``; one below ``tau`` and one of 0 give 0:
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import inv_sigma
+    >>> inv_sigma(np.array([4.0, 0.25, 1e-9, 0.0]), 1e-6).tolist()
+    [0.5, 2.0, 0.0, 0.0]
+    """
     var = check_map(var, "var", tuple(range(1, 33)))
     if var.dtype.kind != "f":
         var = var.astype(np.float64)
@@ -376,6 +492,20 @@ def channel_stats(maps: np.ndarray, n: int | Sequence[int]) -> dict:
 
     Returns a dict with float64 arrays ``mu`` (nc, H, W), ``var`` (nc, H, W), the per-channel
     global means ``centre`` (nc,) and the per-channel mean patch variance ``mean_var`` (nc,).
+
+    Examples
+    --------
+    A flat channel and one of columns 0, 1, 0, 1, ...: every 3 x 3 window of the second holds
+    one value twice and the other once (the border replicated), a variance of 2/9:
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import channel_stats
+    >>> maps = np.stack([np.full((4, 6), 3.0), np.tile([0.0, 1.0], (4, 3))])
+    >>> stats = channel_stats(maps, 3)
+    >>> stats["mu"].shape, stats["centre"].tolist()
+    ((2, 4, 6), [3.0, 0.5])
+    >>> [round(float(v), 3) for v in stats["mean_var"]], round(2 / 9, 3)
+    ([0.0, 0.222], 0.222)
     """
     maps = check_map(maps, "maps (nc, H, W)", 3)
     _check_patch_sizes(n, maps.shape, side=map_side(maps.shape))
@@ -444,7 +574,17 @@ def shift_cols(a: np.ndarray, d: int, fill=0.0) -> np.ndarray:
     """``out[..., x] = a[..., x - d]`` (zero/fill outside).
 
     ``a``: a numpy array (1-D or more) of numbers; ``d``: an integer; ``fill``: a finite
-    number that ``a``'s dtype holds.  O(1) checks (this runs per label)."""
+    number that ``a``'s dtype holds.  O(1) checks (this runs per label).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hyperlf.costs import shift_cols
+    >>> shift_cols(np.array([1, 2, 3, 4, 5]), 2).tolist()
+    [0, 0, 1, 2, 3]
+    >>> shift_cols(np.array([1.0, 2.0, 3.0, 4.0, 5.0]), -1, fill=-1).tolist()
+    [2.0, 3.0, 4.0, 5.0, -1.0]
+    """
     if not (isinstance(a, np.ndarray) and a.ndim and a.dtype.kind in "biuf"):
         raise InvalidInputError(f"a must be a numpy array of numbers (1-D or more), got "
                                 f"{shown(a)}")
@@ -515,7 +655,24 @@ def _ds(dmin, dmax):
 
 
 def ssd_volume(left, right, dmin, dmax, window: int = 5) -> np.ndarray:
-    """Window mean of squared differences of ``I / mean(I)``; float32 ``(L, H, W)``."""
+    """Window mean of squared differences of ``I / mean(I)``; float32 ``(L, H, W)``.
+
+    Examples
+    --------
+    The left image is the right one moved 3 px to the right and twice as bright; dividing each
+    image by its mean removes the gain, so on columns 6 to 20 (clear of the borders and of the
+    columns ``np.roll`` wrapped round) the cost is 0 at disparity 3 and higher at the others:
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import ssd_volume
+    >>> right = np.random.default_rng(0).random((16, 24)) + 0.5
+    >>> left = 2.0 * np.roll(right, 3, axis=1)
+    >>> C = ssd_volume(left, right, 0, 6)
+    >>> C.shape, np.unique(C.argmin(axis=0)[:, 6:-3]).tolist()
+    ((7, 16, 24), [3])
+    >>> round(float(C[3, :, 6:-3].max()), 3)
+    0.0
+    """
     L, R = check_pair(left, right)
     dmin, dmax = check_disp(dmin, dmax, L.shape)
     n = check_window(window, side=max(L.shape))
@@ -570,6 +727,20 @@ def ncc_volume(left, right, dmin, dmax, window: int = 5, impl: str = "auto",
 
     NCC is taken as 0 where either patch's variance is below ``tau_rel`` times that view's
     mean patch variance (and where it is exactly 0).
+
+    Examples
+    --------
+    NCC ignores gain and offset: the right image moved 3 px to the right, times 2 plus 1, has
+    NCC 1 (cost 0) at disparity 3 on columns 6 to 20, clear of the borders and of the columns
+    ``np.roll`` wrapped round, and costs more at the other disparities:
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import ncc_volume
+    >>> right = np.random.default_rng(0).random((16, 24)) + 0.5
+    >>> left = 2.0 * np.roll(right, 3, axis=1) + 1.0
+    >>> C = ncc_volume(left, right, 0, 6)
+    >>> np.unique(C.argmin(axis=0)[:, 6:-3]).tolist(), round(float(C[3, :, 6:-3].max()), 3)
+    ([3], 0.0)
     """
     L, R = check_pair(left, right)
     dmin, dmax = check_disp(dmin, dmax, L.shape)
@@ -585,7 +756,24 @@ def ncc_volume(left, right, dmin, dmax, window: int = 5, impl: str = "auto",
 
 def rsncc_volume(left, right, dmin, dmax, window: int = 5, impl: str = "auto",
                  rs_tau: float = 1.0, tau_rel: float = 1e-5) -> np.ndarray:
-    """RSNCC (Shen et al. 2014): ``rho(1 - NCC(In)) + rs_tau * rho(1 - NCC(|grad In|))``."""
+    """RSNCC (Shen et al. 2014): ``rho(1 - NCC(In)) + rs_tau * rho(1 - NCC(|grad In|))``.
+
+    Examples
+    --------
+    RSNCC matches across a contrast reversal: the right image moved 3 px to the right and
+    reversed (``2 - I``) has intensity NCC -1 and gradient NCC 1 at disparity 3, a cost of
+    ``rho(2) + rho(0) = 2 rho(0)`` as for an exact copy (columns 6 to 20, clear of the borders
+    and of the columns ``np.roll`` wrapped round), and costs more at the other disparities:
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import rho, rsncc_volume
+    >>> right = np.random.default_rng(0).random((16, 24)) + 0.5
+    >>> C = rsncc_volume(2.0 - np.roll(right, 3, axis=1), right, 0, 6)
+    >>> np.unique(C.argmin(axis=0)[:, 6:-3]).tolist(), round(float(C[3, :, 6:-3].max()), 3)
+    ([3], -0.254)
+    >>> round(2 * float(rho(0.0)), 3)
+    -0.254
+    """
     L, R = check_pair(left, right)
     dmin, dmax = check_disp(dmin, dmax, L.shape)
     n = check_window(window, side=max(L.shape))
@@ -607,7 +795,19 @@ def rsncc_volume(left, right, dmin, dmax, window: int = 5, impl: str = "auto",
 def census_transform(image, window: int = 7) -> np.ndarray:
     """Census codes, uint64 ``(H, W)``: one bit per neighbour in the ``window x window``
     square (row-major, centre skipped), set where ``neighbour < centre`` (strict), replicate
-    border.  ``window`` <= 7 (at most 63 bits)."""
+    border.  ``window`` <= 7 (at most 63 bits).
+
+    Examples
+    --------
+    The centre 4 of a 3 x 3 patch has the neighbours 5, 1, 7, 2, 9, 3, 8, 6 in row order; those
+    below it are bits 1, 3 and 5, so its code is ``2 + 8 + 32 = 42``:
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import census_transform
+    >>> code = census_transform(np.array([[5, 1, 7], [2, 4, 9], [3, 8, 6]]), 3)
+    >>> code.dtype.name, int(code[1, 1]), bin(int(code[1, 1]))
+    ('uint64', 42, '0b101010')
+    """
     img = np.asarray(check_map(image, "image", 2), dtype=np.float64)
     n = check_window(window)
     if n * n - 1 > 64:
@@ -679,6 +879,22 @@ def census_volume(left, right, dmin, dmax, window: int = 7, impl: str = "auto", 
     differs] / sum w``), so that neighbours on another surface than the centre, where
     foreground and background meet, hardly count.  Symmetric in the two images, so the
     right-referenced volume is still a shift of this one.
+
+    Examples
+    --------
+    The right image moved 3 px to the right differs in no bit at disparity 3 on columns 6 to 20
+    (clear of the borders and of the columns ``np.roll`` wrapped round).  Census codes only
+    compare intensities, so squaring the (positive) left image changes nothing:
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import census_volume
+    >>> right = np.random.default_rng(0).random((16, 24)) + 0.5
+    >>> left = np.roll(right, 3, axis=1)
+    >>> C = census_volume(left, right, 0, 6)
+    >>> np.unique(C.argmin(axis=0)[:, 6:-3]).tolist(), float(C[3, :, 6:-3].max())
+    ([3], 0.0)
+    >>> bool(np.array_equal(census_volume(left ** 2, right, 0, 6), C))
+    True
     """
     L, R = check_pair(left, right)
     dmin, dmax = check_disp(dmin, dmax, L.shape)
@@ -715,7 +931,23 @@ def bwncc_finish(acc_fwd, acc_bwd, den_fwd, den_bwd, eps: float = 1e-3, return_s
 
     ``acc_fwd``, ``acc_bwd``: float arrays of one shape; ``den_fwd``, ``den_bwd``: arrays of
     real numbers broadcastable to it; ``eps`` in ``(0, 1e6]``.  Checked in O(1) (shapes and
-    dtypes; an overflow of the scores is refused, NaNs are not searched for)."""
+    dtypes; an overflow of the scores is refused, NaNs are not searched for).
+
+    Examples
+    --------
+    Scores of 0.5 both ways (1 / 2 and 0.5 / 1) give BWNCC 0.5, cost ``-log 0.5``; a negative
+    score gives BWNCC 0, floored at ``eps``, cost ``-log 0.001``:
+
+    >>> import math
+    >>> import numpy as np
+    >>> from hyperlf.costs import bwncc_finish
+    >>> acc_fwd, acc_bwd = np.array([1.0, -0.2]), np.array([0.5, 0.3])
+    >>> cost = bwncc_finish(acc_fwd, acc_bwd, np.array([2.0, 1.0]), np.ones(2))
+    >>> [round(float(c), 3) for c in cost]
+    [0.693, 6.908]
+    >>> round(-math.log(0.5), 3), round(-math.log(1e-3), 3)
+    (0.693, 6.908)
+    """
     c = _constants(eps=eps, return_scores=return_scores)
     eps, return_scores = c["eps"], c["return_scores"]
     for label, acc in (("acc_fwd", acc_fwd), ("acc_bwd", acc_bwd)):
@@ -885,6 +1117,23 @@ def bwncc_from_descriptors(desc_left, desc_right, dmin, dmax, n=5, tau_rel: floa
     ``n``: NCC patch size, an int or one per channel.  ``tau`` = ``tau_rel`` times the mean
     patch variance over all given channels of each view.  With ``return_scores`` also returns
     float64 ``S_fwd, S_bwd, BWNCC`` volumes (0 at invalid candidates).
+
+    Examples
+    --------
+    Three random channels and the same channels moved 3 px to the right: at disparity 3 every
+    channel's NCC is 1, so both scores and BWNCC are 1 and the cost ``-log 1 = 0`` (columns 6
+    to 20, clear of the borders and of the columns ``np.roll`` wrapped round):
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import bwncc_from_descriptors
+    >>> right = np.random.default_rng(0).random((3, 16, 24)) + 0.5
+    >>> left = np.roll(right, 3, axis=2)
+    >>> cost, s_fwd, s_bwd, score = bwncc_from_descriptors(left, right, 0, 6, n=5,
+    ...                                                    return_scores=True)
+    >>> np.unique(cost.argmin(axis=0)[:, 6:-3]).tolist()
+    [3]
+    >>> round(float(score[3, :, 6:-3].min()), 3), round(float(np.abs(cost[3, :, 6:-3]).max()), 3)
+    (1.0, 0.0)
     """
     A = np.asarray(desc_left)
     B = np.asarray(desc_right)
@@ -969,6 +1218,19 @@ def bwncc_volume(left, right, dmin, dmax, variant="default", window=None, tau_re
 
     Returns float32 ``(L, H, W)`` costs (and ``S_fwd, S_bwd, BWNCC`` with ``return_scores``).
     Never holds more than one block of each view's descriptor.
+
+    Examples
+    --------
+    The right image moved 3 px to the right is found at disparity 3 on columns 6 to 20 (clear
+    of the borders and of the columns ``np.roll`` wrapped round):
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import bwncc_volume
+    >>> right = np.random.default_rng(0).random((16, 24)) + 0.5
+    >>> left = np.roll(right, 3, axis=1)
+    >>> C = bwncc_volume(left, right, 0, 6)
+    >>> C.shape, C.dtype.name, np.unique(C.argmin(axis=0)[:, 6:-3]).tolist()
+    ((7, 16, 24), 'float32', [3])
     """
     import time
     from ..descriptor import iter_descriptor_blocks, prepare
@@ -1056,6 +1318,18 @@ def row_moments(cost, valid) -> tuple:
         Count (int64), mean and sum of squared deviations (float64) of row ``y``'s valid
         entries over every label.  Rows of strips concatenated in row order give exactly the
         whole volume's moments (the kernel works row by row); :func:`moments_std` joins them.
+
+    Examples
+    --------
+    The volume 0 .. 11 as two labels of 2 x 3: row 0 holds 0, 1, 2 and 6, 7, 8 (mean 4, squared
+    deviations ``16 + 9 + 4 + 4 + 9 + 16 = 58``), row 1 the same plus 3 (mean 7, again 58):
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import row_moments
+    >>> C = np.arange(12.0).reshape(2, 2, 3)
+    >>> n, mean, m2 = row_moments(C, np.ones(C.shape, bool))
+    >>> n.tolist(), mean.tolist(), m2.tolist()
+    ([6, 6], [4.0, 7.0], [58.0, 58.0])
     """
     from ._kernels import row_moments as kernel
 
@@ -1079,7 +1353,19 @@ def moments_std(n, mean, m2) -> float:
     order, float64); 0 when none was valid.
 
     ``n``, ``mean``, ``m2``: one entry per row each (1-D, of one length), as
-    :func:`row_moments` gives them: counts (integers >= 0), finite means, finite sums >= 0."""
+    :func:`row_moments` gives them: counts (integers >= 0), finite means, finite sums >= 0.
+
+    Examples
+    --------
+    The rows of :func:`row_moments`' example, joined, give the standard deviation of all twelve
+    entries:
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import moments_std, row_moments
+    >>> C = np.arange(12.0).reshape(2, 2, 3)
+    >>> round(moments_std(*row_moments(C, np.ones(C.shape, bool))), 6), round(float(C.std()), 6)
+    (3.452053, 3.452053)
+    """
     from ._kernels import combine_moments
 
     n_, mean_, m2_ = (check_map(v, k, 1, empty=True) for v, k in ((n, "n"), (mean, "mean"),
@@ -1122,6 +1408,17 @@ def normalise_volume(cost, dmin: int, valid=None, *, sd: float | None = None,
     (:func:`row_moments`, :func:`moments_std`), so it agrees with ``"numpy"`` to rounding
     (``rtol`` 1e-12).  ``overwrite``: under ``"numba"``, a C-contiguous float32 ``cost`` is
     normalised in place and returned (the same numbers, one volume less).
+
+    Examples
+    --------
+    Two pixels, two labels, costs (1, 5) and (5, 1): each pixel loses its minimum 1, and the
+    entries 1, 5, 5, 1 have mean 3 and standard deviation 2, so each becomes ``(0, 4) / 2``:
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import normalise_volume
+    >>> C = np.array([[[1.0, 5.0]], [[5.0, 1.0]]])      # (labels, rows, columns)
+    >>> normalise_volume(C, 0, np.ones(C.shape, bool))[:, 0].T.tolist()    # per pixel
+    [[0.0, 2.0], [2.0, 0.0]]
     """
     impl = check_impl(impl, "normalise")
     choice(centre, "centre", NORMALISE_CENTRES)
@@ -1192,7 +1489,24 @@ def fuse(volumes: Sequence[np.ndarray], weights: Sequence[float] | None = None, 
     of :func:`normalise_volume`).  ``impl`` as :func:`normalise_volume` (``"numba"``: the sum
     and the fill in one kernel, same float64 arithmetic).  ``overwrite``: the volumes are not
     used again, so under ``"numba"`` the C-contiguous float32 ones are normalised in place
-    and the first one holds the result (the same numbers, without new volumes)."""
+    and the first one holds the result (the same numbers, without new volumes).
+
+    Examples
+    --------
+    ``a`` normalises to (0, 2) and (2, 0) per pixel (:func:`normalise_volume`'s example); both
+    pixels of ``b`` cost (0, 2), standard deviation 1, so it stays as it is.  Their mean is
+    (0, 2) and (1, 1); with weights 3 and 1 the second pixel gets ``(3 (2, 0) + (0, 2)) / 4``:
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import fuse
+    >>> a = np.array([[[1.0, 5.0]], [[5.0, 1.0]]])       # (labels, rows, columns)
+    >>> b = np.array([[[0.0, 0.0]], [[2.0, 2.0]]])
+    >>> ok = np.ones(a.shape, bool)                      # every candidate valid
+    >>> fuse([a, b], valid=ok)[:, 0].T.tolist()          # per pixel
+    [[0.0, 2.0], [1.0, 1.0]]
+    >>> fuse([a, b], [3, 1], valid=ok)[:, 0, 1].tolist()
+    [1.5, 0.5]
+    """
     vols, w, sds = _fusion_inputs(volumes, weights, scales)
     shape = vols[0].shape
     dmin = check_dmin(dmin)
@@ -1261,7 +1575,25 @@ def _fuse_numba(vols: list, w: np.ndarray, sds: list, dmin: int, valid, overwrit
 def fused_volume(left, right, dmin, dmax, window=None, impl: str = "auto",
                  bwncc_window=None, census_window: int = 7, weights=(1.0, 1.0), **bwncc_params):
     """``F = (norm(bwncc) + norm(census 7x7)) / 2`` (SPEC §3 fusion candidate; ``weights``
-    generalise the mean).  ``window`` is ignored (use ``bwncc_window`` / ``census_window``)."""
+    generalise the mean).  ``window`` is ignored (use ``bwncc_window`` / ``census_window``).
+
+    Examples
+    --------
+    The right image moved 3 px to the right: both parts are lowest at disparity 3 on columns 6
+    to 20 (clear of the borders and of the columns ``np.roll`` wrapped round), where the fused
+    cost is 0; weights (0, 1) leave the normalised census alone:
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import census_volume, fused_volume, normalise_volume
+    >>> right = np.random.default_rng(0).random((16, 24)) + 0.5
+    >>> left = np.roll(right, 3, axis=1)
+    >>> F = fused_volume(left, right, 0, 6)
+    >>> np.unique(F.argmin(axis=0)[:, 6:-3]).tolist(), float(F[3, :, 6:-3].max())
+    ([3], 0.0)
+    >>> census = normalise_volume(census_volume(left, right, 0, 6), 0)
+    >>> bool(np.array_equal(fused_volume(left, right, 0, 6, weights=(0, 1)), census))
+    True
+    """
     b = bwncc_volume(left, right, dmin, dmax, "default", window=bwncc_window, impl=impl, **bwncc_params)
     c = census_volume(left, right, dmin, dmax, window=census_window, impl=impl)
     return fuse([b, c], weights, dmin, overwrite=True)
@@ -1274,6 +1606,23 @@ def census_rsncc_volume(left, right, dmin, dmax, window=None, impl: str = "auto"
 
     ``window`` is ignored (use ``rsncc_window`` / ``census_window``); further keyword
     arguments go to :func:`rsncc_volume`.
+
+    Examples
+    --------
+    The right image moved 3 px to the right: both parts are lowest at disparity 3 on columns 6
+    to 20 (clear of the borders and of the columns ``np.roll`` wrapped round), where the fused
+    cost is 0; weights (1, 0) leave the normalised RSNCC alone:
+
+    >>> import numpy as np
+    >>> from hyperlf.costs import census_rsncc_volume, normalise_volume, rsncc_volume
+    >>> right = np.random.default_rng(0).random((16, 24)) + 0.5
+    >>> left = np.roll(right, 3, axis=1)
+    >>> F = census_rsncc_volume(left, right, 0, 6)
+    >>> np.unique(F.argmin(axis=0)[:, 6:-3]).tolist(), float(F[3, :, 6:-3].max())
+    ([3], 0.0)
+    >>> rsncc = normalise_volume(rsncc_volume(left, right, 0, 6), 0)
+    >>> bool(np.array_equal(census_rsncc_volume(left, right, 0, 6, weights=(1, 0)), rsncc))
+    True
     """
     a = rsncc_volume(left, right, dmin, dmax, window=rsncc_window, impl=impl, **rsncc_params)
     c = census_volume(left, right, dmin, dmax, window=census_window, impl=impl)
