@@ -76,6 +76,15 @@ def filter_layout(rows: int, cols: int, order: str | Sequence[int] = "raster",
     Returns
     -------
     ndarray of int, shape (rows, cols)
+
+    Examples
+    --------
+    >>> filter_layout(2, 3).tolist()
+    [[0, 1, 2], [3, 4, 5]]
+    >>> filter_layout(2, 3, "serpentine").tolist()  # the second row runs right to left
+    [[0, 1, 2], [5, 4, 3]]
+    >>> sorted(filter_layout(2, 3, "random", seed=1).ravel().tolist())  # each band once
+    [0, 1, 2, 3, 4, 5]
     """
     rows, cols = _grid(rows, cols)
     seed = integer(seed, "seed", maximum=2 ** 63)
@@ -267,6 +276,20 @@ def resolve_disparity_range(lf: "LightField", disparity_range=None) -> tuple[flo
         Neither is set, the range is not two finite numbers with ``dmin < dmax``, or it reaches
         disparities at which even the nearest view is shifted entirely out of the image (such
         labels can match nothing; a typo such as ``1e30`` is the usual cause).
+
+    Examples
+    --------
+    >>> lf = LightField(np.zeros((3, 3, 24, 32), np.float32), disparity_range=(-2, 2))
+    >>> resolve_disparity_range(lf), resolve_disparity_range(lf, (0, 1.5))
+    ((-2.0, 2.0), (0.0, 1.5))
+
+    The nearest views are one baseline away, so beyond ``max(H, W) / 1 = 32`` px per baseline
+    they would leave the image altogether:
+
+    >>> resolve_disparity_range(lf, (0, 1e30))  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    hyperlf.errors.InvalidInputError: a disparity of 1e+30 px ... (the limit is +-32)...
     """
     check_light_field(lf)
     rng = disparity_range if disparity_range is not None else lf.disparity_range
@@ -298,6 +321,19 @@ def check_disparity_reach(disparities, offsets: np.ndarray, image_shape) -> None
     InvalidInputError
         A disparity reaches beyond ``max(H, W) / (nearest view's distance)``; or the
         arguments are not numbers of these shapes.
+
+    Examples
+    --------
+    On a 3 x 3 grid the nearest views are one baseline from the centre, and the limit on
+    24 x 32 px views is 32 px per baseline; with the views spaced twice as far it halves:
+
+    >>> off = view_offsets(grid_positions(3, 3), (1, 1))
+    >>> check_disparity_reach([-2.0, 2.0], off, (24, 32)) is None  # well inside: no error
+    True
+    >>> check_disparity_reach([20.0], 2 * off, (24, 32))  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    hyperlf.errors.InvalidInputError: a disparity of 20 px ... (the limit is +-16)...
     """
     d = real_array(disparities, "disparities")
     off = real_array(offsets, "offsets")

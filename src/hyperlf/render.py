@@ -420,6 +420,25 @@ def fit_ccm(camera, wavelengths, *, illuminant=None, white=None, source: str = "
     -------
     ndarray, shape (3, 3)
         ``srgb_linear = rgb @ M``.
+
+    Examples
+    --------
+    A "camera" whose sensitivities are the CIE 1931 colour-matching functions sees XYZ, so
+    the least-squares fit must find the exact matrix: scale the white-balanced XYZ back by
+    the white's ``(X, Y, Z) / Y``, then convert with
+    :func:`hyperlf.spectral.xyz_to_srgb_linear`. The columns sum to 1 (white stays white),
+    and swapping the camera's channels swaps the rows of the matrix.
+
+    >>> wl = np.arange(410.0, 701.0, 10.0)
+    >>> S = spectral.cmfs(wl)
+    >>> M = fit_ccm(S, wl, source="colorchecker")
+    >>> white = S.sum(axis=0)  # XYZ of the flat white
+    >>> direct = np.diag(white / white[1]) @ spectral.xyz_to_srgb_linear(
+    ...     np.eye(3), white=tuple(spectral.xyz_to_xy(white)))
+    >>> bool(np.allclose(M, direct)), M.sum(axis=0).round(6).tolist()
+    (True, [1.0, 1.0, 1.0])
+    >>> bool(np.allclose(fit_ccm(S[:, ::-1], wl, source="colorchecker"), M[::-1]))
+    True
     """
     _checked(white_preserving=white_preserving)
     wl = spectral.as_wavelengths(wavelengths)
@@ -1411,6 +1430,25 @@ def focal_sweep(views_or_cube, offsets=None, disparities=None, profile="CIE 1931
     dict
         ``{"frames": [Path, ...], "gif": Path or None, "mp4": Path or None,
         "webm": Path or None, "disparities": ndarray, "table": Path}``.
+
+    Examples
+    --------
+    A one-band cube of a random texture at disparity 2 (each view is the texture shifted by
+    2 px per baseline): the frame focused at 2 lines the nine views up and is by far the
+    sharpest; the others average misaligned texture into grey.
+
+    >>> import tempfile
+    >>> from hyperlf.formats import read_image
+    >>> tex = np.random.default_rng(0).random((40, 48))
+    >>> cube = np.array([[tex[6 + 2 * r:30 + 2 * r, 6 + 2 * c:38 + 2 * c][None]
+    ...                   for c in range(3)] for r in range(3)])  # (3, 3, 1, 24, 32)
+    >>> out = focal_sweep(cube, disparities=[0, 1, 2, 3], profile=550.0, wavelengths=[550.0],
+    ...                   out_dir=tempfile.mkdtemp(), formats=["gif"])
+    >>> [p.name for p in out["frames"]][:2], out["gif"].name, out["mp4"]
+    (['refocus_000.png', 'refocus_001.png'], 'refocus.gif', None)
+    >>> sharpness = [float(read_image(p).std()) for p in out["frames"]]
+    >>> float(out["disparities"][int(np.argmax(sharpness))])
+    2.0
     """
     if out_dir is None:
         raise InvalidInputError("focal_sweep needs out_dir, the folder to write the frames to")
@@ -1494,6 +1532,25 @@ def spectrum_at(cube, wavelengths=None, x=None, y=None, view=None) -> np.ndarray
     -------
     ndarray of float64, shape (B,) or (n, B)
         NaN where the point lies outside the image.
+
+    Examples
+    --------
+    Band ``b`` of this cube holds ``10 b + x``, so halfway between columns 2 and 3 the
+    profile is ``10 b + 2.5``; column 5 is beyond the 5-pixel-wide image.
+
+    >>> cube = np.zeros((3, 4, 5)) + 10 * np.arange(3)[:, None, None] + np.arange(5)
+    >>> spectrum_at(cube, [450, 550, 650], x=2.5, y=1).tolist()
+    [2.5, 12.5, 22.5]
+    >>> spectrum_at(cube, x=[4, 5], y=[0, 0]).tolist()
+    [[4.0, 14.0, 24.0], [nan, nan, nan]]
+
+    At a whole pixel of a view of a plenoptic cube it is that pixel's bands:
+
+    >>> from hyperlf import synthesis
+    >>> lf = synthesis.procedural_scene(seed=1, rows=3, cols=3, height=24, width=32)
+    >>> s = spectrum_at(lf.gt_cube, lf.cube_wavelengths, x=7, y=5, view=(0, 2))
+    >>> bool(np.array_equal(s, lf.gt_cube[0, 2, :, 5, 7]))
+    True
     """
     if _is_cubefile(cube):
         data = cube.cube
@@ -1556,6 +1613,20 @@ def save_spectrum_figure(path, cube, wavelengths=None, *, points: Sequence[tuple
     Returns
     -------
     Path
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from hyperlf import synthesis
+    >>> from hyperlf.formats import read_image
+    >>> lf = synthesis.procedural_scene(seed=1, rows=3, cols=3, height=24, width=32)
+    >>> png = save_spectrum_figure(tempfile.mkdtemp() + "/spectra.png", lf.gt_cube,
+    ...                            lf.cube_wavelengths, points=[(7, 5), (20, 12)])
+    >>> png.name, png.read_bytes()[1:4]  # the PNG signature
+    ('spectra.png', b'PNG')
+    >>> picture = read_image(png)
+    >>> picture.ndim, bool(picture.shape[1] > picture.shape[0])  # colour, wider than tall
+    (3, True)
     """
     from . import visualise
 

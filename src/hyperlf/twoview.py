@@ -339,6 +339,21 @@ def compute_volumes(left, right, dmin: int, dmax: int, metric: str = "auto", *, 
     (ndarray, ndarray or None)
         float32 ``(dmax - dmin + 1, H, W)`` volumes, lower is better.  Why the re-referencing
         is exact: the module docstring (step 3) and :meth:`hyperlf.costs.Cost.pair_volumes`.
+
+    Examples
+    --------
+    A random texture seen 3 px further left in the right image: the cheapest label is 3, and
+    the right-referenced volume is the left one read at ``x_r + d``.
+
+    >>> import numpy as np
+    >>> from hyperlf.twoview import compute_volumes
+    >>> scene = np.random.default_rng(0).random((24, 48)) + 0.1
+    >>> left, right = scene[:, 4:36], scene[:, 7:39]   # left x matches right x - 3
+    >>> cl, cr = compute_volumes(left, right, 0, 6, "ssd")
+    >>> cl.shape, float(np.median(cl.argmin(axis=0)))
+    ((7, 24, 32), 3.0)
+    >>> bool(np.array_equal(cr[3][:, :-3], cl[3][:, 3:]))   # C_R[d, y, x] = C_L[d, y, x + d]
+    True
     """
     mapping(cost_params, "cost_params")
     return _costs.cost_volumes(left, right, dmin, dmax, metric, window=window,
@@ -427,6 +442,19 @@ def fill_inconsistent(disp_l, disp_r, valid, occlusion: str, guide, plane_params
     -------
     (ndarray, ndarray of bool)
         The filled map, and the pixels that got a plane value.
+
+    Examples
+    --------
+    Two inconsistent pixels between a near surface (4) and a far one (1) take the far one,
+    the background:
+
+    >>> import numpy as np
+    >>> from hyperlf.twoview import fill_inconsistent
+    >>> d = np.array([[4.0, 4.0, 9.0, 9.0, 1.0, 1.0]] * 3)
+    >>> valid = np.array([[True, True, False, False, True, True]] * 3)
+    >>> filled, planes = fill_inconsistent(d, d, valid, "lr-fill", np.ones((3, 6)))
+    >>> filled[0].tolist(), bool(planes.any())
+    ([4.0, 4.0, 1.0, 1.0, 1.0, 1.0], False)
     """
     disp_l, disp_r = _disparity_map(disp_l, "disp_l"), _disparity_map(disp_r, "disp_r")
     if disp_r.shape != disp_l.shape:
@@ -498,6 +526,23 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
     StereoResult
         ``timings`` holds only ``optimiser``; ``extra["plane_filled"]`` the share of pixels
         the ``"lr-plane"`` fill gave a plane value.
+
+    Examples
+    --------
+    The volumes of a pair 3 px apart (see :func:`compute_volumes`): the map is 3 px, and the
+    left-right check keeps nearly every pixel but those of the 3 columns at the left edge,
+    which the right image does not see.
+
+    >>> import numpy as np
+    >>> from hyperlf.twoview import compute_volumes, stereo_from_volumes
+    >>> scene = np.random.default_rng(0).random((24, 48)) + 0.1
+    >>> left, right = scene[:, 4:36], scene[:, 7:39]   # left x matches right x - 3
+    >>> cl, cr = compute_volumes(left, right, -2, 6, "ssd")
+    >>> res = stereo_from_volumes(cl, cr, -2, "wta", "lr-fill", guide_left=left)
+    >>> res.disparity_range, float(np.median(res.disparity))
+    ((-2, 6), 3.0)
+    >>> bool(res.valid[:, 3:].mean() > 0.95), bool(res.valid[:, :3].mean() < 0.2)
+    (True, True)
     """
     optimizer = _check_optimizer(optimizer)
     occlusion = _check_occlusion(occlusion)
