@@ -464,6 +464,20 @@ def test_view_disparity_from_reference_fronto_and_slanted():
     np.testing.assert_allclose(v[ok], (0.04 * qx + 0.5)[ok], atol=2e-3)
 
 
+
+@pytest.mark.parametrize("offset, lost", [((1.0, 0.0), np.s_[:, -1]), ((-1.0, 0.0), np.s_[:, 0]),
+                                          ((0.0, 1.0), np.s_[-1, :]), ((0.0, -1.0), np.s_[0, :])])
+def test_view_disparity_keeps_the_reference_rows_and_columns_it_shares(offset, lost):
+    """A view beside the reference shares its rows, one above or below its columns: a sample
+    exactly on the reference's last row or column is inside. It came out NaN there (a
+    zero-weight bilinear tap beyond the border read NaN), so every view in the reference's row
+    lost its whole last row of ground truth (found writing the function's examples)."""
+    d = S.view_disparity_from_reference(np.full((6, 8), 0.5, np.float32), offset)
+    seen = np.ones(d.shape, bool)
+    seen[lost] = False  # what the view shows there is beyond the reference's image
+    assert np.isnan(d[~seen]).all()
+    np.testing.assert_array_equal(d[seen], 0.5)
+
 # ----------------------------------------------------------------------------- real data
 @pytest.fixture(scope="module")
 def antinous_hlf():

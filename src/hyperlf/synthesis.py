@@ -218,8 +218,11 @@ def view_disparity_from_reference(gt_ref: np.ndarray, offset: tuple[float, float
     def sample(d: np.ndarray) -> np.ndarray:
         mx = xx + d * np.float32(dx)
         my = yy + d * np.float32(dy)
+        # replicated, not NaN, beyond the border: a sample exactly on the last row or column
+        # has a zero-weight tap outside, and a NaN there made it NaN (0 * NaN); what lies
+        # beyond the image is masked just below
         out = cv2.remap(g, np.nan_to_num(mx, nan=-10.0), np.nan_to_num(my, nan=-10.0),
-                        cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan)
+                        cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         out[~np.isfinite(d) | (mx < 0) | (mx > W - 1) | (my < 0) | (my > H - 1)] = np.nan
         return out
 
