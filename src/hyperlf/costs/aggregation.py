@@ -94,7 +94,7 @@ def guide_image(image) -> np.ndarray:
     """The guide of a 2-D image: float64, divided by its 99th percentile.
 
     A non-positive percentile leaves the image as it is (a flat guide is fine: the guided filter
-    is then a box mean).  ``image``: finite real numbers, 2-D.
+    is then a box mean of box means, a wider smoothing).  ``image``: finite real numbers, 2-D.
 
     Examples
     --------

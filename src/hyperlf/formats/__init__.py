@@ -111,6 +111,14 @@ def load_lightfield(path: str | os.PathLike, *, cube: bool = True, **kwargs) -> 
     -------
     LightField
 
+    Raises
+    ------
+    DataNotFoundError
+        When ``path`` does not exist (or is a folder without a manifest that holds images,
+        i.e. an unfinished capture).
+    FormatError
+        When ``path`` exists but is none of the supported formats.
+
     Examples
     --------
     >>> import tempfile, pathlib
@@ -121,14 +129,6 @@ def load_lightfield(path: str | os.PathLike, *, cube: bool = True, **kwargs) -> 
     >>> cap = save_lightfield(lf, tmp / "cap").parent  # a capture folder (returns its manifest)
     >>> load_lightfield(h5).grid_shape, load_lightfield(cap).grid_shape
     ((2, 3), (2, 3))
-
-    Raises
-    ------
-    DataNotFoundError
-        When ``path`` does not exist (or is a folder without a manifest that holds images,
-        i.e. an unfinished capture).
-    FormatError
-        When ``path`` exists but is none of the supported formats.
     """
     p = Path(path_like(path, folder=None))
     cube = flag(cube, "cube")
