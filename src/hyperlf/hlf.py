@@ -1064,6 +1064,18 @@ def reference_edges(ref_img, sigma: float = 1.0, low=None, high=None, dilate: in
     Sobel gradient of the blurred ``In_ref`` (edge orientation is perpendicular to it).
     ``low``/``high``: 8-bit Canny thresholds; None = 0.4 x / 1 x the 90th percentile of the
     Sobel magnitude of the 8-bit image.
+
+    Examples
+    --------
+    A vertical step: one column of edge (three once dilated by the default 1 px), and a
+    gradient across it, none along it:
+
+    >>> img = np.zeros((20, 30)); img[:, 15:] = 1.0
+    >>> edges, (gx, gy) = reference_edges(img, dilate=0)
+    >>> sorted(set(np.nonzero(edges)[1].tolist())), bool(gx[10, 14] > 0), float(abs(gy).max())
+    ([14], True, 0.0)
+    >>> sorted(set(np.nonzero(reference_edges(img)[0])[1].tolist()))
+    [13, 14, 15]
     """
     import cv2
 
@@ -1804,6 +1816,20 @@ def visible_views(prob: DepthProblem, disparity: np.ndarray) -> dict:
     -------
     dict
         ``(r, c)`` -> bool (H, W) for every view but the reference.
+
+    Examples
+    --------
+    A square 2 px per baseline in front of its background: the view one baseline to the
+    right sees the square 2 px further left, over the background's columns 13 and 14:
+
+    >>> from hyperlf import synthesis
+    >>> lf = synthesis.procedural_scene(seed=0, rows=3, cols=3, height=32, width=40)
+    >>> prob = prepare(lf, n_labels=16)
+    >>> disparity = np.zeros((32, 40), np.float32)
+    >>> disparity[10:20, 15:25] = 2.0
+    >>> hidden = ~visible_views(prob, disparity)[(1, 2)]
+    >>> sorted(set(np.nonzero(hidden)[1].tolist())), int(hidden.sum())
+    ([13, 14], 20)
     """
     from .warp import visible_in_view
 
