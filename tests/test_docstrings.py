@@ -54,3 +54,30 @@ def test_the_readmes_python_runs_and_scores_its_map(tmp_path, monkeypatch, capsy
                                        scope["lf"].reference_gt_disparity).rmse < 0.5
     assert scope["done"].cube.shape[:3] == (*scope["lf"].grid_shape, scope["lf"].n_views)
     assert "DisparityScores(rmse=" in capsys.readouterr().out
+
+
+#: numpydoc's order of a docstring's sections (those this project uses).
+_SECTIONS = ("Parameters", "Attributes", "Returns", "Yields", "Other Parameters", "Raises",
+             "Warns", "Warnings", "See Also", "Notes", "References", "Examples")
+
+
+def _sections(doc: str) -> list[str]:
+    """The numpydoc section titles of ``doc``, in the order they come (a title underlined)."""
+    lines = [line.strip() for line in doc.splitlines()]
+    return [a for a, b in zip(lines, lines[1:]) if a in _SECTIONS and b and set(b) == {"-"}]
+
+
+def test_docstring_sections_come_in_numpydoc_order():
+    """Examples last, Raises after Returns, ...: readers and doc tools find a section where
+    numpydoc puts it (two docstrings had Examples or Returns out of place)."""
+    import ast
+    from pathlib import Path
+
+    wrong = []
+    for path in sorted((Path(hyperlf.__file__).parent).rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+                found = [_SECTIONS.index(s) for s in _sections(ast.get_docstring(node) or "")]
+                if found != sorted(found):
+                    wrong.append(f"{path.name}:{node.name}")
+    assert not wrong, wrong

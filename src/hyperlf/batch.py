@@ -141,6 +141,27 @@ def find_captures(inputs: Sequence[str | os.PathLike]) -> list[Path]:
     ------
     DataNotFoundError
         An input that does not exist, or inputs that hold no capture.
+
+    Examples
+    --------
+    A folder of two capture folders (each with its ``capture.toml``; a real one holds the
+    capture's description) and a light field file:
+
+    >>> import tempfile, pathlib
+    >>> root = pathlib.Path(tempfile.mkdtemp())
+    >>> for name in ("frame1", "frame0"):
+    ...     (root / "frames" / name).mkdir(parents=True)
+    ...     (root / "frames" / name / "capture.toml").touch()
+    >>> (root / "frames" / "notes.txt").touch()
+    >>> (root / "extra.h5").touch()
+    >>> [p.name for p in find_captures([root / "frames", root / "extra.h5"])]
+    ['frame0', 'frame1', 'extra.h5']
+    >>> [p.name for p in find_captures(str(root / "frames" / "frame*"))]
+    ['frame0', 'frame1']
+    >>> find_captures(root / "missing")
+    Traceback (most recent call last):
+        ...
+    hyperlf.errors.DataNotFoundError: .../missing: no such capture, folder or pattern
     """
     if isinstance(inputs, (str, os.PathLike)):
         inputs = [inputs]
@@ -249,7 +270,25 @@ def _write_marker(marker: Path, doc: dict) -> None:
 
 def finish_batch(out: str | os.PathLike, rows: Sequence["CaptureResult"]) -> None:
     """After a run: the folder's results all have its recorded options once every capture
-    is done (clears the mark an ``overwrite`` run leaves until then)."""
+    is done (clears the mark an ``overwrite`` run leaves until then).
+
+    Examples
+    --------
+    An ``overwrite`` plan marks the folder unfinished until every capture is done:
+
+    >>> import json, tempfile, pathlib
+    >>> from hyperlf.batch import CaptureResult
+    >>> root = pathlib.Path(tempfile.mkdtemp())
+    >>> (root / "frames" / "frame0").mkdir(parents=True)
+    >>> (root / "frames" / "frame0" / "capture.toml").touch()
+    >>> tasks = plan_batch([root / "frames"], root / "results", overwrite=True)
+    >>> marker = root / "results" / BATCH_FILE
+    >>> json.loads(marker.read_text())["overwrite_unfinished"]
+    True
+    >>> finish_batch(root / "results", [CaptureResult("frame0", tasks[0].capture, "done")])
+    >>> json.loads(marker.read_text())["overwrite_unfinished"]
+    False
+    """
     marker = Path(_opt.path_like(out, "out", folder=True)) / BATCH_FILE
     _rows(rows)
     doc = _read_marker(marker)
@@ -264,7 +303,26 @@ def plan_batch(inputs, out: str | os.PathLike, *, depth_args: Sequence[str] = ()
     result set at ``out / name``; ``disparity_range`` (optional) is passed to every depth run
     and used for its range-limit figure, ``downscale`` (depth's ``--downscale``) to every run
     and to the measuring of its results.  Checks and marks ``out`` first (nothing is
-    computed)."""
+    computed).
+
+    Examples
+    --------
+    Two captures, one result set each under ``results``; nothing is computed, but the folder is
+    made and records the depth options:
+
+    >>> import json, tempfile, pathlib
+    >>> root = pathlib.Path(tempfile.mkdtemp())
+    >>> for name in ("frame0", "frame1"):
+    ...     (root / "frames" / name).mkdir(parents=True)
+    ...     (root / "frames" / name / "capture.toml").touch()
+    >>> tasks = plan_batch([root / "frames"], root / "results", disparity_range=(-2, 2))
+    >>> [(t.name, pathlib.Path(t.output).name) for t in tasks]
+    [('frame0', 'frame0'), ('frame1', 'frame1')]
+    >>> tasks[0].depth_args
+    ('--disparity-range=-2,2',)
+    >>> json.loads((root / "results" / BATCH_FILE).read_text())["depth_args"]
+    ['--disparity-range=-2,2']
+    """
     out = Path(_opt.path_like(out, "out", folder=True))
     args = list(_args(depth_args, "depth_args"))
     disparity_range = _range(disparity_range, "disparity_range")
@@ -319,6 +377,22 @@ def run_capture(task: CaptureTask) -> CaptureResult:
 
     Runs in a dask worker; the depth command is its own process, so the result set is whole
     whatever happens to the worker.  A failure of the command is reported, not raised.
+
+    Examples
+    --------
+    A capture whose ``capture.toml`` is empty: ``hyperlf depth`` fails, and the failure comes
+    back as a row of the summary, not as an exception:
+
+    >>> import tempfile, pathlib
+    >>> root = pathlib.Path(tempfile.mkdtemp())
+    >>> (root / "frames" / "frame0").mkdir(parents=True)
+    >>> (root / "frames" / "frame0" / "capture.toml").touch()
+    >>> task = plan_batch([root / "frames"], root / "results")[0]
+    >>> row = run_capture(task)
+    >>> row.capture, row.status, row.exit_code != 0
+    ('frame0', 'failed', True)
+    >>> row.message
+    'hyperlf depth: error: ...capture.toml: ...'
     """
     if not isinstance(task, CaptureTask):
         raise InvalidInputError(f"task must be a hyperlf.batch.CaptureTask, got "
@@ -533,7 +607,23 @@ def _run_on(client, tasks: Sequence[CaptureTask], todo: list[int],
 
 def write_summary(out: str | os.PathLike, rows: Sequence[CaptureResult]) -> list[Path]:
     """``summary.csv`` and ``summary.html`` (a table with each capture's disparity picture)
-    in ``out``, replaced together as one result set."""
+    in ``out``, replaced together as one result set.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from hyperlf.batch import CaptureResult
+    >>> out = pathlib.Path(tempfile.mkdtemp())
+    >>> rows = [CaptureResult("frame0", "frames/frame0", "done", 12.5, rmse_px=0.21),
+    ...         CaptureResult("frame1", "frames/frame1", "failed", 0.8, exit_code=2,
+    ...                       message="no views")]
+    >>> [p.name for p in write_summary(out, rows)]
+    ['summary.csv', 'summary.html']
+    >>> print((out / "summary.csv").read_text().rstrip())
+    capture,input,status,seconds,rmse_px,badpix_007_pct,range_limit_pct,exit_code,message
+    frame0,frames/frame0,done,12.5,0.21,,,0,
+    frame1,frames/frame1,failed,0.8,,,,2,no views
+    """
     from .outputs import result_files
 
     out = Path(_opt.path_like(out, "out", folder=True))

@@ -40,6 +40,27 @@ def view_maps(calibration: Calibration, key) -> tuple[np.ndarray, np.ndarray]:
     Plane mode: the inverse of the camera's homography; full mode: OpenCV's undistort-rectify
     map with the camera's intrinsics, distortion and rectifying rotation and the shared
     rectified camera matrix.
+
+    Examples
+    --------
+    A hand-made plane calibration of two cameras: the second camera's homography moves its
+    image 2 px to the right, so its view samples the raw image 2 px to the left:
+
+    >>> from hyperlf.calibration.board import BoardSpec
+    >>> from hyperlf.calibration.model import Calibration, CameraCalibration
+    >>> shift = np.array([[1.0, 0.0, 2.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    >>> cams = {(0, 0): CameraCalibration("left.png", np.zeros(2), 0.0, homography=np.eye(3)),
+    ...         (0, 1): CameraCalibration("right.png", np.array([1.0, 0.0]), 0.0,
+    ...                                   homography=shift)}
+    >>> cal = Calibration(mode="plane", grid=(1, 2), reference=(0, 0), image_size=(6, 4),
+    ...                   output_size=(6, 4), camera_matrix=np.diag([100.0, 100.0, 1.0]),
+    ...                   cameras=cams, board=BoardSpec(4, 3, 20.0), baseline=40.0,
+    ...                   board_plane=np.array([0.0, 0.0, 1.0, 500.0]))
+    >>> map_x, map_y = view_maps(cal, (0, 1))
+    >>> map_x.dtype, map_x.shape
+    (dtype('float32'), (4, 6))
+    >>> map_x[0].tolist(), map_y[:, 0].tolist()
+    ([-2.0, -1.0, 0.0, 1.0, 2.0, 3.0], [0.0, 1.0, 2.0, 3.0])
     """
     import cv2
 
@@ -65,7 +86,28 @@ def view_maps(calibration: Calibration, key) -> tuple[np.ndarray, np.ndarray]:
 
 def check_fits(calibration: Calibration, images: Mapping, names: Mapping | None = None) -> None:
     """Raise InvalidInputError unless ``images`` has one grey image of the calibrated size for
-    every camera of the calibration's grid."""
+    every camera of the calibration's grid.
+
+    Examples
+    --------
+    >>> from hyperlf.calibration.board import BoardSpec
+    >>> from hyperlf.calibration.model import Calibration, CameraCalibration
+    >>> cams = {(0, c): CameraCalibration(f"Cam-{c}.png", np.array([float(c), 0.0]), 0.0,
+    ...                                   homography=np.eye(3)) for c in range(2)}
+    >>> cal = Calibration(mode="plane", grid=(1, 2), reference=(0, 0), image_size=(6, 4),
+    ...                   output_size=(6, 4), camera_matrix=np.diag([100.0, 100.0, 1.0]),
+    ...                   cameras=cams, board=BoardSpec(4, 3, 20.0), baseline=40.0,
+    ...                   board_plane=np.array([0.0, 0.0, 1.0, 500.0]))
+    >>> check_fits(cal, {(0, 0): np.zeros((4, 6)), (0, 1): np.zeros((4, 6))})   # fits: None
+    >>> check_fits(cal, {(0, 0): np.zeros((4, 6))})
+    Traceback (most recent call last):
+        ...
+    hyperlf.errors.InvalidInputError: the images do not fit the calibration (1 x 2 cameras): ...
+    >>> check_fits(cal, {(0, 0): np.zeros((4, 6)), (0, 1): np.zeros((3, 6))})
+    Traceback (most recent call last):
+        ...
+    hyperlf.errors.InvalidInputError: camera (0, 1): image is (6, 3) (W x H, channels last) but ...
+    """
     want = set(check_calibration(calibration).cameras)
     got = set(_opt.mapping(images, "images", optional=False))
     _opt.mapping(names, "names")
@@ -116,6 +158,31 @@ def apply_calibration(calibration: Calibration, images: Mapping, *, names=None,
     ------
     InvalidInputError
         The images do not fit the calibration (cameras or size).
+
+    Examples
+    --------
+    Register a small synthetic 1 x 3 rig from one board shot, then warp that shot:
+
+    >>> from hyperlf.calibration.board import detect_board
+    >>> from hyperlf.calibration.plane import register_plane
+    >>> from hyperlf.calibration.rig import make_rig
+    >>> rig = make_rig(1, 3, seed=3, imperfect=0.3, image_size=(160, 120), focal=150.0)
+    >>> pose = rig.board_pose(450.0, tilt=(10.0, -8.0, 3.0))
+    >>> shots = rig.render(pose, supersample=2)
+    >>> cal = register_plane(shots, rig.board)
+    >>> views, valid = apply_calibration(cal, shots)
+    >>> views.shape, valid.dtype, cal.reference
+    ((1, 3, 120, 160), dtype('bool'), (0, 1))
+    >>> bool(valid[0, 1].all())         # the reference view is its raw image
+    True
+
+    Registered at the board plane, the board's corners lie in every view where the reference
+    camera truly sees them (within half a pixel on average):
+
+    >>> truth = rig.project(cal.reference, pose.corners_world(rig.board))
+    >>> [bool(np.linalg.norm(detect_board(views[k], rig.board) - truth, axis=1).mean() < 0.5)
+    ...  for k in sorted(cal.cameras)]
+    [True, True, True]
     """
     import cv2
 

@@ -157,7 +157,15 @@ def check_keys(table, label: str) -> Mapping:
 
 
 def camera_label(key, names: Mapping | None = None) -> str:
-    """How a camera is named in messages: the user's name if given, else ``(row, col)``."""
+    """How a camera is named in messages: the user's name if given, else ``(row, col)``.
+
+    Examples
+    --------
+    >>> camera_label((1, 2))
+    '(1, 2)'
+    >>> camera_label((1, 2), names={(1, 2): "Cam-5.png"})
+    'Cam-5.png'
+    """
     check_key(key)
     _opt.mapping(names, "names")
     if names and key in names:
@@ -178,6 +186,15 @@ def normalise_for_detection(image: np.ndarray, *, clahe: bool = True) -> np.ndar
     Returns
     -------
     ndarray of uint8, shape (H, W)
+
+    Examples
+    --------
+    A faint ramp (values 0.2 to 0.3) is stretched to the full 8-bit range:
+
+    >>> ramp = np.tile(np.linspace(0.2, 0.3, 64), (32, 1))
+    >>> img8 = normalise_for_detection(ramp, clahe=False)
+    >>> img8.dtype, img8.shape, int(img8.min()), int(img8.max())
+    (dtype('uint8'), (32, 64), 0, 255)
     """
     import cv2
 
@@ -295,7 +312,18 @@ def order_like(corners: np.ndarray, anchor: np.ndarray, board: BoardSpec) -> np.
 
 def orders_like(corners: Mapping, reference, board: BoardSpec) -> dict:
     """Every camera's corners of one pose in the reference camera's order (:func:`order_like`);
-    when the reference missed the pose, in the first camera's that saw it."""
+    when the reference missed the pose, in the first camera's that saw it.
+
+    Examples
+    --------
+    Camera ``(0, 1)`` lists the corners of the same 4 x 3 board from the other end; they come
+    back in the reference's order:
+
+    >>> g = 10.0 * np.stack(np.meshgrid(np.arange(4.0), np.arange(3.0)), -1).reshape(-1, 2)
+    >>> out = orders_like({(0, 0): g, (0, 1): g[::-1] + [50, 0]}, (0, 0), BoardSpec(4, 3))
+    >>> out[(0, 1)][:2].tolist()
+    [[50.0, 0.0], [60.0, 0.0]]
+    """
     check_board(board)
     check_corner_sets(corners, "corners", board)
     check_key(reference, "reference")
@@ -326,7 +354,18 @@ def image_turn(corners: np.ndarray, anchor: np.ndarray, board: BoardSpec) -> int
 def turn_report(corners: Mapping, anchors: Mapping, board: BoardSpec, names=None) -> dict:
     """The calibration's ``turned_cameras`` (labels) and ``camera_turns`` (label -> degrees
     clockwise on screen) of the cameras whose board runs turned (:func:`image_turn`):
-    ``corners[k]`` against ``anchors[k]``, the reference camera's corners of the same pose."""
+    ``corners[k]`` against ``anchors[k]``, the reference camera's corners of the same pose.
+
+    Examples
+    --------
+    Camera ``(0, 1)`` sees the board's rows run the other way (turned by 180 degrees), camera
+    ``(0, 2)`` sees them as the reference does:
+
+    >>> g = 10.0 * np.stack(np.meshgrid(np.arange(4.0), np.arange(3.0)), -1).reshape(-1, 2)
+    >>> turn_report({(0, 1): g[::-1], (0, 2): g + [100, 0]}, {(0, 1): g, (0, 2): g},
+    ...             BoardSpec(4, 3))
+    {'turned_cameras': ['(0, 1)'], 'camera_turns': {'(0, 1)': 180}}
+    """
     check_board(board)
     check_corner_sets(corners, "corners", board)
     check_corner_sets(anchors, "anchors", board)
@@ -569,7 +608,22 @@ def refine_corners(image: np.ndarray, corners: np.ndarray, board: BoardSpec) -> 
     """Saddle-point refinement (OpenCV ``cornerSubPix``) on the linear, percentile-stretched
     image (not the equalised one the detector saw, whose local remapping can bias corners),
     with a window of 0.45 times the local corner spacing. A corner that would move by more
-    than a third of the spacing keeps its detected position; unseen (NaN) corners stay NaN."""
+    than a third of the spacing keeps its detected position; unseen (NaN) corners stay NaN.
+
+    Examples
+    --------
+    Corners up to 0.8 px off their true places move closer to them:
+
+    >>> from hyperlf.calibration.rig import make_rig
+    >>> rig = make_rig(1, 2, seed=0, image_size=(160, 120), focal=150.0)
+    >>> pose = rig.board_pose(450.0, tilt=(10.0, -5.0, 3.0))
+    >>> shot = rig.render(pose, supersample=2)[(0, 0)]
+    >>> truth = rig.project((0, 0), pose.corners_world(rig.board))
+    >>> rough = truth + np.random.default_rng(0).uniform(-0.8, 0.8, truth.shape)
+    >>> fine = refine_corners(shot, rough, rig.board)
+    >>> bool(np.abs(fine - truth).mean() < 0.5 * np.abs(rough - truth).mean())
+    True
+    """
     import cv2
 
     check_board(board)
@@ -613,6 +667,29 @@ def detect_boards(images: Mapping, board: BoardSpec, *, names: Mapping | None = 
     ------
     InvalidInputError
         The board was not found in at least one camera (all of them are named).
+
+    Examples
+    --------
+    A two-camera synthetic rig: the corners found lie where the rig's exact projection puts
+    them (within 0.3 px on average):
+
+    >>> from hyperlf.calibration.rig import make_rig
+    >>> rig = make_rig(1, 2, seed=0, image_size=(160, 120), focal=150.0)
+    >>> pose = rig.board_pose(450.0, tilt=(10.0, -5.0, 3.0))
+    >>> shots = rig.render(pose, supersample=2)
+    >>> corners = detect_boards(shots, rig.board)
+    >>> sorted(corners), corners[(0, 1)].shape
+    ([(0, 0), (0, 1)], (48, 2))
+    >>> truth = {k: rig.project(k, pose.corners_world(rig.board)) for k in rig.cameras}
+    >>> all(bool(np.linalg.norm(corners[k] - truth[k], axis=1).mean() < 0.3) for k in rig.cameras)
+    True
+
+    A shot without the board is named:
+
+    >>> detect_boards({**shots, (0, 1): np.full((120, 160), 0.5)}, rig.board)
+    Traceback (most recent call last):
+        ...
+    hyperlf.errors.InvalidInputError: checkerboard ... not found in the ... of camera(s) (0, 1)...
     """
     check_board(board)
     keys = list(_opt.mapping(images, "images", optional=False))
@@ -640,7 +717,18 @@ def detect_boards(images: Mapping, board: BoardSpec, *, names: Mapping | None = 
 def largest_grid(image: np.ndarray, *, detect_size: int = 800) -> np.ndarray | None:
     """The largest checkerboard grid of inner corners in a shot, ``(rows, cols, 2)`` image
     coordinates with rows running right and columns down (the whole board when it is in
-    view), or None when there is none of at least 3 x 3."""
+    view), or None when there is none of at least 3 x 3.
+
+    Examples
+    --------
+    >>> from hyperlf.calibration.rig import make_rig
+    >>> rig = make_rig(1, 2, seed=0, image_size=(160, 120), focal=150.0)
+    >>> shot = rig.render(rig.board_pose(450.0), supersample=2)[(0, 0)]
+    >>> largest_grid(shot).shape        # the whole 8 x 6 board: 6 rows of 8 corners
+    (6, 8, 2)
+    >>> largest_grid(np.full((120, 160), 0.5)) is None
+    True
+    """
     detect_size = _opt.integer(detect_size, "detect_size", 64)
     small, scale = _detection_image(image, detect_size)
     grids = _detect_partial(small)
@@ -670,6 +758,20 @@ def check_board_size(image: np.ndarray, board: BoardSpec, corners: np.ndarray, *
     ------
     InvalidInputError
         The found board is part of a larger one.
+
+    Examples
+    --------
+    The shot shows an 8 x 6 board; the corners of a 5 x 4 part of it, given as a 5 x 4 board,
+    are refused:
+
+    >>> from hyperlf.calibration.rig import make_rig
+    >>> rig = make_rig(1, 2, seed=0, image_size=(160, 120), focal=150.0)
+    >>> shot = rig.render(rig.board_pose(450.0), supersample=2)[(0, 0)]
+    >>> part = largest_grid(shot)[:4, :5].reshape(-1, 2)
+    >>> check_board_size(shot, BoardSpec(5, 4), part)
+    Traceback (most recent call last):
+        ...
+    hyperlf.errors.InvalidInputError: a board shot shows a board of 8 x 6 inner corners, more...
     """
     check_board(board)
     corners = check_corners(corners, "corners", board)

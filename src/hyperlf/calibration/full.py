@@ -111,6 +111,21 @@ def detect_poses(shots: Mapping, board: BoardSpec, *, names=None, min_poses: int
     ------
     InvalidInputError
         Cameras with fewer than ``min_poses`` detections (all named, with their counts).
+
+    Examples
+    --------
+    Four poses of the board in front of a two-camera rig; camera ``(0, 1)``'s second shot is
+    blank, so that pose is left out for it:
+
+    >>> from hyperlf.calibration.rig import make_rig
+    >>> rig = make_rig(1, 2, seed=1, image_size=(240, 180), focal=225.0)
+    >>> renders = [rig.render(p, salt=i, supersample=1, scene=False)
+    ...            for i, p in enumerate(rig.calibration_poses(4, n_shared=4))]
+    >>> shots = {k: [r[k] for r in renders] for k in rig.cameras}
+    >>> shots[(0, 1)][1] = np.full((180, 240), 0.5, np.float32)
+    >>> found = detect_poses(shots, rig.board)
+    >>> sorted(found[(0, 0)]), sorted(found[(0, 1)]), found[(0, 1)][2].shape
+    ([0, 1, 2, 3], [0, 2, 3], (48, 2))
     """
     check_board(board)
     _opt.mapping(names, "names")
@@ -140,7 +155,24 @@ def detect_poses(shots: Mapping, board: BoardSpec, *, names=None, min_poses: int
 def intrinsics(corners: Mapping, board: BoardSpec, size) -> tuple:
     """Zhang calibration of one camera from ``{pose: corners}``.
 
-    Returns ``(K, dist(5), rms px, {pose: (rvec, tvec)})`` (board to camera)."""
+    Returns ``(K, dist(5), rms px, {pose: (rvec, tvec)})`` (board to camera).
+
+    Examples
+    --------
+    The exact corners of five board poses in one camera of a synthetic rig give back its
+    intrinsics (its distortion is radial, which the model holds):
+
+    >>> from hyperlf.calibration.rig import make_rig
+    >>> rig = make_rig(1, 2, seed=0)
+    >>> cam = rig.cameras[(0, 0)]
+    >>> poses = rig.calibration_poses(5, n_shared=5)
+    >>> corners = {i: rig.project((0, 0), p.corners_world(rig.board)) for i, p in enumerate(poses)}
+    >>> K, dist, rms, board_poses = intrinsics(corners, rig.board, rig.image_size)
+    >>> bool(np.abs(K - cam.K).max() < 0.01), bool(np.abs(dist - cam.dist).max() < 1e-4)
+    (True, True)
+    >>> bool(rms < 0.01), sorted(board_poses)
+    (True, [0, 1, 2, 3, 4])
+    """
     import cv2
 
     check_board(board)
@@ -159,7 +191,26 @@ def intrinsics(corners: Mapping, board: BoardSpec, size) -> tuple:
 
 def extrinsics(ref_corners: Mapping, corners: Mapping, board: BoardSpec, K_ref, d_ref, K, d,
                size, *, label: str = "") -> tuple[np.ndarray, np.ndarray, float]:
-    """Pose ``(R, t, rms)`` of a camera relative to the reference: ``X = R X_ref + t``."""
+    """Pose ``(R, t, rms)`` of a camera relative to the reference: ``X = R X_ref + t``.
+
+    Examples
+    --------
+    The exact corners of five board poses in both cameras of a synthetic rig give back the
+    second camera's true pose against the first (the reference):
+
+    >>> from hyperlf.calibration.rig import make_rig
+    >>> rig = make_rig(1, 2, seed=0)
+    >>> ref, cam = rig.cameras[(0, 0)], rig.cameras[(0, 1)]
+    >>> poses = rig.calibration_poses(5, n_shared=5)
+    >>> corners = {k: {i: rig.project(k, p.corners_world(rig.board)) for i, p in enumerate(poses)}
+    ...            for k in rig.cameras}
+    >>> R, t, rms = extrinsics(corners[(0, 0)], corners[(0, 1)], rig.board, ref.K, ref.dist,
+    ...                        cam.K, cam.dist, rig.image_size)
+    >>> bool(np.abs(R - cam.R @ ref.R.T).max() < 1e-4)
+    True
+    >>> bool(np.abs(t - cam.R @ (ref.centre - cam.centre)).max() < 0.01), bool(rms < 0.01)
+    (True, True)
+    """
     import cv2
 
     ref_corners, corners, K_ref, d_ref, K, d = _stereo_inputs(ref_corners, corners, board,
@@ -194,6 +245,25 @@ def relative_pose(ref_corners: Mapping, corners: Mapping, board: BoardSpec, K_re
     orders that make its rotation against the reference the same in every pose
     (:func:`turned_orders`), and taken as turned when that at least halves the RMS (an
     upright camera fits at a tenth of a pixel, tried turned at tens of pixels).
+
+    Examples
+    --------
+    A camera whose images are upside down (every pose's corners in reverse order) fits badly
+    as it is; it is found turned, and its corners come back in the upright order:
+
+    >>> from hyperlf.calibration.rig import make_rig
+    >>> rig = make_rig(1, 2, seed=0)
+    >>> ref, cam = rig.cameras[(0, 0)], rig.cameras[(0, 1)]
+    >>> poses = rig.calibration_poses(5, n_shared=5)
+    >>> corners = {k: {i: rig.project(k, p.corners_world(rig.board)) for i, p in enumerate(poses)}
+    ...            for k in rig.cameras}
+    >>> upside_down = {i: c[::-1] for i, c in corners[(0, 1)].items()}
+    >>> R, t, rms, found = relative_pose(corners[(0, 0)], upside_down, rig.board, ref.K, ref.dist,
+    ...                                  cam.K, cam.dist, rig.image_size)
+    >>> bool(rms < 0.01), all(np.array_equal(found[i], corners[(0, 1)][i]) for i in found)
+    (True, True)
+    >>> bool(np.abs(R - cam.R @ ref.R.T).max() < 1e-4)
+    True
     """
     ref_corners, corners, K_ref, d_ref, K, d = _stereo_inputs(ref_corners, corners, board,
                                                               K_ref, d_ref, K, d)
@@ -234,6 +304,23 @@ def turned_orders(ref_corners: Mapping, corners: Mapping, board: BoardSpec, K_re
     nearest orders lie closest (angles capped at ``tolerance`` degrees) wins. Poses the
     reference did not see keep the order every shared pose took, and are left out when the
     shared poses took different ones.
+
+    Examples
+    --------
+    Corners given in reverse (a camera mounted upside down) are put back in the one order that
+    gives the same rotation against the reference in every pose:
+
+    >>> from hyperlf.calibration.rig import make_rig
+    >>> rig = make_rig(1, 2, seed=0)
+    >>> ref, cam = rig.cameras[(0, 0)], rig.cameras[(0, 1)]
+    >>> poses = rig.calibration_poses(5, n_shared=5)
+    >>> corners = {k: {i: rig.project(k, p.corners_world(rig.board)) for i, p in enumerate(poses)}
+    ...            for k in rig.cameras}
+    >>> upside_down = {i: c[::-1] for i, c in corners[(0, 1)].items()}
+    >>> out = turned_orders(corners[(0, 0)], upside_down, rig.board, ref.K, ref.dist, cam.K,
+    ...                     cam.dist)
+    >>> sorted(out), all(np.array_equal(out[i], corners[(0, 1)][i]) for i in out)
+    ([0, 1, 2, 3, 4], True)
     """
     ref_corners, corners, K_ref, d_ref, K, d = _stereo_inputs(ref_corners, corners, board,
                                                               K_ref, d_ref, K, d)
@@ -291,7 +378,26 @@ def _array_axes(centres: np.ndarray) -> np.ndarray:
 
 
 def rectification(Ks: Mapping, Rs: Mapping, ts: Mapping, reference, size) -> dict:
-    """Rectifying rotations, shared camera matrix, positions (baselines) and baseline."""
+    """Rectifying rotations, shared camera matrix, positions (baselines) and baseline.
+
+    Examples
+    --------
+    The exact intrinsics and poses (against the reference camera) of a synthetic 2 x 3 rig give
+    its true positions in the array's frame, and a baseline near its 40-unit pitch:
+
+    >>> from hyperlf.calibration.rig import make_rig
+    >>> rig = make_rig(2, 3, seed=0)
+    >>> ref = rig.cameras[rig.reference]
+    >>> Ks = {k: c.K for k, c in rig.cameras.items()}
+    >>> Rs = {k: c.R @ ref.R.T for k, c in rig.cameras.items()}
+    >>> ts = {k: c.R @ (ref.centre - c.centre) for k, c in rig.cameras.items()}
+    >>> rect = rectification(Ks, Rs, ts, rig.reference, rig.image_size)
+    >>> truth = rig.true_positions("array")
+    >>> all(np.allclose(rect["positions"][k], truth[k]) for k in rig.cameras)
+    True
+    >>> bool(abs(rect["baseline"] - 40.0) < 2.0), bool(rect["planarity"] < 1e-9)
+    (True, True)
+    """
     keys = list(check_keys(Ks, "Ks"))
     for table, what in ((Rs, "Rs"), (ts, "ts")):
         if set(_opt.mapping(table, what, optional=False)) != set(keys):
@@ -401,6 +507,28 @@ def calibrate_full(shots: Mapping, board: BoardSpec, *, reference=None, names=No
     InvalidInputError
         Different numbers of poses per camera, images of different sizes, a grid with holes, or
         a camera with too few detections (named).
+
+    Examples
+    --------
+    Four board poses rendered by a small synthetic two-camera rig (no scene behind the board):
+
+    >>> from hyperlf.calibration.rig import make_rig
+    >>> rig = make_rig(1, 2, seed=1, image_size=(240, 180), focal=225.0)
+    >>> renders = [rig.render(p, salt=i, supersample=1, scene=False)
+    ...            for i, p in enumerate(rig.calibration_poses(4, n_shared=4))]
+    >>> cal = calibrate_full({k: [r[k] for r in renders] for k in rig.cameras}, rig.board)
+    >>> cal.mode, cal.grid, cal.reference, cal.info["poses"]
+    ('full', (1, 2), (0, 0), 4)
+
+    The baseline is the distance between the rig's two camera centres (board units), and each
+    camera's focal length its own:
+
+    >>> true_baseline = np.linalg.norm(rig.cameras[(0, 1)].centre - rig.cameras[(0, 0)].centre)
+    >>> bool(abs(cal.baseline - true_baseline) < 1.0)
+    True
+    >>> all(bool(abs(cal.cameras[k].K[0, 0] / c.K[0, 0] - 1) < 0.03)
+    ...     for k, c in rig.cameras.items())
+    True
     """
     min_poses = _opt.integer(min_poses, "min_poses", 3)
     refine = _opt.flag(refine, "refine")

@@ -19,7 +19,15 @@ MAX_CAMERAS = 4096
 
 def grid_keys(rows: int, cols: int) -> list:
     """``(row, col)`` of every camera of an ``rows x cols`` grid, raster order; at most
-    :data:`MAX_CAMERAS` cameras."""
+    :data:`MAX_CAMERAS` cameras.
+
+    Examples
+    --------
+    A 2 x 3 array, row by row (camera ``index = row * cols + col``):
+
+    >>> grid_keys(2, 3)
+    [(0, 0), (0, 1), (0, 2), (1, 0), (1, 1), (1, 2)]
+    """
     R = _opt.integer(rows, "rows", minimum=1, maximum=MAX_CAMERAS)
     C = _opt.integer(cols, "cols", minimum=1, maximum=MAX_CAMERAS)
     if R * C > MAX_CAMERAS:
@@ -36,6 +44,22 @@ def check_grid(keys, reference=None) -> tuple[tuple[int, int], tuple[int, int]]:
     InvalidInputError
         Keys that are not ``(row, col)`` pairs of non-negative ints, a grid with holes, fewer
         than two cameras, or a reference outside the grid.
+
+    Examples
+    --------
+    The default reference of a 2 x 3 grid is the middle camera of its upper middle row:
+
+    >>> check_grid(grid_keys(2, 3))
+    ((2, 3), (0, 1))
+    >>> check_grid(grid_keys(2, 3), reference=(1, 2))
+    ((2, 3), (1, 2))
+
+    A grid with a hole is refused, naming the camera that is missing:
+
+    >>> check_grid([(0, 0), (0, 1), (1, 1)])
+    Traceback (most recent call last):
+        ...
+    hyperlf.errors.InvalidInputError: the cameras do not fill a 2 x 2 grid: no image for (1, 0)...
     """
     if isinstance(keys, (str, bytes)) or not hasattr(keys, "__iter__"):
         raise InvalidInputError(f"keys must be the cameras' (row, col) pairs, got "
@@ -60,7 +84,21 @@ def check_grid(keys, reference=None) -> tuple[tuple[int, int], tuple[int, int]]:
 
 def check_images(images: Mapping, names: Mapping | None = None, *,
                  what: str = "image") -> tuple[int, int]:
-    """Every image is a finite 2-D grey array and all have one size; returns ``(W, H)``."""
+    """Every image is a finite 2-D grey array and all have one size; returns ``(W, H)``.
+
+    Examples
+    --------
+    >>> check_images({(0, 0): np.zeros((4, 6)), (0, 1): np.ones((4, 6), np.uint16)})
+    (6, 4)
+
+    Images of different sizes are refused; ``names`` say which files they came from:
+
+    >>> check_images({(0, 0): np.zeros((4, 6)), (0, 1): np.zeros((5, 6))},
+    ...              names={(0, 1): "Cam-1.png"})
+    Traceback (most recent call last):
+        ...
+    hyperlf.errors.InvalidInputError: the images differ in size (... 6 x 5: Cam-1.png)...
+    """
     check_keys(images, "images")
     _opt.mapping(names, "names")
     _opt.text(what, "what")

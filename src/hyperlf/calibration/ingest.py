@@ -88,6 +88,27 @@ def check_dead(calibration, dead) -> set:
     ------
     InvalidInputError
         A camera outside the grid or the reference; fewer than two cameras alive.
+
+    Examples
+    --------
+    >>> from hyperlf.calibration.board import BoardSpec
+    >>> from hyperlf.calibration.model import Calibration, CameraCalibration
+    >>> cams = {(0, c): CameraCalibration(f"Cam-{c}.png", np.array([float(c), 0.0]), 0.0,
+    ...                                   homography=np.eye(3)) for c in range(3)}
+    >>> cal = Calibration(mode="plane", grid=(1, 3), reference=(0, 1), image_size=(8, 6),
+    ...                   output_size=(8, 6), camera_matrix=np.diag([100.0, 100.0, 1.0]),
+    ...                   cameras=cams, board=BoardSpec(4, 3, 20.0), baseline=40.0,
+    ...                   board_plane=np.array([0.0, 0.0, 1.0, 500.0]))
+    >>> check_dead(cal, [[0, 2]])
+    {(0, 2)}
+    >>> check_dead(cal, [(0, 1)])
+    Traceback (most recent call last):
+        ...
+    hyperlf.errors.InvalidInputError: camera 0,1 is the calibration's reference and cannot...
+    >>> check_dead(cal, [(0, 0), (0, 2)])
+    Traceback (most recent call last):
+        ...
+    hyperlf.errors.InvalidInputError: 2 of 3 cameras dead: at least two must work
     """
     from .model import check_calibration
 
@@ -176,6 +197,13 @@ def ingest(images: Mapping, calibration, *, wavelengths=None, dark=None, flat=No
         (:func:`hyperlf.calibration.parallax.measured_disparity_range`; none when too few
         points match: ``hyperlf depth`` then asks for one).
 
+    Returns
+    -------
+    LightField
+        Views in the registered/rectified frame, ``valid`` masks, positions and reference
+        from the calibration, ``metadata["calibration"]`` the geometry table of
+        :func:`hyperlf.calibration.metric.capture_geometry`.
+
     Raises
     ------
     InvalidInputError
@@ -183,12 +211,33 @@ def ingest(images: Mapping, calibration, *, wavelengths=None, dark=None, flat=No
         camera whose image is constant (no signal: a dead camera not named, or a dark frame
         that takes all of it); a reference view with no valid pixel.
 
-    Returns
-    -------
-    LightField
-        Views in the registered/rectified frame, ``valid`` masks, positions and reference
-        from the calibration, ``metadata["calibration"]`` the geometry table of
-        :func:`hyperlf.calibration.metric.capture_geometry`.
+    Examples
+    --------
+    A hand-made plane calibration of a 1 x 3 array whose homographies are the identity (the raw
+    images are already registered); camera ``(0, 2)`` is dead and one pixel of camera ``(0, 0)``
+    is saturated:
+
+    >>> from hyperlf.calibration.board import BoardSpec
+    >>> from hyperlf.calibration.model import Calibration, CameraCalibration
+    >>> cams = {(0, c): CameraCalibration(f"Cam-{c}.png", np.array([float(c), 0.0]), 0.0,
+    ...                                   homography=np.eye(3)) for c in range(3)}
+    >>> cal = Calibration(mode="plane", grid=(1, 3), reference=(0, 1), image_size=(8, 6),
+    ...                   output_size=(8, 6), camera_matrix=np.diag([100.0, 100.0, 1.0]),
+    ...                   cameras=cams, board=BoardSpec(4, 3, 20.0), baseline=40.0,
+    ...                   board_plane=np.array([0.0, 0.0, 1.0, 500.0]))
+    >>> rng = np.random.default_rng(0)
+    >>> images = {k: rng.uniform(0.1, 0.9, (6, 8)).astype(np.float32) for k in [(0, 0), (0, 1)]}
+    >>> images[(0, 0)][2, 3] = 1.0
+    >>> lf = ingest(images, cal, dead=[(0, 2)], disparity_range=(-2, 2),
+    ...             wavelengths=[[450, 550, 650]])
+    >>> lf.views.shape, lf.reference, lf.disparity_range, lf.positions[0, 2].tolist()
+    ((1, 3, 6, 8), (0, 1), (-2.0, 2.0), [2.0, 0.0])
+    >>> bool(np.array_equal(lf.views[0, 1], images[(0, 1)]))
+    True
+    >>> bool(lf.valid[0, 0, 2, 3]), bool(lf.valid[0, 1].all()), bool(lf.valid[0, 2].any())
+    (False, True, False)
+    >>> lf.metadata["calibration"]["mode"], lf.metadata["calibration"]["baseline"]
+    ('plane', 40.0)
     """
     from ..lightfield import LightField
     from . import apply_calibration

@@ -231,6 +231,42 @@ def read_calibration(path: str | os.PathLike) -> Calibration:
     FormatError
         Not TOML, not a hyperlf calibration, or a missing/malformed entry (one line saying
         which).
+
+    Examples
+    --------
+    A calibration written with :func:`write_calibration` reads back whole (a hand-made plane
+    calibration of two cameras here; :func:`hyperlf.calibration.calibrate` makes real ones):
+
+    >>> import tempfile, pathlib
+    >>> from hyperlf.calibration.model import Calibration, CameraCalibration
+    >>> shift = np.array([[1.0, 0.0, 2.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    >>> cams = {(0, 0): CameraCalibration("left.png", np.zeros(2), 0.1, homography=np.eye(3)),
+    ...         (0, 1): CameraCalibration("right.png", np.array([1.0, 0.0]), 0.2,
+    ...                                   homography=shift)}
+    >>> cal = Calibration(mode="plane", grid=(1, 2), reference=(0, 0), image_size=(640, 480),
+    ...                   output_size=(640, 480), camera_matrix=np.diag([800.0, 800.0, 1.0]),
+    ...                   cameras=cams, board=BoardSpec(11, 8, 30.0), baseline=40.0,
+    ...                   board_plane=np.array([0.0, 0.0, 1.0, 1200.0]))
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> back = read_calibration(write_calibration(cal, folder / "calibration.toml"))
+    >>> back.mode, back.grid, back.reference, back.board
+    ('plane', (1, 2), (0, 0), BoardSpec(cols=11, rows=8, square=30.0))
+    >>> back.cameras[(0, 1)].name, back.positions().tolist()
+    ('right.png', [[[0.0, 0.0], [1.0, 0.0]]])
+    >>> bool(np.array_equal(back.cameras[(0, 1)].homography, shift))
+    True
+
+    A file that is not there, or not a calibration, is refused in one line:
+
+    >>> read_calibration(folder / "missing.toml")
+    Traceback (most recent call last):
+        ...
+    hyperlf.errors.DataNotFoundError: calibration file .../missing.toml does not exist; ...
+    >>> _ = (folder / "other.toml").write_text('format = "something else"')
+    >>> read_calibration(folder / "other.toml")
+    Traceback (most recent call last):
+        ...
+    hyperlf.errors.FormatError: calibration file ...: format is 'something else', expected ...
     """
     from .._options import path_like
 

@@ -39,6 +39,29 @@ def capture_geometry(calibration) -> dict:
         ``board_plane`` (``nx, ny, nz, dist``); ``focal_determined`` is False when the board pose
     did not fix the focal length (then no metric figure can be trusted: calibrate with
     ``--focal-px``).
+
+    Examples
+    --------
+    A hand-made plane calibration whose board stands 500 units in front of the reference
+    camera, square to its axis:
+
+    >>> from hyperlf.calibration.board import BoardSpec
+    >>> from hyperlf.calibration.model import Calibration, CameraCalibration
+    >>> cams = {(0, c): CameraCalibration(f"Cam-{c}.png", np.array([float(c), 0.0]), 0.0,
+    ...                                   homography=np.eye(3)) for c in range(2)}
+    >>> K = np.array([[100.0, 0.0, 1.0], [0.0, 100.0, 1.0], [0.0, 0.0, 1.0]])
+    >>> cal = Calibration(mode="plane", grid=(1, 2), reference=(0, 0), image_size=(3, 3),
+    ...                   output_size=(3, 3), camera_matrix=K, cameras=cams,
+    ...                   board=BoardSpec(4, 3, 20.0), baseline=40.0,
+    ...                   board_plane=np.array([0.0, 0.0, 1.0, 500.0]))
+    >>> g = capture_geometry(cal)
+    >>> g["mode"], g["baseline"], g["board_plane"], g["unit"]
+    ('plane', 40.0, [0.0, 0.0, 1.0, 500.0], 'board square units')
+
+    Zero disparity is the board plane; a positive one is nearer:
+
+    >>> depth_from_disparity(np.array([[0.0, 8.0]]), g).tolist()    # 1 / (8 / (f B) + 1 / 500)
+    [[500.0, 250.0]]
     """
     from .model import check_calibration
 
@@ -141,6 +164,22 @@ def point_cloud(depth: np.ndarray, geometry: Mapping, colours: np.ndarray | None
     points : ndarray, float32, shape (N, 3)
         In the reference camera's frame (x right, y down, z forward), board units.
     colours : ndarray, uint8, shape (N, 3) or None
+
+    Examples
+    --------
+    A 3 x 3 depth map at 500 units, one pixel without a depth, and a grey colour:
+
+    >>> g = {"mode": "full", "camera_matrix": [[100, 0, 1], [0, 100, 1], [0, 0, 1]],
+    ...      "baseline": 40.0}
+    >>> depth = np.full((3, 3), 500.0)
+    >>> depth[2, 2] = np.nan
+    >>> points, rgb = point_cloud(depth, g, colours=np.full((3, 3), 0.5))
+    >>> points.shape, rgb.shape, rgb[0].tolist()
+    ((8, 3), (8, 3), [128, 128, 128])
+    >>> points[0].tolist(), points[4].tolist()     # pixel (0, 0); the principal point (1, 1)
+    ([-5.0, -5.0, 500.0], [0.0, 0.0, 500.0])
+    >>> point_cloud(depth, g, step=2)[0].shape     # pixels (0, 0), (2, 0) and (0, 2)
+    (3, 3)
     """
     K, _, _ = _geometry(geometry)
     step = _opt.integer(step, "step", 1)

@@ -50,6 +50,16 @@ def feature_image(image: np.ndarray, *, sigma: float = 1.0) -> np.ndarray:
     image : ndarray (H, W)
     sigma : float
         Gaussian blur (px) before the Sobel gradient.
+
+    Examples
+    --------
+    A vertical step edge: the gradient is high on either side of it and zero elsewhere:
+
+    >>> step = np.zeros((10, 10), np.float32)
+    >>> step[:, 5:] = 1.0
+    >>> f = feature_image(step, sigma=0)
+    >>> f.dtype, f[5].tolist()
+    (dtype('float32'), [0.0, 0.0, 0.0, 0.0, 4.0, 4.0, 0.0, 0.0, 0.0, 0.0])
     """
     import cv2
 
@@ -67,7 +77,20 @@ def feature_image(image: np.ndarray, *, sigma: float = 1.0) -> np.ndarray:
 
 def select_points(image: np.ndarray, allowed: np.ndarray, *, spacing: int,
                   max_points: int = 600) -> np.ndarray:
-    """Well-textured points ``(N, 2)`` (``x, y``) inside ``allowed`` (Shi-Tomasi corners)."""
+    """Well-textured points ``(N, 2)`` (``x, y``) inside ``allowed`` (Shi-Tomasi corners).
+
+    Examples
+    --------
+    Points of a smooth random texture, searched in its left half only:
+
+    >>> from scipy.ndimage import gaussian_filter
+    >>> texture = gaussian_filter(np.random.default_rng(0).random((64, 64)), 2.0)
+    >>> allowed = np.zeros((64, 64), bool)
+    >>> allowed[:, :32] = True
+    >>> pts = select_points(texture, allowed, spacing=6)
+    >>> pts.shape[1], bool(len(pts) > 10), bool((pts[:, 0] < 32).all())
+    (2, True, True)
+    """
     import cv2
 
     img = real_array(image, "image", np.float32)
@@ -106,6 +129,22 @@ def match_flows(ref_feat: np.ndarray, view_feat: np.ndarray, points: np.ndarray,
     A point's patch (``2 half + 1`` px) is searched in ``view_feat`` within ``radius`` px.
     Points whose patch or search window leaves the image or the view's valid region, whose
     score is below ``min_score`` or whose peak sits on the search border get NaN flow.
+
+    Examples
+    --------
+    A texture moved 3 px right and 2 px up; the third point lies too near the border to be
+    searched:
+
+    >>> from scipy.ndimage import gaussian_filter
+    >>> texture = gaussian_filter(np.random.default_rng(0).random((64, 64)), 2.0)
+    >>> moved = np.roll(texture, (-2, 3), axis=(0, 1))
+    >>> points = np.array([[32.0, 32.0], [20.0, 40.0], [2.0, 2.0]])
+    >>> flows, scores = match_flows(feature_image(texture), feature_image(moved), points,
+    ...                             np.ones((64, 64), bool), half=5, radius=6)
+    >>> np.round(flows, 1).tolist()
+    [[3.0, -2.0], [3.0, -2.0], [nan, nan]]
+    >>> (scores > 0.99).tolist()
+    [True, True, False]
     """
     import cv2
 
@@ -397,6 +436,24 @@ def measured_disparity_range(views: np.ndarray, valid: np.ndarray, positions: np
     Returns
     -------
     (float, float) or None
+
+    Examples
+    --------
+    Three views in a row whose scene lies at a disparity of 2 px per baseline everywhere: the
+    range, widened by ``margin`` and to include 0, is rounded out to whole px:
+
+    >>> from scipy.ndimage import gaussian_filter
+    >>> texture = gaussian_filter(np.random.default_rng(0).random((60, 90)), 1.5)
+    >>> views = np.stack([np.roll(texture, -2 * (c - 1), axis=1) for c in range(3)])[None]
+    >>> positions = np.array([[[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]])
+    >>> valid = np.ones(views.shape, bool)
+    >>> measured_disparity_range(views, valid, positions, (0, 1))
+    (0.0, 3.0)
+
+    Views without texture give no range:
+
+    >>> print(measured_disparity_range(np.zeros_like(views), valid, positions, (0, 1)))
+    None
     """
     views, valid, positions, reference = _range_inputs(views, valid, positions, reference)
     o = check_values(dict(work_size=work_size, max_parallax=max_parallax, margin=margin,

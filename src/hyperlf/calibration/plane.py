@@ -84,7 +84,28 @@ def _corner_table(corners) -> Mapping:
 def board_homographies(corners: Mapping, reference, names: Mapping | None = None
                        ) -> tuple[dict, dict, dict]:
     """Homography (raw -> reference), RMS corner residual (px) and the residual vectors
-    (reference corners, mapped minus reference) of every camera, on the corners both saw."""
+    (reference corners, mapped minus reference) of every camera, on the corners both saw.
+
+    Examples
+    --------
+    The exact corners of one board pose in a two-camera rig without lens distortion (a
+    homography cannot undo distortion): each homography maps its camera's corners onto the
+    reference's.
+
+    >>> import cv2
+    >>> from hyperlf.calibration.rig import make_rig
+    >>> rig = make_rig(1, 2, seed=0, distortion=0.0)
+    >>> pose = rig.board_pose(450.0, tilt=(15.0, -10.0, 3.0))
+    >>> corners = {k: rig.project(k, pose.corners_world(rig.board)) for k in rig.cameras}
+    >>> Hs, errors, residuals = board_homographies(corners, (0, 0))
+    >>> Hs[(0, 0)].tolist()
+    [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+    >>> mapped = cv2.perspectiveTransform(corners[(0, 1)].reshape(-1, 1, 2), Hs[(0, 1)])
+    >>> bool(np.abs(mapped.reshape(-1, 2) - corners[(0, 0)]).max() < 1e-3)
+    True
+    >>> bool(errors[(0, 1)] < 1e-3), residuals[(0, 1)][1].shape
+    (True, (48, 2))
+    """
     import cv2
 
     _corner_table(corners)
@@ -122,6 +143,27 @@ def board_geometry(corners: Mapping, board: BoardSpec, image_size, reference, *,
     Returns a dict with ``focal`` (px), ``centres`` (camera centres in the reference camera's
     axes, board units, keyed like ``corners``), ``plane`` (the board plane ``(n, dist)`` in
     the reference frame) and ``rms`` (px).
+
+    Examples
+    --------
+    An ideal two-camera rig (``imperfect=0``: focal length 300 px, principal point at the image
+    centre, no distortion, cameras 40 units apart) and the exact corners of a tilted board:
+
+    >>> from hyperlf.calibration.rig import make_rig
+    >>> rig = make_rig(1, 2, seed=0, imperfect=0.0)
+    >>> pose = rig.board_pose(450.0, tilt=(15.0, -10.0, 3.0))
+    >>> corners = {k: rig.project(k, pose.corners_world(rig.board)) for k in rig.cameras}
+    >>> geo = board_geometry(corners, rig.board, rig.image_size, (0, 0))
+    >>> bool(abs(geo["focal"] - 300.0) < 0.01)
+    True
+    >>> bool(np.allclose(geo["centres"][(0, 1)], [40.0, 0.0, 0.0], atol=1e-3))
+    True
+
+    The board plane ``n . X = dist`` in the reference camera's frame (here the world's):
+
+    >>> n = pose.R[:, 2]
+    >>> bool(np.allclose(geo["plane"], [*n, n @ pose.t], atol=1e-4))
+    True
     """
     import cv2
 
@@ -160,7 +202,17 @@ def board_geometry(corners: Mapping, board: BoardSpec, image_size, reference, *,
 
 
 def board_outline(corners: np.ndarray, board: BoardSpec, *, margin: float = 1.6) -> np.ndarray:
-    """Image polygon ``(4, 2)`` of the board including ``margin`` squares around its corners."""
+    """Image polygon ``(4, 2)`` of the board including ``margin`` squares around its corners.
+
+    Examples
+    --------
+    A 3 x 3 board whose corners lie 10 px apart in the image, outlined one square beyond them:
+
+    >>> j, i = np.mgrid[0:3, 0:3]
+    >>> corners = np.stack([10.0 * i + 50, 10.0 * j + 50], -1).reshape(-1, 2)
+    >>> np.round(board_outline(corners, BoardSpec(3, 3), margin=1.0), 3).tolist()
+    [[40.0, 40.0], [80.0, 40.0], [80.0, 80.0], [40.0, 80.0]]
+    """
     import cv2
 
     check_board(board)
@@ -223,6 +275,29 @@ def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, boar
     dict with ``offsets`` (key -> (2,) in full-resolution px per unit d, NaN if unknown),
     ``n_points``, ``rms`` (px), ``median_flow`` (px), ``d`` (per point) and ``consistent``
     (key -> at how many points that view's flow fits the common parallax model).
+
+    Examples
+    --------
+    One board shot per camera of a small synthetic 1 x 3 rig; the scene around the board gives
+    the outer cameras' offsets, which point along the rig's true positions (up to the free
+    scale and sign):
+
+    >>> from hyperlf.calibration.board import detect_boards, orders_like
+    >>> from hyperlf.calibration.rig import make_rig
+    >>> rig = make_rig(1, 3, seed=1, imperfect=0.3, image_size=(160, 120), focal=150.0)
+    >>> pose = rig.board_pose(450.0, tilt=(10.0, -8.0, 3.0))
+    >>> shots = rig.render(pose, supersample=2)
+    >>> corners = orders_like(detect_boards(shots, rig.board), (0, 1), rig.board)
+    >>> Hs = board_homographies(corners, (0, 1))[0]
+    >>> par = parallax_offsets(shots, Hs, corners[(0, 1)], rig.board, (0, 1))
+    >>> par["offsets"][(0, 1)].tolist(), bool(par["n_points"] >= 8)
+    ([0.0, 0.0], True)
+    >>> truth = rig.true_positions()
+    >>> found = np.stack([par["offsets"][k] for k in truth])
+    >>> exact = np.stack(list(truth.values()))
+    >>> cosine = np.sum(found * exact) / (np.linalg.norm(found) * np.linalg.norm(exact))
+    >>> bool(abs(cosine) > 0.99)
+    True
     """
     import cv2
 
@@ -310,6 +385,23 @@ def turned_cameras(shots: Mapping, corners: Mapping, board: BoardSpec, reference
         positions are measured from; not computed again).
     corners : dict
         ``corners`` with the turned cameras' in their found order.
+
+    Examples
+    --------
+    A small synthetic 2 x 2 rig whose camera ``(1, 1)`` is mounted upside down: its corners,
+    put in the reference's order, run the wrong way round, and are turned back:
+
+    >>> import dataclasses
+    >>> from hyperlf.calibration.board import detect_boards, orders_like
+    >>> from hyperlf.calibration.rig import make_rig, rotation_matrix
+    >>> rig = make_rig(2, 2, seed=0, imperfect=0.3, image_size=(160, 120), focal=150.0)
+    >>> cam = rig.cameras[(1, 1)]
+    >>> rig.cameras[(1, 1)] = dataclasses.replace(cam, R=rotation_matrix(0, 0, 180) @ cam.R)
+    >>> shots = rig.render(rig.board_pose(450.0, tilt=(10.0, -8.0, 3.0)), supersample=2)
+    >>> corners = orders_like(detect_boards(shots, rig.board), (0, 0), rig.board)
+    >>> turned, parallax, fixed = turned_cameras(shots, corners, rig.board, (0, 0))
+    >>> turned, bool(np.array_equal(fixed[(1, 1)], corners[(1, 1)][::-1]))
+    ([(1, 1)], True)
     """
     check_board(board)
     check_images(shots, names, what="board shot")
@@ -367,6 +459,21 @@ def resolve_positions(offsets: Mapping, pose_centres: Mapping, reference) -> tup
     camera to its nearest neighbour is 1, and signed to agree with the board-pose centres'
     ``(x, y)`` (the physical direction). The score is the cosine between the two sets of
     offsets: near 1 when they agree, near 0 when the pose centres cannot tell the sign.
+
+    Examples
+    --------
+    Offsets of a row of three cameras at an arbitrary scale and with the opposite sign of the
+    board-pose centres; they become positions one baseline apart, signed like the centres:
+
+    >>> offsets = {(0, 0): np.array([0.0, 0.0]), (0, 1): np.array([-2.0, 0.0]),
+    ...            (0, 2): np.array([-4.0, 0.0])}
+    >>> centres = {(0, 0): np.zeros(3), (0, 1): np.array([40.0, 1.0, 0.0]),
+    ...            (0, 2): np.array([80.0, -1.0, 0.0])}
+    >>> positions, agreement = resolve_positions(offsets, centres, (0, 0))
+    >>> [(positions[k] + 0.0).tolist() for k in sorted(positions)]   # + 0.0: no -0.0
+    [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]
+    >>> round(float(agreement), 3)
+    1.0
     """
     check_keys(offsets, "offsets")
     check_keys(pose_centres, "pose_centres")

@@ -135,7 +135,22 @@ def _numbered_from_one_hint(root: Path, pattern: str, index: int, row: int, col:
 
 def beyond_grid(folder: str | os.PathLike, pattern: str, grid: tuple[int, int]) -> Path | None:
     """A file the pattern names for a camera just outside the grid (``{index}`` = R * C, or row
-    R / column C), when there is one: a sign that ``grid`` is smaller than the array."""
+    R / column C), when there is one: a sign that ``grid`` is smaller than the array.
+
+    Examples
+    --------
+    Four camera files, but a grid of 1 x 3 cameras: ``Cam-3.png`` suggests the grid is too
+    small.
+
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> for i in range(4):
+    ...     (folder / f"Cam-{i}.png").touch()
+    >>> beyond_grid(folder, "Cam-{index}.png", (1, 3)).name
+    'Cam-3.png'
+    >>> print(beyond_grid(folder, "Cam-{index}.png", (2, 2)))
+    None
+    """
     from ..formats.patterns import expand_pattern
 
     folder = _check_folder(folder)
@@ -160,6 +175,21 @@ def pose_folders(folder: str | os.PathLike, pattern: str, grid: tuple[int, int])
     DataNotFoundError
         ``folder`` does not exist, or neither it nor any subfolder holds a file for every
         camera.
+
+    Examples
+    --------
+    Two pose folders with a file for each camera of a 1 x 2 array, and one without:
+
+    >>> import tempfile, pathlib
+    >>> root = pathlib.Path(tempfile.mkdtemp())
+    >>> for name, n in (("pose1", 2), ("pose0", 2), ("notes", 1)):
+    ...     (root / name).mkdir()
+    ...     for i in range(n):
+    ...         (root / name / f"Cam-{i}.png").touch()
+    >>> [p.name for p in pose_folders(root, "Cam-{index}.png", (1, 2))]
+    ['pose0', 'pose1']
+    >>> [p.name for p in pose_folders(root / "pose1", "Cam-{index}.png", (1, 2))]
+    ['pose1']
     """
     root = _check_folder(folder)
     _check_pattern(pattern)
@@ -228,6 +258,25 @@ def read_raw_image(path, *, bits: int | None = None) -> np.ndarray:
     ------
     InvalidInputError
         A value above what ``bits`` bits hold.
+
+    Examples
+    --------
+    A 16-bit PNG holding the value 2000: scaled by the file's full scale, or by a 12-bit
+    sensor's:
+
+    >>> import tempfile, pathlib
+    >>> from hyperlf.formats.images import write_image
+    >>> path = write_image(pathlib.Path(tempfile.mkdtemp()) / "Cam-0.png",
+    ...                    np.full((4, 6), 2000, np.uint16))
+    >>> img = read_raw_image(path)
+    >>> img.dtype, img.shape, bool(abs(img[0, 0] - 2000 / 65535) < 1e-6)
+    (dtype('float32'), (4, 6), True)
+    >>> bool(abs(read_raw_image(path, bits=12)[0, 0] - 2000 / 4095) < 1e-6)
+    True
+    >>> read_raw_image(path, bits=10)
+    Traceback (most recent call last):
+        ...
+    hyperlf.errors.InvalidInputError: ...: values up to 2000, more than 10-bit data holds (1023)...
     """
     from ..formats.images import read_image
 
@@ -286,6 +335,23 @@ def read_camera_images(files: dict, *, where: str = "", bits: int | None = None,
     Returns
     -------
     dict, or (dict, RawScale)
+
+    Examples
+    --------
+    Two cameras whose 16-bit files hold values of a 12-bit sensor (at most 4095): the images
+    are scaled by ``2**12 - 1``:
+
+    >>> import tempfile, pathlib
+    >>> from hyperlf.formats.images import write_image
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> for i, value in enumerate((1000, 4000)):
+    ...     _ = write_image(folder / f"Cam-{i}.png", np.full((4, 6), value, np.uint16))
+    >>> files = camera_files(folder, "Cam-{index}.png", (1, 2))
+    >>> images, scale = read_camera_images(files, return_scale=True)
+    >>> sorted(images), images[(0, 1)].shape, scale
+    ([(0, 0), (0, 1)], (4, 6), RawScale(bits=12, file_bits=16))
+    >>> bool(abs(images[(0, 1)][0, 0] - 4000 / 4095) < 1e-6)
+    True
     """
     from ..formats.images import read_image, read_images_same_size
 
@@ -336,6 +402,21 @@ def read_poses(folder: str | os.PathLike, pattern: str, grid: tuple[int, int]) -
     ------
     InvalidInputError
         The poses do not all have the same image size.
+
+    Examples
+    --------
+    Board shots of a 1 x 2 array in two pose folders:
+
+    >>> import tempfile, pathlib
+    >>> from hyperlf.formats.images import write_image
+    >>> root = pathlib.Path(tempfile.mkdtemp())
+    >>> for pose in ("pose0", "pose1"):
+    ...     (root / pose).mkdir()
+    ...     for i in range(2):
+    ...         _ = write_image(root / pose / f"Cam-{i}.png", np.full((4, 6), 0.5))
+    >>> shots = read_poses(root, "Cam-{index}.png", (1, 2))
+    >>> sorted(shots), len(shots[(0, 1)]), shots[(0, 1)][0].shape
+    ([(0, 0), (0, 1)], 2, (4, 6))
     """
     per: dict = {}
     shape = None
