@@ -583,6 +583,33 @@ def test_saturated_pixels_are_invalid(plane_shots, plane_cal):
     assert not valid[0, 0, y, x]
 
 
+@pytest.mark.parametrize("mark", ["nan", "saturated"])
+def test_an_invalid_raw_pixel_invalidates_only_the_samples_that_weigh_it(mark):
+    """A NaN raw pixel (ingest's mark of a saturated pixel, or of a NaN in the dark frame or
+    flat field) and a saturated one leave invalid exactly the samples whose bilinear taps weigh
+    them: the pixel itself under an identity warp, its two neighbours in the row under a
+    half-pixel shift. A NaN warped with the image made the pixels above and to the left of it
+    invalid too (a zero-weight tap reads it, 0 * NaN), so ingest lost a 2 x 2 block per
+    saturated pixel."""
+    from hyperlf.calibration.model import Calibration, CameraCalibration
+
+    shift = {0: np.eye(3), 1: np.array([[1.0, 0.0, 0.5], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])}
+    cams = {(0, c): CameraCalibration(f"Cam-{c}.png", np.array([float(c), 0.0]), 0.0,
+                                      homography=shift[c]) for c in range(2)}
+    cal = Calibration(mode="plane", grid=(1, 2), reference=(0, 0), image_size=(8, 6),
+                      output_size=(8, 6), camera_matrix=np.diag([100.0, 100.0, 1.0]),
+                      cameras=cams, board=BoardSpec(4, 3, 20.0), baseline=40.0,
+                      board_plane=np.array([0.0, 0.0, 1.0, 500.0]))
+    img = np.random.default_rng(0).uniform(0.1, 0.9, (6, 8)).astype(np.float32)
+    img[2, 3] = np.nan if mark == "nan" else 1.0
+    views, valid = apply_calibration(cal, {(0, 0): img, (0, 1): img},
+                                     saturation=None if mark == "nan" else 1.0)
+    assert np.argwhere(~valid[0, 0]).tolist() == [[2, 3]]
+    # the shifted view's first column samples outside the image; the NaN weighs on two
+    assert np.argwhere(~valid[0, 1][:, 1:]).tolist() == [[2, 2], [2, 3]]
+    assert np.isfinite(views).all()
+
+
 def test_inconsistent_inputs_are_clear_errors(rig, plane_shots):
     holes = {k: v for k, v in plane_shots.items() if k != (0, 1)}
     with pytest.raises(InvalidInputError, match=r"no image for \(0, 1\)"):

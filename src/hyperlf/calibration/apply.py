@@ -1,9 +1,9 @@
 """Apply a calibration to raw images: registered/rectified views and per-view validity masks.
 
 A pixel of a registered view is valid when it samples the camera's image inside its borders
-(bilinear taps all inside) and, when a saturation level is given, no tap is saturated. Invalid
-pixels are set to 0 in the views, and the masks say which they are, so that every cost can
-leave them out instead of matching black (SPEC §11).
+(bilinear taps all inside) and no tap it weighs is NaN or, when a saturation level is given,
+saturated. Invalid pixels are set to 0 in the views, and the masks say which they are, so
+that every cost can leave them out instead of matching black (SPEC §11).
 """
 
 from __future__ import annotations
@@ -197,11 +197,17 @@ def apply_calibration(calibration: Calibration, images: Mapping, *, names=None,
         mx, my = view_maps(calibration, (r, c))
         Hs, Ws = src.shape
         inside = (mx >= 0) & (mx <= Ws - 1) & (my >= 0) & (my <= Hs - 1)
-        out = cv2.remap(src, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        bad = ~np.isfinite(src)  # NaN marks a pixel invalid (ingest: saturated, dark, flat)
         if saturation is not None:
-            sat = cv2.remap((src >= saturation).astype(np.float32), mx, my, cv2.INTER_LINEAR,
-                            borderMode=cv2.BORDER_REPLICATE)
-            inside &= sat <= 0
+            bad |= src >= saturation
+        if bad.any():
+            # the mask is warped like the image, so a bad tap of zero weight (a sample on a
+            # pixel's own row or column) leaves the sample valid; a NaN warped with the image
+            # made its neighbours above and to the left invalid too (0 * NaN)
+            src = np.where(bad, np.float32(0.0), src)
+            inside &= cv2.remap(bad.astype(np.float32), mx, my, cv2.INTER_LINEAR,
+                                borderMode=cv2.BORDER_REPLICATE) <= 0
+        out = cv2.remap(src, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         inside &= np.isfinite(out)
         views[r, c] = np.where(inside, out, 0.0)
         valid[r, c] = inside

@@ -234,8 +234,10 @@ def ingest(images: Mapping, calibration, *, wavelengths=None, dark=None, flat=No
     ((1, 3, 6, 8), (0, 1), (-2.0, 2.0), [2.0, 0.0])
     >>> bool(np.array_equal(lf.views[0, 1], images[(0, 1)]))
     True
-    >>> bool(lf.valid[0, 0, 2, 3]), bool(lf.valid[0, 1].all()), bool(lf.valid[0, 2].any())
-    (False, True, False)
+    >>> np.argwhere(~lf.valid[0, 0]).tolist()  # the saturated pixel alone
+    [[2, 3]]
+    >>> bool(lf.valid[0, 1].all()), bool(lf.valid[0, 2].any())
+    (True, False)
     >>> lf.metadata["calibration"]["mode"], lf.metadata["calibration"]["baseline"]
     ('plane', 40.0)
     """
