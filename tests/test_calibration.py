@@ -583,6 +583,31 @@ def test_saturated_pixels_are_invalid(plane_shots, plane_cal):
     assert not valid[0, 0, y, x]
 
 
+def _plane_calibration(homographies, size):
+    """A hand-made plane calibration of a 1 x N row, camera ``c`` at ``c`` baselines, the
+    first the reference, each camera's homography given."""
+    from hyperlf.calibration.model import Calibration, CameraCalibration
+
+    cams = {(0, c): CameraCalibration(f"Cam-{c}.png", np.array([float(c), 0.0]), 0.0,
+                                      homography=h) for c, h in enumerate(homographies)}
+    return Calibration(mode="plane", grid=(1, len(cams)), reference=(0, 0), image_size=size,
+                       output_size=size, camera_matrix=np.diag([100.0, 100.0, 1.0]),
+                       cameras=cams, board=BoardSpec(4, 3, 20.0), baseline=40.0,
+                       board_plane=np.array([0.0, 0.0, 1.0, 500.0]))
+
+
+def test_ingest_of_views_without_parallax_gets_a_range():
+    """Every camera seeing the scene at the zero-disparity plane (identical registered views):
+    the measured range was (0.0, -0.0), and ingest failed inside LightField with a message
+    about its own arguments. It is now one px each way."""
+    from hyperlf.calibration.ingest import ingest
+
+    texture = cv2.GaussianBlur(np.random.default_rng(1).random((90, 120)), (0, 0), 1.5)
+    cal = _plane_calibration([np.eye(3)] * 3, (120, 90))
+    lf = ingest({(0, c): texture.astype(np.float32) for c in range(3)}, cal)
+    assert lf.disparity_range == (-1.0, 1.0)
+
+
 @pytest.mark.parametrize("mark", ["nan", "saturated"])
 def test_an_invalid_raw_pixel_invalidates_only_the_samples_that_weigh_it(mark):
     """A NaN raw pixel (ingest's mark of a saturated pixel, or of a NaN in the dark frame or
@@ -591,15 +616,8 @@ def test_an_invalid_raw_pixel_invalidates_only_the_samples_that_weigh_it(mark):
     half-pixel shift. A NaN warped with the image made the pixels above and to the left of it
     invalid too (a zero-weight tap reads it, 0 * NaN), so ingest lost a 2 x 2 block per
     saturated pixel."""
-    from hyperlf.calibration.model import Calibration, CameraCalibration
-
-    shift = {0: np.eye(3), 1: np.array([[1.0, 0.0, 0.5], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])}
-    cams = {(0, c): CameraCalibration(f"Cam-{c}.png", np.array([float(c), 0.0]), 0.0,
-                                      homography=shift[c]) for c in range(2)}
-    cal = Calibration(mode="plane", grid=(1, 2), reference=(0, 0), image_size=(8, 6),
-                      output_size=(8, 6), camera_matrix=np.diag([100.0, 100.0, 1.0]),
-                      cameras=cams, board=BoardSpec(4, 3, 20.0), baseline=40.0,
-                      board_plane=np.array([0.0, 0.0, 1.0, 500.0]))
+    half = np.array([[1.0, 0.0, 0.5], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    cal = _plane_calibration([np.eye(3), half], (8, 6))
     img = np.random.default_rng(0).uniform(0.1, 0.9, (6, 8)).astype(np.float32)
     img[2, 3] = np.nan if mark == "nan" else 1.0
     views, valid = apply_calibration(cal, {(0, 0): img, (0, 1): img},

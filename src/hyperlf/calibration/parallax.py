@@ -413,8 +413,9 @@ def measured_disparity_range(views: np.ndarray, valid: np.ndarray, positions: np
     matched in every other view (gradient images, NCC: cross-spectral, :func:`match_flows`);
     each point's disparity is the least-squares ``d`` of ``flow_v = -d (p_v - p_hub)`` over the
     views that matched it (two at least; points the fit leaves more than ``max_residual`` px
-    off on average are mismatches). The range is ``margin`` times the 1st and 99th percentiles, widened to include 0 and rounded
-    outwards to whole px per baseline.
+    off on average are mismatches). The range is ``margin`` times the 1st and 99th percentiles,
+    widened to include 0 and rounded outwards to whole px per baseline; one without any
+    parallax is (-1, 1).
 
     Parameters
     ----------
@@ -450,6 +451,11 @@ def measured_disparity_range(views: np.ndarray, valid: np.ndarray, positions: np
     >>> measured_disparity_range(views, valid, positions, (0, 1))
     (0.0, 3.0)
 
+    Views without parallax (the scene at the zero-disparity plane) get one px each way:
+
+    >>> measured_disparity_range(np.repeat(views[:, 1:2], 3, axis=1), valid, positions, (0, 1))
+    (-1.0, 1.0)
+
     Views without texture give no range:
 
     >>> print(measured_disparity_range(np.zeros_like(views), valid, positions, (0, 1)))
@@ -469,7 +475,10 @@ def measured_disparity_range(views: np.ndarray, valid: np.ndarray, positions: np
     if use.sum() < min_points:
         return None
     lo, hi = np.percentile(d[use], [1, 99]) * margin
-    return float(np.floor(min(lo, 0.0))), float(np.ceil(max(hi, 0.0)))
+    lo, hi = float(np.floor(min(lo, 0.0))) + 0.0, float(np.ceil(max(hi, 0.0))) + 0.0  # no -0.0
+    if hi <= lo:  # no parallax at all (every point at the zero-disparity plane): one px each way
+        lo, hi = lo - 1.0, hi + 1.0
+    return lo, hi
 
 
 def _range_inputs(views, valid, positions, reference) -> tuple:
