@@ -309,6 +309,72 @@ def test_positions_the_board_poses_contradict_are_refused():
     assert POSITION_DISAGREEMENT < 1
 
 
+def _position_error(rig, cal) -> float:
+    """RMS distance (baselines) of the calibration's camera positions from the rig's true
+    ones, both relative to the reference."""
+    ref = cal.reference
+    keys = sorted(cal.cameras)
+    true = np.array([rig.cameras[k].centre[:2] - rig.cameras[ref].centre[:2] for k in keys])
+    est = np.array([cal.cameras[k].position - cal.cameras[ref].position for k in keys])
+    return float(np.sqrt(np.mean(np.sum((est - true / rig.baseline) ** 2, 1))))
+
+
+def test_cameras_two_baselines_from_the_hub_get_their_positions_from_parallax():
+    """A 2 x 4 array's outer column is two baselines from the reference: its parallax is twice
+    its neighbours', beyond the search radius that suits them, and its positions came out
+    garbage (16.7 baselines off here; 1-2.4 on other seeds and poses), with no warning. The
+    views the common model fits poorly are now matched again with a wider radius cut to the
+    image (measured on seeds 0-2, square-on and tilted: 0.04-0.06 baselines off)."""
+    rig = make_rig(2, 4, seed=0, image_size=(320, 240))
+    cal = register_plane(rig.render(rig.board_pose(450.0), supersample=2), rig.board)
+    assert cal.info["positions_from"] == "parallax"
+    assert _position_error(rig, cal) < 0.15
+
+
+def test_a_square_on_board_leaves_the_focal_length_undetermined_and_is_not_refused():
+    """OpenCV gives a focal length's standard deviation of 1e-7 px, not 0, for a board that
+    faces the cameras squarely: it was taken as precise, the board poses' centres were
+    trusted, and a capture whose parallax measured its positions right (0.03 baselines) was
+    refused as contradicting them."""
+    rig = make_rig(3, 3, seed=2, image_size=(320, 240))
+    cal = register_plane(rig.render(rig.board_pose(450.0), supersample=2), rig.board)
+    assert cal.info["focal_determined"] is False
+    assert cal.info["positions_from"] == "parallax" and _position_error(rig, cal) < 0.1
+
+
+def test_match_flows_with_a_window_cut_to_the_image():
+    """Near the border a full search window leaves the image and the point is not searched;
+    cut to the image it is, and its flow is the same; a peak on the cut is refused."""
+    from scipy.ndimage import gaussian_filter
+
+    from hyperlf.calibration.parallax import feature_image, match_flows
+
+    texture = gaussian_filter(np.random.default_rng(0).random((64, 64)), 2.0)
+    moved = np.roll(texture, (-2, 3), axis=(0, 1))
+    points = np.array([[10.0, 32.0], [32.0, 32.0], [32.0, 57.0]])
+    args = (feature_image(texture), feature_image(moved), points, np.ones((64, 64), bool))
+    plain = match_flows(*args, half=5, radius=12)[0]
+    cut = match_flows(*args, half=5, radius=12, clip=True)[0]
+    assert np.isnan(plain[[0, 2]]).all()
+    np.testing.assert_allclose(cut[:2], [[3.0, -2.0], [3.0, -2.0]], atol=0.1)
+    np.testing.assert_array_equal(cut[1], plain[1])  # inside, the two agree bit for bit
+    # the third point's match lies past the image's bottom edge, so its peak sits on the cut
+    assert np.isnan(match_flows(feature_image(texture), feature_image(np.roll(texture, 8, 0)),
+                                points[2:], np.ones((64, 64), bool), half=5, radius=12,
+                                clip=True)[0]).all()
+
+
+def test_a_board_block_that_is_the_whole_board_is_placed():
+    """The partial-board search, handed a block as large as the board, asked OpenCV to move
+    no points and failed on its None (an AttributeError out of register_plane, on small
+    images of a board facing the cameras squarely)."""
+    b = BoardSpec(5, 4)
+    j, i = np.mgrid[0:4, 0:5]
+    full = np.stack([40.0 * i + 50, 40.0 * j + 50], -1)
+    placed = place_partial_grid(full, b, (300, 300))
+    np.testing.assert_array_equal(placed, full.reshape(-1, 2))
+
+
 # ----------------------------------------------------------------------------- plane mode
 def test_plane_registration_positions_and_residuals(rig, plane_cal):
     truth = rig.true_positions("reference")

@@ -783,9 +783,14 @@ def _cmd_calibrate(args, dest) -> list[Path]:
                                    reference=args.reference, focal_px=args.focal_px,
                                    log=lambda m: _say(args, m))
     if cal.info.get("focal_determined") is False:
-        _say(args, "note: the board faces the cameras too squarely to fix the focal length; "
-                   "registration and positions are fine, but for metric depth give "
-                   "--focal-px (focal length / pixel pitch)")
+        positions = ("registration and positions are fine" if cal.info.get("positions_from")
+                     == "parallax" else "registration is fine, but the cameras' positions, "
+                     "from the board poses alone, may be off by a baseline or more (check "
+                     "them in calibration.toml; a shot whose scene has texture beside the "
+                     "board at other depths measures them)")
+        _say(args, f"note: the board faces the cameras too squarely to fix the focal length; "
+                   f"{positions}; for metric depth give --focal-px (focal length / pixel "
+                   "pitch) or tilt the board")
     if cal.info.get("parallax_unused"):
         _say(args, "note: positions from the board poses, not from the scene's parallax ("
                    f"{cal.info['parallax_unused']}); 'hyperlf ingest' then measures the "

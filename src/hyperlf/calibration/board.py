@@ -490,6 +490,9 @@ def place_partial_grid(grid: np.ndarray, board: BoardSpec, shape) -> np.ndarray 
         for j0 in range(board.cols - c + 1):
             idx = np.stack([ib.ravel() - j0, jb.ravel() - i0], 1).astype(np.float64)
             unseen = ~((idx[:, 0] >= 0) & (idx[:, 0] < c) & (idx[:, 1] >= 0) & (idx[:, 1] < r))
+            if not unseen.any():  # the block is the whole board (OpenCV gives None for none)
+                places.append((i0, j0))
+                continue
             pred = cv2.perspectiveTransform(idx[unseen].reshape(-1, 1, 2), H).reshape(-1, 2)
             if not np.any(_in_image(pred, shape, 0.9 * spacing)):
                 places.append((i0, j0))

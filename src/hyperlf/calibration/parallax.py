@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._options import (bool_mask, check_values, index, int_pair, integer, number, real,
+from .._options import (bool_mask, check_values, flag, index, int_pair, integer, number, real,
                         real_array, rule, shown)
 from ..errors import InvalidInputError
 
@@ -123,12 +123,15 @@ def _subpixel(score: np.ndarray, iy: int, ix: int) -> tuple[float, float]:
 
 def match_flows(ref_feat: np.ndarray, view_feat: np.ndarray, points: np.ndarray,
                 view_valid: np.ndarray, *, half: int, radius: int,
-                min_score: float = 0.6) -> tuple[np.ndarray, np.ndarray]:
+                min_score: float = 0.6, clip: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Flow ``(N, 2)`` of every point from the reference into a view, and its NCC score.
 
     A point's patch (``2 half + 1`` px) is searched in ``view_feat`` within ``radius`` px.
     Points whose patch or search window leaves the image or the view's valid region, whose
     score is below ``min_score`` or whose peak sits on the search border get NaN flow.
+    With ``clip`` the search window is cut to the image instead (only the patch must lie
+    inside it): a wide radius then still searches the points away from the image's centre,
+    and a peak on the cut is refused as one on the window's border is.
 
     Examples
     --------
@@ -165,24 +168,30 @@ def match_flows(ref_feat: np.ndarray, view_feat: np.ndarray, points: np.ndarray,
     H, W = ref_feat.shape
     flows = np.full((len(points), 2), np.nan)
     scores = np.zeros(len(points))
+    clip = flag(clip, "clip")
     reach = half + radius
     for i, (x, y) in enumerate(np.round(points).astype(int)):
-        if x - reach < 0 or y - reach < 0 or x + reach >= W or y + reach >= H:
+        x0, y0, x1, y1 = x - reach, y - reach, x + reach + 1, y + reach + 1
+        if clip:
+            if x - half < 0 or y - half < 0 or x + half >= W or y + half >= H:
+                continue
+            x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, W), min(y1, H)
+        elif x0 < 0 or y0 < 0 or x1 > W or y1 > H:
             continue
-        if not view_valid[y - reach:y + reach + 1, x - reach:x + reach + 1].all():
+        if not view_valid[y0:y1, x0:x1].all():
             continue
         tpl = ref_feat[y - half:y + half + 1, x - half:x + half + 1]
         if tpl.std() < 1e-6:
             continue
-        win = view_feat[y - reach:y + reach + 1, x - reach:x + reach + 1]
-        score = cv2.matchTemplate(win, tpl, cv2.TM_CCOEFF_NORMED)
+        score = cv2.matchTemplate(view_feat[y0:y1, x0:x1], tpl, cv2.TM_CCOEFF_NORMED)
         iy, ix = np.unravel_index(int(np.argmax(score)), score.shape)
         best = float(score[iy, ix])
         on_border = ix in (0, score.shape[1] - 1) or iy in (0, score.shape[0] - 1)
         if not np.isfinite(best) or best < min_score or on_border:
             continue
         dx, dy = _subpixel(score, iy, ix)
-        flows[i] = (ix + dx - radius, iy + dy - radius)
+        # the window's cut (0 unless clipped) added last: unclipped flows keep their bits
+        flows[i] = (ix + dx - radius + (x0 - x + reach), iy + dy - radius + (y0 - y + reach))
         scores[i] = best
     return flows, scores
 

@@ -135,6 +135,11 @@ def board_homographies(corners: Mapping, reference, names: Mapping | None = None
 #: Relative standard deviation above which a board pose does not determine the focal length.
 FOCAL_TOLERANCE = 0.05
 
+#: Standard deviation (px) of the focal length below which OpenCV's figure means a singular
+#: problem, not a precise one: corners found to a tenth of a pixel never fix a focal length to
+#: a thousandth. A board facing the cameras squarely gives 1e-7 px (or exactly 0).
+SINGULAR_FOCAL_STD = 1e-3
+
 
 def board_geometry(corners: Mapping, board: BoardSpec, image_size, reference, *,
                    focal_px: float | None = None) -> dict:
@@ -325,10 +330,13 @@ def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, boar
     radius = max(6, int(round(max_parallax * max(h, w))))
     pts = select_points(feats[hub], allowed > 0, spacing=half)
     others = [k for k in images if k != hub]
-    flows = np.stack([match_flows(feats[hub], feats[k], pts, valid[k], half=half,
-                                  radius=radius)[0] for k in others]) if len(pts) else \
-        np.zeros((len(others), 0, 2))
-    fac = factor_rank1(flows)
+
+    def match(k, grow=1):  # a wider search is cut to the image, not refused at its border
+        return match_flows(feats[hub], feats[k], pts, valid[k], half=half,
+                           radius=grow * radius, clip=grow > 1)[0]
+
+    flows = np.stack([match(k) for k in others]) if len(pts) else np.zeros((len(others), 0, 2))
+    flows, fac = _reach_far_views(flows, factor_rank1(flows), lambda i, g: match(others[i], g))
     consistent = {hub: len(pts)}
     consistent.update({k: int(n) for k, n in zip(others, fac.inliers.sum(1))})
     found = dict(zip(others, fac.offsets))   # p_k - p_hub, in the reference's axes
@@ -344,6 +352,32 @@ def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, boar
     return {"offsets": offsets, "n_points": int(used.sum()), "rms": fac.rms / scale
             if np.isfinite(fac.rms) else np.nan, "median_flow": med, "d": fac.d,
             "reach": reach, "consistent": consistent}
+
+
+#: How many times the search radius a view that the first radius may not reach is matched
+#: again with, in turn (:func:`_reach_far_views`).
+FAR_VIEW_GROWTH = (2, 3)
+
+
+def _reach_far_views(flows: np.ndarray, fac, match, *, share: float = 0.5):
+    """A camera two or more baselines from the hub sees the scene move two or more times as
+    far as its neighbours do, beyond a search radius that suits them: its flows are then
+    mismatches or missing, and the common model fits few of its points. Each view consistent
+    at fewer than ``share`` of the median view's points is matched again with the radius
+    times :data:`FAR_VIEW_GROWTH` in turn (``match(i, growth)``), and the flows are kept when
+    the model then fits more entries in all. Returns ``(flows, factorisation)``."""
+    for grow in FAR_VIEW_GROWTH:
+        counts = fac.inliers.sum(1)
+        weak = np.flatnonzero(counts < share * np.median(counts)) if counts.size else []
+        if not len(weak):
+            break
+        wider = flows.copy()
+        for i in weak:
+            wider[i] = match(int(i), grow)
+        refit = factor_rank1(wider)
+        if refit.inliers.sum() > fac.inliers.sum():
+            flows, fac = wider, refit
+    return flows, fac
 
 
 def turned_cameras(shots: Mapping, corners: Mapping, board: BoardSpec, reference, *,
@@ -598,10 +632,11 @@ def _board_info(geo: dict, corners: dict, board: BoardSpec, ref, names, focal_px
             **turn_report({k: c for k, c in corners.items() if k != ref},
                           {k: corners[ref] for k in corners}, board, names)}
     # a board facing the cameras squarely leaves the focal length (and so every metric
-    # figure) undetermined: its standard deviation says so (OpenCV reports 0 when the
-    # problem is singular)
+    # figure) undetermined: its standard deviation says so (OpenCV reports 0, or next to
+    # nothing, when the problem is singular)
     info["focal_determined"] = bool(focal_px) or bool(
-        np.isfinite(geo["focal_std"]) and 0 < geo["focal_std"] < FOCAL_TOLERANCE * geo["focal"])
+        np.isfinite(geo["focal_std"])
+        and SINGULAR_FOCAL_STD < geo["focal_std"] < FOCAL_TOLERANCE * geo["focal"])
     return info
 
 
