@@ -277,3 +277,13 @@ def test_table1_pixel_classes_on_art():
     assert share["hidden"] == pytest.approx(0.170, abs=0.005)
     b = t1.breakdown(p.gt_disparity, np.ones(m.shape, bool), p, m)
     assert all(v["bad"] == 0.0 for v in b.values())
+
+
+def test_rig_positions_scores_a_registration_against_the_rigs_truth():
+    """benchmarks/rig_positions.py: a tilted board before a 1 x 3 rig, positions from the
+    scene's parallax within a tenth of a baseline of the true centres, and the nominal grid
+    (the rig's cameras are placed a little off it) within a tenth too."""
+    rp = benchmark_script("rig_positions")
+    r = rp.run_rig(0, (1, 3), (320, 240), rp.POSES["tilted"])
+    assert r["positions_from"] == "parallax" and r["error"] < 0.1
+    assert 0 < r["nominal_error"] < 0.1
