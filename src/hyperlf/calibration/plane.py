@@ -260,7 +260,10 @@ def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, boar
 
     The flows are matched from the camera nearest the grid's centre (:func:`~hyperlf.calibration.parallax.hub_camera`; the
     reference unless it lies off-centre) to every other, all registered onto the reference,
-    and the offsets then shifted so that the reference's is zero.
+    and the offsets then shifted so that the reference's is zero. A view the common parallax
+    model fits at few points (a camera two or more baselines from the hub, whose parallax
+    lies beyond ``max_parallax``) is matched again with a wider radius
+    (:data:`FAR_VIEW_GROWTH`).
 
     Parameters
     ----------
@@ -273,7 +276,8 @@ def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, boar
     work_size : int
         Images are matched at a scale whose larger side is at most this many px.
     max_parallax : float
-        Search radius as a fraction of the larger image side.
+        Search radius as a fraction of the larger image side (a view it does not reach is
+        searched again up to three times as far).
 
     Returns
     -------
@@ -571,8 +575,9 @@ def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=No
     work_size : int
         Largest image side for the parallax search.
     max_parallax : float
-        Largest parallax searched, as a fraction of the larger image side (the scene's
-        largest shift from the board plane between the reference and the farthest camera).
+        Parallax searched, as a fraction of the larger image side (the scene's largest shift
+        from the board plane between the reference and its neighbours; a camera farther out
+        that it does not reach is searched again up to three times as far).
     min_parallax_px : float
         Median flow below which parallax cannot tell the directions (``auto`` then uses the
         board poses).
