@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from hyperlf import hlf
@@ -98,6 +98,7 @@ def test_depth_refuses_weights_that_do_not_fit(scene):
 @given(st.one_of(st.lists(st.one_of(st.floats(allow_nan=True, allow_infinity=True),
                                     st.integers(-5, 5)), max_size=4),
                  st.text(max_size=6), st.none()))
+@example([8.988465674311579e+307, 8.98846567431158e+307])  # finite, but their sum is not
 def test_depth_params_keep_only_finite_non_negative_weights(w):
     try:
         p = hlf.DepthParams(fusion_weights=w)
@@ -107,8 +108,10 @@ def test_depth_params_keep_only_finite_non_negative_weights(w):
     else:
         ok = True
         assert p.fusion_weights is None or isinstance(p.fusion_weights, tuple)
-    valid = w is None or (isinstance(w, list) and len(w) > 0 and any(w)
-                          and all(np.isfinite(x) and x >= 0 for x in w))
+    with np.errstate(over="ignore"):  # the weights are normalised by their sum
+        valid = w is None or (isinstance(w, list) and len(w) > 0 and any(w)
+                              and all(np.isfinite(x) and x >= 0 for x in w)
+                              and np.isfinite(np.sum(np.asarray(w, np.float64))))
     assert ok == valid
 
 
