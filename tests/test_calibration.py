@@ -277,6 +277,26 @@ def test_rank1_factorisation_with_one_view_wrong_everywhere():
     assert np.isnan(fac.offsets[3]).all()   # no point fits it: unknown, not the reference's
 
 
+def test_fitting_entries_compare_a_loose_model_with_the_right_one():
+    """Two views of a row, the second's every flow wrong: the factorisation's own inliers
+    follow its residual spread and keep most of the wrong view's entries, so their count
+    cannot tell this model from the right one; within a fixed tolerance the wrong view fits
+    almost nowhere, and the right flows fit everywhere."""
+    from hyperlf.calibration.parallax import fitting_entries
+
+    rng = np.random.default_rng(3)
+    o = np.array([[1.0, 0.0], [-1.0, 0.0]])
+    d = rng.uniform(-8, 8, 150)
+    F = -d[None, :, None] * o[:, None, :] + rng.normal(0, 0.1, (2, 150, 2))
+    right = factor_rank1(F)
+    G = F.copy()
+    G[1] = rng.uniform(-20, 20, (150, 2))
+    loose = factor_rank1(G)
+    assert loose.inliers[1].sum() > 0.5 * right.inliers[1].sum()
+    fits = fitting_entries(F, right.d, right.offsets)[1].sum()
+    assert fits >= 145 and fitting_entries(G, loose.d, loose.offsets)[1].sum() < 0.2 * fits
+
+
 def test_rank1_factorisation_ignores_a_wrong_match_repeated_in_several_views():
     """Wrong matches with large flows, the same in several views (repeated texture, peaks at
     the search border), must not start the model although they are most of the points
@@ -835,6 +855,30 @@ def test_full_calibration_finds_a_camera_mounted_upside_down(row, turn, found):
     assert both.mean() > 0.8
     err = np.abs(v - v_up)[both] / v_up.max()     # the calibrations differ by their noise
     assert np.median(err) < 1e-3 and np.percentile(err, 99) < 0.02
+
+
+@pytest.mark.parametrize("rows, cols, seed, turn", [
+    (1, 3, 0, (0, 0)), (1, 3, 3, (0, 0)), (3, 3, 1, (0, 0)), (2, 2, 0, (0, 0))])
+def test_plane_registration_finds_a_camera_mounted_upside_down(rows, cols, seed, turn):
+    """One board pose, one camera's shot turned by 180 degrees (in the 2 x 2 array, the
+    reference's: then every other camera is turned against it). Judged by how many
+    entries each model kept, a turned view's wrong flows made the common model loose
+    enough to keep them all, and the camera was not found: registrations refused as
+    contradicting the board poses (1.5 baselines apart), or positions from wrong flows
+    without a word. Every case comes out as the upright shots do (the positions to float32
+    rounding: the turned shot registers onto the same pixels)."""
+    rig = make_rig(rows, cols, seed=seed)
+    shots = rig.render(rig.board_pose(450.0, tilt=(4.0, -3.0, 2.0)))
+    up = calibrate({k: [v] for k, v in shots.items()}, rig.board, mode="plane")
+    ref = up.reference
+    turned = {k: v[::-1, ::-1] if k == turn else v for k, v in shots.items()}
+    cal = calibrate({k: [v] for k, v in turned.items()}, rig.board, mode="plane")
+    found = [k for k in sorted(shots) if k != ref] if turn == ref else [turn]
+    assert cal.info["turned_cameras"] == [camera_label(k) for k in found]
+    assert up.info["turned_cameras"] == [] and cal.info["positions_from"] == "parallax"
+    sign = -1.0 if turn == ref else 1.0
+    np.testing.assert_allclose(cal.positions() - cal.positions()[ref],
+                               sign * (up.positions() - up.positions()[ref]), atol=1e-4)
 
 
 def _full_row(rig, turn_poses=()):

@@ -88,6 +88,8 @@ def _calls() -> dict:
                                    view_valid=np.ones((40, 50), bool), half=3, radius=6,
                                    min_score=0.6),
         parallax.hub_camera: dict(keys=[(0, 0), (0, 1), (0, 2)], reference=(0, 0)),
+        parallax.fitting_entries: dict(flows=np.zeros((2, 3, 2)), d=np.ones(3),
+                                       offsets=np.ones((2, 2)), tol=1.0, measured=None),
         plane.board_outline: dict(corners=c0, board=b, margin=1.6),
         plane.resolve_positions: dict(offsets={(0, 0): np.array([1.0, 0]), (0, 1): np.zeros(2)},
                                       pose_centres={(0, 0): np.array([40.0, 1, 0]),

@@ -24,7 +24,7 @@ from .._options import (bool_mask, check_values, flag, index, int_pair, integer,
 from ..errors import InvalidInputError
 
 __all__ = ["feature_image", "select_points", "match_flows", "factor_rank1", "Rank1",
-           "hub_camera", "measured_disparity_range"]
+           "fitting_entries", "hub_camera", "measured_disparity_range"]
 
 
 #: The search options of the parallax matching (:func:`measured_disparity_range`,
@@ -266,6 +266,53 @@ def _hypothesis(F: np.ndarray, w: np.ndarray, i: int) -> np.ndarray:
     return o
 
 
+def fitting_entries(flows: np.ndarray, d: np.ndarray, offsets: np.ndarray, *,
+                    tol: float = 1.0, measured: np.ndarray | None = None) -> np.ndarray:
+    """Which entries of ``flows`` ``(V, N, 2)`` the parallax model ``-d[i] offsets[v]`` explains
+    within a fixed tolerance: ``tol`` px plus 5 % of the modelled flow; ``(V, N)`` bool.
+
+    The tolerance does not follow the residuals, as :func:`factor_rank1`'s inliers do, so the
+    counts of two models of the same flows compare: a loose model (one view's flows all
+    wrong) keeps most entries as inliers but explains few of them within ``tol``. NaN flows
+    or ``d`` (a dropped point) never fit.
+
+    Parameters
+    ----------
+    flows : ndarray (V, N, 2)
+    d : ndarray (N,)
+    offsets : ndarray (V, 2)
+    tol : float
+        Tolerance (px) at zero flow.
+    measured : ndarray (V, N) bool, optional
+        The entries to consider (default: the finite flows).
+
+    Examples
+    --------
+    Two views, three points; the second view's last flow is off by 3 px:
+
+    >>> o = np.array([[1.0, 0.0], [2.0, 0.0]])
+    >>> d = np.array([1.0, -2.0, 4.0])
+    >>> flows = -d[None, :, None] * o[:, None, :]
+    >>> flows[1, 2, 1] += 3.0
+    >>> fitting_entries(flows, d, o).tolist()
+    [[True, True, True], [True, True, False]]
+    """
+    F = real_array(flows, "flows")
+    if F.ndim != 3 or F.shape[-1] != 2:
+        raise InvalidInputError(f"flows must be (V, N, 2), got shape {F.shape}")
+    d, o = real_array(d, "d"), real_array(offsets, "offsets")
+    if d.shape != F.shape[1:2] or o.shape != (F.shape[0], 2):
+        raise InvalidInputError(f"d must be ({F.shape[1]},) and offsets ({F.shape[0]}, 2) for "
+                                f"flows of shape {F.shape}, got {d.shape} and {o.shape}")
+    tol = number(tol, "tol")
+    w = (np.all(np.isfinite(F), axis=-1) if measured is None
+         else bool_mask(measured, "measured", F.shape[:2], of="the flows"))
+    res = np.linalg.norm(np.nan_to_num(F) + d[None, :, None] * o[:, None, :], axis=-1)
+    flow = np.abs(d)[None] * np.linalg.norm(o, axis=1)[:, None]
+    with np.errstate(invalid="ignore"):
+        return w & (res <= tol + 0.05 * flow)
+
+
 def _ransac_offsets(F: np.ndarray, w: np.ndarray, tol: float, trials: int,
                     seed: int) -> np.ndarray | None:
     """Offsets from the one point whose flows explain the most entries (a hypothesis is one
@@ -288,10 +335,7 @@ def _ransac_offsets(F: np.ndarray, w: np.ndarray, tol: float, trials: int,
         o = _hypothesis(F, w, i)
         if not _distinct_places(o, w.any(1)):
             continue
-        d = _fit_d(F, w, o)
-        res = np.linalg.norm(np.nan_to_num(F) + d[None, :, None] * o[:, None, :], axis=-1)
-        sc = float(np.sum(w & (res <= tol + 0.05 * np.abs(d)[None] * np.linalg.norm(o, axis=1)
-                               [:, None])))
+        sc = float(fitting_entries(F, _fit_d(F, w, o), o, tol=tol, measured=w).sum())
         if sc > score:
             best, score = o, sc
     return best

@@ -38,8 +38,8 @@ from .board import (BoardSpec, camera_label, check_board, check_corner_sets, che
                     turn_report)
 from .grid import check_grid, check_images
 from .model import Calibration, CameraCalibration
-from .parallax import (SEARCH_RULES, factor_rank1, feature_image, hub_camera, match_flows,
-                       select_points)
+from .parallax import (SEARCH_RULES, factor_rank1, feature_image, fitting_entries, hub_camera,
+                       match_flows, select_points)
 
 __all__ = ["register_plane", "board_homographies", "board_geometry", "parallax_offsets",
            "turned_cameras", "resolve_positions", "board_outline"]
@@ -282,8 +282,11 @@ def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, boar
     Returns
     -------
     dict with ``offsets`` (key -> (2,) in full-resolution px per unit d, NaN if unknown),
-    ``n_points``, ``rms`` (px), ``median_flow`` (px), ``d`` (per point) and ``consistent``
-    (key -> at how many points that view's flow fits the common parallax model).
+    ``n_points``, ``rms`` (px), ``median_flow`` (px), ``d`` (per point), ``consistent``
+    (key -> at how many points that view's flow fits the common parallax model, by the
+    model's own residual spread) and ``fitting`` (the same within a fixed tolerance,
+    :func:`~hyperlf.calibration.parallax.fitting_entries`: counts that compare between
+    models).
 
     Examples
     --------
@@ -341,8 +344,10 @@ def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, boar
 
     flows = np.stack([match(k) for k in others]) if len(pts) else np.zeros((len(others), 0, 2))
     flows, fac = _reach_far_views(flows, factor_rank1(flows), lambda i, g: match(others[i], g))
-    consistent = {hub: len(pts)}
+    consistent, fitting = {hub: len(pts)}, {hub: len(pts)}
     consistent.update({k: int(n) for k, n in zip(others, fac.inliers.sum(1))})
+    fitting.update({k: int(n) for k, n in
+                    zip(others, fitting_entries(flows, fac.d, fac.offsets).sum(1))})
     found = dict(zip(others, fac.offsets))   # p_k - p_hub, in the reference's axes
     found[hub] = np.zeros(2)
     offsets = {reference: np.zeros(2)}
@@ -355,7 +360,7 @@ def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, boar
     reach = float(np.percentile(np.abs(fac.d[used]), 99)) * spacing if used.any() else np.nan
     return {"offsets": offsets, "n_points": int(used.sum()), "rms": fac.rms / scale
             if np.isfinite(fac.rms) else np.nan, "median_flow": med, "d": fac.d,
-            "reach": reach, "consistent": consistent}
+            "reach": reach, "consistent": consistent, "fitting": fitting}
 
 
 #: How many times the search radius a view that the first radius may not reach is matched
@@ -395,13 +400,19 @@ def turned_cameras(shots: Mapping, corners: Mapping, board: BoardSpec, reference
     grid_symmetries`), and as a checkerboard looks the same turned, its homography fits the
     board as well as the right one would, but turns or mirrors the scene around the board.
     Such a view's parallax fits the other views' common model (:func:`parallax_offsets`) at
-    few points, or spoils the model's fit. A camera is tried, alone, in each of the other
-    orders when it is consistent at fewer than ``share`` of the other views' median count,
-    when no order lines its board up with the reference's (a quarter turn of a board that is
-    not square), or, while the model's RMS residual is above ``suspect_rms`` px, in turn from
-    the least consistent. Its best order is taken when that brings it to ``share`` of the
-    median count, at least doubles its count or halves the model's residual, and does not
-    double the residual. (An upright camera tried turned keeps almost no consistent point.)
+    few points within a fixed tolerance (its ``fitting`` count), or spoils the model's fit.
+
+    A camera is a suspect when it fits at fewer than ``share`` of the other views' median
+    count, when the model keeps it as consistent at more than twice the points it fits (a
+    loose model, spread by wrong flows), or when no order lines its board up with the
+    reference's (a quarter turn of a board that is not square). Suspects are tried, alone,
+    in each of the other orders, the least fitting first; then, while the model's RMS
+    residual is above ``suspect_rms`` px or a view is loose, the other cameras too. A camera
+    takes its best order when that order fits at least twice its points and 8 or more,
+    without fewer fitting points in all. When most cameras are suspects, every camera but
+    the reference is first tried in each order at once (the reference itself turned); that
+    is taken when it at least doubles the points that fit in all. (An upright camera tried
+    turned keeps almost no fitting point.)
 
     Parameters
     ----------
@@ -460,26 +471,71 @@ def turned_cameras(shots: Mapping, corners: Mapping, board: BoardSpec, reference
         Hs = board_homographies(c, reference, names)[0]
         return parallax_offsets(shots, Hs, c[reference], board, reference, **search)
 
-    best = parallax(corners)
-    n = best["consistent"]
-    others = sorted((k for k in corners if k != reference), key=n.get)
-    floor = share * float(np.median([n[k] for k in others])) if others else 0.0
-    turned, now = [], dict(corners)
+    others = [k for k in corners if k != reference]
     orders = grid_symmetries(board.cols, board.rows)[1:]
-    suspects = [k for k in others if n[k] < floor
-                or image_turn(corners[k], corners[reference], board)]
+    now, best = dict(corners), parallax(corners)
+    suspects = _turn_suspects(best, corners, others, reference, board, share)
+    turned: list = []
+    if 2 * len(suspects) > len(others) > 1:  # most look turned: the reference may be
+        now, best, turned = _reference_turned(now, best, others, orders, parallax)
+        suspects = _turn_suspects(best, now, others, reference, board, share)
     for k in suspects + [k for k in others if k not in suspects]:
-        if k not in suspects and not best["rms"] > suspect_rms:
+        if k not in suspects and not _model_poor(best, others, suspect_rms):
             break
-        trials = [{**now, k: corners[k][s]} for s in orders]    # one camera at a time
+        trials = [{**now, k: now[k][s]} for s in orders]    # one camera at a time
         pars = [parallax(t) for t in trials]
-        i = int(np.argmax([p["consistent"][k] for p in pars]))
-        got, rms = pars[i]["consistent"][k], pars[i]["rms"]
-        if got >= floor and (got >= 2 * n[k] or rms < 0.5 * best["rms"]) \
-                and not rms > 2 * best["rms"]:
-            turned.append(k)
+        i = int(np.argmax([p["fitting"][k] for p in pars]))
+        if _better_order(pars[i], best, k, others):
+            turned = [j for j in turned if j != k] + [k]
             now, best = trials[i], pars[i]
     return turned, best, now
+
+
+#: The fewest points a camera's new order must fit (:func:`turned_cameras`), as many as a
+#: parallax measurement needs to be used at all.
+TURN_MIN_POINTS = 8
+
+
+def _fitting_total(par: dict, keys) -> int:
+    return int(sum(par["fitting"][k] for k in keys))
+
+
+def _turn_suspects(par: dict, corners: Mapping, others: list, reference, board: BoardSpec,
+                   share: float) -> list:
+    """The cameras :func:`turned_cameras` tries first, the least fitting first."""
+    fit, kept = par["fitting"], par["consistent"]
+    floor = share * float(np.median([fit[k] for k in others])) if others else 0.0
+    sus = [k for k in others if fit[k] < floor or fit[k] < share * kept[k]
+           or image_turn(corners[k], corners[reference], board)]
+    return sorted(sus, key=fit.get)
+
+
+def _model_poor(par: dict, others: list, suspect_rms: float) -> bool:
+    """A residual above ``suspect_rms`` px, or a view the model keeps at more than twice the
+    points it fits."""
+    return bool(par["rms"] > suspect_rms
+                or any(2 * par["fitting"][k] < par["consistent"][k] for k in others))
+
+
+def _better_order(trial: dict, best: dict, k, others: list) -> bool:
+    """Whether camera ``k``'s trial order fits at least twice its points (and
+    :data:`TURN_MIN_POINTS`), without fewer fitting points over all the cameras."""
+    got = trial["fitting"][k]
+    return (got >= max(TURN_MIN_POINTS, 2 * best["fitting"][k])
+            and _fitting_total(trial, others) >= _fitting_total(best, others))
+
+
+def _reference_turned(now: dict, best: dict, others: list, orders, parallax):
+    """Every camera but the reference tried in each order at once; the best taken when it
+    at least doubles the points that fit over all of them (and fits
+    :data:`TURN_MIN_POINTS` or more). Returns ``(corners, parallax, turned)``."""
+    trials = [{**now, **{k: now[k][s] for k in others}} for s in orders]
+    pars = [parallax(t) for t in trials]
+    totals = [_fitting_total(p, others) for p in pars]
+    i = int(np.argmax(totals))
+    if totals[i] >= max(TURN_MIN_POINTS, 2 * _fitting_total(best, others)):
+        return trials[i], pars[i], list(others)
+    return now, best, []
 
 
 def nearest_spacing(offsets: np.ndarray) -> float:
