@@ -378,10 +378,28 @@ def turn_report(corners: Mapping, anchors: Mapping, board: BoardSpec, names=None
     return {"turned_cameras": list(turns), "camera_turns": turns}
 
 
+#: The state OpenCV's random generator is set to before each sector-based board search
+#: (:func:`_reseed_opencv`); 0 is the state a new thread starts with.
+OPENCV_SEED = 0
+
+
+def _reseed_opencv() -> None:
+    """Set OpenCV's random generator (one per thread) to :data:`OPENCV_SEED`.
+
+    The sector-based detector draws from it, so a search's result depended on how many
+    searches the same thread had run before: with the cameras shared out over threads in
+    whatever order they finished, the same shots were found in one run and refused in the
+    next (2 searches in 720 on a small synthetic rig)."""
+    import cv2
+
+    cv2.setRNGSeed(OPENCV_SEED)
+
+
 def _detect_sb(img8: np.ndarray, size) -> np.ndarray | None:
     import cv2
 
     flags = cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY
+    _reseed_opencv()
     ok, c = cv2.findChessboardCornersSB(img8, size, flags=flags)
     return c.reshape(-1, 2) if ok else None
 
@@ -534,6 +552,7 @@ def _detect_partial(img8: np.ndarray) -> list:
     out = []
     for candidate in (img8, 255 - img8):
         for side in (4, MIN_PARTIAL_SIDE):
+            _reseed_opencv()
             ok, c, meta = cv2.findChessboardCornersSBWithMeta(candidate, (side, side), flags)
             if ok and meta is not None and c is not None and c.size == 2 * meta.size:
                 out.append(_orient_grid(np.asarray(c, np.float64).reshape(*meta.shape, 2)))

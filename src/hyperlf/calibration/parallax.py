@@ -341,6 +341,52 @@ def _ransac_offsets(F: np.ndarray, w: np.ndarray, tol: float, trials: int,
     return best
 
 
+#: A view fitted again alone (:func:`_readmit_views`) must then fit at least this many
+#: entries, and this share of the median view's.
+READMIT_MIN_POINTS = 8
+READMIT_SHARE = 0.25
+
+
+def _readmit_views(F: np.ndarray, measured: np.ndarray, w: np.ndarray, d: np.ndarray,
+                   o: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """Offsets and inliers with each view fitted again alone where that fits far more.
+
+    The trimming only ever drops entries, so a view whose offset started wrong (the RANSAC
+    start's point had a wrong flow there) or was spoilt by another view's wrong flows (a
+    camera mounted turned) loses every entry and never gets them back. With the points' ``d``
+    fixed by the *other* views' inliers, each of the view's measured flows proposes an
+    offset; the one that fits the most of its entries within ``tol`` px plus 5 % of the flow
+    replaces the view's offset (least squares over those entries) when it fits at least
+    twice as many as the present one, :data:`READMIT_MIN_POINTS` and :data:`READMIT_SHARE`
+    of the median view's count. A view of wrong flows fits a few entries at most, and stays
+    as it was. ``d`` itself is left as it is."""
+    V = F.shape[0]
+    alone = []                                  # (points' d from the others, where known)
+    for v in range(V):
+        rest = w.copy()
+        rest[v] = False
+        dv = _fit_d(F, rest, o)
+        alone.append((dv, measured[v] & rest.any(0) & (np.abs(dv) > 0)))
+    fits = np.array([fitting_entries(F[v:v + 1], dv, o[v:v + 1], tol=tol,
+                                     measured=m[None]).sum() for v, (dv, m) in enumerate(alone)])
+    need = max(READMIT_MIN_POINTS, READMIT_SHARE * float(np.median(fits)))
+    o, w = o.copy(), w.copy()
+    for v, (dv, m) in enumerate(alone):
+        if m.sum() < max(need, 2 * fits[v]):
+            continue
+        f, dm = F[v, m], dv[m]
+        cand = -f / dm[:, None]                                       # one offset per flow
+        res = np.linalg.norm(f[None] + dm[None, :, None] * cand[:, None, :], axis=-1)
+        ok = res <= tol + 0.05 * np.abs(dm)[None] * np.linalg.norm(cand, axis=1)[:, None]
+        i = int(np.argmax(ok.sum(1)))
+        if ok[i].sum() >= max(need, 2 * fits[v]):
+            keep = np.flatnonzero(m)[ok[i]]
+            w[v] = False
+            w[v, keep] = True
+            o[v] = -(F[v, keep] * dv[keep, None]).sum(0) / float((dv[keep] ** 2).sum())
+    return o, w
+
+
 #: How :func:`factor_rank1` checks its options: the rounds and trials are loops (``1e300``
 #: never ended), the tolerances px.
 _RANK1_RULES = {
@@ -361,7 +407,9 @@ def factor_rank1(flows: np.ndarray, *, min_views: int = 2, floor: float = 0.25,
     entries within ``tol`` px plus 5 % of the flow) picks the inliers; then alternating least
     squares, after each round dropping entries whose residual exceeds
     ``max(floor, median + 3 * 1.4826 * MAD)`` px, and points left with fewer than ``min_views``
-    views. The common scale and sign stay free: the caller fixes them.
+    views. A view the trimming left with few entries is then fitted alone to the points'
+    ``d`` (:func:`_readmit_views`). The common scale and sign stay free: the caller fixes
+    them.
 
     Examples
     --------
@@ -394,6 +442,7 @@ def factor_rank1(flows: np.ndarray, *, min_views: int = 2, floor: float = 0.25,
         w &= res <= tau
         w &= (w.sum(0) >= min_views)[None]
         o, d = _als(F, w, d)
+    o, w = _readmit_views(F, np.all(np.isfinite(F), axis=-1), w, d, o, tol)
     res = np.linalg.norm(np.nan_to_num(F) + d[None, :, None] * o[:, None, :], axis=-1)
     rms = float(np.sqrt(np.mean(res[w] ** 2))) if w.any() else np.nan
     d = np.where(w.any(0), d, np.nan)

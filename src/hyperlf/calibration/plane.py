@@ -411,8 +411,9 @@ def turned_cameras(shots: Mapping, corners: Mapping, board: BoardSpec, reference
     takes its best order when that order fits at least twice its points and 8 or more,
     without fewer fitting points in all. When most cameras are suspects, every camera but
     the reference is first tried in each order at once (the reference itself turned); that
-    is taken when it at least doubles the points that fit in all. (An upright camera tried
-    turned keeps almost no fitting point.)
+    is taken when it at least doubles the points that fit in all, and leaves neither a
+    residual above ``suspect_rms`` nor a loose view. (An upright camera tried turned keeps
+    almost no fitting point.)
 
     Parameters
     ----------
@@ -477,7 +478,8 @@ def turned_cameras(shots: Mapping, corners: Mapping, board: BoardSpec, reference
     suspects = _turn_suspects(best, corners, others, reference, board, share)
     turned: list = []
     if 2 * len(suspects) > len(others) > 1:  # most look turned: the reference may be
-        now, best, turned = _reference_turned(now, best, others, orders, parallax)
+        now, best, turned = _reference_turned(now, best, others, board, parallax,
+                                              suspect_rms)
         suspects = _turn_suspects(best, now, others, reference, board, share)
     for k in suspects + [k for k in others if k not in suspects]:
         if k not in suspects and not _model_poor(best, others, suspect_rms):
@@ -525,16 +527,27 @@ def _better_order(trial: dict, best: dict, k, others: list) -> bool:
             and _fitting_total(trial, others) >= _fitting_total(best, others))
 
 
-def _reference_turned(now: dict, best: dict, others: list, orders, parallax):
+def _reference_turned(now: dict, best: dict, others: list, board: BoardSpec, parallax,
+                      suspect_rms: float):
     """Every camera but the reference tried in each order at once; the best taken when it
-    at least doubles the points that fit over all of them (and fits
-    :data:`TURN_MIN_POINTS` or more). Returns ``(corners, parallax, turned)``."""
-    trials = [{**now, **{k: now[k][s] for k in others}} for s in orders]
+    at least doubles the points that fit over all of them, fits :data:`TURN_MIN_POINTS` or
+    more per camera, and leaves a model that is not poor (:func:`_model_poor`). Returns
+    ``(corners, parallax, turned)``.
+
+    The others are first put in the order of the one that fits most: against a reference
+    turned by a quarter, a board that is not square runs either way along the others'
+    rows, and each of them may have taken another of the two."""
+    pivot = max(others, key=best["fitting"].get)
+    aligned = orders_like({k: now[k] for k in others}, pivot, board)
+    trials = [{**now, **{k: aligned[k][s] for k in others}}
+              for s in grid_symmetries(board.cols, board.rows)]
     pars = [parallax(t) for t in trials]
     totals = [_fitting_total(p, others) for p in pars]
     i = int(np.argmax(totals))
-    if totals[i] >= max(TURN_MIN_POINTS, 2 * _fitting_total(best, others)):
-        return trials[i], pars[i], list(others)
+    if totals[i] >= max(TURN_MIN_POINTS * len(others), 2 * _fitting_total(best, others)) \
+            and not _model_poor(pars[i], others, suspect_rms):
+        return trials[i], pars[i], [k for k in others
+                                    if not np.array_equal(trials[i][k], now[k])]
     return now, best, []
 
 
@@ -677,7 +690,8 @@ def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=No
     info = _board_info(geo, corners, board, ref, names, focal_px)
     offsets = {k: np.asarray(v[:2]) for k, v in geo["centres"].items()}
     if par is not None:  # measured by turned_cameras on these corners
-        offsets = _parallax_offsets(par, offsets, info, positions_from, min_parallax_px)
+        offsets = _parallax_offsets(par, offsets, info, positions_from, min_parallax_px,
+                                    names)
     pos, agree = resolve_positions(offsets, geo["centres"], ref)
     info["sign_agreement"] = agree
     cal = _plane_calibration(grid, ref, size, Hs, errs, pos, geo, board, names, info)
@@ -702,30 +716,33 @@ def _board_info(geo: dict, corners: dict, board: BoardSpec, ref, names, focal_px
 
 
 def _parallax_offsets(par: dict, offsets: dict, info: dict, positions_from: str,
-                      min_parallax_px: float) -> dict:
+                      min_parallax_px: float, names=None) -> dict:
     """The cameras' offsets from the scene's parallax when it is usable, else ``offsets``
     (the board poses'; with ``positions_from="parallax"`` that is refused); ``info`` takes
     what was measured, the disparity range it implies, or why it was not used."""
     info.update(parallax_points=par["n_points"], parallax_rms=par["rms"],
                 parallax_median_flow=par["median_flow"])
-    usable = (par["n_points"] >= 8 and par["median_flow"] >= min_parallax_px
-              and all(np.all(np.isfinite(o)) for o in par["offsets"].values()))
-    if usable:
+    unknown = [k for k, o in par["offsets"].items() if not np.all(np.isfinite(o))]
+    enough = par["n_points"] >= 8 and par["median_flow"] >= min_parallax_px
+    if enough and not unknown:
         info["positions_from"] = "parallax"
         if np.isfinite(par["reach"]):  # |d| of 99 % of the points, px per baseline
             m = float(np.ceil(1.25 * par["reach"]))
             info["disparity_range"] = [-m, m]
         return par["offsets"]
+    if enough:   # but some camera's flows fit the others' parallax nowhere
+        why = (f"the flows of camera(s) {', '.join(camera_label(k, names) for k in unknown)} "
+               "fit the other cameras' parallax nowhere")
+    else:
+        why = (f"{par['n_points']} points off the board plane with a median flow of "
+               f"{par['median_flow']:.2f} px; at least 8 points and {min_parallax_px:g} px "
+               "are needed")
     if positions_from == "auto":  # why not, for the user (calibrate says it)
-        info["parallax_unused"] = (
-            f"{par['n_points']} points off the board plane with a median flow of "
-            f"{par['median_flow']:.2f} px; at least 8 points and {min_parallax_px:g} px "
-            "are needed")
+        info["parallax_unused"] = why
         return offsets
     raise InvalidInputError(
-        f"no usable parallax around the board ({par['n_points']} points, median flow "
-        f"{par['median_flow']:.2f} px); the scene beside the board needs texture at "
-        "other depths, or use positions from the board poses")
+        f"no usable parallax around the board ({why}); the scene beside the board needs "
+        "texture at other depths, or use positions from the board poses")
 
 
 #: Largest RMS (baselines) by which the positions from parallax may differ from the board
