@@ -284,9 +284,9 @@ def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, boar
     dict with ``offsets`` (key -> (2,) in full-resolution px per unit d, NaN if unknown),
     ``n_points``, ``rms`` (px), ``median_flow`` (px), ``d`` (per point), ``consistent``
     (key -> at how many points that view's flow fits the common parallax model, by the
-    model's own residual spread) and ``fitting`` (the same within a fixed tolerance,
+    model's own residual spread), ``fitting`` (the same within a fixed tolerance,
     :func:`~hyperlf.calibration.parallax.fitting_entries`: counts that compare between
-    models).
+    models) and ``measured`` (at how many points the view's flow was measured at all).
 
     Examples
     --------
@@ -346,6 +346,8 @@ def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, boar
     flows, fac = _reach_far_views(flows, factor_rank1(flows), lambda i, g: match(others[i], g))
     consistent, fitting = {hub: len(pts)}, {hub: len(pts)}
     consistent.update({k: int(n) for k, n in zip(others, fac.inliers.sum(1))})
+    measured = {hub: len(pts), **{k: int(n) for k, n in
+                                  zip(others, np.isfinite(flows).all(-1).sum(1))}}
     fitting.update({k: int(n) for k, n in
                     zip(others, fitting_entries(flows, fac.d, fac.offsets).sum(1))})
     found = dict(zip(others, fac.offsets))   # p_k - p_hub, in the reference's axes
@@ -360,7 +362,8 @@ def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, boar
     reach = float(np.percentile(np.abs(fac.d[used]), 99)) * spacing if used.any() else np.nan
     return {"offsets": offsets, "n_points": int(used.sum()), "rms": fac.rms / scale
             if np.isfinite(fac.rms) else np.nan, "median_flow": med, "d": fac.d,
-            "reach": reach, "consistent": consistent, "fitting": fitting}
+            "reach": reach, "consistent": consistent, "fitting": fitting,
+            "measured": measured}
 
 
 #: How many times the search radius a view that the first radius may not reach is matched
@@ -403,17 +406,19 @@ def turned_cameras(shots: Mapping, corners: Mapping, board: BoardSpec, reference
     few points within a fixed tolerance (its ``fitting`` count), or spoils the model's fit.
 
     A camera is a suspect when it fits at fewer than ``share`` of the other views' median
-    count, when the model keeps it as consistent at more than twice the points it fits (a
-    loose model, spread by wrong flows), or when no order lines its board up with the
+    count, when it fits fewer than ``share`` of the points the model keeps for it (a loose
+    model, spread by wrong flows), when it fits fewer than :data:`TURN_MIN_POINTS` of the
+    many points its flows were measured at, or when no order lines its board up with the
     reference's (a quarter turn of a board that is not square). Suspects are tried, alone,
     in each of the other orders, the least fitting first; then, while the model's RMS
-    residual is above ``suspect_rms`` px or a view is loose, the other cameras too. A camera
+    residual is above ``suspect_rms`` px or a view is loose or fits that few, the other
+    cameras too. A camera
     takes its best order when that order fits at least twice its points and 8 or more,
     without fewer fitting points in all. When most cameras are suspects, every camera but
-    the reference is first tried in each order at once (the reference itself turned); that
-    is taken when it at least doubles the points that fit in all, and leaves neither a
-    residual above ``suspect_rms`` nor a loose view. (An upright camera tried turned keeps
-    almost no fitting point.)
+    the reference is first tried in each order at once (the reference itself turned), else
+    last if the model is still poor; that is taken when it at least doubles the points that
+    fit in all, and leaves neither a residual above ``suspect_rms`` nor a loose view. (An
+    upright camera tried turned keeps almost no fitting point.)
 
     Parameters
     ----------
@@ -476,20 +481,21 @@ def turned_cameras(shots: Mapping, corners: Mapping, board: BoardSpec, reference
     orders = grid_symmetries(board.cols, board.rows)[1:]
     now, best = dict(corners), parallax(corners)
     suspects = _turn_suspects(best, corners, others, reference, board, share)
-    turned: list = []
-    if 2 * len(suspects) > len(others) > 1:  # most look turned: the reference may be
-        now, best, turned = _reference_turned(now, best, others, board, parallax,
-                                              suspect_rms)
+    whole = 2 * len(suspects) > len(others) > 1     # most look turned: the reference may be
+    if whole:
+        now, best = _reference_turned(now, best, others, board, parallax, suspect_rms, share)
         suspects = _turn_suspects(best, now, others, reference, board, share)
     for k in suspects + [k for k in others if k not in suspects]:
-        if k not in suspects and not _model_poor(best, others, suspect_rms):
+        if k not in suspects and not _model_poor(best, others, suspect_rms, share):
             break
         trials = [{**now, k: now[k][s]} for s in orders]    # one camera at a time
         pars = [parallax(t) for t in trials]
         i = int(np.argmax([p["fitting"][k] for p in pars]))
         if _better_order(pars[i], best, k, others):
-            turned = [j for j in turned if j != k] + [k]
             now, best = trials[i], pars[i]
+    if not whole and len(others) > 1 and _model_poor(best, others, suspect_rms, share):
+        now, best = _reference_turned(now, best, others, board, parallax, suspect_rms, share)
+    turned = [k for k in others if not np.array_equal(now[k], corners[k])]
     return turned, best, now
 
 
@@ -507,16 +513,24 @@ def _turn_suspects(par: dict, corners: Mapping, others: list, reference, board: 
     """The cameras :func:`turned_cameras` tries first, the least fitting first."""
     fit, kept = par["fitting"], par["consistent"]
     floor = share * float(np.median([fit[k] for k in others])) if others else 0.0
-    sus = [k for k in others if fit[k] < floor or fit[k] < share * kept[k]
+    sus = [k for k in others if fit[k] < floor or fit[k] < share * kept[k] or _few(par, k)
            or image_turn(corners[k], corners[reference], board)]
     return sorted(sus, key=fit.get)
 
 
-def _model_poor(par: dict, others: list, suspect_rms: float) -> bool:
-    """A residual above ``suspect_rms`` px, or a view the model keeps at more than twice the
-    points it fits."""
+def _few(par: dict, k) -> bool:
+    """Whether view ``k`` has flows measured at :data:`TURN_MIN_POINTS` times as many points
+    as it takes, but fits fewer than that (texture matched, but not as parallax)."""
+    return (par["fitting"][k] < TURN_MIN_POINTS
+            <= par["measured"][k] / TURN_MIN_POINTS)
+
+
+def _model_poor(par: dict, others: list, suspect_rms: float, share: float) -> bool:
+    """A residual above ``suspect_rms`` px, or a loose view: one that fits fewer than
+    ``share`` of the points the model keeps for it."""
     return bool(par["rms"] > suspect_rms
-                or any(2 * par["fitting"][k] < par["consistent"][k] for k in others))
+                or any(par["fitting"][k] < share * par["consistent"][k] or _few(par, k)
+                       for k in others))
 
 
 def _better_order(trial: dict, best: dict, k, others: list) -> bool:
@@ -528,11 +542,11 @@ def _better_order(trial: dict, best: dict, k, others: list) -> bool:
 
 
 def _reference_turned(now: dict, best: dict, others: list, board: BoardSpec, parallax,
-                      suspect_rms: float):
+                      suspect_rms: float, share: float):
     """Every camera but the reference tried in each order at once; the best taken when it
     at least doubles the points that fit over all of them, fits :data:`TURN_MIN_POINTS` or
     more per camera, and leaves a model that is not poor (:func:`_model_poor`). Returns
-    ``(corners, parallax, turned)``.
+    ``(corners, parallax)``.
 
     The others are first put in the order of the one that fits most: against a reference
     turned by a quarter, a board that is not square runs either way along the others'
@@ -545,10 +559,9 @@ def _reference_turned(now: dict, best: dict, others: list, board: BoardSpec, par
     totals = [_fitting_total(p, others) for p in pars]
     i = int(np.argmax(totals))
     if totals[i] >= max(TURN_MIN_POINTS * len(others), 2 * _fitting_total(best, others)) \
-            and not _model_poor(pars[i], others, suspect_rms):
-        return trials[i], pars[i], [k for k in others
-                                    if not np.array_equal(trials[i][k], now[k])]
-    return now, best, []
+            and not _model_poor(pars[i], others, suspect_rms, share):
+        return trials[i], pars[i]
+    return now, best
 
 
 def nearest_spacing(offsets: np.ndarray) -> float:
