@@ -287,3 +287,16 @@ def test_rig_positions_scores_a_registration_against_the_rigs_truth():
     r = rp.run_rig(0, (1, 3), (320, 240), rp.POSES["tilted"])
     assert r["positions_from"] == "parallax" and r["error"] < 0.1
     assert 0 < r["nominal_error"] < 0.1
+
+
+def test_rig_positions_mounts_a_camera_turned():
+    """benchmarks/rig_positions.py --turns: the corner camera of a 1 x 3 rig mounted upside
+    down is reported turned, and the positions hold; the option's text is checked."""
+    rp = benchmark_script("rig_positions")
+    r = rp.run_rig(0, (1, 3), (320, 240), rp.POSES["tilted"], ("corner", 180))
+    assert r["turns_found"] and r["positions_from"] == "parallax" and r["error"] < 0.1
+    assert rp._turns("corner:90,reference:180") == [("corner", 90), ("reference", 180)]
+    assert rp._turns("") == [None]
+    for bad in ("corner", "side:90", "corner:45", "corner:x"):
+        with pytest.raises(SystemExit, match="--turns must be like"):
+            rp._turns(bad)
