@@ -32,6 +32,8 @@ __all__ = ["feature_image", "select_points", "match_flows", "factor_rank1", "Ran
 #: radius as a fraction of that side.
 SEARCH_RULES = {"work_size": rule(integer, minimum=64),
                 "max_parallax": rule(number, positive=True, at_most=1)}
+#: Their defaults (as the functions' signatures give them).
+SEARCH_DEFAULTS = {"work_size": 800, "max_parallax": 0.08}
 
 
 def _image(value, label: str) -> np.ndarray:

@@ -38,8 +38,8 @@ from .board import (BoardSpec, camera_label, check_board, check_corner_sets, che
                     turn_report)
 from .grid import check_grid, check_images
 from .model import Calibration, CameraCalibration
-from .parallax import (SEARCH_RULES, factor_rank1, feature_image, fitting_entries, hub_camera,
-                       match_flows, select_points)
+from .parallax import (SEARCH_DEFAULTS, SEARCH_RULES, factor_rank1, feature_image,
+                       fitting_entries, hub_camera, match_flows, select_points)
 
 __all__ = ["register_plane", "board_homographies", "board_geometry", "parallax_offsets",
            "turned_cameras", "resolve_positions", "board_outline"]
@@ -234,16 +234,23 @@ def board_outline(corners: np.ndarray, board: BoardSpec, *, margin: float = 1.6)
     return cv2.perspectiveTransform(quad.reshape(-1, 1, 2), Hb).reshape(-1, 2)
 
 
-def _registered(images: Mapping, Hs: Mapping, scale: float, size) -> tuple[dict, dict]:
-    """Feature images and validity of every view registered onto the reference, at ``scale``."""
+def _registered(images: Mapping, Hs: Mapping, scale: float, size,
+                cache: dict | None = None) -> tuple[dict, dict]:
+    """Feature images and validity of every view registered onto the reference, at ``scale``
+    (taken from ``cache``, keyed by the view and its warp, where it has them)."""
     import cv2
 
     W, H = size
     S = np.diag([scale, scale, 1.0])
     out_size = (max(1, int(round(W * scale))), max(1, int(round(H * scale))))
     feats, valid = {}, {}
+    cache = {} if cache is None else cache
     for key, img in images.items():
         M = S @ Hs[key]
+        known = cache.get(("registered", key, M.tobytes()))
+        if known is not None:
+            feats[key], valid[key] = known
+            continue
         src = np.asarray(img, np.float32)
         warped = cv2.warpPerspective(src, M, out_size, flags=cv2.INTER_LINEAR,
                                      borderMode=cv2.BORDER_REPLICATE)
@@ -251,6 +258,7 @@ def _registered(images: Mapping, Hs: Mapping, scale: float, size) -> tuple[dict,
                                      flags=cv2.INTER_NEAREST, borderValue=0)
         feats[key] = feature_image(warped)
         valid[key] = cv2.erode(inside, np.ones((5, 5), np.uint8)) > 0
+        cache[("registered", key, M.tobytes())] = feats[key], valid[key]
     return feats, valid
 
 
@@ -311,8 +319,6 @@ def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, boar
     >>> bool(abs(cosine) > 0.99)
     True
     """
-    import cv2
-
     W, H = check_images(images, what="image")
     _in(reference, images)
     check_board(board)
@@ -324,9 +330,22 @@ def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, boar
             raise InvalidInputError(f"Hs must hold a finite 3 x 3 homography for every camera "
                                     f"of images; camera {camera_label(k)}'s is {_opt.shown(h)}")
     o = _opt.check_values(dict(work_size=work_size, max_parallax=max_parallax), SEARCH_RULES)
-    work_size, max_parallax = o["work_size"], o["max_parallax"]
+    return _parallax(images, Hs, corners_ref, board, reference, (W, H), o["work_size"],
+                     o["max_parallax"])
+
+
+def _parallax(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, board: BoardSpec,
+              reference, size, work_size: int, max_parallax: float,
+              cache: dict | None = None) -> dict:
+    """:func:`parallax_offsets` on checked arguments; ``cache`` (a dict kept between calls
+    on the same shots) holds each view's registration and flows by its homography and the
+    hub's, so that trying one camera's corner order again recomputes only that camera's."""
+    import cv2
+
+    W, H = size
+    cache = {} if cache is None else cache
     scale = min(1.0, work_size / max(W, H))
-    feats, valid = _registered(images, Hs, scale, (W, H))
+    feats, valid = _registered(images, Hs, scale, (W, H), cache)
     hub = hub_camera(images, reference)  # matched from: the reference unless it is off-centre
     h, w = feats[hub].shape
     allowed = np.ones((h, w), np.uint8)
@@ -339,8 +358,11 @@ def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, boar
     others = [k for k in images if k != hub]
 
     def match(k, grow=1):  # a wider search is cut to the image, not refused at its border
-        return match_flows(feats[hub], feats[k], pts, valid[k], half=half,
-                           radius=grow * radius, clip=grow > 1)[0]
+        key = ("flows", k, grow, Hs[k].tobytes(), Hs[hub].tobytes())
+        if key not in cache:
+            cache[key] = match_flows(feats[hub], feats[k], pts, valid[k], half=half,
+                                     radius=grow * radius, clip=grow > 1)[0]
+        return cache[key]
 
     flows = np.stack([match(k) for k in others]) if len(pts) else np.zeros((len(others), 0, 2))
     flows, fac = _reach_far_views(flows, factor_rank1(flows), lambda i, g: match(others[i], g))
@@ -459,7 +481,7 @@ def turned_cameras(shots: Mapping, corners: Mapping, board: BoardSpec, reference
     ([(1, 1)], True)
     """
     check_board(board)
-    check_images(shots, names, what="board shot")
+    size = check_images(shots, names, what="board shot")
     check_corner_sets(corners, "corners", board)
     _in(reference, corners)
     if set(shots) != set(corners):
@@ -471,11 +493,13 @@ def turned_cameras(shots: Mapping, corners: Mapping, board: BoardSpec, reference
     if unknown:
         raise InvalidInputError(f"turned_cameras takes the search options "
                                 f"{', '.join(SEARCH_RULES)}, got {', '.join(map(str, unknown))}")
-    search = _opt.check_values(search, SEARCH_RULES)
+    search = {**SEARCH_DEFAULTS, **_opt.check_values(search, SEARCH_RULES)}
+    cache: dict = {}        # each view's registration and flows, by its homography
 
     def parallax(c) -> dict:
         Hs = board_homographies(c, reference, names)[0]
-        return parallax_offsets(shots, Hs, c[reference], board, reference, **search)
+        return _parallax(shots, Hs, c[reference], board, reference, size,
+                         search["work_size"], search["max_parallax"], cache)
 
     others = [k for k in corners if k != reference]
     orders = grid_symmetries(board.cols, board.rows)[1:]
