@@ -237,7 +237,8 @@ def board_outline(corners: np.ndarray, board: BoardSpec, *, margin: float = 1.6)
 def _registered(images: Mapping, Hs: Mapping, scale: float, size,
                 cache: dict | None = None) -> tuple[dict, dict]:
     """Feature images and validity of every view registered onto the reference, at ``scale``
-    (taken from ``cache``, keyed by the view and its warp, where it has them)."""
+    (taken from ``cache`` where it holds the view under the same warp; it keeps one warp per
+    view, the latest, so that trials of many orders do not pile up images)."""
     import cv2
 
     W, H = size
@@ -247,9 +248,9 @@ def _registered(images: Mapping, Hs: Mapping, scale: float, size,
     cache = {} if cache is None else cache
     for key, img in images.items():
         M = S @ Hs[key]
-        known = cache.get(("registered", key, M.tobytes()))
-        if known is not None:
-            feats[key], valid[key] = known
+        known = cache.get(("registered", key))
+        if known is not None and known[0] == M.tobytes():
+            feats[key], valid[key] = known[1:]
             continue
         src = np.asarray(img, np.float32)
         warped = cv2.warpPerspective(src, M, out_size, flags=cv2.INTER_LINEAR,
@@ -258,7 +259,7 @@ def _registered(images: Mapping, Hs: Mapping, scale: float, size,
                                      flags=cv2.INTER_NEAREST, borderValue=0)
         feats[key] = feature_image(warped)
         valid[key] = cv2.erode(inside, np.ones((5, 5), np.uint8)) > 0
-        cache[("registered", key, M.tobytes())] = feats[key], valid[key]
+        cache[("registered", key)] = M.tobytes(), feats[key], valid[key]
     return feats, valid
 
 
@@ -338,8 +339,9 @@ def _parallax(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, board: Boar
               reference, size, work_size: int, max_parallax: float,
               cache: dict | None = None) -> dict:
     """:func:`parallax_offsets` on checked arguments; ``cache`` (a dict kept between calls
-    on the same shots) holds each view's registration and flows by its homography and the
-    hub's, so that trying one camera's corner order again recomputes only that camera's."""
+    on the same shots) holds each view's latest registration and its flows by its
+    homography and the hub's, so that trying one camera's corner order again recomputes
+    only that camera's."""
     import cv2
 
     W, H = size
