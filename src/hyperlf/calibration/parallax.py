@@ -32,7 +32,7 @@ __all__ = ["feature_image", "select_points", "match_flows", "factor_rank1", "Ran
 #: radius as a fraction of that side.
 SEARCH_RULES = {"work_size": rule(integer, minimum=64),
                 "max_parallax": rule(number, positive=True, at_most=1)}
-#: Their defaults (as the functions' signatures give them).
+#: Their defaults.
 SEARCH_DEFAULTS = {"work_size": 800, "max_parallax": 0.08}
 
 
@@ -309,6 +309,12 @@ def fitting_entries(flows: np.ndarray, d: np.ndarray, offsets: np.ndarray, *,
     tol = number(tol, "tol")
     w = (np.all(np.isfinite(F), axis=-1) if measured is None
          else bool_mask(measured, "measured", F.shape[:2], of="the flows"))
+    return _fitting(F, d, o, tol, w)
+
+
+def _fitting(F: np.ndarray, d: np.ndarray, o: np.ndarray, tol: float,
+             w: np.ndarray) -> np.ndarray:
+    """:func:`fitting_entries` on checked arrays (the RANSAC start's inner loop)."""
     res = np.linalg.norm(np.nan_to_num(F) + d[None, :, None] * o[:, None, :], axis=-1)
     flow = np.abs(d)[None] * np.linalg.norm(o, axis=1)[:, None]
     with np.errstate(invalid="ignore"):
@@ -337,7 +343,7 @@ def _ransac_offsets(F: np.ndarray, w: np.ndarray, tol: float, trials: int,
         o = _hypothesis(F, w, i)
         if not _distinct_places(o, w.any(1)):
             continue
-        sc = float(fitting_entries(F, _fit_d(F, w, o), o, tol=tol, measured=w).sum())
+        sc = float(_fitting(F, _fit_d(F, w, o), o, tol, w).sum())
         if sc > score:
             best, score = o, sc
     return best
@@ -369,8 +375,8 @@ def _readmit_views(F: np.ndarray, measured: np.ndarray, w: np.ndarray, d: np.nda
         rest[v] = False
         dv = _fit_d(F, rest, o)
         alone.append((dv, measured[v] & rest.any(0) & (np.abs(dv) > 0)))
-    fits = np.array([fitting_entries(F[v:v + 1], dv, o[v:v + 1], tol=tol,
-                                     measured=m[None]).sum() for v, (dv, m) in enumerate(alone)])
+    fits = np.array([_fitting(F[v:v + 1], dv, o[v:v + 1], tol, m[None]).sum()
+                     for v, (dv, m) in enumerate(alone)])
     need = max(READMIT_MIN_POINTS, READMIT_SHARE * float(np.median(fits)))
     o, w = o.copy(), w.copy()
     for v, (dv, m) in enumerate(alone):
@@ -378,8 +384,8 @@ def _readmit_views(F: np.ndarray, measured: np.ndarray, w: np.ndarray, d: np.nda
             continue
         f, dm = F[v, m], dv[m]
         cand = -f / dm[:, None]                                       # one offset per flow
-        res = np.linalg.norm(f[None] + dm[None, :, None] * cand[:, None, :], axis=-1)
-        ok = res <= tol + 0.05 * np.abs(dm)[None] * np.linalg.norm(cand, axis=1)[:, None]
+        ok = _fitting(np.broadcast_to(f, (len(f),) + f.shape), dm, cand, tol,
+                      np.ones((len(f), len(f)), bool))               # candidate x point
         i = int(np.argmax(ok.sum(1)))
         if ok[i].sum() >= max(need, 2 * fits[v]):
             keep = np.flatnonzero(m)[ok[i]]
@@ -507,7 +513,8 @@ def _grid_points(image: np.ndarray, allowed: np.ndarray, *, cell: int) -> np.nda
 
 
 def measured_disparity_range(views: np.ndarray, valid: np.ndarray, positions: np.ndarray,
-                             reference, *, work_size: int = 800, max_parallax: float = 0.08,
+                             reference, *, work_size: int = SEARCH_DEFAULTS["work_size"],
+                             max_parallax: float = SEARCH_DEFAULTS["max_parallax"],
                              margin: float = 1.25, min_points: int = 8,
                              max_residual: float = 1.0):
     """A disparity range for registered or rectified views, measured from the scene.

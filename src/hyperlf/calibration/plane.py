@@ -264,7 +264,8 @@ def _registered(images: Mapping, Hs: Mapping, scale: float, size,
 
 
 def parallax_offsets(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, board: BoardSpec,
-                     reference, *, work_size: int = 800, max_parallax: float = 0.08) -> dict:
+                     reference, *, work_size: int = SEARCH_DEFAULTS["work_size"],
+                     max_parallax: float = SEARCH_DEFAULTS["max_parallax"]) -> dict:
     """Offsets ``p_v - p_ref`` (px per unit ``d``, common scale and sign free) from parallax.
 
     The flows are matched from the camera nearest the grid's centre (:func:`~hyperlf.calibration.parallax.hub_camera`; the
@@ -537,26 +538,25 @@ def _fitting_total(par: dict, keys) -> int:
 def _turn_suspects(par: dict, corners: Mapping, others: list, reference, board: BoardSpec,
                    share: float) -> list:
     """The cameras :func:`turned_cameras` tries first, the least fitting first."""
-    fit, kept = par["fitting"], par["consistent"]
+    fit = par["fitting"]
     floor = share * float(np.median([fit[k] for k in others])) if others else 0.0
-    sus = [k for k in others if fit[k] < floor or fit[k] < share * kept[k] or _few(par, k)
+    sus = [k for k in others if fit[k] < floor or _misfit(par, k, share)
            or image_turn(corners[k], corners[reference], board)]
     return sorted(sus, key=fit.get)
 
 
-def _few(par: dict, k) -> bool:
-    """Whether view ``k`` has flows measured at :data:`TURN_MIN_POINTS` times as many points
-    as it takes, but fits fewer than that (texture matched, but not as parallax)."""
-    return (par["fitting"][k] < TURN_MIN_POINTS
-            <= par["measured"][k] / TURN_MIN_POINTS)
+def _misfit(par: dict, k, share: float) -> bool:
+    """Whether the model fits view ``k`` badly: fewer than ``share`` of the points it keeps
+    for it (a loose model), or fewer than :data:`TURN_MIN_POINTS` of flows measured at
+    that many times as many points (texture matched, but not as parallax)."""
+    fit = par["fitting"][k]
+    return bool(fit < share * par["consistent"][k]
+                or fit < TURN_MIN_POINTS <= par["measured"][k] / TURN_MIN_POINTS)
 
 
 def _model_poor(par: dict, others: list, suspect_rms: float, share: float) -> bool:
-    """A residual above ``suspect_rms`` px, or a loose view: one that fits fewer than
-    ``share`` of the points the model keeps for it."""
-    return bool(par["rms"] > suspect_rms
-                or any(par["fitting"][k] < share * par["consistent"][k] or _few(par, k)
-                       for k in others))
+    """A residual above ``suspect_rms`` px, or a view the model fits badly (:func:`_misfit`)."""
+    return bool(par["rms"] > suspect_rms or any(_misfit(par, k, share) for k in others))
 
 
 def _better_order(trial: dict, best: dict, k, others: list) -> bool:
@@ -660,7 +660,8 @@ _PLANE_RULES = {
 
 def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=None,
                    focal_px: float | None = None, positions_from: str = "auto",
-                   work_size: int = 800, max_parallax: float = 0.08,
+                   work_size: int = SEARCH_DEFAULTS["work_size"],
+                   max_parallax: float = SEARCH_DEFAULTS["max_parallax"],
                    min_parallax_px: float = 0.5) -> Calibration:
     """Register every camera onto the reference view at the board plane (one board pose).
 
