@@ -426,6 +426,92 @@ def test_match_flows_with_a_window_cut_to_the_image():
                                 clip=True)[0]).all()
 
 
+def test_match_flows_cut_to_the_part_of_a_window_the_view_covers():
+    """A camera two baselines out covers only part of the reference's image once registered,
+    so a wide search window often reached into the part it does not cover, and the point
+    was not searched at all: in a 2 x 4 array turned against its reference, the outer
+    column's flows were measured at 7-29 of 600 points and fitted nowhere. Cut to the
+    view's valid part, the window is searched there; a peak beside that cut is refused."""
+    from scipy.ndimage import gaussian_filter
+
+    from hyperlf.calibration.parallax import feature_image, match_flows
+
+    texture = gaussian_filter(np.random.default_rng(1).random((64, 64)), 2.0)
+    moved = np.roll(texture, (0, 6), axis=(0, 1))        # 6 px right
+    valid = np.ones((64, 64), bool)
+    valid[:, :24] = False                                # the view covers x >= 24 only
+    points = np.array([[32.0, 32.0], [20.0, 32.0]])      # the second one's match is at x 26
+    args = (feature_image(texture), feature_image(moved), points, valid)
+    assert np.isnan(match_flows(*args, half=5, radius=12)[0]).all()
+    cut = match_flows(*args, half=5, radius=12, clip=True)[0]
+    np.testing.assert_allclose(cut[0], [6.0, 0.0], atol=0.1)
+    # the second's patch at its match would reach x 21: into the cut, so refused, not moved
+    assert np.isnan(cut[1]).all()
+    # where the window lies wholly in the valid part, the flow is the same bit for bit
+    inside = match_flows(*args[:3], np.ones((64, 64), bool), half=5, radius=12, clip=True)[0]
+    np.testing.assert_array_equal(cut[0], inside[0])
+
+
+@pytest.mark.parametrize("seed, rows, cols, which, degrees, tilt", [
+    (0, 2, 4, (0, 1), 90, 0.0), (1, 2, 4, (0, 1), 270, 4.0)])
+def test_plane_registration_of_a_wide_array_whose_reference_is_turned(seed, rows, cols, which,
+                                                                     degrees, tilt):
+    """A 2 x 4 array whose reference is mounted turned by a quarter: every other camera is
+    turned against it, and the outer column, two baselines from the reference, moves along
+    the reference's short side beside a board held across it. Its flows fitted no order,
+    and the positions came from the board poses (0.4-1.7 baselines off) or from parallax
+    (1.5 off). Every camera is now found turned, at the right place."""
+    rig = _turned_rig(which, degrees, rows, cols, seed=seed, image_size=(320, 240))
+    shots = rig.render(rig.board_pose(450.0, tilt=(tilt, -0.75 * tilt, 0.5 * tilt)),
+                       supersample=2)
+    cal = register_plane(shots, rig.board)
+    assert cal.info["positions_from"] == "parallax"
+    assert set(cal.info["camera_turns"].values()) == {360 - degrees}
+    assert len(cal.info["camera_turns"]) == rows * cols - 1
+    truth = rig.true_positions()
+    found = np.stack([cal.positions()[k] - cal.positions()[cal.reference] for k in truth])
+    exact = np.stack([truth[k] - truth[cal.reference] for k in truth])
+    quarter = np.array([[0.0, -1.0], [1.0, 0.0]])      # the capture turns with its reference
+    err = min(np.sqrt(np.mean(np.sum((found @ np.linalg.matrix_power(quarter, q) - exact) ** 2,
+                                     1))) for q in range(4))
+    assert err < 0.1
+
+
+def test_the_sign_of_positions_before_a_square_on_board():
+    """Before a board facing the array squarely the focal length is undetermined, and the
+    board poses solved at OpenCV's estimate of it (801 px here, the truth about 300) put the
+    cameras anywhere (3.9 baselines RMS). Their centres still decided the positions' sign,
+    and here turned every position from parallax round (2.0 baselines off) without a word.
+    The poses are now solved at a focal length short enough for any lens
+    (:data:`~hyperlf.calibration.plane.UNDETERMINED_FOCAL`)."""
+    rig = _turned_rig((1, 1), 180, 2, 2, seed=1, image_size=(320, 240))
+    cal = register_plane(rig.render(rig.board_pose(450.0), supersample=2), rig.board)
+    assert cal.info["focal_determined"] is False and cal.info["positions_from"] == "parallax"
+    assert cal.info["sign_agreement"] > 0.9
+    assert _position_error(rig, cal) < 0.1
+
+
+def test_parallax_that_no_positions_explain_is_not_taken():
+    """A parallax model left with an RMS residual of 14.9 px (a 2 x 4 array with its
+    reference turned, before this session's fixes) gave the positions, 3 baselines off,
+    without a word. Above :data:`~hyperlf.calibration.plane.PARALLAX_MAX_RMS` the board
+    poses' positions are taken with a note, or, when parallax was asked for, refused."""
+    from hyperlf.calibration.plane import PARALLAX_MAX_RMS, _parallax_offsets
+
+    board_offsets = {(0, 0): np.zeros(2), (0, 1): np.array([40.0, 0.0])}
+    par = {"n_points": 300, "median_flow": 10.0, "rms": 14.9, "reach": 12.0,
+           "offsets": {(0, 0): np.zeros(2), (0, 1): np.array([-3.0, 0.1])}}
+    info = {}
+    assert _parallax_offsets(par, board_offsets, info, "auto", 0.5) is board_offsets
+    assert "14.9 px" in info["parallax_unused"] and "positions_from" not in info
+    with pytest.raises(InvalidInputError, match="14.9 px"):
+        _parallax_offsets(par, board_offsets, {}, "parallax", 0.5)
+    info = {}
+    par["rms"] = 0.99 * PARALLAX_MAX_RMS
+    assert _parallax_offsets(par, board_offsets, info, "auto", 0.5) is par["offsets"]
+    assert info["positions_from"] == "parallax"
+
+
 def test_a_board_block_that_is_the_whole_board_is_placed():
     """The partial-board search, handed a block as large as the board, asked OpenCV to move
     no points and failed on its None (an AttributeError out of register_plane, on small

@@ -295,3 +295,23 @@ def test_ingest_refuses_images_the_calibration_does_not_fit(shots, tmp_path, cap
     for w in words:
         assert w in err, (w, err)
     assert not (tmp_path / "cap").exists()
+
+
+def test_calibrate_says_when_the_board_poses_cannot_tell_near_from_far():
+    """Positions from parallax take their sign (near from far) from the board poses' centres.
+    When the two barely agree (a cosine of 0.14-0.26 in the registrations that came out
+    turned round, against 0.76 and more in every right one, before the poses were solved at
+    a short focal length), the log said nothing, and before a square-on board it even said
+    the positions were fine."""
+    from hyperlf.calibration.plane import SIGN_AGREEMENT_MIN
+    from hyperlf.cli import _calibrate_notes
+
+    info = {"positions_from": "parallax", "focal_determined": False}
+    sure = _calibrate_notes({**info, "sign_agreement": 0.97})
+    assert len(sure) == 1 and "positions are fine" in sure[0]
+    notes = _calibrate_notes({**info, "sign_agreement": SIGN_AGREEMENT_MIN - 0.01})
+    assert len(notes) == 2 and "swapped" in notes[0] and "--focal-px" in notes[0]
+    assert "positions are fine" not in notes[1]
+    # from the board poses alone the sign is theirs: nothing to say about it
+    assert not any("swapped" in n for n in _calibrate_notes(
+        {"positions_from": "board", "sign_agreement": 0.1}))

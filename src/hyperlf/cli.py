@@ -760,6 +760,35 @@ def _turns_message(turns: dict, n_cameras: int) -> str:
                "then turned too): --reference names another" if most else ""))
 
 
+def _calibrate_notes(info: dict) -> list[str]:
+    """What the calibrate log says about a calibration's ``info`` beyond its figures."""
+    from .calibration.plane import SIGN_AGREEMENT_MIN
+
+    notes = []
+    sign_open = (info.get("positions_from") == "parallax"
+                 and info.get("sign_agreement", 1.0) < SIGN_AGREEMENT_MIN)
+    if sign_open:
+        notes.append(f"the board poses barely tell which way the cameras lie (agreement "
+                     f"{info['sign_agreement']:.2f} of 1), so near and far may come out "
+                     "swapped in depth; tilt the board by a few degrees in the shot or give "
+                     "--focal-px, and calibrate again")
+    if info.get("focal_determined") is False:
+        positions = ("registration is fine" if sign_open else "registration and positions "
+                     "are fine" if info.get("positions_from") == "parallax" else
+                     "registration is fine, but the cameras' positions, from the board poses "
+                     "alone, may be off by a baseline or more (check them in "
+                     "calibration.toml; a shot whose scene has texture beside the board at "
+                     "other depths measures them)")
+        notes.append(f"the board faces the cameras too squarely to fix the focal length; "
+                     f"{positions}; for metric depth give --focal-px (focal length / pixel "
+                     "pitch) or tilt the board")
+    if info.get("parallax_unused"):
+        notes.append(f"positions from the board poses, not from the scene's parallax "
+                     f"({info['parallax_unused']}); 'hyperlf ingest' then measures the "
+                     "disparity range on the scene")
+    return notes
+
+
 def _cmd_calibrate(args, dest) -> list[Path]:
     """Calibrate a camera array from checkerboard shots (SPEC §11). One shot per camera
     (files named by --pattern in FOLDER) registers every view onto the reference at the board
@@ -782,19 +811,8 @@ def _cmd_calibrate(args, dest) -> list[Path]:
                                    board=args.board, square=args.square, mode=args.mode,
                                    reference=args.reference, focal_px=args.focal_px,
                                    log=lambda m: _say(args, m))
-    if cal.info.get("focal_determined") is False:
-        positions = ("registration and positions are fine" if cal.info.get("positions_from")
-                     == "parallax" else "registration is fine, but the cameras' positions, "
-                     "from the board poses alone, may be off by a baseline or more (check "
-                     "them in calibration.toml; a shot whose scene has texture beside the "
-                     "board at other depths measures them)")
-        _say(args, f"note: the board faces the cameras too squarely to fix the focal length; "
-                   f"{positions}; for metric depth give --focal-px (focal length / pixel "
-                   "pitch) or tilt the board")
-    if cal.info.get("parallax_unused"):
-        _say(args, "note: positions from the board poses, not from the scene's parallax ("
-                   f"{cal.info['parallax_unused']}); 'hyperlf ingest' then measures the "
-                   "disparity range on the scene")
+    for note in _calibrate_notes(cal.info):
+        _say(args, f"note: {note}")
     turns = cal.info.get("camera_turns") or {}
     if turns:
         _say(args, _turns_message(turns, len(cal.cameras)))

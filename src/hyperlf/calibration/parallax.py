@@ -132,8 +132,10 @@ def match_flows(ref_feat: np.ndarray, view_feat: np.ndarray, points: np.ndarray,
     Points whose patch or search window leaves the image or the view's valid region, whose
     score is below ``min_score`` or whose peak sits on the search border get NaN flow.
     With ``clip`` the search window is cut to the image instead (only the patch must lie
-    inside it): a wide radius then still searches the points away from the image's centre,
-    and a peak on the cut is refused as one on the window's border is.
+    inside it), and searched where the patch lies in the view's valid region: a wide radius
+    then still searches the points away from the image's centre and beside the edge of a
+    far view's overlap, and a peak on either cut is refused as one on the window's border
+    is.
 
     Examples
     --------
@@ -180,15 +182,20 @@ def match_flows(ref_feat: np.ndarray, view_feat: np.ndarray, points: np.ndarray,
             x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, W), min(y1, H)
         elif x0 < 0 or y0 < 0 or x1 > W or y1 > H:
             continue
-        if not view_valid[y0:y1, x0:x1].all():
+        seen = view_valid[y0:y1, x0:x1]
+        if not (seen.all() or clip and seen.any()):
             continue
         tpl = ref_feat[y - half:y + half + 1, x - half:x + half + 1]
         if tpl.std() < 1e-6:
             continue
         score = cv2.matchTemplate(view_feat[y0:y1, x0:x1], tpl, cv2.TM_CCOEFF_NORMED)
+        if not seen.all():   # clipped: only where the patch lies in the view's valid part
+            score = _cut_to_valid(score, seen, half)
         iy, ix = np.unravel_index(int(np.argmax(score)), score.shape)
         best = float(score[iy, ix])
         on_border = ix in (0, score.shape[1] - 1) or iy in (0, score.shape[0] - 1)
+        if not seen.all():   # a peak next to the valid part's cut is refused too
+            on_border |= np.isneginf(score[iy - 1:iy + 2, ix - 1:ix + 2]).any()
         if not np.isfinite(best) or best < min_score or on_border:
             continue
         dx, dy = _subpixel(score, iy, ix)
@@ -196,6 +203,17 @@ def match_flows(ref_feat: np.ndarray, view_feat: np.ndarray, points: np.ndarray,
         flows[i] = (ix + dx - radius + (x0 - x + reach), iy + dy - radius + (y0 - y + reach))
         scores[i] = best
     return flows, scores
+
+
+def _cut_to_valid(score: np.ndarray, seen: np.ndarray, half: int) -> np.ndarray:
+    """``score`` with ``-inf`` where the patch would cover a pixel outside ``seen`` (the
+    search window's valid pixels), so that a peak next to the cut is refused as one on the
+    window's border is."""
+    import cv2
+
+    inside = cv2.erode(seen.astype(np.uint8), np.ones((2 * half + 1,) * 2, np.uint8))
+    inside = inside[half:half + score.shape[0], half:half + score.shape[1]] > 0
+    return np.where(inside, score, -np.inf)
 
 
 @dataclass

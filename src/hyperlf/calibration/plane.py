@@ -11,6 +11,9 @@ Stages (each a function):
    point at the image centre) gives every camera's pose relative to the board; the camera
    centres, expressed in the reference camera's axes, are a first, rough estimate of the
    positions (rotations and an assumed principal point blur it) and fix the physical sign.
+   A board facing the cameras squarely leaves the focal length undetermined; the poses are
+   then solved at a short one (:data:`UNDETERMINED_FOCAL`), which keeps the centres' error
+   within the shift the cameras' own small rotations make.
 4. :func:`parallax_offsets`: the parallax of off-board scene content in the registered views,
    factored into ``-d(x) (p_v - p_ref)`` (:mod:`~hyperlf.calibration.parallax`): the offsets'
    directions and relative lengths, free of the rotations that confound the board's raw shift.
@@ -19,7 +22,9 @@ Stages (each a function):
    alone cannot tell) by the same matching.
 5. :func:`resolve_positions`: scale (median nearest-neighbour distance = one baseline) and sign
    (the one that agrees with the board-pose centres, so that ``d_rel = f B (1/Z - 1/Z_board)``
-   is positive for points nearer than the board).
+   is positive for points nearer than the board). Parallax whose common model leaves more
+   than :data:`PARALLAX_MAX_RMS` px is not taken; agreement with the centres below
+   :data:`SIGN_AGREEMENT_MIN` is reported (``hyperlf calibrate`` says it).
 
 The user's description of the array (which name is where) is never used for geometry: a
 mirrored or rotated naming gives the same physical positions under the other names.
@@ -139,6 +144,14 @@ FOCAL_TOLERANCE = 0.05
 #: problem, not a precise one: corners found to a tenth of a pixel never fix a focal length to
 #: a thousandth. A board facing the cameras squarely gives 1e-7 px (or exactly 0).
 SINGULAR_FOCAL_STD = 1e-3
+
+#: Focal length (as a fraction of the larger image side) at which the board poses are solved
+#: when the board leaves the focal length undetermined. A focal length guessed ``k`` times too
+#: long moves a camera's centre by ``(k^2 - 1)`` times the shift its own small rotation makes;
+#: one shorter than the true one moves it by less than that shift, whatever the lens. The
+#: poses then still give the physical direction (the positions' sign) and the board-only
+#: positions; metric figures are left out for such a board anyway.
+UNDETERMINED_FOCAL = 0.5
 
 
 def board_geometry(corners: Mapping, board: BoardSpec, image_size, reference, *,
@@ -367,8 +380,15 @@ def _parallax(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, board: Boar
                                      radius=grow * radius, clip=grow > 1)[0]
         return cache[key]
 
-    flows = np.stack([match(k) for k in others]) if len(pts) else np.zeros((len(others), 0, 2))
-    flows, fac = _reach_far_views(flows, factor_rank1(flows), lambda i, g: match(others[i], g))
+    # a view matched wider once keeps that while its registration and the hub's stay: so
+    # that another camera's trial order is not judged by this view's search radius
+    grown = [cache.get(("grown", k, Hs[k].tobytes(), Hs[hub].tobytes()), 1) for k in others]
+    flows = (np.stack([match(k, g) for k, g in zip(others, grown)]) if len(pts)
+             else np.zeros((len(others), 0, 2)))
+    flows, fac = _reach_far_views(flows, factor_rank1(flows), lambda i, g: match(others[i], g),
+                                  grown)
+    for k, g in zip(others, grown):
+        cache[("grown", k, Hs[k].tobytes(), Hs[hub].tobytes())] = g
     consistent, fitting = {hub: len(pts)}, {hub: len(pts)}
     consistent.update({k: int(n) for k, n in zip(others, fac.inliers.sum(1))})
     measured = {hub: len(pts), **{k: int(n) for k, n in
@@ -396,29 +416,39 @@ def _parallax(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, board: Boar
 FAR_VIEW_GROWTH = (2, 3)
 
 
-def _reach_far_views(flows: np.ndarray, fac, match, *, share: float = 0.5):
+def _reach_far_views(flows: np.ndarray, fac, match, grown: list, *, share: float = 0.5):
     """A camera two or more baselines from the hub sees the scene move two or more times as
     far as its neighbours do, beyond a search radius that suits them: its flows are then
     mismatches or missing, and the common model fits few of its points. Each view consistent
     at fewer than ``share`` of the median view's points is matched again with the radius
-    times :data:`FAR_VIEW_GROWTH` in turn (``match(i, growth)``), and the flows are kept when
-    the model then fits more entries in all. Returns ``(flows, factorisation)``."""
+    times :data:`FAR_VIEW_GROWTH` in turn (``match(i, growth)``; a view already matched at a
+    growth, ``grown[i]``, only with larger ones), and the flows are kept when the model then
+    fits more entries in all. Returns ``(flows, factorisation)``; ``grown`` is updated."""
     for grow in FAR_VIEW_GROWTH:
         counts = fac.inliers.sum(1)
-        weak = np.flatnonzero(counts < share * np.median(counts)) if counts.size else []
-        if not len(weak):
-            break
+        weak = [i for i in (np.flatnonzero(counts < share * np.median(counts)) if counts.size
+                            else []) if grown[i] < grow]
+        if not weak:
+            continue
         wider = flows.copy()
         for i in weak:
             wider[i] = match(int(i), grow)
         refit = factor_rank1(wider)
         if refit.inliers.sum() > fac.inliers.sum():
             flows, fac = wider, refit
+            for i in weak:
+                grown[i] = grow
     return flows, fac
 
 
+#: Largest RMS residual (px) of the common parallax model whose offsets are taken as the
+#: cameras' positions; a larger one means flows that no single set of positions explains
+#: (the lab capture's is 0.25 px, the synthetic rigs' 0.2-1.4 px).
+PARALLAX_MAX_RMS = 2.0
+
+
 def turned_cameras(shots: Mapping, corners: Mapping, board: BoardSpec, reference, *,
-                   names=None, share: float = 0.5, suspect_rms: float = 2.0,
+                   names=None, share: float = 0.5, suspect_rms: float = PARALLAX_MAX_RMS,
                    **search) -> tuple[list, dict, dict]:
     """Cameras whose images are turned against the reference's (by 90, 180 or 270 degrees).
 
@@ -453,6 +483,8 @@ def turned_cameras(shots: Mapping, corners: Mapping, board: BoardSpec, reference
     names : mapping, optional
     share : float
     suspect_rms : float
+        RMS residual (px) above which the common model is poor (default
+        :data:`PARALLAX_MAX_RMS`, above which its positions are not taken either).
     **search
         ``work_size``, ``max_parallax`` of :func:`parallax_offsets`.
 
@@ -598,6 +630,12 @@ def nearest_spacing(offsets: np.ndarray) -> float:
     return float(np.median(dd.min(axis=1)))
 
 
+#: Cosine between the offsets from parallax and the board poses' centres below which the
+#: poses do not tell the positions' sign (near from far) with confidence; ``hyperlf
+#: calibrate`` then says so.
+SIGN_AGREEMENT_MIN = 0.5
+
+
 def resolve_positions(offsets: Mapping, pose_centres: Mapping, reference) -> tuple[dict, float]:
     """Positions (baselines, reference at ``(0, 0)``) and the sign-consistency score.
 
@@ -728,6 +766,9 @@ def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=No
     Hs, errs, resid = board_homographies(corners, ref, names)
     geo = board_geometry(corners, board, size, ref, focal_px=focal_px)
     info = _board_info(geo, corners, board, ref, names, focal_px)
+    if not info["focal_determined"]:   # centres at a short focal length (UNDETERMINED_FOCAL)
+        geo["centres"] = board_geometry(corners, board, size, ref,
+                                        focal_px=UNDETERMINED_FOCAL * max(size))["centres"]
     offsets = {k: np.asarray(v[:2]) for k, v in geo["centres"].items()}
     if par is not None:  # measured by turned_cameras on these corners
         offsets = _parallax_offsets(par, offsets, info, positions_from, min_parallax_px,
@@ -764,15 +805,19 @@ def _parallax_offsets(par: dict, offsets: dict, info: dict, positions_from: str,
                 parallax_median_flow=par["median_flow"])
     unknown = [k for k, o in par["offsets"].items() if not np.all(np.isfinite(o))]
     enough = par["n_points"] >= 8 and par["median_flow"] >= min_parallax_px
-    if enough and not unknown:
+    loose = not par["rms"] <= PARALLAX_MAX_RMS
+    if enough and not unknown and not loose:
         info["positions_from"] = "parallax"
         if np.isfinite(par["reach"]):  # |d| of 99 % of the points, px per baseline
             m = float(np.ceil(1.25 * par["reach"]))
             info["disparity_range"] = [-m, m]
         return par["offsets"]
-    if enough:   # but some camera's flows fit the others' parallax nowhere
+    if enough and unknown:   # but some camera's flows fit the others' parallax nowhere
         why = (f"the flows of camera(s) {', '.join(camera_label(k, names) for k in unknown)} "
                "fit the other cameras' parallax nowhere")
+    elif enough:
+        why = (f"the flows fit one parallax model only to {par['rms']:.1f} px RMS (at most "
+               f"{PARALLAX_MAX_RMS:g} px is taken)")
     else:
         why = (f"{par['n_points']} points off the board plane with a median flow of "
                f"{par['median_flow']:.2f} px; at least 8 points and {min_parallax_px:g} px "
