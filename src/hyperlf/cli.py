@@ -762,7 +762,7 @@ def _turns_message(turns: dict, n_cameras: int) -> str:
 
 def _calibrate_notes(info: dict) -> list[str]:
     """What the calibrate log says about a calibration's ``info`` beyond its figures."""
-    from .calibration.plane import SIGN_AGREEMENT_MIN
+    from .calibration.plane import ADVISED_TILT_DEG, SIGN_AGREEMENT_MIN
 
     notes = []
     sign_open = (info.get("positions_from") == "parallax"
@@ -770,8 +770,8 @@ def _calibrate_notes(info: dict) -> list[str]:
     if sign_open:
         notes.append(f"the board poses barely tell which way the cameras lie (agreement "
                      f"{info['sign_agreement']:.2f} of 1), so near and far may come out "
-                     "swapped in depth; tilt the board by a few degrees in the shot or give "
-                     "--focal-px, and calibrate again")
+                     f"swapped in depth; tilt the board by {ADVISED_TILT_DEG:g} degrees or "
+                     "more in the shot and calibrate again")
     if info.get("focal_determined") is False:
         positions = ("registration is fine" if sign_open else "registration and positions "
                      "are fine" if info.get("positions_from") == "parallax" else

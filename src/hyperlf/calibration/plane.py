@@ -783,8 +783,10 @@ def register_plane(shots: Mapping, board: BoardSpec, *, reference=None, names=No
 
 def _board_info(geo: dict, corners: dict, board: BoardSpec, ref, names, focal_px) -> dict:
     """The calibration's ``info`` from the board poses (and the cameras found turned)."""
+    n_z = min(abs(float(geo["plane"][2])), 1.0)   # the board's normal against the optical axis
     info = {"board_pose_rms": geo["rms"], "positions_from": "board",
             "focal_given": bool(focal_px), "focal_std_px": geo["focal_std"],
+            "board_tilt_deg": float(np.degrees(np.arccos(n_z))),
             **turn_report({k: c for k, c in corners.items() if k != ref},
                           {k: corners[ref] for k in corners}, board, names)}
     # a board facing the cameras squarely leaves the focal length (and so every metric
@@ -835,6 +837,13 @@ def _parallax_offsets(par: dict, offsets: dict, info: dict, positions_from: str,
 POSITION_DISAGREEMENT = 0.5
 
 
+#: Tilt (degrees, the board's normal against the reference's optical axis) that the
+#: messages advise: below it a long lens's board poses may not separate the cameras'
+#: small rotations from their positions (synthetic rig, focal length 2.8 times the image
+#: side: 4 degrees did not fix the focal length, 10 did, to 0.14 baselines).
+ADVISED_TILT_DEG = 10.0
+
+
 def _check_positions_agree(info: dict) -> None:
     """Refuse positions from parallax that the board poses contradict (when the poses fix the
     focal length, and so their centres): the files are not the cameras the grid says."""
@@ -842,10 +851,14 @@ def _check_positions_agree(info: dict) -> None:
     if info.get("positions_from") != "parallax" or not info.get("focal_determined") \
             or not rms > POSITION_DISAGREEMENT:
         return
+    tilt = info.get("board_tilt_deg", 90.0)
     raise InvalidInputError(
         f"the cameras' positions from the scene's parallax and from the board's poses disagree "
         f"by {rms:.2f} baselines (RMS); check --grid and --pattern: each file must be the "
-        "camera at its place in the grid")
+        "camera at its place in the grid" + (
+            f"; if it is, the board, tilted by only {tilt:.1f} degrees, cannot place the "
+            f"cameras: tilt it by {ADVISED_TILT_DEG:g} degrees or more" if tilt <
+            ADVISED_TILT_DEG else ""))
 
 
 def _plane_calibration(grid, ref, size, Hs, errs, pos, geo, board, names, info) -> Calibration:
