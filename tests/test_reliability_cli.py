@@ -230,6 +230,10 @@ def test_api_run_demo_validates_before_writing(tmp_path):
     (["synth", "procedural", "--grid", "1000,1000"], "--grid"),
     (["demo", "--labels", "1000000000"], "--labels"),
     (["demo", "--size", "100000,100000"], "--size"),
+    # an int beyond a float (the slow fuzzer's draw): an OverflowError's traceback before
+    (["demo", "--labels", "2" * 309], "--labels"),
+    (["depth", "{cap}", "--labels", "2" * 309], "--labels"),
+    (["synth", "procedural", "--grid", f"{'9' * 200},2"], "--grid"),
 ])
 def test_huge_options_are_refused_with_the_memory_needed(args, option, capture, tmp_path):
     proc = run_cli(*[a.replace("{cap}", str(capture)) for a in args], "-o", tmp_path / "o")

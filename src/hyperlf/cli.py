@@ -489,7 +489,7 @@ def _check_disparity_source(args, lf) -> None:
 def _check_views_memory(grid, size) -> None:
     """A synthetic capture: R x C views of H x W px, each with the R*C-band float32 cube."""
     (R, C), (H, W) = grid, size
-    tiling.check_memory(4.0 * (R * C) ** 2 * H * W,
+    tiling.check_memory(4 * (R * C) ** 2 * H * W,   # ints: a count beyond a float is refused
                   f"{R} x {C} views of {W} x {H} px with {R * C} bands",
                   "reduce --size or --grid")
 
@@ -497,7 +497,7 @@ def _check_views_memory(grid, size) -> None:
 def _check_labels_memory(labels: int, shape) -> None:
     """Depth: a few float32 cost volumes of ``labels`` x H x W (a lower bound)."""
     H, W = shape
-    tiling.check_memory(4.0 * 4 * labels * H * W, f"--labels {labels} on {W} x {H} px views",
+    tiling.check_memory(16 * labels * H * W, f"--labels {labels} on {W} x {H} px views",
                   "use fewer --labels")
 
 
