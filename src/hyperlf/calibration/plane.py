@@ -22,8 +22,8 @@ Stages (each a function):
    alone cannot tell) by the same matching.
 5. :func:`resolve_positions`: scale (median nearest-neighbour distance = one baseline) and sign
    (the one that agrees with the board-pose centres, so that ``d_rel = f B (1/Z - 1/Z_board)``
-   is positive for points nearer than the board). Parallax whose common model leaves more
-   than :data:`PARALLAX_MAX_RMS` px is not taken; agreement with the centres below
+   is positive for points nearer than the board). Parallax whose common model fits some
+   view loosely (:data:`MISFIT_SHARE`) is not taken; agreement with the centres below
    :data:`SIGN_AGREEMENT_MIN` is reported (``hyperlf calibrate`` says it).
 
 The user's description of the array (which name is where) is never used for geometry: a
@@ -441,14 +441,15 @@ def _reach_far_views(flows: np.ndarray, fac, match, grown: list, *, share: float
     return flows, fac
 
 
-#: Largest RMS residual (px) of the common parallax model whose offsets are taken as the
-#: cameras' positions; a larger one means flows that no single set of positions explains
-#: (the lab capture's is 0.25 px, the synthetic rigs' 0.2-1.4 px).
-PARALLAX_MAX_RMS = 2.0
+#: Share of the entries the common parallax model keeps for a view that it must fit within
+#: the fixed tolerance (:func:`_misfit`): below it the model is loose there, spread by wrong
+#: flows; :func:`turned_cameras` then tries other corner orders, and the positions are not
+#: taken from such a model.
+MISFIT_SHARE = 0.5
 
 
 def turned_cameras(shots: Mapping, corners: Mapping, board: BoardSpec, reference, *,
-                   names=None, share: float = 0.5, suspect_rms: float = PARALLAX_MAX_RMS,
+                   names=None, share: float = MISFIT_SHARE, suspect_rms: float = 2.0,
                    **search) -> tuple[list, dict, dict]:
     """Cameras whose images are turned against the reference's (by 90, 180 or 270 degrees).
 
@@ -483,8 +484,7 @@ def turned_cameras(shots: Mapping, corners: Mapping, board: BoardSpec, reference
     names : mapping, optional
     share : float
     suspect_rms : float
-        RMS residual (px) above which the common model is poor (default
-        :data:`PARALLAX_MAX_RMS`, above which its positions are not taken either).
+        RMS residual (px) above which the common model is poor.
     **search
         ``work_size``, ``max_parallax`` of :func:`parallax_offsets`.
 
@@ -807,7 +807,7 @@ def _parallax_offsets(par: dict, offsets: dict, info: dict, positions_from: str,
                 parallax_median_flow=par["median_flow"])
     unknown = [k for k, o in par["offsets"].items() if not np.all(np.isfinite(o))]
     enough = par["n_points"] >= 8 and par["median_flow"] >= min_parallax_px
-    loose = not par["rms"] <= PARALLAX_MAX_RMS
+    loose = [k for k in par.get("fitting", {}) if _misfit(par, k, MISFIT_SHARE)]
     if enough and not unknown and not loose:
         info["positions_from"] = "parallax"
         if np.isfinite(par["reach"]):  # |d| of 99 % of the points, px per baseline
@@ -818,8 +818,8 @@ def _parallax_offsets(par: dict, offsets: dict, info: dict, positions_from: str,
         why = (f"the flows of camera(s) {', '.join(camera_label(k, names) for k in unknown)} "
                "fit the other cameras' parallax nowhere")
     elif enough:
-        why = (f"the flows fit one parallax model only to {par['rms']:.1f} px RMS (at most "
-               f"{PARALLAX_MAX_RMS:g} px is taken)")
+        why = (f"the common parallax model fits the flows of camera(s) "
+               f"{', '.join(camera_label(k, names) for k in loose)} at few of their points")
     else:
         why = (f"{par['n_points']} points off the board plane with a median flow of "
                f"{par['median_flow']:.2f} px; at least 8 points and {min_parallax_px:g} px "
