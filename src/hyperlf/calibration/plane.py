@@ -483,6 +483,8 @@ def turned_cameras(shots: Mapping, corners: Mapping, board: BoardSpec, reference
     reference : key of the reference camera
     names : mapping, optional
     share : float
+        Share of the entries the model keeps for a view that it must fit (default
+        :data:`MISFIT_SHARE`), and of the median view's fitting count.
     suspect_rms : float
         RMS residual (px) above which the common model is poor.
     **search
