@@ -773,12 +773,15 @@ def _calibrate_notes(info: dict) -> list[str]:
                      f"swapped in depth; tilt the board by {ADVISED_TILT_DEG:g} degrees or "
                      "more in the shot and calibrate again")
     if info.get("focal_determined") is False:
-        positions = ("registration is fine" if sign_open else "registration and positions "
-                     "are fine" if info.get("positions_from") == "parallax" else
-                     "registration is fine, but the cameras' positions, from the board poses "
-                     "alone, may be off by a baseline or more (check them in "
-                     "calibration.toml; a shot whose scene has texture beside the board at "
-                     "other depths measures them)")
+        if info.get("positions_from") != "parallax":
+            positions = ("registration is fine, but the cameras' positions, from the board "
+                         "poses alone, may be off by a baseline or more (check them in "
+                         "calibration.toml; a shot whose scene has texture beside the board "
+                         "at other depths measures them)")
+        elif sign_open:
+            positions = "registration is fine"
+        else:
+            positions = "registration and positions are fine"
         notes.append(f"the board faces the cameras too squarely to fix the focal length; "
                      f"{positions}; for metric depth give --focal-px (focal length / pixel "
                      "pitch) or tilt the board")

@@ -183,18 +183,19 @@ def match_flows(ref_feat: np.ndarray, view_feat: np.ndarray, points: np.ndarray,
         elif x0 < 0 or y0 < 0 or x1 > W or y1 > H:
             continue
         seen = view_valid[y0:y1, x0:x1]
-        if not (seen.all() or clip and seen.any()):
+        cut = not seen.all()    # only with clip: then searched where the view is valid
+        if cut and not (clip and seen.any()):
             continue
         tpl = ref_feat[y - half:y + half + 1, x - half:x + half + 1]
         if tpl.std() < 1e-6:
             continue
         score = cv2.matchTemplate(view_feat[y0:y1, x0:x1], tpl, cv2.TM_CCOEFF_NORMED)
-        if not seen.all():   # clipped: only where the patch lies in the view's valid part
+        if cut:
             score = _cut_to_valid(score, seen, half)
         iy, ix = np.unravel_index(int(np.argmax(score)), score.shape)
         best = float(score[iy, ix])
         on_border = ix in (0, score.shape[1] - 1) or iy in (0, score.shape[0] - 1)
-        if not seen.all():   # a peak next to the valid part's cut is refused too
+        if cut:   # a peak next to the valid part's cut is refused too
             on_border |= np.isneginf(score[iy - 1:iy + 2, ix - 1:ix + 2]).any()
         if not np.isfinite(best) or best < min_score or on_border:
             continue

@@ -373,8 +373,10 @@ def _parallax(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, board: Boar
     pts = select_points(feats[hub], allowed > 0, spacing=half)
     others = [k for k in images if k != hub]
 
+    warps = {k: (k, Hs[k].tobytes(), Hs[hub].tobytes()) for k in others}   # cache keys
+
     def match(k, grow=1):  # a wider search is cut to the image, not refused at its border
-        key = ("flows", k, grow, Hs[k].tobytes(), Hs[hub].tobytes())
+        key = ("flows", grow, *warps[k])
         if key not in cache:
             cache[key] = match_flows(feats[hub], feats[k], pts, valid[k], half=half,
                                      radius=grow * radius, clip=grow > 1)[0]
@@ -382,13 +384,13 @@ def _parallax(images: Mapping, Hs: Mapping, corners_ref: np.ndarray, board: Boar
 
     # a view matched wider once keeps that while its registration and the hub's stay: so
     # that another camera's trial order is not judged by this view's search radius
-    grown = [cache.get(("grown", k, Hs[k].tobytes(), Hs[hub].tobytes()), 1) for k in others]
+    grown = [cache.get(("grown", *warps[k]), 1) for k in others]
     flows = (np.stack([match(k, g) for k, g in zip(others, grown)]) if len(pts)
              else np.zeros((len(others), 0, 2)))
     flows, fac = _reach_far_views(flows, factor_rank1(flows), lambda i, g: match(others[i], g),
                                   grown)
     for k, g in zip(others, grown):
-        cache[("grown", k, Hs[k].tobytes(), Hs[hub].tobytes())] = g
+        cache[("grown", *warps[k])] = g
     consistent, fitting = {hub: len(pts)}, {hub: len(pts)}
     consistent.update({k: int(n) for k, n in zip(others, fac.inliers.sum(1))})
     measured = {hub: len(pts), **{k: int(n) for k, n in
