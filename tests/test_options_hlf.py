@@ -77,6 +77,7 @@ def _stage_calls():
                                               "params": prob.params}),
         "median_passes": (hlf.median_passes, {"guide": prob.ref_img, "params": prob.params,
                                               "valid": None}),
+        "guide_noise": (hlf.guide_noise, {"guide": prob.ref_img, "valid": None}),
         "seen_pixels": (hlf.seen_pixels, {"prob": prob, "n_used": n_used}),
         "visible_views": (hlf.visible_views, {"prob": prob, "disparity": disp}),
         "LabelVisibility": (hlf.LabelVisibility, {"prob": prob, "disparity": disp}),

@@ -1172,12 +1172,18 @@ def _save_depth_intermediate(out, extra: dict, weight, strength) -> list[Path]:
 
 
 def _say_depth_config(args, config: dict) -> None:
-    """What the H-LF depth run decided for itself: more post-filter passes for soft views,
-    weakly textured pixels taken from the half-resolution estimate."""
+    """What the H-LF depth run decided for itself: more post-filter passes for soft or noisy
+    views, weakly textured pixels taken from the half-resolution estimate."""
     passes = config.get("median_passes", 1)
-    if passes > 1 and np.isfinite(config.get("edge_blur_px", np.nan)):
-        _say(args, f"soft image edges (blur {config['edge_blur_px']:.2f} px): the "
-                   f"weighted median ran {passes} times to pull the depth edges back onto them")
+    noise_passes = config.get("median_noise_passes", 0)
+    why = []
+    if passes - noise_passes > 1 and np.isfinite(config.get("edge_blur_px", np.nan)):
+        why.append(f"soft image edges (blur {config['edge_blur_px']:.2f} px) pull the depth "
+                   "edges off them")
+    if noise_passes > 0:
+        why.append(f"noise ({100 * config['view_noise']:.1f} % of the signal) leaves blotches")
+    if why:
+        _say(args, f"{' and '.join(why)}: the weighted median ran {passes} times")
     weak = config.get("weak_data_share", 0.0)
     if weak > 0:
         _say(args, f"weakly textured: {100 * weak:.1f} % of the data term dropped, "
@@ -1999,9 +2005,11 @@ def _add_depth_regularisation_options(g) -> None:
                    help="radius of the guided weighted-median post-filter that snaps depth "
                         "edges to image edges (default 4; 0 turns it off)")
     g.add_argument("--median-passes", type=_median_passes_arg, default=None, metavar="N",
-                   help="how often the post-filter runs (default auto: once, and once more "
+                   help="how often the post-filter runs (default auto: once, once more "
                         "per 0.4 px of the reference view's edge blur above 0.8 px, since "
-                        "soft views carry the foreground further over the background)")
+                        "soft views carry the foreground further over the background, and "
+                        "once more per 1 %% of white noise against the signal, since noise "
+                        "leaves blotches)")
 
 
 def _add_depth_weak_texture_options(g) -> None:

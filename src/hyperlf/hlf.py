@@ -162,7 +162,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import asdict, dataclass, field, replace
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -199,6 +199,7 @@ __all__ = [
     "post_filter",
     "edge_discount",
     "median_passes",
+    "guide_noise",
     "seen_pixels",
     "visible_views",
     "LabelVisibility",
@@ -251,6 +252,12 @@ CAMERA_TEXTURE_SNR = 2.0
 _rule = _opt.rule
 _number, _count, _flag = _opt.number, _opt.integer, _opt.flag
 _positive = _rule(_opt.number, positive=True)
+
+#: Shortest side (px) of a guide whose noise :func:`median_passes` reads: on smaller renders
+#: the aliased texture's fine scale passes for noise (procedural 40 x 48 scenes read 8-73 % of
+#: their mean, 64 x 64 ones up to 1 %, 96 x 128 and larger ones 0; BENCHMARKS.md, fifty-fifth
+#: session).
+NOISE_MIN_SIDE = 128
 
 #: Most passes of the guided median (``median_passes``, :func:`post_filter`): each moves an
 #: edge by at most a radius; far beyond the image's size in passes the loop would only spin.
@@ -470,6 +477,7 @@ _DEPTH_RULES = {
     "median_sigma": _positive,
     "median_blur_sharp": _number,
     "median_blur_step": _positive,
+    "median_noise_step": _rule(_opt.number, positive=True, optional=True),
     "confidence_edge_px": _number,
     "confidence_edge_jump": _positive,
     "confidence_floor": _rule(_opt.number, below=1),
@@ -610,7 +618,12 @@ class DepthParams:
     (:func:`median_passes`): a blurred outline moves with its foreground in every view, so
     the window costs carry the foreground further over the background the softer the image
     is.  Default 0.8 / 0.4 px: sharp and rendered views (0.6-0.85 px) get one pass, views
-    blurred by a Gaussian of 1 px two.
+    blurred by a Gaussian of 1 px two.  Noisy views add one pass per ``median_noise_step``
+    (0.01; None: none) of the reference view's white noise against its mean
+    (:func:`hyperlf.imageops.noise_sigma`; on views at least :data:`NOISE_MIN_SIDE` px on
+    each side): at a real array's noise (1-2 % of the signal)
+    the map's errors are blotches that a second pass removes, and a noise-free render reads
+    0-0.5 % and keeps its pass (BENCHMARKS.md, fifty-fifth session).
     Confidence: ``confidence_edge_px`` (4 px; 0 = off) and ``confidence_edge_jump`` (0.5
     disparity units): the result's confidence is scaled by
     :func:`hyperlf.regularisers.edge_confidence` of the final disparity, 0 on an estimated
@@ -689,6 +702,7 @@ class DepthParams:
     median_passes: int | str = "auto"
     median_blur_sharp: float = 0.8
     median_blur_step: float = 0.4
+    median_noise_step: float | None = 0.01
     confidence_edge_px: float = 4.0
     confidence_edge_jump: float = 0.5
     confidence_floor: float = 0.1
@@ -2743,20 +2757,45 @@ def post_filter(disparity: np.ndarray, guide: np.ndarray, params: DepthParams, *
     if params.median_radius <= 0:
         return disparity
     radius = min(int(params.median_radius), max(disparity.shape))
-    for _ in range(median_passes(guide, params)[0] if passes is None else passes):
+    for _ in range(median_passes(guide, params).passes if passes is None else passes):
         disparity = weighted_median(disparity, guide, radius,
                                     params.median_sigma,
                                     impl="numpy" if params.impl == "numpy" else "numba")
     return disparity
 
 
-def median_passes(guide: np.ndarray, params: DepthParams, *, valid=None) -> tuple[int, float]:
-    """Passes of the post-filter and the guide's edge blur (px; NaN when not measured).
+class MedianPasses(NamedTuple):
+    """What :func:`median_passes` decided, and from what.
+
+    Attributes
+    ----------
+    passes : int
+        Passes of the post-filter.
+    edge_blur_px : float
+        The guide's edge blur (:func:`hyperlf.imageops.edge_blur`), px; NaN when not measured
+        or when the guide has too few edges to tell.
+    noise : float
+        The guide's white noise against its mean (:func:`hyperlf.imageops.noise_sigma`); NaN
+        when not measured.
+    noise_passes : int
+        The passes the noise added.
+    """
+
+    passes: int
+    edge_blur_px: float
+    noise: float
+    noise_passes: int
+
+
+def median_passes(guide: np.ndarray, params: DepthParams, *, valid=None) -> MedianPasses:
+    """Passes of the post-filter, with the guide's edge blur and noise that set them.
 
     ``params.median_passes`` when it is a number; with ``"auto"``, one pass per
     ``params.median_blur_step`` px of :func:`hyperlf.imageops.edge_blur` above
-    ``params.median_blur_sharp``, at least one (one when the guide has too few edges to tell)
-    and at most :data:`MAX_MEDIAN_PASSES`.
+    ``params.median_blur_sharp``, at least one (one when the guide has too few edges to
+    tell), plus one per ``params.median_noise_step`` of the guide's relative noise
+    (:func:`guide_noise`; not read when the step is None or the guide is smaller than
+    :data:`NOISE_MIN_SIDE` on a side), at most :data:`MAX_MEDIAN_PASSES`.
 
     Examples
     --------
@@ -2764,23 +2803,59 @@ def median_passes(guide: np.ndarray, params: DepthParams, *, valid=None) -> tupl
     soft views carry the foreground further over the background:
 
     >>> from scipy.ndimage import gaussian_filter
-    >>> sharp = gaussian_filter(np.random.default_rng(0).random((64, 64)), 1.0)
+    >>> rng = np.random.default_rng(0)
+    >>> sharp = gaussian_filter(rng.random((64, 64)), 1.0)
     >>> soft = gaussian_filter(sharp, 3.0)
-    >>> median_passes(sharp, DepthParams())[0], median_passes(soft, DepthParams())[0]
-    (1, 4)
+    >>> [median_passes(g, DepthParams()).passes for g in (sharp, soft)]
+    [1, 4]
+
+    White noise of 2.5 % of the mean (read as 2.2 %) adds two passes, since noise leaves
+    blotches in the map:
+
+    >>> smooth = 1.0 + gaussian_filter(rng.standard_normal((128, 128)), 2.0)
+    >>> noisy = smooth + 0.025 * rng.standard_normal(smooth.shape)
+    >>> got = median_passes(noisy, DepthParams())
+    >>> round(got.noise, 3), got.noise_passes, got.passes
+    (0.022, 2, 3)
     """
     params = _depth_params(params)
     guide = _array(guide, "guide", ndim=2)
     valid = _mask(valid, "valid", guide.shape, of="the guide")
     if params.median_passes != "auto":
-        return int(params.median_passes), float("nan")
+        return MedianPasses(int(params.median_passes), float("nan"), float("nan"), 0)
     from .imageops import edge_blur
 
     blur = edge_blur(guide, valid=valid)
-    if not np.isfinite(blur):
-        return 1, blur
-    extra = (blur - params.median_blur_sharp) / params.median_blur_step
-    return min(MAX_MEDIAN_PASSES, max(1, int(np.ceil(extra - 1e-9)))), blur
+    base = 1
+    if np.isfinite(blur):
+        extra = (blur - params.median_blur_sharp) / params.median_blur_step
+        base = max(1, int(np.ceil(extra - 1e-9)))
+    noise, noise_passes = float("nan"), 0
+    if params.median_noise_step is not None and min(guide.shape) >= NOISE_MIN_SIDE:
+        noise = guide_noise(guide, valid=valid)
+        noise_passes = int(np.floor(noise / params.median_noise_step + 1e-9))
+    return MedianPasses(min(MAX_MEDIAN_PASSES, base + noise_passes), blur, noise, noise_passes)
+
+
+def guide_noise(guide: np.ndarray, *, valid=None) -> float:
+    """White noise of ``guide`` against its mean: :func:`hyperlf.imageops.noise_sigma` over
+    the mean of the valid pixels (0 for a guide whose mean is not positive).
+
+    Examples
+    --------
+    >>> img = 0.2 + 0.004 * np.random.default_rng(0).standard_normal((128, 128))
+    >>> round(guide_noise(img), 3)
+    0.02
+    """
+    from .imageops import noise_sigma
+
+    guide = _array(guide, "guide", ndim=2)
+    valid = _mask(valid, "valid", guide.shape, of="the guide")
+    values = guide if valid is None else guide[valid]
+    mean = float(np.mean(values, dtype=np.float64)) if values.size else 0.0
+    if not mean > 0:
+        return 0.0
+    return noise_sigma(guide, valid=valid) / mean
 
 
 def strips_for(prob: DepthProblem) -> list:
@@ -2793,7 +2868,7 @@ def strips_for(prob: DepthProblem) -> list:
                 selection=prob.view_selection, tile_rows=p.tile_rows)
 
 
-def _config(prob: DepthProblem, sC, sD, *, strips, start, prior, w, passes, blur,
+def _config(prob: DepthProblem, sC, sD, *, strips, start, prior, w, passes: MedianPasses,
             kept=False) -> dict:
     """``DepthResult.config``: the problem's settings and what the run decided."""
     p = prob.params
@@ -2804,7 +2879,8 @@ def _config(prob: DepthProblem, sC, sD, *, strips, start, prior, w, passes, blur
                 visibility_rounds=prob.visibility_rounds,
                 scale_C=sC, scale_D=sD,
                 n_edge_pixels=int(prob.edges.sum()), reference=tuple(prob.reference),
-                strips=strips, median_passes=passes, edge_blur_px=blur,
+                strips=strips, median_passes=passes.passes, edge_blur_px=passes.edge_blur_px,
+                view_noise=passes.noise, median_noise_passes=passes.noise_passes,
                 visibility_estimate_scale=None if start is None else int(p.visibility_scale),
                 visibility_costs_kept=bool(kept),
                 coarse_prior_scale=None if prior is None else int(p.coarse_prior_scale),
@@ -2990,8 +3066,9 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
     D, lam_r = defocus_cue(prob, f_c)
     f_d = None if D is None else prob.labels[np.argmin(D, axis=0)].astype(np.float32)
     clock.lap("defocus_s")
-    passes, blur = median_passes(prob.In[prob.reference], prob.params,
-                                 valid=None if prob.valid is None else prob.valid[prob.reference])
+    mp = median_passes(prob.In[prob.reference], prob.params,
+                       valid=None if prob.valid is None else prob.valid[prob.reference])
+    passes = mp.passes
     U, sC, sD, disp, conf, lab = _solve(prob, C, D, seen, f_c, w, prior, clock, passes)
     for k in range(first + 1, first + rounds + 1):
         sees = visibility(prob, disp)
@@ -3013,6 +3090,6 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
     return DepthResult(disparity=np.asarray(disp, np.float32), confidence=conf, f_c=f_c,
                        f_d=f_d, labels=prob.labels, timings=timings,
                        config=_config(prob, sC, sD, strips=strips, start=start, prior=prior,
-                                      w=w, passes=passes, blur=blur,
+                                      w=w, passes=mp,
                                       kept=store is not None),
                        intermediate=inter)
