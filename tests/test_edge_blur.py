@@ -111,6 +111,15 @@ def test_small_guides_add_no_passes_for_noise():
     assert median_passes(noisy[:-1], DepthParams()).noise_passes == 0
 
 
+def test_a_noise_step_near_zero_gives_at_most_the_most_passes():
+    img = 0.3 + 0.2 * gaussian_filter(np.random.default_rng(5).random((NOISE_MIN_SIDE,) * 2),
+                                      2.0)
+    noisy = img + 0.02 * img.mean() * np.random.default_rng(6).standard_normal(img.shape)
+    for step in (5e-324, 1e-300):
+        got = median_passes(noisy, DepthParams(median_noise_step=step))
+        assert got.noise_passes == MAX_MEDIAN_PASSES == got.passes
+
+
 def test_guide_noise_of_an_empty_or_dark_guide_is_zero():
     assert guide_noise(np.zeros((16, 16))) == 0.0
     assert guide_noise(np.ones((16, 16)), valid=np.zeros((16, 16), bool)) == 0.0

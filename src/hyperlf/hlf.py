@@ -621,9 +621,9 @@ class DepthParams:
     blurred by a Gaussian of 1 px two.  Noisy views add one pass per ``median_noise_step``
     (0.01; None: none) of the reference view's white noise against its mean
     (:func:`hyperlf.imageops.noise_sigma`; on views at least :data:`NOISE_MIN_SIDE` px on
-    each side): at a real array's noise (1-2 % of the signal)
-    the map's errors are blotches that a second pass removes, and a noise-free render reads
-    0-0.5 % and keeps its pass (BENCHMARKS.md, fifty-fifth session).
+    each side): at a real array's noise (1-2 % of the signal) the map's errors are blotches
+    that a second pass removes, and a noise-free render reads 0-0.5 % and keeps its pass
+    (BENCHMARKS.md, fifty-fifth session).
     Confidence: ``confidence_edge_px`` (4 px; 0 = off) and ``confidence_edge_jump`` (0.5
     disparity units): the result's confidence is scaled by
     :func:`hyperlf.regularisers.edge_confidence` of the final disparity, 0 on an estimated
@@ -2833,7 +2833,10 @@ def median_passes(guide: np.ndarray, params: DepthParams, *, valid=None) -> Medi
     noise, noise_passes = float("nan"), 0
     if params.median_noise_step is not None and min(guide.shape) >= NOISE_MIN_SIDE:
         noise = guide_noise(guide, valid=valid)
-        noise_passes = int(np.floor(noise / params.median_noise_step + 1e-9))
+        with np.errstate(over="ignore"):  # a step near 0: at most MAX_MEDIAN_PASSES
+            ratio = noise / params.median_noise_step
+        if np.isfinite(noise):
+            noise_passes = int(min(MAX_MEDIAN_PASSES, np.floor(ratio + 1e-9)))
     return MedianPasses(min(MAX_MEDIAN_PASSES, base + noise_passes), blur, noise, noise_passes)
 
 
