@@ -8,8 +8,8 @@ from hypothesis import strategies as st
 from scipy.ndimage import gaussian_filter
 
 from hyperlf.errors import InvalidInputError
-from hyperlf.hlf import (MAX_MEDIAN_PASSES, NOISE_MIN_SIDE, DepthParams, guide_noise, median_passes,
-                         post_filter)
+from hyperlf.hlf import (MAX_MEDIAN_PASSES, NOISE_MIN_SIDE, DepthParams, guide_noise,
+                         median_passes, post_filter)
 from hyperlf.imageops import edge_blur
 from hyperlf.regularisers import weighted_median
 
