@@ -2834,9 +2834,8 @@ def median_passes(guide: np.ndarray, params: DepthParams, *, valid=None) -> Medi
     if params.median_noise_step is not None and min(guide.shape) >= NOISE_MIN_SIDE:
         noise = guide_noise(guide, valid=valid)
         with np.errstate(over="ignore"):  # a step near 0: at most MAX_MEDIAN_PASSES
-            ratio = noise / params.median_noise_step
-        if np.isfinite(noise):
-            noise_passes = int(min(MAX_MEDIAN_PASSES, np.floor(ratio + 1e-9)))
+            noise_passes = int(min(MAX_MEDIAN_PASSES,
+                                   np.floor(noise / params.median_noise_step + 1e-9)))
     return MedianPasses(min(MAX_MEDIAN_PASSES, base + noise_passes), blur, noise, noise_passes)
 
 
