@@ -103,3 +103,25 @@ def test_the_scripts_refuse_bad_options_before_any_work(script, argv, monkeypatc
     assert exc.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith(f"{script}.py: error:")
+
+
+@settings(max_examples=40, deadline=None)
+@given(scenes=st.text(max_size=20), span=st.text(max_size=8))
+def test_middlebury_lf_refuses_bad_options_before_any_work(tmp_path_factory, scenes, span):
+    """benchmarks/middlebury_lf.py: a scene list or span it cannot run ends in argparse's exit
+    2 with one message, and the work folder is not made; what it accepts is a known scene
+    list and a span in (0, 50]."""
+    lf = _script("middlebury_lf")
+    work = tmp_path_factory.mktemp("w") / "work"
+    names = [s for s in scenes.split(",") if s]
+    try:
+        value = float(span)
+    except ValueError:
+        value = None
+    runnable = (bool(names) and set(names) <= set(lf.SCENES) and value is not None
+                and 0 < value <= 50)
+    if runnable:
+        return   # a real run: not what this test is for
+    with pytest.raises(SystemExit) as exc:
+        lf.main([str(work), "--scenes", scenes, "--span", span, "--out", str(work / "out")])
+    assert exc.value.code == 2 and not work.exists()

@@ -109,3 +109,19 @@ def test_channels_tsukuba_red_green():
     assert round(row["auto"]["bad5"], 2) == 1.29
     assert round(row["bwncc-paper"]["bad5"], 2) == 1.47
     assert 0.5 < row["auto"]["consistent"] < 1.0
+
+
+# ----------------------------------------------------------------------------- Middlebury LFs
+def test_middlebury_lf_venus(tmp_path):
+    """BENCHMARKS.md, "Light fields rendered from Middlebury scenes": Venus's light field
+    rendered, converted with ``hyperlf synth hci`` and run with the default ``hyperlf depth``
+    (results/middlebury_lf), to the printed digits; the report and the picture are written."""
+    require_dataset("venus")
+    lf = _script("middlebury_lf")
+    assert lf.main([str(tmp_path / "work"), "--scenes", "venus", "--out",
+                    str(tmp_path / "out")]) == 0
+    import json
+
+    row = json.loads((tmp_path / "out" / "middlebury_lf-span5.5.json").read_text())["scenes"][0]
+    assert (round(row["rmse"], 4), round(row["badpix_007"], 2)) == (0.0703, 1.98)
+    assert (tmp_path / "out" / "venus-span5.5-depth.png").is_file()

@@ -300,3 +300,44 @@ def test_rig_positions_mounts_a_camera_turned():
     for bad in ("corner", "side:90", "corner:45", "corner:x"):
         with pytest.raises(SystemExit, match="--turns must be like"):
             rp._turns(bad)
+
+
+def test_middlebury_lf_renders_a_square_before_a_wall():
+    """benchmarks/middlebury_lf.py: a square at 2 px per baseline before a wall at -1, the view
+    one baseline to the right. Every pixel the view shares with the centre holds the centre's
+    value at ``x - d`` exactly (whole-pixel shifts), and the disoccluded pixels are exactly the
+    3 px of wall the square hid and the column that came in at the left border."""
+    lf = benchmark_script("middlebury_lf")
+    rng = np.random.default_rng(0)
+    H, W = 16, 40
+    image = rng.integers(0, 256, (H, W, 3), dtype=np.uint8)
+    gt = np.full((H, W), -1.0)
+    gt[4:12, 20:30] = 2.0
+    view, lost = lf.render_view(image, gt, (1.0, 0.0))
+    expected = np.zeros((H, W), bool)
+    expected[:, 0] = True
+    expected[4:12, 28:31] = True
+    np.testing.assert_array_equal(lost, expected)
+    yy, xx = np.mgrid[0:H, 0:W]
+    tx = (xx - gt).astype(int)
+    seen = (tx >= 0) & (tx < W)
+    seen[4:12, 17:20] = False   # wall that the square hides in the view
+    np.testing.assert_array_equal(view[yy[seen], tx[seen]], image[seen])
+    same, none = lf.render_view(image, gt, (0.0, 0.0))
+    np.testing.assert_array_equal(same, image)
+    assert not none.any()
+
+
+def test_middlebury_lf_fills_unknown_ground_truth_from_the_background():
+    """Unknown ground truth takes the farther of its row's nearest known values (a row with
+    none, the nearest row's); the map then spans the asked range about 0."""
+    lf = benchmark_script("middlebury_lf")
+    n = np.nan
+    d = np.array([[n, 5, n, n, 2, n], [n] * 6, [1, 1, 1, 1, 1, 3]])
+    filled = lf.fill_rows_background(d)
+    np.testing.assert_array_equal(filled, [[5, 5, 2, 2, 2, 2], [5, 5, 2, 2, 2, 2],
+                                           [1, 1, 1, 1, 1, 3]])
+    mapped = lf.lf_disparity(filled, 4.0)
+    assert mapped.min() == pytest.approx(-2.0) and mapped.max() == pytest.approx(2.0)
+    with pytest.raises(ValueError):
+        lf.fill_rows_background(np.full((2, 3), np.nan))
