@@ -17,7 +17,7 @@ scores antinous (RMSE and BadPix(0.07) without the 15 px border).
 How a view is rendered (:func:`render_view`): the centre's disparity is forward-warped into
 the view (the nearer surface wins, :func:`hyperlf.warp.forward_warp_disparity`); a pixel that
 nothing lands on takes the largest disparity of its 3 x 3 neighbours when that one leads back
-to a reference pixel of the same disparity (a crack in a stretched surface), and is otherwise
+to a centre pixel of the same disparity (a crack in a stretched surface), and is otherwise
 disoccluded (the view sees what the centre does not); every other pixel samples the centre
 image at ``x + d dx, y + d dy`` (Lanczos), and the disoccluded ones are inpainted (Telea), so
 they hold plausible colour and no true correspondence, as a real occlusion does. Pixels whose
@@ -25,9 +25,11 @@ ground truth is unknown (Middlebury's occlusions, Tsukuba's border) first take t
 the two nearest known values on their row: the rendered views follow that disparity, so it is
 the stand-in's exact ground truth.
 
-The stand-ins are reported, not tuned on (BENCHMARKS.md, "How defaults are chosen"). The scale
-of their error is their own: a Middlebury scene has larger depth jumps than most HCI scenes,
-so the figure to read is how each one moves when the default does, and whether one fails.
+Venus is issue 12's tuning scene, so its light field may decide H-LF defaults; the light
+fields of Tsukuba, Teddy and Art are stand-ins, reported and not tuned on (BENCHMARKS.md, "How
+defaults are chosen"). The scale of their error is their own: a Middlebury scene has larger
+depth jumps than most HCI scenes, so the figure to read is how each one moves when the
+default does, and whether one fails.
 """
 
 from __future__ import annotations
@@ -43,7 +45,7 @@ import numpy as np
 from _common import data_path, log, write_report
 
 SCENES = ("venus", "tsukuba", "teddy", "art")
-#: The HCI folder's grid and its centre.
+#: Side of the HCI-style folder's square grid of views.
 GRID = 9
 #: Default distance (px per baseline) between the nearest and the farthest surface: antinous's
 #: ground truth spans 5.8 px (-3.13 .. 2.69).
