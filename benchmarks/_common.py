@@ -4,7 +4,9 @@
 from __future__ import annotations
 
 import json
+import subprocess
 import sys
+import time
 from pathlib import Path
 
 from hyperlf.datasets import dataset_path
@@ -13,6 +15,20 @@ from hyperlf.errors import DataNotFoundError
 
 def log(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
+
+
+def hyperlf(*argv) -> float:
+    """``hyperlf ARGV`` in a subprocess, as a user runs it (an error stops the script); its
+    wall time in seconds."""
+    t = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "hyperlf", *map(str, argv)], check=True)
+    return time.perf_counter() - t
+
+
+def option_suffix(options=()) -> str:
+    """What extra command-line ``options`` add to the names of their outputs
+    (``--optimizer=sgm`` -> ``-optimizer=sgm``)."""
+    return "".join("-" + o.lstrip("-") for o in options)
 
 
 def data_path(name: str) -> Path:

@@ -35,14 +35,12 @@ default does, and whether one fails.
 from __future__ import annotations
 
 import argparse
-import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
-from _common import data_path, log, write_report
+from _common import data_path, hyperlf, log, option_suffix, write_report
 
 SCENES = ("venus", "tsukuba", "teddy", "art")
 #: Side of the HCI-style folder's square grid of views.
@@ -148,13 +146,6 @@ def write_scene(folder: Path, image: np.ndarray, disparity: np.ndarray,
     return float(np.mean(lost))
 
 
-def cli(*argv) -> float:
-    """``hyperlf -q ARGV`` in a subprocess (as a user runs it); its wall time."""
-    t = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "hyperlf", "-q", *map(str, argv)], check=True)
-    return time.perf_counter() - t
-
-
 def centre_image(pair) -> np.ndarray:
     """The left image as uint8 RGB (the centre view's source)."""
     image = np.asarray(pair.left)
@@ -175,17 +166,15 @@ def prepare(name: str, work: Path, span: float) -> Path:
         lost = write_scene(folder, centre_image(pair), gt)
         log(f"{name}: rendered, {100 * lost:.2f} % of the view pixels disoccluded")
     if not (capture / "capture.toml").is_file():
-        cli("synth", "hci", folder, "-o", capture, "--overwrite")
+        hyperlf("-q", "synth", "hci", folder, "-o", capture, "--overwrite")
     return capture
 
 
 def picture(path: Path, name: str, lf, disp: np.ndarray) -> None:
     """The reference view, the ground truth, the estimate and its error side by side."""
-    import matplotlib
+    from hyperlf.visualise import pyplot, save_figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     gt = lf.reference_gt_disparity
     lo, hi = float(gt.min()), float(gt.max())
     fig, ax = plt.subplots(1, 4, figsize=(16, 3.6))
@@ -197,8 +186,7 @@ def picture(path: Path, name: str, lf, disp: np.ndarray) -> None:
         a.set_title(f"{name}: {title}", fontsize=9)
         a.axis("off")
         fig.colorbar(im, ax=a, fraction=0.046)
-    fig.savefig(path, dpi=80, bbox_inches="tight")
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def run_scene(name: str, work: Path, out: Path, span: float, options: list[str]) -> dict:
@@ -207,9 +195,8 @@ def run_scene(name: str, work: Path, out: Path, span: float, options: list[str])
     from hyperlf.metrics import HCI_BORDER, disparity_scores
 
     capture = prepare(name, work, span)
-    suffix = "".join("-" + o.lstrip("-") for o in options)
-    result = work / f"{capture.name[:-len('capture')]}depth{suffix}"
-    wall = cli("depth", capture, "-o", result, "--overwrite", *options)
+    result = work / f"{capture.name[:-len('capture')]}depth{option_suffix(options)}"
+    wall = hyperlf("-q", "depth", capture, "-o", result, "--overwrite", *options)
     lf = read_capture(capture, cube=False)
     disp = read_pfm(result / "disparity.pfm")
     s = disparity_scores(disp, lf.reference_gt_disparity, border=HCI_BORDER)
@@ -247,8 +234,7 @@ def main(argv=None) -> int:
              "", "| scene | size | RMSE px | BadPix(0.07) % | depth s |", "|---|---|---:|---:|---:|"]
     lines += [f"| {r['scene']} | {r['shape'][1]} x {r['shape'][0]} | {r['rmse']:.4f} | "
               f"{r['badpix_007']:.2f} | {r['depth_s']:.0f} |" for r in rows]
-    stem = f"middlebury_lf-span{args.span:g}" + "".join("-" + o.lstrip("-")
-                                                          for o in args.depth_option)
+    stem = f"middlebury_lf-span{args.span:g}{option_suffix(args.depth_option)}"
     write_report(args.out, stem, "\n".join(lines) + "\n",
                  {"span": args.span, "depth_options": args.depth_option, "scenes": rows})
     return 0

@@ -25,20 +25,11 @@ from __future__ import annotations
 
 import argparse
 import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 
-
-def hyperlf(*argv) -> None:
-    subprocess.run([sys.executable, "-m", "hyperlf", *map(str, argv)], check=True)
-
-
-def option_suffix(options=()) -> str:
-    """What the extra depth ``options`` add to the names of their outputs."""
-    return "".join("-" + o.lstrip("-") for o in options)
+from _common import hyperlf, option_suffix
 
 
 def depth_folder(shot: str, options=()) -> str:
