@@ -6,7 +6,7 @@ import pytest
 from hyperlf import synthesis
 from hyperlf.errors import InvalidInputError
 from hyperlf.hlf import (DepthParams, correspondence, defocus_cue, depth, edge_discount,
-                         post_filter, prepare, refine, regularise, unary)
+                         post_filter, prepare, refine, regularise, thin_objects, unary)
 
 
 @pytest.fixture(scope="module")
@@ -28,12 +28,13 @@ def test_stages_compose_to_depth(lf, kw):
     lab, vol = regularise(prob, U, f_c)
     disp, conf = refine(vol, lab, prob.labels, prob.params)
     disp = post_filter(disp, prob.In[prob.reference].astype(np.float32), prob.params)
+    disp, conf, _ = thin_objects(prob, U, f_c, disp, conf)
     conf = edge_discount(conf, disp, prob.params)
     np.testing.assert_array_equal(disp, res.disparity)
     np.testing.assert_array_equal(conf, res.confidence)
     np.testing.assert_array_equal(f_c, res.f_c)
     assert {"prepare_s", "correspondence_s", "selection_split_s", "defocus_s", "mrf_s",
-            "refine_s", "median_s", "total_s"} <= set(res.timings)
+            "refine_s", "median_s", "thin_objects_s", "total_s"} <= set(res.timings)
 
 
 def test_prepare_validates_before_work(lf):

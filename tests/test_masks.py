@@ -13,7 +13,8 @@ from hyperlf.errors import FormatError, InvalidInputError
 from hyperlf.formats.capture import read_capture, write_capture
 from hyperlf.formats.hdf5 import read_lightfield_h5, write_lightfield_h5
 from hyperlf.hlf import (DepthParams, correspondence, defocus_cue, depth, edge_discount,
-                         post_filter, prepare, refine, regularise, seen_pixels, unary)
+                         post_filter, prepare, refine, regularise, seen_pixels, thin_objects,
+                         unary)
 from hyperlf.imageops import fill_masked, normalise_intensity
 from hyperlf.lightfield import LightField
 
@@ -218,6 +219,7 @@ def test_stages_with_masks_compose_to_depth():
     lab, vol = regularise(prob, U, f_c)
     disp, conf = refine(vol, lab, prob.labels, prob.params, informative=seen)
     disp = post_filter(disp, prob.In[prob.reference].astype(np.float32), prob.params)
+    disp, conf, _ = thin_objects(prob, U, f_c, disp, conf, informative=seen)
     conf = edge_discount(conf, disp, prob.params)
     np.testing.assert_array_equal(disp, res.disparity)
     np.testing.assert_array_equal(conf, res.confidence)

@@ -1006,6 +1006,7 @@ def _hlf_depth_params(args, budget):
                                  ("missing_views", args.missing_views),
                                  ("unseen_labels", args.unseen_labels),
                                  ("weak_planes", args.weak_planes),
+                                 ("thin_objects", args.thin_objects),
                                  ("visibility_rounds", args.visibility_rounds),
                                  ("fusion_weights", args.fusion_weights),
                                  ("confidence_floor", args.confidence_floor),
@@ -1229,8 +1230,9 @@ def _cmd_batch(args, dest) -> list[Path]:  # noqa: ARG001 - batch writes its own
             depth_args += [flag, f"{value:g}" if isinstance(value, float) else str(value)]
     if args.no_coarse_prior:
         depth_args.append("--no-coarse-prior")
-    if args.weak_planes is not None:
-        depth_args.append("--weak-planes" if args.weak_planes else "--no-weak-planes")
+    for name, value in (("weak-planes", args.weak_planes), ("thin-objects", args.thin_objects)):
+        if value is not None:
+            depth_args.append(f"--{name}" if value else f"--no-{name}")
     new = not os.path.lexists(args.output)
     tasks = plan_batch(args.inputs, args.output, depth_args=depth_args,
                        disparity_range=args.disparity_range, downscale=args.downscale,
@@ -1746,6 +1748,18 @@ def _add_weak_planes_option(p: argparse.ArgumentParser, *, brief: bool = False) 
                    "on; it acts with the coarse prior, i.e. on captures from cameras)")
 
 
+def _add_thin_objects_option(p: argparse.ArgumentParser, *, brief: bool = False) -> None:
+    """``--thin-objects`` / ``--no-thin-objects`` of depth and batch
+    (``DepthParams.thin_objects``)."""
+    p.add_argument("--thin-objects", action=argparse.BooleanOptionalAction, default=None,
+                   help="as for depth" if brief else
+                   "graph cuts give rods, wires and stems that are faint in the reference "
+                   "band to the background behind them; ask SGM for a second opinion on "
+                   "the same costs and take the thin objects it puts nearer that do not lie "
+                   "along graph cuts' own surface at their depth (default: on; acts with "
+                   "--optimizer graphcut)")
+
+
 def _add_unseen_options(p: argparse.ArgumentParser, *, brief: bool = False) -> None:
     """``--missing-views`` and ``--unseen-labels`` of depth and batch
     (``DepthParams.missing_views``, ``DepthParams.unseen_labels``)."""
@@ -2000,6 +2014,7 @@ def _add_depth_matching_options(g) -> None:
 def _add_depth_regularisation_options(g) -> None:
     """depth's optimiser and the post-filter that snaps depth edges to image edges."""
     _add_optimizer_option(g)
+    _add_thin_objects_option(g)
     g.add_argument("--median-radius", type=_int_at_least(0, "--median-radius", 64), default=None,
                    metavar="PX",
                    help="radius of the guided weighted-median post-filter that snaps depth "
@@ -2124,6 +2139,7 @@ def _add_batch_depth_options(g) -> None:
                    help="as for depth")
     _add_coarse_prior_options(g, brief=True)
     _add_weak_planes_option(g, brief=True)
+    _add_thin_objects_option(g, brief=True)
     _add_unseen_options(g, brief=True)
     _add_fusion_weights_option(g, brief=True)
     g.add_argument("--min-confidence", type=_min_confidence_arg, default=None, metavar="C",
@@ -2344,13 +2360,15 @@ _EXCLUSIVE = (
 )
 #: Options that act only with another option's value: (option, other, value).
 _ONLY_WITH = (("--aggregation-radius", "--aggregation", "guided"),
-              ("--aggregation-eps", "--aggregation", "guided"))
+              ("--aggregation-eps", "--aggregation", "guided"),
+              ("--thin-objects", "--optimizer", "graphcut"),
+              ("--no-thin-objects", "--optimizer", "graphcut"))
 #: Options of ``depth`` that act on ``--method hlf`` only (the baselines take the range and
 #: the labels).
 _HLF_ONLY = ("--metric", "--optimizer", "--view-selection", "--occlusion-split", "--defocus",
              "--median-radius", "--median-passes", "--texture-snr", "--max-memory",
              "--no-coarse-prior", "--missing-views", "--unseen-labels", "--weak-planes",
-             "--no-weak-planes",
+             "--no-weak-planes", "--thin-objects", "--no-thin-objects",
              "--visibility-rounds", "--confidence-floor", "--confidence-edge-px",
              "--aggregation", "--aggregation-radius",
              "--aggregation-eps")

@@ -478,6 +478,11 @@ _DEPTH_RULES = {
     "median_blur_sharp": _number,
     "median_blur_step": _positive,
     "median_noise_step": _rule(_opt.number, positive=True, optional=True),
+    "thin_objects": _flag,
+    "thin_jump": _positive,
+    "thin_touch": _rule(_opt.number, positive=True, at_most=1),
+    "thin_min_size": _rule(_opt.integer, minimum=1),
+    "thin_min_support": _number,
     "confidence_edge_px": _number,
     "confidence_edge_jump": _positive,
     "confidence_floor": _rule(_opt.number, below=1),
@@ -624,6 +629,14 @@ class DepthParams:
     each side): at a real array's noise (1-2 % of the signal) the map's errors are blotches
     that a second pass removes, and a noise-free render reads 0-0.5 % and keeps its pass
     (BENCHMARKS.md, fifty-fifth session).
+    Thin objects (graph cuts only; :func:`thin_objects`): ``thin_objects`` (on) asks SGM
+    for a second opinion on graph cuts' last unary and takes its 8-connected components
+    (``thin_min_size`` px or more, default 10) that are nearer by more than ``thin_jump``
+    (1 disparity unit) and lie along graph cuts' surface at their own depth on under
+    ``thin_touch`` (0.25) of their outline, where the unary saves more than
+    ``thin_min_support`` (0.05) of its median range per pixel at SGM's disparity: rods and
+    wires faint in the reference band, that graph cuts give to the background
+    (BENCHMARKS.md, fifty-seventh session).
     Confidence: ``confidence_edge_px`` (4 px; 0 = off) and ``confidence_edge_jump`` (0.5
     disparity units): the result's confidence is scaled by
     :func:`hyperlf.regularisers.edge_confidence` of the final disparity, 0 on an estimated
@@ -703,6 +716,11 @@ class DepthParams:
     median_blur_sharp: float = 0.8
     median_blur_step: float = 0.4
     median_noise_step: float | None = 0.01
+    thin_objects: bool = True
+    thin_jump: float = 1.0
+    thin_touch: float = 0.25
+    thin_min_size: int = 10
+    thin_min_support: float = 0.05
     confidence_edge_px: float = 4.0
     confidence_edge_jump: float = 0.5
     confidence_floor: float = 0.1
@@ -754,12 +772,14 @@ class DepthResult:
     f_d : float32 (H, W) defocus-only WTA disparity, or None when ``defocus="off"``.
     labels : float64 (L,) the disparity of every label.
     timings : seconds per stage.
-    config : every setting used (JSON-friendly), and two summaries: ``weak_data_share`` (the
-        mean share of the data term the texture weight dropped) and ``coarse_prior_share``
-        (the mean strength of the coarse prior that replaced it).
+    config : every setting used (JSON-friendly), and three summaries: ``weak_data_share`` (the
+        mean share of the data term the texture weight dropped), ``coarse_prior_share``
+        (the mean strength of the coarse prior that replaced it) and ``thin_object_share``
+        (the share of pixels :func:`thin_objects` took from SGM).
     intermediate : with ``save_intermediate``: ``C``, ``D`` (or None), ``unary``, ``edges``,
         ``lambda_r`` (or None), ``n_selected`` (views used per (d, p) before the split),
-        ``texture_weight``, ``coarse_disparity`` and ``coarse_prior_strength`` (or None).
+        ``texture_weight``, ``coarse_disparity`` and ``coarse_prior_strength`` (or None),
+        ``thin_objects`` (:func:`thin_objects`' mask, or None).
     """
 
     disparity: np.ndarray
@@ -1966,7 +1986,7 @@ def _coarse_problem(prob: DepthProblem, s: int):
     dmin, dmax = prob.disparity_range
     nested = int(prob.params.coarse_prior_levels) - 1
     n = prob.params.coarse_prior_labels or max(2, math.ceil(prob.labels.size / s))
-    p = replace(prob.params, visibility_rounds=0, tile_rows=None,
+    p = replace(prob.params, visibility_rounds=0, tile_rows=None, thin_objects=False,
                 coarse_prior=prob.params.coarse_prior and nested > 0,
                 coarse_prior_levels=max(nested, 1), coarse_prior_labels=n)
     return downscale(prob.lf, s), dict(
@@ -2577,12 +2597,14 @@ def _coverage(prob: DepthProblem, levels) -> np.ndarray:
     return g
 
 
-def regularise(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray, *, init=None):
+def regularise(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray, *, init=None,
+               optimizer: str | None = None):
     """Stage 4c of :func:`depth`: optimise the MRF on ``U`` (SPEC §5.4).
 
     ``init``: the label map of the pass before, for a visibility round's plain graph cuts to
     start from (``params.round_cycles`` cycles; ignored when that is None, and by other
-    optimisers).
+    optimisers).  ``optimizer``: one of :data:`OPTIMIZERS` instead of the problem's own
+    (:func:`thin_objects` asks SGM for a second opinion on graph cuts' unary).
 
     Returns
     -------
@@ -2613,11 +2635,13 @@ def regularise(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray, *, init=None)
     f_c = _map(f_c, "f_c", shape[1:])
     if init is not None:
         init = _label_map(init, "init", shape[1:], shape[0])
+    optimizer = prob.optimizer if optimizer is None else \
+        _opt.choice(optimizer, "optimizer", OPTIMIZERS)
     p = prob.params
     labels = prob.labels
     step = float(labels[1] - labels[0])
     guide = prob.In[prob.reference].astype(np.float32)
-    mrf = _mrf_params(prob.optimizer, p, step)
+    mrf = _mrf_params(optimizer, p, step)
     ew = None
     if isinstance(mrf, _reg.GraphCutParams) and p.occlusion_weight != 1.0 and prob.edges.any():
         ew = _occlusion_edge_weights(prob.edges, f_c, p.truncation / 2.0, p.occlusion_weight)
@@ -2871,7 +2895,7 @@ def strips_for(prob: DepthProblem) -> list:
 
 
 def _config(prob: DepthProblem, sC, sD, *, strips, start, prior, w, passes: MedianPasses,
-            kept=False) -> dict:
+            thin=None, kept=False) -> dict:
     """``DepthResult.config``: the problem's settings and what the run decided."""
     p = prob.params
     return dict(metric=prob.metric, n_labels=prob.labels.size,
@@ -2888,7 +2912,8 @@ def _config(prob: DepthProblem, sC, sD, *, strips, start, prior, w, passes: Medi
                 coarse_prior_scale=None if prior is None else int(p.coarse_prior_scale),
                 coarse_prior_levels=0 if prior is None else len(_prior_levels(prob)),
                 weak_data_share=0.0 if w is None else float(np.mean(1.0 - w)),
-                coarse_prior_share=0.0 if prior is None else float(np.mean(prior[1])))
+                coarse_prior_share=0.0 if prior is None else float(np.mean(prior[1])),
+                thin_object_share=0.0 if thin is None else float(np.mean(thin)))
 
 
 class _Clock:
@@ -2913,19 +2938,120 @@ def _solve(prob: DepthProblem, C, D, seen, f_c, w, prior, clock, passes: int,
     U, sC, sD = unary(C, D, prob.params, informative=seen, weight=w)
     if prior is not None:
         _add_pull(U, prob.labels, *prior[:3])
-    lab, vol = regularise(prob, U, f_c, init=init)
-    clock.lap("mrf_s" + suffix)
+    disp, conf, lab = _solved(prob, U, f_c, seen, w, prior, passes, clock=clock,
+                              suffix=suffix, init=init)
+    return U, sC, sD, disp, conf, lab
+
+
+def _solved(prob: DepthProblem, U, f_c, seen, w, prior, passes: int, *, clock=None,
+            suffix: str = "", init=None, optimizer: str | None = None):
+    """Stages 4c-6 of :func:`depth` on the unary ``U``: MRF (``optimizer``, default the
+    problem's), refinement, the coarse prior's share of the confidence and the post-filter.
+    Returns ``(disparity, confidence, labels)``; ``clock`` (a :class:`_Clock`, optional)
+    records the stages' seconds."""
+    lap = (lambda key: None) if clock is None else clock.lap
+    lab, vol = regularise(prob, U, f_c, init=init, optimizer=optimizer)
+    lap("mrf_s" + suffix)
     disp, conf = refine(vol, lab, prob.labels, prob.params, informative=seen, weight=w,
                         prior=prior if vol is U else None)  # graph cuts: vol is U
     if prior is not None:  # what the weight took from a pixel came from the coarse estimate
         conf = (conf + (1.0 - np.clip(w, 0.0, 1.0)) * prior[3]).astype(np.float32)
         if seen is not None:
             conf[~seen] = 0.0
-    clock.lap("refine_s" + suffix)
+    lap("refine_s" + suffix)
     disp = post_filter(disp, prob.In[prob.reference].astype(np.float32), prob.params,
                        passes=passes)
-    clock.lap("median_s" + suffix)
-    return U, sC, sD, disp, conf, lab
+    lap("median_s" + suffix)
+    return disp, conf, lab
+
+
+def _unary_saving(U: np.ndarray, labels: np.ndarray, disparity, proposal) -> np.ndarray:
+    """What ``U`` saves per pixel at ``proposal``'s nearest label against ``disparity``'s, in
+    units of the median over pixels of the unary's range (``max - min`` over labels)."""
+    step = float(labels[1] - labels[0])
+
+    def at(d):
+        i = np.clip(np.rint((d - labels[0]) / step), 0, labels.size - 1).astype(np.intp)
+        return np.take_along_axis(U, i[None], axis=0)[0]
+
+    scale = float(np.median(U.max(axis=0) - U.min(axis=0)))
+    return (at(disparity) - at(proposal)) / max(scale, np.finfo(np.float32).tiny)
+
+
+def thin_objects(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray, disparity: np.ndarray,
+                 confidence: np.ndarray, *, informative=None, weight=None, prior=None,
+                 passes: int | None = None):
+    """Stage 7 of :func:`depth` under graph cuts: the thin foreground that graph cuts gave to
+    the background, taken back from SGM on the same unary.
+
+    Graph cuts charge a thin object's whole outline against the few pixels that vouch for
+    it, and lose rods, wires and stems that are faint in the reference band to the
+    background behind them; SGM, which charges along scanlines, keeps most of them, but
+    fattens foreground edges elsewhere.  SGM runs on ``U`` (the unary graph cuts solved,
+    coarse prior included), is refined and post-filtered like graph cuts' answer, and where
+    :func:`hyperlf.regularisers.thin_foreground` (``params.thin_jump``,
+    ``params.thin_touch``, ``params.thin_min_size``) finds a component it puts nearer that
+    does not lie along graph cuts' surface at its depth, and that ``U`` prefers (a mean
+    saving above ``params.thin_min_support`` of the unary's median range per pixel: where
+    the data cannot tell the two apart, as where masks leave few views, graph cuts' answer
+    stays), its disparity and confidence replace graph cuts' (BENCHMARKS.md, fifty-sixth
+    and fifty-seventh sessions).
+
+    Parameters
+    ----------
+    prob : DepthProblem
+    U : ndarray, float32 (L, H, W)
+        The unary graph cuts solved (:func:`unary`, with :func:`add_coarse_prior`).
+    f_c : ndarray (H, W)
+        The winner-takes-all disparity of the correspondence cost (:func:`regularise`).
+    disparity, confidence : ndarray (H, W)
+        Graph cuts' answer after :func:`post_filter`, and its confidence.
+    informative, weight, prior, passes
+        As for :func:`refine` and :func:`post_filter` on graph cuts' answer.
+
+    Returns
+    -------
+    disparity, confidence : ndarray, float32 (H, W)
+    taken : ndarray, bool (H, W) or None
+        The pixels SGM gave; None when the stage is off (``params.thin_objects`` False, an
+        optimiser other than graph cuts, or ``params.smoothness`` 0).
+
+    Examples
+    --------
+    A rod 2 px wide before a wall, whose pixels prefer its depth five times more weakly than
+    the wall's prefer the wall's: graph cuts give it to the wall, and the stage takes it back
+    (the post-filter is off, so that the rule alone acts):
+
+    >>> from hyperlf import synthesis
+    >>> lf = synthesis.procedural_scene(seed=0, rows=3, cols=3, height=32, width=40)
+    >>> prob = prepare(lf, n_labels=8, params=DepthParams(median_radius=0))
+    >>> rod = np.zeros((32, 40), bool); rod[4:28, 18:20] = True
+    >>> steps = np.arange(8.0)[:, None, None]
+    >>> U = np.where(rod, 0.2 * np.minimum(abs(steps - 6), 3), np.minimum(abs(steps - 1), 3))
+    >>> U = U.astype(np.float32)
+    >>> f_c = prob.labels[U.argmin(axis=0)]
+    >>> labels_map, volume = regularise(prob, U, f_c)
+    >>> disparity, confidence = refine(volume, labels_map, prob.labels, prob.params)
+    >>> bool((labels_map[rod] == 6).any())
+    False
+    >>> disparity, confidence, taken = thin_objects(prob, U, f_c, disparity, confidence)
+    >>> bool(np.allclose(disparity[rod], prob.labels[6])), bool(taken[~rod].any())
+    (True, False)
+    """
+    prob = _problem(prob)
+    p = prob.params
+    disparity = _map(disparity, "disparity", _image_shape(prob))
+    confidence = _map(confidence, "confidence", disparity.shape)
+    if not p.thin_objects or prob.optimizer != "graphcut" or p.smoothness == 0:
+        return disparity, confidence, None
+    d2, c2, _ = _solved(prob, U, f_c, informative, weight, _prior(prior, disparity.shape),
+                        passes, optimizer="sgm")
+    taken = _reg.thin_foreground(disparity, d2, jump=p.thin_jump, touch=p.thin_touch,
+                                 min_size=p.thin_min_size,
+                                 support=_unary_saving(U, prob.labels, disparity, d2),
+                                 min_support=p.thin_min_support)
+    return (np.where(taken, d2, disparity).astype(np.float32),
+            np.where(taken, c2, confidence).astype(np.float32), taken)
 
 
 def edge_discount(conf: np.ndarray, disparity: np.ndarray, params: DepthParams) -> np.ndarray:
@@ -2992,7 +3118,7 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
     :func:`prepare` -> :func:`texture_weight` -> :func:`coarse_prior` -> :func:`plane_prior`
     -> :func:`correspondence` -> :func:`defocus_cue` -> :func:`unary` ->
     :func:`add_coarse_prior` -> :func:`regularise` -> :func:`refine` ->
-    :func:`post_filter` -> :func:`edge_discount`.
+    :func:`post_filter` -> :func:`thin_objects` -> :func:`edge_discount`.
 
     Parameters
     ----------
@@ -3021,7 +3147,7 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
     DepthResult
         With ``timings`` in seconds per stage (``prepare_s``, ``correspondence_s``,
         ``selection_split_s``, ``plane_prior_s``, ``defocus_s``, ``mrf_s``, ``refine_s``,
-        ``median_s``, ``total_s``; ``visibility_estimate_s`` when the first visibility round starts from
+        ``median_s``, ``thin_objects_s``, ``total_s``; ``visibility_estimate_s`` when the first visibility round starts from
         :func:`coarse_disparity` (that round is then the main pass above); per further
         visibility round ``k``: ``visibility_round{k}_correspondence_s``,
         ``mrf_s_round{k}``, ``refine_s_round{k}``, ``median_s_round{k}``).
@@ -3082,16 +3208,22 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
         clock.lap(f"visibility_round{k}_correspondence_s")
         U, sC, sD, disp, conf, lab = _solve(prob, C, D, seen, f_c, w, prior, clock, passes,
                                             suffix=f"_round{k}", init=lab)
+    if not save_intermediate:
+        C = None  # not needed again: the thin-object stage's volumes in its place
+    disp, conf, thin = thin_objects(prob, U, f_c, disp, conf, informative=seen, weight=w,
+                                    prior=prior, passes=passes)
+    clock.lap("thin_objects_s")
     conf = edge_discount(conf, disp, prob.params)
     timings["total_s"] = time.perf_counter() - t0
     inter = None
     if save_intermediate:
         inter = dict(C=C, D=D, unary=U, edges=prob.edges, lambda_r=lam_r, n_selected=n_used,
                      texture_weight=w, coarse_disparity=None if prior is None else prior[0],
-                     coarse_prior_strength=None if prior is None else prior[1])
+                     coarse_prior_strength=None if prior is None else prior[1],
+                     thin_objects=thin)
     return DepthResult(disparity=np.asarray(disp, np.float32), confidence=conf, f_c=f_c,
                        f_d=f_d, labels=prob.labels, timings=timings,
                        config=_config(prob, sC, sD, strips=strips, start=start, prior=prior,
-                                      w=w, passes=mp,
+                                      w=w, passes=mp, thin=thin,
                                       kept=store is not None),
                        intermediate=inter)

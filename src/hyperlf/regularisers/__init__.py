@@ -22,7 +22,8 @@ Modules
 ``graphcuts`` (``graphcut``, ``graphcut_multiscale``, ``mrf_energy``,
 ``edge_weights_from_guide``, ``candidate_labels``), ``postprocess`` (``left_right_check``,
 ``left_occlusions``, ``fill_occlusions``, ``right_cost_from_left``, ``subpixel_refine``,
-``confidence``, ``edge_confidence``, ``ConfidenceParams``, ``weighted_median``) and
+``confidence``, ``edge_confidence``, ``thin_foreground``, ``ConfidenceParams``,
+``weighted_median``) and
 ``planes`` (``segment``, ``fit_plane``, ``plane_fill``, ``PlaneFillParams``: the segment-wise
 slanted-plane fill;
 ``cost_planes``: planes fitted to a cost volume's pooled costs).  Every public name
@@ -56,7 +57,7 @@ from .params import OPTIMISERS, GraphCutParams, SGMParams, WTAParams, make_param
 from .planes import PlaneFillParams, cost_planes, fit_plane, plane_fill, segment
 from .postprocess import (ConfidenceParams, confidence, edge_confidence, fill_occlusions,
                           left_occlusions, left_right_check, right_cost_from_left,
-                          subpixel_refine, weighted_median)
+                          subpixel_refine, thin_foreground, weighted_median)
 from .semiglobal import SGM_PATHS, SGM_SMOOTHNESS, sgm, sgm_labels
 
 __all__ = [
@@ -93,6 +94,7 @@ __all__ = [
     "subpixel_refine",
     "confidence",
     "edge_confidence",
+    "thin_foreground",
     "ConfidenceParams",
     "weighted_median",
 ]

@@ -9,12 +9,14 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from ..warp import coordinate_taps
-from .._options import bool_mask, check_fields, choice, integer, number, real_array, rule
+from .._options import (array, bool_mask, check_fields, choice, integer, number,
+                        real_array, rule)
 from ._checks import check_cost, check_label_map, check_labels, gather
 
 __all__ = ["left_right_check", "left_occlusions", "fill_occlusions", "right_cost_from_left",
            "subpixel_refine",
-           "confidence", "edge_confidence", "ConfidenceParams", "weighted_median"]
+           "confidence", "edge_confidence", "thin_foreground", "ConfidenceParams",
+           "weighted_median"]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -399,6 +401,95 @@ def edge_confidence(disparity, *, width: float = 4.0, jump: float = 0.5) -> np.n
         return np.ones(d.shape, np.float32)
     dist = ndi.distance_transform_edt(~edge)
     return np.minimum(1.0, dist / width).astype(np.float32)
+
+
+def thin_foreground(disparity, proposal, *, jump: float = 1.0, touch: float = 0.25,
+                    min_size: int = 10, support=None, min_support: float = 0.0) -> np.ndarray:
+    """The thin foreground that ``proposal`` finds and ``disparity`` lost, as a mask.
+
+    A regulariser that charges for every px of an outline gives a thin object (a rod, a wire,
+    a stem) to the background behind it when few pixels vouch for it: the outline costs more
+    than the object's evidence.  A second estimate that charges less (SGM against graph cuts)
+    keeps it, but also fattens the foreground elsewhere.  The two cases differ in where the
+    component lies against ``disparity``'s own surface at the component's depth: a lost thin
+    object meets it at most at its ends, a fattened edge along a whole side.
+
+    A pixel is taken when it belongs to an 8-connected component of at least ``min_size`` px
+    where ``proposal`` is nearer than ``disparity`` by more than ``jump``, and fewer than
+    ``touch`` of the component's outline (the 8-neighbours outside it) have a ``disparity``
+    within ``jump`` of the component's median ``proposal``.  The outline beyond the image
+    counts as touching: a strip along the border is more likely the proposal's own border
+    artefact (where few views see a pixel) than an object, and a rod that leaves the image
+    across the border loses only its width there.  With ``support``, a component is taken
+    only where the mean of ``support`` over it is above ``min_support``: the data must
+    vouch for the proposal, as they do for an object that only the outline's cost removed.
+
+    Parameters
+    ----------
+    disparity, proposal : array_like, shape (H, W)
+        Finite disparity maps, larger = nearer: the estimate and the second opinion.
+    jump : float
+        Disparity units (> 0): how much nearer ``proposal`` must be, and how close to the
+        component's depth an outline pixel must be to count as touching it.
+    touch : float
+        The share of the outline in (0, 1] from which a component counts as attached.
+    min_size : int
+        Smaller components (>= 1 px) are left alone: the proposal's own noise.
+    support : array_like, shape (H, W), optional
+        Finite; how much the data prefer ``proposal`` to ``disparity`` at each pixel
+        (:func:`hyperlf.hlf.thin_objects`: the unary's saving, in units of its typical range).
+    min_support : float
+        What a component's mean ``support`` must exceed (ignored without ``support``).
+
+    Returns
+    -------
+    ndarray, bool, shape (H, W)
+
+    See Also
+    --------
+    hyperlf.hlf.thin_objects : the depth stage that uses it.
+
+    Examples
+    --------
+    A rod 2 px wide, 3 px nearer than the wall, that only the proposal kept; and a
+    foreground square that the proposal widened by 2 px:
+
+    >>> import numpy as np
+    >>> d = np.zeros((20, 30)); d[:, 20:] = 3.0             # the square, from column 20
+    >>> p = d.copy(); p[2:18, 5:7] = 3.0; p[:, 18:20] = 3.0  # the rod; the widened edge
+    >>> taken = thin_foreground(d, p)
+    >>> bool(taken[2:18, 5:7].all()), bool(taken[:, 18:20].any())
+    (True, False)
+    """
+    from scipy import ndimage as ndi
+
+    d = array(disparity, "disparity", ndim=2, finite=True)
+    p = array(proposal, "proposal", d.shape, finite=True, of=" (disparity's)")
+    jump = number(jump, "jump", positive=True)
+    touch = number(touch, "touch", positive=True, at_most=1)
+    min_size = integer(min_size, "min_size", minimum=1)
+    min_support = number(min_support, "min_support")
+    if support is not None:
+        support = np.pad(array(support, "support", d.shape, finite=True, of=" (disparity's)"),
+                         1)
+    eight = np.ones((3, 3), bool)
+    components, n = ndi.label(np.pad(p - d > jump, 1), structure=eight)
+    sizes = np.bincount(components.ravel(), minlength=n + 1)
+    d = np.pad(d, 1, constant_values=np.nan)  # beyond the image: counts as touching
+    p = np.pad(p, 1)
+    taken = np.zeros(d.shape, bool)
+    for i, box in enumerate(ndi.find_objects(components), start=1):
+        if sizes[i] < min_size:
+            continue
+        box = tuple(slice(s.start - 1, s.stop + 1) for s in box)
+        own = components[box] == i
+        if support is not None and not support[box][own].mean() > min_support:
+            continue
+        outline = d[box][ndi.binary_dilation(own, eight) & ~own]
+        level = np.median(p[box][own])
+        if np.mean(np.isnan(outline) | (np.abs(outline - level) <= jump)) < touch:
+            taken[box] |= own
+    return taken[1:-1, 1:-1]
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,239 @@
+"""Thin objects that graph cuts lose, taken back from SGM (issue 12):
+:func:`hyperlf.regularisers.thin_foreground` (the rule), :func:`hyperlf.hlf.thin_objects`
+(the depth stage), ``DepthParams.thin_*`` and ``--thin-objects``."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from hyperlf import hlf, synthesis
+from hyperlf.cli import main
+from hyperlf.errors import InvalidInputError
+from hyperlf.regularisers import thin_foreground
+
+
+def _wall_and_square():
+    """A wall at 0 with a square at 3 from column 20: graph cuts' answer."""
+    d = np.zeros((24, 40))
+    d[4:20, 20:36] = 3.0
+    return d
+
+
+def test_a_lost_rod_is_taken_and_a_widened_edge_is_not():
+    d = _wall_and_square()
+    p = d.copy()
+    p[2:22, 5:7] = 3.0         # a rod graph cuts lost: it meets nothing at its depth
+    p[4:20, 17:20] = 3.0       # the square widened by 3 px: one whole side is its own depth
+    taken = thin_foreground(d, p)
+    assert taken[2:22, 5:7].all()
+    assert not taken[:, 10:].any()
+    assert taken.sum() == 40
+
+
+def test_a_rod_that_ends_on_the_square_is_still_taken():
+    d = _wall_and_square()
+    p = d.copy()
+    p[10:12, 6:20] = 3.0       # a horizontal rod reaching the square: only its end touches
+    assert thin_foreground(d, p)[10:12, 6:20].all()
+
+
+def test_the_touch_threshold_decides_at_the_share_of_the_outline():
+    d = _wall_and_square()
+    p = d.copy()
+    p[10:12, 6:20] = 3.0
+    outline = 4 * 16 - 2 * 14      # the 8-neighbours of a 2 x 14 bar
+    share = 4 / outline            # four of them (column 20, rows 9-12) are the square's
+    assert thin_foreground(d, p, touch=share + 1e-6)[10:12, 6:20].all()
+    assert not thin_foreground(d, p, touch=share).any()
+
+
+def test_small_components_and_small_jumps_are_left():
+    d = np.zeros((20, 20))
+    p = d.copy()
+    p[5:8, 5:8] = 3.0          # 9 px, under the default 10
+    p[12:18, 12:14] = 0.9      # 12 px, nearer by less than the jump
+    assert not thin_foreground(d, p).any()
+    assert thin_foreground(d, p, min_size=9)[5:8, 5:8].all()
+    assert thin_foreground(d, p, jump=0.5)[12:18, 12:14].all()
+
+
+def test_a_strip_along_the_border_is_left_and_a_rod_across_it_taken():
+    d = np.zeros((30, 30))
+    p = d.copy()
+    p[5:25, 0:2] = 3.0         # along the left border: most of its outline is beyond it
+    p[0:12, 14:16] = 3.0       # leaves the image across the top border
+    taken = thin_foreground(d, p)
+    assert not taken[:, :2].any() and taken[0:12, 14:16].all()
+
+
+def test_support_decides_where_the_data_do_not_vouch_for_the_proposal():
+    d = _wall_and_square()
+    p = d.copy()
+    p[2:22, 5:7] = 3.0
+    support = np.zeros(d.shape)
+    assert not thin_foreground(d, p, support=support).any()
+    support[2:22, 5:7] = 0.1
+    assert thin_foreground(d, p, support=support, min_support=0.05)[2:22, 5:7].all()
+    assert not thin_foreground(d, p, support=support, min_support=0.1).any()
+    with pytest.raises(InvalidInputError, match="support must have shape"):
+        thin_foreground(d, p, support=support[:, :-1])
+
+
+def test_farther_proposals_and_the_whole_image_are_left():
+    d = np.full((12, 12), 2.0)
+    assert not thin_foreground(d, d - 3.0).any()   # farther everywhere
+    assert not thin_foreground(d, d + 3.0).any()   # nearer everywhere: no outline at all
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(disparity=np.zeros((4, 4)), proposal=np.zeros((4, 5))), "proposal must have shape"),
+    (dict(disparity=np.zeros(4), proposal=np.zeros(4)), "disparity must be a 2-D"),
+    (dict(disparity=np.full((4, 4), np.nan), proposal=np.zeros((4, 4))), "disparity must be fin"),
+    (dict(disparity=np.zeros((4, 4)), proposal=np.zeros((4, 4)), jump=0), "jump"),
+    (dict(disparity=np.zeros((4, 4)), proposal=np.zeros((4, 4)), touch=1.5), "touch"),
+    (dict(disparity=np.zeros((4, 4)), proposal=np.zeros((4, 4)), min_size=0), "min_size"),
+])
+def test_bad_arguments_are_refused_in_one_line(kwargs, match):
+    with pytest.raises(InvalidInputError, match=match):
+        thin_foreground(**kwargs)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), jump=st.floats(0.1, 3.0),
+       touch=st.floats(0.05, 1.0), min_size=st.integers(1, 30))
+def test_taken_pixels_are_nearer_by_the_jump_and_whole_components(seed, jump, touch, min_size):
+    from scipy import ndimage as ndi
+
+    rng = np.random.default_rng(seed)
+    d = rng.integers(0, 4, (24, 30)).astype(float)
+    p = d + rng.choice([0.0, 0.0, 2.0, 4.0], d.shape)
+    taken = thin_foreground(d, p, jump=jump, touch=touch, min_size=min_size)
+    nearer = p - d > jump
+    assert not (taken & ~nearer).any()
+    components, _ = ndi.label(nearer, structure=np.ones((3, 3), bool))
+    for i in np.unique(components[taken]):      # a component is taken whole or not at all
+        assert taken[components == i].all()
+        assert (components == i).sum() >= min_size
+
+
+# --------------------------------------------------------------------------------------------
+# the depth stage
+# --------------------------------------------------------------------------------------------
+
+def _rod_problem(**params):
+    """A small problem and a unary whose rod (2 px wide, label 6) prefers its depth five
+    times more weakly than the wall (label 1) prefers the wall's."""
+    lf = synthesis.procedural_scene(seed=0, rows=3, cols=3, height=32, width=40)
+    prob = hlf.prepare(lf, n_labels=8, params=hlf.DepthParams(median_radius=0, **params))
+    rod = np.zeros((32, 40), bool)
+    rod[4:28, 18:20] = True
+    steps = np.arange(8.0)[:, None, None]
+    U = np.where(rod, 0.2 * np.minimum(abs(steps - 6), 3),
+                 np.minimum(abs(steps - 1), 3)).astype(np.float32)
+    return prob, U, rod
+
+
+def _graph_cuts(prob, U):
+    f_c = prob.labels[U.argmin(axis=0)]
+    labels_map, volume = hlf.regularise(prob, U, f_c)
+    d, c = hlf.refine(volume, labels_map, prob.labels, prob.params)
+    return f_c, d, c
+
+
+def test_the_stage_takes_back_the_rod_graph_cuts_lost():
+    prob, U, rod = _rod_problem()
+    f_c, d, c = _graph_cuts(prob, U)
+    assert np.allclose(d, prob.labels[1])                   # graph cuts: all wall
+    d2, c2, taken = hlf.thin_objects(prob, U, f_c, d, c)
+    assert np.array_equal(taken, rod)
+    assert np.allclose(d2[rod], prob.labels[6]) and np.array_equal(d2[~rod], d[~rod])
+    assert np.array_equal(c2[~rod], c[~rod]) and (c2[rod] >= 0).all()
+
+
+@pytest.mark.parametrize("params, optimizer", [({"thin_objects": False}, "graphcut"),
+                                               ({"smoothness": 0.0}, "graphcut"),
+                                               ({}, "sgm")])
+def test_the_stage_is_off_without_graph_cuts_or_when_asked(params, optimizer):
+    prob, U, _ = _rod_problem(**params)
+    prob.optimizer = optimizer
+    f_c, d, c = _graph_cuts(prob, U)
+    d2, c2, taken = hlf.thin_objects(prob, U, f_c, d, c)
+    assert taken is None and d2 is d and c2 is c
+
+
+def test_regularise_takes_another_optimiser_and_refuses_an_unknown_one():
+    prob, U, rod = _rod_problem()
+    f_c = prob.labels[U.argmin(axis=0)]
+    labels_map, _ = hlf.regularise(prob, U, f_c, optimizer="sgm")
+    assert (labels_map[rod] == 6).mean() > 0.9
+    with pytest.raises(InvalidInputError, match="optimizer"):
+        hlf.regularise(prob, U, f_c, optimizer="belief")
+
+
+def test_depth_recovers_thin_objects_of_a_procedural_scene():
+    """Rings and sticks before slanted and fronto-parallel planes: the pixels the stage
+    takes were wrong by more than a pixel under graph cuts, and are right after."""
+    lf = synthesis.procedural_scene(3, rows=3, cols=3, height=96, width=128,
+                                    kinds=("ring", "stick", "fronto", "ring", "stick",
+                                           "slanted"), n_objects=10, supersample=2)
+    gt = lf.reference_gt_disparity
+    on = hlf.depth(lf, n_labels=32, save_intermediate=True)
+    off = hlf.depth(lf, n_labels=32, params=hlf.DepthParams(thin_objects=False))
+    taken = on.intermediate["thin_objects"]
+    assert on.config["thin_object_share"] == pytest.approx(taken.mean())
+    assert taken.sum() > 100
+    assert np.median(np.abs(off.disparity - gt)[taken]) > 1.0
+    assert np.median(np.abs(on.disparity - gt)[taken]) < 0.25
+    assert np.array_equal(on.disparity[~taken], off.disparity[~taken])
+    assert "thin_objects_s" in on.timings
+
+
+def test_thin_objects_are_on_by_default_and_their_constants_checked():
+    p = hlf.DepthParams()
+    assert (p.thin_objects, p.thin_jump, p.thin_touch, p.thin_min_size,
+            p.thin_min_support) == (True, 1.0, 0.25, 10, 0.05)
+    for bad in ({"thin_objects": 1}, {"thin_jump": 0}, {"thin_touch": 0},
+                {"thin_touch": 1.1}, {"thin_min_size": 0}, {"thin_jump": float("nan")},
+                {"thin_min_support": float("inf")}, {"thin_min_support": "0.1"}):
+        with pytest.raises(InvalidInputError, match="params.thin_"):
+            hlf.DepthParams(**bad)
+
+
+def test_the_coarse_run_has_no_thin_object_stage():
+    lf = synthesis.procedural_scene(seed=0, rows=3, cols=3, height=64, width=64)
+    prob = hlf.prepare(lf, n_labels=16)
+    _, options = hlf._coarse_problem(prob, 2)
+    assert options["params"].thin_objects is False
+
+
+# --------------------------------------------------------------------------------------------
+# the command line
+# --------------------------------------------------------------------------------------------
+
+def test_depth_takes_thin_objects(tmp_path, capsys, monkeypatch):
+    from hyperlf.formats import save_lightfield
+
+    save_lightfield(synthesis.procedural_scene(seed=0, rows=3, cols=3, height=32, width=40),
+                    tmp_path / "cap", bit_depth=32)
+    seen, real = [], hlf.depth
+
+    def spy(*args, params=None, **kwargs):
+        seen.append(hlf.DepthParams() if params is None else params)
+        return real(*args, params=params, **kwargs)
+
+    monkeypatch.setattr(hlf, "depth", spy)
+    for flags, on in (([], True), (["--thin-objects"], True), (["--no-thin-objects"], False)):
+        assert main(["-q", "depth", str(tmp_path / "cap"), "--labels", "16", *flags,
+                     "-o", str(tmp_path / "out"), "--overwrite"]) == 0
+        assert seen[-1].thin_objects is on
+    capsys.readouterr()
+    assert main(["-q", "depth", str(tmp_path / "cap"), "--optimizer", "sgm",
+                 "--no-thin-objects", "-o", str(tmp_path / "x")]) == 2
+    assert "--no-thin-objects acts only with --optimizer graphcut" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
+
+
+def test_batch_hands_thin_objects_on(batch_depth_args):
+    assert "--no-thin-objects" in batch_depth_args("--no-thin-objects")
+    assert "--thin-objects" in batch_depth_args("--thin-objects")
+    assert not any("thin" in a for a in batch_depth_args())
