@@ -237,3 +237,20 @@ def test_batch_hands_thin_objects_on(batch_depth_args):
     assert "--no-thin-objects" in batch_depth_args("--no-thin-objects")
     assert "--thin-objects" in batch_depth_args("--thin-objects")
     assert not any("thin" in a for a in batch_depth_args())
+
+
+def test_depth_says_and_shows_what_it_took(tmp_path, capsys):
+    from hyperlf.formats import read_pfm, save_lightfield
+
+    lf = synthesis.procedural_scene(3, rows=3, cols=3, height=96, width=128,
+                                    kinds=("ring", "stick", "fronto", "ring", "stick",
+                                           "slanted"), n_objects=10, supersample=2)
+    save_lightfield(lf, tmp_path / "cap", bit_depth=32)
+    assert main(["depth", str(tmp_path / "cap"), "--labels", "32", "--save-intermediate",
+                 "-o", str(tmp_path / "d")]) == 0
+    ref = hlf.depth(lf, n_labels=32, save_intermediate=True)
+    share = 100 * ref.config["thin_object_share"]
+    assert f"thin objects: {share:.2f} % of the pixels taken from SGM" in capsys.readouterr().err
+    mask = read_pfm(tmp_path / "d" / "thin_objects.pfm")
+    np.testing.assert_array_equal(mask, ref.intermediate["thin_objects"].astype(np.float32))
+    assert (tmp_path / "d" / "thin_objects.png").is_file()

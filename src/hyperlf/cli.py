@@ -1044,8 +1044,10 @@ def _run_hlf_depth(args, lf, rng):
                 defocus=args.defocus, optimizer=args.optimizer, params=params,
                 save_intermediate=args.save_intermediate, progress=_bars(args))
     inter = res.intermediate or {}
+    thin = inter.get("thin_objects")
     extra = {"correspondence_only": res.f_c, "defocus_only": res.f_d,
-             "coarse_disparity": inter.get("coarse_disparity")}
+             "coarse_disparity": inter.get("coarse_disparity"),
+             "thin_objects": None if thin is None else thin.astype(np.float32)}
     return res, extra, inter.get("texture_weight"), inter.get("coarse_prior_strength")
 
 
@@ -1174,7 +1176,8 @@ def _save_depth_intermediate(out, extra: dict, weight, strength) -> list[Path]:
 
 def _say_depth_config(args, config: dict) -> None:
     """What the H-LF depth run decided for itself: more post-filter passes for soft or noisy
-    views, weakly textured pixels taken from the half-resolution estimate."""
+    views, weakly textured pixels taken from the half-resolution estimate, thin objects
+    taken from SGM."""
     passes = config.get("median_passes", 1)
     noise_passes = config.get("median_noise_passes", 0)
     why = []
@@ -1190,6 +1193,11 @@ def _say_depth_config(args, config: dict) -> None:
         _say(args, f"weakly textured: {100 * weak:.1f} % of the data term dropped, "
                    f"{100 * config['coarse_prior_share']:.1f} % taken from the "
                    "half-resolution estimate instead (--save-intermediate shows where)")
+    thin = config.get("thin_object_share", 0.0)
+    if thin > 0:
+        _say(args, f"thin objects: {100 * thin:.2f} % of the pixels taken from SGM's second "
+                   "opinion (--save-intermediate shows where; --no-thin-objects keeps graph "
+                   "cuts' answer)")
 
 
 def _cmd_batch(args, dest) -> list[Path]:  # noqa: ARG001 - batch writes its own result sets
@@ -2091,7 +2099,8 @@ def _add_depth_output_options(g) -> None:
     _add_confidence_options(g, **_depth_confidence_defaults())
     g.add_argument("--save-intermediate", action="store_true",
                    help="also write correspondence-only and defocus-only maps, and the "
-                        "textureless-region weight when it was used")
+                        "textureless-region weight and the thin objects taken from SGM "
+                        "when they were used")
     _add_output_folder(g)
 
 

@@ -138,7 +138,15 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
    (:class:`ViewCostStore`, when they fit in ``params.reuse_memory``) and runs stages 4-6,
    its graph cut starting from the labels of the pass before (``params.round_cycles``).
 
-8. **Confidence at depth edges** (:func:`edge_discount`, after the last round): the
+8. **Thin objects** (graph cuts only, ``params.thin_objects``; :func:`thin_objects`, after
+   the last round): SGM runs on the last round's unary too, and where its answer holds an
+   8-connected component nearer than graph cuts' that meets graph cuts' surface at its own
+   depth on under ``params.thin_touch`` of its outline and that the unary prefers
+   (:func:`hyperlf.regularisers.thin_foreground`), its values replace graph cuts'.  Graph
+   cuts charge a rod's whole outline against its few pixels of evidence and give rods faint
+   in the reference band to the background; SGM keeps them but fattens edges elsewhere.
+
+9. **Confidence at depth edges** (:func:`edge_discount`, after the last round): the
    confidence is scaled by :func:`hyperlf.regularisers.edge_confidence` of the final
    disparity, 0 on an estimated depth edge and 1 from ``params.confidence_edge_px`` px away.
    The cost margin does not see the depth edges, where nearly all of the error gathers.
@@ -2981,7 +2989,7 @@ def _unary_saving(U: np.ndarray, labels: np.ndarray, disparity, proposal) -> np.
 def thin_objects(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray, disparity: np.ndarray,
                  confidence: np.ndarray, *, informative=None, weight=None, prior=None,
                  passes: int | None = None):
-    """Stage 7 of :func:`depth` under graph cuts: the thin foreground that graph cuts gave to
+    """Stage 8 of :func:`depth` under graph cuts: the thin foreground that graph cuts gave to
     the background, taken back from SGM on the same unary.
 
     Graph cuts charge a thin object's whole outline against the few pixels that vouch for
@@ -3055,7 +3063,7 @@ def thin_objects(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray, disparity: 
 
 
 def edge_discount(conf: np.ndarray, disparity: np.ndarray, params: DepthParams) -> np.ndarray:
-    """Stage 8 of :func:`depth`: the result's confidence, ``conf`` (:func:`refine`'s) scaled
+    """Stage 9 of :func:`depth`: the result's confidence, ``conf`` (:func:`refine`'s) scaled
     by the distance to the depth edges of the final ``disparity``
     (:func:`hyperlf.regularisers.edge_confidence` with ``params.confidence_edge_px`` and
     ``params.confidence_edge_jump``; ``conf`` as it is when the width is 0).
