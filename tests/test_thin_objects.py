@@ -148,6 +148,11 @@ def test_the_stage_takes_back_the_rod_graph_cuts_lost():
     assert np.array_equal(taken, rod)
     assert np.allclose(d2[rod], prob.labels[6]) and np.array_equal(d2[~rod], d[~rod])
     assert np.array_equal(c2[~rod], c[~rod]) and (c2[rod] >= 0).all()
+    # a coarse prior without its confidence, and no texture weight: the same pixels
+    prior = (np.zeros(rod.shape), np.zeros(rod.shape), 1.0)
+    assert np.array_equal(hlf.thin_objects(prob, U, f_c, d, c, prior=prior)[2], rod)
+    with pytest.raises(InvalidInputError, match="prior"):
+        hlf.thin_objects(prob, U, f_c, d, c, prior=(1, 2))
 
 
 @pytest.mark.parametrize("params, optimizer", [({"thin_objects": False}, "graphcut"),

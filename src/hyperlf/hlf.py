@@ -2962,7 +2962,8 @@ def _solved(prob: DepthProblem, U, f_c, seen, w, prior, passes: int, *, clock=No
     lap("mrf_s" + suffix)
     disp, conf = refine(vol, lab, prob.labels, prob.params, informative=seen, weight=w,
                         prior=prior if vol is U else None)  # graph cuts: vol is U
-    if prior is not None:  # what the weight took from a pixel came from the coarse estimate
+    if w is not None and prior is not None and len(prior) > 3 and prior[3] is not None:
+        # what the weight took from a pixel came from the coarse estimate
         conf = (conf + (1.0 - np.clip(w, 0.0, 1.0)) * prior[3]).astype(np.float32)
         if seen is not None:
             conf[~seen] = 0.0
@@ -3155,10 +3156,11 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
     DepthResult
         With ``timings`` in seconds per stage (``prepare_s``, ``correspondence_s``,
         ``selection_split_s``, ``plane_prior_s``, ``defocus_s``, ``mrf_s``, ``refine_s``,
-        ``median_s``, ``thin_objects_s``, ``total_s``; ``visibility_estimate_s`` when the first visibility round starts from
-        :func:`coarse_disparity` (that round is then the main pass above); per further
-        visibility round ``k``: ``visibility_round{k}_correspondence_s``,
-        ``mrf_s_round{k}``, ``refine_s_round{k}``, ``median_s_round{k}``).
+        ``median_s``, ``thin_objects_s``, ``total_s``; ``visibility_estimate_s`` when the
+        first visibility round starts from :func:`coarse_disparity` (that round is then
+        the main pass above); per further visibility round ``k``:
+        ``visibility_round{k}_correspondence_s``, ``mrf_s_round{k}``, ``refine_s_round{k}``,
+        ``median_s_round{k}``).
 
     Raises
     ------
