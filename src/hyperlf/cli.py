@@ -1744,28 +1744,26 @@ def _add_coarse_prior_options(p: argparse.ArgumentParser, *, brief: bool = False
                        "vignetting where it was not flat-fielded)")
 
 
-def _add_weak_planes_option(p: argparse.ArgumentParser, *, brief: bool = False) -> None:
-    """``--weak-planes`` / ``--no-weak-planes`` of depth and batch
-    (``DepthParams.weak_planes``)."""
-    p.add_argument("--weak-planes", action=argparse.BooleanOptionalAction, default=None,
-                   help="as for depth" if brief else
-                   "where a pixel is weakly textured at full and at half resolution, pull it "
+#: The help of depth's on/off switches of ``DepthParams`` (``--NAME`` / ``--no-NAME``).
+_DEPTH_SWITCHES = {
+    "weak-planes": "where a pixel is weakly textured at full and at half resolution, pull it "
                    "towards a slanted plane that the pooled half-resolution costs of such "
                    "pixels choose, tile by tile, instead of towards the half-resolution "
                    "estimate, so that a white table seen at a slant keeps its slope (default: "
-                   "on; it acts with the coarse prior, i.e. on captures from cameras)")
+                   "on; it acts with the coarse prior, i.e. on captures from cameras)",
+    "thin-objects": "graph cuts give rods, wires and stems that are faint in the reference "
+                    "band to the background behind them; ask SGM for a second opinion on "
+                    "the same costs and take the thin objects it puts nearer that do not lie "
+                    "along graph cuts' own surface at their depth (default: on; acts with "
+                    "--optimizer graphcut)",
+}
 
 
-def _add_thin_objects_option(p: argparse.ArgumentParser, *, brief: bool = False) -> None:
-    """``--thin-objects`` / ``--no-thin-objects`` of depth and batch
-    (``DepthParams.thin_objects``)."""
-    p.add_argument("--thin-objects", action=argparse.BooleanOptionalAction, default=None,
-                   help="as for depth" if brief else
-                   "graph cuts give rods, wires and stems that are faint in the reference "
-                   "band to the background behind them; ask SGM for a second opinion on "
-                   "the same costs and take the thin objects it puts nearer that do not lie "
-                   "along graph cuts' own surface at their depth (default: on; acts with "
-                   "--optimizer graphcut)")
+def _add_depth_switch(p: argparse.ArgumentParser, name: str, *, brief: bool = False) -> None:
+    """``--NAME`` / ``--no-NAME`` of depth and batch: ``DepthParams.<name>`` (``name`` a key
+    of :data:`_DEPTH_SWITCHES`; ``brief``: help that points to depth)."""
+    p.add_argument(f"--{name}", action=argparse.BooleanOptionalAction, default=None,
+                   help="as for depth" if brief else _DEPTH_SWITCHES[name])
 
 
 def _add_unseen_options(p: argparse.ArgumentParser, *, brief: bool = False) -> None:
@@ -2022,7 +2020,7 @@ def _add_depth_matching_options(g) -> None:
 def _add_depth_regularisation_options(g) -> None:
     """depth's optimiser and the post-filter that snaps depth edges to image edges."""
     _add_optimizer_option(g)
-    _add_thin_objects_option(g)
+    _add_depth_switch(g, "thin-objects")
     g.add_argument("--median-radius", type=_int_at_least(0, "--median-radius", 64), default=None,
                    metavar="PX",
                    help="radius of the guided weighted-median post-filter that snaps depth "
@@ -2047,7 +2045,7 @@ def _add_depth_weak_texture_options(g) -> None:
                         "images, off for rendered and synthetic light fields, whose "
                         "pixel-scale texture one image cannot tell from noise)")
     _add_coarse_prior_options(g)
-    _add_weak_planes_option(g)
+    _add_depth_switch(g, "weak-planes")
 
 
 def _add_depth_visibility_options(g) -> None:
@@ -2147,8 +2145,8 @@ def _add_batch_depth_options(g) -> None:
     g.add_argument("--texture-snr", type=_texture_snr_arg, default=None, metavar="T",
                    help="as for depth")
     _add_coarse_prior_options(g, brief=True)
-    _add_weak_planes_option(g, brief=True)
-    _add_thin_objects_option(g, brief=True)
+    _add_depth_switch(g, "weak-planes", brief=True)
+    _add_depth_switch(g, "thin-objects", brief=True)
     _add_unseen_options(g, brief=True)
     _add_fusion_weights_option(g, brief=True)
     g.add_argument("--min-confidence", type=_min_confidence_arg, default=None, metavar="C",
