@@ -642,7 +642,8 @@ class DepthParams:
     (``thin_min_size`` px or more, default 10) that are nearer by more than ``thin_jump``
     (1 disparity unit) and lie along graph cuts' surface at their own depth on under
     ``thin_touch`` (0.25) of their outline, where the unary saves more than
-    ``thin_min_support`` (0.05) of its median range per pixel at SGM's disparity: rods and
+    ``thin_min_support`` (0.05) of its median range per pixel at SGM's disparity and the
+    texture weight (if any) is at least 0.5 on more than half of the pixels: rods and
     wires faint in the reference band, that graph cuts give to the background
     (BENCHMARKS.md, fifty-seventh session).
     Confidence: ``confidence_edge_px`` (4 px; 0 = off) and ``confidence_edge_jump`` (0.5
@@ -2974,17 +2975,25 @@ def _solved(prob: DepthProblem, U, f_c, seen, w, prior, passes: int, *, clock=No
     return disp, conf, lab
 
 
-def _unary_saving(U: np.ndarray, labels: np.ndarray, disparity, proposal) -> np.ndarray:
-    """What ``U`` saves per pixel at ``proposal``'s nearest label against ``disparity``'s, in
-    units of the median over pixels of the unary's range (``max - min`` over labels)."""
+def _unary_saving(U: np.ndarray, labels: np.ndarray, disparity, proposal, *,
+                  weight=None) -> np.ndarray:
+    """What ``U`` saves per pixel at ``proposal``'s nearest label against ``disparity``'s
+    (float64), in units of the median of the unary's range (``max - min`` over labels) over
+    the pixels whose data term counts (``weight``, :func:`texture_weight`, at least 0.5;
+    every pixel without one).  Zeros where no such pixel has a range: the unary then vouches
+    for nothing."""
     step = float(labels[1] - labels[0])
 
     def at(d):
         i = np.clip(np.rint((d - labels[0]) / step), 0, labels.size - 1).astype(np.intp)
-        return np.take_along_axis(U, i[None], axis=0)[0]
+        return np.take_along_axis(U, i[None], axis=0)[0].astype(np.float64)
 
-    scale = float(np.median(U.max(axis=0) - U.min(axis=0)))
-    return (at(disparity) - at(proposal)) / max(scale, np.finfo(np.float32).tiny)
+    spread = U.max(axis=0) - U.min(axis=0)
+    counted = spread if weight is None else spread[np.asarray(weight) >= 0.5]
+    scale = float(np.median(counted)) if counted.size else 0.0
+    if not scale > 0:
+        return np.zeros(spread.shape)
+    return (at(disparity) - at(proposal)) / scale
 
 
 def thin_objects(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray, disparity: np.ndarray,
@@ -3001,10 +3010,13 @@ def thin_objects(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray, disparity: 
     :func:`hyperlf.regularisers.thin_foreground` (``params.thin_jump``,
     ``params.thin_touch``, ``params.thin_min_size``) finds a component it puts nearer that
     does not lie along graph cuts' surface at its depth, and that ``U`` prefers (a mean
-    saving above ``params.thin_min_support`` of the unary's median range per pixel: where
-    the data cannot tell the two apart, as where masks leave few views, graph cuts' answer
-    stays), its disparity and confidence replace graph cuts' (BENCHMARKS.md, fifty-sixth
-    and fifty-seventh sessions).
+    saving above ``params.thin_min_support`` of the unary's median range per pixel, the
+    median over the pixels whose data term counts: where the data cannot tell the two
+    apart, as where masks leave few views, graph cuts' answer stays) on more than half of
+    whose pixels the data term counts (a texture weight of at least 0.5: SGM spreads noise
+    through weak texture differently from graph cuts, and that is no object), its disparity
+    and confidence replace graph cuts' (BENCHMARKS.md, fifty-sixth and fifty-seventh
+    sessions).
 
     Parameters
     ----------
@@ -3057,8 +3069,10 @@ def thin_objects(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray, disparity: 
                         passes, optimizer="sgm")
     taken = _reg.thin_foreground(disparity, d2, jump=p.thin_jump, touch=p.thin_touch,
                                  min_size=p.thin_min_size,
-                                 support=_unary_saving(U, prob.labels, disparity, d2),
-                                 min_support=p.thin_min_support)
+                                 support=_unary_saving(U, prob.labels, disparity, d2,
+                                                       weight=weight),
+                                 min_support=p.thin_min_support,
+                                 trusted=None if weight is None else weight >= 0.5)
     return (np.where(taken, d2, disparity).astype(np.float32),
             np.where(taken, c2, confidence).astype(np.float32), taken)
 

@@ -404,7 +404,8 @@ def edge_confidence(disparity, *, width: float = 4.0, jump: float = 0.5) -> np.n
 
 
 def thin_foreground(disparity, proposal, *, jump: float = 1.0, touch: float = 0.25,
-                    min_size: int = 10, support=None, min_support: float = 0.0) -> np.ndarray:
+                    min_size: int = 10, support=None, min_support: float = 0.0,
+                    trusted=None) -> np.ndarray:
     """The thin foreground that ``proposal`` finds and ``disparity`` lost, as a mask.
 
     A regulariser that charges for every px of an outline gives a thin object (a rod, a wire,
@@ -423,6 +424,8 @@ def thin_foreground(disparity, proposal, *, jump: float = 1.0, touch: float = 0.
     across the border loses only its width there.  With ``support``, a component is taken
     only where the mean of ``support`` over it is above ``min_support``: the data must
     vouch for the proposal, as they do for an object that only the outline's cost removed.
+    With ``trusted``, a component is taken only where more than half of its pixels are
+    trusted: a proposal spread over pixels whose data do not count is no object.
 
     Parameters
     ----------
@@ -440,6 +443,9 @@ def thin_foreground(disparity, proposal, *, jump: float = 1.0, touch: float = 0.
         (:func:`hyperlf.hlf.thin_objects`: the unary's saving, in units of its typical range).
     min_support : float
         What a component's mean ``support`` must exceed (ignored without ``support``).
+    trusted : array_like of bool, shape (H, W), optional
+        The pixels whose data count (:func:`hyperlf.hlf.thin_objects`: a texture weight of
+        at least 0.5).
 
     Returns
     -------
@@ -472,6 +478,8 @@ def thin_foreground(disparity, proposal, *, jump: float = 1.0, touch: float = 0.
     if support is not None:
         support = np.pad(array(support, "support", d.shape, finite=True, of=" (disparity's)"),
                          1)
+    if trusted is not None:
+        trusted = np.pad(bool_mask(trusted, "trusted", d.shape), 1)
     eight = np.ones((3, 3), bool)
     components, n = ndi.label(np.pad(p - d > jump, 1), structure=eight)
     sizes = np.bincount(components.ravel(), minlength=n + 1)
@@ -484,6 +492,8 @@ def thin_foreground(disparity, proposal, *, jump: float = 1.0, touch: float = 0.
         box = tuple(slice(s.start - 1, s.stop + 1) for s in box)
         own = components[box] == i
         if support is not None and not support[box][own].mean() > min_support:
+            continue
+        if trusted is not None and not 2 * np.count_nonzero(trusted[box][own]) > sizes[i]:
             continue
         outline = d[box][ndi.binary_dilation(own, eight) & ~own]
         level = np.median(p[box][own])
