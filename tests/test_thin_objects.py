@@ -92,6 +92,19 @@ def test_a_component_mostly_of_untrusted_pixels_is_left():
         thin_foreground(d, p, trusted=trusted[:-1])
 
 
+@pytest.mark.parametrize("dtype", [np.uint8, np.int16, np.float32])
+def test_integer_and_single_precision_maps_give_the_same_mask(dtype):
+    d = _wall_and_square()
+    p = d.copy()
+    p[2:22, 5:7] = 3.0
+    p[0, 0] = 0.0
+    d[12, 30] = 3.0                # a pixel where the proposal is farther: no wrap-around
+    p[12, 30] = 0.0
+    expected = thin_foreground(d, p)
+    np.testing.assert_array_equal(thin_foreground(d.astype(dtype), p.astype(dtype)), expected)
+    assert expected.sum() == 40
+
+
 def test_farther_proposals_and_the_whole_image_are_left():
     d = np.full((12, 12), 2.0)
     assert not thin_foreground(d, d - 3.0).any()   # farther everywhere
@@ -166,6 +179,11 @@ def test_the_stage_takes_back_the_rod_graph_cuts_lost():
     assert np.array_equal(hlf.thin_objects(prob, U, f_c, d, c, prior=prior)[2], rod)
     with pytest.raises(InvalidInputError, match="prior"):
         hlf.thin_objects(prob, U, f_c, d, c, prior=(1, 2))
+    # a texture weight as a list is read as a map; under 0.5 on the rod, nothing is taken
+    weight = np.where(rod, 0.4, 1.0).tolist()
+    assert not hlf.thin_objects(prob, U, f_c, d, c, weight=weight)[2].any()
+    with pytest.raises(InvalidInputError, match="weight"):
+        hlf.thin_objects(prob, U, f_c, d, c, weight=np.full(rod.shape, 2.0))
 
 
 @pytest.mark.parametrize("params, optimizer", [({"thin_objects": False}, "graphcut"),

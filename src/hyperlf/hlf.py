@@ -3063,6 +3063,7 @@ def thin_objects(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray, disparity: 
     p = prob.params
     disparity = _map(disparity, "disparity", _image_shape(prob))
     confidence = _map(confidence, "confidence", disparity.shape)
+    weight = _weight(weight, "weight", disparity.shape)
     if not p.thin_objects or prob.optimizer != "graphcut" or p.smoothness == 0:
         return disparity, confidence, None
     d2, c2, _ = _solved(prob, U, f_c, informative, weight, _prior(prior, disparity.shape),

@@ -469,15 +469,16 @@ def thin_foreground(disparity, proposal, *, jump: float = 1.0, touch: float = 0.
     """
     from scipy import ndimage as ndi
 
-    d = array(disparity, "disparity", ndim=2, finite=True)
+    d = array(disparity, "disparity", ndim=2, finite=True).astype(np.float64)
     p = array(proposal, "proposal", d.shape, finite=True, of=" (disparity's)")
+    p = p.astype(np.float64)  # integer maps too: no wrap-around in p - d
     jump = number(jump, "jump", positive=True)
     touch = number(touch, "touch", positive=True, at_most=1)
     min_size = integer(min_size, "min_size", minimum=1)
     min_support = number(min_support, "min_support")
     if support is not None:
-        support = np.pad(array(support, "support", d.shape, finite=True, of=" (disparity's)"),
-                         1)
+        support = np.pad(array(support, "support", d.shape, finite=True,
+                               of=" (disparity's)").astype(np.float64), 1)
     if trusted is not None:
         trusted = np.pad(bool_mask(trusted, "trusted", d.shape), 1)
     eight = np.ones((3, 3), bool)
