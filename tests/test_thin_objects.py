@@ -206,14 +206,20 @@ def test_regularise_takes_another_optimiser_and_refuses_an_unknown_one():
         hlf.regularise(prob, U, f_c, optimizer="belief")
 
 
-def test_depth_recovers_thin_objects_of_a_procedural_scene():
-    """Rings and sticks before slanted and fronto-parallel planes: the pixels the stage
-    takes were wrong by more than a pixel under graph cuts, and are right after."""
+@pytest.fixture(scope="module")
+def rings_and_sticks():
+    """Rings and sticks before slanted and fronto-parallel planes, and its default depth."""
     lf = synthesis.procedural_scene(3, rows=3, cols=3, height=96, width=128,
                                     kinds=("ring", "stick", "fronto", "ring", "stick",
                                            "slanted"), n_objects=10, supersample=2)
+    return lf, hlf.depth(lf, n_labels=32, save_intermediate=True)
+
+
+def test_depth_recovers_thin_objects_of_a_procedural_scene(rings_and_sticks):
+    """The pixels the stage takes were wrong by more than a pixel under graph cuts, and are
+    right after."""
+    lf, on = rings_and_sticks
     gt = lf.reference_gt_disparity
-    on = hlf.depth(lf, n_labels=32, save_intermediate=True)
     off = hlf.depth(lf, n_labels=32, params=hlf.DepthParams(thin_objects=False))
     taken = on.intermediate["thin_objects"]
     assert on.config["thin_object_share"] == pytest.approx(taken.mean())
@@ -246,7 +252,8 @@ def test_noise_in_weak_texture_is_no_thin_object():
     assert (U.max(axis=0) == U.min(axis=0)).mean() > 0.5          # no unary on most pixels
     off = hlf.depth(lf, n_labels=17, params=replace(params, thin_objects=False))
     np.testing.assert_array_equal(res.disparity, off.disparity)
-    saving = hlf._unary_saving(U, res.labels, off.disparity, off.disparity + 1, weight=w)
+    saving = hlf._unary_saving(U, res.labels, off.disparity, off.disparity + 1,
+                               trusted=w >= hlf.TRUSTED_WEIGHT)
     assert np.isfinite(saving).all()
 
 
@@ -301,16 +308,13 @@ def test_batch_hands_thin_objects_on(batch_depth_args):
     assert not any("thin" in a for a in batch_depth_args())
 
 
-def test_depth_says_and_shows_what_it_took(tmp_path, capsys):
+def test_depth_says_and_shows_what_it_took(tmp_path, capsys, rings_and_sticks):
     from hyperlf.formats import read_pfm, save_lightfield
 
-    lf = synthesis.procedural_scene(3, rows=3, cols=3, height=96, width=128,
-                                    kinds=("ring", "stick", "fronto", "ring", "stick",
-                                           "slanted"), n_objects=10, supersample=2)
+    lf, ref = rings_and_sticks
     save_lightfield(lf, tmp_path / "cap", bit_depth=32)
     assert main(["depth", str(tmp_path / "cap"), "--labels", "32", "--save-intermediate",
                  "-o", str(tmp_path / "d")]) == 0
-    ref = hlf.depth(lf, n_labels=32, save_intermediate=True)
     share = 100 * ref.config["thin_object_share"]
     assert f"thin objects: {share:.2f} % of the pixels taken from SGM" in capsys.readouterr().err
     mask = read_pfm(tmp_path / "d" / "thin_objects.pfm")

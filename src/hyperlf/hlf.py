@@ -270,6 +270,10 @@ NOISE_MIN_SIDE = 128
 #: Most passes of the guided median (``median_passes``, :func:`post_filter`): each moves an
 #: edge by at most a radius; far beyond the image's size in passes the loop would only spin.
 MAX_MEDIAN_PASSES = 50
+#: The texture weight (:func:`texture_weight`) from which a pixel's data term counts for
+#: :func:`thin_objects`: the unary's scale is taken over such pixels, and more than half of
+#: a taken component must be such pixels.
+TRUSTED_WEIGHT = 0.5
 
 
 # ============================================================================================
@@ -2976,12 +2980,11 @@ def _solved(prob: DepthProblem, U, f_c, seen, w, prior, passes: int, *, clock=No
 
 
 def _unary_saving(U: np.ndarray, labels: np.ndarray, disparity, proposal, *,
-                  weight=None) -> np.ndarray:
+                  trusted=None) -> np.ndarray:
     """What ``U`` saves per pixel at ``proposal``'s nearest label against ``disparity``'s
     (float64), in units of the median of the unary's range (``max - min`` over labels) over
-    the pixels whose data term counts (``weight``, :func:`texture_weight`, at least 0.5;
-    every pixel without one).  Zeros where no such pixel has a range: the unary then vouches
-    for nothing."""
+    the ``trusted`` pixels (bool (H, W): those whose data term counts; every pixel when
+    None).  Zeros where no such pixel has a range: the unary then vouches for nothing."""
     step = float(labels[1] - labels[0])
 
     def at(d):
@@ -2989,7 +2992,7 @@ def _unary_saving(U: np.ndarray, labels: np.ndarray, disparity, proposal, *,
         return np.take_along_axis(U, i[None], axis=0)[0].astype(np.float64)
 
     spread = U.max(axis=0) - U.min(axis=0)
-    counted = spread if weight is None else spread[np.asarray(weight) >= 0.5]
+    counted = spread if trusted is None else spread[trusted]
     scale = float(np.median(counted)) if counted.size else 0.0
     if not scale > 0:
         return np.zeros(spread.shape)
@@ -3068,12 +3071,12 @@ def thin_objects(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray, disparity: 
         return disparity, confidence, None
     d2, c2, _ = _solved(prob, U, f_c, informative, weight, _prior(prior, disparity.shape),
                         passes, optimizer="sgm")
+    trusted = None if weight is None else weight >= TRUSTED_WEIGHT
     taken = _reg.thin_foreground(disparity, d2, jump=p.thin_jump, touch=p.thin_touch,
                                  min_size=p.thin_min_size,
                                  support=_unary_saving(U, prob.labels, disparity, d2,
-                                                       weight=weight),
-                                 min_support=p.thin_min_support,
-                                 trusted=None if weight is None else weight >= 0.5)
+                                                       trusted=trusted),
+                                 min_support=p.thin_min_support, trusted=trusted)
     return (np.where(taken, d2, disparity).astype(np.float32),
             np.where(taken, c2, confidence).astype(np.float32), taken)
 
