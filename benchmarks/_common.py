@@ -91,3 +91,23 @@ def check_candidate_out(ap, args, default_out: str, *, departures=()) -> None:
     if given and args.out == default_out:
         ap.error(f"{' / '.join(given)} measure a candidate: give it its own --out "
                  f"instead of {default_out}, which records the defaults")
+
+
+def depth_picture(path: Path, name: str, lf, disp) -> None:
+    """The reference view of the light field ``lf``, its ground truth, the estimate ``disp``
+    and its error side by side, titled ``name``, as a PNG at ``path``."""
+    from hyperlf.visualise import pyplot, save_figure
+
+    plt = pyplot()
+    gt = lf.reference_gt_disparity
+    lo, hi = float(gt.min()), float(gt.max())
+    fig, ax = plt.subplots(1, 4, figsize=(16, 3.6))
+    panels = [(lf.views[lf.reference], "reference view", "gray", None, None),
+              (gt, "ground truth", "viridis", lo, hi), (disp, "estimate", "viridis", lo, hi),
+              (disp - gt, "estimate - truth (px)", "RdBu_r", -1.0, 1.0)]
+    for a, (img, title, cmap, vmin, vmax) in zip(ax, panels):
+        im = a.imshow(img, cmap=cmap, vmin=vmin, vmax=vmax)
+        a.set_title(f"{name}: {title}", fontsize=9)
+        a.axis("off")
+        fig.colorbar(im, ax=a, fraction=0.046)
+    save_figure(fig, path)

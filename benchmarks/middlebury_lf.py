@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from _common import data_path, hyperlf, log, option_suffix, write_report
+from _common import data_path, depth_picture, hyperlf, log, option_suffix, write_report
 
 SCENES = ("venus", "tsukuba", "teddy", "art")
 #: Side of the HCI-style folder's square grid of views.
@@ -170,25 +170,6 @@ def prepare(name: str, work: Path, span: float) -> Path:
     return capture
 
 
-def picture(path: Path, name: str, lf, disp: np.ndarray) -> None:
-    """The reference view, the ground truth, the estimate and its error side by side."""
-    from hyperlf.visualise import pyplot, save_figure
-
-    plt = pyplot()
-    gt = lf.reference_gt_disparity
-    lo, hi = float(gt.min()), float(gt.max())
-    fig, ax = plt.subplots(1, 4, figsize=(16, 3.6))
-    panels = [(lf.views[lf.reference], "reference view", "gray", None, None),
-              (gt, "ground truth", "viridis", lo, hi), (disp, "estimate", "viridis", lo, hi),
-              (disp - gt, "estimate - truth (px)", "RdBu_r", -1.0, 1.0)]
-    for a, (img, title, cmap, vmin, vmax) in zip(ax, panels):
-        im = a.imshow(img, cmap=cmap, vmin=vmin, vmax=vmax)
-        a.set_title(f"{name}: {title}", fontsize=9)
-        a.axis("off")
-        fig.colorbar(im, ax=a, fraction=0.046)
-    save_figure(fig, path)
-
-
 def run_scene(name: str, work: Path, out: Path, span: float, options: list[str]) -> dict:
     from hyperlf.formats.capture import read_capture
     from hyperlf.formats.pfm import read_pfm
@@ -200,7 +181,7 @@ def run_scene(name: str, work: Path, out: Path, span: float, options: list[str])
     lf = read_capture(capture, cube=False)
     disp = read_pfm(result / "disparity.pfm")
     s = disparity_scores(disp, lf.reference_gt_disparity, border=HCI_BORDER)
-    picture(out / f"{result.name}.png", name, lf, disp)
+    depth_picture(out / f"{result.name}.png", name, lf, disp)
     log(f"{name}: RMSE {s.rmse:.4f} px, BadPix(0.07) {s.badpix_007:.2f} % ({wall:.0f} s)")
     return {"scene": name, "shape": list(disp.shape), "rmse": s.rmse,
             "badpix_007": s.badpix_007, "depth_s": wall}

@@ -94,6 +94,12 @@ def test_a_script_s_other_departures_need_their_own_out_too(capsys):
     ("procedural_pairs", ["--metric", "rsncc"]),
     ("procedural_pairs", ["--occlusion", "lr-fill"]),
     ("channels", ["--metrics", "auto"]),
+    ("faint_thin", ["--params", '{"thin_touch": 0.4}']),
+    ("faint_thin", ["--params", '{"thin_touch": 2}', "--out", "elsewhere"]),
+    ("faint_thin", ["--params", '{"no_such_field": 1}', "--out", "elsewhere"]),
+    ("faint_thin", ["--seeds", "3-"]),
+    ("faint_thin", ["--size", "16,16"]),
+    ("faint_thin", ["--tolerance", "0"]),
 ])
 def test_the_scripts_refuse_bad_options_before_any_work(script, argv, monkeypatch, capsys):
     mod = _script(script)

@@ -125,3 +125,15 @@ def test_middlebury_lf_venus(tmp_path):
     row = json.loads((tmp_path / "out" / "middlebury_lf-span5.5.json").read_text())["scenes"][0]
     assert (round(row["rmse"], 4), round(row["badpix_007"], 2)) == (0.0703, 1.98)
     assert (tmp_path / "out" / "venus-span5.5-depth.png").is_file()
+
+
+# ----------------------------------------------------------------------------- faint thin objects
+def test_faint_thin_seed_0(tmp_path):
+    """BENCHMARKS.md, "Thin objects faint in the reference band": the family's first scene
+    with the default depth (results/faint_thin), to the printed digits, and its picture."""
+    require_dataset("munsell")
+    ft = _script("faint_thin")
+    row = ft.run(0, (192, 256), 64, {}, 0.03, tmp_path)
+    assert (round(row["rmse"], 4), round(row["badpix_007"], 2)) == (0.4388, 8.92)
+    assert round(row["thin_rmse"], 4) == 0.4566
+    assert (tmp_path / "seed0.png").is_file()

@@ -341,3 +341,51 @@ def test_middlebury_lf_fills_unknown_ground_truth_from_the_background():
     assert mapped.min() == pytest.approx(-2.0) and mapped.max() == pytest.approx(2.0)
     with pytest.raises(ValueError):
         lf.fill_rows_background(np.full((2, 3), np.nan))
+
+
+# ----------------------------------------------------------------------------- faint thin objects
+def test_faint_thin_chips_are_faint_in_the_reference_band_and_plain_elsewhere():
+    """benchmarks/faint_thin.py: every chip drawn lies within the tolerance of the
+    background's mean in the reference band and differs from its mean spectrum by at least
+    MIN_ELSEWHERE; a library with no such chip is refused."""
+    ft = benchmark_script("faint_thin")
+    rng = np.random.default_rng(0)
+    library = rng.random((300, 12))
+    background = [3, 7]
+    target = library[background].mean(axis=0)
+    chips = ft.faint_chips(library, 4, background, 5, rng, tolerance=0.05)
+    assert len(chips) == 5
+    for c in chips:
+        assert abs(library[c, 4] - target[4]) <= 0.05
+        assert np.abs(library[c] - target).mean() >= ft.MIN_ELSEWHERE
+    flat = np.full((10, 12), 0.5)
+    with pytest.raises(ValueError, match="no chip"):
+        ft.faint_chips(flat, 4, [0, 1], 2, rng, tolerance=0.05)
+
+
+def test_faint_thin_changes_only_the_rings_and_sticks_chips():
+    """The family's description is the random rings-and-sticks scene of its seed with new
+    chips on the rings and sticks only, each within the tolerance of the background in the
+    reference band; the mask of thin pixels is where the scene without them is farther."""
+    from hyperlf import synthesis
+
+    ft = benchmark_script("faint_thin")
+    source = "colorchecker"   # no data needed; the benchmark draws Munsell chips
+    objects, reference_nm = ft.faint_description(1, rows=3, cols=3, tolerance=0.03,
+                                                 source=source)
+    plain = synthesis.procedural_scene(1, rows=3, cols=3, height=16, width=16,
+                                       kinds=ft.THIN_KINDS, n_objects=10,
+                                       reflectance_source=source)
+    assert reference_nm == float(plain.wavelengths[plain.reference])
+    library = ft._library_at(np.array([reference_nm]), source)[:, 0]
+    level = library[objects[0]["texture"]["chips"]].mean()
+    for new, old in zip(objects, plain.metadata["objects"], strict=True):
+        if "shape" not in new:
+            assert new == old
+            continue
+        assert {k: v for k, v in new.items() if k != "texture"} == \
+               {k: v for k, v in old.items() if k != "texture"}
+        assert np.all(np.abs(library[new["texture"]["chips"]] - level) <= 0.03)
+    lf, thin, n_thin = ft.faint_scene(1, rows=3, cols=3, height=48, width=64, source=source)
+    assert n_thin == sum("shape" in o for o in objects) and thin.any() and not thin.all()
+    assert lf.reference_gt_disparity[thin].min() > lf.reference_gt_disparity[~thin].min()
