@@ -133,7 +133,7 @@ def test_faint_thin_seed_0(tmp_path):
     with the default depth (results/faint_thin), to the printed digits, and its picture."""
     require_dataset("munsell")
     ft = _script("faint_thin")
-    row = ft.run(0, (192, 256), 64, {}, 0.03, tmp_path)
-    assert (round(row["rmse"], 4), round(row["badpix_007"], 2)) == (0.4388, 8.92)
-    assert round(row["thin_rmse"], 4) == 0.4566
+    row = ft.run(0, (256, 320), 64, {}, 0.03, tmp_path)
+    assert (round(row["rmse"], 4), round(row["badpix_007"], 2)) == (0.4225, 7.26)
+    assert round(row["thin_rmse"], 4) == 0.3824
     assert (tmp_path / "seed0.png").is_file()

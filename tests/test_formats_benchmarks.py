@@ -389,3 +389,18 @@ def test_faint_thin_changes_only_the_rings_and_sticks_chips():
     lf, thin, n_thin = ft.faint_scene(1, rows=3, cols=3, height=48, width=64, source=source)
     assert n_thin == sum("shape" in o for o in objects) and thin.any() and not thin.all()
     assert lf.reference_gt_disparity[thin].min() > lf.reference_gt_disparity[~thin].min()
+
+
+def test_faint_thin_scores_the_thin_pixels_inside_the_border():
+    """A column of thin pixels 2 px off in a 40 x 40 map: inside the 15 px border it is 10 of
+    the 100 scored pixels, so the thin RMSE is 2, all of it off by more than 1 px, and the
+    whole map's RMSE sqrt(0.4)."""
+    ft = benchmark_script("faint_thin")
+    truth = np.zeros((40, 40))
+    thin = np.zeros((40, 40), bool)
+    thin[:, 20] = True
+    row = ft.score(truth + 2.0 * thin, truth, thin)
+    assert row["thin_rmse"] == pytest.approx(2.0) and row["thin_bad1"] == 100.0
+    assert row["rmse"] == pytest.approx(np.sqrt(0.4)) and row["thin_share"] == 10.0
+    none = ft.score(truth, truth, np.zeros((40, 40), bool))
+    assert np.isnan(none["thin_rmse"]) and none["thin_share"] == 0.0
