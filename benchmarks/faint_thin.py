@@ -166,6 +166,15 @@ def _check_params(ap, params: dict) -> None:
         hlf.DepthParams(**fields)
     except (TypeError, ValueError) as exc:
         ap.error(f"--params: {exc}")
+    allowed = {"optimizer": hlf.OPTIMIZERS, "metric": ("auto", *hlf.CORR_METRICS),
+               "defocus": hlf.DEFOCUS_MODES, "view_selection": (True, False),
+               "occlusion_split": (True, False)}
+    for key, choices in allowed.items():
+        # the type too: JSON's 1 is no switch, though 1 == True
+        if key in params and not any(type(params[key]) is type(c) and params[key] == c
+                                     for c in choices):
+            ap.error(f"--params: {key} must be one of {', '.join(map(str, choices))}, "
+                     f"got {params[key]!r}")
 
 
 def seeds_arg(text: str) -> list[int]:

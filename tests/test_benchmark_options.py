@@ -97,6 +97,8 @@ def test_a_script_s_other_departures_need_their_own_out_too(capsys):
     ("faint_thin", ["--params", '{"thin_touch": 0.4}']),
     ("faint_thin", ["--params", '{"thin_touch": 2}', "--out", "elsewhere"]),
     ("faint_thin", ["--params", '{"no_such_field": 1}', "--out", "elsewhere"]),
+    ("faint_thin", ["--params", '{"optimizer": "belief"}', "--out", "elsewhere"]),
+    ("faint_thin", ["--params", '{"view_selection": 1}', "--out", "elsewhere"]),
     ("faint_thin", ["--seeds", "3-"]),
     ("faint_thin", ["--size", "16,16"]),
     ("faint_thin", ["--tolerance", "0"]),
