@@ -223,6 +223,11 @@ def main(argv=None) -> int:
         ap.error(f"--tolerance must be in (0, 0.5], got {args.tolerance}")
     _check_params(ap, args.params)
     data_path(LIBRARY)
+    for seed in args.seeds:  # every scene's chips exist before any is rendered at size
+        try:
+            faint_description(seed, rows=5, cols=6, tolerance=args.tolerance)
+        except ValueError as exc:
+            ap.error(f"seed {seed}: {exc}; give a larger --tolerance")
     size = args.size
     args.out.mkdir(parents=True, exist_ok=True)
     rows = [run(s, size, args.labels, args.params, args.tolerance, args.out)

@@ -14,6 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from conftest import benchmark_script as _script
+from conftest import require_dataset
 
 
 _json = st.recursive(st.none() | st.booleans() | st.integers() | st.text(max_size=5)
@@ -111,6 +112,17 @@ def test_the_scripts_refuse_bad_options_before_any_work(script, argv, monkeypatc
     assert exc.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith(f"{script}.py: error:")
+
+
+def test_faint_thin_refuses_a_tolerance_no_chip_meets_before_rendering(tmp_path, capsys):
+    """benchmarks/faint_thin.py: a tolerance so tight that no Munsell chip matches a scene's
+    background ends in argparse's exit 2 with one message, and no report is written."""
+    require_dataset("munsell")
+    ft = _script("faint_thin")
+    with pytest.raises(SystemExit) as exc:
+        ft.main(["--tolerance", "1e-9", "--out", str(tmp_path / "out")])
+    assert exc.value.code == 2 and not (tmp_path / "out").exists()
+    assert "give a larger --tolerance" in capsys.readouterr().err.strip().splitlines()[-1]
 
 
 @settings(max_examples=40, deadline=None)
