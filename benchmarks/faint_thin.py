@@ -143,8 +143,7 @@ def run(seed: int, size: tuple[int, int], labels: int, params: dict, tolerance: 
     from hyperlf import hlf
 
     lf, thin, n_thin = faint_scene(seed, height=size[0], width=size[1], tolerance=tolerance)
-    options = {k: params[k] for k in DEPTH_OPTIONS if k in params}
-    fields = {k: v for k, v in params.items() if k not in DEPTH_OPTIONS}
+    options, fields = _split_params(params)
     t = time.perf_counter()
     res = hlf.depth(lf, n_labels=labels, params=hlf.DepthParams(**fields), **options)
     row = {"seed": seed, "depth_s": time.perf_counter() - t, "thin_objects": n_thin,
@@ -157,13 +156,18 @@ def run(seed: int, size: tuple[int, int], labels: int, params: dict, tolerance: 
     return row
 
 
+def _split_params(params: dict) -> tuple[dict, dict]:
+    """``--params`` as depth's own options (:data:`DEPTH_OPTIONS`) and DepthParams fields."""
+    options = {k: v for k, v in params.items() if k in DEPTH_OPTIONS}
+    return options, {k: v for k, v in params.items() if k not in DEPTH_OPTIONS}
+
+
 def _check_params(ap, params: dict) -> None:
     """Refuse ``--params`` that :func:`run` could not pass on, before any scene is rendered."""
     from hyperlf import hlf
 
-    fields = {k: v for k, v in params.items() if k not in DEPTH_OPTIONS}
     try:
-        hlf.DepthParams(**fields)
+        hlf.DepthParams(**_split_params(params)[1])
     except (TypeError, ValueError) as exc:
         ap.error(f"--params: {exc}")
     allowed = {"optimizer": hlf.OPTIMIZERS, "metric": ("auto", *hlf.CORR_METRICS),
@@ -228,7 +232,7 @@ def main(argv=None) -> int:
             faint_description(seed, rows=5, cols=6, tolerance=args.tolerance)
         except ValueError as exc:
             ap.error(f"seed {seed}: {exc}; give a larger --tolerance")
-    size = args.size
+    size = args.size  # (height, width)
     args.out.mkdir(parents=True, exist_ok=True)
     rows = [run(s, size, args.labels, args.params, args.tolerance, args.out)
             for s in args.seeds]
