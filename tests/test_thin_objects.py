@@ -1,5 +1,6 @@
-"""Thin objects that graph cuts lose, taken back from SGM (issue 12):
-:func:`hyperlf.regularisers.thin_foreground` (the rule), :func:`hyperlf.hlf.thin_objects`
+"""Thin objects that graph cuts lose, and the holes they fill, taken back from SGM (issue
+12): :func:`hyperlf.regularisers.thin_foreground` and
+:func:`hyperlf.regularisers.enclosed_background` (the rule), :func:`hyperlf.hlf.thin_objects`
 (the depth stage), ``DepthParams.thin_*`` and ``--thin-objects``."""
 
 import numpy as np
@@ -9,7 +10,7 @@ from hypothesis import given, settings, strategies as st
 from hyperlf import hlf, synthesis
 from hyperlf.cli import main
 from hyperlf.errors import InvalidInputError
-from hyperlf.regularisers import thin_foreground
+from hyperlf.regularisers import enclosed_background, thin_foreground
 
 
 def _wall_and_square():
@@ -143,6 +144,78 @@ def test_taken_pixels_are_nearer_by_the_jump_and_whole_components(seed, jump, to
 
 
 # --------------------------------------------------------------------------------------------
+# holes: the same rule, sides swapped
+# --------------------------------------------------------------------------------------------
+
+def _ring_with_filled_hole():
+    """A wall at 0 behind a ring at 3 (rows 2-21, columns 2-21) whose 8 x 8 hole graph cuts
+    filled (``d``) and the proposal kept (``p``)."""
+    p = np.zeros((24, 40))
+    p[2:22, 2:22] = 3.0
+    p[8:16, 8:16] = 0.0
+    d = p.copy()
+    d[8:16, 8:16] = 3.0
+    return d, p
+
+
+def test_a_filled_hole_is_taken_and_a_widened_edge_is_not():
+    d, p = _ring_with_filled_hole()
+    d[4:20, 26:29] = 3.0       # graph cuts widened a square (columns 29-36) by 3 px
+    p[4:20, 29:37] = d[4:20, 29:37] = 3.0
+    taken = enclosed_background(d, p)
+    assert taken[8:16, 8:16].all() and taken.sum() == 64
+    assert not thin_foreground(d, p).any()          # nothing is nearer in the proposal
+
+
+def test_a_hole_open_to_the_background_is_left():
+    d, p = _ring_with_filled_hole()
+    p[8:16, 0:8] = 0.0         # the hole opens to the wall on the left through a gap
+    d[8:16, 2:8] = 3.0         # which graph cuts filled too: its outline meets the wall
+    share = 10 / (10 * 16 - 8 * 14)    # of the 8 x 14 gap's outline, column 1 is wall
+    assert not enclosed_background(d, p, touch=share).any()
+    assert enclosed_background(d, p, touch=share + 1e-6)[8:16, 2:16].all()
+
+
+def test_holes_have_the_guards_of_thin_objects():
+    d, p = _ring_with_filled_hole()
+    assert not enclosed_background(d, p, min_size=65).any()
+    assert not enclosed_background(d, p, jump=3.0).any()
+    support = np.where(d != p, 0.2, 0.0)
+    assert enclosed_background(d, p, support=support, min_support=0.1).sum() == 64
+    assert not enclosed_background(d, p, support=support, min_support=0.2).any()
+    trusted = np.ones(d.shape, bool)
+    trusted[8:12, 8:16] = False                     # half the hole: not more than half
+    assert not enclosed_background(d, p, trusted=trusted).any()
+    trusted[8, 8] = True
+    assert enclosed_background(d, p, trusted=trusted).sum() == 64
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), jump=st.floats(0.1, 3.0),
+       touch=st.floats(0.05, 1.0), min_size=st.integers(1, 30))
+def test_holes_are_the_thin_foreground_of_the_mirrored_maps(seed, jump, touch, min_size):
+    """Farther by the jump, whole components: the rule of thin objects on ``-d``, ``-p``."""
+    rng = np.random.default_rng(seed)
+    d = rng.integers(0, 4, (24, 30)).astype(float)
+    p = d - rng.choice([0.0, 0.0, 2.0, 4.0], d.shape)
+    kw = dict(jump=jump, touch=touch, min_size=min_size)
+    np.testing.assert_array_equal(enclosed_background(d, p, **kw),
+                                  thin_foreground(-d, -p, **kw))
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(disparity=np.zeros((4, 4)), proposal=np.zeros((4, 5))), "proposal must have shape"),
+    (dict(disparity=np.full((4, 4), np.inf), proposal=np.zeros((4, 4))), "disparity must be fin"),
+    (dict(disparity=np.zeros((4, 4)), proposal=np.zeros((4, 4)), touch=0), "touch"),
+    (dict(disparity=np.zeros((4, 4)), proposal=np.zeros((4, 4)), support=np.zeros((3, 4))),
+     "support"),
+])
+def test_bad_arguments_to_the_hole_rule_are_refused_in_one_line(kwargs, match):
+    with pytest.raises(InvalidInputError, match=match):
+        enclosed_background(**kwargs)
+
+
+# --------------------------------------------------------------------------------------------
 # the depth stage
 # --------------------------------------------------------------------------------------------
 
@@ -184,6 +257,37 @@ def test_the_stage_takes_back_the_rod_graph_cuts_lost():
     assert not hlf.thin_objects(prob, U, f_c, d, c, weight=weight)[2].any()
     with pytest.raises(InvalidInputError, match="weight"):
         hlf.thin_objects(prob, U, f_c, d, c, weight=np.full(rod.shape, 2.0))
+
+
+def _hole_problem(**params):
+    """A ring (label 6) around a 6 x 6 hole of wall (label 1) whose pixels prefer the wall
+    five times more weakly than the rest of the wall does: graph cuts fill the hole.  The
+    reference view is made flat, so that the contrast-sensitive weights do not depend on
+    the scene's reflectances (which depend on whether the data is set)."""
+    lf = synthesis.procedural_scene(seed=0, rows=3, cols=3, height=32, width=40)
+    prob = hlf.prepare(lf, n_labels=8, params=hlf.DepthParams(median_radius=0, **params))
+    prob.In[prob.reference] = np.full_like(prob.In[prob.reference], 0.5)
+    hole = np.zeros((32, 40), bool)
+    hole[13:19, 17:23] = True
+    ring = np.zeros_like(hole)
+    ring[6:26, 10:30] = True
+    ring &= ~hole
+    steps = np.arange(8.0)[:, None, None]
+    wall = np.minimum(abs(steps - 1), 3)
+    U = np.where(ring, np.minimum(abs(steps - 6), 3), np.where(hole, 0.2 * wall, wall))
+    return prob, U.astype(np.float32), hole
+
+
+def test_the_stage_opens_the_hole_graph_cuts_filled():
+    prob, U, hole = _hole_problem()
+    f_c, d, c = _graph_cuts(prob, U)
+    assert np.allclose(d[hole], prob.labels[6])                # graph cuts: the ring's depth
+    d2, _, taken = hlf.thin_objects(prob, U, f_c, d, c)
+    assert np.array_equal(taken, hole)
+    assert np.allclose(d2[hole], prob.labels[1]) and np.array_equal(d2[~hole], d[~hole])
+    prob, U, hole = _hole_problem(thin_holes=False)
+    f_c, d, c = _graph_cuts(prob, U)
+    assert not hlf.thin_objects(prob, U, f_c, d, c)[2].any()
 
 
 @pytest.mark.parametrize("params, optimizer", [({"thin_objects": False}, "graphcut"),
@@ -259,9 +363,9 @@ def test_noise_in_weak_texture_is_no_thin_object():
 
 def test_thin_objects_are_on_by_default_and_their_constants_checked():
     p = hlf.DepthParams()
-    assert (p.thin_objects, p.thin_jump, p.thin_touch, p.thin_min_size,
-            p.thin_min_support) == (True, 1.0, 0.25, 10, 0.05)
-    for bad in ({"thin_objects": 1}, {"thin_jump": 0}, {"thin_touch": 0},
+    assert (p.thin_objects, p.thin_holes, p.thin_jump, p.thin_touch, p.thin_min_size,
+            p.thin_min_support) == (True, True, 1.0, 0.25, 10, 0.05)
+    for bad in ({"thin_objects": 1}, {"thin_holes": "yes"}, {"thin_jump": 0}, {"thin_touch": 0},
                 {"thin_touch": 1.1}, {"thin_min_size": 0}, {"thin_jump": float("nan")},
                 {"thin_min_support": float("inf")}, {"thin_min_support": "0.1"}):
         with pytest.raises(InvalidInputError, match="params.thin_"):
@@ -316,7 +420,8 @@ def test_depth_says_and_shows_what_it_took(tmp_path, capsys, rings_and_sticks):
     assert main(["depth", str(tmp_path / "cap"), "--labels", "32", "--save-intermediate",
                  "-o", str(tmp_path / "d")]) == 0
     share = 100 * ref.config["thin_object_share"]
-    assert f"thin objects: {share:.2f} % of the pixels taken from SGM" in capsys.readouterr().err
+    said = capsys.readouterr().err
+    assert f"thin objects and holes: {share:.2f} % of the pixels taken from" in said
     mask = read_pfm(tmp_path / "d" / "thin_objects.pfm")
     np.testing.assert_array_equal(mask, ref.intermediate["thin_objects"].astype(np.float32))
     assert (tmp_path / "d" / "thin_objects.png").is_file()

@@ -1195,9 +1195,9 @@ def _say_depth_config(args, config: dict) -> None:
                    "half-resolution estimate instead (--save-intermediate shows where)")
     thin = config.get("thin_object_share", 0.0)
     if thin > 0:
-        _say(args, f"thin objects: {100 * thin:.2f} % of the pixels taken from SGM's second "
-                   "opinion (--save-intermediate shows where; --no-thin-objects keeps graph "
-                   "cuts' answer)")
+        _say(args, f"thin objects and holes: {100 * thin:.2f} % of the pixels taken from "
+                   "SGM's second opinion (--save-intermediate shows where; --no-thin-objects "
+                   "keeps graph cuts' answer)")
 
 
 def _cmd_batch(args, dest) -> list[Path]:  # noqa: ARG001 - batch writes its own result sets
@@ -1754,8 +1754,9 @@ _DEPTH_SWITCHES = {
     "thin-objects": "graph cuts give rods, wires and stems that are faint in the reference "
                     "band to the background behind them; ask SGM for a second opinion on "
                     "the same costs and take the thin objects it puts nearer that do not lie "
-                    "along graph cuts' own surface at their depth (default: on; acts with "
-                    "--optimizer graphcut)",
+                    "along graph cuts' own surface at their depth, and the background it "
+                    "sees through holes that graph cuts filled with the foreground around "
+                    "them (default: on; acts with --optimizer graphcut)",
 }
 
 

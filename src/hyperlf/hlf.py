@@ -145,6 +145,9 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
    (:func:`hyperlf.regularisers.thin_foreground`), its values replace graph cuts'.  Graph
    cuts charge a rod's whole outline against its few pixels of evidence and give rods faint
    in the reference band to the background; SGM keeps them but fattens edges elsewhere.
+   With ``params.thin_holes`` the same rule, sides swapped, takes back the background that
+   graph cuts filled with the foreground around it: a ring's hole, a gap between a rod and
+   a box (:func:`hyperlf.regularisers.enclosed_background`).
 
 9. **Confidence at depth edges** (:func:`edge_discount`, after the last round): the
    confidence is scaled by :func:`hyperlf.regularisers.edge_confidence` of the final
@@ -491,6 +494,7 @@ _DEPTH_RULES = {
     "median_blur_step": _positive,
     "median_noise_step": _rule(_opt.number, positive=True, optional=True),
     "thin_objects": _flag,
+    "thin_holes": _flag,
     "thin_jump": _positive,
     "thin_touch": _rule(_opt.number, positive=True, at_most=1),
     "thin_min_size": _rule(_opt.integer, minimum=1),
@@ -649,7 +653,9 @@ class DepthParams:
     ``thin_min_support`` (0.05) of its median range per pixel at SGM's disparity and the
     texture weight (if any) is at least 0.5 on more than half of the pixels: rods and
     wires faint in the reference band, that graph cuts give to the background
-    (BENCHMARKS.md, fifty-seventh session).
+    (BENCHMARKS.md, fifty-seventh session).  ``thin_holes`` (on) takes, by the same rule
+    and constants, the components that SGM puts *farther*: background seen through a hole
+    that graph cuts filled with the foreground around it (fifty-ninth session).
     Confidence: ``confidence_edge_px`` (4 px; 0 = off) and ``confidence_edge_jump`` (0.5
     disparity units): the result's confidence is scaled by
     :func:`hyperlf.regularisers.edge_confidence` of the final disparity, 0 on an estimated
@@ -730,6 +736,7 @@ class DepthParams:
     median_blur_step: float = 0.4
     median_noise_step: float | None = 0.01
     thin_objects: bool = True
+    thin_holes: bool = True
     thin_jump: float = 1.0
     thin_touch: float = 0.25
     thin_min_size: int = 10
@@ -3019,7 +3026,11 @@ def thin_objects(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray, disparity: 
     whose pixels the data term counts (a texture weight of at least 0.5: SGM spreads noise
     through weak texture differently from graph cuts, and that is no object), its disparity
     and confidence replace graph cuts' (BENCHMARKS.md, fifty-sixth and fifty-seventh
-    sessions).
+    sessions).  With ``params.thin_holes``, components that SGM puts farther than graph
+    cuts and that are enclosed by graph cuts' foreground
+    (:func:`hyperlf.regularisers.enclosed_background`, the same constants and guards) are
+    taken too: the background of a hole, which the outline's cost closes the same way
+    (fifty-ninth session).
 
     Parameters
     ----------
@@ -3037,7 +3048,7 @@ def thin_objects(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray, disparity: 
     -------
     disparity, confidence : ndarray, float32 (H, W)
     taken : ndarray, bool (H, W) or None
-        The pixels SGM gave; None when the stage is off (``params.thin_objects`` False, an
+        The pixels SGM gave (thin objects and holes); None when the stage is off (``params.thin_objects`` False, an
         optimiser other than graph cuts, or ``params.smoothness`` 0).
 
     Examples
@@ -3072,11 +3083,12 @@ def thin_objects(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray, disparity: 
     d2, c2, _ = _solved(prob, U, f_c, informative, weight, _prior(prior, disparity.shape),
                         passes, optimizer="sgm")
     trusted = None if weight is None else weight >= TRUSTED_WEIGHT
-    taken = _reg.thin_foreground(disparity, d2, jump=p.thin_jump, touch=p.thin_touch,
-                                 min_size=p.thin_min_size,
-                                 support=_unary_saving(U, prob.labels, disparity, d2,
-                                                       trusted=trusted),
-                                 min_support=p.thin_min_support, trusted=trusted)
+    rule = dict(jump=p.thin_jump, touch=p.thin_touch, min_size=p.thin_min_size,
+                support=_unary_saving(U, prob.labels, disparity, d2, trusted=trusted),
+                min_support=p.thin_min_support, trusted=trusted)
+    taken = _reg.thin_foreground(disparity, d2, **rule)
+    if p.thin_holes:
+        taken |= _reg.enclosed_background(disparity, d2, **rule)
     return (np.where(taken, d2, disparity).astype(np.float32),
             np.where(taken, c2, confidence).astype(np.float32), taken)
 

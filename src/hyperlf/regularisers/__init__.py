@@ -22,7 +22,8 @@ Modules
 ``graphcuts`` (``graphcut``, ``graphcut_multiscale``, ``mrf_energy``,
 ``edge_weights_from_guide``, ``candidate_labels``), ``postprocess`` (``left_right_check``,
 ``left_occlusions``, ``fill_occlusions``, ``right_cost_from_left``, ``subpixel_refine``,
-``confidence``, ``edge_confidence``, ``thin_foreground``, ``ConfidenceParams``,
+``confidence``, ``edge_confidence``, ``thin_foreground``, ``enclosed_background``,
+``ConfidenceParams``,
 ``weighted_median``) and
 ``planes`` (``segment``, ``fit_plane``, ``plane_fill``, ``PlaneFillParams``: the segment-wise
 slanted-plane fill;
@@ -55,9 +56,10 @@ from .graphcuts import (GRAPHCUT_SMOOTHNESS, candidate_labels, edge_weights_from
                         graphcut, graphcut_multiscale, mrf_energy)
 from .params import OPTIMISERS, GraphCutParams, SGMParams, WTAParams, make_params, params_dict
 from .planes import PlaneFillParams, cost_planes, fit_plane, plane_fill, segment
-from .postprocess import (ConfidenceParams, confidence, edge_confidence, fill_occlusions,
-                          left_occlusions, left_right_check, right_cost_from_left,
-                          subpixel_refine, thin_foreground, weighted_median)
+from .postprocess import (ConfidenceParams, confidence, edge_confidence, enclosed_background,
+                          fill_occlusions, left_occlusions, left_right_check,
+                          right_cost_from_left, subpixel_refine, thin_foreground,
+                          weighted_median)
 from .semiglobal import SGM_PATHS, SGM_SMOOTHNESS, sgm, sgm_labels
 
 __all__ = [
@@ -95,6 +97,7 @@ __all__ = [
     "confidence",
     "edge_confidence",
     "thin_foreground",
+    "enclosed_background",
     "ConfidenceParams",
     "weighted_median",
 ]
