@@ -2098,8 +2098,8 @@ def _add_depth_output_options(g) -> None:
     _add_confidence_options(g, **_depth_confidence_defaults())
     g.add_argument("--save-intermediate", action="store_true",
                    help="also write correspondence-only and defocus-only maps, and the "
-                        "textureless-region weight and the thin objects taken from SGM "
-                        "when they were used")
+                        "textureless-region weight and the thin objects and holes taken from "
+                        "SGM when they were used")
     _add_output_folder(g)
 
 

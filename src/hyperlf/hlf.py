@@ -3010,7 +3010,8 @@ def thin_objects(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray, disparity: 
                  confidence: np.ndarray, *, informative=None, weight=None, prior=None,
                  passes: int | None = None):
     """Stage 8 of :func:`depth` under graph cuts: the thin foreground that graph cuts gave to
-    the background, taken back from SGM on the same unary.
+    the background, and the holes they filled with the foreground, taken back from SGM on
+    the same unary.
 
     Graph cuts charge a thin object's whole outline against the few pixels that vouch for
     it, and lose rods, wires and stems that are faint in the reference band to the
