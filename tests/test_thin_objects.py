@@ -129,21 +129,29 @@ def test_bad_arguments_are_refused_in_one_line(kwargs, match):
 @given(seed=st.integers(0, 2**32 - 1), jump=st.floats(0.1, 3.0),
        touch=st.floats(0.05, 1.0), min_size=st.integers(1, 30))
 def test_taken_pixels_are_nearer_by_the_jump_and_whole_components(seed, jump, touch, min_size):
-    """And the holes of the mirrored maps are the same pixels: one rule, sides swapped."""
+    """And the holes of the mirrored maps are the same pixels, but for components at the
+    image's border or at a depth the estimate does not hold: one rule, sides swapped."""
     from scipy import ndimage as ndi
 
     rng = np.random.default_rng(seed)
     d = rng.integers(0, 4, (24, 30)).astype(float)
     p = d + rng.choice([0.0, 0.0, 2.0, 4.0], d.shape)
     taken = thin_foreground(d, p, jump=jump, touch=touch, min_size=min_size)
-    np.testing.assert_array_equal(
-        enclosed_background(-d, -p, jump=jump, touch=touch, min_size=min_size), taken)
     nearer = p - d > jump
     assert not (taken & ~nearer).any()
     components, _ = ndi.label(nearer, structure=np.ones((3, 3), bool))
     for i in np.unique(components[taken]):      # a component is taken whole or not at all
         assert taken[components == i].all()
         assert (components == i).sum() >= min_size
+    border = np.ones(d.shape, bool)
+    border[1:-1, 1:-1] = False
+    at_border = np.isin(components, components[taken & border])
+    holes = enclosed_background(-d, -p, jump=jump, touch=touch, min_size=min_size)
+    assert not (holes & ~(taken & ~at_border)).any()
+    for i in np.unique(components[taken & ~at_border]):
+        own = components == i                   # a hole shows a depth the estimate holds
+        held = np.count_nonzero(np.abs(d - np.median(p[own])) <= jump)
+        assert holes[own].all() == (held >= min_size)
 
 
 # --------------------------------------------------------------------------------------------
@@ -177,6 +185,28 @@ def test_a_hole_open_to_the_background_is_left():
     share = 10 / (10 * 16 - 8 * 14)    # of the 8 x 14 gap's outline, column 1 is wall
     assert not enclosed_background(d, p, touch=share).any()
     assert enclosed_background(d, p, touch=share + 1e-6)[8:16, 2:16].all()
+
+
+def test_a_component_at_the_border_is_no_hole():
+    """Where the proposal is farther along the image's border (views that do not see the
+    border's pixels at their depth), nothing encloses it: left, however little its inner
+    outline touches the estimate's surface at its depth."""
+    d = np.full((24, 40), 3.0)
+    p = d.copy()
+    p[0:6, 8:30] = 0.0
+    assert not enclosed_background(d, p, touch=1.0).any()
+    assert thin_foreground(-d, -p, touch=1.0)[0:6, 8:30].all()   # a rod may cross it
+
+
+def test_a_hole_shows_a_surface_the_estimate_holds():
+    """Through a hole lies a surface that the estimate has elsewhere; a proposal at a depth
+    no surface of the estimate holds is its own error."""
+    d, p = _ring_with_filled_hole()
+    p[8:16, 8:16] = -5.0
+    assert not enclosed_background(d, p).any()
+    d[22:24, 30:35] = -5.5                     # 10 px of the estimate near -5 ...
+    assert enclosed_background(d, p).sum() == 64
+    assert not enclosed_background(d, p, min_size=11).any()   # ... and not 11
 
 
 def test_holes_have_the_guards_of_thin_objects():

@@ -486,8 +486,15 @@ def enclosed_background(disparity, proposal, *, jump: float = 1.0, touch: float 
     ``jump``, and fewer than ``touch`` of the component's outline have a ``disparity``
     within ``jump`` of the component's median ``proposal``.  A hole is enclosed by the
     foreground; a foreground edge that ``disparity`` fattened and ``proposal`` did not lies
-    along the background at the component's depth, and is left alone.  The outline beyond
-    the image, ``support`` and ``trusted`` count as there.
+    along the background at the component's depth, and is left alone.  ``support`` and
+    ``trusted`` count as there.  Two more guards hold for holes: a component that reaches
+    the image's border is left (nothing shows that the foreground closes around it beyond
+    the border), and so is one at whose median ``proposal`` fewer than ``min_size`` pixels
+    of ``disparity`` lie (within ``jump``): the background seen through a hole is a surface
+    that ``disparity`` holds elsewhere.  Where few views see a pixel the proposal can go
+    astray to depths no surface holds, and the unary, whose labels no view sees there,
+    does not contradict it (the top rows of a rig whose other views do not see them at their
+    true depth, BENCHMARKS.md, fifty-ninth session).
 
     Parameters
     ----------
@@ -539,6 +546,7 @@ def _detached(disparity, proposal, side: float, *, jump, touch, min_size, suppor
     if trusted is not None:
         trusted = np.pad(bool_mask(trusted, "trusted", d.shape), 1)
     eight = np.ones((3, 3), bool)
+    depths = np.sort(d, axis=None)  # the estimate's surfaces: a hole shows one of them
     components, n = ndi.label(np.pad(side * (p - d) > jump, 1), structure=eight)
     sizes = np.bincount(components.ravel(), minlength=n + 1)
     d = np.pad(d, 1, constant_values=np.nan)  # beyond the image: counts as touching
@@ -554,10 +562,20 @@ def _detached(disparity, proposal, side: float, *, jump, touch, min_size, suppor
         if trusted is not None and not 2 * np.count_nonzero(trusted[box][own]) > sizes[i]:
             continue
         outline = d[box][ndi.binary_dilation(own, eight) & ~own]
+        beyond = np.isnan(outline)
         level = np.median(p[box][own])
-        if np.mean(np.isnan(outline) | (np.abs(outline - level) <= jump)) < touch:
+        if side < 0 and (beyond.any() or _held(depths, level, jump) < min_size):
+            continue  # a hole is enclosed within the image, and shows a surface held
+        if np.mean(beyond | (np.abs(outline - level) <= jump)) < touch:
             taken[box] |= own
     return taken[1:-1, 1:-1]
+
+
+def _held(depths: np.ndarray, level: float, jump: float) -> int:
+    """How many of the sorted ``depths`` lie within ``jump`` of ``level``."""
+    lo = np.searchsorted(depths, level - jump, side="left")
+    hi = np.searchsorted(depths, level + jump, side="right")
+    return int(hi - lo)
 
 
 @dataclass(frozen=True)
