@@ -546,7 +546,8 @@ def _detached(disparity, proposal, side: float, *, jump, touch, min_size, suppor
     if trusted is not None:
         trusted = np.pad(bool_mask(trusted, "trusted", d.shape), 1)
     eight = np.ones((3, 3), bool)
-    depths = np.sort(d, axis=None)  # the estimate's surfaces: a hole shows one of them
+    # the estimate's depths, sorted: a hole shows one of its surfaces
+    depths = np.sort(d, axis=None) if side < 0 else None
     components, n = ndi.label(np.pad(side * (p - d) > jump, 1), structure=eight)
     sizes = np.bincount(components.ravel(), minlength=n + 1)
     d = np.pad(d, 1, constant_values=np.nan)  # beyond the image: counts as touching
