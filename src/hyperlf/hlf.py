@@ -654,8 +654,9 @@ class DepthParams:
     texture weight (if any) is at least 0.5 on more than half of the pixels: rods and
     wires faint in the reference band, that graph cuts give to the background
     (BENCHMARKS.md, fifty-seventh session).  ``thin_holes`` (on) takes, by the same rule
-    and constants, the components that SGM puts *farther*: background seen through a hole
-    that graph cuts filled with the foreground around it (fifty-ninth session).
+    and constants, the components that SGM puts *farther*, within the image and at a depth
+    graph cuts' map holds elsewhere: background seen through a hole that graph cuts filled
+    with the foreground around it (fifty-ninth session).
     Confidence: ``confidence_edge_px`` (4 px; 0 = off) and ``confidence_edge_jump`` (0.5
     disparity units): the result's confidence is scaled by
     :func:`hyperlf.regularisers.edge_confidence` of the final disparity, 0 on an estimated
@@ -3029,9 +3030,10 @@ def thin_objects(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray, disparity: 
     and confidence replace graph cuts' (BENCHMARKS.md, fifty-sixth and fifty-seventh
     sessions).  With ``params.thin_holes``, components that SGM puts farther than graph
     cuts and that are enclosed by graph cuts' foreground
-    (:func:`hyperlf.regularisers.enclosed_background`, the same constants and guards) are
-    taken too: the background of a hole, which the outline's cost closes the same way
-    (fifty-ninth session).
+    (:func:`hyperlf.regularisers.enclosed_background`: the same constants and guards, and
+    two of its own: a hole lies within the image, at a depth graph cuts' map holds
+    elsewhere) are taken too: the background of a hole, which the outline's cost closes the
+    same way (fifty-ninth session).
 
     Parameters
     ----------
@@ -3049,8 +3051,9 @@ def thin_objects(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray, disparity: 
     -------
     disparity, confidence : ndarray, float32 (H, W)
     taken : ndarray, bool (H, W) or None
-        The pixels SGM gave (thin objects and holes); None when the stage is off (``params.thin_objects`` False, an
-        optimiser other than graph cuts, or ``params.smoothness`` 0).
+        The pixels SGM gave (thin objects and holes); None when the stage is off
+        (``params.thin_objects`` False, an optimiser other than graph cuts, or
+        ``params.smoothness`` 0).
 
     Examples
     --------
