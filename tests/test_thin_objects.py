@@ -279,10 +279,11 @@ def test_the_stage_takes_back_the_rod_graph_cuts_lost():
         hlf.thin_objects(prob, U, f_c, d, c, weight=np.full(rod.shape, 2.0))
 
 
-def _hole_problem(**params):
+def _hole_problem(*, weak=0.2, kept=0, **params):
     """A ring (label 6) around a 6 x 6 hole of wall (label 1) whose pixels prefer the wall
-    five times more weakly than the rest of the wall does: graph cuts fill the hole.  The
-    reference view is made flat, so that the contrast-sensitive weights do not depend on
+    ``1 / weak`` times more weakly than the rest of the wall does, but for its first
+    ``kept`` columns, which prefer it as strongly: graph cuts fill the hole (its weak part).
+    The reference view is made flat, so that the contrast-sensitive weights do not depend on
     the scene's reflectances (which depend on whether the data is set)."""
     lf = synthesis.procedural_scene(seed=0, rows=3, cols=3, height=32, width=40)
     prob = hlf.prepare(lf, n_labels=8, params=hlf.DepthParams(median_radius=0, **params))
@@ -294,7 +295,9 @@ def _hole_problem(**params):
     ring &= ~hole
     steps = np.arange(8.0)[:, None, None]
     wall = np.minimum(abs(steps - 1), 3)
-    U = np.where(ring, np.minimum(abs(steps - 6), 3), np.where(hole, 0.2 * wall, wall))
+    weak = np.where(hole, weak, 1.0)
+    weak[:, 17:17 + kept] = 1.0
+    U = np.where(ring, np.minimum(abs(steps - 6), 3), weak * wall)
     return prob, U.astype(np.float32), hole
 
 
@@ -308,6 +311,24 @@ def test_the_stage_opens_the_hole_graph_cuts_filled():
     prob, U, hole = _hole_problem(thin_holes=False)
     f_c, d, c = _graph_cuts(prob, U)
     assert not hlf.thin_objects(prob, U, f_c, d, c)[2].any()
+
+
+def test_a_hole_filled_in_part_is_decided_at_the_holes_own_outline_share():
+    # graph cuts keep the hole's first column open and fill the rest, whose outline meets
+    # that column on a quarter of it: below the default share, at the thin objects' own
+    taken, opened = {}, {}
+    for touch in (hlf.DepthParams().thin_hole_touch, 0.25):
+        prob, U, hole = _hole_problem(weak=0.1, kept=1, thin_hole_touch=touch,
+                                      thin_touch=0.9)
+        f_c, d, c = _graph_cuts(prob, U)
+        assert np.allclose(d[:, 17][hole[:, 17]], prob.labels[1])          # kept open
+        assert np.allclose(d[:, 18:23][hole[:, 18:23]], prob.labels[6])    # filled
+        opened[touch], _, taken[touch] = hlf.thin_objects(prob, U, f_c, d, c)
+    default = hlf.DepthParams().thin_hole_touch
+    assert taken[default].sum() >= 20 and not taken[default][:, :18].any()
+    assert (taken[default] <= hole).all()
+    assert np.allclose(opened[default][taken[default]], prob.labels[1])
+    assert not taken[0.25].any()
 
 
 @pytest.mark.parametrize("params, optimizer", [({"thin_objects": False}, "graphcut"),
@@ -383,10 +404,11 @@ def test_noise_in_weak_texture_is_no_thin_object():
 
 def test_thin_objects_are_on_by_default_and_their_constants_checked():
     p = hlf.DepthParams()
-    assert (p.thin_objects, p.thin_holes, p.thin_jump, p.thin_touch, p.thin_min_size,
-            p.thin_min_support) == (True, True, 1.0, 0.25, 10, 0.05)
+    assert (p.thin_objects, p.thin_holes, p.thin_jump, p.thin_touch, p.thin_hole_touch,
+            p.thin_min_size, p.thin_min_support) == (True, True, 1.0, 0.25, 0.7, 10, 0.05)
     for bad in ({"thin_objects": 1}, {"thin_holes": "yes"}, {"thin_jump": 0}, {"thin_touch": 0},
-                {"thin_touch": 1.1}, {"thin_min_size": 0}, {"thin_jump": float("nan")},
+                {"thin_touch": 1.1}, {"thin_hole_touch": 0}, {"thin_hole_touch": 1.5},
+                {"thin_min_size": 0}, {"thin_jump": float("nan")},
                 {"thin_min_support": float("inf")}, {"thin_min_support": "0.1"}):
         with pytest.raises(InvalidInputError, match="params.thin_"):
             hlf.DepthParams(**bad)

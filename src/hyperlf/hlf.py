@@ -145,9 +145,10 @@ confidence is 0.  The unary normaliser ``s_X`` is the median over the informativ
    (:func:`hyperlf.regularisers.thin_foreground`), its values replace graph cuts'.  Graph
    cuts charge a rod's whole outline against its few pixels of evidence and give rods faint
    in the reference band to the background; SGM keeps them but fattens edges elsewhere.
-   With ``params.thin_holes`` the same rule, sides swapped, takes back the background that
-   graph cuts filled with the foreground around it: a ring's hole, a gap between a rod and
-   a box (:func:`hyperlf.regularisers.enclosed_background`).
+   With ``params.thin_holes`` the same rule, sides swapped and with its own outline share
+   ``params.thin_hole_touch``, takes back the background that graph cuts filled with the
+   foreground around it: a ring's hole, a gap between a rod and a box
+   (:func:`hyperlf.regularisers.enclosed_background`).
 
 9. **Confidence at depth edges** (:func:`edge_discount`, after the last round): the
    confidence is scaled by :func:`hyperlf.regularisers.edge_confidence` of the final
@@ -497,6 +498,7 @@ _DEPTH_RULES = {
     "thin_holes": _flag,
     "thin_jump": _positive,
     "thin_touch": _rule(_opt.number, positive=True, at_most=1),
+    "thin_hole_touch": _rule(_opt.number, positive=True, at_most=1),
     "thin_min_size": _rule(_opt.integer, minimum=1),
     "thin_min_support": _number,
     "confidence_edge_px": _number,
@@ -656,7 +658,10 @@ class DepthParams:
     (BENCHMARKS.md, fifty-seventh session).  ``thin_holes`` (on) takes, by the same rule
     and constants, the components that SGM puts *farther*, within the image and at a depth
     graph cuts' map holds elsewhere: background seen through a hole that graph cuts filled
-    with the foreground around it (fifty-ninth session).
+    with the foreground around it (fifty-ninth session).  A hole's outline share is
+    ``thin_hole_touch`` (0.7), not ``thin_touch``: a hole or a gap that graph cuts filled
+    only in part meets the part they kept open along much of its outline, and the guards,
+    not the share, keep what SGM gets wrong out (sixtieth session).
     Confidence: ``confidence_edge_px`` (4 px; 0 = off) and ``confidence_edge_jump`` (0.5
     disparity units): the result's confidence is scaled by
     :func:`hyperlf.regularisers.edge_confidence` of the final disparity, 0 on an estimated
@@ -740,6 +745,7 @@ class DepthParams:
     thin_holes: bool = True
     thin_jump: float = 1.0
     thin_touch: float = 0.25
+    thin_hole_touch: float = 0.7
     thin_min_size: int = 10
     thin_min_support: float = 0.05
     confidence_edge_px: float = 4.0
@@ -3030,10 +3036,11 @@ def thin_objects(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray, disparity: 
     and confidence replace graph cuts' (BENCHMARKS.md, fifty-sixth and fifty-seventh
     sessions).  With ``params.thin_holes``, components that SGM puts farther than graph
     cuts and that are enclosed by graph cuts' foreground
-    (:func:`hyperlf.regularisers.enclosed_background`: the same constants and guards, and
-    two of its own: a hole lies within the image, at a depth graph cuts' map holds
-    elsewhere) are taken too: the background of a hole, which the outline's cost closes the
-    same way (fifty-ninth session).
+    (:func:`hyperlf.regularisers.enclosed_background`: the same constants and guards, its
+    own outline share ``params.thin_hole_touch``, and two guards of its own: a hole lies
+    within the image, at a depth graph cuts' map holds elsewhere) are taken too: the
+    background of a hole, which the outline's cost closes the same way (fifty-ninth and
+    sixtieth sessions).
 
     Parameters
     ----------
@@ -3092,7 +3099,7 @@ def thin_objects(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray, disparity: 
                 min_support=p.thin_min_support, trusted=trusted)
     taken = _reg.thin_foreground(disparity, d2, **rule)
     if p.thin_holes:
-        taken |= _reg.enclosed_background(disparity, d2, **rule)
+        taken |= _reg.enclosed_background(disparity, d2, **dict(rule, touch=p.thin_hole_touch))
     return (np.where(taken, d2, disparity).astype(np.float32),
             np.where(taken, c2, confidence).astype(np.float32), taken)
 
