@@ -74,11 +74,11 @@ def table2():
 
 # BENCHMARKS.md, Table 2 with census averaged over a pixel of shift (twentieth session; the
 # fusion's parts uncentred between views since the twenty-first: antinous 0.3312 -> 0.3309, the
-# other scenes the same): the default ("auto"), 32 labels, 128 x 128: RMSE / MSE x 100 /
-# BadPix(0.07) %.
+# other scenes the same; the holes' own outline share since the sixtieth: slanted 0.0961 ->
+# 0.0671): the default ("auto"), 32 labels, 128 x 128: RMSE / MSE x 100 / BadPix(0.07) %.
 @pytest.mark.parametrize("scene, expected", [
     ("planes", (0.1752, 3.069, 13.24)),
-    ("slanted", (0.0961, 0.924, 4.08)),
+    ("slanted", (0.0671, 0.451, 3.94)),
 ])
 def test_table2_default_128(table2, scene, expected):
     lf, _, unit, _ = table2.load_scene(scene, (128, 128), 1)
