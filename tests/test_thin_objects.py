@@ -315,7 +315,8 @@ def test_the_stage_opens_the_hole_graph_cuts_filled():
 
 def test_a_hole_filled_in_part_is_decided_at_the_holes_own_outline_share():
     # graph cuts keep the hole's first column open and fill the rest, whose outline meets
-    # that column on a quarter of it: below the default share, at the thin objects' own
+    # that column on a quarter of it: taken at the default share, not at 0.25 (the thin
+    # objects' share); thin_touch at 0.9 shows that the holes do not read it
     taken, opened = {}, {}
     for touch in (hlf.DepthParams().thin_hole_touch, 0.25):
         prob, U, hole = _hole_problem(weak=0.1, kept=1, thin_hole_touch=touch,

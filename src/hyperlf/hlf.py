@@ -660,8 +660,9 @@ class DepthParams:
     graph cuts' map holds elsewhere: background seen through a hole that graph cuts filled
     with the foreground around it (fifty-ninth session).  A hole's outline share is
     ``thin_hole_touch`` (0.7), not ``thin_touch``: a hole or a gap that graph cuts filled
-    only in part meets the part they kept open along much of its outline, and the guards,
-    not the share, keep what SGM gets wrong out (sixtieth session).
+    only in part meets the part they kept open along much of its outline.  Above 0.5 the
+    share also admits a band along an edge that graph cuts widened, and there the guards
+    alone decide (sixtieth session).
     Confidence: ``confidence_edge_px`` (4 px; 0 = off) and ``confidence_edge_jump`` (0.5
     disparity units): the result's confidence is scaled by
     :func:`hyperlf.regularisers.edge_confidence` of the final disparity, 0 on an estimated
