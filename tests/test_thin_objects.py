@@ -317,15 +317,15 @@ def test_a_hole_filled_in_part_is_decided_at_the_holes_own_outline_share():
     # graph cuts keep the hole's first column open and fill the rest, whose outline meets
     # that column on a quarter of it: taken at the default share, not at 0.25 (the thin
     # objects' share); thin_touch at 0.9 shows that the holes do not read it
+    default = hlf.DepthParams().thin_hole_touch
     taken, opened = {}, {}
-    for touch in (hlf.DepthParams().thin_hole_touch, 0.25):
+    for touch in (default, 0.25):
         prob, U, hole = _hole_problem(weak=0.1, kept=1, thin_hole_touch=touch,
                                       thin_touch=0.9)
         f_c, d, c = _graph_cuts(prob, U)
         assert np.allclose(d[:, 17][hole[:, 17]], prob.labels[1])          # kept open
         assert np.allclose(d[:, 18:23][hole[:, 18:23]], prob.labels[6])    # filled
         opened[touch], _, taken[touch] = hlf.thin_objects(prob, U, f_c, d, c)
-    default = hlf.DepthParams().thin_hole_touch
     assert taken[default].sum() >= 20 and not taken[default][:, :18].any()
     assert (taken[default] <= hole).all()
     assert np.allclose(opened[default][taken[default]], prob.labels[1])
