@@ -74,13 +74,25 @@ def add_stereo_options(ap) -> None:
     ap.add_argument("--cost-params", type=json_object, default=None, metavar="JSON",
                     help="cost options, e.g. '{\"weights\": [1, 3]}' for a fusion's part "
                          "weights (twoview.stereo's cost_params)")
+    ap.add_argument("--hole-params", type=json_object, default=None, metavar="JSON",
+                    help="graph cuts' holes step, e.g. '{\"enabled\": true}' (the fields "
+                         "of hyperlf.regularisers.HoleParams; twoview.stereo's hole_params)")
 
 
 def stereo_options(args) -> dict:
     """The keyword options of :func:`hyperlf.twoview.stereo` that :func:`add_stereo_options`
-    parsed (empty when neither was given)."""
-    return {k: v for k, v in (("params", args.params), ("cost_params", args.cost_params))
-            if v is not None}
+    parsed (empty when none was given); a bad ``--hole-params`` exits with one line."""
+    from hyperlf.errors import InvalidInputError
+    from hyperlf.regularisers import HoleParams
+
+    out = {k: v for k, v in (("params", args.params), ("cost_params", args.cost_params))
+           if v is not None}
+    if args.hole_params is not None:
+        try:
+            out["hole_params"] = HoleParams(**args.hole_params)
+        except (InvalidInputError, TypeError) as exc:
+            raise SystemExit(f"--hole-params: {exc}") from None
+    return out
 
 
 def check_candidate_out(ap, args, default_out: str, *, departures=()) -> None:

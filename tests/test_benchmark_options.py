@@ -64,6 +64,14 @@ def test_the_options_become_stereo_keywords():
                                            "cost_params": {"weights": [1, 3]}}
     common.check_candidate_out(ap, args, "results/x")  # its own --out: accepted
     assert common.stereo_options(ap.parse_args([])) == {}
+    from hyperlf.regularisers import HoleParams
+
+    args = ap.parse_args(["--hole-params", '{"enabled": true, "coherent": 0.5}'])
+    assert common.stereo_options(args) == {"hole_params": HoleParams(enabled=True,
+                                                                     coherent=0.5)}
+    for bad in ('{"enabled": 1}', '{"share": 0.5}'):
+        with pytest.raises(SystemExit, match="--hole-params: "):
+            common.stereo_options(ap.parse_args(["--hole-params", bad]))
 
 
 def test_a_candidate_may_not_write_over_the_defaults_results(capsys):

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from hyperlf import hlf, synthesis
+from hyperlf import hlf, regularisers, synthesis
 from hyperlf.cli import main
 from hyperlf.errors import InvalidInputError
 from hyperlf.regularisers import enclosed_background, thin_foreground
@@ -223,7 +223,26 @@ def test_holes_have_the_guards_of_thin_objects():
     assert enclosed_background(d, p, trusted=trusted).sum() == 64
 
 
+def test_a_proposal_scattered_over_depths_is_no_object():
+    # a rod whose proposal takes four depths by turns: no pixel lies within the jump of the
+    # median (6.5), so it is refused once coherence is asked for; one depth is taken
+    d = np.zeros((20, 30))
+    p = d.copy()
+    p[2:18, 10:12] = np.array([2.0, 5.0, 8.0, 11.0])[np.arange(16) % 4][:, None]
+    assert thin_foreground(d, p).sum() == 32                      # 0: no such test
+    assert not thin_foreground(d, p, coherent=0.3).any()
+    p[2:18, 10:12] = 5.0
+    assert thin_foreground(d, p, coherent=1.0).sum() == 32
+    # a hole whose proposal is the wall on 5 of its 8 rows, 2 px farther on the others
+    d, p = _ring_with_filled_hole()
+    p[13:16, 8:16] = -2.0
+    assert enclosed_background(d, p, coherent=0.6).sum() == 64
+    assert not enclosed_background(d, p, coherent=0.7).any()
+
+
 @pytest.mark.parametrize("kwargs, match", [
+    (dict(disparity=np.zeros((4, 4)), proposal=np.zeros((4, 4)), coherent=1.5), "coherent"),
+    (dict(disparity=np.zeros((4, 4)), proposal=np.zeros((4, 4)), coherent=-0.1), "coherent"),
     (dict(disparity=np.zeros((4, 4)), proposal=np.zeros((4, 5))), "proposal must have shape"),
     (dict(disparity=np.full((4, 4), np.inf), proposal=np.zeros((4, 4))), "disparity must be fin"),
     (dict(disparity=np.zeros((4, 4)), proposal=np.zeros((4, 4)), touch=0), "touch"),
@@ -398,8 +417,8 @@ def test_noise_in_weak_texture_is_no_thin_object():
     assert (U.max(axis=0) == U.min(axis=0)).mean() > 0.5          # no unary on most pixels
     off = hlf.depth(lf, n_labels=17, params=replace(params, thin_objects=False))
     np.testing.assert_array_equal(res.disparity, off.disparity)
-    saving = hlf._unary_saving(U, res.labels, off.disparity, off.disparity + 1,
-                               trusted=w >= hlf.TRUSTED_WEIGHT)
+    saving = regularisers.label_saving(U, res.labels, off.disparity, off.disparity + 1,
+                                       trusted=w >= hlf.TRUSTED_WEIGHT)
     assert np.isfinite(saving).all()
 
 
@@ -468,3 +487,170 @@ def test_depth_says_and_shows_what_it_took(tmp_path, capsys, rings_and_sticks):
     mask = read_pfm(tmp_path / "d" / "thin_objects.pfm")
     np.testing.assert_array_equal(mask, ref.intermediate["thin_objects"].astype(np.float32))
     assert (tmp_path / "d" / "thin_objects.png").is_file()
+
+
+# --------------------------------------------------------------------------------------------
+# the data term's saving, and two-view stereo's holes
+# --------------------------------------------------------------------------------------------
+
+def test_label_saving_reads_each_map_at_its_nearest_label():
+    rng = np.random.default_rng(3)
+    volume = rng.random((5, 6, 7)).astype(np.float32)
+    labels = np.linspace(-1.0, 1.0, 5)                      # a step of 0.5
+    d = rng.uniform(-1.4, 1.4, (6, 7))                       # beyond the range: clipped
+    p = rng.uniform(-1.4, 1.4, (6, 7))
+    trusted = rng.random((6, 7)) > 0.3
+    at = lambda m: np.take_along_axis(                      # noqa: E731
+        volume, np.clip(np.rint((m + 1) / 0.5), 0, 4).astype(int)[None], 0)[0]
+    spread = volume.max(axis=0) - volume.min(axis=0)
+    want = (at(d) - at(p)) / np.median(spread[trusted])
+    got = regularisers.label_saving(volume, labels, d, p, trusted=trusted)
+    np.testing.assert_allclose(got, want, rtol=1e-6)
+    flat = np.ones((3, 2, 2), np.float32)
+    assert not regularisers.label_saving(flat, [0, 1, 2], np.zeros((2, 2)),
+                                         np.ones((2, 2))).any()
+
+
+@pytest.mark.parametrize("args, match", [
+    ((np.zeros((2, 3, 3)), [0, 1], np.zeros((3, 4)), np.zeros((3, 3))), "disparity"),
+    ((np.zeros((2, 3, 3)), [0, 1, 2], np.zeros((3, 3)), np.zeros((3, 3))), "labels"),
+    ((np.zeros((2, 3, 3)), [1, 0], np.zeros((3, 3)), np.zeros((3, 3))), "labels must increase"),
+    ((np.full((2, 3, 3), np.nan), [0, 1], np.zeros((3, 3)), np.zeros((3, 3))), "volume"),
+    ((np.zeros((2, 3, 3)), [0, 1], np.zeros((3, 3)), np.full((3, 3), np.inf)), "proposal"),
+])
+def test_label_saving_refuses_bad_arguments_in_one_line(args, match):
+    with pytest.raises(InvalidInputError, match=match):
+        regularisers.label_saving(*args)
+
+
+@pytest.mark.parametrize("field, value", [("weight_share", 1.0), ("weight_share", 0.0),
+                                          ("jump", 0.0), ("touch", 0.0), ("touch", 1.5),
+                                          ("min_size", 0), ("coherent", 1.2),
+                                          ("min_support", float("nan")), ("enabled", 1),
+                                          ("consistent", "yes")])
+def test_hole_params_refuse_bad_values_in_one_line(field, value):
+    with pytest.raises(InvalidInputError, match=field):
+        regularisers.HoleParams(**{field: value})
+
+
+def _square_with_hole(size=6):
+    """A cost volume of a wall (label 0) seen through a ``size`` x ``size`` hole in a square
+    (label 5): each pixel's cost is its label's distance to its own, truncated at 2."""
+    steps = np.arange(6.0)[:, None, None]
+    square = np.zeros((24, 24), bool)
+    square[4:20, 4:20] = True
+    hole = np.zeros_like(square)
+    lo = 12 - size // 2
+    hole[lo:lo + size, lo:lo + size] = True
+    want = np.where(square & ~hole, 5, 0)
+    return np.minimum(abs(steps - want), 2).astype(np.float32), hole
+
+
+ON = regularisers.HoleParams(enabled=True)
+
+
+def test_open_holes_opens_what_half_the_smoothness_opens():
+    from hyperlf.twoview import open_holes
+
+    data, hole = _square_with_hole()
+    gc = regularisers.GraphCutParams(weight=2.0, truncation=2.0, levels=0)
+    f = regularisers.optimise(data, gc).labels
+    assert (f[hole] == 5).all()                     # the outline costs more than the hole
+    f2, none, opened = open_holes(data, f, gc, hole_params=ON)
+    assert none is None
+    assert np.array_equal(opened, hole) and (f2[hole] == 0).all()
+    assert np.array_equal(f2[~hole], f[~hole])
+    for off in (None, regularisers.HoleParams()):   # off by default
+        f3, _, nothing = open_holes(data, f, gc, hole_params=off)
+        assert np.array_equal(f3, f) and not nothing.any()
+    sgm = regularisers.make_params("sgm", {})
+    assert not open_holes(data, f, sgm, hole_params=ON)[2].any()    # graph cuts only
+    # at 0.9 of the weight the outline still costs more than the hole saves
+    assert not open_holes(data, f, gc, hole_params=regularisers.HoleParams(
+        enabled=True, weight_share=0.9))[2].any()
+
+
+@pytest.mark.parametrize("field, value", [("min_size", 37), ("min_support", 1.0),
+                                          ("jump", 5.0)])
+def test_open_holes_applies_the_rule_of_its_params(field, value):
+    # the 36-px hole, whose data save 1.0 of the volume's median range per pixel, 5 labels
+    # farther than the square: refused past each of these
+    from hyperlf.twoview import open_holes
+
+    data, hole = _square_with_hole()
+    gc = regularisers.GraphCutParams(weight=2.0, truncation=2.0, levels=0)
+    f = regularisers.optimise(data, gc).labels
+    params = regularisers.HoleParams(enabled=True, **{field: value})
+    assert not open_holes(data, f, gc, hole_params=params)[2].any()
+
+
+def _volume(want, L=6):
+    steps = np.arange(float(L))[:, None, None]
+    return np.minimum(abs(steps - want), 2).astype(np.float32)
+
+
+def test_open_holes_asks_both_second_answers_to_agree():
+    # a square 2 px before the wall, with a 6 x 6 hole, seen by both views: the wall through
+    # the left hole (columns 9-14) is seen by the right view through its own (columns 7-12)
+    # on columns 9-12, more than half of it; a right view whose square has no hole leaves
+    # the left second answer without a partner, and the guard refuses it
+    from hyperlf.twoview import open_holes
+
+    square = np.zeros((24, 24), bool)
+    square[4:20, 4:20] = True
+    hole = np.zeros_like(square)
+    hole[9:15, 9:15] = True
+    shift = lambda m: np.roll(m, -2, axis=1)          # noqa: E731  (the right view)
+    left = _volume(np.where(square & ~hole, 2, 0))
+    right = _volume(np.where(shift(square) & ~shift(hole), 2, 0))
+    gc = regularisers.GraphCutParams(weight=2.0, truncation=2.0, levels=0)
+    fl = regularisers.optimise(left, gc).labels
+    fr = regularisers.optimise(right, gc).labels
+    assert (fl[hole] == 2).all() and (fr[shift(hole)] == 2).all()     # both filled
+    fl2, fr2, opened = open_holes(left, fl, gc, data_right=right, label_map_right=fr,
+                                  hole_params=ON)
+    assert np.array_equal(opened, hole) and (fr2[shift(hole)] == 0).all()
+    closed = _volume(np.where(shift(square), 2, 0))
+    fc = regularisers.optimise(closed, gc).labels
+    kw = dict(data_right=closed, label_map_right=fc)
+    assert not open_holes(left, fl, gc, **kw, hole_params=ON)[2].any()
+    loose = regularisers.HoleParams(enabled=True, consistent=False)
+    assert np.array_equal(open_holes(left, fl, gc, **kw, hole_params=loose)[2], hole)
+    with pytest.raises(InvalidInputError, match="together"):
+        open_holes(left, fl, gc, data_right=right, hole_params=ON)
+
+
+def test_stereo_opens_holes_when_asked_and_says_so():
+    from hyperlf.twoview import stereo_from_volumes
+
+    data, hole = _square_with_hole()
+    params = {"weight": 2.5, "truncation": 2.0, "levels": 0}
+    res = stereo_from_volumes(data, None, 0, "graphcut", "none", params=params,
+                              hole_params=ON)
+    assert res.extra["holes_opened"] == pytest.approx(hole.mean())
+    assert (res.disparity[hole] == 0).all()
+    off = stereo_from_volumes(data, None, 0, "graphcut", "none", params=params)
+    assert off.extra["holes_opened"] == 0 and (off.disparity[hole] == 5).all()
+    with pytest.raises(InvalidInputError, match="hole_params"):
+        stereo_from_volumes(data, None, 0, "graphcut", "none", hole_params={"jump": 1})
+
+
+def test_stereo_command_opens_holes_when_asked(tmp_path, monkeypatch):
+    import hyperlf.twoview as tv
+    from hyperlf.formats import write_image
+
+    seen = []
+    real = tv.stereo
+
+    def spy(*a, **k):
+        seen.append(k["hole_params"])
+        return real(*a, **k)
+
+    monkeypatch.setattr(tv, "stereo", spy)
+    tex = np.random.default_rng(5).random((30, 50)).astype(np.float32)
+    write_image(tmp_path / "l.png", tex[:, 3:43], bit_depth=16)
+    write_image(tmp_path / "r.png", tex[:, 6:46], bit_depth=16)
+    for extra, out in (([], "a"), (["--holes"], "b")):
+        assert main(["-q", "stereo", str(tmp_path / "l.png"), str(tmp_path / "r.png"),
+                     "--disparity-range", "0,6", *extra, "-o", str(tmp_path / out)]) == 0
+    assert seen == [regularisers.HoleParams(), ON]

@@ -894,7 +894,8 @@ def _cmd_stereo(args, dest) -> list[Path]:
                  channel=args.channel, progress=_bars(args),
                  cost_params=None if args.fusion_weights is None
                  else {"weights": args.fusion_weights},
-                 confidence_params=_stereo_confidence_params(args))
+                 confidence_params=_stereo_confidence_params(args),
+                 hole_params=_stereo_hole_params(args))
     truth = None if pair is None else pair.gt_disparity
     written = save_disparity_outputs(dest, res.disparity,
                                       f"{res.metric} + {res.optimizer}", confidence=res.confidence,
@@ -902,6 +903,8 @@ def _cmd_stereo(args, dest) -> list[Path]:
                                       label="disparity (px)")
     t = res.timings
     _say(args, f"cost {t['cost']:.1f} s, optimiser {t['optimiser']:.1f} s, total {t['total']:.1f} s")
+    if res.extra["holes_opened"] > 0:
+        _say(args, f"holes opened: {100 * res.extra['holes_opened']:.2f} % of the pixels")
     if pair is not None:
         _say_stereo_scores(args, res.disparity, pair)
     return written
@@ -968,6 +971,13 @@ def _stereo_confidence_params(args):
     given = {k: v for k, v in (("floor", args.confidence_floor),
                                ("edge_px", args.confidence_edge_px)) if v is not None}
     return replace(ConfidenceParams(), **given)
+
+
+def _stereo_hole_params(args):
+    """``stereo``'s holes step: the library's constants, on with ``--holes``."""
+    from .regularisers import HoleParams
+
+    return HoleParams(enabled=bool(args.holes))
 
 
 #: ``--downscale`` keeps at least this many pixels on the shorter side of the views.
@@ -1964,6 +1974,10 @@ def _add_stereo_parser(sub) -> None:
                         "background (the paper's protocol); none keeps the raw map")
     p.add_argument("--no-occlusion", action="store_true",
                    help="the same as --occlusion none")
+    p.add_argument("--holes", action="store_true",
+                   help="open the holes graph cuts filled with the foreground around them "
+                        "(rings, gaps between objects) from a second solve at half the "
+                        "smoothness (graphcut only; off by default: see BENCHMARKS.md)")
     _add_fusion_weights_option(p, brief=True)
     _add_aggregation_options(p)
     _add_confidence_options(p, **_stereo_confidence_defaults())

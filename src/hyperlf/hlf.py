@@ -2994,26 +2994,6 @@ def _solved(prob: DepthProblem, U, f_c, seen, w, prior, passes: int, *, clock=No
     return disp, conf, lab
 
 
-def _unary_saving(U: np.ndarray, labels: np.ndarray, disparity, proposal, *,
-                  trusted=None) -> np.ndarray:
-    """What ``U`` saves per pixel at ``proposal``'s nearest label against ``disparity``'s
-    (float64), in units of the median of the unary's range (``max - min`` over labels) over
-    the ``trusted`` pixels (bool (H, W): those whose data term counts; every pixel when
-    None).  Zeros where no such pixel has a range: the unary then vouches for nothing."""
-    step = float(labels[1] - labels[0])
-
-    def at(d):
-        i = np.clip(np.rint((d - labels[0]) / step), 0, labels.size - 1).astype(np.intp)
-        return np.take_along_axis(U, i[None], axis=0)[0].astype(np.float64)
-
-    spread = U.max(axis=0) - U.min(axis=0)
-    counted = spread if trusted is None else spread[trusted]
-    scale = float(np.median(counted)) if counted.size else 0.0
-    if not scale > 0:
-        return np.zeros(spread.shape)
-    return (at(disparity) - at(proposal)) / scale
-
-
 def thin_objects(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray, disparity: np.ndarray,
                  confidence: np.ndarray, *, informative=None, weight=None, prior=None,
                  passes: int | None = None):
@@ -3096,7 +3076,7 @@ def thin_objects(prob: DepthProblem, U: np.ndarray, f_c: np.ndarray, disparity: 
                         passes, optimizer="sgm")
     trusted = None if weight is None else weight >= TRUSTED_WEIGHT
     rule = dict(jump=p.thin_jump, touch=p.thin_touch, min_size=p.thin_min_size,
-                support=_unary_saving(U, prob.labels, disparity, d2, trusted=trusted),
+                support=_reg.label_saving(U, prob.labels, disparity, d2, trusted=trusted),
                 min_support=p.thin_min_support, trusted=trusted)
     taken = _reg.thin_foreground(disparity, d2, **rule)
     if p.thin_holes:

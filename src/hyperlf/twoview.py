@@ -46,6 +46,13 @@ Pipeline
    ``levels``, default 2 halvings; ``levels=0`` is plain alpha-expansion, slower for a
    slightly lower energy).  Each optimiser's parameters become a typed object
    (:func:`hyperlf.regularisers.make_params`) run by :func:`hyperlf.regularisers.optimise`.
+   *Holes* (graph cuts only; :func:`open_holes`, constants ``hole_params``): graph cuts
+   charge a hole's whole outline (the inside of a ring, a gap between two objects) against
+   the few pixels of background that vouch for it, and fill it with the foreground around
+   it.  Each reference is solved again at half the smoothness weight, and the components
+   that this second answer puts farther, that are enclosed by the first answer's
+   foreground, that the data term prefers and on which the second answer holds one depth
+   (:func:`hyperlf.regularisers.enclosed_background`) take its labels.
 6. **Occlusions** (``"lr-fill"``): :func:`~hyperlf.regularisers.left_right_check` (tolerance
    1 px) on the integer maps, then :func:`~hyperlf.regularisers.fill_occlusions` (each
    inconsistent pixel takes the lower of the nearest consistent disparities on its row, i.e.
@@ -74,7 +81,7 @@ scenes (BENCHMARKS.md, fortieth session).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -84,7 +91,7 @@ from . import regularisers as _reg
 from ._options import bool_mask, choice, flag, integer, mapping, params_of, real_array, shown
 from .costs._validate import MAX_DISPARITY
 from .errors import InvalidInputError
-from .regularisers._checks import check_guide
+from .regularisers._checks import check_cost, check_guide, check_label_map, check_labels
 
 __all__ = [
     "OPTIMIZERS",
@@ -96,6 +103,7 @@ __all__ = [
     "compute_volumes",
     "stereo_from_volumes",
     "fill_inconsistent",
+    "open_holes",
     "default_params",
     "default_window",
 ]
@@ -394,11 +402,116 @@ def _scaled_data(cost: np.ndarray, s: float, overwrite: bool) -> np.ndarray:
 def _optimise(D: np.ndarray, params, guide, labels, subpixel: bool, progress: bool):
     """Return (integer label map, float disparity, volume used for confidence)."""
     res = _reg.optimise(D, params, guide=guide, labels=labels, progress=progress)
+    return res.labels, _label_disparity(res.volume, res.labels, labels, subpixel), res.volume
+
+
+def _label_disparity(volume, f, labels, subpixel: bool) -> np.ndarray:
+    """The disparity of label map ``f``, refined on ``volume`` when ``subpixel``."""
     if subpixel:
-        disp = _reg.subpixel_refine(res.volume, res.labels, labels)
-    else:
-        disp = labels[res.labels].astype(np.float32)
-    return res.labels, disp, res.volume
+        return _reg.subpixel_refine(volume, f, labels)
+    return labels[f].astype(np.float32)
+
+
+def open_holes(data, label_map, params, *, data_right=None, label_map_right=None,
+               guide=None, guide_right=None, labels=None, hole_params=None):
+    """Step 5 of :func:`stereo` under graph cuts, when asked for: the holes that graph cuts
+    filled with the foreground around them, opened from a second solve at a weaker
+    smoothness.
+
+    A hole's outline costs graph cuts more than its few pixels of background vouch for, so
+    the foreground flows in.  ``data`` is solved again with ``hole_params.weight_share`` of
+    ``params.weight``; where the second answer is farther,
+    :func:`hyperlf.regularisers.enclosed_background` finds the components enclosed by
+    ``label_map``'s foreground that the data term prefers
+    (:func:`hyperlf.regularisers.label_saving` above ``min_support``), on which the second
+    answer holds one depth (``coherent``: over weak or repeated texture it scatters over
+    several, and that is no hole) and, with the right-referenced ``data_right`` and
+    ``hole_params.consistent``, on more than half of which the two second answers pass the
+    left-right check (1 px); these take the second answer's labels.  The right map
+    ``label_map_right`` is opened by the same rule.  Unless ``hole_params.enabled`` (off by
+    default), and for anything but graph cuts or a zero weight, the maps are returned as
+    they are.
+
+    Parameters
+    ----------
+    data : ndarray, float32 (L, H, W)
+        The left-referenced data term graph cuts solved (module docstring, step 4).
+    label_map : ndarray of int (H, W)
+        Graph cuts' labels of the left view.
+    params : GraphCutParams
+        Graph cuts' parameters (other optimisers: nothing to open).
+    data_right, label_map_right : optional
+        The same for the right view (both or neither).
+    guide, guide_right : ndarray (H, W) or (H, W, K), optional
+        The views' images, as for the first solves.
+    labels : ndarray (L,), optional
+        The disparity of each label (default ``0..L-1``).
+    hole_params : HoleParams, optional
+        :class:`hyperlf.regularisers.HoleParams` (None: its defaults, which leave the
+        step off).
+
+    Returns
+    -------
+    label_map, label_map_right : ndarray of int (H, W)
+        ``label_map_right`` None when not given.
+    opened : ndarray of bool (H, W)
+        The left view's pixels that took the second answer.
+
+    Examples
+    --------
+    A wall (label 0) seen through a 6 x 6 hole in a square (label 5): the hole's 36 pixels
+    save 72 at the wall's label, and its outline of 24 edges costs 96 at graph cuts' weight
+    (2 per label step, truncated at 2) and 48 at half of it:
+
+    >>> import numpy as np
+    >>> from hyperlf.regularisers import GraphCutParams, HoleParams, optimise
+    >>> steps = np.arange(6.0)[:, None, None]
+    >>> square = np.zeros((24, 24), bool); square[4:20, 4:20] = True
+    >>> hole = np.zeros((24, 24), bool); hole[9:15, 9:15] = True
+    >>> want = np.where(square & ~hole, 5, 0)
+    >>> data = np.minimum(abs(steps - want), 2).astype(np.float32)
+    >>> params = GraphCutParams(weight=2.0, truncation=2.0, levels=0)
+    >>> f = optimise(data, params).labels
+    >>> int(f[hole].min())
+    5
+    >>> f2, _, opened = open_holes(data, f, params, hole_params=HoleParams(enabled=True))
+    >>> int(f2[hole].max()), bool(opened[~hole].any())
+    (0, False)
+    """
+    hp = params_of(hole_params, "hole_params", _reg.HoleParams)
+    if (data_right is None) != (label_map_right is None):
+        raise InvalidInputError("give data_right and label_map_right together, or neither")
+    data = check_cost(data, "data")
+    L, H, W = data.shape
+    maps = [check_label_map(label_map, L, H, W, "label_map")]
+    if data_right is not None:
+        data_right = check_cost(data_right, "data_right")
+        if data_right.shape != data.shape:
+            raise InvalidInputError(f"data_right shape {data_right.shape} != data shape "
+                                    f"{data.shape}")
+        maps.append(check_label_map(label_map_right, L, H, W, "label_map_right"))
+    labels = check_labels(labels, L)
+    off = not (hp.enabled and isinstance(params, _reg.GraphCutParams) and params.weight > 0)
+    if off:
+        return maps[0], (maps[1] if len(maps) > 1 else None), np.zeros(maps[0].shape, bool)
+    weaker = replace(params, weight=params.weight * hp.weight_share)
+    volumes = [data] + ([] if data_right is None else [data_right])
+    second = [_reg.optimise(v, weaker, guide=g, labels=labels).labels
+              for v, g in zip(volumes, (guide, guide_right))]
+    trusted = [None] * len(maps)
+    if len(maps) == 2 and hp.consistent:
+        dl, dr = labels[second[0]], labels[second[1]]
+        trusted = [_reg.left_right_check(dl, dr),
+                   _reg.left_right_check(dr[:, ::-1], dl[:, ::-1])[:, ::-1]]
+    out = []
+    for v, f, s2, t in zip(volumes, maps, second, trusted):
+        d, p = labels[f], labels[s2]
+        opened = _reg.enclosed_background(
+            d, p, jump=hp.jump, touch=hp.touch, min_size=hp.min_size,
+            support=_reg.label_saving(v, labels, d, p), min_support=hp.min_support,
+            trusted=t, coherent=hp.coherent)
+        out.append((np.where(opened, s2, f), opened))
+    return out[0][0], (out[1][0] if len(out) > 1 else None), out[0][1]
 
 
 def _disparity_map(value, label: str) -> np.ndarray:
@@ -495,6 +608,7 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
                         metric: str = "auto", progress: bool = False,
                         plane_params: _reg.PlaneFillParams | None = None,
                         confidence_params: _reg.ConfidenceParams | None = None,
+                        hole_params: _reg.HoleParams | None = None,
                         overwrite: bool = False) -> StereoResult:
     """Steps 4-7 of the pipeline on precomputed volumes (see :func:`compute_volumes`).
 
@@ -517,6 +631,9 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
     confidence_params : ConfidenceParams, optional
         Constants of the confidence (:class:`hyperlf.regularisers.ConfidenceParams`; default
         its defaults).
+    hole_params : HoleParams, optional
+        Graph cuts' holes step (:func:`open_holes`; default
+        :class:`hyperlf.regularisers.HoleParams`'s: off).
     overwrite : bool
         The volumes are not used again: float32 ones then hold the data terms (two
         volume-sized copies fewer; the result is the same).
@@ -525,7 +642,8 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
     -------
     StereoResult
         ``timings`` holds only ``optimiser``; ``extra["plane_filled"]`` the share of pixels
-        the ``"lr-plane"`` fill gave a plane value.
+        the ``"lr-plane"`` fill gave a plane value, ``extra["holes_opened"]`` the share of
+        the left map's pixels :func:`open_holes` opened.
 
     Examples
     --------
@@ -548,6 +666,7 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
     occlusion = _check_occlusion(occlusion)
     cp = params_of(confidence_params, "confidence_params", _reg.ConfidenceParams)
     plane_params = params_of(plane_params, "plane_params", _reg.PlaneFillParams)
+    hole_params = params_of(hole_params, "hole_params", _reg.HoleParams)
     name = _costs.resolve_metric(metric)
     p = _merge_params(name, optimizer, params)
     opt = _reg.make_params(optimizer, p)
@@ -567,12 +686,21 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
     t0 = time.perf_counter()
     fl, disp_l, vol_l = _optimise(_scaled_data(cl, s, overwrite), opt, guide_left, labels,
                                   subpixel, progress)
-    conf = _reg.confidence(vol_l, fl, floor=cp.floor)
     disp_r = None
     replaced = np.zeros(disp_l.shape, dtype=bool)
     if cr is not None:
-        fr, _, _ = _optimise(_scaled_data(cr, s, overwrite), opt, guide_right, labels, False,
-                             progress)
+        Dr = _scaled_data(cr, s, overwrite)
+        fr, _, _ = _optimise(Dr, opt, guide_right, labels, False, progress)
+    else:
+        Dr = fr = None
+    fl, fr, opened = open_holes(vol_l, fl, opt, data_right=Dr, label_map_right=fr,
+                                guide=guide_left, guide_right=guide_right, labels=labels,
+                                hole_params=hole_params)
+    del Dr
+    if opened.any():
+        disp_l = _label_disparity(vol_l, fl, labels, subpixel)
+    conf = _reg.confidence(vol_l, fl, floor=cp.floor)
+    if cr is not None:
         disp_r = labels[fr].astype(np.float32)
         valid = _reg.left_right_check(labels[fl], disp_r, tol=1.0)
         final, replaced = fill_inconsistent(disp_l, disp_r, valid, occlusion, guide_left,
@@ -587,7 +715,8 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
                         valid=valid, confidence=conf, timings={"optimiser": t_opt}, metric=name,
                         optimizer=optimizer, params=p, occlusion=occlusion,
                         disparity_range=(int(dmin), int(dmin + Lc - 1)), right_disparity=disp_r,
-                        extra={"data_scale": s, "plane_filled": float(replaced.mean())})
+                        extra={"data_scale": s, "plane_filled": float(replaced.mean()),
+                               "holes_opened": float(opened.mean())})
 
 
 def stereo(left, right, disparity_range, *, metric: str = "auto", optimizer: str = "graphcut",
@@ -596,7 +725,8 @@ def stereo(left, right, disparity_range, *, metric: str = "auto", optimizer: str
            cost_params: dict | None = None,
            plane_params: _reg.PlaneFillParams | None = None,
            aggregation: _costs.AggregationParams | str | None = None,
-           confidence_params: _reg.ConfidenceParams | None = None) -> StereoResult:
+           confidence_params: _reg.ConfidenceParams | None = None,
+           hole_params: _reg.HoleParams | None = None) -> StereoResult:
     """Disparity of the left view of a rectified pair (SPEC §4; module docstring).
 
     Parameters
@@ -637,6 +767,9 @@ def stereo(left, right, disparity_range, *, metric: str = "auto", optimizer: str
     confidence_params : ConfidenceParams, optional
         Constants of the result's confidence (:class:`hyperlf.regularisers.ConfidenceParams`;
         default its defaults).
+    hole_params : HoleParams, optional
+        Graph cuts' holes step (:func:`open_holes`, :class:`hyperlf.regularisers.HoleParams`;
+        ``HoleParams(enabled=True)`` turns it on); default off.
 
     Returns
     -------
@@ -673,6 +806,7 @@ def stereo(left, right, disparity_range, *, metric: str = "auto", optimizer: str
     dmin, dmax = _check_range(disparity_range, L.shape[1])
     params_of(confidence_params, "confidence_params", _reg.ConfidenceParams)
     params_of(plane_params, "plane_params", _reg.PlaneFillParams)
+    params_of(hole_params, "hole_params", _reg.HoleParams)
     p = _merge_params(name, optimizer, params)
     if window is None:
         window = default_window(name, optimizer)
@@ -690,7 +824,7 @@ def stereo(left, right, disparity_range, *, metric: str = "auto", optimizer: str
     res = stereo_from_volumes(cl, cr, dmin, optimizer, occlusion, params=p, guide_left=L,
                               guide_right=R, subpixel=bool(subpixel), metric=name, progress=progress,
                               plane_params=plane_params, confidence_params=confidence_params,
-                              overwrite=True)
+                              hole_params=hole_params, overwrite=True)
     res.window = window
     res.extra["aggregation"] = {"method": agg.method, "radius": agg.radius, "eps": agg.eps}
     res.timings = {"cost": t_cost, "optimiser": res.timings["optimiser"],

@@ -22,8 +22,8 @@ Modules
 ``graphcuts`` (``graphcut``, ``graphcut_multiscale``, ``mrf_energy``,
 ``edge_weights_from_guide``, ``candidate_labels``), ``postprocess`` (``left_right_check``,
 ``left_occlusions``, ``fill_occlusions``, ``right_cost_from_left``, ``subpixel_refine``,
-``confidence``, ``edge_confidence``, ``thin_foreground``, ``enclosed_background``,
-``ConfidenceParams``,
+``confidence``, ``edge_confidence``, ``label_saving``, ``thin_foreground``,
+``enclosed_background``, ``ConfidenceParams``, ``HoleParams``,
 ``weighted_median``) and
 ``planes`` (``segment``, ``fit_plane``, ``plane_fill``, ``PlaneFillParams``: the segment-wise
 slanted-plane fill;
@@ -56,8 +56,9 @@ from .graphcuts import (GRAPHCUT_SMOOTHNESS, candidate_labels, edge_weights_from
                         graphcut, graphcut_multiscale, mrf_energy)
 from .params import OPTIMISERS, GraphCutParams, SGMParams, WTAParams, make_params, params_dict
 from .planes import PlaneFillParams, cost_planes, fit_plane, plane_fill, segment
-from .postprocess import (ConfidenceParams, confidence, edge_confidence, enclosed_background,
-                          fill_occlusions, left_occlusions, left_right_check,
+from .postprocess import (ConfidenceParams, HoleParams, confidence, edge_confidence,
+                          enclosed_background, fill_occlusions, label_saving,
+                          left_occlusions, left_right_check,
                           right_cost_from_left, subpixel_refine, thin_foreground,
                           weighted_median)
 from .semiglobal import SGM_PATHS, SGM_SMOOTHNESS, sgm, sgm_labels
@@ -98,6 +99,8 @@ __all__ = [
     "edge_confidence",
     "thin_foreground",
     "enclosed_background",
+    "label_saving",
     "ConfidenceParams",
+    "HoleParams",
     "weighted_median",
 ]

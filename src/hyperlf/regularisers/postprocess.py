@@ -9,11 +9,11 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from ..warp import coordinate_taps
-from .._options import (array, bool_mask, check_fields, choice, integer, number,
+from .._options import (array, bool_mask, check_fields, choice, flag, integer, number,
                         real_array, rule)
 from ._checks import check_cost, check_label_map, check_labels, gather
 
-__all__ = ["left_right_check", "left_occlusions", "fill_occlusions", "right_cost_from_left",
+__all__ = ["label_saving", "left_right_check", "left_occlusions", "fill_occlusions", "right_cost_from_left",
            "subpixel_refine",
            "confidence", "edge_confidence", "thin_foreground", "ConfidenceParams",
            "weighted_median"]
@@ -403,9 +403,61 @@ def edge_confidence(disparity, *, width: float = 4.0, jump: float = 0.5) -> np.n
     return np.minimum(1.0, dist / width).astype(np.float32)
 
 
+def label_saving(volume, labels, disparity, proposal, *, trusted=None) -> np.ndarray:
+    """What a cost volume saves per pixel at ``proposal``'s nearest label against
+    ``disparity``'s, in units of the median of the volume's range (``max - min`` over labels)
+    over the ``trusted`` pixels; the ``support`` of :func:`thin_foreground` and
+    :func:`enclosed_background`.
+
+    Parameters
+    ----------
+    volume : array_like, shape (L, H, W)
+        Finite costs, lower is better (a data term or a unary).
+    labels : array_like, shape (L,)
+        The disparity of each label, evenly spaced and increasing.
+    disparity, proposal : array_like, shape (H, W)
+        Finite maps; each pixel's value is read at its nearest label (clipped to the range).
+    trusted : array_like of bool, shape (H, W), optional
+        The pixels whose data count, on which the typical range is measured (every pixel
+        when None).
+
+    Returns
+    -------
+    ndarray, float64, shape (H, W)
+        Positive where the volume prefers ``proposal``; zeros where no counted pixel has a
+        range (the volume then vouches for nothing).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> volume = np.array([[[0.0]], [[1.0]], [[2.0]]])   # three labels, one pixel
+    >>> label_saving(volume, [0.0, 1.0, 2.0], [[2.0]], [[0.0]]).tolist()
+    [[1.0]]
+    """
+    U = check_cost(volume, "volume", dtype=None)
+    L, H, W = U.shape
+    lab = check_labels(labels, L)
+    d = array(disparity, "disparity", (H, W), finite=True, of=" (the volume's)")
+    p = array(proposal, "proposal", (H, W), finite=True, of=" (the volume's)")
+    step = float(lab[1] - lab[0]) if L > 1 else 1.0
+    if not step > 0:
+        raise InvalidInputError(f"labels must increase, got {lab[0]:g} then {lab[1]:g}")
+
+    def at(m):
+        i = np.clip(np.rint((m - lab[0]) / step), 0, L - 1).astype(np.intp)
+        return np.take_along_axis(U, i[None], axis=0)[0].astype(np.float64)
+
+    spread = U.max(axis=0) - U.min(axis=0)
+    counted = spread if trusted is None else spread[bool_mask(trusted, "trusted", (H, W))]
+    scale = float(np.median(counted)) if counted.size else 0.0
+    if not scale > 0:
+        return np.zeros(spread.shape)
+    return (at(d) - at(p)) / scale
+
+
 def thin_foreground(disparity, proposal, *, jump: float = 1.0, touch: float = 0.25,
                     min_size: int = 10, support=None, min_support: float = 0.0,
-                    trusted=None) -> np.ndarray:
+                    trusted=None, coherent: float = 0.0) -> np.ndarray:
     """The thin foreground that ``proposal`` finds and ``disparity`` lost, as a mask.
 
     A regulariser that charges for every px of an outline gives a thin object (a rod, a wire,
@@ -425,7 +477,11 @@ def thin_foreground(disparity, proposal, *, jump: float = 1.0, touch: float = 0.
     only where the mean of ``support`` over it is above ``min_support``: the data must
     vouch for the proposal, as they do for an object that only the outline's cost removed.
     With ``trusted``, a component is taken only where more than half of its pixels are
-    trusted: a proposal spread over pixels whose data do not count is no object.
+    trusted: a proposal spread over pixels whose data do not count is no object.  With
+    ``coherent`` above 0, a component is taken only where at least that share of its pixels
+    have a ``proposal`` within ``jump`` of its median: an object shows one surface, and a
+    proposal scattered over many depths is the proposal's own noise (weak or repeated
+    texture).
 
     Parameters
     ----------
@@ -445,7 +501,11 @@ def thin_foreground(disparity, proposal, *, jump: float = 1.0, touch: float = 0.
         What a component's mean ``support`` must exceed (ignored without ``support``).
     trusted : array_like of bool, shape (H, W), optional
         The pixels whose data count (:func:`hyperlf.hlf.thin_objects`: a texture weight of
-        at least 0.5).
+        at least 0.5; :func:`hyperlf.twoview.open_holes`: the proposal's own left-right
+        check).
+    coherent : float
+        In [0, 1]: the share of a component's pixels that must lie within ``jump`` of its
+        median ``proposal`` (0: no such test).
 
     Returns
     -------
@@ -468,12 +528,13 @@ def thin_foreground(disparity, proposal, *, jump: float = 1.0, touch: float = 0.
     (True, False)
     """
     return _detached(disparity, proposal, 1.0, jump=jump, touch=touch, min_size=min_size,
-                     support=support, min_support=min_support, trusted=trusted)
+                     support=support, min_support=min_support, trusted=trusted,
+                     coherent=coherent)
 
 
 def enclosed_background(disparity, proposal, *, jump: float = 1.0, touch: float = 0.25,
                         min_size: int = 10, support=None, min_support: float = 0.0,
-                        trusted=None) -> np.ndarray:
+                        trusted=None, coherent: float = 0.0) -> np.ndarray:
     """The background that ``proposal`` sees through a hole and ``disparity`` filled with
     the foreground around it, as a mask.
 
@@ -498,7 +559,7 @@ def enclosed_background(disparity, proposal, *, jump: float = 1.0, touch: float 
 
     Parameters
     ----------
-    disparity, proposal, jump, touch, min_size, support, min_support, trusted
+    disparity, proposal, jump, touch, min_size, support, min_support, trusted, coherent
         As for :func:`thin_foreground` (``jump``: how much farther ``proposal`` must be).
 
     Returns
@@ -509,6 +570,7 @@ def enclosed_background(disparity, proposal, *, jump: float = 1.0, touch: float 
     --------
     thin_foreground : the thin objects themselves.
     hyperlf.hlf.thin_objects : the depth stage that uses both.
+    hyperlf.twoview.open_holes : two-view stereo's step that uses it.
 
     Examples
     --------
@@ -524,11 +586,12 @@ def enclosed_background(disparity, proposal, *, jump: float = 1.0, touch: float 
     (True, False)
     """
     return _detached(disparity, proposal, -1.0, jump=jump, touch=touch, min_size=min_size,
-                     support=support, min_support=min_support, trusted=trusted)
+                     support=support, min_support=min_support, trusted=trusted,
+                     coherent=coherent)
 
 
 def _detached(disparity, proposal, side: float, *, jump, touch, min_size, support,
-              min_support, trusted) -> np.ndarray:
+              min_support, trusted, coherent) -> np.ndarray:
     """:func:`thin_foreground` (``side`` 1: ``proposal`` nearer) and
     :func:`enclosed_background` (``side`` -1: farther)."""
     from scipy import ndimage as ndi
@@ -540,6 +603,7 @@ def _detached(disparity, proposal, side: float, *, jump, touch, min_size, suppor
     touch = number(touch, "touch", positive=True, at_most=1)
     min_size = integer(min_size, "min_size", minimum=1)
     min_support = number(min_support, "min_support")
+    coherent = number(coherent, "coherent", at_most=1)
     if support is not None:
         support = np.pad(array(support, "support", d.shape, finite=True,
                                of=" (disparity's)").astype(np.float64), 1)
@@ -562,9 +626,11 @@ def _detached(disparity, proposal, side: float, *, jump, touch, min_size, suppor
             continue
         if trusted is not None and not 2 * np.count_nonzero(trusted[box][own]) > sizes[i]:
             continue
+        level = np.median(p[box][own])
+        if coherent > 0 and np.mean(np.abs(p[box][own] - level) <= jump) < coherent:
+            continue
         outline = d[box][ndi.binary_dilation(own, eight) & ~own]
         beyond = np.isnan(outline)
-        level = np.median(p[box][own])
         if side < 0 and (beyond.any() or _held(depths, level, jump) < min_size):
             continue  # a hole is enclosed within the image, and shows a surface held
         if np.mean(beyond | (np.abs(outline - level) <= jump)) < touch:
@@ -608,6 +674,54 @@ class ConfidenceParams:
     def __post_init__(self):
         check_fields(self, {"floor": rule(number, below=1), "edge_px": number,
                             "edge_jump": rule(number, positive=True)}, f"{self.name} ")
+
+
+@dataclass(frozen=True)
+class HoleParams:
+    """Constants of two-view stereo's holes step (:func:`hyperlf.twoview.open_holes`), off
+    by default: graph cuts solved again with ``weight_share`` of their smoothness weight,
+    and the components that this second answer puts farther and that
+    :func:`enclosed_background` finds enclosed by the first answer's foreground taken from
+    it.
+
+    ``jump``, ``touch``, ``min_size`` and ``min_support`` are the light field's
+    (:class:`hyperlf.hlf.DepthParams`: ``thin_jump``, ``thin_hole_touch``,
+    ``thin_min_size``, ``thin_min_support``); the share, the coherence and the left-right
+    guard were measured on Venus and the procedural pairs (BENCHMARKS.md, sixty-first
+    session, where the reasons it is off by default are given).
+
+    Attributes
+    ----------
+    enabled : bool
+        Run the step (graph cuts only).
+    weight_share : float
+        The second solve's smoothness weight as a share of graph cuts', in (0, 1).
+    jump, touch, min_size, min_support, coherent
+        :func:`enclosed_background`'s (``jump`` in px; ``min_support`` against
+        :func:`label_saving` of the data term).
+    consistent : bool
+        With both views' volumes: a component is opened only where more than half of its
+        pixels pass the left-right check (1 px) between the two second answers.
+    """
+
+    name: ClassVar[str] = "holes"
+    enabled: bool = False
+    weight_share: float = 0.5
+    jump: float = 1.0
+    touch: float = 0.7
+    min_size: int = 10
+    min_support: float = 0.05
+    coherent: float = 0.3
+    consistent: bool = True
+
+    def __post_init__(self):
+        check_fields(self, {"enabled": flag, "consistent": flag,
+                            "weight_share": rule(number, positive=True, below=1),
+                            "jump": rule(number, positive=True),
+                            "touch": rule(number, positive=True, at_most=1),
+                            "min_size": rule(integer, minimum=1),
+                            "min_support": number,
+                            "coherent": rule(number, at_most=1)}, f"{self.name} ")
 
 
 # ----------------------------------------------------------------------------------------------
