@@ -635,7 +635,7 @@ def test_stereo_opens_holes_when_asked_and_says_so():
         stereo_from_volumes(data, None, 0, "graphcut", "none", hole_params={"jump": 1})
 
 
-def test_stereo_command_opens_holes_when_asked(tmp_path, monkeypatch):
+def test_stereo_command_opens_holes_when_asked_under_graph_cuts(tmp_path, monkeypatch):
     import hyperlf.twoview as tv
     from hyperlf.formats import write_image
 
@@ -654,3 +654,7 @@ def test_stereo_command_opens_holes_when_asked(tmp_path, monkeypatch):
         assert main(["-q", "stereo", str(tmp_path / "l.png"), str(tmp_path / "r.png"),
                      "--disparity-range", "0,6", *extra, "-o", str(tmp_path / out)]) == 0
     assert seen == [regularisers.HoleParams(), ON]
+    assert main(["-q", "stereo", str(tmp_path / "l.png"), str(tmp_path / "r.png"),
+                 "--disparity-range", "0,6", "--holes", "--optimizer", "sgm",
+                 "-o", str(tmp_path / "c")]) == 2
+    assert len(seen) == 2 and not (tmp_path / "c").exists()

@@ -885,6 +885,9 @@ def _cmd_stereo(args, dest) -> list[Path]:
     from .twoview import stereo
 
     _check_fusion_weights(args)
+    if args.holes and args.optimizer != "graphcut":
+        raise InvalidInputError(f"--holes opens what graph cuts filled: use it with "
+                                f"--optimizer graphcut, not {args.optimizer}")
     left, right, pair = _stereo_inputs(args)
     lo, hi = _stereo_range(args, pair)
     _check_pair_memory((lo, hi), left.shape[:2])
