@@ -13,8 +13,8 @@ from .._options import (array, bool_mask, check_fields, choice, flag, integer, n
                         real_array, rule)
 from ._checks import check_cost, check_label_map, check_labels, gather
 
-__all__ = ["label_saving", "left_right_check", "left_occlusions", "fill_occlusions", "right_cost_from_left",
-           "subpixel_refine",
+__all__ = ["label_saving", "left_right_check", "left_occlusions", "fill_occlusions",
+           "right_cost_from_left", "subpixel_refine",
            "confidence", "edge_confidence", "thin_foreground", "ConfidenceParams",
            "weighted_median"]
 
