@@ -533,17 +533,21 @@ def test_hole_params_refuse_bad_values_in_one_line(field, value):
         regularisers.HoleParams(**{field: value})
 
 
-def _square_with_hole(size=6):
-    """A cost volume of a wall (label 0) seen through a ``size`` x ``size`` hole in a square
-    (label 5): each pixel's cost is its label's distance to its own, truncated at 2."""
-    steps = np.arange(6.0)[:, None, None]
+def _volume(want, L=6):
+    """A cost volume whose pixels' costs are each label's distance to ``want``, truncated
+    at 2."""
+    steps = np.arange(float(L))[:, None, None]
+    return np.minimum(abs(steps - want), 2).astype(np.float32)
+
+
+def _square_with_hole():
+    """A cost volume (:func:`_volume`) of a wall (label 0) seen through a 6 x 6 hole in a
+    square (label 5), and the hole."""
     square = np.zeros((24, 24), bool)
     square[4:20, 4:20] = True
     hole = np.zeros_like(square)
-    lo = 12 - size // 2
-    hole[lo:lo + size, lo:lo + size] = True
-    want = np.where(square & ~hole, 5, 0)
-    return np.minimum(abs(steps - want), 2).astype(np.float32), hole
+    hole[9:15, 9:15] = True
+    return _volume(np.where(square & ~hole, 5, 0)), hole
 
 
 ON = regularisers.HoleParams(enabled=True)
@@ -582,11 +586,6 @@ def test_open_holes_applies_the_rule_of_its_params(field, value):
     f = regularisers.optimise(data, gc).labels
     params = regularisers.HoleParams(enabled=True, **{field: value})
     assert not open_holes(data, f, gc, hole_params=params)[2].any()
-
-
-def _volume(want, L=6):
-    steps = np.arange(float(L))[:, None, None]
-    return np.minimum(abs(steps - want), 2).astype(np.float32)
 
 
 def test_open_holes_asks_both_second_answers_to_agree():
