@@ -693,12 +693,14 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
         fr, _, _ = _optimise(Dr, opt, guide_right, labels, False, progress)
     else:
         Dr = fr = None
-    fl, fr, opened = open_holes(vol_l, fl, opt, data_right=Dr, label_map_right=fr,
-                                guide=guide_left, guide_right=guide_right, labels=labels,
-                                hole_params=hole_params)
+    opened = np.zeros(disp_l.shape, dtype=bool)
+    if hole_params.enabled:  # off: no second look at either volume
+        fl, fr, opened = open_holes(vol_l, fl, opt, data_right=Dr, label_map_right=fr,
+                                    guide=guide_left, guide_right=guide_right,
+                                    labels=labels, hole_params=hole_params)
+        if opened.any():
+            disp_l = _label_disparity(vol_l, fl, labels, subpixel)
     del Dr
-    if opened.any():
-        disp_l = _label_disparity(vol_l, fl, labels, subpixel)
     conf = _reg.confidence(vol_l, fl, floor=cp.floor)
     if cr is not None:
         disp_r = labels[fr].astype(np.float32)
