@@ -8,6 +8,7 @@ from hypothesis import given, settings, strategies as st
 
 from hyperlf import synthesis
 from hyperlf.errors import InvalidInputError
+from hyperlf.lightfield import LightField
 from hyperlf.hlf import DepthParams, LabelVisibility, depth, prepare, visibility, visible_views
 from hyperlf.warp import (forward_warp_disparity, occlusion_zbuffer, visible_at_labels,
                           visible_in_view)
@@ -376,10 +377,16 @@ def test_visibility_rounds_default_to_three_on_large_images():
     sparse = synthesis.procedural_scene(seed=0, rows=3, cols=3, height=40, width=48)
     small = DepthParams(visibility_min_size=40)  # these images count as large enough
     assert prepare(dense, n_labels=8, params=small).visibility_rounds == 3
-    assert prepare(dense, n_labels=8).visibility_rounds == 0  # 40 px < 256 px
+    assert prepare(dense, n_labels=8).visibility_rounds == 0  # 40 px < 192 px
     # since the per-hypothesis test, a sparse array gets its rounds too (BENCHMARKS.md)
     assert prepare(sparse, n_labels=8, params=small).visibility_rounds == 3
     assert prepare(sparse, n_labels=8).visibility_rounds == 0
+    # the default threshold: 192 px on the shorter side (the half-resolution start then has
+    # 96 px; Table 2's scenes at 160 x 160 lost `planes` with the rounds, at 192 none lost)
+    for side, rounds in ((191, 0), (192, 3)):
+        views = np.full((2, 2, side, 200), 0.5, np.float32)
+        lf = LightField(views, disparity_range=(-1.0, 1.0))
+        assert prepare(lf, n_labels=4).visibility_rounds == rounds
     one = DepthParams(visibility_rounds=1)
     assert prepare(sparse, n_labels=8, params=one).visibility_rounds == 1
     # further rounds only where the first round's costs can be kept (5 bytes per entry):

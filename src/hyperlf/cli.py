@@ -2076,7 +2076,7 @@ def _add_depth_visibility_options(g) -> None:
                         "a further one averages the previous pass's per-view costs again "
                         "when they fit in memory, else computes them again, and moves the "
                         "previous labels with one cycle of graph cuts; default: 3 on images "
-                        "at least 256 px on their shorter side whose costs fit in 3 GB "
+                        "at least 192 px on their shorter side whose costs fit in 3 GB "
                         "(512 x 512, 64 labels, 30 views), 1 on larger ones, else 0; 1 saves "
                         "about a sixth of the time where a scene has few depth edges)")
     _add_unseen_options(g)

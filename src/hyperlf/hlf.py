@@ -553,10 +553,10 @@ class DepthParams:
     default, :class:`LabelVisibility`) or at the estimate's own (``"estimate"``,
     :func:`visible_views`); a pixel (or pixel and disparity) seen by fewer than
     ``min_visible_views`` other views keeps them all.  None (the default):
-    :data:`DEFAULT_ROUNDS` (3) on images at least ``visibility_min_size`` (256) px on their
+    :data:`DEFAULT_ROUNDS` (3) on images at least ``visibility_min_size`` (192) px on their
     shorter side whose pass's costs fit in ``reuse_memory`` (below), 1 on larger captures,
-    else 0 (on small images the
-    first estimate is too rough near edges; until the per-hypothesis test, arrays with fewer
+    else 0 (on smaller images the half-resolution first estimate, under 96 px, is too rough
+    near edges; until the per-hypothesis test, arrays with fewer
     than ``dense_views`` other views had none either: BENCHMARKS.md); 0 = off.
     ``round_cycles`` (1; None = afresh): the graph cut of a round after the main pass starts
     from the labels of the pass before it and runs this many cycles of alpha-expansion
@@ -702,7 +702,7 @@ class DepthParams:
     round_cycles: int | None = 1
     visibility_scale: int = 2
     reuse_memory: float = 3e9
-    visibility_min_size: int = 256
+    visibility_min_size: int = 192
     visibility_margin: float = 0.5
     min_visible_views: int = 2
     visibility_test: str = "hypothesis"
