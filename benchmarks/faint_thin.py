@@ -3,13 +3,15 @@
 
     HYPERLF_DATA=../shared/data python benchmarks/faint_thin.py [--seeds 0-5] [--size 256,320]
                                    [--params '{"thin_touch": 0.4}' --out FOLDER]
+    HYPERLF_DATA=../shared/data python benchmarks/faint_thin.py --plain --size 192,256
 
 Every view of a spectral light field sees another band, and the MRF's contrast-sensitive
 smoothness and every per-view cost are measured against the reference view. A thin object
 (a rod, a wire, a stem) whose reflectance in the reference band is close to what lies behind
 it gives that band little to match and little outline, although the other views see it
-clearly; graph cuts then give its few pixels to the background. The procedural scenes of Table 2 have thin objects
-only in high contrast, so this family makes the case on purpose, from the principle alone:
+clearly; graph cuts then give its few pixels to the background. The procedural scenes of
+Table 2 have thin objects only in high contrast, so this family makes the case on purpose,
+from the principle alone:
 
 - the scene description is the random one of ``procedural_scene(seed, kinds=THIN_KINDS,
   n_objects=10)`` (rings, sticks, fronto-parallel and slanted planes before a background:
@@ -23,12 +25,15 @@ only in high contrast, so this family makes the case on purpose, from the princi
   The chips are drawn from the Munsell library (so ``HYPERLF_DATA`` must be set) with the
   scene's seed.
 
-Each scene is rendered at 256 x 320 px by default, the smallest size at which
-:func:`hyperlf.hlf.depth` runs every stage of its default (the visibility rounds start at 256
-px on the shorter side), and runs through it (64 labels; ``--params`` adds
-:class:`hyperlf.hlf.DepthParams` fields, a candidate to measure) and is scored as Table 2
-scores antinous (RMSE and BadPix(0.07) without the 15 px border), on every pixel and on
-the thin objects' pixels alone.
+Each scene is rendered at 256 x 320 px by default, a size at which :func:`hyperlf.hlf.depth`
+runs every stage of its default (the visibility rounds start at 192 px on the shorter side),
+and runs through it (64 labels; ``--params`` adds :class:`hyperlf.hlf.DepthParams` fields, a
+candidate to measure) and is scored as Table 2 scores antinous (RMSE and BadPix(0.07) without
+the 15 px border), on every pixel and on the thin objects' pixels alone.
+
+``--plain`` runs the scenes as drawn instead, with no chip made faint: the random rings and
+sticks of the thirty-sixth session, the H-LF stand-in for held-out content (BENCHMARKS.md
+measures them at ``--size 192,256``, into ``benchmarks/results/rings_sticks`` by default).
 """
 
 from __future__ import annotations
@@ -53,6 +58,8 @@ DEPTH_OPTIONS = ("optimizer", "metric", "view_selection", "occlusion_split", "de
 #: the figures do not depend on whether the data is set).
 LIBRARY = "munsell"
 DEFAULT_OUT = Path("benchmarks/results/faint_thin")
+#: Where ``--plain`` writes by default.
+PLAIN_OUT = Path("benchmarks/results/rings_sticks")
 
 
 def _library_at(wavelengths: np.ndarray, source: str = LIBRARY) -> np.ndarray:
@@ -103,15 +110,24 @@ def faint_description(seed: int, *, rows: int, cols: int, tolerance: float,
 
 
 def faint_scene(seed: int, *, rows: int = 5, cols: int = 6, height: int = 256,
-                width: int = 320, tolerance: float = 0.03, source: str = LIBRARY):
+                width: int = 320, tolerance: float = 0.03, source: str = LIBRARY,
+                faint: bool = True):
     """The light field of :func:`faint_description` (supersampled 2 x 2) and the mask of the
-    reference pixels that see a ring or a stick."""
+    reference pixels that see a ring or a stick.  ``faint=False``: the random rings-and-sticks
+    scene of ``seed`` as drawn at this size, no chip changed (``tolerance`` is not used)."""
     from hyperlf import synthesis
 
-    objects, _ = faint_description(seed, rows=rows, cols=cols, tolerance=tolerance,
-                                   source=source)
-    lf = synthesis.procedural_scene(seed, rows=rows, cols=cols, height=height, width=width,
-                                    objects=objects, supersample=2, reflectance_source=source)
+    if faint:
+        objects, _ = faint_description(seed, rows=rows, cols=cols, tolerance=tolerance,
+                                       source=source)
+        lf = synthesis.procedural_scene(seed, rows=rows, cols=cols, height=height,
+                                        width=width, objects=objects, supersample=2,
+                                        reflectance_source=source)
+    else:
+        lf = synthesis.procedural_scene(seed, rows=rows, cols=cols, height=height,
+                                        width=width, kinds=THIN_KINDS, n_objects=10,
+                                        supersample=2, reflectance_source=source)
+        objects = [dict(o) for o in lf.metadata["objects"]]
     thin = [o for o in objects if "shape" in o]
     plain = [o for o in objects if "shape" not in o]
     without = synthesis.procedural_scene(seed, rows=1, cols=1, height=height, width=width,
@@ -137,12 +153,13 @@ def score(estimate: np.ndarray, truth: np.ndarray, thin: np.ndarray) -> dict:
 
 
 def run(seed: int, size: tuple[int, int], labels: int, params: dict, tolerance: float,
-        out: Path) -> dict:
-    """One scene of the family through :func:`hyperlf.hlf.depth`: its scores, and its
-    picture ``out/seed<N>.png``."""
+        out: Path, *, faint: bool = True) -> dict:
+    """One scene of the family (``faint=False``: as drawn, :func:`faint_scene`) through
+    :func:`hyperlf.hlf.depth`: its scores, and its picture ``out/seed<N>.png``."""
     from hyperlf import hlf
 
-    lf, thin, n_thin = faint_scene(seed, height=size[0], width=size[1], tolerance=tolerance)
+    lf, thin, n_thin = faint_scene(seed, height=size[0], width=size[1], tolerance=tolerance,
+                                   faint=faint)
     options, fields = _split_params(params)
     t = time.perf_counter()
     res = hlf.depth(lf, n_labels=labels, params=hlf.DepthParams(**fields), **options)
@@ -218,36 +235,43 @@ def main(argv=None) -> int:
     ap.add_argument("--params", type=json_object, default={}, metavar="JSON",
                     help="DepthParams fields over the defaults, a candidate to measure; "
                          "also depth's own options (optimizer, metric, ...)")
-    ap.add_argument("--out", type=Path, default=DEFAULT_OUT,
-                    help="folder of the report and the pictures (default: %(default)s)")
+    ap.add_argument("--plain", action="store_true",
+                    help="the scenes as drawn, no chip made faint (the random rings and "
+                         "sticks; default --out: %s)" % PLAIN_OUT)
+    ap.add_argument("--out", type=Path, default=None,
+                    help="folder of the report and the pictures (default: %s)" % DEFAULT_OUT)
     args = ap.parse_args(argv)
-    if args.params and args.out == DEFAULT_OUT:
+    default_out = PLAIN_OUT if args.plain else DEFAULT_OUT
+    if args.params and args.out in (None, default_out):
         ap.error("--params measures a candidate: give it its own --out")
+    out = args.out or default_out
     if not 0 < args.tolerance <= 0.5:
         ap.error(f"--tolerance must be in (0, 0.5], got {args.tolerance}")
     _check_params(ap, args.params)
     data_path(LIBRARY)
-    for seed in args.seeds:  # every scene's chips exist before any is rendered at size
+    for seed in [] if args.plain else args.seeds:  # every scene's chips, before any is rendered
         try:
             faint_description(seed, rows=5, cols=6, tolerance=args.tolerance)
         except ValueError as exc:
             ap.error(f"seed {seed}: {exc}; give a larger --tolerance")
     size = args.size  # (height, width)
-    args.out.mkdir(parents=True, exist_ok=True)
-    rows = [run(s, size, args.labels, args.params, args.tolerance, args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = [run(s, size, args.labels, args.params, args.tolerance, out, faint=not args.plain)
             for s in args.seeds]
     mean = {k: float(np.mean([r[k] for r in rows])) for k in
             ("rmse", "badpix_007", "thin_rmse", "thin_bad1", "taken")}
-    lines = [f"`hlf.depth`, {args.labels} labels, {size[0]} x {size[1]}, tolerance "
-             f"{args.tolerance}, params {args.params or '(defaults)'}", "",
+    scenes = "as drawn (--plain)" if args.plain else f"tolerance {args.tolerance}"
+    lines = [f"`hlf.depth`, {args.labels} labels, {size[0]} x {size[1]}, {scenes}, params "
+             f"{args.params or '(defaults)'}", "",
              "| seed | RMSE px | BadPix(0.07) % | thin RMSE px | thin off > 1 px % | taken % | s |",
              "|---|---:|---:|---:|---:|---:|---:|"]
     lines += [f"| {r['seed']} | {r['rmse']:.4f} | {r['badpix_007']:.2f} | {r['thin_rmse']:.4f} "
               f"| {r['thin_bad1']:.1f} | {r['taken']:.2f} | {r['depth_s']:.0f} |" for r in rows]
     lines.append(f"| mean | {mean['rmse']:.4f} | {mean['badpix_007']:.2f} | "
                  f"{mean['thin_rmse']:.4f} | {mean['thin_bad1']:.1f} | {mean['taken']:.2f} | |")
-    write_report(args.out, "faint_thin", "\n".join(lines) + "\n",
-                 {"size": size, "labels": args.labels, "tolerance": args.tolerance,
+    write_report(out, "rings_sticks" if args.plain else "faint_thin", "\n".join(lines) + "\n",
+                 {"size": size, "labels": args.labels, "plain": args.plain,
+                  "tolerance": None if args.plain else args.tolerance,
                   "params": args.params, "scenes": rows, "mean": mean})
     return 0
 

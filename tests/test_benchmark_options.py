@@ -111,6 +111,9 @@ def test_a_script_s_other_departures_need_their_own_out_too(capsys):
     ("faint_thin", ["--seeds", "3-"]),
     ("faint_thin", ["--size", "16,16"]),
     ("faint_thin", ["--tolerance", "0"]),
+    ("faint_thin", ["--plain", "--params", '{"thin_touch": 0.4}']),
+    ("faint_thin", ["--plain", "--params", '{"thin_touch": 0.4}', "--out",
+                    "benchmarks/results/rings_sticks"]),
 ])
 def test_the_scripts_refuse_bad_options_before_any_work(script, argv, monkeypatch, capsys):
     mod = _script(script)

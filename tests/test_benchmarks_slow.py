@@ -138,3 +138,15 @@ def test_faint_thin_seed_0(tmp_path):
     assert (round(row["rmse"], 4), round(row["badpix_007"], 2)) == (0.3776, 7.12)
     assert round(row["thin_rmse"], 4) == 0.3509
     assert (tmp_path / "seed0.png").is_file()
+
+
+def test_rings_and_sticks_seed_0(tmp_path):
+    """BENCHMARKS.md, "Visibility rounds from 192 px": the random rings-and-sticks scene of
+    seed 0 as drawn (``faint_thin.py --plain``) at 192 x 256, which now gets the visibility
+    rounds, to the printed digits."""
+    require_dataset("munsell")
+    ft = _script("faint_thin")
+    row = ft.run(0, (192, 256), 64, {}, 0.03, tmp_path, faint=False)
+    assert (round(row["rmse"], 4), round(row["badpix_007"], 2)) == (0.3499, 6.49)
+    assert round(row["thin_rmse"], 4) == 0.3595
+    assert (tmp_path / "seed0.png").is_file()

@@ -391,6 +391,26 @@ def test_faint_thin_changes_only_the_rings_and_sticks_chips():
     assert lf.reference_gt_disparity[thin].min() > lf.reference_gt_disparity[~thin].min()
 
 
+def test_faint_thin_plain_is_the_random_scene_as_drawn():
+    """``--plain``: the random rings-and-sticks scene of the seed rendered as
+    ``procedural_scene`` draws it at that size (the same views and truth), its thin pixels
+    where the scene without its rings and sticks is farther."""
+    from hyperlf import synthesis
+
+    ft = benchmark_script("faint_thin")
+    source = "colorchecker"
+    lf, thin, n_thin = ft.faint_scene(2, rows=3, cols=3, height=48, width=64, source=source,
+                                      faint=False)
+    drawn = synthesis.procedural_scene(2, rows=3, cols=3, height=48, width=64,
+                                       kinds=ft.THIN_KINDS, n_objects=10, supersample=2,
+                                       reflectance_source=source)
+    assert np.array_equal(lf.views, drawn.views)
+    assert np.array_equal(lf.reference_gt_disparity, drawn.reference_gt_disparity)
+    assert n_thin == sum("shape" in o for o in drawn.metadata["objects"]) > 0
+    assert thin.any() and not thin.all()
+    assert lf.reference_gt_disparity[thin].min() > lf.reference_gt_disparity[~thin].min()
+
+
 def test_faint_thin_scores_the_thin_pixels_inside_the_border():
     """A column of thin pixels 2 px off in a 40 x 40 map: inside the 15 px border it is 10 of
     the 100 scored pixels, so the thin RMSE is 2, all of it off by more than 1 px, and the
