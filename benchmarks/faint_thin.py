@@ -3,7 +3,7 @@
 
     HYPERLF_DATA=../shared/data python benchmarks/faint_thin.py [--seeds 0-5] [--size 256,320]
                                    [--params '{"thin_touch": 0.4}' --out FOLDER]
-    HYPERLF_DATA=../shared/data python benchmarks/faint_thin.py --plain --size 192,256
+    HYPERLF_DATA=../shared/data python benchmarks/faint_thin.py --plain [--size 192,256]
 
 Every view of a spectral light field sees another band, and the MRF's contrast-sensitive
 smoothness and every per-view cost are measured against the reference view. A thin object
@@ -32,8 +32,8 @@ candidate to measure) and is scored as Table 2 scores antinous (RMSE and BadPix(
 the 15 px border), on every pixel and on the thin objects' pixels alone.
 
 ``--plain`` runs the scenes as drawn instead, with no chip made faint: the random rings and
-sticks of the thirty-sixth session, the H-LF stand-in for held-out content (BENCHMARKS.md
-measures them at ``--size 192,256``, into ``benchmarks/results/rings_sticks`` by default).
+sticks of the thirty-sixth session, the H-LF stand-in for held-out content, at 192 x 256 px
+by default and into ``benchmarks/results/rings_sticks``.
 """
 
 from __future__ import annotations
@@ -60,6 +60,8 @@ LIBRARY = "munsell"
 DEFAULT_OUT = Path("benchmarks/results/faint_thin")
 #: Where ``--plain`` writes by default.
 PLAIN_OUT = Path("benchmarks/results/rings_sticks")
+#: The recorded runs' sizes (height, width): the faint scenes, and ``--plain``'s.
+SIZE, PLAIN_SIZE = (256, 320), (192, 256)
 
 
 def _library_at(wavelengths: np.ndarray, source: str = LIBRARY) -> np.ndarray:
@@ -198,6 +200,24 @@ def _check_params(ap, params: dict) -> None:
                      f"got {params[key]!r}")
 
 
+def _out(ap, args) -> Path:
+    """The run's folder.  The two recorded folders (:data:`DEFAULT_OUT`, :data:`PLAIN_OUT`)
+    take only the recorded run of their own mode: ``--params``, or seeds, a size, labels or
+    (for the faint scenes) a tolerance off that run's, measure a candidate and need their own
+    ``--out``."""
+    recorded = {"seeds": list(range(6)), "size": PLAIN_SIZE if args.plain else SIZE,
+                "labels": 64, **({} if args.plain else {"tolerance": 0.03})}
+    own = PLAIN_OUT if args.plain else DEFAULT_OUT
+    out = args.out or own
+    given = ["--params"] * bool(args.params) + [f"--{k}" for k, v in recorded.items()
+                                                  if getattr(args, k) != v]
+    if out in (DEFAULT_OUT, PLAIN_OUT) and (given or out != own):
+        what = " / ".join(given) + " measure" if given else "a run of the other scenes measures"
+        ap.error(f"{what} a candidate: give it its own --out instead of {out}, which records "
+                 f"the defaults")
+    return out
+
+
 def seeds_arg(text: str) -> list[int]:
     """An argparse ``type``: ``0-5`` or ``0,3,4`` (non-negative seeds, at least one)."""
     lo, _, hi = text.partition("-")
@@ -225,8 +245,8 @@ def size_arg(text: str) -> tuple[int, int]:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", type=seeds_arg, default=list(range(6)), help="default 0-5")
-    ap.add_argument("--size", type=size_arg, default=(256, 320),
-                    help="height,width (default 256,320)")
+    ap.add_argument("--size", type=size_arg, default=None,
+                    help="height,width (default 256,320; with --plain 192,256)")
     ap.add_argument("--labels", type=int, choices=range(2, 257), default=64, metavar="N",
                     help="disparity labels, 2-256 (default %(default)s)")
     ap.add_argument("--tolerance", type=float, default=0.03,
@@ -241,10 +261,8 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=None,
                     help="folder of the report and the pictures (default: %s)" % DEFAULT_OUT)
     args = ap.parse_args(argv)
-    default_out = PLAIN_OUT if args.plain else DEFAULT_OUT
-    if args.params and args.out in (None, default_out):
-        ap.error("--params measures a candidate: give it its own --out")
-    out = args.out or default_out
+    args.size = args.size or (PLAIN_SIZE if args.plain else SIZE)
+    out = _out(ap, args)
     if not 0 < args.tolerance <= 0.5:
         ap.error(f"--tolerance must be in (0, 0.5], got {args.tolerance}")
     _check_params(ap, args.params)

@@ -114,6 +114,10 @@ def test_a_script_s_other_departures_need_their_own_out_too(capsys):
     ("faint_thin", ["--plain", "--params", '{"thin_touch": 0.4}']),
     ("faint_thin", ["--plain", "--params", '{"thin_touch": 0.4}', "--out",
                     "benchmarks/results/rings_sticks"]),
+    ("faint_thin", ["--seeds", "0"]),
+    ("faint_thin", ["--plain", "--size", "256,320"]),
+    ("faint_thin", ["--out", "benchmarks/results/rings_sticks"]),
+    ("faint_thin", ["--plain", "--out", "benchmarks/results/faint_thin"]),
 ])
 def test_the_scripts_refuse_bad_options_before_any_work(script, argv, monkeypatch, capsys):
     mod = _script(script)
@@ -123,6 +127,31 @@ def test_the_scripts_refuse_bad_options_before_any_work(script, argv, monkeypatc
     assert exc.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith(f"{script}.py: error:")
+
+
+def test_faint_thin_plain_runs_its_recorded_size_into_its_own_folder(tmp_path, monkeypatch):
+    """benchmarks/faint_thin.py --plain: the six scenes as drawn, at 192 x 256 unless told,
+    into results/rings_sticks, whose report says so; the faint scenes keep 256 x 320."""
+    require_dataset("munsell")
+    ft = _script("faint_thin")
+    calls = []
+
+    def fake_run(seed, size, labels, params, tolerance, out, *, faint=True):
+        calls.append((seed, size, faint, out))
+        return {"seed": seed, "depth_s": 0.0, "rmse": 1.0, "badpix_007": 2.0,
+                "thin_rmse": 3.0, "thin_bad1": 4.0, "taken": 0.0}
+
+    monkeypatch.setattr(ft, "run", fake_run)
+    monkeypatch.chdir(tmp_path)
+    assert ft.main(["--plain"]) == 0
+    assert [c[0] for c in calls] == list(range(6))
+    assert {c[1:] for c in calls} == {((192, 256), False, ft.PLAIN_OUT)}
+    report = json.loads((tmp_path / ft.PLAIN_OUT / "rings_sticks.json").read_text())
+    assert report["plain"] and report["tolerance"] is None and report["size"] == [192, 256]
+    calls.clear()
+    assert ft.main(["--seeds", "1", "--out", "elsewhere"]) == 0
+    assert calls == [(1, (256, 320), True, ft.Path("elsewhere"))]
+    assert "tolerance 0.03" in (tmp_path / "elsewhere" / "faint_thin.md").read_text()
 
 
 def test_faint_thin_refuses_a_tolerance_no_chip_meets_before_rendering(tmp_path, capsys):
