@@ -141,16 +141,17 @@ def test_faint_thin_plain_runs_its_recorded_size_into_its_own_folder(tmp_path, m
         return {"seed": seed, "depth_s": 0.0, "rmse": 1.0, "badpix_007": 2.0,
                 "thin_rmse": 3.0, "thin_bad1": 4.0, "taken": 0.0}
 
+    assert ft.PLAIN_OUT == ft.Path("benchmarks/results/rings_sticks")
     monkeypatch.setattr(ft, "run", fake_run)
-    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(ft, "PLAIN_OUT", tmp_path / "rings_sticks")  # not the repository's
     assert ft.main(["--plain"]) == 0
     assert [c[0] for c in calls] == list(range(6))
-    assert {c[1:] for c in calls} == {((192, 256), False, ft.PLAIN_OUT)}
-    report = json.loads((tmp_path / ft.PLAIN_OUT / "rings_sticks.json").read_text())
+    assert {c[1:] for c in calls} == {((192, 256), False, tmp_path / "rings_sticks")}
+    report = json.loads((tmp_path / "rings_sticks" / "rings_sticks.json").read_text())
     assert report["plain"] and report["tolerance"] is None and report["size"] == [192, 256]
     calls.clear()
-    assert ft.main(["--seeds", "1", "--out", "elsewhere"]) == 0
-    assert calls == [(1, (256, 320), True, ft.Path("elsewhere"))]
+    assert ft.main(["--seeds", "1", "--out", str(tmp_path / "elsewhere")]) == 0
+    assert calls == [(1, (256, 320), True, tmp_path / "elsewhere")]
     assert "tolerance 0.03" in (tmp_path / "elsewhere" / "faint_thin.md").read_text()
 
 
