@@ -251,7 +251,7 @@ def main(argv=None) -> int:
                     help="disparity labels, 2-256 (default %(default)s)")
     ap.add_argument("--tolerance", type=float, default=0.03,
                     help="reflectance in the reference band within this of the background's "
-                         "(default %(default)s)")
+                         "(default %(default)s; not used with --plain)")
     ap.add_argument("--params", type=json_object, default={}, metavar="JSON",
                     help="DepthParams fields over the defaults, a candidate to measure; "
                          "also depth's own options (optimizer, metric, ...)")
