@@ -205,8 +205,9 @@ def _out(ap, args) -> Path:
     take only the recorded run of their own mode: ``--params``, or seeds, a size, labels or
     (for the faint scenes) a tolerance off that run's, measure a candidate and need their own
     ``--out``."""
-    recorded = {"seeds": list(range(6)), "size": PLAIN_SIZE if args.plain else SIZE,
-                "labels": 64, **({} if args.plain else {"tolerance": 0.03})}
+    keys = ("seeds", "labels") if args.plain else ("seeds", "labels", "tolerance")
+    recorded = {k: ap.get_default(k) for k in keys}  # the parser's defaults are the run's
+    recorded["size"] = PLAIN_SIZE if args.plain else SIZE
     own = PLAIN_OUT if args.plain else DEFAULT_OUT
     out = args.out or own
     given = ["--params"] * bool(args.params) + [f"--{k}" for k, v in recorded.items()
