@@ -77,6 +77,17 @@ def test_plane_prior_is_off_without_its_option_a_weight_or_a_prior(monkeypatch):
     assert hlf.plane_prior(small, hlf.texture_weight(small), tiny) is tiny
 
 
+def test_a_prior_given_below_the_coarse_levels_size_is_kept():
+    """At 40 px the planes are fitted (20 px), but no coarse prior level fits (a level keeps 8
+    texture windows): a prior given there is taken as it is, not a TypeError."""
+    small = hlf.prepare(_grey_capture(40), n_labels=17,
+                        params=hlf.DepthParams(weak_planes=True))
+    prior = _flat_prior(40)
+    out = hlf.plane_prior(small, hlf.texture_weight(small), prior)
+    assert np.array_equal(out[0], prior[0]) and np.array_equal(out[1], prior[1])
+    assert out[2:] == prior[2:]
+
+
 def test_plane_prior_pools_only_pixels_whose_labels_share_their_views(monkeypatch):
     from hyperlf import regularisers
 

@@ -2611,10 +2611,13 @@ def _prior_levels(prob: DepthProblem) -> list[int]:
 
 def _coverage(prob: DepthProblem, levels) -> np.ndarray:
     """``g`` of :func:`coarse_prior` at full resolution: how much of the coarse estimate at
-    ``levels[0]`` comes from data, through all the levels."""
+    ``levels[0]`` comes from data, through all the levels (1 everywhere without a level:
+    a prior given for an image too small for any is taken as it is)."""
     from .imageops import block_reduce
 
     ref, shape = prob.reference, prob.lf.image_shape
+    if not levels:
+        return np.ones(shape, np.float32)
     t0, window = _texture_threshold(prob), int(prob.params.texture_window)
     g = None
     for k in reversed(levels):
