@@ -73,6 +73,9 @@ def _calls():
         "visible_at_labels": (warp.visible_at_labels, {
             "zbuffer": warp.occlusion_zbuffer(disp, (1.0, 0.0)), "offset": (1.0, 0.0),
             "labels": np.array([0.0, 1.0]), "impl": "numpy"}),
+        "occluder_excess": (warp.occluder_excess, {
+            "zbuffer": warp.occlusion_zbuffer(disp, (1.0, 0.0)), "offset": (1.0, 0.0),
+            "labels": np.array([0.0, 1.0]), "rows": (2, 5), "impl": "numpy"}),
         "normalise_intensity": (imageops.normalise_intensity, {"image": img}),
         "texture_snr": (imageops.texture_snr, {"image": img}),
         "srgb_to_linear": (spectral.srgb_to_linear, {"x": guide}),
@@ -153,6 +156,8 @@ def test_every_argument_is_taken_or_refused_in_one_line(option, value):
     ("visible_at_labels", "zbuffer", 2.5, "zbuffer must be an (H, W) map"),
     ("visible_at_labels", "rows", [1], "rows must be (first, end) reference rows"),
     ("visible_at_labels", "offset", None, "offset must be an array of real numbers, got None"),
+    ("occluder_excess", "zbuffer", 2.5, "zbuffer must be an (H, W) map"),
+    ("occluder_excess", "labels", [np.inf], "labels must be finite disparities"),
     ("normalise_intensity", "image", float("inf"), "image mean must be positive and finite"),
     ("srgb_to_linear", "x", 1e300, "sRGB values must be of a size"),
     ("band_index", "lam", "x", "a band profile needs a finite wavelength in nm"),

@@ -10,8 +10,8 @@ from hyperlf import synthesis
 from hyperlf.errors import InvalidInputError
 from hyperlf.lightfield import LightField
 from hyperlf.hlf import DepthParams, LabelVisibility, depth, prepare, visibility, visible_views
-from hyperlf.warp import (forward_warp_disparity, occlusion_zbuffer, visible_at_labels,
-                          visible_in_view)
+from hyperlf.warp import (forward_warp_disparity, occluder_excess, occlusion_zbuffer,
+                          visible_at_labels, visible_in_view)
 
 from conftest import sparsification
 
@@ -81,6 +81,44 @@ def test_visible_at_labels_matches_brute_force(seed, offset, margin, impl):
     assert np.array_equal(z32, got)  # the float32 z-buffer LabelVisibility keeps
 
 
+def _brute_force_excess(d, offset, labels):
+    """(l, p): how much nearer than labels[l] the nearest reference pixel is whose landing
+    point lies within one pixel of p's landing point t along both axes (-inf: none; +inf:
+    t outside the image)."""
+    H, W = d.shape
+    land = [(x - d[y, x] * offset[0], y - d[y, x] * offset[1], d[y, x])
+            for y in range(H) for x in range(W) if np.isfinite(d[y, x])]
+    out = np.full((len(labels), H, W), np.inf)
+    for i, lab in enumerate(labels):
+        for y in range(H):
+            for x in range(W):
+                tx, ty = np.rint(x - lab * offset[0]), np.rint(y - lab * offset[1])
+                if 0 <= tx < W and 0 <= ty < H:
+                    out[i, y, x] = max([dq for qx, qy, dq in land if np.floor(qx) <= tx
+                                        <= np.ceil(qx) and np.floor(qy) <= ty <= np.ceil(qy)],
+                                       default=-np.inf) - lab
+    return out
+
+
+@settings(max_examples=25, deadline=None, derandomize=True)
+@given(st.integers(0, 2**31), st.sampled_from([(1.0, 0.0), (-2.0, 1.0), (0.5, -1.5)]),
+       st.sampled_from(["numpy", "numba"]))
+def test_occluder_excess_matches_brute_force_and_the_z_test(seed, offset, impl):
+    rng = np.random.default_rng(seed)
+    d = np.round(rng.uniform(-3, 3, (6, 8)) * 2) / 2
+    d[rng.random(d.shape) < 0.1] = np.nan
+    labels = np.arange(-3.0, 3.01, 0.5)
+    z = occlusion_zbuffer(d, offset).astype(np.float32)
+    got = occluder_excess(z, offset, labels, impl=impl)
+    assert got.dtype == np.float32
+    assert np.array_equal(got, _brute_force_excess(d, offset, labels).astype(np.float32))
+    assert np.array_equal(occluder_excess(z, offset, labels, rows=(1, 4), impl=impl),
+                          got[:, 1:4])
+    for margin in (0.0, 0.5, 2.0):  # the quantity visible_at_labels compares with its margin
+        assert np.array_equal(got <= margin, visible_at_labels(z, offset, labels,
+                                                               margin=margin, impl=impl))
+
+
 def test_visible_at_labels_asked_at_the_estimate_is_the_estimate_test():
     """At each pixel's own disparity the hypothesis test is :func:`visible_in_view`; at a
     background disparity behind a nearer neighbour it drops the views the neighbour hides
@@ -124,6 +162,41 @@ def test_label_visibility_falls_back_to_every_view_where_too_few_see():
     assert isinstance(visibility(prob, d), LabelVisibility)
     est = visibility(prepare(lf, n_labels=8, params=DepthParams(visibility_test="estimate")), d)
     assert isinstance(est, dict) and set(est) == set(prob.others)
+
+
+def test_nearest_occluders_stand_in_where_too_few_views_see():
+    """``nearest=True``: a ``(d, p)`` that fewer than ``min_visible_views`` views see is
+    matched over the views that see it once the z-test's margin is raised (by factors of
+    sqrt(2), up to 8 px) until two do, instead of every view."""
+    from scipy.ndimage import grey_dilation
+
+    lf = synthesis.procedural_scene(seed=0, rows=3, cols=3, height=32, width=40)
+    fat = grey_dilation(lf.reference_gt_disparity, size=(7, 7))  # a band that hides itself
+    prob = prepare(lf, n_labels=8)
+    near, every = LabelVisibility(prob, fat, nearest=True), LabelVisibility(prob, fat)
+    H = fat.shape[0]
+    excess = {v: near.excess(v, (0, H)) for v in prob.others}
+    few = every.too_few((0, H))
+    assert np.array_equal(few, sum((e <= 0.5).astype(int) for e in excess.values()) < 2)
+    second = np.sort(np.stack(list(excess.values())), axis=0)[1]
+    ladder = [0.5 * 2 ** (k / 2) for k in range(1, 9)]  # the margin raised up to 8 px
+    reach = np.select([second <= m for m in ladder], ladder, np.inf)
+    assert np.array_equal(near.reach((0, H)), np.where(few, reach, -np.inf).astype(np.float32))
+    counts = 0
+    for v in prob.others:
+        m = near.mask(v, (0, H))
+        assert np.array_equal(m, every.seen(v, (0, H)) | (few & (excess[v] <= reach)))
+        assert not (m & ~every.mask(v, (0, H))).any()  # never a view that all would not use
+        assert np.array_equal(near.mask(v, (5, 17)), m[:, 5:17])  # a strip is its rows
+        counts = counts + m
+    inside = sum((e < np.inf).astype(int) for e in excess.values())
+    assert (counts[inside >= 2] >= 2).all()  # two views count wherever two land inside
+    assert (counts[few] < 8).mean() > 0.1  # and drops views at some of the rest
+    assert visibility(prob, fat).nearest is False
+    for mode, last, want in (("always", True, True), ("before-last", True, False),
+                             ("before-last", False, True), ("never", False, False)):
+        params = DepthParams(nearest_occluders=mode)
+        assert visibility(prepare(lf, n_labels=8, params=params), fat, last=last).nearest is want
 
 
 def test_visible_in_view_agrees_with_the_z_buffer_and_handles_unknowns():
@@ -212,11 +285,13 @@ def test_hypothesis_visibility_gives_a_fattened_edge_back_to_the_background(scen
                                  {"visibility_scale": 1.5}, {"visibility_scale": True},
                                  {"visibility_margin": float("nan")},
                                  {"visibility_test": "zbuffer"}, {"reuse_memory": -1.0},
+                                 {"nearest_occluders": "last"}, {"nearest_occluders": True},
                                  {"reuse_memory": float("inf")}, {"reuse_memory": "3G"},
                                  {"round_cycles": 0}, {"round_cycles": 1.5},
                                  {"round_cycles": True}])
 def test_depth_params_check_the_visibility_options(bad):
-    with pytest.raises(InvalidInputError, match="visibility|visible|reuse_memory|round_cycles"):
+    with pytest.raises(InvalidInputError,
+                       match="visibility|visible|reuse_memory|round_cycles|nearest_occluders"):
         DepthParams(**bad)
 
 
@@ -440,6 +515,31 @@ def test_a_later_round_starts_its_graph_cut_from_the_labels_before(monkeypatch):
         options.setdefault("params", DepthParams(visibility_min_size=40))
         depth(lf, n_labels=8, **options)
         assert len(calls) == 3 and all(init is None for _, init, _ in calls)
+
+
+@pytest.mark.parametrize("mode, scale, rounds, want", [
+    ("before-last", 2, 3, [True, True, False]), ("before-last", 1, 3, [True, True, False]),
+    ("before-last", 2, 1, [False]), ("always", 2, 2, [True, True]),
+    ("never", 2, 3, [False, False, False])])
+def test_nearest_occluders_in_the_passes_named(monkeypatch, mode, scale, rounds, want):
+    """``nearest_occluders`` names the visibility passes whose fallback is the nearest
+    occluders': ``"before-last"`` every one but the last, whether the first starts from the
+    half-resolution estimate or from a full-resolution pass without visibility."""
+    from hyperlf import hlf
+
+    lf = synthesis.procedural_scene(seed=0, rows=3, cols=3, height=40, width=48)
+    passes = []
+    real = hlf.LabelVisibility.__init__
+
+    def spy(self, prob, disparity, *, nearest=False):
+        passes.append(nearest)
+        real(self, prob, disparity, nearest=nearest)
+
+    monkeypatch.setattr(hlf.LabelVisibility, "__init__", spy)
+    res = depth(lf, n_labels=8, params=DepthParams(
+        visibility_rounds=rounds, visibility_scale=scale, nearest_occluders=mode))
+    assert passes == want
+    assert res.config["visibility_rounds"] == rounds
 
 
 def test_coarse_disparity_is_the_half_resolution_run_blown_up():

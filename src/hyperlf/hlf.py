@@ -216,7 +216,9 @@ __all__ = [
     "visible_views",
     "LabelVisibility",
     "visibility",
+    "occluder_margins",
     "VISIBILITY_TESTS",
+    "NEAREST_OCCLUDERS",
     "DEFAULT_ROUNDS",
     "make_labels",
     "view_costs",
@@ -240,6 +242,10 @@ DEFOCUS_MODES = ("off", "paper", "gaussian", "flat", "tv")
 #: (``DepthParams.visibility_test``): at every candidate disparity (:class:`LabelVisibility`)
 #: or at the current estimate's only (:func:`visible_views`).
 VISIBILITY_TESTS = ("hypothesis", "estimate")
+#: Which visibility passes match a hypothesis that too few views see over the views with the
+#: nearest occluders instead of every view (``DepthParams.nearest_occluders``): none, every
+#: pass but the last, or every pass.
+NEAREST_OCCLUDERS = ("never", "before-last", "always")
 #: The values of ``DepthParams.missing_views``.
 MISSING_VIEWS = ("average", "neutral", "common")
 #: The values of ``DepthParams.unseen_labels`` (:func:`hyperlf.regularisers.fill_invalid`'s).
@@ -465,6 +471,8 @@ _DEPTH_RULES = {
     "visibility_margin": _number,
     "min_visible_views": _rule(_opt.integer, minimum=1),
     "visibility_test": _rule(_opt.choice, choices=VISIBILITY_TESTS),
+    "nearest_occluders": _rule(_opt.choice, choices=NEAREST_OCCLUDERS),
+    "nearest_occluder_max": _number,
     "texture_window": _rule(_opt.integer, minimum=3, odd=True),
     "coarse_prior": _flag,
     "coarse_prior_scale": _rule(_opt.integer, minimum=2),
@@ -552,7 +560,19 @@ class DepthParams:
     per baseline, asked at every candidate disparity (``visibility_test="hypothesis"``, the
     default, :class:`LabelVisibility`) or at the estimate's own (``"estimate"``,
     :func:`visible_views`); a pixel (or pixel and disparity) seen by fewer than
-    ``min_visible_views`` other views keeps them all.  None (the default):
+    ``min_visible_views`` other views keeps them all, or, in the passes that
+    ``nearest_occluders`` names (``"never"``, the default; ``"before-last"``: every
+    visibility pass but the last; ``"always"``), a disparity is matched there over the views
+    that see it once the z-test's margin is raised, by factors of sqrt(2) up to
+    ``nearest_occluder_max`` (8) px per baseline, until ``min_visible_views`` do
+    (:meth:`LabelVisibility.reach`): a band that the estimate carried into the background
+    hides the background's own projections from most views, and every view counting again
+    hands the band's pixels back to it.  ``"before-last"`` lowers the procedural tuning
+    scenes' error by 4 % but raises Venus's light field's by 1 %, so it is not the default;
+    its last pass keeps every view because that volume is the one the thin-object stage
+    reads, and with the fallback in it that stage no longer gave a faint stick back
+    (BENCHMARKS.md, sixty-third session).
+    ``visibility_rounds`` None (the default):
     :data:`DEFAULT_ROUNDS` (3) on images at least ``visibility_min_size`` (192) px on their
     shorter side whose pass's costs fit in ``reuse_memory`` (below), 1 on larger captures,
     else 0 (on smaller images the half-resolution first estimate, under 96 px, is too rough
@@ -706,6 +726,8 @@ class DepthParams:
     visibility_margin: float = 0.5
     min_visible_views: int = 2
     visibility_test: str = "hypothesis"
+    nearest_occluders: str = "never"
+    nearest_occluder_max: float = 8.0
     texture_snr: float | None = None
     texture_window: int = 5
     coarse_prior: bool = True
@@ -1914,7 +1936,8 @@ class LabelVisibility:
     :meth:`mask` answers for a strip of rows with :func:`hyperlf.warp.visible_at_labels`, so
     no ``(L, H, W)`` mask per view is ever held.  A ``(d, p)`` that fewer than
     ``params.min_visible_views`` views see keeps every view (hypotheses behind the estimated
-    surface, which no view sees, are matched as without visibility).
+    surface, which no view sees, are matched as without visibility), or with ``nearest``
+    the views whose occluders are the least nearer than ``d`` (:meth:`reach`).
 
     Why per hypothesis: the test of :func:`visible_views` is asked at the estimate's own
     disparity, so a background pixel that the estimate gave the foreground (a fattened edge)
@@ -1922,7 +1945,7 @@ class LabelVisibility:
     the views in which the foreground covers it drop out of that label's mean.
     """
 
-    def __init__(self, prob: "DepthProblem", disparity: np.ndarray):
+    def __init__(self, prob: "DepthProblem", disparity: np.ndarray, *, nearest: bool = False):
         from .warp import occlusion_zbuffer
 
         prob = _problem(prob)
@@ -1936,7 +1959,9 @@ class LabelVisibility:
         self.margin = float(p.visibility_margin)
         self.min_views = int(p.min_visible_views)
         self.impl = prob.impl
-        self._few = (None, None)
+        self.nearest = _opt.flag(nearest, "nearest")
+        self.ladder = occluder_margins(self.margin, float(p.nearest_occluder_max))
+        self._few = self._reach = (None, None)
 
     def seen(self, v, rows) -> np.ndarray:
         """``(L, b - a, W)`` bool: view ``v`` sees ``(d, p)`` (before the fallback)."""
@@ -1956,17 +1981,71 @@ class LabelVisibility:
             self._few = (rows, count < self.min_views)
         return self._few[1]
 
+    def excess(self, v, rows) -> np.ndarray:
+        """``(L, b - a, W)`` float32: how much nearer than ``d`` the surface is that would hide
+        ``(d, p)`` from view ``v`` (:func:`hyperlf.warp.occluder_excess`)."""
+        from .warp import occluder_excess
+
+        return occluder_excess(self.zbuffers[v], self.offsets[v], self.labels, rows=rows,
+                               impl=self.impl)
+
+    def reach(self, rows) -> np.ndarray:
+        """``(L, b - a, W)`` float32: where fewer than ``min_visible_views`` views see
+        ``(d, p)``, the z-test's margin raised until that many do (by factors of sqrt(2),
+        up to ``params.nearest_occluder_max``; ``inf`` beyond it, where every view counts);
+        ``-inf`` elsewhere.  With ``nearest`` the views whose occluder excess is within it
+        count there."""
+        rows = (int(rows[0]), int(rows[1]))
+        if self._reach[0] != rows:
+            few = self.too_few(rows)
+            least = np.full((self.min_views,) + few.shape, np.inf, np.float32)
+            for v in self.zbuffers:
+                e = self.excess(v, rows)
+                for j in range(self.min_views):  # e into the sorted smallest so far
+                    lo = np.minimum(least[j], e)
+                    np.maximum(least[j], e, out=e)
+                    least[j] = lo
+            reach = np.full(few.shape, np.inf, np.float32)
+            for m in self.ladder[::-1]:
+                reach[least[-1] <= m] = m
+            reach[~few] = -np.inf
+            self._reach = (rows, reach)
+        return self._reach[1]
+
     def mask(self, v, rows) -> np.ndarray:
         """``(L, b - a, W)`` bool: the samples of view ``v`` that count for the strip."""
+        if self.nearest:
+            return self.seen(v, rows) | (self.excess(v, rows) <= self.reach(rows))
         return self.seen(v, rows) | self.too_few(rows)
 
 
-def visibility(prob: "DepthProblem", disparity: np.ndarray):
+def occluder_margins(margin: float, largest: float) -> np.ndarray:
+    """The z-test's margins that :meth:`LabelVisibility.reach` tries in turn: ``margin``
+    times sqrt(2), 2, 2 sqrt(2), ... up to ``largest`` (float32; none when it is below the
+    first; ``largest`` alone for a margin of 0).
+
+    Examples
+    --------
+    >>> [round(float(m), 2) for m in occluder_margins(0.5, 8.0)]
+    [0.71, 1.0, 1.41, 2.0, 2.83, 4.0, 5.66, 8.0]
+    """
+    margin, largest = _opt.real(margin, "margin"), _opt.real(largest, "largest")
+    if margin <= 0:
+        return np.array([largest], np.float32)[: 1 if largest > 0 else 0]
+    n = int(np.floor(2 * np.log2(max(largest, margin) / margin) + 1e-9))
+    return (margin * np.sqrt(2.0) ** np.arange(1, n + 1)).astype(np.float32)
+
+
+def visibility(prob: "DepthProblem", disparity: np.ndarray, *, last: bool = True):
     """Stage 7's visibility under ``params.visibility_test``: :class:`LabelVisibility`
-    (``"hypothesis"``) or :func:`visible_views` (``"estimate"``)."""
-    if _problem(prob).params.visibility_test == "estimate":
+    (``"hypothesis"``; with ``nearest`` as ``params.nearest_occluders`` says for the ``last``
+    pass or one before it) or :func:`visible_views` (``"estimate"``)."""
+    p = _problem(prob).params
+    if p.visibility_test == "estimate":
         return visible_views(prob, disparity)
-    return LabelVisibility(prob, disparity)
+    nearest = p.nearest_occluders == "always" or (p.nearest_occluders == "before-last"
+                                                  and not _opt.flag(last, "last"))
+    return LabelVisibility(prob, disparity, nearest=nearest)
 
 
 def coarse_disparity(prob: DepthProblem, *, scale: int | None = None,
@@ -3134,7 +3213,7 @@ def _visibility_start(prob: DepthProblem, clock: _Clock, progress):
     are none, or the costs do not fit)."""
     rounds, first = prob.visibility_rounds, 0
     start = coarse_disparity(prob, progress=progress, return_confidence=True) if rounds else None
-    sees = None if start is None else visibility(prob, start[0])
+    sees = None if start is None else visibility(prob, start[0], last=rounds == 1)
     if start is not None:
         rounds, first = rounds - 1, 1
         clock.lap("visibility_estimate_s")
@@ -3234,7 +3313,7 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
     passes = mp.passes
     U, sC, sD, disp, conf, lab = _solve(prob, C, D, seen, f_c, w, prior, clock, passes)
     for k in range(first + 1, first + rounds + 1):
-        sees = visibility(prob, disp)
+        sees = visibility(prob, disp, last=k == first + rounds)
         C = U = None  # the new round's volumes replace them: not both at once
         C, n_used, seen, f_c = _matched(
             prob, save_intermediate, last=k == first + rounds,

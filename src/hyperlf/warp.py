@@ -51,6 +51,7 @@ __all__ = [
     "visible_in_view",
     "occlusion_zbuffer",
     "visible_at_labels",
+    "occluder_excess",
 ]
 
 #: Tolerance (px) within which a sample just outside ``[0, n - 1]`` still counts as inside.
@@ -667,13 +668,77 @@ def visible_at_labels(zbuffer: np.ndarray, offset: tuple[float, float], labels, 
     >>> visible_at_labels(z, (-1.0, 0.0), [0.0, 2.0], impl="numpy")[:, 0].tolist()
     [[True, True, False, False, True], [True, True, True, False, False]]
     """
+    z, dx, dy, lab, a, b = _label_test_inputs(zbuffer, offset, labels, rows, impl)
+    margin = _opt.real(margin, "margin")
+    if impl == "numpy":
+        return _visible_at_labels_reference(z, dx, dy, lab, a, b, float(margin))
+    from . import _warp_kernels
+
+    out = np.empty((lab.size, b - a, z.shape[1]), np.bool_)
+    _warp_kernels.visible_at_labels(z, dx, dy, lab, a, b, float(margin), out)
+    return out
+
+
+def occluder_excess(zbuffer: np.ndarray, offset: tuple[float, float], labels, *,
+                    rows: tuple[int, int] | None = None, impl: str = "auto") -> np.ndarray:
+    """How much nearer than each candidate disparity the surface is that would hide a
+    reference pixel from another view: ``zbuffer[t] - d``.
+
+    The quantity that :func:`visible_at_labels` compares with its margin: reference pixel
+    ``p`` at disparity ``d`` lands at the nearest pixel ``t`` of ``p - d (dx, dy)``, and the
+    view sees it with margin ``m`` when the excess is at most ``m``.  Where fewer views than
+    needed see a hypothesis, the views whose occluders are the least nearer are the ones to
+    ask (:class:`hyperlf.hlf.LabelVisibility`, ``DepthParams.nearest_occluders``).
+
+    Parameters
+    ----------
+    zbuffer : ndarray, shape (H, W)
+        :func:`occlusion_zbuffer` of the current estimate for this view.
+    offset : (dx, dy)
+        View position minus reference position, in baselines.
+    labels : array_like, shape (L,)
+        Candidate disparities.
+    rows : (int, int), optional
+        Reference rows ``[a, b)`` to answer for (default all).
+    impl : {"auto", "numba", "numpy"}
+        ``numpy`` is the reference the numba kernel is tested against.
+
+    Returns
+    -------
+    ndarray of float32, shape (L, b - a, W)
+        px per baseline (computed in float64); ``+inf`` where ``p`` at ``d`` lands outside the image, ``-inf``
+        where no surface of the estimate lands near ``t``.
+
+    Examples
+    --------
+    The nearer surface on the left of :func:`visible_at_labels`' example hides the two
+    background pixels beside it by 2 px at disparity 0 (where the first two land, nothing
+    does); at disparity 2 nothing hides them:
+
+    >>> z = occlusion_zbuffer(np.array([[2.0, 2.0, 0.0, 0.0, 0.0]]), (-1.0, 0.0))
+    >>> occluder_excess(z, (-1.0, 0.0), [0.0, 2.0], impl="numpy")[:, 0].tolist()
+    [[-inf, -inf, 2.0, 2.0, 0.0], [0.0, 0.0, -2.0, inf, inf]]
+    """
+    z, dx, dy, lab, a, b = _label_test_inputs(zbuffer, offset, labels, rows, impl)
+    if impl == "numpy":
+        return _occluder_excess_reference(z, dx, dy, lab, a, b)
+    from . import _warp_kernels
+
+    out = np.empty((lab.size, b - a, z.shape[1]), np.float32)
+    _warp_kernels.occluder_excess(z, dx, dy, lab, a, b, out)
+    return out
+
+
+def _label_test_inputs(zbuffer, offset, labels, rows, impl):
+    """:func:`visible_at_labels`' and :func:`occluder_excess`'s inputs checked:
+    ``(z, dx, dy, labels, a, b)``."""
     _opt.choice(impl, "impl", ("auto", "numba", "numpy"))
     z = np.asarray(zbuffer)  # float32 as kept by LabelVisibility: no copy per call
     if z.ndim != 2 or z.dtype.kind not in "biuf":  # O(1) checks: called once per view
         raise InvalidInputError(f"zbuffer must be an (H, W) map of disparities "
                                 f"(occlusion_zbuffer), got {_opt.shown(zbuffer)}")
     z = np.ascontiguousarray(z, z.dtype if z.dtype in (np.float32, np.float64) else np.float64)
-    H, W = z.shape
+    H = z.shape[0]
     a, b = (0, H) if rows is None else _opt.int_pair(rows, "rows", 0, maximum=H,
                                                      what="(first, end) reference rows")
     if a > b:
@@ -682,24 +747,33 @@ def visible_at_labels(zbuffer: np.ndarray, offset: tuple[float, float], labels, 
     if not np.isfinite(lab).all():  # L values, not a map
         raise InvalidInputError("labels must be finite disparities")
     dx, dy = _offset(offset)
-    margin = _opt.real(margin, "margin")
-    if impl == "numpy":
-        return _visible_at_labels_reference(z, dx, dy, lab, a, b, float(margin))
-    from . import _warp_kernels
-
-    out = np.empty((lab.size, b - a, W), np.bool_)
-    _warp_kernels.visible_at_labels(z, dx, dy, lab, a, b, float(margin), out)
-    return out
+    return z, dx, dy, lab, a, b
 
 
 def _visible_at_labels_reference(z, dx, dy, labels, a, b, margin):
     """The numpy reference of :func:`visible_at_labels` (one label at a time)."""
+    out = np.zeros((labels.size, b - a, z.shape[1]), bool)
+    for i, d in enumerate(labels):
+        ok, near = _landing_zbuffer(z, dx, dy, d, a, b)
+        out[i] = ok & (d >= near - margin)  # as the kernel: in float64
+    return out
+
+
+def _occluder_excess_reference(z, dx, dy, labels, a, b):
+    """The numpy reference of :func:`occluder_excess` (one label at a time)."""
+    out = np.full((labels.size, b - a, z.shape[1]), np.inf, np.float32)
+    for i, d in enumerate(labels):
+        ok, near = _landing_zbuffer(z, dx, dy, d, a, b)
+        out[i][ok] = (near - d)[ok]  # as the kernel: in float64, stored as float32
+    return out
+
+
+def _landing_zbuffer(z, dx, dy, d, a, b):
+    """Where reference rows ``[a, b)`` at disparity ``d`` land inside the image, and the
+    z-buffer there (float64; 0 elsewhere)."""
     H, W = z.shape
     yy, xx = np.mgrid[a:b, 0:W].astype(np.float64)
-    out = np.zeros((labels.size, b - a, W), bool)
-    for i, d in enumerate(labels):
-        tx, ty = np.rint(xx - d * dx), np.rint(yy - d * dy)
-        ok = (tx >= 0) & (tx < W) & (ty >= 0) & (ty < H)
-        near = z[np.where(ok, ty, 0).astype(np.intp), np.where(ok, tx, 0).astype(np.intp)]
-        out[i] = ok & (d >= near.astype(np.float64) - margin)  # as the kernel: in float64
-    return out
+    tx, ty = np.rint(xx - d * dx), np.rint(yy - d * dy)
+    ok = (tx >= 0) & (tx < W) & (ty >= 0) & (ty < H)
+    near = z[np.where(ok, ty, 0).astype(np.intp), np.where(ok, tx, 0).astype(np.intp)]
+    return ok, near.astype(np.float64)
