@@ -692,16 +692,8 @@ def occluder_excess(zbuffer: np.ndarray, offset: tuple[float, float], labels, *,
 
     Parameters
     ----------
-    zbuffer : ndarray, shape (H, W)
-        :func:`occlusion_zbuffer` of the current estimate for this view.
-    offset : (dx, dy)
-        View position minus reference position, in baselines.
-    labels : array_like, shape (L,)
-        Candidate disparities.
-    rows : (int, int), optional
-        Reference rows ``[a, b)`` to answer for (default all).
-    impl : {"auto", "numba", "numpy"}
-        ``numpy`` is the reference the numba kernel is tested against.
+    zbuffer, offset, labels, rows, impl
+        As for :func:`visible_at_labels`.
 
     Returns
     -------
