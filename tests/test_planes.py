@@ -229,6 +229,23 @@ def test_cost_planes_recover_a_slanted_plane_that_no_pixel_shows(seed):
     assert np.nanmax(np.abs(plane - truth)) < 0.8
 
 
+def test_cost_planes_search_no_steeper_than_twice_the_label_range_across_a_tile():
+    """The largest slope taken (1e4 labels per px) searches as many steps as 2 (L - 1)
+    across the tile: the same planes, and not a grid of 10^11 slope pairs (the junk test
+    of the forty-fourth session's survey hung there)."""
+    rng = np.random.default_rng(5)
+    C = rng.random((4, 24, 24))
+    mask = np.ones((24, 24), bool)
+    steep = cost_planes(C, mask, tile=12, max_slope=1e4)
+    np.testing.assert_array_equal(steep, cost_planes(C, mask, tile=12, max_slope=6 / 12))
+    C, truth = _slanted_volume(2, noise=1.0, L=8, shape=(48, 48),
+                               truth=3.0 + 0.05 * np.mgrid[:48, :48][0])
+    mask = np.ones((48, 48), bool)
+    steep = cost_planes(C, mask, tile=24, max_slope=1e4)
+    assert np.isfinite(steep).mean() > 0.5 and np.nanmax(np.abs(steep - truth)) < 0.8
+    np.testing.assert_array_equal(steep, cost_planes(C, mask, tile=24, max_slope=14 / 24))
+
+
 def test_cost_planes_refuse_noise_and_unbracketed_minima():
     rng = np.random.default_rng(4)
     noise = rng.random((16, 96, 96))

@@ -477,7 +477,9 @@ def cost_planes(volume, mask, *, tile: int, max_slope: float, period: float = 1.
     tile : int
         Side of the tiles, px (>= 4).
     max_slope : float
-        Largest slope searched, labels per px.
+        Largest slope searched, labels per px; at most ``2 (L - 1)`` labels across a tile
+        are searched whatever it is (a steeper plane spans the label range twice over
+        inside the tile, and the search grid grows with the square of the steps).
     period : float
         Labels per pixel of shift.  Each pixel's costs are first averaged over that many
         labels (when at least 1.5): bilinear sampling halves white noise's variance at
@@ -524,7 +526,7 @@ def cost_planes(volume, mask, *, tile: int, max_slope: float, period: float = 1.
     choice(impl, "impl", ("auto", "numba", "numpy"))
     L, H, W = C.shape
     T = min(int(tile), H, W)
-    n_steps = max(1, int(round(max_slope * T)))
+    n_steps = max(1, min(int(round(max_slope * T)), 2 * (L - 1)))
     slopes = np.arange(-n_steps, n_steps + 1) / T
     c = np.arange(0.0, L - 1 + 1e-9, 0.5)
     accepted, refused = {}, {}
