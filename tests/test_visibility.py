@@ -286,12 +286,15 @@ def test_hypothesis_visibility_gives_a_fattened_edge_back_to_the_background(scen
                                  {"visibility_margin": float("nan")},
                                  {"visibility_test": "zbuffer"}, {"reuse_memory": -1.0},
                                  {"nearest_occluders": "last"}, {"nearest_occluders": True},
+                                 {"nearest_occluder_max": 0.0},
+                                 {"nearest_occluder_max": float("inf")},
+                                 {"nearest_occluder_max": 1e300},
                                  {"reuse_memory": float("inf")}, {"reuse_memory": "3G"},
                                  {"round_cycles": 0}, {"round_cycles": 1.5},
                                  {"round_cycles": True}])
 def test_depth_params_check_the_visibility_options(bad):
     with pytest.raises(InvalidInputError,
-                       match="visibility|visible|reuse_memory|round_cycles|nearest_occluders"):
+                       match="visibility|visible|reuse_memory|round_cycles|nearest_occluder"):
         DepthParams(**bad)
 
 

@@ -472,7 +472,7 @@ _DEPTH_RULES = {
     "min_visible_views": _rule(_opt.integer, minimum=1),
     "visibility_test": _rule(_opt.choice, choices=VISIBILITY_TESTS),
     "nearest_occluders": _rule(_opt.choice, choices=NEAREST_OCCLUDERS),
-    "nearest_occluder_max": _number,
+    "nearest_occluder_max": _rule(_opt.number, positive=True, at_most=1e4),
     "texture_window": _rule(_opt.integer, minimum=3, odd=True),
     "coarse_prior": _flag,
     "coarse_prior_scale": _rule(_opt.integer, minimum=2),
