@@ -698,8 +698,8 @@ def occluder_excess(zbuffer: np.ndarray, offset: tuple[float, float], labels, *,
     Returns
     -------
     ndarray of float32, shape (L, b - a, W)
-        px per baseline (computed in float64); ``+inf`` where ``p`` at ``d`` lands outside the image, ``-inf``
-        where no surface of the estimate lands near ``t``.
+        px per baseline (computed in float64); ``+inf`` where ``p`` at ``d`` lands outside
+        the image, ``-inf`` where no surface of the estimate lands near ``t``.
 
     Examples
     --------
