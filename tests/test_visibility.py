@@ -164,28 +164,32 @@ def test_label_visibility_falls_back_to_every_view_where_too_few_see():
     assert isinstance(est, dict) and set(est) == set(prob.others)
 
 
-def test_nearest_occluders_stand_in_where_too_few_views_see():
+@pytest.mark.parametrize("smallest", [0.0, 2.0])
+def test_nearest_occluders_stand_in_where_too_few_views_see(smallest):
     """``nearest=True``: a ``(d, p)`` that fewer than ``min_visible_views`` views see is
     matched over the views that see it once the z-test's margin is raised (by factors of
-    sqrt(2), up to 8 px) until two do, instead of every view."""
+    sqrt(2) from ``nearest_occluder_min``, or from the margin's first step, up to 8 px) until
+    two do, instead of every view."""
     from scipy.ndimage import grey_dilation
 
     lf = synthesis.procedural_scene(seed=0, rows=3, cols=3, height=32, width=40)
     fat = grey_dilation(lf.reference_gt_disparity, size=(7, 7))  # a band that hides itself
-    prob = prepare(lf, n_labels=8)
+    prob = prepare(lf, n_labels=8, params=DepthParams(nearest_occluder_min=smallest))
     near, every = LabelVisibility(prob, fat, nearest=True), LabelVisibility(prob, fat)
     H = fat.shape[0]
     excess = {v: near.excess(v, (0, H)) for v in prob.others}
     few = every.too_few((0, H))
     assert np.array_equal(few, sum((e <= 0.5).astype(int) for e in excess.values()) < 2)
     second = np.sort(np.stack(list(excess.values())), axis=0)[1]
-    ladder = [0.5 * 2 ** (k / 2) for k in range(1, 9)]  # the margin raised up to 8 px
+    ladder = ([0.5 * 2 ** (k / 2) for k in range(1, 9)] if not smallest  # 0.71 ... 8 px
+              else [smallest * 2 ** (k / 2) for k in range(5)])             # 2 ... 8 px
     reach = np.select([second <= m for m in ladder], ladder, np.inf)
     assert np.array_equal(near.reach((0, H)), np.where(few, reach, -np.inf).astype(np.float32))
     counts = 0
     for v in prob.others:
         m = near.mask(v, (0, H))
         assert np.array_equal(m, every.seen(v, (0, H)) | (few & (excess[v] <= reach)))
+        assert not (few & (excess[v] <= smallest) & ~m).any()  # within the floor: counted
         assert not (m & ~every.mask(v, (0, H))).any()  # never a view that all would not use
         assert np.array_equal(near.mask(v, (5, 17)), m[:, 5:17])  # a strip is its rows
         counts = counts + m
@@ -289,6 +293,9 @@ def test_hypothesis_visibility_gives_a_fattened_edge_back_to_the_background(scen
                                  {"nearest_occluder_max": 0.0},
                                  {"nearest_occluder_max": float("inf")},
                                  {"nearest_occluder_max": 1e300},
+                                 {"nearest_occluder_min": -0.5},
+                                 {"nearest_occluder_min": float("inf")},
+                                 {"nearest_occluder_min": 1e300},
                                  {"reuse_memory": float("inf")}, {"reuse_memory": "3G"},
                                  {"round_cycles": 0}, {"round_cycles": 1.5},
                                  {"round_cycles": True}])

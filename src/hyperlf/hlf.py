@@ -473,6 +473,7 @@ _DEPTH_RULES = {
     "visibility_test": _rule(_opt.choice, choices=VISIBILITY_TESTS),
     "nearest_occluders": _rule(_opt.choice, choices=NEAREST_OCCLUDERS),
     "nearest_occluder_max": _rule(_opt.number, positive=True, at_most=1e4),
+    "nearest_occluder_min": _rule(_opt.number, at_most=1e4),
     "texture_window": _rule(_opt.integer, minimum=3, odd=True),
     "coarse_prior": _flag,
     "coarse_prior_scale": _rule(_opt.integer, minimum=2),
@@ -563,8 +564,9 @@ class DepthParams:
     ``min_visible_views`` other views keeps them all, or, in the passes that
     ``nearest_occluders`` names (``"never"``, the default; ``"before-last"``: every
     visibility pass but the last; ``"always"``), a disparity is matched there over the views
-    that see it once the z-test's margin is raised, by factors of sqrt(2) up to
-    ``nearest_occluder_max`` (8) px per baseline, until ``min_visible_views`` do
+    that see it once the z-test's margin is raised, by factors of sqrt(2) from
+    ``nearest_occluder_min`` px per baseline (0: from the margin's first step) up to
+    ``nearest_occluder_max`` (8), until ``min_visible_views`` do
     (:meth:`LabelVisibility.reach`): a band that the estimate carried into the background
     hides the background's own projections from most views, and every view counting again
     hands the band's pixels back to it.  ``"before-last"`` lowers the procedural tuning
@@ -728,6 +730,7 @@ class DepthParams:
     visibility_test: str = "hypothesis"
     nearest_occluders: str = "never"
     nearest_occluder_max: float = 8.0
+    nearest_occluder_min: float = 0.0
     texture_snr: float | None = None
     texture_window: int = 5
     coarse_prior: bool = True
@@ -1960,7 +1963,8 @@ class LabelVisibility:
         self.min_views = int(p.min_visible_views)
         self.impl = prob.impl
         self.nearest = _opt.flag(nearest, "nearest")
-        self.ladder = occluder_margins(self.margin, float(p.nearest_occluder_max))
+        self.ladder = occluder_margins(self.margin, float(p.nearest_occluder_max),
+                                       smallest=float(p.nearest_occluder_min))
         self._few = self._reach = (None, None)
 
     def seen(self, v, rows) -> np.ndarray:
@@ -1991,8 +1995,9 @@ class LabelVisibility:
 
     def reach(self, rows) -> np.ndarray:
         """``(L, b - a, W)`` float32: where fewer than ``min_visible_views`` views see
-        ``(d, p)``, the z-test's margin raised until that many do (by factors of sqrt(2),
-        up to ``params.nearest_occluder_max``; ``inf`` beyond it, where every view counts);
+        ``(d, p)``, the z-test's margin raised until that many do (the steps of
+        :func:`occluder_margins`, from ``params.nearest_occluder_min`` up to
+        ``params.nearest_occluder_max``; ``inf`` beyond it, where every view counts);
         ``-inf`` elsewhere.  With ``nearest`` the views whose occluder excess is within it
         count there."""
         rows = (int(rows[0]), int(rows[1]))
@@ -2019,21 +2024,26 @@ class LabelVisibility:
         return self.seen(v, rows) | self.too_few(rows)
 
 
-def occluder_margins(margin: float, largest: float) -> np.ndarray:
-    """The z-test's margins that :meth:`LabelVisibility.reach` tries in turn: ``margin``
-    times sqrt(2), 2, 2 sqrt(2), ... up to ``largest`` (float32; none when it is below the
-    first; ``largest`` alone for a margin of 0).
+def occluder_margins(margin: float, largest: float, *, smallest: float = 0.0) -> np.ndarray:
+    """The z-test's margins that :meth:`LabelVisibility.reach` tries in turn: from the larger
+    of ``margin`` times sqrt(2) and ``smallest``, by factors of sqrt(2), up to ``largest``
+    (float32; none when it is below the first; ``largest`` alone for a margin and a
+    ``smallest`` of 0).
 
     Examples
     --------
     >>> [round(float(m), 2) for m in occluder_margins(0.5, 8.0)]
     [0.71, 1.0, 1.41, 2.0, 2.83, 4.0, 5.66, 8.0]
+    >>> [round(float(m), 2) for m in occluder_margins(0.5, 8.0, smallest=2.0)]
+    [2.0, 2.83, 4.0, 5.66, 8.0]
     """
     margin, largest = _opt.real(margin, "margin"), _opt.real(largest, "largest")
-    if margin <= 0:
+    first = max(np.sqrt(2.0) * margin, _opt.real(smallest, "smallest"))
+    if first <= 0:
         return np.array([largest], np.float32)[: 1 if largest > 0 else 0]
-    n = int(np.floor(2 * np.log2(max(largest, margin) / margin) + 1e-9))
-    return (margin * np.sqrt(2.0) ** np.arange(1, n + 1)).astype(np.float32)
+    steps = 2 * np.log2(largest / first) if largest > 0 else -np.inf
+    n = int(np.floor(steps + 1e-9)) + 1 if steps > -1e-9 else 0
+    return (first * np.sqrt(2.0) ** np.arange(n)).astype(np.float32)
 
 
 def visibility(prob: "DepthProblem", disparity: np.ndarray, *, last: bool = True):
