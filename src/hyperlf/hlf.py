@@ -565,15 +565,18 @@ class DepthParams:
     ``nearest_occluders`` names (``"never"``, the default; ``"before-last"``: every
     visibility pass but the last; ``"always"``), a disparity is matched there over the views
     that see it once the z-test's margin is raised, by factors of sqrt(2) from
-    ``nearest_occluder_min`` px per baseline (0: from the margin's first step) up to
+    ``nearest_occluder_min`` (2) px per baseline (0: from the margin's first step) up to
     ``nearest_occluder_max`` (8), until ``min_visible_views`` do
     (:meth:`LabelVisibility.reach`): a band that the estimate carried into the background
     hides the background's own projections from most views, and every view counting again
-    hands the band's pixels back to it.  ``"before-last"`` lowers the procedural tuning
-    scenes' error by 4 % but raises Venus's light field's by 1 %, so it is not the default;
-    its last pass keeps every view because that volume is the one the thin-object stage
-    reads, and with the fallback in it that stage no longer gave a faint stick back
-    (BENCHMARKS.md, sixty-third session).
+    hands the band's pixels back to it.  The floor keeps every view whose occluder is less
+    than 2 px nearer, the estimate's own slanted surface among them (from the margin's first
+    step the views it recedes from were chosen, and Venus's light field lost 1 %).
+    ``"before-last"`` lowers the procedural tuning scenes' error by 4 %, but antinous's
+    through the CLI rises by 0.5 %, so it is not the default; its last pass keeps every view
+    because that volume is the one the thin-object stage reads, and with the fallback in it
+    that stage no longer gave a faint stick back (BENCHMARKS.md, sixty-third and sixty-fourth
+    sessions).
     ``visibility_rounds`` None (the default):
     :data:`DEFAULT_ROUNDS` (3) on images at least ``visibility_min_size`` (192) px on their
     shorter side whose pass's costs fit in ``reuse_memory`` (below), 1 on larger captures,
@@ -730,7 +733,7 @@ class DepthParams:
     visibility_test: str = "hypothesis"
     nearest_occluders: str = "never"
     nearest_occluder_max: float = 8.0
-    nearest_occluder_min: float = 0.0
+    nearest_occluder_min: float = 2.0
     texture_snr: float | None = None
     texture_window: int = 5
     coarse_prior: bool = True
