@@ -618,3 +618,35 @@ def test_confidence_at_the_depth_edges_orders_the_errors_better(scene):
     ratio = (sparsification(on.confidence[sl], err ** 2, rmse=True)
              / sparsification(off.confidence[sl], err ** 2, rmse=True))
     assert ratio < 0.9, ratio
+
+
+def test_depth_and_batch_commands_take_nearest_occluders(tmp_path, capsys, batch_depth_args):
+    """``depth --nearest-occluders MODE`` writes the library's map under
+    ``DepthParams(nearest_occluders=MODE)``, and with a visibility round the modes differ;
+    an unknown mode is refused while parsing (exit 2, nothing written); ``batch`` hands the
+    option on only when given."""
+    from hyperlf.cli import main
+    from hyperlf.formats import read_pfm, save_lightfield
+
+    lf = synthesis.procedural_scene(seed=0, rows=3, cols=3, height=48, width=64,
+                                    kinds=("ring", "stick", "fronto"), n_objects=4)
+    save_lightfield(lf, tmp_path / "cap", bit_depth=32)
+    maps = {}
+    for mode in ("never", "always"):
+        assert main(["-q", "depth", str(tmp_path / "cap"), "--labels", "17", "--metric", "ncc",
+                     "--optimizer", "wta", "--median-radius", "0", "--visibility-rounds", "1",
+                     "--nearest-occluders", mode, "-o", str(tmp_path / mode)]) == 0
+        maps[mode] = read_pfm(tmp_path / mode / "disparity.pfm")
+        params = DepthParams(nearest_occluders=mode, visibility_rounds=1, median_radius=0)
+        np.testing.assert_array_equal(
+            maps[mode], depth(lf, n_labels=17, metric="ncc", optimizer="wta",
+                              params=params).disparity)
+    assert (maps["never"] != maps["always"]).any()
+    with pytest.raises(SystemExit) as info:
+        main(["-q", "depth", str(tmp_path / "cap"), "--nearest-occluders", "last",
+              "-o", str(tmp_path / "bad")])
+    assert info.value.code == 2 and "--nearest-occluders" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()
+    assert "--nearest-occluders" not in batch_depth_args()
+    given = batch_depth_args("--nearest-occluders", "before-last")
+    assert given[given.index("--nearest-occluders") + 1] == "before-last"
