@@ -255,6 +255,21 @@ def batch_depth_args(monkeypatch, tmp_path):
     return run
 
 
+def refused_while_parsing_and_handed_on(capsys, batch_depth_args, cap, out, option, bad,
+                                        good) -> None:
+    """``depth CAP OPTION BAD`` is refused while parsing (exit 2, the option named, nothing
+    written at ``out``); ``batch`` hands ``OPTION GOOD`` on to each capture only when given."""
+    from hyperlf.cli import main
+
+    with pytest.raises(SystemExit) as info:
+        main(["-q", "depth", str(cap), option, bad, "-o", str(out)])
+    assert info.value.code == 2 and option in capsys.readouterr().err
+    assert not out.exists()
+    assert option not in batch_depth_args()
+    given = batch_depth_args(option, good)
+    assert given[given.index(option) + 1] == good
+
+
 # ----------------------------------------------------------------------------- data marker
 def _called_names(func) -> set[str]:
     """Names of the functions ``func`` calls (decorators included), from its source."""

@@ -15,6 +15,8 @@ from hyperlf.costs import view_costs
 from hyperlf.errors import InvalidInputError
 from hyperlf.synthesis import procedural_scene
 
+from conftest import refused_while_parsing_and_handed_on
+
 
 @pytest.fixture
 def weighted_fusion():
@@ -154,14 +156,8 @@ def test_depth_and_batch_commands_take_fusion_weights(tmp_path, capsys, scene, b
         err = capsys.readouterr().err
         assert what in err and err.count("\n") == 1 and "--fusion-weights" in err
         assert not out.exists()
-    with pytest.raises(SystemExit) as info:
-        main(["-q", "depth", str(tmp_path / "cap"), "--fusion-weights", "0,0",
-              "-o", str(tmp_path / "zero")])
-    assert info.value.code == 2 and "--fusion-weights" in capsys.readouterr().err
-    assert not (tmp_path / "zero").exists()
-    assert "--fusion-weights" not in batch_depth_args()
-    given = batch_depth_args("--fusion-weights", "1,4.5")
-    assert given[given.index("--fusion-weights") + 1] == "1,4.5"
+    refused_while_parsing_and_handed_on(capsys, batch_depth_args, tmp_path / "cap",
+                                        tmp_path / "zero", "--fusion-weights", "0,0", "1,4.5")
     calls = len(batch_depth_args.calls)
     assert main(["-q", "batch", str(tmp_path), "--metric", "ncc", "--fusion-weights", "1,4",
                  "-o", str(tmp_path / "o")]) == 2  # refused before the batch is planned

@@ -12,6 +12,8 @@ from hyperlf import hlf
 from hyperlf.errors import InvalidInputError
 from hyperlf.lightfield import LightField
 
+from conftest import refused_while_parsing_and_handed_on
+
 
 def at_limits(mode: str) -> float:
     """Fraction of pixels at a range limit on a textureless scene (flat grey + noise): with no
@@ -113,13 +115,8 @@ def _check_depth_option(tmp_path, capsys, batch_depth_args, lf, option, modes, b
             maps[mode], hlf.depth(lf, n_labels=17, metric="ncc", optimizer="wta",
                                   params=params).disparity)
     assert (maps[modes[0]] != maps[modes[1]]).any()
-    with pytest.raises(SystemExit) as info:
-        main(["-q", "depth", str(tmp_path / "cap"), option, bad, "-o", str(tmp_path / "bad")])
-    assert info.value.code == 2 and option in capsys.readouterr().err
-    assert not (tmp_path / "bad").exists()
-    assert option not in batch_depth_args()
-    given = batch_depth_args(option, modes[1])
-    assert given[given.index(option) + 1] == modes[1]
+    refused_while_parsing_and_handed_on(capsys, batch_depth_args, tmp_path / "cap",
+                                        tmp_path / "bad", option, bad, modes[1])
 
 
 def test_depth_and_batch_commands_take_missing_views(tmp_path, capsys, batch_depth_args):

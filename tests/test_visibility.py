@@ -13,7 +13,7 @@ from hyperlf.hlf import DepthParams, LabelVisibility, depth, prepare, visibility
 from hyperlf.warp import (forward_warp_disparity, occluder_excess, occlusion_zbuffer,
                           visible_at_labels, visible_in_view)
 
-from conftest import sparsification
+from conftest import refused_while_parsing_and_handed_on, sparsification
 
 
 def _brute_force(d, offset, margin):
@@ -642,11 +642,6 @@ def test_depth_and_batch_commands_take_nearest_occluders(tmp_path, capsys, batch
             maps[mode], depth(lf, n_labels=17, metric="ncc", optimizer="wta",
                               params=params).disparity)
     assert (maps["never"] != maps["always"]).any()
-    with pytest.raises(SystemExit) as info:
-        main(["-q", "depth", str(tmp_path / "cap"), "--nearest-occluders", "last",
-              "-o", str(tmp_path / "bad")])
-    assert info.value.code == 2 and "--nearest-occluders" in capsys.readouterr().err
-    assert not (tmp_path / "bad").exists()
-    assert "--nearest-occluders" not in batch_depth_args()
-    given = batch_depth_args("--nearest-occluders", "before-last")
-    assert given[given.index("--nearest-occluders") + 1] == "before-last"
+    refused_while_parsing_and_handed_on(capsys, batch_depth_args, tmp_path / "cap",
+                                        tmp_path / "bad", "--nearest-occluders", "last",
+                                        "before-last")

@@ -1787,33 +1787,33 @@ def _add_unseen_options(p: argparse.ArgumentParser, *, brief: bool = False) -> N
     (``DepthParams.missing_views``, ``.unseen_labels``, ``.nearest_occluders``)."""
     from .hlf import MISSING_VIEWS, NEAREST_OCCLUDERS, UNSEEN_LABELS
 
-    p.add_argument("--missing-views", choices=MISSING_VIEWS, default=None,
-                   help="as for depth" if brief else
-                   "near the image border some views cannot see a pixel at every candidate "
-                   "depth: 'average' (default) averages each depth over the views that see "
-                   "it there, 'neutral' counts the missing ones as the pixel's median cost, "
-                   "'common' counts a view at a pixel only where it sees it at every depth, "
-                   "so that all depths compare the same views (removes the pull of "
-                   "textureless regions to the range limits without --texture-snr)")
-    p.add_argument("--unseen-labels", choices=UNSEEN_LABELS, default=None,
-                   help="as for depth" if brief else
-                   "a candidate depth that no view sees at a pixel (along the image edge of "
-                   "a reference camera at the border of the array, as wide as the disparity): "
-                   "'share' (default) costs it between the pixel's median and worst cost, "
-                   "the nearer the worst the more of its depths the views do see; 'worst' "
-                   "rules it out; 'median' leaves it to the regulariser (surfaces that run "
-                   "on to the image edge)")
-    p.add_argument("--nearest-occluders", choices=NEAREST_OCCLUDERS, default=None,
-                   help="as for depth" if brief else
-                   "a candidate depth of a pixel that fewer than two views see under the "
-                   "previous estimate: 'never' (default) matches it over every view, the "
-                   "hidden ones too; 'before-last' matches it, in every visibility round but "
-                   "the last, over the views hidden by the least nearer surface (less than "
-                   "2 px per baseline nearer, or the least step of sqrt(2) up to 8 px at "
-                   "which two views count), so that a foreground carried over its "
-                   "background, or into a hole, gives it back (about 4 %% less error on "
-                   "scenes of many layers, thin objects before a far background; 0.5 %% more "
-                   "on a smooth one, BENCHMARKS.md); 'always' in the last round too")
+    for flag, choices, text in (
+            ("--missing-views", MISSING_VIEWS,
+             "near the image border some views cannot see a pixel at every candidate "
+             "depth: 'average' (default) averages each depth over the views that see "
+             "it there, 'neutral' counts the missing ones as the pixel's median cost, "
+             "'common' counts a view at a pixel only where it sees it at every depth, "
+             "so that all depths compare the same views (removes the pull of "
+             "textureless regions to the range limits without --texture-snr)"),
+            ("--unseen-labels", UNSEEN_LABELS,
+             "a candidate depth that no view sees at a pixel (along the image edge of "
+             "a reference camera at the border of the array, as wide as the disparity): "
+             "'share' (default) costs it between the pixel's median and worst cost, "
+             "the nearer the worst the more of its depths the views do see; 'worst' "
+             "rules it out; 'median' leaves it to the regulariser (surfaces that run "
+             "on to the image edge)"),
+            ("--nearest-occluders", NEAREST_OCCLUDERS,
+             "a candidate depth of a pixel that fewer than two views see under the "
+             "previous estimate: 'never' (default) matches it over every view, the "
+             "hidden ones too; 'before-last' matches it, in every visibility round but "
+             "the last, over the views hidden by the least nearer surface (less than "
+             "2 px per baseline nearer, or the least step of sqrt(2) up to 8 px at "
+             "which two views count), so that a foreground carried over its "
+             "background, or into a hole, gives it back (about 4 %% less error on "
+             "scenes of many layers, thin objects before a far background; 0.5 %% more "
+             "on a smooth one, BENCHMARKS.md); 'always' in the last round too")):
+        p.add_argument(flag, choices=choices, default=None,
+                       help="as for depth" if brief else text)
 
 
 def _add_demo_parser(sub) -> None:
