@@ -672,6 +672,9 @@ FOUND_BY_FUZZING = {
         lambda w, o: ["convert", w.cube, "--view=--", "-o", o / "c.hdr"],
     "refocus --disparity=1e300 (file name too long, exit 1, empty folder left)":
         lambda w, o: ["refocus", w.cap, "--disparity=1e300", "-o", o / "r"],
+    "a 236-byte -o name (its temporary name passed 255 bytes: exit 2 after the work)":
+        lambda w, o: ["synth", "procedural", "--size=12,16", "--grid=2,2", "--no-pictures",
+                      "--output=" + str(o / ("0" * 231 + ".hdf5"))],
 }
 
 

@@ -17,7 +17,10 @@ from typing import Iterator
 from ._options import path_like
 
 __all__ = ["atomic_path", "atomic_write_bytes", "atomic_write_text", "current_umask",
-           "publish"]
+           "publish", "temporary_beside"]
+
+#: The longest file name, in bytes, that the common file systems take (ext4, XFS, APFS, NTFS).
+NAME_MAX = 255
 
 _UMASK_LOCK = threading.Lock()
 
@@ -62,6 +65,30 @@ def publish(tmp: str | os.PathLike, target: str | os.PathLike) -> None:
     os.replace(tmp, target)
 
 
+def temporary_beside(target: Path, suffix: str, *, tag: str = "partial") -> tuple[int, str]:
+    """``tempfile.mkstemp`` in ``target``'s folder, named ``.<target's name>.<tag>-XXXXXXXX``
+    and ``suffix``: an open descriptor and the path.  The target's name is shortened in the
+    temporary one where the whole would pass :data:`NAME_MAX` bytes, so that every name a
+    command accepts for its output can be written (a 236-byte name failed once the work was
+    done).
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from pathlib import Path
+    >>> folder = Path(tempfile.mkdtemp())
+    >>> fd, tmp = temporary_beside(folder / ("x" * 250 + ".h5"), ".h5")
+    >>> os.close(fd); len(os.fsencode(Path(tmp).name)) <= 255, Path(tmp).name[:3]
+    (True, '.xx')
+    >>> os.unlink(tmp); folder.rmdir()
+    """
+    room = NAME_MAX - len(os.fsencode(f"..{tag}-{suffix}")) - 8  # mkstemp's 8 characters
+    name = target.name
+    while len(os.fsencode(name)) > room:  # whole characters, never half of one
+        name = name[:-1]
+    return tempfile.mkstemp(prefix=f".{name}.{tag}-", suffix=suffix, dir=target.parent)
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
     """Yield a temporary path in the target's folder; rename it onto ``path`` on success.
@@ -73,11 +100,7 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     """
     target = Path(path_like(path))  # a bad name is one line, whoever writes
     target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(
-        prefix=f".{target.name}.partial-",
-        suffix=target.suffix if suffix is None else suffix,
-        dir=target.parent,
-    )
+    fd, tmp = temporary_beside(target, target.suffix if suffix is None else suffix)
     try:  # from the file's first moment: an interrupt anywhere below removes it
         os.close(fd)
         yield Path(tmp)

@@ -121,7 +121,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -129,6 +128,7 @@ from typing import Any
 
 import numpy as np
 
+from ._atomic import temporary_beside
 from ._options import (bool_mask, check_values, choice, flag, index, integer, mapping, number,
                        path_like, real_array, real_pair, rule, shown, word_or)
 from ._parallel import map_threads
@@ -1563,8 +1563,7 @@ def _scratch_store(out_path: Path, shape) -> "_H5Store":
     """The scratch HDF5 store beside ``out_path``; removed again if making it fails or is
     interrupted (the caller's ``finally`` closes, and so removes, the store it got)."""
     out_path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out_path.name}.scratch-", suffix=".h5",
-                               dir=out_path.parent)
+    fd, tmp = temporary_beside(out_path, ".h5", tag="scratch")
     try:
         os.close(fd)
         return _H5Store(Path(tmp), shape)

@@ -32,13 +32,12 @@ import json
 import os
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .._atomic import atomic_path, publish
+from .._atomic import atomic_path, publish, temporary_beside
 from .._options import (bool_mask, choice, flag, index, integer, mapping, path_like,
                         real_array, shown)
 from ..errors import DataNotFoundError, FormatError, HyperLFError, InvalidInputError
@@ -585,8 +584,7 @@ class CubeWriter:
     def __enter__(self) -> "CubeWriter":
         h5py = _h5py()
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.partial-", suffix=self.path.suffix,
-                                   dir=self.path.parent)
+        fd, tmp = temporary_beside(self.path, self.path.suffix)
         self._tmp = Path(tmp)
         try:  # from the file's first moment: an interrupt anywhere below removes it
             os.close(fd)
