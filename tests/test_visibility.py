@@ -164,17 +164,20 @@ def test_label_visibility_falls_back_to_every_view_where_too_few_see():
     assert isinstance(est, dict) and set(est) == set(prob.others)
 
 
-@pytest.mark.parametrize("smallest", [0.0, 2.0])
-def test_nearest_occluders_stand_in_where_too_few_views_see(smallest):
+@pytest.mark.parametrize("smallest, behind", [(0.0, 1e4), (2.0, 1e4), (2.0, 1.0),
+                                              (0.0, 0.0)])
+def test_nearest_occluders_stand_in_where_too_few_views_see(smallest, behind):
     """``nearest=True``: a ``(d, p)`` that fewer than ``min_visible_views`` views see is
     matched over the views that see it once the z-test's margin is raised (by factors of
     sqrt(2) from ``nearest_occluder_min``, or from the margin's first step, up to 8 px) until
-    two do, instead of every view."""
+    two do, less those hidden by a surface more than ``nearest_occluder_behind`` farther than
+    the estimate at ``p``; where that leaves fewer than two, every view."""
     from scipy.ndimage import grey_dilation
 
     lf = synthesis.procedural_scene(seed=0, rows=3, cols=3, height=32, width=40)
     fat = grey_dilation(lf.reference_gt_disparity, size=(7, 7))  # a band that hides itself
-    prob = prepare(lf, n_labels=8, params=DepthParams(nearest_occluder_min=smallest))
+    prob = prepare(lf, n_labels=8, params=DepthParams(nearest_occluder_min=smallest,
+                                                      nearest_occluder_behind=behind))
     near, every = LabelVisibility(prob, fat, nearest=True), LabelVisibility(prob, fat)
     H = fat.shape[0]
     excess = {v: near.excess(v, (0, H)) for v in prob.others}
@@ -185,11 +188,18 @@ def test_nearest_occluders_stand_in_where_too_few_views_see(smallest):
               else [smallest * 2 ** (k / 2) for k in range(5)])             # 2 ... 8 px
     reach = np.select([second <= m for m in ladder], ladder, np.inf)
     assert np.array_equal(near.reach((0, H)), np.where(few, reach, -np.inf).astype(np.float32))
+    labels = np.asarray(prob.labels, np.float32)[:, None, None]
+    near_v = {v: few & (e <= reach) & (e + labels >= fat - behind) for v, e in excess.items()}
+    none = few & (sum((every.seen(v, (0, H)) | near_v[v]).astype(int) for v in excess) < 2)
+    assert none.any() == (behind < 1e4)  # only the cut for farther surfaces leaves too few
     counts = 0
     for v in prob.others:
         m = near.mask(v, (0, H))
-        assert np.array_equal(m, every.seen(v, (0, H)) | (few & (excess[v] <= reach)))
-        assert not (few & (excess[v] <= smallest) & ~m).any()  # within the floor: counted
+        assert np.array_equal(m, every.seen(v, (0, H)) | near_v[v] | none)
+        farther = few & ~none & ~every.seen(v, (0, H)) & (excess[v] + labels < fat - behind)
+        assert not (m & farther).any()  # a view that a farther surface hides: never
+        within = few & (excess[v] <= smallest) & ~(excess[v] + labels < fat - behind)
+        assert not (within & ~m).any()  # within the floor, and not farther: counted
         assert not (m & ~every.mask(v, (0, H))).any()  # never a view that all would not use
         assert np.array_equal(near.mask(v, (5, 17)), m[:, 5:17])  # a strip is its rows
         counts = counts + m
@@ -296,6 +306,8 @@ def test_hypothesis_visibility_gives_a_fattened_edge_back_to_the_background(scen
                                  {"nearest_occluder_min": -0.5},
                                  {"nearest_occluder_min": float("inf")},
                                  {"nearest_occluder_min": 1e300},
+                                 {"nearest_occluder_behind": -1.0},
+                                 {"nearest_occluder_behind": float("nan")},
                                  {"reuse_memory": float("inf")}, {"reuse_memory": "3G"},
                                  {"round_cycles": 0}, {"round_cycles": 1.5},
                                  {"round_cycles": True}])

@@ -1809,9 +1809,10 @@ def _add_unseen_options(p: argparse.ArgumentParser, *, brief: bool = False) -> N
              "the last, over the views hidden by the least nearer surface (less than "
              "2 px per baseline nearer, or the least step of sqrt(2) up to 8 px at "
              "which two views count), so that a foreground carried over its "
-             "background, or into a hole, gives it back (about 4 %% less error on "
-             "scenes of many layers, thin objects before a far background; 0.5 %% more "
-             "on a smooth one, BENCHMARKS.md); 'always' in the last round too")):
+             "background, or into a hole, gives it back (3-4 %% less error on scenes "
+             "of many layers, thin objects before a far background; antinous unchanged, "
+             "a smooth Middlebury scene 0.3 %% worse, BENCHMARKS.md); 'always' in the "
+             "last round too")):
         p.add_argument(flag, choices=choices, default=None,
                        help="as for depth" if brief else text)
 

@@ -474,6 +474,7 @@ _DEPTH_RULES = {
     "nearest_occluders": _rule(_opt.choice, choices=NEAREST_OCCLUDERS),
     "nearest_occluder_max": _rule(_opt.number, positive=True, at_most=1e4),
     "nearest_occluder_min": _rule(_opt.number, at_most=1e4),
+    "nearest_occluder_behind": _rule(_opt.number, at_most=1e4),
     "texture_window": _rule(_opt.integer, minimum=3, odd=True),
     "coarse_prior": _flag,
     "coarse_prior_scale": _rule(_opt.integer, minimum=2),
@@ -571,12 +572,15 @@ class DepthParams:
     hides the background's own projections from most views, and every view counting again
     hands the band's pixels back to it.  The floor keeps every view whose occluder is less
     than 2 px nearer, the estimate's own slanted surface among them (from the margin's first
-    step the views it recedes from were chosen, and Venus's light field lost 1 %).
-    ``"before-last"`` lowers the procedural tuning scenes' error by 4 %, but antinous's
-    through the CLI rises by 0.5 %, so it is not the default; its last pass keeps every view
-    because that volume is the one the thin-object stage reads, and with the fallback in it
-    that stage no longer gave a faint stick back (BENCHMARKS.md, sixty-third and sixty-fourth
-    sessions).
+    step the views it recedes from were chosen, and Venus's light field lost 1 %).  A view
+    whose occluder lies more than ``nearest_occluder_behind`` (1) px per baseline behind the
+    estimate at the pixel never counts (where that leaves fewer than ``min_visible_views``,
+    every view does): without it a label behind a wall was matched over the views the wall
+    hides, and antinous lost 0.5 % to a fattened streak.  ``"before-last"`` lowers the
+    procedural tuning scenes' error by 3-4 %, but Venus's light field's rises by 0.3 %, so it
+    is not the default; its last pass keeps every view because that volume is the one the
+    thin-object stage reads, and with the fallback in it that stage no longer gave a faint
+    stick back (BENCHMARKS.md, sixty-third and sixty-fourth sessions).
     ``visibility_rounds`` None (the default):
     :data:`DEFAULT_ROUNDS` (3) on images at least ``visibility_min_size`` (192) px on their
     shorter side whose pass's costs fit in ``reuse_memory`` (below), 1 on larger captures,
@@ -734,6 +738,7 @@ class DepthParams:
     nearest_occluders: str = "never"
     nearest_occluder_max: float = 8.0
     nearest_occluder_min: float = 2.0
+    nearest_occluder_behind: float = 1.0
     texture_snr: float | None = None
     texture_window: int = 5
     coarse_prior: bool = True
@@ -1943,7 +1948,8 @@ class LabelVisibility:
     no ``(L, H, W)`` mask per view is ever held.  A ``(d, p)`` that fewer than
     ``params.min_visible_views`` views see keeps every view (hypotheses behind the estimated
     surface, which no view sees, are matched as without visibility), or with ``nearest``
-    the views whose occluders are the least nearer than ``d`` (:meth:`reach`).
+    the views whose occluders are the least nearer than ``d`` (:meth:`reach`) and not behind
+    the estimate at the pixel (:meth:`nearest_views`).
 
     Why per hypothesis: the test of :func:`visible_views` is asked at the estimate's own
     disparity, so a background pixel that the estimate gave the foreground (a fattened edge)
@@ -1968,7 +1974,9 @@ class LabelVisibility:
         self.nearest = _opt.flag(nearest, "nearest")
         self.ladder = occluder_margins(self.margin, float(p.nearest_occluder_max),
                                        smallest=float(p.nearest_occluder_min))
-        self._few = self._reach = (None, None)
+        self.behind = float(p.nearest_occluder_behind)
+        self.estimate = d.astype(np.float32)
+        self._few = self._reach = self._none = (None, None)
 
     def seen(self, v, rows) -> np.ndarray:
         """``(L, b - a, W)`` bool: view ``v`` sees ``(d, p)`` (before the fallback)."""
@@ -2020,10 +2028,33 @@ class LabelVisibility:
             self._reach = (rows, reach)
         return self._reach[1]
 
+    def nearest_views(self, v, rows) -> np.ndarray:
+        """``(L, b - a, W)`` bool: where too few views see ``(d, p)``, view ``v``'s occluder
+        is within :meth:`reach` of ``d`` and no more than ``params.nearest_occluder_behind``
+        farther than the estimate at ``p`` (a view that a farther surface than ``p``'s own
+        hides says nothing of whether ``p`` is that surface or nearer)."""
+        e = self.excess(v, rows)
+        a, b = int(rows[0]), int(rows[1])
+        occluder = e + self.labels[:, None, None].astype(np.float32)
+        return (e <= self.reach(rows)) & (occluder >= self.estimate[a:b] - self.behind)
+
+    def none_near(self, rows) -> np.ndarray:
+        """``(L, b - a, W)`` bool: too few views see ``(d, p)`` even with
+        :meth:`nearest_views`, so every view counts there."""
+        rows = (int(rows[0]), int(rows[1]))
+        if self._none[0] != rows:
+            few = self.too_few(rows)
+            count = np.zeros(few.shape, np.int16)
+            for v in self.zbuffers:
+                count += self.seen(v, rows) | (few & self.nearest_views(v, rows))
+            self._none = (rows, few & (count < self.min_views))
+        return self._none[1]
+
     def mask(self, v, rows) -> np.ndarray:
         """``(L, b - a, W)`` bool: the samples of view ``v`` that count for the strip."""
         if self.nearest:
-            return self.seen(v, rows) | (self.excess(v, rows) <= self.reach(rows))
+            return (self.seen(v, rows) | (self.too_few(rows) & self.nearest_views(v, rows))
+                    | self.none_near(rows))
         return self.seen(v, rows) | self.too_few(rows)
 
 
