@@ -2008,9 +2008,9 @@ class LabelVisibility:
         """``(L, b - a, W)`` float32: where fewer than ``min_visible_views`` views see
         ``(d, p)``, the z-test's margin raised until that many do (the steps of
         :func:`occluder_margins`, from ``params.nearest_occluder_min`` up to
-        ``params.nearest_occluder_max``; ``inf`` beyond it, where every view counts);
-        ``-inf`` elsewhere.  With ``nearest`` the views whose occluder excess is within it
-        count there."""
+        ``params.nearest_occluder_max``; ``inf`` beyond it); ``-inf`` elsewhere.  With
+        ``nearest`` the views whose occluder excess is within it count there, less those
+        :meth:`nearest_views` leaves out."""
         rows = (int(rows[0]), int(rows[1]))
         if self._reach[0] != rows:
             few = self.too_few(rows)
