@@ -1,8 +1,8 @@
 #!/usr/bin/env python
 """Two-view stereo on procedural cross-spectral pairs: the second tuning set of issue 12.
 
-    HYPERLF_DATA=../shared/data python benchmarks/procedural_pairs.py [--sets plain,thin]
-        [--seeds 0,1,2,3,4,5] [--metric auto] [--occlusion MODE] [--params JSON]
+    HYPERLF_DATA=../shared/data python benchmarks/procedural_pairs.py [--sets plain,thin,weak]
+        [--seeds 0,...,11] [--metric auto] [--occlusion MODE] [--params JSON]
         [--cost-params JSON] [--out benchmarks/results/procedural_pairs]
 
 Table 1's rule is that no parameter is chosen by looking at Tsukuba, Teddy or Art: Venus
@@ -14,7 +14,12 @@ truth):
 - ``plain``: ten random objects of the default kinds (fronto-parallel and slanted
   rectangles, boxes, spheres);
 - ``thin``: twelve objects, rings and sticks among rectangles: the rings' holes, most of
-  them hidden from the right camera, and thin structures, the failure modes of Art.
+  them hidden from the right camera, and thin structures, the failure modes of Art;
+- ``weak``: ten objects, rings among rectangles, boxes and spheres, each but the background
+  covered by a smooth noise blend of two chips whose period is 0.25-0.5 of the image's
+  shorter side (the generator's own: 0.05-0.10): weakly textured foregrounds with holes
+  before a textured background, where a weaker smoothness finds the background in places
+  that are not holes (BENCHMARKS.md, sixty-fifth session).
 
 Every pair runs ``twoview.stereo`` with graph cuts and the library's defaults (nothing is
 tuned here); HYPERLF_DATA gives the Munsell reflectances (without it the ColorChecker's, and
@@ -38,18 +43,36 @@ from hyperlf.synthesis import _plane_shape_px, _shape_inside
 from hyperlf.twoview import stereo
 from hyperlf.warp import visible_in_view
 
-#: Object kinds of each set, cycled through by the generator.
-SETS = {"plain": (10, ("fronto", "slanted", "box", "sphere")),
-        "thin": (12, ("ring", "stick", "fronto", "ring", "stick", "slanted"))}
+#: Object kinds of each set, cycled through by the generator, and the range of the objects'
+#: texture periods (fractions of the image's shorter side; None: the generator's own).
+SETS = {"plain": (10, ("fronto", "slanted", "box", "sphere"), None),
+        "thin": (12, ("ring", "stick", "fronto", "ring", "stick", "slanted"), None),
+        "weak": (10, ("ring", "fronto", "slanted", "ring", "box", "sphere"), (0.25, 0.5))}
+
+#: Disparities of every pair's scene, px.
+RANGE = (0.0, 60.0)
 
 
 def pair_scene(seed: int, which: str):
     """The 1 x 2 procedural light field of one pair (left view, right view)."""
-    n_objects, kinds = SETS[which]
+    n_objects, kinds, periods = SETS[which]
+    objects = {} if periods is None else {"objects": weak_objects(seed, n_objects, kinds,
+                                                                  periods)}
     return synthesis.procedural_scene(seed, rows=1, cols=2, height=300, width=400,
-                                      disparity_range=(0.0, 60.0), lambda_min=460.0,
+                                      disparity_range=RANGE, lambda_min=460.0,
                                       lambda_max=630.0, layout=[1, 0], n_objects=n_objects,
-                                      kinds=kinds, supersample=2)
+                                      kinds=kinds, supersample=2, **objects)
+
+
+def weak_objects(seed: int, n_objects: int, kinds, periods) -> list[dict]:
+    """Random objects drawn as the generator draws them, each but the background given a
+    smooth noise texture whose period is drawn from ``periods`` (the chips and the rest
+    are left to the generator)."""
+    rng = np.random.default_rng(seed)
+    objects = synthesis._random_objects(rng, n_objects, kinds, RANGE)
+    for o in objects[1:]:
+        o["texture"] = {"pattern": "noise", "period": float(rng.uniform(*periods))}
+    return objects
 
 
 def ring_holes(lf) -> np.ndarray:
@@ -114,8 +137,9 @@ def _table(which: str, rows: dict, settings: str = "the library's defaults") -> 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--sets", default="plain,thin", help=f"of {', '.join(SETS)}")
-    ap.add_argument("--seeds", default="0,1,2,3,4,5")
+    ap.add_argument("--sets", default=",".join(SETS), help=f"of {', '.join(SETS)}")
+    ap.add_argument("--seeds", default=",".join(str(k) for k in range(12)),
+                    help="comma-separated (default 0-11; until the sixty-fifth session 0-5)")
     ap.add_argument("--metric", default="auto")
     ap.add_argument("--occlusion", default=None, help="twoview.stereo's occlusion handling "
                     "(default: the library's)")

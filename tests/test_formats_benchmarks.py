@@ -424,3 +424,27 @@ def test_faint_thin_scores_the_thin_pixels_inside_the_border():
     assert row["rmse"] == pytest.approx(np.sqrt(0.4)) and row["thin_share"] == 10.0
     none = ft.score(truth, truth, np.zeros((40, 40), bool))
     assert np.isnan(none["thin_rmse"]) and none["thin_share"] == 0.0
+
+
+# ----------------------------------------------------------------------------- procedural pairs
+def test_procedural_pairs_weak_set_is_the_random_scene_with_long_smooth_textures():
+    """benchmarks/procedural_pairs.py's ``weak`` set: the objects as the generator draws
+    them (rings among them, so holes), each but the background given a smooth noise texture
+    of a period in the set's range, which the rendered pair keeps; the other sets are the
+    generator's scenes as before."""
+    from hyperlf import synthesis
+
+    pp = benchmark_script("procedural_pairs")
+    n_objects, kinds, periods = pp.SETS["weak"]
+    objects = pp.weak_objects(3, n_objects, kinds, periods)
+    drawn = synthesis._random_objects(np.random.default_rng(3), n_objects, kinds, pp.RANGE)
+    assert [{k: v for k, v in o.items() if k != "texture"} for o in objects] == drawn
+    assert "texture" not in objects[0] and any("shape" in o for o in objects)
+    for o in objects[1:]:
+        assert o["texture"]["pattern"] == "noise"
+        assert periods[0] <= o["texture"]["period"] <= periods[1]
+    lf = pp.pair_scene(3, "weak")
+    kept = [o["texture"]["period"] for o in lf.metadata["objects"][1:]]
+    assert kept == [o["texture"]["period"] for o in objects[1:]]
+    assert lf.metadata["objects"][0]["texture"]["period"] < periods[0]
+    assert pp.SETS["plain"][2] is None and pp.SETS["thin"][2] is None
