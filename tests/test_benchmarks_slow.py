@@ -51,11 +51,12 @@ def _table1_cell(t1, scene: str, metric: str, optimizer: str) -> dict:
 @pytest.mark.parametrize("occlusion, optimizer, expected", [
     # BENCHMARKS.md, Table 1, Tsukuba, census-rsncc (auto) with its census part's adaptive
     # support weights (thirty-third session): the paper's background fill ...
-    ("lr-fill", "graphcut", (1.60, 2.64, 3.66)),
+    ("lr-fill", "graphcut", (1.60, 2.63, 3.43)),
     ("lr-fill", "sgm", (3.82, 7.44, 9.61)),
     # ... and the default plane fill with the median over the filled pixels (forty-sixth
-    # session; results/table1/table1_lr_plane.md)
-    ("lr-plane", "graphcut", (1.64, 3.05, 4.14)),
+    # session; results/table1/table1_lr_plane.md); graph cuts with the holes step on by
+    # default since the sixty-fifth (bad2.0 and bad1.0 lower: 2.64 / 3.66 and 3.05 / 4.14)
+    ("lr-plane", "graphcut", (1.64, 2.80, 3.88)),
     ("lr-plane", "sgm", (3.60, 7.34, 9.52)),
 ])
 def test_table1_tsukuba_auto(table1, occlusion, optimizer, expected, monkeypatch):
@@ -101,13 +102,14 @@ def test_table2_antinous_downscaled(table2):
 def test_channels_tsukuba_red_green():
     """BENCHMARKS.md, "auto on channel pairs it was not chosen on": Tsukuba, red of the left
     image vs green of the right, auto and bwncc-paper under graph cuts (results/channels,
-    rerun in the forty-sixth session)."""
+    rerun in the forty-sixth session; with the holes step on by default since the
+    sixty-fifth, auto 1.29 -> 1.28 and bwncc-paper 1.47 -> 1.67)."""
     require_dataset("tsukuba")
     ch = _script("channels")
     pair, drange, mask, mask_name = _script("table1").load_scene("tsukuba")
     row = ch.run_pair(pair, drange, mask, mask_name, 0, 1, ["auto", "bwncc-paper"])
-    assert round(row["auto"]["bad5"], 2) == 1.29
-    assert round(row["bwncc-paper"]["bad5"], 2) == 1.47
+    assert round(row["auto"]["bad5"], 2) == 1.28
+    assert round(row["bwncc-paper"]["bad5"], 2) == 1.67
     assert 0.5 < row["auto"]["consistent"] < 1.0
 
 

@@ -551,6 +551,7 @@ def _square_with_hole():
 
 
 ON = regularisers.HoleParams(enabled=True)
+OFF = regularisers.HoleParams(enabled=False)
 
 
 def test_open_holes_opens_what_half_the_smoothness_opens():
@@ -564,9 +565,10 @@ def test_open_holes_opens_what_half_the_smoothness_opens():
     assert none is None
     assert np.array_equal(opened, hole) and (f2[hole] == 0).all()
     assert np.array_equal(f2[~hole], f[~hole])
-    for off in (None, regularisers.HoleParams()):   # off by default
-        f3, _, nothing = open_holes(data, f, gc, hole_params=off)
-        assert np.array_equal(f3, f) and not nothing.any()
+    for on in (None, regularisers.HoleParams()):    # on by default
+        assert np.array_equal(open_holes(data, f, gc, hole_params=on)[2], hole)
+    f3, _, nothing = open_holes(data, f, gc, hole_params=OFF)
+    assert np.array_equal(f3, f) and not nothing.any()
     sgm = regularisers.make_params("sgm", {})
     assert not open_holes(data, f, sgm, hole_params=ON)[2].any()    # graph cuts only
     # at 0.9 of the weight the outline still costs more than the hole saves
@@ -619,22 +621,23 @@ def test_open_holes_asks_both_second_answers_to_agree():
         open_holes(left, fl, gc, data_right=right, hole_params=ON)
 
 
-def test_stereo_opens_holes_when_asked_and_says_so():
+def test_stereo_opens_holes_by_default_and_says_so():
     from hyperlf.twoview import stereo_from_volumes
 
     data, hole = _square_with_hole()
     params = {"weight": 2.5, "truncation": 2.0, "levels": 0}
-    res = stereo_from_volumes(data, None, 0, "graphcut", "none", params=params,
-                              hole_params=ON)
+    res = stereo_from_volumes(data, None, 0, "graphcut", "none", params=params)
     assert res.extra["holes_opened"] == pytest.approx(hole.mean())
     assert (res.disparity[hole] == 0).all()
-    off = stereo_from_volumes(data, None, 0, "graphcut", "none", params=params)
+    off = stereo_from_volumes(data, None, 0, "graphcut", "none", params=params,
+                              hole_params=OFF)
     assert off.extra["holes_opened"] == 0 and (off.disparity[hole] == 5).all()
     with pytest.raises(InvalidInputError, match="hole_params"):
         stereo_from_volumes(data, None, 0, "graphcut", "none", hole_params={"jump": 1})
 
 
-def test_stereo_command_opens_holes_when_asked_under_graph_cuts(tmp_path, monkeypatch):
+def test_stereo_command_opens_holes_unless_told_not_to_under_graph_cuts(tmp_path, capsys,
+                                                                        monkeypatch):
     import hyperlf.twoview as tv
     from hyperlf.formats import write_image
 
@@ -649,11 +652,17 @@ def test_stereo_command_opens_holes_when_asked_under_graph_cuts(tmp_path, monkey
     tex = np.random.default_rng(5).random((30, 50)).astype(np.float32)
     write_image(tmp_path / "l.png", tex[:, 3:43], bit_depth=16)
     write_image(tmp_path / "r.png", tex[:, 6:46], bit_depth=16)
-    for extra, out in (([], "a"), (["--holes"], "b")):
+    for extra, out in (([], "a"), (["--holes"], "b"), (["--no-holes"], "c")):
         assert main(["-q", "stereo", str(tmp_path / "l.png"), str(tmp_path / "r.png"),
                      "--disparity-range", "0,6", *extra, "-o", str(tmp_path / out)]) == 0
-    assert seen == [regularisers.HoleParams(), ON]
+    assert seen == [regularisers.HoleParams(), ON, OFF] and seen[0] == ON
+    for flag in ("--holes", "--no-holes"):  # graph cuts' step: refused with SGM
+        capsys.readouterr()
+        assert main(["-q", "stereo", str(tmp_path / "l.png"), str(tmp_path / "r.png"),
+                     "--disparity-range", "0,6", flag, "--optimizer", "sgm",
+                     "-o", str(tmp_path / "d")]) == 2
+        assert f"{flag} acts only with --optimizer graphcut" in capsys.readouterr().err
+    assert len(seen) == 3 and not (tmp_path / "d").exists()
     assert main(["-q", "stereo", str(tmp_path / "l.png"), str(tmp_path / "r.png"),
-                 "--disparity-range", "0,6", "--holes", "--optimizer", "sgm",
-                 "-o", str(tmp_path / "c")]) == 2
-    assert len(seen) == 2 and not (tmp_path / "c").exists()
+                 "--disparity-range", "0,6", "--optimizer", "sgm",
+                 "-o", str(tmp_path / "e")]) == 0      # on by default, and silent under SGM

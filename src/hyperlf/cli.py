@@ -885,9 +885,6 @@ def _cmd_stereo(args, dest) -> list[Path]:
     from .twoview import stereo
 
     _check_fusion_weights(args)
-    if args.holes and args.optimizer != "graphcut":
-        raise InvalidInputError(f"--holes opens what graph cuts filled: use it with "
-                                f"--optimizer graphcut, not {args.optimizer}")
     left, right, pair = _stereo_inputs(args)
     lo, hi = _stereo_range(args, pair)
     _check_pair_memory((lo, hi), left.shape[:2])
@@ -977,10 +974,10 @@ def _stereo_confidence_params(args):
 
 
 def _stereo_hole_params(args):
-    """``stereo``'s holes step: the library's constants, on with ``--holes``."""
+    """``stereo``'s holes step: the library's constants (on), off with ``--no-holes``."""
     from .regularisers import HoleParams
 
-    return HoleParams(enabled=bool(args.holes))
+    return HoleParams() if args.holes is None else HoleParams(enabled=bool(args.holes))
 
 
 #: ``--downscale`` keeps at least this many pixels on the shorter side of the views.
@@ -1991,10 +1988,11 @@ def _add_stereo_parser(sub) -> None:
                         "background (the paper's protocol); none keeps the raw map")
     p.add_argument("--no-occlusion", action="store_true",
                    help="the same as --occlusion none")
-    p.add_argument("--holes", action="store_true",
+    p.add_argument("--holes", action=argparse.BooleanOptionalAction, default=None,
                    help="open the holes graph cuts filled with the foreground around them "
-                        "(rings, gaps between objects) from a second solve at half the "
-                        "smoothness (graphcut only; off by default: see BENCHMARKS.md)")
+                        "(rings, gaps between objects) from a second solve of each view at "
+                        "half the smoothness, where both views agree (default: on; acts "
+                        "with --optimizer graphcut; --no-holes saves the second solves)")
     _add_fusion_weights_option(p, brief=True)
     _add_aggregation_options(p)
     _add_confidence_options(p, **_stereo_confidence_defaults())
@@ -2401,7 +2399,9 @@ _EXCLUSIVE = (
 _ONLY_WITH = (("--aggregation-radius", "--aggregation", "guided"),
               ("--aggregation-eps", "--aggregation", "guided"),
               ("--thin-objects", "--optimizer", "graphcut"),
-              ("--no-thin-objects", "--optimizer", "graphcut"))
+              ("--no-thin-objects", "--optimizer", "graphcut"),
+              ("--holes", "--optimizer", "graphcut"),
+              ("--no-holes", "--optimizer", "graphcut"))
 #: Options of ``depth`` that act on ``--method hlf`` only (the baselines take the range and
 #: the labels).
 _HLF_ONLY = ("--metric", "--optimizer", "--view-selection", "--occlusion-split", "--defocus",

@@ -52,7 +52,9 @@ Pipeline
    it.  Each reference is solved again at half the smoothness weight, and the components
    that this second answer puts farther, that are enclosed by the first answer's
    foreground, that the data term prefers and on which the second answer holds one depth
-   (:func:`hyperlf.regularisers.enclosed_background`) take its labels.
+   (:func:`hyperlf.regularisers.enclosed_background`) and that both references' second
+   answers agree on take its labels; on by default (``HoleParams(enabled=False)`` turns it
+   off).
 6. **Occlusions** (``"lr-fill"``): :func:`~hyperlf.regularisers.left_right_check` (tolerance
    1 px) on the integer maps, then :func:`~hyperlf.regularisers.fill_occlusions` (each
    inconsistent pixel takes the lower of the nearest consistent disparities on its row, i.e.
@@ -428,7 +430,7 @@ def open_holes(data, label_map, params, *, data_right=None, label_map_right=None
     several, and that is no hole) and, with the right-referenced ``data_right`` and
     ``hole_params.consistent``, on more than half of which the two second answers pass the
     left-right check (1 px); these take the second answer's labels.  The right map
-    ``label_map_right`` is opened by the same rule.  Unless ``hole_params.enabled`` (off by
+    ``label_map_right`` is opened by the same rule.  Unless ``hole_params.enabled`` (on by
     default), and for anything but graph cuts or a zero weight, the maps are returned as
     they are.
 
@@ -447,8 +449,7 @@ def open_holes(data, label_map, params, *, data_right=None, label_map_right=None
     labels : ndarray (L,), optional
         The disparity of each label (default ``0..L-1``).
     hole_params : HoleParams, optional
-        :class:`hyperlf.regularisers.HoleParams` (None: its defaults, which leave the
-        step off).
+        :class:`hyperlf.regularisers.HoleParams` (None: its defaults, with the step on).
 
     Returns
     -------
@@ -633,7 +634,7 @@ def stereo_from_volumes(cost_left, cost_right, dmin: int, optimizer: str = "grap
         its defaults).
     hole_params : HoleParams, optional
         Graph cuts' holes step (:func:`open_holes`; default
-        :class:`hyperlf.regularisers.HoleParams`'s: off).
+        :class:`hyperlf.regularisers.HoleParams`'s: on).
     overwrite : bool
         The volumes are not used again: float32 ones then hold the data terms (two
         volume-sized copies fewer; the result is the same).
@@ -771,7 +772,7 @@ def stereo(left, right, disparity_range, *, metric: str = "auto", optimizer: str
         default its defaults).
     hole_params : HoleParams, optional
         Graph cuts' holes step (:func:`open_holes`, :class:`hyperlf.regularisers.HoleParams`;
-        ``HoleParams(enabled=True)`` turns it on); default off.
+        ``HoleParams(enabled=False)`` turns it off); on by default.
 
     Returns
     -------

@@ -678,7 +678,7 @@ class ConfidenceParams:
 
 @dataclass(frozen=True)
 class HoleParams:
-    """Constants of two-view stereo's holes step (:func:`hyperlf.twoview.open_holes`), off
+    """Constants of two-view stereo's holes step (:func:`hyperlf.twoview.open_holes`), on
     by default: graph cuts solved again with ``weight_share`` of their smoothness weight,
     and the components that this second answer puts farther and that
     :func:`enclosed_background` finds enclosed by the first answer's foreground taken from
@@ -688,12 +688,13 @@ class HoleParams:
     (:class:`hyperlf.hlf.DepthParams`: ``thin_jump``, ``thin_hole_touch``,
     ``thin_min_size``, ``thin_min_support``); the share, the coherence and the left-right
     guard were measured on Venus and the procedural pairs (BENCHMARKS.md, sixty-first
-    session, where the reasons it is off by default are given).
+    session), and the step made the default on them and on a third set of weakly textured
+    foregrounds (sixty-fifth session, where the rule is given).
 
     Attributes
     ----------
     enabled : bool
-        Run the step (graph cuts only).
+        Run the step (graph cuts only; on by default).
     weight_share : float
         The second solve's smoothness weight as a share of graph cuts', in (0, 1).
     jump, touch, min_size, min_support, coherent
@@ -705,7 +706,7 @@ class HoleParams:
     """
 
     name: ClassVar[str] = "holes"
-    enabled: bool = False
+    enabled: bool = True
     weight_share: float = 0.5
     jump: float = 1.0
     touch: float = 0.7
