@@ -55,7 +55,8 @@ def _table1_cell(t1, scene: str, metric: str, optimizer: str) -> dict:
     ("lr-fill", "sgm", (3.82, 7.44, 9.61)),
     # ... and the default plane fill with the median over the filled pixels (forty-sixth
     # session; results/table1/table1_lr_plane.md); graph cuts with the holes step on by
-    # default since the sixty-fifth (bad2.0 and bad1.0 lower: 2.64 / 3.66 and 3.05 / 4.14)
+    # default since the sixty-fifth, which lowered bad2.0 / bad1.0 (lr-fill from 2.64 / 3.66,
+    # lr-plane from 3.05 / 4.14)
     ("lr-plane", "graphcut", (1.64, 2.80, 3.88)),
     ("lr-plane", "sgm", (3.60, 7.34, 9.52)),
 ])
