@@ -43,7 +43,7 @@ def test_hci_synthetic(tmp_path, rng):
     assert lf.views[1, 2, 3, 3, 0] == pytest.approx(5 / 255)  # Cam005 -> (1, 2)
     np.testing.assert_allclose(lf.views[0, 0, 0, 0], np.array([1, 2, 3]) / 255, rtol=1e-6)  # RGB order
     np.testing.assert_array_equal(lf.gt_disparity, gt)
-    assert lf.disparity_range == (-1.5, 1.5)
+    assert lf.disparity_range == (-2.5, 2.5)  # the cfg's -1.5 / 1.5, widened like the truth's
     assert lf.metadata["encoding"] == "srgb"
     assert lf.metadata["hci_parameters"]["extrinsics"]["baseline_mm"] == 90.0
     sub = read_hci_scene(tmp_path / "s", rows=[0, 1], cols=[1, 2])
@@ -54,6 +54,24 @@ def test_hci_synthetic(tmp_path, rng):
     with pytest.raises(InvalidInputError):
         read_hci_scene(tmp_path / "s", rows=[5])
     assert load_lightfield(tmp_path / "s").views.shape == (3, 3, 6, 7, 3)
+
+
+def test_hci_cfg_range_widened_like_the_ground_truths(tmp_path, rng):
+    """The benchmark writes disp_min / disp_max as the scene's extremes rounded to 0.1 px: the
+    range read from them is widened as the truth's is (whole pixels, then the margin), so that
+    no surface sits on an end label."""
+    gt = fake_hci(tmp_path / "s", rng, cfg=False)
+    derived = read_hci_scene(tmp_path / "s").disparity_range
+    lo, hi = round(float(gt.min()), 1), round(float(gt.max()), 1)
+    (tmp_path / "s" / "parameters.cfg").write_text(
+        f"[meta]\ndisp_min = {lo}\ndisp_max = {hi}\n")
+    rmin, rmax = read_hci_scene(tmp_path / "s").disparity_range
+    assert (rmin, rmax) == (np.floor(lo) - 0.5, np.ceil(hi) + 0.5)
+    assert rmin <= gt.min() - 0.45 and rmax >= gt.max() + 0.45  # 0.05 px of rounding at most
+    assert read_hci_scene(tmp_path / "s", disparity_margin=0).disparity_range == (
+        np.floor(lo), np.ceil(hi))
+    (tmp_path / "s" / "parameters.cfg").write_text("[meta]\ndisp_min = 2\ndisp_max = inf\n")
+    assert read_hci_scene(tmp_path / "s").disparity_range == derived  # not finite: the truth's
 
 
 def test_hci_without_cfg_and_missing_views(tmp_path, rng):
