@@ -2028,7 +2028,9 @@ def _add_depth_matching_options(g) -> None:
     g.add_argument("--method", default="hlf", choices=["hlf", *_baseline_choices()],
                    help="hlf (ours, default) or a baseline")
     g.add_argument("--disparity-range", type=_range_arg, default=None, metavar="MIN,MAX",
-                   help="px per baseline (default: the capture's metadata); write "
+                   help="px per baseline (default: the capture's metadata); leave half a "
+                        "pixel or more beyond the nearest and farthest surfaces, which are "
+                        "matched worse on an end of the range; write "
                         "--disparity-range=-2,2 when MIN is negative")
     g.add_argument("--labels", type=_labels_arg, default=64,
                    help="number of disparity labels (64)")
