@@ -160,8 +160,9 @@ def read_hci_scene(folder: str | os.PathLike, *, grid=None, rows=None, cols=None
         ``disparity_range``: ``(floor(lo) - margin, ceil(hi) + margin)``, where ``lo, hi`` are
         ``[meta] disp_min/disp_max`` from ``parameters.cfg`` when present, otherwise the
         ground truth's extremes; None without either (the cfg's values are the scene's
-        extremes rounded to 0.1 px, so they are widened like the ground truth's). The other ``parameters.cfg`` entries are in
-        ``metadata["hci_parameters"]`` (section -> key -> value).
+        extremes rounded to 0.1 px, so they are widened like the ground truth's). The other
+        ``parameters.cfg`` entries are in ``metadata["hci_parameters"]`` (section -> key ->
+        value).
 
     Raises
     ------
