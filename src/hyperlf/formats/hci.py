@@ -17,7 +17,7 @@ from typing import Iterable
 
 import numpy as np
 
-from .._options import int_pair, integer, number, path_like, shown
+from .._options import _is_real, int_pair, integer, number, path_like, shown
 from .._paths import check_inside
 from ..errors import DataNotFoundError, FormatError, InvalidInputError
 from ..lightfield import LightField, centre_view
@@ -269,16 +269,6 @@ def _ground_truth(gt_path: Path, shape: tuple[int, int]) -> np.ndarray | None:
     return gt
 
 
-def _finite(value) -> bool:
-    """Whether a parsed ``parameters.cfg`` value is a finite number (an integer too large for
-    a float is not)."""
-    try:
-        return isinstance(value, (int, float)) and not isinstance(value, bool) \
-            and math.isfinite(value)
-    except OverflowError:
-        return False
-
-
 def _disparity_range(cfg: dict, gt: np.ndarray | None, margin: float):
     """The scene's extreme disparities, widened to whole pixels and by ``margin``:
     ``[meta] disp_min/disp_max`` of ``parameters.cfg`` when it gives a finite pair, else the
@@ -293,7 +283,7 @@ def _disparity_range(cfg: dict, gt: np.ndarray | None, margin: float):
     alike."""
     meta = cfg.get("meta", {})
     dmin, dmax = meta.get("disp_min"), meta.get("disp_max")
-    if _finite(dmin) and _finite(dmax) and dmin < dmax:
+    if _is_real(dmin) and _is_real(dmax) and dmin < dmax:
         lo, hi = float(dmin), float(dmax)
     elif gt is not None and np.isfinite(gt).any():
         ok = gt[np.isfinite(gt)]
