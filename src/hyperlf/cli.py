@@ -143,6 +143,8 @@ def _memory_arg(text: str) -> int:
 #: ``--visibility-rounds``: each round costs one more correspondence pass.
 _visibility_rounds_arg = _int_at_least(0, "the number of visibility rounds", 5,
                                        " (each round costs a correspondence pass)")
+#: ``--margin-labels``: labels beyond each end of the range (``hlf.MAX_MARGIN_LABELS``).
+_margin_labels_arg = _int_at_least(0, "--margin-labels", 64, "")
 #: ``--coarse-prior-levels``: each level halves the image again (and must keep 8 texture windows).
 _coarse_levels_arg = _int_at_least(1, "--coarse-prior-levels", 8,
                                    " (each level halves the image again)")
@@ -1019,6 +1021,7 @@ def _hlf_depth_params(args, budget):
                                  ("weak_planes", args.weak_planes),
                                  ("thin_objects", args.thin_objects),
                                  ("visibility_rounds", args.visibility_rounds),
+                                 ("margin_labels", args.margin_labels),
                                  ("fusion_weights", args.fusion_weights),
                                  ("confidence_floor", args.confidence_floor),
                                  ("confidence_edge_px", args.confidence_edge_px),
@@ -1238,6 +1241,7 @@ def _cmd_batch(args, dest) -> list[Path]:  # noqa: ARG001 - batch writes its own
                         ("--median-passes", args.median_passes),
                         ("--texture-snr", args.texture_snr),
                         ("--coarse-prior-levels", args.coarse_prior_levels),
+                        ("--margin-labels", args.margin_labels),
                         ("--missing-views", args.missing_views),
                         ("--unseen-labels", args.unseen_labels),
                         ("--nearest-occluders", args.nearest_occluders),
@@ -2034,6 +2038,11 @@ def _add_depth_matching_options(g) -> None:
                         "--disparity-range=-2,2 when MIN is negative")
     g.add_argument("--labels", type=_labels_arg, default=64,
                    help="number of disparity labels (64)")
+    g.add_argument("--margin-labels", type=_margin_labels_arg, default=None, metavar="K",
+                   help="hlf: K more labels at the same step beyond each end of the range, "
+                        "the map clipped back to it (default 0), for a range that ends at "
+                        "the nearest or farthest surface: those are then matched as well as "
+                        "the surfaces inside it")
     _add_metric_option(g, light_field=True,
                        help="correspondence cost of hlf: auto (default, = census-rsncc), rsncc, "
                             "census, ncc, or the descriptor costs fused, bwncc, bwncc-paper "
@@ -2168,6 +2177,8 @@ def _add_batch_depth_options(g) -> None:
                    help="as for depth (default: each capture's metadata)")
     g.add_argument("--labels", type=_labels_arg, default=None,
                    help="number of disparity labels (depth's default, 64)")
+    g.add_argument("--margin-labels", type=_margin_labels_arg, default=None, metavar="K",
+                   help="as for depth")
     _add_metric_option(g, light_field=True, help="correspondence cost (depth's default, auto)")
     _add_optimizer_option(g)
     g.add_argument("--median-radius", type=int, default=None, metavar="PX",
@@ -2411,8 +2422,8 @@ _HLF_ONLY = ("--metric", "--optimizer", "--view-selection", "--occlusion-split",
              "--no-coarse-prior", "--missing-views", "--unseen-labels",
              "--nearest-occluders", "--weak-planes",
              "--no-weak-planes", "--thin-objects", "--no-thin-objects",
-             "--visibility-rounds", "--confidence-floor", "--confidence-edge-px",
-             "--aggregation", "--aggregation-radius",
+             "--visibility-rounds", "--margin-labels", "--confidence-floor",
+             "--confidence-edge-px", "--aggregation", "--aggregation-radius",
              "--aggregation-eps")
 
 

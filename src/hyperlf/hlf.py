@@ -280,6 +280,8 @@ NOISE_MIN_SIDE = 128
 #: Most passes of the guided median (``median_passes``, :func:`post_filter`): each moves an
 #: edge by at most a radius; far beyond the image's size in passes the loop would only spin.
 MAX_MEDIAN_PASSES = 50
+#: Most labels beyond each end of the range (``DepthParams.margin_labels``).
+MAX_MARGIN_LABELS = 64
 #: The texture weight (:func:`texture_weight`) from which a pixel's data term counts for
 #: :func:`thin_objects`: the unary's scale is taken over such pixels, and more than half of
 #: a taken component must be such pixels.
@@ -463,6 +465,7 @@ _DEPTH_RULES = {
     "min_half_views": _rule(_opt.integer, minimum=1),
     "missing_views": _rule(_opt.choice, choices=MISSING_VIEWS),
     "unseen_labels": _rule(_opt.choice, choices=UNSEEN_LABELS),
+    "margin_labels": _rule(_opt.integer, maximum=MAX_MARGIN_LABELS),
     "visibility_rounds": _rule(_opt.integer, optional=True),
     "round_cycles": _rule(_opt.integer, minimum=1, optional=True),
     "visibility_scale": _rule(_opt.integer, minimum=1),
@@ -557,6 +560,16 @@ class DepthParams:
     synthetic imperfect 2 x 3 rig took a wrong one and spread it into rows that are seen;
     ``"median"`` lets a foreground object spread over background rows where only the
     background's depth is seen; ``"share"`` does neither (BENCHMARKS.md, thirtieth session).
+    Labels beyond the range: ``margin_labels`` (0) more at the same step beyond each end
+    (:func:`with_margin`), for the correspondence, the MRF and the thin-object stage of the
+    full-resolution passes (the coarse runs keep the range: with the margin there too no
+    figure moved); the fused costs' per-view scales, the unseen labels' fill and the
+    unary's scale (:func:`normalise_unary`) are measured over the range's own labels, so
+    that only a census cost's two end labels change inside the range, and the map is
+    clipped back to it.  A surface on an end of the range
+    otherwise has labels on one side only and wins weakly textured pixels near it; labels
+    far from every surface that entered the scale would weaken the data term
+    (BENCHMARKS.md, sixty-sixth and sixty-seventh sessions).
     Visibility (SPEC §5.6): ``visibility_rounds`` re-matchings, each over only the views that
     see each reference pixel under the current estimate: z-test with ``visibility_margin`` px
     per baseline, asked at every candidate disparity (``visibility_test="hypothesis"``, the
@@ -727,6 +740,7 @@ class DepthParams:
     min_half_views: int = 2
     missing_views: str = "average"
     unseen_labels: str = "share"
+    margin_labels: int = 0
     visibility_rounds: int | None = None
     round_cycles: int | None = 1
     visibility_scale: int = 2
@@ -882,6 +896,47 @@ def make_labels(dmin: float, dmax: float, n_labels: int) -> np.ndarray:
         raise InvalidInputError(f"disparity range must be finite with min < max, got ({dmin}, {dmax})")
     check_memory(8.0 * n, f"{count_text(n)} labels", "use fewer labels")
     return np.linspace(lo, hi, n)
+
+
+def with_margin(labels, margin: int) -> np.ndarray:
+    """``labels`` (evenly spaced) with ``margin`` more at the same step beyond each end.
+
+    The labels of :func:`depth` when ``DepthParams.margin_labels`` is set: a surface at an
+    end of the range then has labels on both sides, as one inside it has, and the map is
+    clipped back to the range afterwards.
+
+    Examples
+    --------
+    >>> from hyperlf.hlf import make_labels, with_margin
+    >>> with_margin(make_labels(-1, 1, 3), 2).tolist()
+    [-3.0, -2.0, -1.0, 0.0, 1.0, 2.0, 3.0]
+    """
+    labels = _labels(labels)
+    k = _opt.integer(margin, "margin", maximum=MAX_MARGIN_LABELS)
+    if k == 0:
+        return labels
+    if labels.size < 2:
+        raise InvalidInputError("labels must hold at least 2 disparities to extend by a margin")
+    step = (labels[-1] - labels[0]) / (labels.size - 1)
+    out = labels[0] + step * np.arange(-k, labels.size + k, dtype=np.float64)
+    out[k:k + labels.size] = labels  # the range's own labels to the bit
+    return out
+
+
+def range_labels(n: int, margin: int) -> slice:
+    """The labels of the range among ``n`` made by :func:`with_margin` with ``margin``.
+
+    Examples
+    --------
+    >>> from hyperlf.hlf import range_labels
+    >>> range_labels(7, 2)
+    slice(2, 5, None)
+    """
+    n = _opt.integer(n, "n", 1)
+    k = _opt.integer(margin, "margin", maximum=MAX_MARGIN_LABELS)
+    if n <= 2 * k:
+        raise InvalidInputError(f"{n} labels hold no range inside a margin of {k} at each end")
+    return slice(k, n - k)
 
 
 # ============================================================================================
@@ -1471,9 +1526,10 @@ def normalise_unary(X, enabled: bool = True, *, mask=None):
     return _normalise_unary(X, enabled, mask, "X")
 
 
-def _normalise_unary(X, enabled: bool, mask, label: str):
+def _normalise_unary(X, enabled: bool, mask, label: str, scaled: slice | None = None):
     """:func:`normalise_unary` of a checked volume, refusing non-finite costs on the way
-    (their per-pixel minimum and maximum, which it needs anyway, show them)."""
+    (their per-pixel minimum and maximum, which it needs anyway, show them); the scale is
+    measured over the labels ``scaled`` (None: every label)."""
     if X.shape[0] == 0:
         raise InvalidInputError(f"{label} must hold at least one label, got shape {X.shape}")
     X = np.asarray(X, np.float32)
@@ -1484,7 +1540,9 @@ def _normalise_unary(X, enabled: bool, mask, label: str):
     Y = X - low
     s = 1.0
     if enabled:
-        rng = high - low[0]  # = Y.max(axis=0): the rounded difference is monotonic
+        # high - low = Y.max(axis=0): the rounded difference is monotonic
+        rng = high - low[0] if scaled is None else \
+            X[scaled].max(axis=0) - X[scaled].min(axis=0)
         if mask is not None and np.any(mask):
             rng = rng[np.asarray(mask, bool)]
         med = float(np.median(rng))
@@ -1547,8 +1605,10 @@ class DepthProblem:
     params : DepthParams
         Every constant.
     labels : ndarray, float64 (L,)
-        The disparity of every label.
+        The disparity of every label: ``n_labels`` over ``disparity_range``, and
+        ``params.margin_labels`` more at the same step beyond each end.
     disparity_range : (float, float)
+        The range asked for (the map is clipped to it).
     views, others : list of (r, c)
         Every view, and every view but the reference.
     reference : (r, c)
@@ -1620,6 +1680,11 @@ class DepthProblem:
                 f"ref_img must be the light field's {self.lf.image_shape} reference view and "
                 f"labels at least 2 disparities, got shape {self.ref_img.shape} and "
                 f"{self.labels.size} labels")
+
+    @property
+    def range_labels(self) -> slice:
+        """The labels of ``disparity_range``: all but ``params.margin_labels`` at each end."""
+        return range_labels(self.labels.size, self.params.margin_labels)
 
     @property
     def impl(self) -> str:
@@ -1802,8 +1867,8 @@ def prepare(lf, *, disparity_range=None, n_labels: int = 64, metric: str = "auto
         lf, metric, view_selection, occlusion_split, defocus, optimizer, params)
     dmin, dmax = resolve_disparity_range(lf, disparity_range)
     n_labels = _opt.integer(n_labels, "n_labels", 2)
-    check_label_volume(n_labels, lf.image_shape)
-    labels = make_labels(dmin, dmax, n_labels)
+    labels = with_margin(make_labels(dmin, dmax, n_labels), params.margin_labels)
+    check_label_volume(labels.size, lf.image_shape)
     R, Cc = lf.grid_shape
     ref = lf.reference
     views = [(r, c) for r in range(R) for c in range(Cc)]
@@ -2136,8 +2201,11 @@ def _coarse_problem(prob: DepthProblem, s: int):
         return None
     dmin, dmax = prob.disparity_range
     nested = int(prob.params.coarse_prior_levels) - 1
-    n = prob.params.coarse_prior_labels or max(2, math.ceil(prob.labels.size / s))
-    p = replace(prob.params, visibility_rounds=0, tile_rows=None, thin_objects=False,
+    n_range = prob.labels[prob.range_labels].size
+    n = prob.params.coarse_prior_labels or max(2, math.ceil(n_range / s))
+    # the coarse runs keep the range's labels: a margin there moved no figure (BENCHMARKS)
+    p = replace(prob.params, margin_labels=0, visibility_rounds=0, tile_rows=None,
+                thin_objects=False,
                 coarse_prior=prob.params.coarse_prior and nested > 0,
                 coarse_prior_levels=max(nested, 1), coarse_prior_labels=n)
     return downscale(prob.lf, s), dict(
@@ -2177,8 +2245,9 @@ def _strip_selection(prob: DepthProblem, v, rows):
 def view_scales(prob: DepthProblem, strips) -> dict | None:
     """The whole-view scales of the correspondence cost (a fusion's normalisers), measured
     strip by strip (:func:`hyperlf.costs.view_moments`): what a strip of a view cannot
-    measure alone.  None for a cost without them (or a single strip, which measures them
-    itself).
+    measure alone, over the range's labels (``params.margin_labels`` beyond it would
+    otherwise change every cost inside it).  None for a cost without them, or a single
+    strip without margin labels, which measures them itself.
 
     Returns
     -------
@@ -2188,12 +2257,14 @@ def view_scales(prob: DepthProblem, strips) -> dict | None:
     from .costs import moments_std, view_moments
 
     p = prob.params
-    if len(strips) == 1 or not get_cost(prob.metric, light_field=True).global_scales:
+    if (len(strips) == 1 and not p.margin_labels) \
+            or not get_cost(prob.metric, light_field=True).global_scales:
         return None
     out = {}
     cache: dict = {}
+    labels = prob.labels[prob.range_labels]
     for v in prob.others:
-        parts = [view_moments(prob.ref_img, prob.lf.views[v], prob.offsets[v], prob.labels,
+        parts = [view_moments(prob.ref_img, prob.lf.views[v], prob.offsets[v], labels,
                               prob.metric, prob.window, p.tau_rel, p.eps, int(p.block), cache,
                               rows=rows, **_mask_args(prob, v)) for rows in strips]
         out[v] = [moments_std(*(np.concatenate([m[k][j] for m in parts]) for j in range(3)))
@@ -2373,7 +2444,8 @@ def correspondence(prob: DepthProblem, *, progress: bool | str = False, timings=
         raise InvalidInputError(
             f"no view overlaps the reference at any disparity in ({dmin:g}, {dmax:g}): "
             "narrow the disparity range")
-    C = _reg.fill_invalid(C, value=prob.params.unseen_labels)
+    C = _reg.fill_invalid(C, value=prob.params.unseen_labels,
+                          over=prob.range_labels if prob.params.margin_labels else None)
     clock.lap("selection_split_s")
     if prob.params.aggregation != "none":
         C = aggregate_volume(C, prob.In[prob.reference], prob.params.aggregation_params, out=C)
@@ -2514,12 +2586,14 @@ def unary(C: np.ndarray, D: np.ndarray | None, params: DepthParams, *, informati
     params = _depth_params(params)
     informative = _mask(informative, "informative", C.shape[1:], of="C's pixels")
     weight = _weight(weight, "weight", C.shape[1:])
+    # the labels beyond the range do not widen the scale: the data term keeps its weight
+    scaled = range_labels(C.shape[0], params.margin_labels) if params.margin_labels else None
     # a new volume; C's and D's values are checked on the way (their per-pixel range)
-    U, sC = _normalise_unary(C, params.normalise_costs, informative, "C")
+    U, sC = _normalise_unary(C, params.normalise_costs, informative, "C", scaled)
     U *= params.gamma_c  # in place from here: the MRF stage holds as few volumes as it can
     sD = None
     if D is not None:
-        Dn, sD = _normalise_unary(D, params.normalise_costs, informative, "D")
+        Dn, sD = _normalise_unary(D, params.normalise_costs, informative, "D", scaled)
         U += Dn
         del Dn
     if informative is not None:
@@ -2699,7 +2773,7 @@ def _coarse_planes(prob: DepthProblem, s: int, *, progress: bool | str = False):
     if coarse is None:
         return None
     lf_s, options = coarse
-    options.update(n_labels=prob.labels.size,
+    options.update(n_labels=prob.labels[prob.range_labels].size,
                    params=replace(options["params"], missing_views="common"))
     level = prepare(lf_s, **options)
     w = texture_weight(level)
@@ -3052,7 +3126,7 @@ def _config(prob: DepthProblem, sC, sD, *, strips, start, prior, w, passes: Medi
             thin=None, kept=False) -> dict:
     """``DepthResult.config``: the problem's settings and what the run decided."""
     p = prob.params
-    return dict(metric=prob.metric, n_labels=prob.labels.size,
+    return dict(metric=prob.metric, n_labels=prob.labels[prob.range_labels].size,
                 disparity_range=prob.disparity_range, view_selection=prob.view_selection,
                 occlusion_split=prob.occlusion_split, defocus=prob.defocus,
                 optimizer=prob.optimizer, params=asdict(p), window=prob.window,
@@ -3372,6 +3446,8 @@ def depth(lf, disparity_range=None, *, n_labels: int = 64, metric: str = "auto",
                                     prior=prior, passes=passes)
     clock.lap("thin_objects_s")
     conf = edge_discount(conf, disp, prob.params)
+    if prob.params.margin_labels:
+        disp = np.clip(disp, *prob.disparity_range)
     timings["total_s"] = time.perf_counter() - t0
     inter = None
     if save_intermediate:

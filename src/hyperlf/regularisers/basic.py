@@ -86,7 +86,8 @@ def wta(cost) -> np.ndarray:
     return np.argmin(c, axis=0).astype(np.int32)
 
 
-def fill_invalid(cost, invalid=None, *, empty: str = "global", value: str = "worst") -> np.ndarray:
+def fill_invalid(cost, invalid=None, *, empty: str = "global", value: str = "worst",
+                 over: slice | None = None) -> np.ndarray:
     """Give invalid entries the pixel's worst valid cost (SPEC §4), its median, or between.
 
     Parameters
@@ -109,6 +110,9 @@ def fill_invalid(cost, invalid=None, *, empty: str = "global", value: str = "wor
         sound as the chance that the valid candidates hold the answer: a pixel valid at
         nearly every candidate rules the others out, one valid at few leaves them to the
         regulariser.
+    over : slice, optional
+        The labels whose valid entries the pixel's median, worst and share are taken over
+        (default every label); every invalid entry gets them.
 
     Returns
     -------
@@ -147,7 +151,7 @@ def fill_invalid(cost, invalid=None, *, empty: str = "global", value: str = "wor
     if not bad.any():
         return c
     if value != "worst":
-        _graded_fill(c, bad, by_share=value == "share")
+        _graded_fill(c, bad, by_share=value == "share", over=over)
         bad = ~np.isfinite(c)  # pixels with no valid entry: the ``empty`` rule
     return worst_fill(c, bad, empty=empty)
 
@@ -156,7 +160,7 @@ def fill_invalid(cost, invalid=None, *, empty: str = "global", value: str = "wor
 FILL_VALUES = ("worst", "median", "share")
 
 
-def _graded_fill(c: np.ndarray, bad: np.ndarray, *, by_share: bool) -> None:
+def _graded_fill(c: np.ndarray, bad: np.ndarray, *, by_share: bool, over=None) -> None:
     """In place: the invalid entries of every pixel with valid ones get the median ``m`` of
     those, or (``by_share``) ``m + s (worst - m)`` with ``s`` the pixel's share of valid
     entries; only the pixels with an invalid entry are gathered.  A pixel with no valid entry
@@ -165,10 +169,11 @@ def _graded_fill(c: np.ndarray, bad: np.ndarray, *, by_share: bool) -> None:
     flat, badf = c.reshape(L, -1), bad.reshape(L, -1)
     cols = np.flatnonzero(badf.any(axis=0))
     sub = np.where(badf[:, cols], np.nan, flat[:, cols])
+    stats = sub if over is None else sub[over]
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # no valid entry: stays NaN
-        fill = np.nanmedian(sub, axis=0)
+        fill = np.nanmedian(stats, axis=0)
         if by_share:
-            share = 1.0 - badf[:, cols].mean(axis=0)
-            fill += share * (np.nanmax(sub, axis=0) - fill)
+            share = 1.0 - np.isnan(stats).mean(axis=0)
+            fill += share * (np.nanmax(stats, axis=0) - fill)
     flat[:, cols] = np.where(np.isnan(sub), fill[None].astype(np.float32), sub)
