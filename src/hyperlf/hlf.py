@@ -566,10 +566,11 @@ class DepthParams:
     figure moved); the fused costs' per-view scales, the unseen labels' fill and the
     unary's scale (:func:`normalise_unary`) are measured over the range's own labels, so
     that only a census cost's two end labels change inside the range, and the map is
-    clipped back to it.  A surface on an end of the range
-    otherwise has labels on one side only and wins weakly textured pixels near it; labels
-    far from every surface that entered the scale would weaken the data term
-    (BENCHMARKS.md, sixty-sixth and sixty-seventh sessions).
+    clipped back to it.  A surface on an end of the range otherwise has labels on one side
+    only and wins weakly textured pixels near it; labels far from every surface that
+    entered the scale would weaken the data term.  Off by default: BadPix(0.07) falls by a
+    quarter where a surface lies near an end, but the tuning scenes' RMSE moved by up to
+    +0.2 % (BENCHMARKS.md, sixty-sixth and sixty-seventh sessions).
     Visibility (SPEC §5.6): ``visibility_rounds`` re-matchings, each over only the views that
     see each reference pixel under the current estimate: z-test with ``visibility_margin`` px
     per baseline, asked at every candidate disparity (``visibility_test="hypothesis"``, the
