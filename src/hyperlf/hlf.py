@@ -1868,8 +1868,8 @@ def prepare(lf, *, disparity_range=None, n_labels: int = 64, metric: str = "auto
         lf, metric, view_selection, occlusion_split, defocus, optimizer, params)
     dmin, dmax = resolve_disparity_range(lf, disparity_range)
     n_labels = _opt.integer(n_labels, "n_labels", 2)
+    check_label_volume(n_labels + 2 * params.margin_labels, lf.image_shape)
     labels = with_margin(make_labels(dmin, dmax, n_labels), params.margin_labels)
-    check_label_volume(labels.size, lf.image_shape)
     R, Cc = lf.grid_shape
     ref = lf.reference
     views = [(r, c) for r in range(R) for c in range(Cc)]
