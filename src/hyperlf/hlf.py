@@ -221,6 +221,8 @@ __all__ = [
     "NEAREST_OCCLUDERS",
     "DEFAULT_ROUNDS",
     "make_labels",
+    "with_margin",
+    "range_labels",
     "view_costs",
     "shift_map",
     "selection_masks",
